@@ -1,0 +1,21 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Variable look-ahead lateral controller (Hingwe & Tomizuka) for ROS 2 Jazzy.
+
+The modules of this package that implement the math (``params``, ``config``,
+``schedule``, ``control_law``, ``zero_dynamics``, ``stability``, ``metrics``) import no
+ROS; the nodes are thin shells around them.
+"""

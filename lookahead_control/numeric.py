@@ -1,0 +1,96 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Elementary functions that work on Python floats and on numpy arrays alike.
+
+The control law and the plant are written once and evaluated either on floats (one
+run, a node: pure Python is fastest there) or on arrays (a vectorized batch of runs).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, TypeVar, Union
+
+import numpy as np
+import numpy.typing as npt
+
+Real = Union[float, npt.NDArray[np.float64]]
+T = TypeVar('T', float, Any)
+
+
+def _is_array(*values: Any) -> bool:
+    return any(isinstance(v, np.ndarray) for v in values)
+
+
+def sin(x: Real) -> Real:
+    """Sine of a float or an array."""
+    return np.sin(x) if isinstance(x, np.ndarray) else math.sin(x)
+
+
+def cos(x: Real) -> Real:
+    """Cosine of a float or an array."""
+    return np.cos(x) if isinstance(x, np.ndarray) else math.cos(x)
+
+
+def tan(x: Real) -> Real:
+    """Tangent of a float or an array."""
+    return np.tan(x) if isinstance(x, np.ndarray) else math.tan(x)
+
+
+def sqrt(x: Real) -> Real:
+    """Square root of a float or an array (non-negative input)."""
+    return np.sqrt(x) if isinstance(x, np.ndarray) else math.sqrt(x)
+
+
+def atan2(y: Real, x: Real) -> Real:
+    """Four-quadrant arc tangent of floats or arrays."""
+    return np.arctan2(y, x) if _is_array(y, x) else math.atan2(y, x)
+
+
+def absolute(x: Real) -> Real:
+    """Absolute value of a float or an array."""
+    return np.abs(x) if isinstance(x, np.ndarray) else abs(x)
+
+
+def sign(x: Real) -> Real:
+    """Sign (-1, 0 or 1) of a float or an array."""
+    if isinstance(x, np.ndarray):
+        return np.sign(x)
+    return math.copysign(1.0, x) if x != 0.0 else 0.0
+
+
+def maximum(a: Real, b: Real) -> Real:
+    """Element-wise maximum."""
+    return np.maximum(a, b) if _is_array(a, b) else max(a, b)
+
+
+def minimum(a: Real, b: Real) -> Real:
+    """Element-wise minimum."""
+    return np.minimum(a, b) if _is_array(a, b) else min(a, b)
+
+
+def clip(x: Real, low: Real, high: Real) -> Real:
+    """Clip ``x`` into ``[low, high]`` element-wise."""
+    if _is_array(x, low, high):
+        return np.minimum(np.maximum(x, low), high)
+    return min(max(x, low), high)
+
+
+def where(condition: Any, a: Real, b: Real) -> Real:
+    """Select ``a`` where ``condition`` holds, else ``b`` (element-wise)."""
+    if _is_array(condition, a, b):
+        return np.where(condition, a, b)
+    return a if condition else b

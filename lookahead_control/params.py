@@ -1,0 +1,200 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Typed, validated parameters of the vehicle and of the controller.
+
+Every dataclass here is frozen and checks itself in ``__post_init__``: an impossible
+value raises :class:`ParameterError` naming the field, the value and what is allowed.
+Symbols follow ``docs/model.md`` (REP-103 signs, SI units).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+import math
+from typing import Iterable
+
+SCHEDULE_MODES = ('paper', 'exact', 'fixed')
+REFERENCE_MODES = ('lane_tangent', 'arc_approx', 'arc_exact')
+
+
+class ParameterError(ValueError):
+    """A parameter value that is impossible or inconsistent."""
+
+
+def check_finite(name: str, value: float) -> float:
+    """
+    Return ``value`` as float, or raise if it is not a finite number.
+
+    :param name: the parameter's name, used in the message.
+    :param value: the value to check.
+    :return: the value as a float.
+    """
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as err:
+        raise ParameterError(f'{name} = {value!r} is not a number; a finite real is '
+                             'required') from err
+    if not math.isfinite(number):
+        raise ParameterError(f'{name} = {value!r} is not finite; a finite real is required')
+    return number
+
+
+def check_range(name: str, value: float, low: float, high: float,
+                *, low_open: bool = False, unit: str = '') -> float:
+    """
+    Return ``value`` as float, or raise if it lies outside the allowed range.
+
+    :param name: the parameter's name, used in the message.
+    :param value: the value to check.
+    :param low: the lower bound.
+    :param high: the upper bound (inclusive).
+    :param low_open: if true the lower bound itself is not allowed.
+    :param unit: unit appended to the message.
+    :return: the value as a float.
+    """
+    number = check_finite(name, value)
+    below = number <= low if low_open else number < low
+    if below or number > high:
+        bracket = '(' if low_open else '['
+        suffix = f' {unit}' if unit else ''
+        raise ParameterError(
+            f'{name} = {value!r}{suffix} is out of range; allowed: {bracket}{low:g}, '
+            f'{high:g}]{suffix}')
+    return number
+
+
+def check_choice(name: str, value: str, choices: Iterable[str]) -> str:
+    """
+    Return ``value``, or raise if it is not one of ``choices``.
+
+    :param name: the parameter's name, used in the message.
+    :param value: the value to check.
+    :param choices: the allowed values.
+    :return: the value.
+    """
+    allowed = tuple(choices)
+    if value not in allowed:
+        raise ParameterError(f'{name} = {value!r} is not allowed; choose one of '
+                             f'{", ".join(allowed)}')
+    return value
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """
+    Single-track vehicle parameters (paper Table 1 by default).
+
+    :param mass: vehicle mass m [kg].
+    :param yaw_inertia: yaw moment of inertia I_z [kg m^2].
+    :param l1: distance from the CG to the front axle [m].
+    :param l2: distance from the CG to the rear axle [m].
+    :param c_f: front axle cornering stiffness, whole axle [N/rad].
+    :param c_r: rear axle cornering stiffness, whole axle [N/rad].
+    :param d_s: distance from the CG to the front bumper (look-down sensor) [m].
+    """
+
+    mass: float = 1485.0
+    yaw_inertia: float = 2872.0
+    l1: float = 1.1
+    l2: float = 1.58
+    c_f: float = 80000.0
+    c_r: float = 80000.0
+    d_s: float = 1.96
+
+    _RANGES = {
+        'mass': (0.0, 1.0e5, 'kg'),
+        'yaw_inertia': (0.0, 1.0e6, 'kg m^2'),
+        'l1': (0.0, 20.0, 'm'),
+        'l2': (0.0, 20.0, 'm'),
+        'c_f': (0.0, 1.0e7, 'N/rad'),
+        'c_r': (0.0, 1.0e7, 'N/rad'),
+        'd_s': (0.0, 50.0, 'm'),
+    }
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            low, high, unit = self._RANGES[item.name]
+            object.__setattr__(self, item.name, check_range(
+                f'vehicle.{item.name}', getattr(self, item.name), low, high,
+                low_open=True, unit=unit))
+
+    @property
+    def wheelbase(self) -> float:
+        """Wheelbase l_1 + l_2 [m]."""
+        return self.l1 + self.l2
+
+    @property
+    def eta(self) -> float:
+        """Zero-dynamics constant eta = m l_1 / (C_r (l_1 + l_2)) [s^2/m]."""
+        return self.mass * self.l1 / (self.c_r * self.wheelbase)
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """
+    Parameters of the input-output linearizing law (eq. 15) and its d_v schedule.
+
+    The error dynamics are ``e'' + k_d e' + k_p e = 0`` with ``k_p = w_n^2`` and
+    ``k_d = 2 zeta w_n``.
+
+    :param natural_frequency: w_n of the look-ahead error loop [rad/s].
+    :param damping_ratio: zeta of the look-ahead error loop [-].
+    :param schedule: d_v schedule: ``paper`` (eq. 26), ``exact`` (eq. 24) or ``fixed``.
+    :param fixed_look_ahead: d_v used by the ``fixed`` schedule [m].
+    :param max_look_ahead: upper clamp of the scheduled d_v [m].
+    :param reference: what ``y_v`` is regulated to: ``lane_tangent`` (0, the paper's
+        simulations), ``arc_approx`` (y_o of eq. 4) or ``arc_exact`` (y_o of eq. 3).
+    :param min_speed: the law divides by v_x; below this speed it uses this speed [m/s].
+    """
+
+    natural_frequency: float = 3.0
+    damping_ratio: float = 1.0
+    schedule: str = 'paper'
+    fixed_look_ahead: float = 1.96
+    max_look_ahead: float = 60.0
+    reference: str = 'lane_tangent'
+    min_speed: float = 1.0
+
+    def __post_init__(self) -> None:
+        check_range('controller.natural_frequency', self.natural_frequency, 0.0, 100.0,
+                    low_open=True, unit='rad/s')
+        check_range('controller.damping_ratio', self.damping_ratio, 0.0, 10.0,
+                    low_open=True)
+        check_choice('controller.schedule', self.schedule, SCHEDULE_MODES)
+        check_range('controller.fixed_look_ahead', self.fixed_look_ahead, 0.0, 200.0,
+                    unit='m')
+        check_range('controller.max_look_ahead', self.max_look_ahead, 0.0, 200.0,
+                    low_open=True, unit='m')
+        check_choice('controller.reference', self.reference, REFERENCE_MODES)
+        check_range('controller.min_speed', self.min_speed, 0.0, 20.0, low_open=True,
+                    unit='m/s')
+        if self.schedule == 'fixed' and self.fixed_look_ahead > self.max_look_ahead:
+            raise ParameterError(
+                f'controller.fixed_look_ahead = {self.fixed_look_ahead!r} m exceeds '
+                f'controller.max_look_ahead = {self.max_look_ahead!r} m; it must not')
+        for name in ('natural_frequency', 'damping_ratio', 'fixed_look_ahead',
+                     'max_look_ahead', 'min_speed'):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+    @property
+    def k_p(self) -> float:
+        """Return the proportional gain k_p = w_n^2 [1/s^2]."""
+        return self.natural_frequency ** 2
+
+    @property
+    def k_d(self) -> float:
+        """Return the derivative gain k_d = 2 zeta w_n [1/s]."""
+        return 2.0 * self.damping_ratio * self.natural_frequency

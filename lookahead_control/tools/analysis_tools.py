@@ -1,0 +1,127 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Executables ``schedule``, ``zero_dynamics`` and ``certificate``: tables and plots."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+from lookahead_control.analysis import schedule_table, speed_grid, zero_dynamics_table
+from lookahead_control.config import load_vehicle
+from lookahead_control.stability import certificate, PAPER_GERSHGORIN, PAPER_NORM_BOUND
+from lookahead_control.tools.cli import markdown_table, parser, run_tool, write_json
+
+
+def schedule_main(argv: Sequence[str] | None = None) -> int:
+    """
+    Print d_v of the paper, exact and fixed schedules over speed.
+
+    :param argv: command-line arguments.
+    :return: exit code.
+    """
+    p = parser('d_v schedules over speed (eq. 24, 26) and the zero-dynamics damping '
+               'each gives')
+    p.add_argument('--v-min', type=float, default=5.0)
+    p.add_argument('--v-max', type=float, default=40.0)
+    p.add_argument('--step', type=float, default=5.0)
+    args = p.parse_args(argv)
+    rows = schedule_table(load_vehicle(args.vehicle),
+                          speed_grid(args.v_min, args.v_max, args.step))
+    print(markdown_table(rows))
+    if args.json:
+        write_json(args.json, rows)
+    if args.plot:
+        from lookahead_control.plotting import plot_schedule
+        print(f'wrote {plot_schedule(rows, args.plot)}')
+    return 0
+
+
+def zero_dynamics_main(argv: Sequence[str] | None = None) -> int:
+    """
+    Print the zero-dynamics roots over speed for fixed and scheduled d_v (Fig. 2/3).
+
+    :param argv: command-line arguments.
+    :return: exit code.
+    """
+    p = parser('zero-dynamics roots over speed, fixed d_v = d_s vs eq. 26 (Fig. 2/3)')
+    p.add_argument('--v-min', type=float, default=5.0)
+    p.add_argument('--v-max', type=float, default=40.0)
+    p.add_argument('--step', type=float, default=2.5)
+    args = p.parse_args(argv)
+    rows = zero_dynamics_table(load_vehicle(args.vehicle),
+                               speed_grid(args.v_min, args.v_max, args.step))
+    print(markdown_table(rows))
+    if args.json:
+        write_json(args.json, rows)
+    if args.plot:
+        from lookahead_control.plotting import plot_roots
+        print(f'wrote {plot_roots(rows, args.plot)}')
+    return 0
+
+
+def certificate_main(argv: Sequence[str] | None = None) -> int:
+    """
+    Print the Section 4 stability certificate for a vehicle and envelope.
+
+    :param argv: command-line arguments.
+    :return: exit code (1 if the certificate does not hold).
+    """
+    p = parser('Section 4 stability certificate of the zero dynamics under varying '
+               'speed (Bauer-Fike and Gershgorin)')
+    p.add_argument('--v-min', type=float, default=10.0)
+    p.add_argument('--v-max', type=float, default=37.0)
+    p.add_argument('--a-max', type=float, default=3.5)
+    p.add_argument('--samples', type=int, default=2701)
+    args = p.parse_args(argv)
+    cert = certificate(load_vehicle(args.vehicle), args.v_min, args.v_max, args.a_max,
+                       args.samples)
+    rows = [
+        {'quantity': 'max ||dP/dt||_2', 'computed': cert.max_norm,
+         'paper': PAPER_NORM_BOUND, 'passes if': '< 1'},
+        {'quantity': 'b11 = -1 + dP11/dt (max)', 'computed': cert.b11,
+         'paper': PAPER_GERSHGORIN['b11'], 'passes if': 'b11 + r < 0'},
+        {'quantity': 'b22 = -1 + dP22/dt (max)', 'computed': cert.b22,
+         'paper': PAPER_GERSHGORIN['b22'], 'passes if': 'b22 + r < 0'},
+        {'quantity': 'r1 = r2 = |dP12/dt| (max)', 'computed': cert.r,
+         'paper': PAPER_GERSHGORIN['r1'], 'passes if': '-'},
+        {'quantity': 'max eig(-I + dP/dt)', 'computed': cert.max_eig_b,
+         'paper': float('nan'), 'passes if': '< 0'},
+    ]
+    print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
+          f'{cert.a_max:g} m/s^2, d_v (eq. 25) <= {cert.d_v_max:.2f} m; worst norm at '
+          f'{cert.max_norm_speed:.2f} m/s')
+    print(markdown_table(rows))
+    verdict = cert.holds_norm or cert.holds_gershgorin
+    print(f'Bauer-Fike: {"holds" if cert.holds_norm else "fails"}; Gershgorin: '
+          f'{"holds" if cert.holds_gershgorin else "fails"}; certificate '
+          f'{"HOLDS" if verdict else "DOES NOT HOLD"}')
+    if args.json:
+        write_json(args.json, {'certificate': cert._asdict(), 'rows': rows})
+    return 0 if verdict else 1
+
+
+def schedule() -> int:
+    """Entry point of ``schedule``."""
+    return run_tool(schedule_main)
+
+
+def zero_dynamics_tool() -> int:
+    """Entry point of ``zero_dynamics``."""
+    return run_tool(zero_dynamics_main)
+
+
+def certificate_tool() -> int:
+    """Entry point of ``certificate``."""
+    return run_tool(certificate_main)

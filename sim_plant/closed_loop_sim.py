@@ -1,0 +1,194 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Offline closed loop (no DDS): plant + controller core, one run or a vectorized batch.
+
+The controller samples the plant every ``control_period`` and holds its command (zero-
+order hold), as the ROS system does; ``control_period = 0`` evaluates the law inside
+every integrator stage (the continuous-time loop the paper analyses). The plant is
+integrated with fixed-step RK4 at ``dt``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Any, Callable, Iterator
+
+from lookahead_control.control_law import LateralState, LawOutput, steering_law
+from lookahead_control.numeric import Real
+from lookahead_control.params import ControllerParams, ParameterError, VehicleParams
+import numpy as np
+import numpy.typing as npt
+from sim_plant.scenario import Scenario
+from sim_plant.speed_profile import speed_at
+from sim_plant.vehicle_model import derivatives, PlantParams, rk4_step, State
+
+
+Array = npt.NDArray[np.float64]
+CHANNELS = ('s', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'v_x', 'a_x', 'rho',
+            'steering_cmd', 'd_v', 'y_v', 'y_ref', 'error', 'error_rate')
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """
+    Time series of one run (arrays of shape (T,)) or a batch (shape (T, N)).
+
+    :param time: sample times [s].
+    :param channels: one array per name in ``CHANNELS`` (SI units, REP-103 signs).
+    :param scenario: the scenario that was run.
+    :param vehicle: the vehicle parameters.
+    :param controller: the controller parameters.
+    :param plant: the plant options.
+    """
+
+    time: Array
+    channels: dict[str, Array]
+    scenario: Scenario
+    vehicle: VehicleParams
+    controller: ControllerParams
+    plant: PlantParams
+
+    def __getitem__(self, name: str) -> Array:
+        """
+        Return one channel.
+
+        :param name: a name from ``CHANNELS``.
+        :return: its array.
+        """
+        return self.channels[name]
+
+
+def check_steps(dt: float, control_period: float, duration: float) -> tuple[int, int]:
+    """
+    Return ``(plant steps per control step, number of control steps)``.
+
+    :param dt: plant integration step [s].
+    :param control_period: controller period [s], 0 for continuous control.
+    :param duration: simulated time [s].
+    :return: the two step counts.
+    """
+    if not (math.isfinite(dt) and 0.0 < dt <= 0.1):
+        raise ParameterError(f'dt = {dt!r} s is out of range; allowed: (0, 0.1] s')
+    if not math.isfinite(control_period) or control_period < 0.0:
+        raise ParameterError(f'control_period = {control_period!r} s must be >= 0')
+    period = control_period if control_period > 0.0 else dt
+    ratio = round(period / dt)
+    if ratio < 1 or abs(ratio * dt - period) > 1e-9 * max(period, 1.0):
+        raise ParameterError(f'control_period = {control_period!r} s is not a whole '
+                             f'multiple of dt = {dt!r} s')
+    return ratio, int(round(duration / period))
+
+
+def measure(x: State, t: float, scenario: Scenario, initial_speed: Real,
+            acceleration: Real) -> LateralState:
+    """
+    Return what the controller sees of the plant state (ideal sensors).
+
+    :param x: plant state.
+    :param t: time [s].
+    :param scenario: the scenario (road, speed profile).
+    :param initial_speed: initial speed(s) [m/s].
+    :param acceleration: ramp acceleration(s) [m/s^2].
+    :return: the controller's inputs.
+    """
+    v_x, a_x = speed_at(t, initial_speed, acceleration, scenario.speed.start,
+                        scenario.speed.duration)
+    rho, rho_slope = scenario.road.curvature(x[0])
+    return LateralState(x[1], x[2], x[3], x[4], v_x, a_x, rho, v_x * rho_slope)
+
+
+def _progress(n: int, enabled: bool) -> Iterator[int]:
+    if not enabled:
+        return iter(range(n))
+    from tqdm import tqdm
+    return iter(tqdm(range(n), desc='simulating', unit='step', mininterval=0.5))
+
+
+def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams,
+        plant: PlantParams | None = None, *, dt: float = 0.001,
+        control_period: float = 0.01, initial_speed: Real | None = None,
+        initial_error: Real | None = None, progress: bool = False) -> SimResult:
+    """
+    Simulate the closed loop of plant and controller core.
+
+    Passing arrays as ``initial_speed`` and/or ``initial_error`` runs a vectorized
+    batch (one run per element) on the scenario's road.
+
+    :param scenario: road, speed profile, initial state and duration.
+    :param vehicle: vehicle parameters (used by plant and controller alike).
+    :param controller: controller parameters.
+    :param plant: plant options (default: linear, exact kinematics).
+    :param dt: plant integration step [s].
+    :param control_period: controller period [s]; 0 for continuous control.
+    :param initial_speed: override of the scenario's initial speed [m/s] (array: batch).
+    :param initial_error: override of the initial CG lateral error [m] (array: batch).
+    :param progress: show a progress bar.
+    :return: the time series.
+    """
+    plant = plant or PlantParams()
+    ratio, n_steps = check_steps(dt, control_period, scenario.duration)
+    v0: Real = scenario.speed.initial if initial_speed is None else initial_speed
+    y0: Real = scenario.initial.lateral_error if initial_error is None else initial_error
+    shape = np.broadcast(np.asarray(v0), np.asarray(y0)).shape
+    batch = len(shape) > 0
+
+    def fill(value: float | Real) -> Real:
+        return np.full(shape, value, dtype=float) if batch else float(value)
+
+    if batch and np.any(np.asarray(v0) <= 0.0):
+        raise ParameterError('initial_speed must be positive in every run')
+    v0, y0 = fill(v0), fill(y0)
+    accel = fill(scenario.speed.acceleration)
+    init = scenario.initial
+    x: State = (fill(0.0), y0, fill(init.relative_yaw), fill(init.lateral_velocity),
+                fill(init.yaw_rate), fill(0.0))
+
+    def law(t: float, state: State) -> LawOutput:
+        return steering_law(measure(state, t, scenario, v0, accel), vehicle, controller)
+
+    def plant_rhs(command: Real) -> Callable[[float, State], State]:
+        def rhs(t: float, state: State) -> State:
+            v_x, a_x = speed_at(t, v0, accel, scenario.speed.start, scenario.speed.duration)
+            rho, _ = scenario.road.curvature(state[0])
+            return derivatives(state, command, v_x, a_x, rho, vehicle, plant)
+        return rhs
+
+    def continuous_rhs(t: float, state: State) -> State:
+        command = law(t, state).steering
+        return plant_rhs(command)(t, state)
+
+    rows: list[list[Any]] = []
+    t = 0.0
+    for k in _progress(n_steps + 1, progress):
+        t = k * ratio * dt
+        out = law(t, x)
+        inputs = measure(x, t, scenario, v0, accel)
+        steering = out.steering if plant.model == 'linear' else x[5]
+        rows.append([x[0], x[1], x[2], x[3], x[4], steering, inputs.v_x, inputs.a_x,
+                     inputs.rho, out.steering, out.d_v, out.y_v, out.y_ref, out.error,
+                     out.error_rate])
+        if k == n_steps:
+            break
+        rhs = continuous_rhs if control_period == 0.0 else plant_rhs(out.steering)
+        for j in range(ratio):
+            x = rk4_step(rhs, t + j * dt, x, dt)
+        if plant.model == 'linear':
+            x = x[:5] + (out.steering,)
+    time = np.arange(len(rows), dtype=float) * (ratio * dt)
+    columns = list(zip(*rows))
+    channels = {name: np.asarray(col, dtype=float) for name, col in zip(CHANNELS, columns)}
+    return SimResult(time, channels, scenario, vehicle, controller, plant)

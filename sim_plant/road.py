@@ -1,0 +1,103 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Roads made of straight, arc and clothoid segments; curvature against arc length."""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass
+from typing import Sequence
+
+from lookahead_control.numeric import Real
+from lookahead_control.params import check_choice, check_range, ParameterError
+import numpy as np
+
+
+SEGMENT_KINDS = ('straight', 'arc', 'clothoid')
+
+
+@dataclass(frozen=True)
+class Segment:
+    """
+    One road segment with linearly varying curvature (+ left turn).
+
+    :param kind: ``straight``, ``arc`` or ``clothoid``.
+    :param length: arc length [m].
+    :param curvature_start: curvature at the start [1/m].
+    :param curvature_end: curvature at the end [1/m] (equal to the start but on clothoids).
+    """
+
+    kind: str
+    length: float
+    curvature_start: float = 0.0
+    curvature_end: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_choice('segment.type', self.kind, SEGMENT_KINDS)
+        check_range('segment.length', self.length, 0.0, 1.0e7, low_open=True, unit='m')
+        for name in ('curvature_start', 'curvature_end'):
+            check_range(f'segment.{name}', getattr(self, name), -1.0, 1.0, unit='1/m')
+        if self.kind == 'straight' and (self.curvature_start or self.curvature_end):
+            raise ParameterError('a straight segment has curvature 0; got '
+                                 f'{self.curvature_start!r}, {self.curvature_end!r}')
+        if self.kind == 'arc' and self.curvature_start != self.curvature_end:
+            raise ParameterError('an arc has one curvature; got start '
+                                 f'{self.curvature_start!r} and end {self.curvature_end!r}')
+
+
+class Road:
+    """A lane centreline as a sequence of segments, extended by its last curvature."""
+
+    def __init__(self, segments: Sequence[Segment]) -> None:
+        """
+        Build the road.
+
+        :param segments: at least one segment, in driving order.
+        """
+        if not segments:
+            raise ParameterError('a road needs at least one segment')
+        self.segments = tuple(segments)
+        starts = [0.0]
+        for seg in self.segments[:-1]:
+            starts.append(starts[-1] + seg.length)
+        self._starts = starts
+        self._starts_np = np.array(starts)
+        self._rho0 = np.array([s.curvature_start for s in self.segments])
+        self._slope = np.array([(s.curvature_end - s.curvature_start) / s.length
+                                for s in self.segments])
+        self.length = starts[-1] + self.segments[-1].length
+        self._end_rho = self.segments[-1].curvature_end
+
+    def curvature(self, s: Real) -> tuple[Real, Real]:
+        """
+        Return ``(rho, d rho / ds)`` at arc length ``s`` (float or array).
+
+        Before the start the first segment's start curvature holds; past the end, the
+        last segment's end curvature.
+
+        :param s: arc length along the centreline [m].
+        :return: curvature [1/m] and its slope [1/m^2].
+        """
+        if isinstance(s, np.ndarray):
+            idx = np.clip(np.searchsorted(self._starts_np, s, side='right') - 1, 0, None)
+            rho = self._rho0[idx] + self._slope[idx] * (s - self._starts_np[idx])
+            slope = np.where(s >= self.length, 0.0, self._slope[idx])
+            rho = np.where(s >= self.length, self._end_rho, rho)
+            return rho, slope
+        if s >= self.length:
+            return self._end_rho, 0.0
+        i = max(bisect.bisect_right(self._starts, s) - 1, 0)
+        seg_slope = float(self._slope[i])
+        return float(self._rho0[i]) + seg_slope * (s - self._starts[i]), seg_slope

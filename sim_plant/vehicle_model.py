@@ -1,0 +1,196 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Plant models: the paper's linear single-track model and a nonlinear one.
+
+State (a tuple; each entry a float for one run or an array for a batch):
+``(s, y_cg, eps_r, v_y, r, delta)`` = arc length along the lane [m], lateral error of
+the CG [m], relative yaw [rad], body lateral velocity [m/s], yaw rate [rad/s], actual
+front-wheel angle [rad]. The longitudinal speed is prescribed (``SpeedProfile``).
+
+- ``linear``: eq. 1 with linear tyres and ideal steering (``delta`` = command).
+- ``nonlinear``: Fiala brush tyres saturating at ``mu F_z`` with static axle loads, the
+  front force rotated by ``delta``, and a steering actuator with first-order lag,
+  angle and rate limits.
+
+Kinematics relative to the road: ``exact`` Frenet equations (the default) or the
+``small_angle`` form the controller is designed on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+from lookahead_control import numeric as xp
+from lookahead_control.numeric import Real
+from lookahead_control.params import check_choice, check_range, VehicleParams
+
+State = tuple[Real, ...]
+GRAVITY = 9.80665
+PLANT_MODELS = ('linear', 'nonlinear')
+KINEMATICS = ('exact', 'small_angle')
+STATE_NAMES = ('s', 'y_cg', 'eps_r', 'v_y', 'r', 'steering')
+
+
+@dataclass(frozen=True)
+class PlantParams:
+    """
+    Plant options beyond the single-track parameters.
+
+    :param model: ``linear`` (the paper's eq. 1) or ``nonlinear`` (Fiala tyres, actuator).
+    :param kinematics: ``exact`` Frenet kinematics or the ``small_angle`` design model.
+    :param friction: tyre-road friction coefficient mu (nonlinear model) [-].
+    :param steering_time_constant: actuator lag (nonlinear model) [s].
+    :param max_steering_angle: actuator angle limit (nonlinear model) [rad].
+    :param max_steering_rate: actuator rate limit (nonlinear model) [rad/s].
+    """
+
+    model: str = 'linear'
+    kinematics: str = 'exact'
+    friction: float = 1.0
+    steering_time_constant: float = 0.05
+    max_steering_angle: float = 0.6
+    max_steering_rate: float = 0.8
+
+    def __post_init__(self) -> None:
+        check_choice('plant.model', self.model, PLANT_MODELS)
+        check_choice('plant.kinematics', self.kinematics, KINEMATICS)
+        check_range('plant.friction', self.friction, 0.0, 2.0, low_open=True)
+        check_range('plant.steering_time_constant', self.steering_time_constant, 0.0, 2.0,
+                    low_open=True, unit='s')
+        check_range('plant.max_steering_angle', self.max_steering_angle, 0.0, 1.2,
+                    low_open=True, unit='rad')
+        check_range('plant.max_steering_rate', self.max_steering_rate, 0.0, 20.0,
+                    low_open=True, unit='rad/s')
+
+
+def fiala_force(slip: Real, stiffness: float, limit: float) -> Real:
+    """
+    Return the lateral force of a Fiala brush tyre (axle) at slip angle ``slip``.
+
+    Linear for small slip (``-C tan(alpha)``), saturating at ``limit = mu F_z``.
+
+    :param slip: slip angle alpha [rad].
+    :param stiffness: cornering stiffness C [N/rad].
+    :param limit: friction limit mu F_z [N].
+    :return: lateral force [N], opposing the slip.
+    """
+    z = xp.tan(slip)
+    a = xp.absolute(z)
+    inside = (stiffness * z * (-1.0 + stiffness * a / (3.0 * limit))
+              - stiffness ** 3 * z * z * z / (27.0 * limit * limit))
+    outside = -limit * xp.sign(z)
+    return xp.where(a < 3.0 * limit / stiffness, inside, outside)
+
+
+def axle_forces(vehicle: VehicleParams, plant: PlantParams, v_x: Real, v_y: Real, r: Real,
+                steering: Real) -> tuple[Real, Real]:
+    """
+    Return the front and rear lateral axle forces in the wheel frames [N].
+
+    :param vehicle: vehicle parameters.
+    :param plant: plant options (model, friction).
+    :param v_x: longitudinal speed [m/s].
+    :param v_y: body lateral velocity [m/s].
+    :param r: yaw rate [rad/s].
+    :param steering: actual front-wheel angle [rad].
+    :return: ``(F_yf, F_yr)``.
+    """
+    if plant.model == 'linear':
+        f_front = vehicle.c_f * (steering - (v_y + vehicle.l1 * r) / v_x)
+        f_rear = -vehicle.c_r * (v_y - vehicle.l2 * r) / v_x
+        return f_front, f_rear
+    load = vehicle.mass * GRAVITY / vehicle.wheelbase
+    slip_f = xp.atan2(v_y + vehicle.l1 * r, v_x) - steering
+    slip_r = xp.atan2(v_y - vehicle.l2 * r, v_x)
+    f_front = fiala_force(slip_f, vehicle.c_f, plant.friction * load * vehicle.l2)
+    f_rear = fiala_force(slip_r, vehicle.c_r, plant.friction * load * vehicle.l1)
+    return f_front, f_rear
+
+
+def actuator_rate(plant: PlantParams, steering: Real, command: Real) -> Real:
+    """
+    Return d delta / dt of the first-order, angle- and rate-limited actuator.
+
+    :param plant: plant options (time constant, limits).
+    :param steering: actual angle [rad].
+    :param command: commanded angle [rad].
+    :return: steering rate [rad/s].
+    """
+    target = xp.clip(command, -plant.max_steering_angle, plant.max_steering_angle)
+    return xp.clip((target - steering) / plant.steering_time_constant,
+                   -plant.max_steering_rate, plant.max_steering_rate)
+
+
+def derivatives(x: State, command: Real, v_x: Real, a_x: Real, rho: Real,
+                vehicle: VehicleParams, plant: PlantParams) -> State:
+    """
+    Return dx/dt of the plant state.
+
+    :param x: state ``(s, y_cg, eps_r, v_y, r, steering)``.
+    :param command: steering command [rad].
+    :param v_x: longitudinal speed [m/s].
+    :param a_x: longitudinal acceleration [m/s^2] (unused by the lateral model).
+    :param rho: road curvature at ``s`` [1/m].
+    :param vehicle: vehicle parameters.
+    :param plant: plant options.
+    :return: the state derivative.
+    """
+    _, y_cg, eps_r, v_y, r, steering = x
+    if plant.model == 'linear':
+        steering = command
+        steering_rate: Real = 0.0 * command
+        f_front, f_rear = axle_forces(vehicle, plant, v_x, v_y, r, steering)
+        lateral = f_front + f_rear
+        moment = vehicle.l1 * f_front - vehicle.l2 * f_rear
+    else:
+        steering_rate = actuator_rate(plant, steering, command)
+        f_front, f_rear = axle_forces(vehicle, plant, v_x, v_y, r, steering)
+        f_front = f_front * xp.cos(steering)
+        lateral = f_front + f_rear
+        moment = vehicle.l1 * f_front - vehicle.l2 * f_rear
+    if plant.kinematics == 'exact':
+        sin_e, cos_e = xp.sin(eps_r), xp.cos(eps_r)
+        s_rate = (v_x * cos_e - v_y * sin_e) / (1.0 - rho * y_cg)
+        y_rate = v_x * sin_e + v_y * cos_e
+    else:
+        s_rate = v_x + 0.0 * y_cg
+        y_rate = v_y + v_x * eps_r
+    return (s_rate, y_rate, r - rho * s_rate, lateral / vehicle.mass - v_x * r,
+            moment / vehicle.yaw_inertia, steering_rate)
+
+
+def rk4_step(f: Callable[[float, State], State], t: float, x: State, h: float) -> State:
+    """
+    Advance ``x' = f(t, x)`` by one classical Runge-Kutta step.
+
+    :param f: the right-hand side, returning a tuple like ``x``.
+    :param t: time [s].
+    :param x: state tuple (floats or equally shaped arrays).
+    :param h: step [s].
+    :return: the state at ``t + h``.
+    """
+    k1 = f(t, x)
+    k2 = f(t + 0.5 * h, _axpy(x, 0.5 * h, k1))
+    k3 = f(t + 0.5 * h, _axpy(x, 0.5 * h, k2))
+    k4 = f(t + h, _axpy(x, h, k3))
+    w = h / 6.0
+    return tuple(xi + w * (a + 2.0 * b + 2.0 * c + d)
+                 for xi, a, b, c, d in zip(x, k1, k2, k3, k4))
+
+
+def _axpy(x: Sequence[Real], a: float, k: Sequence[Real]) -> State:
+    return tuple(xi + a * ki for xi, ki in zip(x, k))
