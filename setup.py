@@ -26,6 +26,9 @@ EXECUTABLES = {
     'zero_dynamics': 'lookahead_control.tools.analysis_tools:zero_dynamics_tool',
     'certificate': 'lookahead_control.tools.analysis_tools:certificate_tool',
     'paper_scenario': 'lookahead_control.tools.paper_scenario:entry',
+    'controller': 'lookahead_control.controller_node:entry',
+    'sim_plant': 'sim_plant.sim_plant_node:entry',
+    'closed_loop': 'lookahead_control.closed_loop:entry',
 }
 
 setup(

@@ -111,6 +111,49 @@ def measure(x: State, t: float, scenario: Scenario, initial_speed: Real,
     return LateralState(x[1], x[2], x[3], x[4], v_x, a_x, rho, v_x * rho_slope)
 
 
+def plant_derivatives(scenario: Scenario, vehicle: VehicleParams, plant: PlantParams,
+                      command: Real, initial_speed: Real,
+                      acceleration: Real) -> Callable[[float, State], State]:
+    """
+    Return the plant's right-hand side ``f(t, x)`` for a held steering command.
+
+    :param scenario: road and speed profile.
+    :param vehicle: vehicle parameters.
+    :param plant: plant options.
+    :param command: the steering command held over the step [rad].
+    :param initial_speed: initial speed(s) [m/s].
+    :param acceleration: ramp acceleration(s) [m/s^2].
+    :return: the right-hand side.
+    """
+    def rhs(t: float, state: State) -> State:
+        v_x, a_x = speed_at(t, initial_speed, acceleration, scenario.speed.start,
+                            scenario.speed.duration)
+        rho, _ = scenario.road.curvature(state[0])
+        return derivatives(state, command, v_x, a_x, rho, vehicle, plant)
+    return rhs
+
+
+def advance(rhs: Callable[[float, State], State], x: State, t: float, dt: float,
+            substeps: int, plant: PlantParams, command: Real) -> State:
+    """
+    Integrate ``substeps`` RK4 steps of ``dt`` from time ``t``.
+
+    :param rhs: the right-hand side.
+    :param x: the state at ``t``.
+    :param t: time [s].
+    :param dt: step [s].
+    :param substeps: number of steps.
+    :param plant: plant options (the linear plant's wheel angle is the command).
+    :param command: the held command [rad].
+    :return: the state at ``t + substeps * dt``.
+    """
+    for j in range(substeps):
+        x = rk4_step(rhs, t + j * dt, x, dt)
+    if plant.model == 'linear':
+        x = x[:5] + (command,)
+    return x
+
+
 def _progress(n: int, enabled: bool) -> Iterator[int]:
     if not enabled:
         return iter(range(n))
@@ -161,11 +204,7 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
         return steering_law(measure(state, t, scenario, v0, accel), vehicle, controller)
 
     def plant_rhs(command: Real) -> Callable[[float, State], State]:
-        def rhs(t: float, state: State) -> State:
-            v_x, a_x = speed_at(t, v0, accel, scenario.speed.start, scenario.speed.duration)
-            rho, _ = scenario.road.curvature(state[0])
-            return derivatives(state, command, v_x, a_x, rho, vehicle, plant)
-        return rhs
+        return plant_derivatives(scenario, vehicle, plant, command, v0, accel)
 
     def continuous_rhs(t: float, state: State) -> State:
         command = law(t, state).steering
@@ -184,10 +223,7 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
         if k == n_steps:
             break
         rhs = continuous_rhs if control_period == 0.0 else plant_rhs(out.steering)
-        for j in range(ratio):
-            x = rk4_step(rhs, t + j * dt, x, dt)
-        if plant.model == 'linear':
-            x = x[:5] + (out.steering,)
+        x = advance(rhs, x, t, dt, ratio, plant, out.steering)
     time = np.arange(len(rows), dtype=float) * (ratio * dt)
     columns = list(zip(*rows))
     channels = {name: np.asarray(col, dtype=float) for name, col in zip(CHANNELS, columns)}

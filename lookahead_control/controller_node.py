@@ -1,0 +1,313 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The ``controller`` node: a managed (lifecycle) shell around ``SteeringController``.
+
+Subscribes ``lateral_error``, ``yaw``, ``velocity``, ``road_curvature`` (relative names:
+remap them), publishes ``steering`` and ``~/debug``. Auto-activates unless
+``autostart`` is false; inactive, it publishes nothing.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any, Callable, Optional
+
+from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
+from rcl_interfaces.msg import SetParametersResult
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.parameter import Parameter
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from sensor_msgs.msg import Imu, JointState
+
+from lookahead_control import conversions as conv
+from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
+                                               SteeringController)
+from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare, Spec,
+                                           values, VEHICLE_SPECS,
+                                           vehicle_and_controller)
+from lookahead_control.params import ParameterError, SCHEDULE_MODES
+
+NODE_SPECS = (
+    Spec('mode', 'event', 'event: one command per lateral-error message; timer: at '
+         'rate_hz with the latest inputs', choices=('event', 'timer')),
+    Spec('rate_hz', 100.0, 'command rate in timer mode [Hz]', 1.0, 2000.0),
+    Spec('qos_reliability', 'reliable', 'reliability of the input subscriptions; '
+         'best_effort also connects to sensor-data (best-effort) publishers',
+         choices=('reliable', 'best_effort')),
+    Spec('wait_for_matching_stamps', False, 'event mode: wait until yaw, velocity (and '
+         'curvature, once seen) carry the lateral error\'s stamp (lockstep simulation)'),
+    Spec('sync_timeout', 0.05, 'longest wall-clock wait for matching stamps [s]',
+         0.0, 1.0),
+    Spec('acceleration_source', 'imu', 'a_x from the yaw topic\'s IMU acceleration, '
+         'differentiated from v_x, or zero', choices=ACCELERATION_SOURCES),
+    Spec('use_curvature_preview', False, 'feed d rho/dt forward from the curvature '
+         'preview (false: curvature at the CG only, as in the paper)'),
+    Spec('autostart', True, 'configure and activate at start-up'),
+)
+ALL_SPECS = VEHICLE_SPECS + CONTROLLER_SPECS + NODE_SPECS
+DEBUG_FIELDS = ('d_v', 'd_v_rate', 'y_v', 'y_v_rate', 'y_ref', 'error', 'error_rate', 'f_v',
+                'beta_1')
+
+
+def qos(reliability: str) -> QoSProfile:
+    """
+    Return the contract's QoS: keep last 10, volatile, reliable or best effort.
+
+    :param reliability: ``reliable`` or ``best_effort``.
+    :return: the profile.
+    """
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                      durability=DurabilityPolicy.VOLATILE,
+                      reliability=ReliabilityPolicy.RELIABLE if reliability == 'reliable'
+                      else ReliabilityPolicy.BEST_EFFORT)
+
+
+class ControllerNode(LifecycleNode):
+    """Lifecycle node publishing the variable look-ahead steering command."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        """
+        Declare parameters; communication is set up in ``on_configure``.
+
+        :param kwargs: passed to ``LifecycleNode`` (context, parameter_overrides, ...).
+        """
+        super().__init__('controller', **kwargs)
+        declare(self, ALL_SPECS)
+        params = values(self, ALL_SPECS)
+        vehicle, controller = vehicle_and_controller(params)
+        self.core = SteeringController(vehicle, controller, params['acceleration_source'],
+                                       params['use_curvature_preview'])
+        self._dirty = False
+        self._subscriptions: list[Any] = []
+        self._timer: Any = None
+        self._sync_timer: Any = None
+        self._pending_stamp: Optional[int] = None
+        self._steering_pub: Any = None
+        self._debug_pub: Any = None
+        self.active = False
+        self.published = 0
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._parameters_set)
+
+    # -- parameters -----------------------------------------------------------------
+
+    def _validate_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        try:
+            merged = values(self, ALL_SPECS, params)
+            check_choices(ALL_SPECS, merged)
+            vehicle_and_controller(merged)
+        except (ParameterError, ValueError) as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _parameters_set(self, params: list[Parameter]) -> None:
+        self._dirty = True   # applied before the next control step
+
+    def _apply_parameters(self) -> None:
+        if not self._dirty:
+            return
+        params = values(self, ALL_SPECS)
+        vehicle, controller = vehicle_and_controller(params)
+        self.core.configure(vehicle, controller, params['acceleration_source'],
+                            params['use_curvature_preview'])
+        self._dirty = False
+        self.get_logger().info(f'parameters applied: schedule={controller.schedule}, '
+                               f'w_n={controller.natural_frequency:g}, '
+                               f'zeta={controller.damping_ratio:g}')
+
+    def param(self, name: str) -> Any:
+        """
+        Return a parameter's value.
+
+        :param name: the parameter.
+        :return: its value.
+        """
+        return self.get_parameter(name).value
+
+    # -- lifecycle ------------------------------------------------------------------
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Create publishers, subscriptions and (timer mode) the timer."""
+        profile = qos(self.param('qos_reliability'))
+        self._steering_pub = self.create_lifecycle_publisher(JointState, 'steering',
+                                                             qos('reliable'))
+        self._debug_pub = self.create_lifecycle_publisher(JointState, '~/debug',
+                                                          qos('reliable'))
+        subs: list[tuple[type, str, Callable[[Any], None]]] = [
+            (PointStamped, 'lateral_error', self.on_lateral_error),
+            (Imu, 'yaw', self.on_yaw),
+            (TwistStamped, 'velocity', self.on_velocity),
+            (PolygonStamped, 'road_curvature', self.on_curvature),
+        ]
+        self._subscriptions = [self.create_subscription(t, n, cb, profile)
+                               for t, n, cb in subs]
+        if self.param('mode') == 'timer':
+            self._timer = self.create_timer(1.0 / self.param('rate_hz'), self.on_timer)
+        self.get_logger().info(
+            f'configured: mode={self.param("mode")}, schedule='
+            f'{self.core.params.schedule}, inputs {self.param("qos_reliability")}')
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Start publishing."""
+        self.active = True
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Stop publishing."""
+        self.active = False
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Destroy what ``on_configure`` created."""
+        for sub in self._subscriptions:
+            self.destroy_subscription(sub)
+        self._subscriptions = []
+        for timer in (self._timer, self._sync_timer):
+            if timer is not None:
+                self.destroy_timer(timer)
+        self._timer = self._sync_timer = None
+        for pub in (self._steering_pub, self._debug_pub):
+            if pub is not None:
+                self.destroy_publisher(pub)
+        self._steering_pub = self._debug_pub = None
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Shut down from any state."""
+        self.active = False
+        return TransitionCallbackReturn.SUCCESS
+
+    # -- inputs ---------------------------------------------------------------------
+
+    def on_lateral_error(self, msg: PointStamped) -> None:
+        """Store the lateral error; in event mode, answer it."""
+        self.core.update_lateral_error(conv.from_lateral_error(msg))
+        if self.param('mode') != 'event':
+            return
+        stamp = self.core.lateral.stamp_ns if self.core.lateral else 0
+        if self.param('wait_for_matching_stamps') and not self.core.inputs_at(stamp):
+            self._pending_stamp = stamp
+            self._arm_sync_timer()
+            return
+        self.step()
+
+    def _arm_sync_timer(self) -> None:
+        if self._sync_timer is not None:
+            self.destroy_timer(self._sync_timer)
+        self._sync_timer = self.create_timer(self.param('sync_timeout'), self._sync_expired,
+                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _sync_expired(self) -> None:
+        if self._sync_timer is not None:
+            self.destroy_timer(self._sync_timer)
+            self._sync_timer = None
+        if self._pending_stamp is not None:
+            self._pending_stamp = None
+            self.step()
+
+    def _maybe_release(self) -> None:
+        if self._pending_stamp is not None and self.core.inputs_at(self._pending_stamp):
+            self._pending_stamp = None
+            if self._sync_timer is not None:
+                self.destroy_timer(self._sync_timer)
+                self._sync_timer = None
+            self.step()
+
+    def on_yaw(self, msg: Imu) -> None:
+        """Store the relative yaw, yaw rate and body acceleration."""
+        self.core.update_yaw(conv.from_yaw(msg))
+        self._maybe_release()
+
+    def on_velocity(self, msg: TwistStamped) -> None:
+        """Store the velocity."""
+        self.core.update_velocity(conv.from_velocity(msg))
+        self._maybe_release()
+
+    def on_curvature(self, msg: PolygonStamped) -> None:
+        """Store the road curvature."""
+        self.core.update_curvature(conv.from_curvature(msg))
+        self._maybe_release()
+
+    def on_timer(self) -> None:
+        """Timer mode: one command from the latest inputs."""
+        self.step()
+
+    # -- output ---------------------------------------------------------------------
+
+    def step(self) -> Optional[Command]:
+        """
+        Compute and publish one command (nothing while inactive or inputs are missing).
+
+        :return: the command, or None.
+        """
+        self._apply_parameters()
+        if not self.active:
+            return None
+        command = self.core.compute()
+        if command is None:
+            return None
+        self._steering_pub.publish(conv.to_steering(command.stamp_ns, command.steering,
+                                                    command.steering_rate))
+        law = command.law
+        mode = self.core.params.schedule
+        debug = [(name, float(getattr(law, name))) for name in DEBUG_FIELDS]
+        debug.append((f'schedule:{mode}', float(SCHEDULE_MODES.index(mode))))
+        self._debug_pub.publish(conv.to_named_values(command.stamp_ns, debug))
+        self.published += 1
+        return command
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """
+    Run the controller node until shut down.
+
+    :param args: command-line arguments (ROS arguments included).
+    :return: exit code.
+    """
+    rclpy.init(args=args)
+    node: Optional[ControllerNode] = None
+    try:
+        node = ControllerNode()
+        if node.param('autostart'):
+            node.trigger_configure()
+            node.trigger_activate()
+        from rclpy.executors import SingleThreadedExecutor
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ParameterError as err:
+        print(f'controller: error: {err}', file=sys.stderr)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def entry() -> int:
+    """Entry point of ``controller``."""
+    return main(sys.argv)
+
+
+if __name__ == '__main__':
+    sys.exit(entry())

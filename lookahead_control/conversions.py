@@ -1,0 +1,324 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Conversions between the topic contract's messages and core types.
+
+Pure functions over message objects: no node, no DDS. The contract (README, "Topic
+contract") in short, REP-103 signs and SI units, vehicle frame at the CG:
+
+- ``lateral_error`` ``geometry_msgs/PointStamped``: ``point.x`` distance ahead of the
+  CG at which the error is measured, ``point.y`` lateral offset of that point from the
+  lane centre (+ left).
+- ``yaw`` ``sensor_msgs/Imu``: ``orientation`` the yaw relative to the lane tangent
+  (rotation about z), ``angular_velocity.z`` the yaw rate, ``linear_acceleration.x``
+  the body-frame longitudinal acceleration.
+- ``velocity`` ``geometry_msgs/TwistStamped``: ``linear.x`` v_x, ``linear.y`` v_y.
+- ``road_curvature`` ``geometry_msgs/PolygonStamped``: points ``(x, y)`` = (distance
+  ahead of the CG, curvature + left); one point means curvature at the CG only.
+- output ``steering`` ``sensor_msgs/JointState``: ``position[0]`` the front-wheel
+  angle (+ left), ``velocity[0]`` its rate; the stamp of the measurement it answers.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Sequence
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point32, PointStamped, PolygonStamped, TwistStamped
+from sensor_msgs.msg import Imu, JointState
+
+STEERING_JOINT = 'front_wheel_steering'
+
+
+class LateralErrorSample(NamedTuple):
+    """Lateral error ``value`` [m] measured ``distance`` [m] ahead of the CG."""
+
+    stamp_ns: int
+    distance: float
+    value: float
+
+
+class YawSample(NamedTuple):
+    """Relative yaw [rad], yaw rate [rad/s], body longitudinal acceleration [m/s^2]."""
+
+    stamp_ns: int
+    relative_yaw: float
+    yaw_rate: float
+    accel_x: float
+
+
+class VelocitySample(NamedTuple):
+    """Longitudinal and lateral body velocity [m/s]."""
+
+    stamp_ns: int
+    v_x: float
+    v_y: float
+
+
+class CurvatureSample(NamedTuple):
+    """Curvature at the CG [1/m] and its slope along the road [1/m^2]."""
+
+    stamp_ns: int
+    rho: float
+    slope: float
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    """
+    Return a ``builtin_interfaces/Time`` as integer nanoseconds.
+
+    :param stamp: the stamp.
+    :return: nanoseconds since the epoch of its clock.
+    """
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def ns_to_stamp(ns: int) -> Time:
+    """
+    Return integer nanoseconds as a ``builtin_interfaces/Time``.
+
+    :param ns: nanoseconds (>= 0).
+    :return: the stamp.
+    """
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def yaw_to_quaternion(yaw: float) -> tuple[float, float, float, float]:
+    """
+    Return the quaternion ``(x, y, z, w)`` of a rotation by ``yaw`` about z.
+
+    :param yaw: angle [rad].
+    :return: the quaternion.
+    """
+    return 0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)
+
+
+def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
+    """
+    Return the rotation about z of a quaternion (REP-103, counter-clockwise +).
+
+    :param x: quaternion x.
+    :param y: quaternion y.
+    :param z: quaternion z.
+    :param w: quaternion w.
+    :return: yaw [rad] in (-pi, pi].
+    """
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def from_lateral_error(msg: PointStamped) -> LateralErrorSample:
+    """
+    Convert a ``lateral_error`` message.
+
+    :param msg: the message.
+    :return: the sample.
+    """
+    return LateralErrorSample(stamp_to_ns(msg.header.stamp), float(msg.point.x),
+                              float(msg.point.y))
+
+
+def from_yaw(msg: Imu) -> YawSample:
+    """
+    Convert a ``yaw`` message.
+
+    :param msg: the message.
+    :return: the sample.
+    """
+    q = msg.orientation
+    return YawSample(stamp_to_ns(msg.header.stamp), quaternion_to_yaw(q.x, q.y, q.z, q.w),
+                     float(msg.angular_velocity.z), float(msg.linear_acceleration.x))
+
+
+def from_velocity(msg: TwistStamped) -> VelocitySample:
+    """
+    Convert a ``velocity`` message.
+
+    :param msg: the message.
+    :return: the sample.
+    """
+    return VelocitySample(stamp_to_ns(msg.header.stamp), float(msg.twist.linear.x),
+                          float(msg.twist.linear.y))
+
+
+def from_curvature(msg: PolygonStamped) -> CurvatureSample:
+    """
+    Convert a ``road_curvature`` message: curvature at the CG and its slope.
+
+    The points are (distance ahead, curvature). The curvature at the CG is interpolated
+    at distance 0 (the nearest point if all lie ahead or behind); the slope is that of
+    the first segment that starts at or ahead of the CG.
+
+    :param msg: the message.
+    :return: the sample (curvature 0 if the polygon is empty).
+    """
+    stamp = stamp_to_ns(msg.header.stamp)
+    points: list[tuple[float, float]] = []
+    for p in sorted((float(p.x), float(p.y)) for p in msg.polygon.points):
+        if not points or p[0] > points[-1][0]:     # drop repeated distances
+            points.append(p)
+    if not points:
+        return CurvatureSample(stamp, 0.0, 0.0)
+    if points[-1][0] <= 0.0:
+        return CurvatureSample(stamp, points[-1][1], 0.0)
+    i = 0
+    while i + 2 < len(points) and points[i + 1][0] <= 0.0:
+        i += 1
+    if len(points) == 1:
+        return CurvatureSample(stamp, points[0][1], 0.0)
+    (x0, k0), (x1, k1) = points[i], points[i + 1]
+    slope = (k1 - k0) / (x1 - x0)
+    return CurvatureSample(stamp, k0 + slope * max(0.0 - x0, 0.0), slope)
+
+
+def to_lateral_error(stamp_ns: int, frame_id: str, distance: float,
+                     value: float) -> PointStamped:
+    """
+    Build a ``lateral_error`` message.
+
+    :param stamp_ns: measurement time [ns].
+    :param frame_id: the vehicle frame.
+    :param distance: distance ahead of the CG of the measurement [m].
+    :param value: lateral error at that point (+ left) [m].
+    :return: the message.
+    """
+    msg = PointStamped()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.point.x = float(distance)
+    msg.point.y = float(value)
+    return msg
+
+
+def to_yaw(stamp_ns: int, frame_id: str, relative_yaw: float, yaw_rate: float,
+           accel_x: float) -> Imu:
+    """
+    Build a ``yaw`` message.
+
+    :param stamp_ns: measurement time [ns].
+    :param frame_id: the vehicle frame.
+    :param relative_yaw: yaw relative to the lane tangent [rad].
+    :param yaw_rate: yaw rate [rad/s].
+    :param accel_x: body longitudinal acceleration [m/s^2].
+    :return: the message.
+    """
+    msg = Imu()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    qx, qy, qz, qw = yaw_to_quaternion(relative_yaw)
+    msg.orientation.x, msg.orientation.y = qx, qy
+    msg.orientation.z, msg.orientation.w = qz, qw
+    msg.angular_velocity.z = float(yaw_rate)
+    msg.linear_acceleration.x = float(accel_x)
+    return msg
+
+
+def to_velocity(stamp_ns: int, frame_id: str, v_x: float, v_y: float,
+                yaw_rate: float) -> TwistStamped:
+    """
+    Build a ``velocity`` message.
+
+    :param stamp_ns: measurement time [ns].
+    :param frame_id: the vehicle frame.
+    :param v_x: longitudinal speed [m/s].
+    :param v_y: lateral speed [m/s].
+    :param yaw_rate: yaw rate [rad/s] (informative; the controller reads ``yaw``).
+    :return: the message.
+    """
+    msg = TwistStamped()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.twist.linear.x = float(v_x)
+    msg.twist.linear.y = float(v_y)
+    msg.twist.angular.z = float(yaw_rate)
+    return msg
+
+
+def to_curvature(stamp_ns: int, frame_id: str,
+                 profile: Sequence[tuple[float, float]]) -> PolygonStamped:
+    """
+    Build a ``road_curvature`` message from (distance ahead, curvature) pairs.
+
+    :param stamp_ns: measurement time [ns].
+    :param frame_id: the vehicle frame.
+    :param profile: the preview, starting at the CG (distance 0).
+    :return: the message.
+    """
+    msg = PolygonStamped()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.polygon.points = [Point32(x=float(x), y=float(k), z=0.0) for x, k in profile]
+    return msg
+
+
+def to_steering(stamp_ns: int, angle: float, rate: float) -> JointState:
+    """
+    Build a ``steering`` message.
+
+    :param stamp_ns: stamp of the measurement this command answers [ns].
+    :param angle: front-wheel angle (+ left) [rad].
+    :param rate: steering rate [rad/s].
+    :return: the message.
+    """
+    msg = JointState()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.name = [STEERING_JOINT]
+    msg.position = [float(angle)]
+    msg.velocity = [float(rate)]
+    return msg
+
+
+def from_steering(msg: JointState) -> tuple[int, float] | None:
+    """
+    Return ``(stamp_ns, angle)`` of a ``steering`` message, None without the joint.
+
+    :param msg: the message.
+    :return: stamp and angle, or None.
+    """
+    names = list(msg.name)
+    if STEERING_JOINT in names:
+        i = names.index(STEERING_JOINT)
+    elif not names and len(msg.position) == 1:
+        i = 0
+    else:
+        return None
+    if i >= len(msg.position):
+        return None
+    return stamp_to_ns(msg.header.stamp), float(msg.position[i])
+
+
+def to_named_values(stamp_ns: int, values: Sequence[tuple[str, float]]) -> JointState:
+    """
+    Build a stamped list of named values (debug and ground-truth topics).
+
+    :param stamp_ns: the stamp [ns].
+    :param values: (name, value) pairs.
+    :return: a ``JointState`` with the names and the values as positions.
+    """
+    msg = JointState()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.name = [n for n, _ in values]
+    msg.position = [float(v) for _, v in values]
+    return msg
+
+
+def from_named_values(msg: JointState) -> dict[str, float]:
+    """
+    Return the named values of a debug or ground-truth message.
+
+    :param msg: the message.
+    :return: name -> value.
+    """
+    return dict(zip(msg.name, (float(v) for v in msg.position)))

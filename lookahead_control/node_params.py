@@ -1,0 +1,162 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+ROS parameter declarations generated from the core's parameter dataclasses.
+
+One table of names, defaults, descriptions and ranges serves both nodes, so a
+``--params-file`` works on either and rclpy rejects out-of-range values itself.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Mapping, NamedTuple, Sequence
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from lookahead_control.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
+                                      VehicleParams)
+
+
+class Spec(NamedTuple):
+    """A parameter: name, default, description, numeric range or string choices."""
+
+    name: str
+    default: Any
+    description: str
+    low: float | None = None
+    high: float | None = None
+    choices: Sequence[str] = ()
+
+
+VEHICLE_SPECS = (
+    Spec('vehicle.mass', 1485.0, 'vehicle mass m [kg]', 1.0, 1.0e5),
+    Spec('vehicle.yaw_inertia', 2872.0, 'yaw moment of inertia I_z [kg m^2]', 1.0, 1.0e6),
+    Spec('vehicle.l1', 1.1, 'CG to front axle l_1 [m]', 0.01, 20.0),
+    Spec('vehicle.l2', 1.58, 'CG to rear axle l_2 [m]', 0.01, 20.0),
+    Spec('vehicle.c_f', 80000.0, 'front axle cornering stiffness C_f [N/rad]', 1.0, 1.0e7),
+    Spec('vehicle.c_r', 80000.0, 'rear axle cornering stiffness C_r [N/rad]', 1.0, 1.0e7),
+    Spec('vehicle.d_s', 1.96, 'CG to front bumper, look-down sensor d_s [m]', 0.01, 50.0),
+)
+
+CONTROLLER_SPECS = (
+    Spec('controller.natural_frequency', 3.0,
+         'natural frequency w_n of the look-ahead error loop, k_p = w_n^2 [rad/s]',
+         0.01, 100.0),
+    Spec('controller.damping_ratio', 1.0, 'damping ratio zeta, k_d = 2 zeta w_n [-]',
+         0.01, 10.0),
+    Spec('controller.schedule', 'paper',
+         'd_v schedule: paper (eq. 26), exact (eq. 24) or fixed', choices=SCHEDULE_MODES),
+    Spec('controller.fixed_look_ahead', 1.96, 'd_v of the fixed schedule [m]', 0.0, 200.0),
+    Spec('controller.max_look_ahead', 60.0, 'upper clamp of the scheduled d_v [m]',
+         0.01, 200.0),
+    Spec('controller.reference', 'lane_tangent',
+         'regulate y_v to 0 (lane_tangent) or to the lane offset y_o (arc_approx, '
+         'arc_exact)', choices=REFERENCE_MODES),
+    Spec('controller.min_speed', 1.0, 'the law divides by v_x; floor of v_x [m/s]',
+         0.01, 20.0),
+)
+
+
+def descriptor(spec: Spec) -> ParameterDescriptor:
+    """
+    Return the ROS descriptor of a spec (range for numbers, choices in the text).
+
+    :param spec: the parameter spec.
+    :return: the descriptor.
+    """
+    text = spec.description
+    if spec.choices:
+        text += f' (one of: {", ".join(spec.choices)})'
+    desc = ParameterDescriptor(description=text)
+    if spec.low is not None and spec.high is not None:
+        if isinstance(spec.default, bool):
+            pass
+        elif isinstance(spec.default, int):
+            desc.integer_range = [IntegerRange(from_value=int(spec.low),
+                                               to_value=int(spec.high), step=0)]
+        else:
+            desc.floating_point_range = [FloatingPointRange(from_value=float(spec.low),
+                                                            to_value=float(spec.high),
+                                                            step=0.0)]
+    return desc
+
+
+def declare(node: Node, specs: Sequence[Spec]) -> None:
+    """
+    Declare every spec on the node.
+
+    :param node: the node.
+    :param specs: the specs.
+    """
+    node.declare_parameters('', [(s.name, s.default, descriptor(s)) for s in specs])
+
+
+def values(node: Node, specs: Sequence[Spec],
+           pending: Sequence[Parameter] = ()) -> dict[str, Any]:
+    """
+    Return the node's current parameter values, with ``pending`` changes applied.
+
+    :param node: the node.
+    :param specs: which parameters.
+    :param pending: parameters about to be set.
+    :return: name -> value.
+    """
+    out = {s.name: node.get_parameter(s.name).value for s in specs}
+    for p in pending:
+        if p.name in out:
+            out[p.name] = p.value
+    return out
+
+
+def check_choices(specs: Sequence[Spec], params: Mapping[str, Any]) -> None:
+    """
+    Raise ValueError if a string parameter is not one of its choices.
+
+    :param specs: the specs.
+    :param params: name -> value.
+    """
+    for s in specs:
+        if s.choices and params[s.name] not in s.choices:
+            raise ValueError(f'{s.name} = {params[s.name]!r} is not allowed; choose one of '
+                             f'{", ".join(s.choices)}')
+
+
+def build(cls: type, params: Mapping[str, Any], prefix: str) -> Any:
+    """
+    Build a parameter dataclass from ``prefix.field`` values.
+
+    :param cls: VehicleParams or ControllerParams.
+    :param params: name -> value.
+    :param prefix: ``vehicle`` or ``controller``.
+    :return: the validated dataclass (raises ParameterError).
+    """
+    names = {f.name for f in dataclasses.fields(cls)}
+    return cls(**{k.split('.', 1)[1]: v for k, v in params.items()
+                  if k.startswith(prefix + '.') and k.split('.', 1)[1] in names})
+
+
+def vehicle_and_controller(params: Mapping[str, Any]) -> tuple[VehicleParams,
+                                                               ControllerParams]:
+    """
+    Build both core parameter sets from flat ROS parameter values.
+
+    :param params: name -> value.
+    :return: the vehicle and controller parameters.
+    """
+    return build(VehicleParams, params, 'vehicle'), build(ControllerParams, params,
+                                                          'controller')

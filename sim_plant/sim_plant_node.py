@@ -1,0 +1,315 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The ``sim_plant`` node: integrates the plant and publishes what a vehicle bridge would.
+
+Publishes the controller's input contract (``lateral_error``, ``yaw``, ``velocity``,
+``road_curvature``), ground truth on ``~/ground_truth`` and ``/clock``; subscribes
+``steering``. ``lockstep``: publish step k, wait for the command stamped k, integrate,
+repeat (a missed ``deadline`` holds the last command and is counted). ``realtime``:
+one step per wall-clock period with the latest command.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+import sys
+import time
+from typing import Any, Optional
+
+from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import Imu, JointState
+
+from lookahead_control import conversions as conv
+from lookahead_control.config import ConfigError, source_config_dir
+from lookahead_control.controller_node import qos
+from lookahead_control.node_params import build, declare, Spec, values, VEHICLE_SPECS
+from lookahead_control.params import ParameterError, VehicleParams
+from sim_plant.closed_loop_sim import advance, check_steps, measure, plant_derivatives
+from sim_plant.scenario import load_scenario, Scenario
+from sim_plant.vehicle_model import KINEMATICS, PLANT_MODELS, PlantParams, State
+
+PLANT_SPECS = (
+    Spec('plant.model', 'linear', 'linear (paper eq. 1) or nonlinear (Fiala tyres, '
+         'actuator)', choices=PLANT_MODELS),
+    Spec('plant.kinematics', 'exact', 'Frenet kinematics: exact or small_angle',
+         choices=KINEMATICS),
+    Spec('plant.friction', 1.0, 'tyre-road friction mu (nonlinear) [-]', 0.01, 2.0),
+    Spec('plant.steering_time_constant', 0.05, 'actuator lag (nonlinear) [s]', 0.001, 2.0),
+    Spec('plant.max_steering_angle', 0.6, 'actuator angle limit (nonlinear) [rad]',
+         0.01, 1.2),
+    Spec('plant.max_steering_rate', 0.8, 'actuator rate limit (nonlinear) [rad/s]',
+         0.01, 20.0),
+)
+SIM_SPECS = (
+    Spec('scenario_file', '', 'scenario YAML (empty: config/scenarios/paper_r400.yaml)'),
+    Spec('speed', 0.0, 'initial speed override [m/s] (0: the scenario\'s)', 0.0, 90.0),
+    Spec('mode', 'lockstep', 'lockstep (wait for each answer) or realtime (wall clock)',
+         choices=('lockstep', 'realtime')),
+    Spec('rate_hz', 100.0, 'measurement / control rate [Hz]', 1.0, 2000.0),
+    Spec('dt', 0.001, 'RK4 integration step [s]; 1/rate_hz must be a multiple',
+         1e-5, 0.1),
+    Spec('sensor_distance', -1.0, 'distance ahead of the CG of the published lateral '
+         'error [m] (< 0: vehicle.d_s, the bumper)', -1.0, 200.0),
+    Spec('deadline', 0.5, 'lockstep: wall-clock wait for an answer before holding [s]',
+         0.001, 60.0),
+    Spec('exit_at_end', True, 'stop at the end of the scenario'),
+    Spec('frame_id', 'base_link', 'vehicle frame (at the CG) of the published messages'),
+    Spec('preview_distance', 50.0, 'curvature preview published ahead of the CG [m]',
+         0.0, 1000.0),
+    Spec('preview_step', 5.0, 'spacing of the curvature preview points [m]', 0.1, 100.0),
+)
+ALL_SPECS = VEHICLE_SPECS + PLANT_SPECS + SIM_SPECS
+GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_cmd',
+                'v_x', 'a_x', 'rho')
+
+
+class SimPlantNode(Node):
+    """Plant simulator publishing the controller's input contract."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        """
+        Declare parameters, load the scenario, create publishers and timers.
+
+        :param kwargs: passed to ``Node`` (context, parameter_overrides, ...).
+        """
+        super().__init__('sim_plant', **kwargs)
+        declare(self, ALL_SPECS)
+        p = values(self, ALL_SPECS)
+        self.params = p
+        self.vehicle: VehicleParams = build(VehicleParams, p, 'vehicle')
+        self.plant: PlantParams = build(PlantParams, p, 'plant')
+        path = Path(p['scenario_file']) if p['scenario_file'] else (
+            source_config_dir() / 'scenarios' / 'paper_r400.yaml')
+        self.scenario: Scenario = load_scenario(path, p['speed'] or None)
+        self.period = 1.0 / p['rate_hz']
+        self.substeps, self.n_steps = check_steps(p['dt'], self.period,
+                                                  self.scenario.duration)
+        self.sensor_distance = (p['sensor_distance'] if p['sensor_distance'] >= 0.0
+                                else self.vehicle.d_s)
+        init = self.scenario.initial
+        self.x: State = (0.0, init.lateral_error, init.relative_yaw, init.lateral_velocity,
+                         init.yaw_rate, 0.0)
+        self.k = 0
+        self.command = 0.0
+        self.missed = 0
+        self.rejected = 0
+        self.answered_stamp: Optional[int] = None
+        self.waiting_stamp: Optional[int] = None
+        self.sent_at = 0.0
+        self.done = Future()
+        frame = p['frame_id']
+        self.frame = frame
+        reliable = qos('reliable')
+        self.pub_lateral = self.create_publisher(PointStamped, 'lateral_error', reliable)
+        self.pub_yaw = self.create_publisher(Imu, 'yaw', reliable)
+        self.pub_velocity = self.create_publisher(TwistStamped, 'velocity', reliable)
+        self.pub_curvature = self.create_publisher(PolygonStamped, 'road_curvature',
+                                                   reliable)
+        self.pub_truth = self.create_publisher(JointState, '~/ground_truth', reliable)
+        self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
+        self.create_subscription(JointState, 'steering', self.on_steering, reliable)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        if p['mode'] == 'lockstep':
+            self._poll = self.create_timer(0.002, self.on_poll, clock=steady)
+        else:
+            self._poll = self.create_timer(self.period, self.on_realtime_tick, clock=steady)
+        self.get_logger().info(
+            f'scenario {self.scenario.name!r}: {self.scenario.duration:g} s at '
+            f'{self.scenario.speed.initial:g} m/s, {p["mode"]} at {p["rate_hz"]:g} Hz, '
+            f'{self.plant.model} plant')
+
+    # -- time and measurements ------------------------------------------------------
+
+    def stamp_ns(self, k: Optional[int] = None) -> int:
+        """
+        Return the stamp of step ``k`` (default: the current step) [ns].
+
+        :param k: step index.
+        :return: sim time in nanoseconds.
+        """
+        return int(round((self.k if k is None else k) * self.period * 1e9))
+
+    def publish_measurements(self) -> int:
+        """
+        Publish /clock, the contract topics and ground truth for the current step.
+
+        :return: the stamp published [ns].
+        """
+        stamp = self.stamp_ns()
+        t = stamp * 1e-9
+        scenario, x = self.scenario, self.x
+        inputs = measure(x, t, scenario, scenario.speed.initial, scenario.speed.acceleration)
+        self.pub_clock.publish(ClockMsg(clock=conv.ns_to_stamp(stamp)))
+        # the IMU measures body acceleration: dv_x/dt - v_y r
+        self.pub_yaw.publish(conv.to_yaw(stamp, self.frame, x[2], x[4],
+                                         inputs.a_x - x[3] * x[4]))
+        self.pub_velocity.publish(conv.to_velocity(stamp, self.frame, inputs.v_x, x[3],
+                                                   x[4]))
+        self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
+                                                     self.preview(x[0])))
+        steering = self.command if self.plant.model == 'linear' else x[5]
+        truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, inputs.v_x,
+                 inputs.a_x, inputs.rho)
+        self.pub_truth.publish(conv.to_named_values(stamp, list(zip(GROUND_TRUTH, truth))))
+        self.pub_lateral.publish(conv.to_lateral_error(
+            stamp, self.frame, self.sensor_distance, x[1] + self.sensor_distance * x[2]))
+        return stamp
+
+    def preview(self, s: float) -> list[tuple[float, float]]:
+        """
+        Return (distance ahead, curvature) pairs from the CG to the preview distance.
+
+        :param s: arc length of the CG [m].
+        :return: the preview.
+        """
+        step, total = self.params['preview_step'], self.params['preview_distance']
+        count = int(total / step) + 1
+        return [(i * step, float(self.scenario.road.curvature(s + i * step)[0]))
+                for i in range(count)]
+
+    def integrate(self) -> None:
+        """Advance the plant by one period with the held command."""
+        t = self.k * self.period
+        scenario = self.scenario
+        rhs = plant_derivatives(scenario, self.vehicle, self.plant, self.command,
+                                scenario.speed.initial, scenario.speed.acceleration)
+        self.x = advance(rhs, self.x, t, self.params['dt'], self.substeps, self.plant,
+                         self.command)
+        self.k += 1
+
+    def finished(self) -> bool:
+        """Return True (and stop) when the scenario's end is reached."""
+        if self.k < self.n_steps or not self.params['exit_at_end']:
+            return False
+        if not self.done.done():
+            self.get_logger().info(
+                f'scenario {self.scenario.name!r} finished at t = '
+                f'{self.k * self.period:g} s: {self.k} steps, {self.missed} missed '
+                f'deadlines, {self.rejected} rejected commands')
+            self.done.set_result(True)
+        return True
+
+    # -- steering -------------------------------------------------------------------
+
+    def on_steering(self, msg: JointState) -> None:
+        """Take a steering command; in lockstep, the answer to the step waited for."""
+        parsed = conv.from_steering(msg)
+        if parsed is None:
+            self.rejected += 1
+            return
+        stamp, angle = parsed
+        if not (abs(angle) < 10.0 and angle == angle):
+            self.rejected += 1
+            return
+        if self.params['mode'] == 'realtime':
+            self.command = angle
+            self.answered_stamp = stamp
+            return
+        if self.waiting_stamp is not None and stamp == self.waiting_stamp:
+            self.command = angle
+            self.waiting_stamp = None
+            self.lockstep_advance()
+
+    # -- lockstep -------------------------------------------------------------------
+
+    def connected(self) -> bool:
+        """Return True once a controller subscribes and a steering publisher exists."""
+        return (self.count_subscribers('lateral_error') > 0
+                and self.count_publishers('steering') > 0)
+
+    def on_poll(self) -> None:
+        """Start once the controller is connected; enforce the deadline."""
+        if self.done.done():
+            return
+        if self.waiting_stamp is None and self.k == 0 and self.answered_stamp is None:
+            if not self.connected():
+                return
+            self.answered_stamp = -1
+            self.waiting_stamp = self.publish_measurements()
+            self.sent_at = time.monotonic()
+            return
+        if (self.waiting_stamp is not None
+                and time.monotonic() - self.sent_at > self.params['deadline']):
+            self.missed += 1
+            self.get_logger().warn(f'no steering for t = {self.waiting_stamp * 1e-9:g} s '
+                                   f'within {self.params["deadline"]:g} s: holding '
+                                   f'{self.command:+.4f} rad')
+            self.waiting_stamp = None
+            self.lockstep_advance()
+
+    def lockstep_advance(self) -> None:
+        """Integrate one period and publish the next step (or finish)."""
+        self.integrate()
+        if self.finished():
+            return
+        self.waiting_stamp = self.publish_measurements()
+        self.sent_at = time.monotonic()
+
+    # -- realtime -------------------------------------------------------------------
+
+    def on_realtime_tick(self) -> None:
+        """Publish the current step, then integrate one period with the latest command."""
+        if self.done.done():
+            return
+        if self.k == 0 and not self.connected():
+            return
+        if self.k > 0 and self.answered_stamp != self.stamp_ns(self.k - 1):
+            self.missed += 1
+        self.publish_measurements()
+        self.integrate()
+        self.finished()
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """
+    Run the simulator until the scenario ends or it is stopped.
+
+    :param args: command-line arguments (ROS arguments included).
+    :return: exit code.
+    """
+    rclpy.init(args=args)
+    node: Optional[SimPlantNode] = None
+    try:
+        node = SimPlantNode()
+        from rclpy.executors import SingleThreadedExecutor
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin_until_future_complete(node.done)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ConfigError, ParameterError) as err:
+        print(f'sim_plant: error: {err}', file=sys.stderr)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def entry() -> int:
+    """Entry point of ``sim_plant``."""
+    return main(sys.argv)
+
+
+if __name__ == '__main__':
+    sys.exit(entry())

@@ -1,0 +1,194 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Real processes over real DDS (session-unique domain, loopback only)."""
+
+from pathlib import Path
+import subprocess
+import sys
+import time
+
+from lookahead_control import conversions as conv
+from lookahead_control.closed_loop import LoopConfig, node_commands, stop
+from lookahead_control.params import ControllerParams, VehicleParams
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+from sim_plant.closed_loop_sim import run
+from sim_plant.scenario import paper_scenario
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENARIO = ROOT / 'config' / 'scenarios' / 'paper_r400.yaml'
+pytestmark = pytest.mark.process
+
+
+@pytest.fixture
+def probe():
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node('test_probe', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    yield node, executor
+    node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+
+
+def _spin_until(executor, condition, timeout):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and not condition():
+        executor.spin_once(timeout_sec=0.02)
+    return condition()
+
+
+def test_lockstep_matches_offline_runner(probe):
+    node, executor = probe
+    truth, steering = {}, {}
+    # the controller is up before the simulator starts, so its topics are matched from
+    # the first step on (the simulator waits for the controller, not for this probe)
+    node.create_subscription(JointState, '/controller/debug',
+                             lambda m: truth.__setitem__(conv.stamp_to_ns(m.header.stamp),
+                                                         conv.from_named_values(m)), 100)
+    node.create_subscription(JointState, '/steering',
+                             lambda m: steering.__setitem__(*conv.from_steering(m)), 100)
+    _spin_until(executor, lambda: False, 0.5)
+    sim_cmd, ctl_cmd = node_commands(LoopConfig(SCENARIO, speed=37.0))
+    controller = subprocess.Popen(ctl_cmd)
+    sim = subprocess.Popen(sim_cmd)
+    try:
+        _spin_until(executor, lambda: sim.poll() is not None, 120)
+        _spin_until(executor, lambda: False, 0.3)
+        assert sim.returncode == 0
+    finally:
+        stop(sim, 'sim')
+        assert stop(controller, 'controller') == 0
+    offline = run(paper_scenario(37.0), VehicleParams(), ControllerParams())
+    stamps = np.round(offline.time * 1e9).astype(np.int64)
+    common = [i for i, s in enumerate(stamps) if int(s) in truth and int(s) in steering]
+    assert len(common) >= 0.95 * len(stamps), f'only {len(common)} of {len(stamps)} steps'
+    y_ros = np.array([truth[int(stamps[i])]['y_v'] for i in common])
+    e_ros = np.array([truth[int(stamps[i])]['error'] for i in common])
+    d_ros = np.array([steering[int(stamps[i])] for i in common])
+    # Same law, same plant, same steps; the one difference is the curvature, which
+    # crosses DDS as float32 (geometry_msgs/Point32: relative error 3e-8). Tolerance:
+    # 1e-7 m and 1e-8 rad, about 1e-6 of the signals' peaks.
+    np.testing.assert_allclose(y_ros, offline['y_v'][common], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(e_ros, offline['error'][common], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(d_ros, offline['steering_cmd'][common], rtol=0, atol=1e-8)
+    assert np.max(np.abs(y_ros)) > 0.3      # the run really went round the curve
+
+
+def test_remapped_bridge_drives_the_controller(probe):
+    node, executor = probe
+    # a "vehicle bridge" with its own topic names and sensor-data (best-effort) QoS
+    from rclpy.qos import qos_profile_sensor_data
+    pubs = {
+        'lat': node.create_publisher(type(conv.to_lateral_error(0, '', 0, 0)),
+                                     '/bridge/lane_offset', qos_profile_sensor_data),
+        'yaw': node.create_publisher(type(conv.to_yaw(0, '', 0, 0, 0)), '/bridge/imu',
+                                     qos_profile_sensor_data),
+        'vel': node.create_publisher(type(conv.to_velocity(0, '', 0, 0, 0)),
+                                     '/bridge/twist', qos_profile_sensor_data),
+    }
+    answers = []
+    node.create_subscription(JointState, '/vehicle/steering_cmd',
+                             lambda m: answers.append(conv.from_steering(m)), 10)
+    cmd = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
+           '-r', 'lateral_error:=/bridge/lane_offset', '-r', 'yaw:=/bridge/imu',
+           '-r', 'velocity:=/bridge/twist', '-r', 'steering:=/vehicle/steering_cmd',
+           '-p', 'qos_reliability:=best_effort']
+    controller = subprocess.Popen(cmd)
+    try:
+        assert _spin_until(executor, lambda: node.count_subscribers('/bridge/imu') > 0
+                           and node.count_publishers('/vehicle/steering_cmd') > 0, 30)
+        for k in range(1, 40):
+            stamp = k * 10_000_000
+            pubs['yaw'].publish(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
+            pubs['vel'].publish(conv.to_velocity(stamp, 'base_link', 20.0, 0.0, 0.0))
+            pubs['lat'].publish(conv.to_lateral_error(stamp, 'base_link', 0.0, 0.5))
+            _spin_until(executor, lambda: False, 0.02)
+        assert _spin_until(executor, lambda: len(answers) >= 20, 10)
+        # a left offset is answered with right steering, stamped with its measurement
+        assert all(angle < 0.0 for _, angle in answers)
+        assert all(stamp % 10_000_000 == 0 for stamp, _ in answers)
+    finally:
+        assert stop(controller, 'controller') == 0
+
+
+def test_use_sim_time_is_honoured(probe):
+    node, executor = probe
+    clock = node.create_publisher(ClockMsg, '/clock', 10)
+    commands = []
+    node.create_subscription(JointState, '/steering', lambda m: commands.append(m), 100)
+    cmd = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
+           '-p', 'use_sim_time:=true', '-p', 'mode:=timer', '-p', 'rate_hz:=10.0']
+    controller = subprocess.Popen(cmd)
+    try:
+        assert _spin_until(executor, lambda: node.count_publishers('/steering') > 0, 30)
+        from geometry_msgs.msg import PointStamped, TwistStamped
+        from sensor_msgs.msg import Imu
+        yaw = node.create_publisher(Imu, '/yaw', 10)
+        vel = node.create_publisher(TwistStamped, '/velocity', 10)
+        lat = node.create_publisher(PointStamped, '/lateral_error', 10)
+
+        def tick(ns):
+            yaw.publish(conv.to_yaw(ns, 'b', 0.0, 0.0, 0.0))
+            vel.publish(conv.to_velocity(ns, 'b', 20.0, 0.0, 0.0))
+            lat.publish(conv.to_lateral_error(ns, 'b', 0.0, 0.1))
+            clock.publish(ClockMsg(clock=conv.ns_to_stamp(ns)))
+            _spin_until(executor, lambda: False, 0.01)
+
+        # sim time frozen for 1.5 s of wall time: a 10 Hz timer on sim time stays silent
+        for _ in range(150):
+            tick(1_000_000_000)
+        frozen = len(commands)
+        # 3 s of sim time in ~0.6 s of wall time: about 30 commands
+        for k in range(1, 61):
+            tick(1_000_000_000 + k * 50_000_000)
+        _spin_until(executor, lambda: False, 0.5)
+        assert frozen <= 1
+        assert 20 <= len(commands) - frozen <= 35
+    finally:
+        assert stop(controller, 'controller') == 0
+
+
+def test_realtime_mode_misses_no_step(tmp_path):
+    scenario = tmp_path / 'short.yaml'
+    scenario.write_text(SCENARIO.read_text().replace('duration: 10.0', 'duration: 3.0'))
+    sim_cmd, ctl_cmd = node_commands(LoopConfig(scenario, speed=30.0, mode='realtime'))
+    controller = subprocess.Popen(ctl_cmd)
+    started = time.monotonic()
+    sim = subprocess.run(sim_cmd, capture_output=True, text=True, timeout=60)
+    elapsed = time.monotonic() - started
+    assert stop(controller, 'controller') == 0
+    assert sim.returncode == 0, sim.stderr
+    assert '300 steps, 0 missed deadlines' in sim.stderr, sim.stderr
+    assert elapsed >= 3.0          # realtime: 300 steps at 100 Hz take 3 s of wall time
+
+
+def test_closed_loop_executable_succeeds_and_fails_cleanly(tmp_path):
+    code = 'import sys\nfrom lookahead_control.closed_loop import entry\nsys.exit(entry())'
+    ok = subprocess.run([sys.executable, '-c', code, '--speed', '20'], cwd=ROOT,
+                        capture_output=True, text=True, timeout=120)
+    assert ok.returncode == 0, ok.stderr
+    assert 'finished at t = 10 s: 1000 steps, 0 missed deadlines' in ok.stderr
+    bad = subprocess.run([sys.executable, '-c', code, '--scenario',
+                          str(tmp_path / 'none.yaml')], cwd=ROOT, capture_output=True,
+                         text=True, timeout=60)
+    assert bad.returncode == 2 and 'none.yaml: no such scenario file' in bad.stderr
