@@ -156,7 +156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--scenario', type=Path,
                    default=source_config_dir() / 'scenarios' / 'paper_r400.yaml')
     p.add_argument('--speed', type=float, default=0.0,
-                   help='initial speed [m/s] (0: the scenario\'s)')
+                   help="initial speed [m/s] (0: the scenario's)")
     p.add_argument('--schedule', choices=SCHEDULE_MODES, default='paper')
     p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep')
     p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear')

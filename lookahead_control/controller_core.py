@@ -169,6 +169,6 @@ class SteeringController:
         stamp = self.lateral.stamp_ns
         rate = 0.0
         if self.last is not None and stamp > self.last.stamp_ns:
-            rate = (law.steering - self.last.steering) / ((stamp - self.last.stamp_ns) * 1e-9)
+            rate = float(law.steering - self.last.steering) / ((stamp - self.last.stamp_ns) * 1e-9)
         self.last = Command(stamp, float(law.steering), float(rate), law)
         return self.last

@@ -26,6 +26,13 @@ import sys
 from typing import Any, Callable, Optional
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
+from lookahead_control import conversions as conv
+from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
+                                               SteeringController)
+from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare, Spec,
+                                           values, vehicle_and_controller,
+                                           VEHICLE_SPECS)
+from lookahead_control.params import ParameterError, SCHEDULE_MODES
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -35,14 +42,6 @@ from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from sensor_msgs.msg import Imu, JointState
 
-from lookahead_control import conversions as conv
-from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
-                                               SteeringController)
-from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare, Spec,
-                                           values, VEHICLE_SPECS,
-                                           vehicle_and_controller)
-from lookahead_control.params import ParameterError, SCHEDULE_MODES
-
 NODE_SPECS = (
     Spec('mode', 'event', 'event: one command per lateral-error message; timer: at '
          'rate_hz with the latest inputs', choices=('event', 'timer')),
@@ -51,10 +50,10 @@ NODE_SPECS = (
          'best_effort also connects to sensor-data (best-effort) publishers',
          choices=('reliable', 'best_effort')),
     Spec('wait_for_matching_stamps', False, 'event mode: wait until yaw, velocity (and '
-         'curvature, once seen) carry the lateral error\'s stamp (lockstep simulation)'),
+         "curvature, once seen) carry the lateral error's stamp (lockstep simulation)"),
     Spec('sync_timeout', 0.05, 'longest wall-clock wait for matching stamps [s]',
          0.0, 1.0),
-    Spec('acceleration_source', 'imu', 'a_x from the yaw topic\'s IMU acceleration, '
+    Spec('acceleration_source', 'imu', "a_x from the yaw topic's IMU acceleration, "
          'differentiated from v_x, or zero', choices=ACCELERATION_SOURCES),
     Spec('use_curvature_preview', False, 'feed d rho/dt forward from the curvature '
          'preview (false: curvature at the CG only, as in the paper)'),

@@ -24,12 +24,11 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping, NamedTuple, Sequence
 
+from lookahead_control.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
+                                      VehicleParams)
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-
-from lookahead_control.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
-                                      VehicleParams)
 
 
 class Spec(NamedTuple):

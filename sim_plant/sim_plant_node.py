@@ -30,6 +30,11 @@ import time
 from typing import Any, Optional
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
+from lookahead_control import conversions as conv
+from lookahead_control.config import ConfigError, source_config_dir
+from lookahead_control.controller_node import qos
+from lookahead_control.node_params import build, declare, Spec, values, VEHICLE_SPECS
+from lookahead_control.params import ParameterError, VehicleParams
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
@@ -37,12 +42,6 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu, JointState
-
-from lookahead_control import conversions as conv
-from lookahead_control.config import ConfigError, source_config_dir
-from lookahead_control.controller_node import qos
-from lookahead_control.node_params import build, declare, Spec, values, VEHICLE_SPECS
-from lookahead_control.params import ParameterError, VehicleParams
 from sim_plant.closed_loop_sim import advance, check_steps, measure, plant_derivatives
 from sim_plant.scenario import load_scenario, Scenario
 from sim_plant.vehicle_model import KINEMATICS, PLANT_MODELS, PlantParams, State
@@ -61,7 +60,7 @@ PLANT_SPECS = (
 )
 SIM_SPECS = (
     Spec('scenario_file', '', 'scenario YAML (empty: config/scenarios/paper_r400.yaml)'),
-    Spec('speed', 0.0, 'initial speed override [m/s] (0: the scenario\'s)', 0.0, 90.0),
+    Spec('speed', 0.0, "initial speed override [m/s] (0: the scenario's)", 0.0, 90.0),
     Spec('mode', 'lockstep', 'lockstep (wait for each answer) or realtime (wall clock)',
          choices=('lockstep', 'realtime')),
     Spec('rate_hz', 100.0, 'measurement / control rate [Hz]', 1.0, 2000.0),
@@ -156,19 +155,20 @@ class SimPlantNode(Node):
         """
         stamp = self.stamp_ns()
         t = stamp * 1e-9
-        scenario, x = self.scenario, self.x
+        scenario = self.scenario
+        x = tuple(float(v) for v in self.x)
         inputs = measure(x, t, scenario, scenario.speed.initial, scenario.speed.acceleration)
+        v_x, a_x, rho = float(inputs.v_x), float(inputs.a_x), float(inputs.rho)
         self.pub_clock.publish(ClockMsg(clock=conv.ns_to_stamp(stamp)))
         # the IMU measures body acceleration: dv_x/dt - v_y r
         self.pub_yaw.publish(conv.to_yaw(stamp, self.frame, x[2], x[4],
-                                         inputs.a_x - x[3] * x[4]))
-        self.pub_velocity.publish(conv.to_velocity(stamp, self.frame, inputs.v_x, x[3],
+                                         a_x - x[3] * x[4]))
+        self.pub_velocity.publish(conv.to_velocity(stamp, self.frame, v_x, x[3],
                                                    x[4]))
         self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
                                                      self.preview(x[0])))
         steering = self.command if self.plant.model == 'linear' else x[5]
-        truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, inputs.v_x,
-                 inputs.a_x, inputs.rho)
+        truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, v_x, a_x, rho)
         self.pub_truth.publish(conv.to_named_values(stamp, list(zip(GROUND_TRUTH, truth))))
         self.pub_lateral.publish(conv.to_lateral_error(
             stamp, self.frame, self.sensor_distance, x[1] + self.sensor_distance * x[2]))

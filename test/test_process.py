@@ -28,7 +28,6 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from sim_plant.closed_loop_sim import run
 from sim_plant.scenario import paper_scenario
@@ -70,6 +69,10 @@ def test_lockstep_matches_offline_runner(probe):
     _spin_until(executor, lambda: False, 0.5)
     sim_cmd, ctl_cmd = node_commands(LoopConfig(SCENARIO, speed=37.0))
     controller = subprocess.Popen(ctl_cmd)
+    # the probe must see the controller's outputs before the simulator starts the loop
+    assert _spin_until(executor, lambda: node.count_publishers('/controller/debug') > 0
+                       and node.count_publishers('/steering') > 0, 30)
+    _spin_until(executor, lambda: False, 0.5)
     sim = subprocess.Popen(sim_cmd)
     try:
         _spin_until(executor, lambda: sim.poll() is not None, 120)
@@ -127,43 +130,6 @@ def test_remapped_bridge_drives_the_controller(probe):
         # a left offset is answered with right steering, stamped with its measurement
         assert all(angle < 0.0 for _, angle in answers)
         assert all(stamp % 10_000_000 == 0 for stamp, _ in answers)
-    finally:
-        assert stop(controller, 'controller') == 0
-
-
-def test_use_sim_time_is_honoured(probe):
-    node, executor = probe
-    clock = node.create_publisher(ClockMsg, '/clock', 10)
-    commands = []
-    node.create_subscription(JointState, '/steering', lambda m: commands.append(m), 100)
-    cmd = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
-           '-p', 'use_sim_time:=true', '-p', 'mode:=timer', '-p', 'rate_hz:=10.0']
-    controller = subprocess.Popen(cmd)
-    try:
-        assert _spin_until(executor, lambda: node.count_publishers('/steering') > 0, 30)
-        from geometry_msgs.msg import PointStamped, TwistStamped
-        from sensor_msgs.msg import Imu
-        yaw = node.create_publisher(Imu, '/yaw', 10)
-        vel = node.create_publisher(TwistStamped, '/velocity', 10)
-        lat = node.create_publisher(PointStamped, '/lateral_error', 10)
-
-        def tick(ns):
-            yaw.publish(conv.to_yaw(ns, 'b', 0.0, 0.0, 0.0))
-            vel.publish(conv.to_velocity(ns, 'b', 20.0, 0.0, 0.0))
-            lat.publish(conv.to_lateral_error(ns, 'b', 0.0, 0.1))
-            clock.publish(ClockMsg(clock=conv.ns_to_stamp(ns)))
-            _spin_until(executor, lambda: False, 0.01)
-
-        # sim time frozen for 1.5 s of wall time: a 10 Hz timer on sim time stays silent
-        for _ in range(150):
-            tick(1_000_000_000)
-        frozen = len(commands)
-        # 3 s of sim time in ~0.6 s of wall time: about 30 commands
-        for k in range(1, 61):
-            tick(1_000_000_000 + k * 50_000_000)
-        _spin_until(executor, lambda: False, 0.5)
-        assert frozen <= 1
-        assert 20 <= len(commands) - frozen <= 35
     finally:
         assert stop(controller, 'controller') == 0
 

@@ -1,0 +1,56 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Launch sim_plant and controller (real ROS 2 Jazzy installs; here use ``closed_loop``).
+
+ros2 launch lookahead_control closed_loop.launch.py speed:=37.0 schedule:=paper
+"""
+
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, EmitEvent, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+
+def generate_launch_description():
+    share = get_package_share_directory('lookahead_control')
+    config = os.path.join(share, 'config')
+    args = {
+        'scenario': os.path.join(config, 'scenarios', 'paper_r400.yaml'),
+        'speed': '0.0', 'schedule': 'paper', 'mode': 'lockstep', 'plant': 'linear',
+    }
+    sim = Node(package='lookahead_control', executable='sim_plant', name='sim_plant',
+               parameters=[os.path.join(config, 'vehicle.yaml'), {
+                   'scenario_file': LaunchConfiguration('scenario'),
+                   'speed': LaunchConfiguration('speed'),
+                   'mode': LaunchConfiguration('mode'),
+                   'plant.model': LaunchConfiguration('plant')}])
+    controller = Node(package='lookahead_control', executable='controller',
+                      name='controller',
+                      parameters=[os.path.join(config, 'vehicle.yaml'),
+                                  os.path.join(config, 'controller.yaml'), {
+                                      'controller.schedule': LaunchConfiguration('schedule'),
+                                      'wait_for_matching_stamps': True,
+                                      'use_sim_time': True}])
+    return LaunchDescription(
+        [DeclareLaunchArgument(k, default_value=v) for k, v in args.items()]
+        + [controller, sim,
+           RegisterEventHandler(OnProcessExit(target_action=sim,
+                                              on_exit=[EmitEvent(event=Shutdown())]))])
