@@ -29,14 +29,13 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control import conversions as conv
 from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
                                                SteeringController)
+from lookahead_control.node_main import run_node
 from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare, Spec,
                                            values, vehicle_and_controller,
                                            VEHICLE_SPECS)
 from lookahead_control.params import ParameterError, SCHEDULE_MODES
 from rcl_interfaces.msg import SetParametersResult
-import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
@@ -273,6 +272,14 @@ class ControllerNode(LifecycleNode):
         return command
 
 
+def _make_controller() -> ControllerNode:
+    node = ControllerNode()
+    if node.param('autostart'):
+        node.trigger_configure()
+        node.trigger_activate()
+    return node
+
+
 def main(args: Optional[list[str]] = None) -> int:
     """
     Run the controller node until shut down.
@@ -280,27 +287,7 @@ def main(args: Optional[list[str]] = None) -> int:
     :param args: command-line arguments (ROS arguments included).
     :return: exit code.
     """
-    rclpy.init(args=args)
-    node: Optional[ControllerNode] = None
-    try:
-        node = ControllerNode()
-        if node.param('autostart'):
-            node.trigger_configure()
-            node.trigger_activate()
-        from rclpy.executors import SingleThreadedExecutor
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ParameterError as err:
-        print(f'controller: error: {err}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node('controller', args, _make_controller, lambda ex, node: ex.spin())
 
 
 def entry() -> int:

@@ -31,13 +31,12 @@ from typing import Any, Optional
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control import conversions as conv
-from lookahead_control.config import ConfigError, source_config_dir
+from lookahead_control.config import source_config_dir
 from lookahead_control.controller_node import qos
+from lookahead_control.node_main import run_node
 from lookahead_control.node_params import build, declare, Spec, values, VEHICLE_SPECS
-from lookahead_control.params import ParameterError, VehicleParams
-import rclpy
+from lookahead_control.params import VehicleParams
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -286,24 +285,8 @@ def main(args: Optional[list[str]] = None) -> int:
     :param args: command-line arguments (ROS arguments included).
     :return: exit code.
     """
-    rclpy.init(args=args)
-    node: Optional[SimPlantNode] = None
-    try:
-        node = SimPlantNode()
-        from rclpy.executors import SingleThreadedExecutor
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        executor.spin_until_future_complete(node.done)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ConfigError, ParameterError) as err:
-        print(f'sim_plant: error: {err}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node('sim_plant', args, SimPlantNode,
+                    lambda ex, node: ex.spin_until_future_complete(node.done))
 
 
 def entry() -> int:
