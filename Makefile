@@ -27,7 +27,7 @@ $(STAMP): requirements.lock setup.py setup.cfg
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/paper_scenario --out bags/demo
+	$(VENV)/bin/demo --out bags/demo
 
 test: $(STAMP)
 	$(PY) -m pytest

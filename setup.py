@@ -29,6 +29,11 @@ EXECUTABLES = {
     'controller': 'lookahead_control.controller_node:entry',
     'sim_plant': 'sim_plant.sim_plant_node:entry',
     'closed_loop': 'lookahead_control.closed_loop:entry',
+    'record': 'lookahead_control.recorder_node:entry',
+    'recover': 'lookahead_control.recorder_node:recover_entry',
+    'replay': 'lookahead_control.replay_node:entry',
+    'analyze': 'lookahead_control.tools.analyze_tool:entry',
+    'demo': 'lookahead_control.tools.demo:entry',
 }
 
 setup(

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass, field
+import datetime
 import os
 from pathlib import Path
 import signal
@@ -50,6 +51,7 @@ class LoopConfig:
     :param timeout: wall-clock limit for the simulator [s].
     :param extra_controller_args: more ROS arguments for the controller.
     :param extra_sim_args: more ROS arguments for the simulator.
+    :param bag: record the run into this bag directory (None: do not record).
     """
 
     scenario: Path
@@ -61,6 +63,7 @@ class LoopConfig:
     timeout: float = 300.0
     extra_controller_args: list[str] = field(default_factory=list)
     extra_sim_args: list[str] = field(default_factory=list)
+    bag: Optional[Path] = None
 
 
 def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
@@ -76,13 +79,23 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
            '-p', f'scenario_file:={cfg.scenario}', '-p', f'speed:={float(cfg.speed)}',
            '-p', f'mode:={cfg.mode}', '-p', f'rate_hz:={float(cfg.rate_hz)}',
            '-p', f'plant.model:={cfg.plant}', '-p', 'use_sim_time:=false',
-           *cfg.extra_sim_args]
+           '-p', f'subscribers:={2 if cfg.bag else 1}', *cfg.extra_sim_args]
     controller = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
                   *common, '--params-file', str(config / 'controller.yaml'),
                   '-p', f'controller.schedule:={cfg.schedule}',
                   '-p', f'wait_for_matching_stamps:={str(cfg.mode == "lockstep").lower()}',
                   '-p', 'use_sim_time:=true', *cfg.extra_controller_args]
     return sim, controller
+
+
+def recorder_command(bag: Path) -> list[str]:
+    """
+    Return the command line of the recorder for one run.
+
+    :param bag: the bag directory to create.
+    :return: the command.
+    """
+    return [sys.executable, '-m', 'lookahead_control.recorder_node', '-o', str(bag)]
 
 
 def stop(process: subprocess.Popen, name: str, grace: float = 10.0) -> int:
@@ -119,13 +132,19 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     if not cfg.scenario.is_file():
         raise ToolError(f'{cfg.scenario}: no such scenario file')
     sim_cmd, ctl_cmd = node_commands(cfg)
+    # the recorder first: the simulator starts once it and the controller are matched
+    recorder = (subprocess.Popen(recorder_command(cfg.bag), env=env) if cfg.bag
+                else None)
     controller = subprocess.Popen(ctl_cmd, env=env)
     sim = subprocess.Popen(sim_cmd, env=env)
     start = time.monotonic()
     try:
         while sim.poll() is None:
-            if controller.poll() is not None:
-                print(f'closed_loop: controller exited early ({controller.returncode})',
+            early = [(name, proc) for name, proc in (('controller', controller),
+                                                     ('record', recorder))
+                     if proc is not None and proc.poll() is not None]
+            if early:
+                print(f'closed_loop: {early[0][0]} exited early ({early[0][1].returncode})',
                       file=sys.stderr)
                 break
             if time.monotonic() - start > cfg.timeout:
@@ -137,9 +156,10 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
         sim_code = stop(sim, 'sim_plant') if sim.poll() is None else sim.returncode
         finished_in_time = time.monotonic() - start <= cfg.timeout
         ctl_code = stop(controller, 'controller')
-    if sim_code != 0 or ctl_code != 0 or not finished_in_time:
-        print(f'closed_loop: failed (sim_plant {sim_code}, controller {ctl_code})',
-              file=sys.stderr)
+        rec_code = stop(recorder, 'record') if recorder is not None else 0
+    if sim_code != 0 or ctl_code != 0 or rec_code != 0 or not finished_in_time:
+        print(f'closed_loop: failed (sim_plant {sim_code}, controller {ctl_code}, '
+              f'record {rec_code})', file=sys.stderr)
         return 1
     return 0
 
@@ -162,10 +182,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear')
     p.add_argument('--rate', type=float, default=100.0, help='control rate [Hz]')
     p.add_argument('--timeout', type=float, default=300.0)
+    p.add_argument('--bag', type=Path, default=None,
+                   help='bag directory (default: bags/<scenario>_<schedule>_<speed>_<time>)')
+    p.add_argument('--no-record', action='store_true', help='do not record a bag')
     args = p.parse_args(argv)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    return run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
-                               args.plant, args.rate, args.timeout))
+    bag = None if args.no_record else (args.bag or Path('bags') / (
+        f'{args.scenario.stem}_{args.schedule}_{args.speed:g}_'
+        f'{datetime.datetime.now():%Y%m%d_%H%M%S}'))
+    if bag is not None and bag.exists():
+        raise ToolError(f'{bag}: exists already; choose another --bag')
+    code = run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
+                               args.plant, args.rate, args.timeout, bag=bag))
+    if bag is not None and code == 0:
+        print(f'closed_loop: recorded {bag}')
+    return code
 
 
 def entry() -> int:

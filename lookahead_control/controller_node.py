@@ -30,7 +30,8 @@ from lookahead_control import conversions as conv
 from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
                                                SteeringController)
 from lookahead_control.node_main import run_node
-from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare, Spec,
+from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare,
+                                           EXECUTOR_SPEC, Spec,
                                            values, vehicle_and_controller,
                                            VEHICLE_SPECS)
 from lookahead_control.params import ParameterError, SCHEDULE_MODES
@@ -57,6 +58,7 @@ NODE_SPECS = (
     Spec('use_curvature_preview', False, 'feed d rho/dt forward from the curvature '
          'preview (false: curvature at the CG only, as in the paper)'),
     Spec('autostart', True, 'configure and activate at start-up'),
+    EXECUTOR_SPEC,
 )
 ALL_SPECS = VEHICLE_SPECS + CONTROLLER_SPECS + NODE_SPECS
 DEBUG_FIELDS = ('d_v', 'd_v_rate', 'y_v', 'y_v_rate', 'y_ref', 'error', 'error_rate', 'f_v',
@@ -92,7 +94,7 @@ class ControllerNode(LifecycleNode):
         self.core = SteeringController(vehicle, controller, params['acceleration_source'],
                                        params['use_curvature_preview'])
         self._dirty = False
-        self._subscriptions: list[Any] = []
+        self._input_subs: list[Any] = []
         self._timer: Any = None
         self._sync_timer: Any = None
         self._pending_stamp: Optional[int] = None
@@ -153,8 +155,8 @@ class ControllerNode(LifecycleNode):
             (TwistStamped, 'velocity', self.on_velocity),
             (PolygonStamped, 'road_curvature', self.on_curvature),
         ]
-        self._subscriptions = [self.create_subscription(t, n, cb, profile)
-                               for t, n, cb in subs]
+        self._input_subs = [self.create_subscription(t, n, cb, profile)
+                            for t, n, cb in subs]
         if self.param('mode') == 'timer':
             self._timer = self.create_timer(1.0 / self.param('rate_hz'), self.on_timer)
         self.get_logger().info(
@@ -174,9 +176,9 @@ class ControllerNode(LifecycleNode):
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Destroy what ``on_configure`` created."""
-        for sub in self._subscriptions:
+        for sub in self._input_subs:
             self.destroy_subscription(sub)
-        self._subscriptions = []
+        self._input_subs = []
         for timer in (self._timer, self._sync_timer):
             if timer is not None:
                 self.destroy_timer(timer)
@@ -287,7 +289,7 @@ def main(args: Optional[list[str]] = None) -> int:
     :param args: command-line arguments (ROS arguments included).
     :return: exit code.
     """
-    return run_node('controller', args, _make_controller, lambda ex, node: ex.spin())
+    return run_node('controller', args, _make_controller)
 
 
 def entry() -> int:

@@ -26,6 +26,7 @@ from typing import Callable, Optional, TypeVar
 
 from lookahead_control.config import ConfigError
 from lookahead_control.params import ParameterError
+from lookahead_control.tools.cli import one_line
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -33,28 +34,60 @@ from rclpy.node import Node
 N = TypeVar('N', bound=Node)
 
 
+def make_executor(kind: str) -> Executor:
+    """
+    Create the executor named by a node's ``executor`` parameter.
+
+    :param kind: ``events`` (``rclpy.experimental.EventsExecutor``) or
+        ``single_threaded``.
+    :return: the executor, in the default context.
+    """
+    if kind == 'events':
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    return SingleThreadedExecutor()
+
+
+def spin_until(executor: Executor, done: Callable[[], bool], period: float = 0.1) -> None:
+    """
+    Spin until ``done()`` or shutdown, returning to Python at least every ``period``.
+
+    Jazzy's ``EventsExecutor.spin()`` busy-waits in C++ and never returns to the
+    interpreter, so Python's SIGINT handler never runs; ``spin_once`` with a timeout
+    does neither, for both executors.
+
+    :param executor: the executor.
+    :param done: polled between callbacks.
+    :param period: longest time in one ``spin_once`` [s].
+    """
+    while rclpy.ok() and not done():
+        executor.spin_once(timeout_sec=period)
+
+
 def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
-             spin: Callable[[Executor, N], None]) -> int:
+             done: Callable[[N], bool] = lambda node: False) -> int:
     """
     Create a node, spin it until done or shut down, and clean up.
 
     :param name: the executable's name, for the one-line error.
     :param args: command-line arguments (ROS arguments included).
     :param make: creates (and, if needed, activates) the node after ``rclpy.init``.
-    :param spin: spins the executor that holds the node.
+    :param done: True when the node has finished (default: run until shut down).
     :return: 0, or 2 for bad parameters or config.
     """
     rclpy.init(args=args)
     node: Optional[N] = None
     try:
         node = make()
-        executor = SingleThreadedExecutor()
+        kind = (node.get_parameter('executor').value if node.has_parameter('executor')
+                else 'single_threaded')
+        executor = make_executor(kind)
         executor.add_node(node)
-        spin(executor, node)
+        spin_until(executor, lambda: done(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ConfigError, ParameterError) as err:
-        print(f'{name}: error: {err}', file=sys.stderr)
+        print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
         return 2
     finally:
         if node is not None:

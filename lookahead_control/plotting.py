@@ -59,6 +59,30 @@ def plot_schedule(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:
     return _save(fig, path)
 
 
+def plot_measured_look_ahead(rows: Sequence[Mapping[str, Any]],
+                             points: Sequence[Mapping[str, float]], path: Path) -> Path:
+    """
+    Plot the schedules against speed with the d_v recorded runs used.
+
+    :param rows: rows of ``analysis.schedule_table`` (the curves).
+    :param points: ``{'speed', 'd_v'}`` of every recorded step.
+    :param path: the PNG file.
+    :return: the path written.
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    v = [r['speed_mps'] for r in rows]
+    for key, label in (('d_v_paper_m', 'paper, eq. 26'), ('d_v_fixed_m', 'fixed d_s')):
+        ax.plot(v, [r[key] for r in rows], label=label)
+    ax.plot([p['speed'] for p in points], [p['d_v'] for p in points], '.', ms=3,
+            label='recorded runs')
+    ax.set_xlabel('speed v_x [m/s]')
+    ax.set_ylabel('look-ahead d_v [m]')
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    return _save(fig, path)
+
+
 def plot_roots(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:
     """
     Plot the zero-dynamics roots in the complex plane (the paper's Fig. 2/3).

@@ -34,7 +34,8 @@ from lookahead_control import conversions as conv
 from lookahead_control.config import source_config_dir
 from lookahead_control.controller_node import qos
 from lookahead_control.node_main import run_node
-from lookahead_control.node_params import build, declare, Spec, values, VEHICLE_SPECS
+from lookahead_control.node_params import (build, declare, EXECUTOR_SPEC, Spec, values,
+                                           VEHICLE_SPECS)
 from lookahead_control.params import VehicleParams
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -74,6 +75,9 @@ SIM_SPECS = (
     Spec('preview_distance', 50.0, 'curvature preview published ahead of the CG [m]',
          0.0, 1000.0),
     Spec('preview_step', 5.0, 'spacing of the curvature preview points [m]', 0.1, 100.0),
+    Spec('subscribers', 1, 'start once each contract topic has this many matched '
+         'subscriptions (2: controller and recorder)', 1, 100),
+    EXECUTOR_SPEC,
 )
 ALL_SPECS = VEHICLE_SPECS + PLANT_SPECS + SIM_SPECS
 GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_cmd',
@@ -124,7 +128,8 @@ class SimPlantNode(Node):
                                                    reliable)
         self.pub_truth = self.create_publisher(JointState, '~/ground_truth', reliable)
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
-        self.create_subscription(JointState, 'steering', self.on_steering, reliable)
+        self.sub_steering = self.create_subscription(JointState, 'steering',
+                                                     self.on_steering, reliable)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         if p['mode'] == 'lockstep':
             self._poll = self.create_timer(0.002, self.on_poll, clock=steady)
@@ -158,7 +163,6 @@ class SimPlantNode(Node):
         x = tuple(float(v) for v in self.x)
         inputs = measure(x, t, scenario, scenario.speed.initial, scenario.speed.acceleration)
         v_x, a_x, rho = float(inputs.v_x), float(inputs.a_x), float(inputs.rho)
-        self.pub_clock.publish(ClockMsg(clock=conv.ns_to_stamp(stamp)))
         # the IMU measures body acceleration: dv_x/dt - v_y r
         self.pub_yaw.publish(conv.to_yaw(stamp, self.frame, x[2], x[4],
                                          a_x - x[3] * x[4]))
@@ -171,6 +175,8 @@ class SimPlantNode(Node):
         self.pub_truth.publish(conv.to_named_values(stamp, list(zip(GROUND_TRUTH, truth))))
         self.pub_lateral.publish(conv.to_lateral_error(
             stamp, self.frame, self.sensor_distance, x[1] + self.sensor_distance * x[2]))
+        # /clock last: a controller on a sim-time timer wakes to this step's measurements
+        self.pub_clock.publish(ClockMsg(clock=conv.ns_to_stamp(stamp)))
         return stamp
 
     def preview(self, s: float) -> list[tuple[float, float]]:
@@ -231,9 +237,18 @@ class SimPlantNode(Node):
     # -- lockstep -------------------------------------------------------------------
 
     def connected(self) -> bool:
-        """Return True once a controller subscribes and a steering publisher exists."""
-        return (self.count_subscribers('lateral_error') > 0
-                and self.count_publishers('steering') > 0)
+        """
+        Return True once every contract topic and the steering topic are matched.
+
+        Matched (the middleware's count), not discovered (the graph's count): a
+        subscriber is in the graph before its readers are matched to our writers, and a
+        step published into that gap is lost to it.
+        """
+        wanted = self.params['subscribers']
+        pubs = (self.pub_lateral, self.pub_yaw, self.pub_velocity, self.pub_curvature)
+        return (all(pub.get_subscription_count() >= wanted for pub in pubs)
+                and self.pub_truth.get_subscription_count() >= wanted - 1
+                and self.sub_steering.get_publisher_count() > 0)
 
     def on_poll(self) -> None:
         """Start once the controller is connected; enforce the deadline."""
@@ -269,13 +284,34 @@ class SimPlantNode(Node):
         """Publish the current step, then integrate one period with the latest command."""
         if self.done.done():
             return
-        if self.k == 0 and not self.connected():
+        if self.k == 0 and not self.loop_closed():
             return
         if self.k > 0 and self.answered_stamp != self.stamp_ns(self.k - 1):
             self.missed += 1
         self.publish_measurements()
         self.integrate()
         self.finished()
+
+    def loop_closed(self) -> bool:
+        """
+        Return True once the controller answered, or did not within ``deadline``.
+
+        Until then step 0 is repeated: discovery says a controller exists before its
+        topics are all matched, and steps published into that gap would count as missed.
+        A controller that cannot answer step 0 (a sim-time timer does not fire at t = 0)
+        starts the clock after ``deadline``.
+        """
+        if self.answered_stamp is not None:
+            return True
+        if not self.connected():
+            return False
+        now = time.monotonic()
+        if not self.sent_at:
+            self.sent_at = now
+        if now - self.sent_at > self.params['deadline']:
+            return True
+        self.publish_measurements()
+        return False
 
 
 def main(args: Optional[list[str]] = None) -> int:
@@ -285,8 +321,7 @@ def main(args: Optional[list[str]] = None) -> int:
     :param args: command-line arguments (ROS arguments included).
     :return: exit code.
     """
-    return run_node('sim_plant', args, SimPlantNode,
-                    lambda ex, node: ex.spin_until_future_complete(node.done))
+    return run_node('sim_plant', args, SimPlantNode, lambda node: node.done.done())
 
 
 def entry() -> int:

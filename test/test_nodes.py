@@ -198,3 +198,17 @@ def test_sim_plant_node_publishes_the_contract(context, tmp_path):
         assert math.isclose(node.x[5], -0.01)
     finally:
         node.destroy_node()
+
+
+def test_controller_keeps_the_clock_subscription_of_use_sim_time(context):
+    # regression: an attribute named like rclpy's Node._subscriptions dropped /clock
+    from lookahead_control.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('mode', value='timer')])
+    try:
+        node.trigger_configure()
+        topics = {sub.topic_name for sub in node.subscriptions}
+        assert {'/clock', '/lateral_error', '/yaw', '/velocity'} <= topics
+        assert len(list(node.timers)) == 1
+    finally:
+        node.destroy_node()

@@ -134,12 +134,82 @@ def test_remapped_bridge_drives_the_controller(probe):
         assert stop(controller, 'controller') == 0
 
 
+def _short_scenario(tmp_path, duration):
+    text = SCENARIO.read_text().replace('duration: 10.0', f'duration: {duration}')
+    path = tmp_path / 'short.yaml'
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize('executor', ['events', 'single_threaded'])
+def test_realtime_100hz_runs_without_missed_steps(tmp_path, executor):
+    exe = ['-p', f'executor:={executor}']
+    sim_cmd, ctl_cmd = node_commands(LoopConfig(_short_scenario(tmp_path, 3.0), speed=30.0,
+                                                mode='realtime', extra_sim_args=exe,
+                                                extra_controller_args=exe))
+    controller = subprocess.Popen(ctl_cmd)
+    sim = subprocess.Popen(sim_cmd, stderr=subprocess.PIPE, text=True)
+    try:
+        start = time.monotonic()
+        _, err = sim.communicate(timeout=60)
+        elapsed = time.monotonic() - start
+    finally:
+        stop(sim, 'sim')
+        assert stop(controller, 'controller') == 0
+    assert sim.returncode == 0, err
+    assert 'finished at t = 3 s: 300 steps, 0 missed deadlines' in err, err
+    assert elapsed >= 3.0        # wall-clock paced, not as fast as possible
+
+
+def test_use_sim_time_is_honoured(probe):
+    node, executor = probe
+    from rosgraph_msgs.msg import Clock
+    clock = node.create_publisher(Clock, '/clock', 10)
+    pubs = {name: node.create_publisher(type(msg), name, 10) for name, msg in (
+        ('/lateral_error', conv.to_lateral_error(0, '', 0, 0)),
+        ('/yaw', conv.to_yaw(0, '', 0, 0, 0)), ('/velocity', conv.to_velocity(0, '', 0, 0, 0)))}
+    answers = []
+    node.create_subscription(JointState, '/steering',
+                             lambda m: answers.append(conv.from_steering(m)), 100)
+    cmd = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
+           '-p', 'use_sim_time:=true', '-p', 'mode:=timer', '-p', 'rate_hz:=10.0']
+    controller = subprocess.Popen(cmd)
+
+    def publish(t_ns):
+        pubs['/yaw'].publish(conv.to_yaw(t_ns, 'base_link', 0.0, 0.0, 0.0))
+        pubs['/velocity'].publish(conv.to_velocity(t_ns, 'base_link', 20.0, 0.0, 0.0))
+        pubs['/lateral_error'].publish(conv.to_lateral_error(t_ns, 'base_link', 0.0, 0.5))
+        clock.publish(Clock(clock=conv.ns_to_stamp(t_ns)))
+        _spin_until(executor, lambda: False, 0.02)
+
+    try:
+        assert _spin_until(executor, lambda: node.count_subscribers('/clock') > 0
+                           and node.count_publishers('/steering') > 0, 30)
+        _spin_until(executor, lambda: False, 0.5)
+        publish(1_000_000_000)
+        # sim time stands still at 1 s: 1.5 s of wall time produce no timer ticks
+        _spin_until(executor, lambda: False, 1.5)
+        held = len(answers)
+        assert held <= 1
+        # 2 s of sim time in 50 ms steps at 10 Hz: 20 ticks, each answering its step
+        for k in range(1, 41):
+            publish(1_000_000_000 + k * 50_000_000)
+        _spin_until(executor, lambda: False, 0.5)
+        ticks = len(answers) - held
+        assert 18 <= ticks <= 21, ticks
+        assert all(angle < 0.0 for _, angle in answers)
+    finally:
+        assert stop(controller, 'controller') == 0
+
+
 def test_closed_loop_executable_succeeds_and_fails_cleanly(tmp_path):
     code = 'import sys\nfrom lookahead_control.closed_loop import entry\nsys.exit(entry())'
-    ok = subprocess.run([sys.executable, '-c', code, '--speed', '20'], cwd=ROOT,
+    ok = subprocess.run([sys.executable, '-c', code, '--speed', '20', '--bag',
+                         str(tmp_path / 'run')], cwd=ROOT,
                         capture_output=True, text=True, timeout=120)
     assert ok.returncode == 0, ok.stderr
     assert 'finished at t = 10 s: 1000 steps, 0 missed deadlines' in ok.stderr
+    assert (tmp_path / 'run' / 'metadata.yaml').is_file()     # recorded by default
     bad = subprocess.run([sys.executable, '-c', code, '--scenario',
                           str(tmp_path / 'none.yaml')], cwd=ROOT, capture_output=True,
                          text=True, timeout=60)

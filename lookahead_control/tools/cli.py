@@ -34,6 +34,16 @@ class ToolError(RuntimeError):
     """A failure a tool reports as one line and a non-zero exit."""
 
 
+def one_line(text: str) -> str:
+    """
+    Return ``text`` on one line (parsers' messages span several).
+
+    :param text: the message.
+    :return: its words joined by single spaces.
+    """
+    return ' '.join(text.split())
+
+
 def run_tool(main: Callable[[Sequence[str] | None], int],
              argv: Sequence[str] | None = None) -> int:
     """
@@ -47,7 +57,7 @@ def run_tool(main: Callable[[Sequence[str] | None], int],
     try:
         return main(argv)
     except (ConfigError, ParameterError, ToolError, ValueError) as err:
-        print(f'{prog}: error: {err}', file=sys.stderr)
+        print(f'{prog}: error: {one_line(str(err))}', file=sys.stderr)
         return EXIT_USAGE
     except OSError as err:
         where = f'{err.filename}: ' if err.filename else ''

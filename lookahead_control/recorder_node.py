@@ -1,0 +1,307 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The ``record`` executable: a rosbag2 MCAP recorder for machines without rosbag2.
+
+Subscribes to the selected topics as they appear (serialized, type-agnostic), with a
+QoS each publisher can match, and writes them with :class:`~lookahead_control.bags.
+BagWriter`. It asks the described nodes for their parameters, stores them and the
+scenario in the bag, counts what arrived against the publishers' sequence numbers and
+finalizes the bag on SIGINT or SIGTERM. ``record --recover BAG`` salvages a bag whose
+recorder was killed.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+import datetime
+import functools
+import importlib
+from pathlib import Path
+import re
+import sys
+from typing import Any, Optional, Sequence
+
+from lookahead_control.bags import (BagError, BagWriter, PARAMETERS_KEY, qos_from_ints,
+                                    RECORDER_KEY, recover, SCENARIO_KEY)
+from lookahead_control.config import source_config_dir
+from lookahead_control.node_main import run_node
+from lookahead_control.tools.cli import run_tool, ToolError
+from rcl_interfaces.srv import GetParameters, ListParameters
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.parameter import parameter_value_to_python
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.task import Future
+from rclpy.utilities import remove_ros_args
+import yaml
+
+DEFAULT_DESCRIBE = ('/controller', '/sim_plant')
+
+
+@dataclass
+class TopicStats:
+    """What arrived on one topic, and the publishers' sequence numbers seen."""
+
+    received: int = 0
+    first_seq: Optional[int] = None
+    last_seq: Optional[int] = None
+    publishers: int = 0
+
+    def dropped(self) -> Optional[int]:
+        """Return the messages lost (None when the sequence cannot tell: many writers)."""
+        if self.publishers != 1 or self.first_seq is None or self.last_seq is None:
+            return None
+        return max(0, self.last_seq - self.first_seq + 1 - self.received)
+
+
+def message_class(msgtype: str) -> Any:
+    """
+    Return the Python class of ``pkg/msg/Type``.
+
+    :param msgtype: the ROS type name.
+    :return: the class.
+    :raises ImportError: the package is not installed.
+    """
+    package, _, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.msg'), name)
+
+
+def qos_as_ints(profile: QoSProfile) -> dict[str, int]:
+    """
+    Return an rclpy QoS profile as rmw enum numbers and nanoseconds.
+
+    :param profile: the profile.
+    :return: the numbers :func:`~lookahead_control.bags.qos_from_ints` takes.
+    """
+    return {'history': int(profile.history), 'depth': int(profile.depth),
+            'reliability': int(profile.reliability), 'durability': int(profile.durability),
+            'liveliness': int(profile.liveliness),
+            'deadline_ns': profile.deadline.nanoseconds,
+            'lifespan_ns': profile.lifespan.nanoseconds,
+            'lease_ns': profile.liveliness_lease_duration.nanoseconds}
+
+
+def matching_qos(offered: Sequence[QoSProfile]) -> QoSProfile:
+    """
+    Return a subscription QoS every offered profile matches, reliable where possible.
+
+    :param offered: the publishers' profiles.
+    :return: reliable unless a publisher is best effort; transient local only if all
+        publishers are; deep history so bursts are not dropped.
+    """
+    reliable = all(p.reliability == ReliabilityPolicy.RELIABLE for p in offered)
+    latched = bool(offered) and all(p.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                                    for p in offered)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                      reliability=ReliabilityPolicy.RELIABLE if reliable
+                      else ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
+                      else DurabilityPolicy.VOLATILE)
+
+
+class RecorderNode(Node):
+    """Records the selected topics into one bag."""
+
+    def __init__(self, bag: BagWriter, topics: Sequence[str] = (),
+                 regex: Optional[str] = None,
+                 describe: Sequence[str] = DEFAULT_DESCRIBE, **kwargs: Any) -> None:
+        """
+        Start discovering topics.
+
+        :param bag: the bag to write.
+        :param topics: exact topic names to record (with ``regex`` empty: all topics).
+        :param regex: record topics whose full name matches it.
+        :param describe: nodes whose parameters are stored in the bag.
+        :param kwargs: passed to ``Node``.
+        """
+        super().__init__('recorder', **kwargs)
+        self.bag = bag
+        self.topics = set(topics)
+        self.regex = re.compile(regex) if regex else None
+        self.stats: dict[str, TopicStats] = {}
+        self._subs: dict[str, Any] = {}
+        self.parameters: dict[str, dict[str, Any]] = {}
+        self._asked: set[str] = set()
+        self.to_describe = list(describe)
+        self.create_timer(0.1, self.discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(f'recording to {bag.path}')
+
+    def wanted(self, topic: str) -> bool:
+        """Return True if ``topic`` is selected."""
+        if self.regex is not None and self.regex.fullmatch(topic):
+            return True
+        if self.topics:
+            return topic in self.topics
+        return self.regex is None
+
+    def discover(self) -> None:
+        """Subscribe to new selected topics; ask new described nodes for parameters."""
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._subs or not self.wanted(topic):
+                continue
+            infos = self.get_publishers_info_by_topic(topic)
+            if not infos:
+                continue
+            try:
+                cls = message_class(types[0])
+                self.bag.add_topic(topic, types[0],
+                                   [qos_from_ints(qos_as_ints(i.qos_profile)) for i in infos])
+            except (ImportError, AttributeError, BagError) as err:
+                self.get_logger().warn(f'{topic}: not recorded: {err}')
+                self._subs[topic] = None
+                continue
+            self.stats[topic] = TopicStats()
+            # two arguments: rclpy passes the message info (publication sequence number)
+            callback: Any = functools.partial(self.on_message, topic)
+            self._subs[topic] = self.create_subscription(
+                cls, topic, callback, matching_qos([i.qos_profile for i in infos]), raw=True)
+        for topic, stats in self.stats.items():
+            stats.publishers = max(stats.publishers, self.count_publishers(topic))
+        self._describe_new_nodes()
+
+    def on_message(self, topic: str, data: bytes, info: dict[str, Any]) -> None:
+        """Write one serialized message with its receive time."""
+        self.bag.write(topic, self.get_clock().now().nanoseconds, data)
+        stats = self.stats[topic]
+        stats.received += 1
+        seq = info.get('publication_sequence_number')
+        if seq is not None:
+            stats.first_seq = seq if stats.first_seq is None else min(stats.first_seq, seq)
+            stats.last_seq = seq if stats.last_seq is None else max(stats.last_seq, seq)
+
+    # -- run description ------------------------------------------------------------
+
+    def _describe_new_nodes(self) -> None:
+        present = {(ns.rstrip('/') + '/' + name) for name, ns in
+                   self.get_node_names_and_namespaces()}
+        for target in self.to_describe:
+            if target in present and target not in self._asked:
+                self._asked.add(target)
+                client = self.create_client(ListParameters, f'{target}/list_parameters')
+                future = client.call_async(ListParameters.Request(depth=0))
+                future.add_done_callback(lambda f, t=target: self._got_names(t, f))
+
+    def _got_names(self, target: str, future: Future) -> None:
+        names = list(future.result().result.names)
+        client = self.create_client(GetParameters, f'{target}/get_parameters')
+        request = GetParameters.Request(names=names)
+        client.call_async(request).add_done_callback(
+            lambda f: self._got_values(target, names, f))
+
+    def _got_values(self, target: str, names: list[str], future: Future) -> None:
+        values = [parameter_value_to_python(v) for v in future.result().values]
+        self.parameters[target] = dict(sorted(zip(names, values)))
+        text = yaml.safe_dump({node: {'ros__parameters': params}
+                               for node, params in self.parameters.items()})
+        self.bag.describe(PARAMETERS_KEY, text)
+        scenario = self.parameters[target].get('scenario_file')
+        if scenario is not None:
+            path = Path(scenario) if scenario else (
+                source_config_dir() / 'scenarios' / 'paper_r400.yaml')
+            try:
+                self.bag.describe(SCENARIO_KEY, path.read_text())
+            except OSError as err:
+                self.get_logger().warn(f'scenario {path} not stored: {err}')
+        self.get_logger().info(f'stored the parameters of {target}')
+
+    # -- end ------------------------------------------------------------------------
+
+    def report(self) -> dict[str, dict[str, Optional[int]]]:
+        """Return received / published / dropped per topic."""
+        out: dict[str, dict[str, Optional[int]]] = {}
+        for topic, stats in sorted(self.stats.items()):
+            dropped = stats.dropped()
+            out[topic] = {'received': stats.received, 'dropped': dropped,
+                          'published': None if dropped is None
+                          else stats.received + dropped}
+        return out
+
+    def destroy_node(self) -> None:
+        """Finalize the bag (also on SIGINT / SIGTERM) and report."""
+        if not self.bag.closed:
+            report = self.report()
+            self.bag.describe(RECORDER_KEY, yaml.safe_dump(report))
+            self.bag.close()
+            total = sum(r['received'] or 0 for r in report.values())
+            dropped = sum(r['dropped'] or 0 for r in report.values())
+            missing = [n for n in self.to_describe if n in self._asked
+                       and n not in self.parameters]
+            print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
+                  f'{dropped} dropped' + (f'; no parameters from {", ".join(missing)}'
+                                          if missing else ''), file=sys.stderr)
+        super().destroy_node()
+
+
+def default_bag_name() -> str:
+    """Return ``bags/run_<local date and time>``."""
+    return 'bags/run_' + datetime.datetime.now().strftime('%Y%m%d_%H%M%S')
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """
+    Record until SIGINT / SIGTERM, or recover a bag with ``--recover``.
+
+    :param argv: command-line arguments (ROS arguments after ``--ros-args``).
+    :return: exit code.
+    """
+    full = list(sys.argv if argv is None else argv)
+    p = argparse.ArgumentParser(prog='record', description='record topics into a rosbag2 '
+                                'MCAP bag (stop with Ctrl-C)')
+    p.add_argument('topics', nargs='*', help='topics to record (default: all)')
+    p.add_argument('-o', '--output', type=Path, help='bag directory (default: '
+                   'bags/run_<date>_<time>)')
+    p.add_argument('-e', '--regex', help='also record topics matching this regex')
+    p.add_argument('--describe', nargs='*', default=list(DEFAULT_DESCRIBE),
+                   help='nodes whose parameters are stored in the bag')
+    p.add_argument('--chunk-interval', type=float, default=0.5,
+                   help='longest time a message waits in memory [s]')
+    p.add_argument('--recover', type=Path, metavar='BAG',
+                   help='rewrite a truncated bag into a readable one and exit')
+    args = p.parse_args(remove_ros_args(full)[1:])
+    if args.recover is not None:
+        result = recover(args.recover)
+        print(f'record: recovered {result.messages} messages on {result.topics} topics '
+              f'into {result.bag} (original kept as {result.original.name})')
+        return 0
+    if args.chunk_interval <= 0:
+        raise ToolError(f'--chunk-interval {args.chunk_interval}: must be > 0')
+    bag = BagWriter(args.output or Path(default_bag_name()), args.chunk_interval)
+    try:
+        return run_node('record', full, lambda: RecorderNode(bag, args.topics, args.regex,
+                                                             args.describe))
+    finally:
+        bag.close()
+
+
+def entry() -> int:
+    """Entry point of ``record``."""
+    return run_tool(main)
+
+
+def recover_entry() -> int:
+    """Entry point of ``recover``: ``recover BAG``."""
+    def recover_main(argv: Optional[Sequence[str]] = None) -> int:
+        p = argparse.ArgumentParser(prog='recover', description='rewrite a bag whose '
+                                    'recorder was killed into a readable one')
+        p.add_argument('bag', type=Path)
+        args = p.parse_args(argv)
+        return main(['record', '--recover', str(args.bag)])
+    return run_tool(recover_main)
+
+
+if __name__ == '__main__':
+    sys.exit(entry())

@@ -1,0 +1,337 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Bags: record a real closed loop, read it two ways, recover, replay, analyze."""
+
+import math
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+from lookahead_control import conversions as conv
+from lookahead_control.bag_analysis import bag_row, run_series
+from lookahead_control.bags import (bag_topics, BagError, BagWriter, node_parameters,
+                                    PARAMETERS_KEY, qos_from_ints, recover, run_description)
+from lookahead_control.closed_loop import LoopConfig, run_loop
+from lookahead_control.run_data import load_run, rerun
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENARIO = ROOT / 'config' / 'scenarios' / 'paper_r400.yaml'
+CONTRACT = ('/lateral_error', '/yaw', '/velocity', '/road_curvature', '/steering',
+            '/controller/debug', '/sim_plant/ground_truth', '/clock')
+pytestmark = pytest.mark.process
+
+
+def _tool(module, *args, timeout=60):
+    return subprocess.run([sys.executable, '-m', module, *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope='module')
+def loop_bag(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp('loop')
+    scenario = tmp / 'short.yaml'
+    scenario.write_text(SCENARIO.read_text().replace('duration: 10.0', 'duration: 4.0'))
+    bag = tmp / 'bag'
+    assert run_loop(LoopConfig(scenario, speed=30.0, bag=bag)) == 0
+    return bag
+
+
+def test_bag_reads_with_rosbags_and_mcap_and_counts_match(loop_bag):
+    meta = yaml.safe_load((loop_bag / 'metadata.yaml').read_text())
+    info = meta['rosbag2_bagfile_information']
+    assert info['version'] == 9 and info['storage_identifier'] == 'mcap'
+    counts = {t['topic_metadata']['name']: t['message_count']
+              for t in info['topics_with_message_count']}
+    for topic in CONTRACT:
+        assert counts[topic] == 400, topic          # 4 s at 100 Hz, every step
+    # what the recorder counted against the publishers' sequence numbers
+    recorded = yaml.safe_load(info['custom_data']['lookahead_control/recorder'])
+    for topic in CONTRACT:
+        assert recorded[topic] == {'received': 400, 'published': 400, 'dropped': 0}
+    # reader 1: rosbags with the Jazzy type store decodes every message
+    from rosbags.highlevel import AnyReader
+    from lookahead_control.bags import typestore
+    with AnyReader([loop_bag], default_typestore=typestore()) as reader:
+        decoded = sum(1 for c, _, raw in reader.messages()
+                      if reader.deserialize(raw, c.msgtype) is not None)
+    assert decoded == info['message_count']
+    # reader 2: mcap + mcap-ros2-support, independently of rosbags
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    with (loop_bag / 'bag.mcap').open('rb') as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        summary = reader.get_summary()
+        per_topic = {}
+        for _, channel, _, msg in reader.iter_decoded_messages():
+            per_topic[channel.topic] = per_topic.get(channel.topic, 0) + 1
+    assert per_topic == {k: v for k, v in counts.items() if v}
+    for channel in summary.channels.values():
+        assert channel.message_encoding == 'cdr'
+        qos = yaml.safe_load(channel.metadata['offered_qos_profiles'])
+        assert qos and qos[0]['reliability'] in ('reliable', 'best_effort', 1, 2)
+    lateral = next(c for c in summary.channels.values() if c.topic == '/lateral_error')
+    assert yaml.safe_load(lateral.metadata['offered_qos_profiles'])[0]['reliability'] \
+        in ('reliable', 1)
+    assert {s.encoding for s in summary.schemas.values()} == {'ros2msg'}
+
+
+def test_bag_describes_its_run(loop_bag):
+    controller = node_parameters(loop_bag, '/controller')
+    sim = node_parameters(loop_bag, '/sim_plant')
+    assert controller['controller.schedule'] == 'paper'
+    assert controller['wait_for_matching_stamps'] is True
+    assert sim['speed'] == 30.0 and sim['mode'] == 'lockstep'
+    scenario = yaml.safe_load(run_description(loop_bag)['lookahead_control/scenario'])
+    assert scenario['scenario']['duration'] == 4.0
+
+
+def test_offline_rerun_reproduces_the_steering_exactly(loop_bag):
+    result = rerun(load_run(loop_bag))
+    assert result.order == 'stamp' and result.compared == 400
+    assert result.max_diff == 0.0
+    ok = _tool('lookahead_control.replay_node', loop_bag, '--check', '0')
+    assert ok.returncode == 0, ok.stderr
+    assert '400 commands compared' in ok.stdout
+    changed = _tool('lookahead_control.replay_node', loop_bag, '--check', '1e-6',
+                    '-p', 'controller.natural_frequency=3.5')
+    assert changed.returncode == 1 and 'check failed' in changed.stderr
+    bad = _tool('lookahead_control.replay_node', loop_bag, '--check', '0',
+                '-p', 'controller.natural_frequency=-1')
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize('fraction', [0.3, 0.6, 0.9])
+def test_truncated_bag_is_recovered(loop_bag, tmp_path, fraction):
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    data = (loop_bag / 'bag.mcap').read_bytes()
+    (bag / 'bag.mcap').write_bytes(data[:int(len(data) * fraction)])
+    shutil.copy(loop_bag / 'run_description.yaml', bag)     # no metadata.yaml: killed
+    with pytest.raises(BagError, match='recover'):
+        bag_topics(bag)
+    out = _tool('lookahead_control.recorder_node', '--recover', bag)
+    assert out.returncode == 0, out.stderr
+    saved = int(out.stdout.split('recovered ')[1].split()[0])
+    total = yaml.safe_load((loop_bag / 'metadata.yaml').read_text())[
+        'rosbag2_bagfile_information']['message_count']
+    # chunks of 0.5 s of messages at most are lost; the rest is all there
+    assert 0 < saved <= total
+    assert saved >= (fraction - 0.35) * total
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    with (bag / 'bag.mcap').open('rb') as f:
+        assert sum(1 for _ in make_reader(f, decoder_factories=[DecoderFactory()])
+                   .iter_decoded_messages()) == saved
+    assert sum(c for _, c in bag_topics(bag).values()) == saved
+    assert (bag / 'bag.mcap.truncated').is_file()
+    assert PARAMETERS_KEY in run_description(bag)       # the description survived
+
+
+def _publisher(topic_count, rate_hz, seconds):
+    code = f"""
+import time, rclpy
+from rclpy.node import Node
+from std_msgs.msg import Float64
+rclpy.init()
+node = Node('talker')
+pub = node.create_publisher(Float64, '/talk', 100)
+while pub.get_subscription_count() == 0:
+    rclpy.spin_once(node, timeout_sec=0.05)
+time.sleep(0.3)
+for k in range({topic_count}):
+    pub.publish(Float64(data=float(k)))
+    time.sleep({1.0 / rate_hz})
+print('published', {topic_count}, flush=True)
+time.sleep({seconds})
+"""
+    return subprocess.Popen([sys.executable, '-c', code], stdout=subprocess.PIPE, text=True)
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_signals_finalize_the_bag(tmp_path, sig):
+    bag = tmp_path / 'bag'
+    recorder = subprocess.Popen([sys.executable, '-m', 'lookahead_control.recorder_node',
+                                 '/talk', '-o', str(bag)], stderr=subprocess.PIPE, text=True)
+    talker = _publisher(300, 200.0, 5.0)
+    try:
+        assert talker.stdout.readline().startswith('published')
+        time.sleep(0.3)
+        recorder.send_signal(sig)
+        _, err = recorder.communicate(timeout=20)
+    finally:
+        talker.kill()
+        talker.wait()
+    assert recorder.returncode == 0, err
+    assert 'record: ' in err and '300 messages on 1 topics, 0 dropped' in err
+    assert bag_topics(bag) == {'/talk': ('std_msgs/msg/Float64', 300)}
+
+
+def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
+    bag = tmp_path / 'bag'
+    recorder = subprocess.Popen([sys.executable, '-m', 'lookahead_control.recorder_node',
+                                 '/talk', '-o', str(bag), '--chunk-interval', '0.2'])
+    talker = _publisher(400, 200.0, 5.0)
+    try:
+        assert talker.stdout.readline().startswith('published')
+        time.sleep(0.6)                       # more than two chunk intervals of quiet
+        recorder.kill()
+        recorder.wait()
+    finally:
+        talker.kill()
+        talker.wait()
+    assert not (bag / 'metadata.yaml').exists()
+    result = recover(bag)
+    # the last chunk closes on the first write after 0.2 s: at most that much is lost
+    assert 400 - 0.2 * 200 - 1 <= result.messages <= 400
+    values = load_floats(bag)
+    assert values == list(range(len(values)))
+
+
+def load_floats(bag):
+    from lookahead_control.bags import read_messages
+    return [int(m.msg.data) for m in read_messages(bag)]
+
+
+def test_recover_and_analyze_fail_in_one_line(tmp_path):
+    for module, args in (('lookahead_control.recorder_node', ['--recover', tmp_path / 'x']),
+                         ('lookahead_control.tools.analyze_tool', [tmp_path / 'x']),
+                         ('lookahead_control.replay_node', [tmp_path / 'x', '--offline'])):
+        out = _tool(module, *args)
+        assert out.returncode == 2, out.stderr
+        assert len(out.stderr.strip().splitlines()) == 1 and 'x' in out.stderr
+    (tmp_path / 'junk').mkdir()
+    (tmp_path / 'junk' / 'metadata.yaml').write_text('not: [a bag')
+    out = _tool('lookahead_control.tools.analyze_tool', tmp_path / 'junk')
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+
+
+def _rosbags_message(msg, store):
+    """Convert an rclpy message to the rosbags class of the same type (recursively)."""
+    import array
+    import numpy as np
+    name = f'{type(msg).__module__.split(".")[0]}/msg/{type(msg).__name__}'
+    fields = {}
+    for field in msg.get_fields_and_field_types():
+        value = getattr(msg, field)
+        if hasattr(value, 'get_fields_and_field_types'):
+            value = _rosbags_message(value, store)
+        elif isinstance(value, (array.array, np.ndarray)):
+            value = np.array(value, dtype=np.float64)
+        elif isinstance(value, list) and value and hasattr(value[0], 'get_fields_and_field_types'):
+            value = [_rosbags_message(v, store) for v in value]
+        fields[field] = value
+    return store.types[name](**fields)
+
+
+def _synthetic_bag(path):
+    """20 m/s, y_cg = 0.1 sin(t) measured at the CG, eps_r = 0, 2 ms latency."""
+    from lookahead_control.bags import typestore
+    store = typestore()
+
+    def serialize_message(msg):
+        converted = _rosbags_message(msg, store)
+        return store.serialize_cdr(converted, converted.__msgtype__)
+
+    writer = BagWriter(path)
+    qos = [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})]
+    types = {'/lateral_error': 'geometry_msgs/msg/PointStamped',
+             '/yaw': 'sensor_msgs/msg/Imu', '/velocity': 'geometry_msgs/msg/TwistStamped',
+             '/steering': 'sensor_msgs/msg/JointState'}
+    for topic, msgtype in types.items():
+        writer.add_topic(topic, msgtype, qos)
+    start = 1_000_000_000_000
+    for k in range(2000):                     # 20 s at 100 Hz: whole periods of sin
+        stamp = k * 10_000_000
+        t = stamp * 1e-9
+        recv = start + stamp
+        writer.write('/yaw', recv, serialize_message(conv.to_yaw(stamp, 'b', 0, 0, 0)))
+        writer.write('/velocity', recv, serialize_message(
+            conv.to_velocity(stamp, 'b', 20.0, 0.0, 0.0)))
+        writer.write('/lateral_error', recv + 1, serialize_message(
+            conv.to_lateral_error(stamp, 'b', 0.0, 0.1 * math.sin(2 * math.pi * t / 10))))
+        writer.write('/steering', recv + 2_000_001, serialize_message(
+            conv.to_steering(stamp, 0.01 * math.cos(2 * math.pi * t / 10), 0.0)))
+    writer.close()
+
+
+def test_analyze_gives_the_known_numbers_of_a_synthetic_bag(tmp_path):
+    _synthetic_bag(tmp_path / 'syn')
+    run = load_run(tmp_path / 'syn')
+    series = run_series(run)
+    row = bag_row(run, series)
+    assert row['peak_cg'] == pytest.approx(0.1, rel=1e-9)
+    assert row['rms_cg'] == pytest.approx(0.1 / math.sqrt(2), rel=1e-9)
+    assert row['peak_bumper'] == pytest.approx(0.1, rel=1e-9)       # eps_r = 0
+    assert row['peak_steering'] == pytest.approx(0.01, rel=1e-9)
+    # d/dt of 0.01 cos(2 pi t / 10): peak 0.01 * 2 pi / 10, sampled at 100 Hz
+    assert row['peak_steering_rate'] == pytest.approx(0.002 * math.pi, rel=1e-3)
+    assert row['latency_p50_ms'] == pytest.approx(2.0, abs=1e-6)
+    assert row['latency_p99_ms'] == pytest.approx(2.0, abs=1e-6)
+    assert row['steps'] == 2000 and row['unanswered'] == 0 and row['dropped'] == -1
+    assert row['d_v_final'] == pytest.approx(10.61, abs=0.01)      # eq. 26 at 20 m/s
+    out = _tool('lookahead_control.tools.analyze_tool', tmp_path / 'syn', '--out',
+                tmp_path / 'report')
+    assert out.returncode == 0, out.stderr
+    assert {'report.md', 'metrics.csv', 'metrics.json', 'overlay.png',
+            'look_ahead_vs_speed.png'} <= {p.name for p in (tmp_path / 'report').iterdir()}
+
+
+def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node('replay_probe', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    answers = {}
+    sub = node.create_subscription(JointState, '/replayed/steering',
+                                   lambda m: answers.__setitem__(*conv.from_steering(m)),
+                                   1000)
+    controller = subprocess.Popen([
+        sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
+        '-r', 'steering:=/replayed/steering', '-p', 'wait_for_matching_stamps:=true'])
+    try:
+        end = time.monotonic() + 30
+        while sub.get_publisher_count() == 0 and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        player = subprocess.Popen([
+            sys.executable, '-m', 'lookahead_control.replay_node', str(loop_bag),
+            '--topics', '/lateral_error', '/yaw', '/velocity', '/road_curvature'],
+            stdout=subprocess.PIPE, text=True)
+        while player.poll() is None:
+            executor.spin_once(timeout_sec=0.05)
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        assert player.returncode == 0
+        assert 'published 1600 messages on 4 topics' in player.stdout.read()
+    finally:
+        controller.send_signal(signal.SIGINT)
+        controller.wait(10)
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    recorded = load_run(loop_bag).steering
+    assert len(answers) >= 395
+    # the same inputs give the same commands as in the recorded run
+    assert max(abs(recorded[s][0] - a) for s, a in answers.items()) < 1e-15
