@@ -32,6 +32,9 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest
 
+fuzz: $(STAMP)
+	FUZZ_EXAMPLES=100000 $(PY) -m pytest -q -s test/test_fuzz.py
+
 lint: $(STAMP)
 	$(PY) -m pytest -m lint
 

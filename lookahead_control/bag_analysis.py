@@ -100,7 +100,8 @@ def run_series(run: RunData) -> RunSeries:
     keep = [i for i in range(len(stamps)) if yaw[i] is not None and velocity[i] is not None]
     if not keep:
         raise ValueError(f'{run.bag}: no lateral error with yaw and velocity to go with it')
-    law = {} if run.debug else {s: c.law for s, c in rerun(run).commands.items()}
+    law = {} if run.debug else {s: c.law for s, c in rerun(run).commands.items()
+                                if c.law is not None}
     rows: dict[str, list[float]] = {name: [] for name in SERIES}
     for i in keep:
         s = stamps[i]

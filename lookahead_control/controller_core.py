@@ -23,12 +23,14 @@ and the whole input -> command path testable without DDS.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any, Callable, Optional
 
 from lookahead_control.control_law import cg_error_from, LateralState, LawOutput, steering_law
 from lookahead_control.conversions import (CurvatureSample, LateralErrorSample,
                                            VelocitySample, YawSample)
 from lookahead_control.params import check_choice, ControllerParams, VehicleParams
+from lookahead_control.safety import (check_sample, check_stamp, limit, low_speed_weight,
+                                      SafetyParams, stale_target)
 
 ACCELERATION_SOURCES = ('imu', 'differentiate', 'zero')
 
@@ -42,20 +44,28 @@ class Command:
     :param steering: front-wheel angle (+ left) [rad].
     :param steering_rate: change since the previous command over the time between them
         [rad/s] (0 for the first).
-    :param law: the law's intermediate values.
+    :param law: the law's intermediate values (None for a stale-input command).
+    :param status: ``ok``, ``low_speed`` (handing over to hold) or ``stale`` (inputs
+        timed out: hold, then ramp to the safe angle).
+    :param saturated: the angle limit cut the command.
+    :param rate_limited: the rate limit cut the command.
     """
 
     stamp_ns: int
     steering: float
     steering_rate: float
-    law: LawOutput
+    law: Optional[LawOutput]
+    status: str = 'ok'
+    saturated: bool = False
+    rate_limited: bool = False
 
 
 class SteeringController:
     """Holds the latest inputs and evaluates the law on demand."""
 
     def __init__(self, vehicle: VehicleParams, controller: ControllerParams,
-                 acceleration_source: str = 'imu', use_preview: bool = False) -> None:
+                 acceleration_source: str = 'imu', use_preview: bool = False,
+                 safety: Optional[SafetyParams] = None) -> None:
         """
         Create the controller state.
 
@@ -67,7 +77,17 @@ class SteeringController:
         :param use_preview: feed ``d rho / dt = v_x d rho / ds`` forward from the
             curvature preview; if false, only the curvature at the CG is used and its
             changes act as a disturbance (as in the paper).
+        :param safety: input and output limits (default limits if None).
         """
+        self.safety = safety or SafetyParams()
+        self.rejected: dict[str, int] = {}
+        self.last_rejection = ''
+        self.time_jumps = 0
+        self._received: dict[str, int] = {}
+        self._last_now: Optional[int] = None
+        self._held: Optional[float] = None
+        self._stale_since: Optional[int] = None
+        self._hold_value: Optional[float] = None
         self.use_preview = use_preview
         self.vehicle = vehicle
         self.params = controller
@@ -82,7 +102,8 @@ class SteeringController:
         self.last: Optional[Command] = None
 
     def configure(self, vehicle: VehicleParams, controller: ControllerParams,
-                  acceleration_source: str, use_preview: bool) -> None:
+                  acceleration_source: str, use_preview: bool,
+                  safety: Optional[SafetyParams] = None) -> None:
         """
         Replace the parameters (between two control steps).
 
@@ -90,12 +111,101 @@ class SteeringController:
         :param controller: controller parameters.
         :param acceleration_source: see the constructor.
         :param use_preview: see the constructor.
+        :param safety: see the constructor (None: keep).
         """
+        self.safety = safety or self.safety
         self.use_preview = use_preview
         self.vehicle = vehicle
         self.params = controller
         self.acceleration_source = check_choice('acceleration_source', acceleration_source,
                                                 ACCELERATION_SOURCES)
+
+    # -- checked input ------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Forget inputs and the last command (time jumped: replay restart, sim reset)."""
+        self.lateral = self.yaw = self.velocity = self.curvature = None
+        self._previous_velocity = None
+        self._accel_estimate = 0.0
+        self.last = None
+        self._received.clear()
+        self._stale_since = None
+        self._hold_value = None
+
+    def accept(self, name: str, sample: Any, now_ns: Optional[int] = None) -> Optional[str]:
+        """
+        Check a sample and store it; a refused one is counted and never used.
+
+        A stamp more than 1 s behind the last one of its input, or a node clock gone
+        back by more than 1 s, is a time jump: the state is reset instead of producing a
+        rate spike, and the sample is accepted.
+
+        :param name: ``lateral_error``, ``yaw``, ``velocity`` or ``road_curvature``.
+        :param sample: the converted sample.
+        :param now_ns: the node's clock (receive time) [ns].
+        :return: None if accepted, else the reason.
+        """
+        current = {'lateral_error': self.lateral, 'yaw': self.yaw,
+                   'velocity': self.velocity, 'road_curvature': self.curvature}[name]
+        jumped = ((current is not None and sample.stamp_ns < current.stamp_ns - 1_000_000_000)
+                  or (now_ns is not None and self._last_now is not None
+                      and now_ns < self._last_now - 1_000_000_000))
+        if jumped:
+            self.time_jumps += 1
+            self.reset()
+            current = None
+        reason = check_sample(name, sample, self.safety) or check_stamp(
+            name, sample.stamp_ns, current.stamp_ns if current else None, now_ns, self.safety)
+        if reason is not None:
+            key = reason.split(':')[0] + ':' + reason.split(':')[1].split()[0]
+            self.rejected[key] = self.rejected.get(key, 0) + 1
+            self.last_rejection = reason
+            return reason
+        if now_ns is not None:
+            self._received[name] = now_ns
+            self._last_now = now_ns
+        update: dict[str, Callable[[Any], None]] = {
+            'lateral_error': self.update_lateral_error, 'yaw': self.update_yaw,
+            'velocity': self.update_velocity, 'road_curvature': self.update_curvature}
+        update[name](sample)
+        return None
+
+    def stale(self, now_ns: int) -> list[str]:
+        """
+        Return the inputs older than the timeout (curvature only once it was seen).
+
+        :param now_ns: the node's clock [ns].
+        :return: their names.
+        """
+        timeout = self.safety.input_timeout * 1e9
+        names = ['lateral_error', 'yaw', 'velocity'] + (
+            ['road_curvature'] if 'road_curvature' in self._received else [])
+        return [n for n in names if n in self._received
+                and now_ns - self._received[n] > timeout]
+
+    def safe_command(self, now_ns: int) -> Optional[Command]:
+        """
+        Return the stale-input command: hold, then ramp to the safe angle.
+
+        :param now_ns: the node's clock [ns]; the command is stamped with it.
+        :return: the command, None before any command was sent.
+        """
+        if self.last is None:
+            return None
+        if self._stale_since is None:
+            self._stale_since = now_ns
+            self._held = self.last.steering
+        held = self._held if self._held is not None else self.last.steering
+        wanted = stale_target(held, (now_ns - self._stale_since) * 1e-9, self.safety)
+        dt = max(0.0, (now_ns - self.last.stamp_ns) * 1e-9)
+        v_x = self.velocity.v_x if self.velocity else 0.0
+        out = limit(wanted, self.last.steering, dt, v_x, self.vehicle.wheelbase, self.safety)
+        rate = (out.angle - self.last.steering) / dt if dt > 0.0 else 0.0
+        self.last = Command(max(now_ns, self.last.stamp_ns), out.angle, rate, None, 'stale',
+                            out.saturated, out.rate_limited)
+        return self.last
+
+    # -- unchecked input (trusted sources: offline re-runs, tests) ----------------
 
     def update_lateral_error(self, sample: LateralErrorSample) -> None:
         """Store the latest lateral-error sample."""
@@ -167,8 +277,23 @@ class SteeringController:
             return None
         law = steering_law(state, self.vehicle, self.params)
         stamp = self.lateral.stamp_ns
-        rate = 0.0
-        if self.last is not None and stamp > self.last.stamp_ns:
-            rate = float(law.steering - self.last.steering) / ((stamp - self.last.stamp_ns) * 1e-9)
-        self.last = Command(stamp, float(law.steering), float(rate), law)
+        previous = self.last
+        if previous is not None and stamp < previous.stamp_ns:
+            previous = None          # answering an older step: no rate reference
+        self._stale_since = None
+        v_x = float(state.v_x)
+        weight = low_speed_weight(v_x, self.safety)
+        raw = float(law.steering)
+        if weight >= 1.0 or self._hold_value is None:
+            if weight >= 1.0:
+                self._hold_value = raw
+        hold = self._hold_value if self._hold_value is not None else 0.0
+        wanted = weight * raw + (1.0 - weight) * hold
+        dt = (stamp - previous.stamp_ns) * 1e-9 if previous is not None else 0.0
+        out = limit(wanted, previous.steering if previous else None, dt, v_x,
+                    self.vehicle.wheelbase, self.safety)
+        rate = (out.angle - previous.steering) / dt if previous is not None and dt > 0 else 0.0
+        self.last = Command(stamp, out.angle, float(rate), law,
+                            'ok' if weight >= 1.0 else 'low_speed', out.saturated,
+                            out.rate_limited)
         return self.last

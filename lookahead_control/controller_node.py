@@ -25,13 +25,14 @@ from __future__ import annotations
 import sys
 from typing import Any, Callable, Optional
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control import conversions as conv
 from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
                                                SteeringController)
 from lookahead_control.node_main import run_node
 from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare,
-                                           EXECUTOR_SPEC, Spec,
+                                           EXECUTOR_SPEC, safety_params, SAFETY_SPECS, Spec,
                                            values, vehicle_and_controller,
                                            VEHICLE_SPECS)
 from lookahead_control.params import ParameterError, SCHEDULE_MODES
@@ -58,9 +59,13 @@ NODE_SPECS = (
     Spec('use_curvature_preview', False, 'feed d rho/dt forward from the curvature '
          'preview (false: curvature at the CG only, as in the paper)'),
     Spec('autostart', True, 'configure and activate at start-up'),
+    Spec('frame_id', 'base_link', "inputs in another frame are refused ('': any)"),
+    Spec('watchdog_rate_hz', 20.0, 'stale-input check and safe-command rate [Hz]',
+         1.0, 1000.0),
+    Spec('diagnostics_rate_hz', 1.0, '/diagnostics rate [Hz]', 0.1, 100.0),
     EXECUTOR_SPEC,
 )
-ALL_SPECS = VEHICLE_SPECS + CONTROLLER_SPECS + NODE_SPECS
+ALL_SPECS = VEHICLE_SPECS + CONTROLLER_SPECS + SAFETY_SPECS + NODE_SPECS
 DEBUG_FIELDS = ('d_v', 'd_v_rate', 'y_v', 'y_v_rate', 'y_ref', 'error', 'error_rate', 'f_v',
                 'beta_1')
 
@@ -92,7 +97,14 @@ class ControllerNode(LifecycleNode):
         params = values(self, ALL_SPECS)
         vehicle, controller = vehicle_and_controller(params)
         self.core = SteeringController(vehicle, controller, params['acceleration_source'],
-                                       params['use_curvature_preview'])
+                                       params['use_curvature_preview'], safety_params(params))
+        self.counters = {'saturated': 0, 'rate_limited': 0, 'low_speed': 0,
+                         'd_v_clamped': 0, 'stale_commands': 0}
+        self._reported: dict[str, int] = {}
+        self.stale_inputs: list[str] = []
+        self._watchdog: Any = None
+        self._diag_timer: Any = None
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._dirty = False
         self._input_subs: list[Any] = []
         self._timer: Any = None
@@ -112,6 +124,7 @@ class ControllerNode(LifecycleNode):
             merged = values(self, ALL_SPECS, params)
             check_choices(ALL_SPECS, merged)
             vehicle_and_controller(merged)
+            safety_params(merged)
         except (ParameterError, ValueError) as err:
             return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
@@ -125,7 +138,7 @@ class ControllerNode(LifecycleNode):
         params = values(self, ALL_SPECS)
         vehicle, controller = vehicle_and_controller(params)
         self.core.configure(vehicle, controller, params['acceleration_source'],
-                            params['use_curvature_preview'])
+                            params['use_curvature_preview'], safety_params(params))
         self._dirty = False
         self.get_logger().info(f'parameters applied: schedule={controller.schedule}, '
                                f'w_n={controller.natural_frequency:g}, '
@@ -159,6 +172,11 @@ class ControllerNode(LifecycleNode):
                             for t, n, cb in subs]
         if self.param('mode') == 'timer':
             self._timer = self.create_timer(1.0 / self.param('rate_hz'), self.on_timer)
+        self._watchdog = self.create_timer(1.0 / self.param('watchdog_rate_hz'),
+                                           self.on_watchdog)
+        self._diag_timer = self.create_timer(1.0 / self.param('diagnostics_rate_hz'),
+                                             self.on_diagnostics,
+                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f'configured: mode={self.param("mode")}, schedule='
             f'{self.core.params.schedule}, inputs {self.param("qos_reliability")}')
@@ -179,10 +197,10 @@ class ControllerNode(LifecycleNode):
         for sub in self._input_subs:
             self.destroy_subscription(sub)
         self._input_subs = []
-        for timer in (self._timer, self._sync_timer):
+        for timer in (self._timer, self._sync_timer, self._watchdog, self._diag_timer):
             if timer is not None:
                 self.destroy_timer(timer)
-        self._timer = self._sync_timer = None
+        self._timer = self._sync_timer = self._watchdog = self._diag_timer = None
         for pub in (self._steering_pub, self._debug_pub):
             if pub is not None:
                 self.destroy_publisher(pub)
@@ -196,9 +214,44 @@ class ControllerNode(LifecycleNode):
 
     # -- inputs ---------------------------------------------------------------------
 
+    def _input(self, name: str, msg: Any, parse: Callable[[Any], Any]) -> bool:
+        """
+        Check and store one input; a refused message is counted and never used.
+
+        :param name: the input.
+        :param msg: the message.
+        :param parse: its converter.
+        :return: whether it was accepted.
+        """
+        frame = self.param('frame_id')
+        reason: Optional[str] = None
+        if frame and msg.header.frame_id != frame:
+            reason = f'{name}: frame {msg.header.frame_id!r} is not {frame!r}'
+        else:
+            try:
+                sample = parse(msg)
+            except (ValueError, IndexError, TypeError, AttributeError,
+                    OverflowError) as err:
+                reason = f'{name}: malformed message ({err})'
+            else:
+                reason = self.core.accept(name, sample, self.get_clock().now().nanoseconds)
+                if reason is None:
+                    return True
+                return self._refused(reason, counted=True)
+        return self._refused(reason, counted=False)
+
+    def _refused(self, reason: str, counted: bool) -> bool:
+        if not counted:
+            key = reason.split(':')[0] + ': ' + reason.split(':')[1].split()[0]
+            self.core.rejected[key] = self.core.rejected.get(key, 0) + 1
+            self.core.last_rejection = reason
+        self.get_logger().warn(f'refused {reason}', throttle_duration_sec=1.0)
+        return False
+
     def on_lateral_error(self, msg: PointStamped) -> None:
         """Store the lateral error; in event mode, answer it."""
-        self.core.update_lateral_error(conv.from_lateral_error(msg))
+        if not self._input('lateral_error', msg, conv.from_lateral_error):
+            return
         if self.param('mode') != 'event':
             return
         stamp = self.core.lateral.stamp_ns if self.core.lateral else 0
@@ -232,22 +285,40 @@ class ControllerNode(LifecycleNode):
 
     def on_yaw(self, msg: Imu) -> None:
         """Store the relative yaw, yaw rate and body acceleration."""
-        self.core.update_yaw(conv.from_yaw(msg))
-        self._maybe_release()
+        if self._input('yaw', msg, conv.from_yaw):
+            self._maybe_release()
 
     def on_velocity(self, msg: TwistStamped) -> None:
         """Store the velocity."""
-        self.core.update_velocity(conv.from_velocity(msg))
-        self._maybe_release()
+        if self._input('velocity', msg, conv.from_velocity):
+            self._maybe_release()
 
     def on_curvature(self, msg: PolygonStamped) -> None:
         """Store the road curvature."""
-        self.core.update_curvature(conv.from_curvature(msg))
-        self._maybe_release()
+        if self._input('road_curvature', msg, conv.from_curvature):
+            self._maybe_release()
 
     def on_timer(self) -> None:
-        """Timer mode: one command from the latest inputs."""
-        self.step()
+        """Timer mode: one command from the latest inputs (unless they are stale)."""
+        if not self.core.stale(self.get_clock().now().nanoseconds):
+            self.step()
+
+    def on_watchdog(self) -> None:
+        """Publish the safe command while an input is stale."""
+        now = self.get_clock().now().nanoseconds
+        stale = self.core.stale(now)
+        if stale and not self.stale_inputs:
+            self.get_logger().error(f'stale inputs: {", ".join(stale)}: holding, then '
+                                    'ramping to the safe angle')
+        elif self.stale_inputs and not stale:
+            self.get_logger().info('inputs are back: control resumes')
+        self.stale_inputs = stale
+        if not stale or not self.active:
+            return
+        command = self.core.safe_command(now)
+        if command is not None:
+            self.counters['stale_commands'] += 1
+            self._publish(command)
 
     # -- output ---------------------------------------------------------------------
 
@@ -263,15 +334,65 @@ class ControllerNode(LifecycleNode):
         command = self.core.compute()
         if command is None:
             return None
+        self._publish(command)
+        return command
+
+    def _publish(self, command: Command) -> None:
         self._steering_pub.publish(conv.to_steering(command.stamp_ns, command.steering,
                                                     command.steering_rate))
+        self.published += 1
+        for flag in ('saturated', 'rate_limited'):
+            self.counters[flag] += int(getattr(command, flag))
+        self.counters['low_speed'] += int(command.status == 'low_speed')
         law = command.law
+        if law is None:
+            return
+        self.counters['d_v_clamped'] += int(float(law.d_v) >= self.core.params.max_look_ahead)
         mode = self.core.params.schedule
         debug = [(name, float(getattr(law, name))) for name in DEBUG_FIELDS]
         debug.append((f'schedule:{mode}', float(SCHEDULE_MODES.index(mode))))
         self._debug_pub.publish(conv.to_named_values(command.stamp_ns, debug))
-        self.published += 1
-        return command
+
+    def diagnostics(self) -> DiagnosticStatus:
+        """
+        Return the controller's status for ``/diagnostics``.
+
+        ERROR on stale inputs; WARN on refused messages, saturation, low-speed hand-over
+        or clamped d_v since the last report; else OK.
+
+        :return: the status with its reasons and counters.
+        """
+        counts = {**self.counters, 'rejected': sum(self.core.rejected.values()),
+                  'time_jumps': self.core.time_jumps}
+        new = {k: v - self._reported.get(k, 0) for k, v in counts.items()}
+        self._reported = counts
+        reasons = []
+        level = DiagnosticStatus.OK
+        if self.stale_inputs:
+            level = DiagnosticStatus.ERROR
+            reasons.append('stale inputs: ' + ', '.join(self.stale_inputs))
+        if not self.active:
+            reasons.append('inactive')
+        for key in ('rejected', 'saturated', 'rate_limited', 'low_speed', 'd_v_clamped',
+                    'time_jumps'):
+            if new[key] > 0:
+                level = max(level, DiagnosticStatus.WARN)
+                text = f'{key.replace("_", " ")}: {new[key]}'
+                if key == 'rejected':
+                    text += f' (last: {self.core.last_rejection})'
+                reasons.append(text)
+        values = [KeyValue(key=k, value=str(v)) for k, v in counts.items()]
+        values += [KeyValue(key=f'rejected {k}', value=str(v))
+                   for k, v in sorted(self.core.rejected.items())]
+        return DiagnosticStatus(level=level, name='lookahead_control: controller',
+                                message='; '.join(reasons) or 'ok',
+                                hardware_id='lookahead_control', values=values)
+
+    def on_diagnostics(self) -> None:
+        """Publish ``/diagnostics``."""
+        array = DiagnosticArray(status=[self.diagnostics()])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(array)
 
 
 def _make_controller() -> ControllerNode:

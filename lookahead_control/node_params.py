@@ -26,6 +26,7 @@ from typing import Any, Mapping, NamedTuple, Sequence
 
 from lookahead_control.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
                                       VehicleParams)
+from lookahead_control.safety import SafetyParams
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -69,6 +70,31 @@ CONTROLLER_SPECS = (
     Spec('controller.min_speed', 1.0, 'the law divides by v_x; floor of v_x [m/s]',
          0.01, 20.0),
 )
+
+SAFETY_SPECS = tuple(
+    Spec(f'safety.{name}', default, text, low, high) for name, default, text, low, high in (
+        ('max_lateral_error', 5.0, 'inputs: largest believable |lateral error| [m]', 0.01, 100.0),
+        ('max_relative_yaw', 1.0, 'inputs: largest believable |relative yaw| [rad]', 0.01, 3.2),
+        ('max_yaw_rate', 2.0, 'inputs: largest believable |yaw rate| [rad/s]', 0.01, 10.0),
+        ('max_speed', 70.0, 'inputs: largest believable |v_x| [m/s]', 1.0, 150.0),
+        ('max_lateral_speed', 10.0, 'inputs: largest believable |v_y| [m/s]', 0.01, 50.0),
+        ('max_acceleration', 15.0, 'inputs: largest believable |a_x| [m/s^2]', 0.1, 100.0),
+        ('max_curvature', 0.2, 'inputs: largest believable |curvature| [1/m]', 1e-4, 10.0),
+        ('max_sensor_distance', 100.0, 'inputs: largest measurement distance ahead [m]',
+         0.1, 1000.0),
+        ('max_future', 0.1, 'inputs: stamps further ahead of the clock are refused [s]',
+         0.0, 10.0),
+        ('input_timeout', 0.2, 'an input older than this is stale [s]', 0.01, 10.0),
+        ('hold_time', 0.5, 'stale inputs: hold the command this long, then ramp [s]',
+         0.0, 10.0),
+        ('safe_angle', 0.0, 'stale inputs: the ramp goes to this angle [rad]', -1.0, 1.0),
+        ('max_steering_angle', 0.6, 'output: angle limit [rad]', 0.01, 1.2),
+        ('max_steering_rate', 5.0, 'output: rate limit [rad/s]', 0.01, 50.0),
+        ('max_lateral_acceleration', 30.0, 'output: speed-dependent angle limit '
+         'atan(a L / v^2), kinematic lateral acceleration a [m/s^2]', 0.1, 100.0),
+        ('low_speed', 3.0, 'below this speed the law hands over to hold [m/s]', 0.1, 30.0),
+        ('low_speed_blend', 1.0, 'width of the low-speed hand-over [m/s]', 0.01, 30.0),
+    ))
 
 EXECUTORS = ('events', 'single_threaded')
 EXECUTOR_SPEC = Spec('executor', 'events', 'rclpy executor: events '
@@ -164,3 +190,13 @@ def vehicle_and_controller(params: Mapping[str, Any]) -> tuple[VehicleParams,
     """
     return build(VehicleParams, params, 'vehicle'), build(ControllerParams, params,
                                                           'controller')
+
+
+def safety_params(params: Mapping[str, Any]) -> SafetyParams:
+    """
+    Build the safety limits from flat ROS parameter values.
+
+    :param params: name -> value.
+    :return: the limits.
+    """
+    return build(SafetyParams, params, 'safety')

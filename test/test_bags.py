@@ -332,6 +332,9 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
         node.destroy_node()
         rclpy.try_shutdown(context=ctx)
     recorded = load_run(loop_bag).steering
-    assert len(answers) >= 395
+    # after the bag ends the inputs go stale: the watchdog's safe commands carry the
+    # controller's clock as stamp, not a step of the bag
+    common = [s for s in answers if s in recorded]
+    assert len(common) >= 395
     # the same inputs give the same commands as in the recorded run
-    assert max(abs(recorded[s][0] - a) for s, a in answers.items()) < 1e-15
+    assert max(abs(recorded[s][0] - answers[s]) for s in common) < 1e-15

@@ -209,6 +209,63 @@ def test_controller_keeps_the_clock_subscription_of_use_sim_time(context):
         node.trigger_configure()
         topics = {sub.topic_name for sub in node.subscriptions}
         assert {'/clock', '/lateral_error', '/yaw', '/velocity'} <= topics
-        assert len(list(node.timers)) == 1
+        assert len(list(node.timers)) == 3      # control, watchdog, diagnostics
+    finally:
+        node.destroy_node()
+
+
+def test_bad_inputs_are_refused_counted_and_never_used(context):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from lookahead_control.controller_node import ControllerNode
+    node = ControllerNode(context=context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        _feed(node, 10_000_000)
+        good = node.core.last
+        node.on_yaw(conv.to_yaw(20_000_000, 'base_link', float('nan'), 0.0, 0.0))
+        node.on_velocity(conv.to_velocity(20_000_000, 'base_link', 1e4, 0.0, 0.0))
+        node.on_lateral_error(conv.to_lateral_error(20_000_000, 'map', 1.96, 0.5))
+        node.on_lateral_error(conv.to_lateral_error(5_000_000, 'base_link', 1.96, 0.5))
+        node.on_lateral_error(conv.to_lateral_error(20_000_000, 'base_link', 1.96,
+                                                    float('inf')))
+        assert sum(node.core.rejected.values()) == 5
+        assert node.core.last is good and node.published == 1
+        status = node.diagnostics()
+        assert status.level == DiagnosticStatus.WARN and 'rejected: 5' in status.message
+        assert node.diagnostics().level == DiagnosticStatus.OK     # nothing new since
+    finally:
+        node.destroy_node()
+
+
+def test_stale_inputs_hold_then_ramp_and_resume_without_a_jump(context):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from lookahead_control.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('safety.max_steering_rate', value=0.1)])
+    core = node.core
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        now = node.get_clock().now().nanoseconds
+        _feed(node, now)
+        start = core.last.steering
+        assert start < -0.01
+        # 0.3 s without inputs (timeout 0.2 s): hold for 0.5 s, then ramp at 0.1 rad/s
+        angles = []
+        for k in range(1, 21):
+            t = now + int(0.1e9) * k
+            if core.stale(t):
+                angles.append(core.safe_command(t).steering)
+        assert len(angles) == 18 and angles[0] == start     # stale from 0.3 s on
+        assert all(a == start for a in angles[:5])
+        assert all(0 <= b - a <= 0.1 * 0.1 + 1e-12 for a, b in zip(angles, angles[1:]))
+        assert angles[-1] == 0.0 or angles[-1] > start
+        node.stale_inputs = ['lateral_error']
+        assert node.diagnostics().level == DiagnosticStatus.ERROR
+        # inputs return: the rate limit carries the command back, no jump
+        t = now + int(2.2e9)
+        _feed(node, t)
+        assert abs(core.last.steering - angles[-1]) <= 0.1 * 0.2 + 1e-12
     finally:
         node.destroy_node()

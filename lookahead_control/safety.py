@@ -1,0 +1,246 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Input checks, low-speed hand-over, stale-input behaviour and output limits.
+
+No ROS here. Modelled on Autoware's vehicle_cmd_gate: every input is checked before
+use (finite, within what a vehicle produces, stamps not from the future and not going
+backwards); the command is clamped, then rate limited, last; a stale input holds the
+command, then ramps it to a safe angle within the rate limit.
+
+Output limits: ``|delta| <= min(max_steering_angle, atan(a_lat_max L / v_x^2))`` (the
+lateral-acceleration limit of a kinematic single track, speed-dependent like the
+gate's), ``|d delta / dt| <= max_steering_rate``.
+
+Low speed: the law divides by ``v_x``. Below ``low_speed`` the command is blended over
+``low_speed_blend`` m/s from the law to the last command given above it (hold), so the
+hand-over is continuous in speed and no division blows up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Any, Optional
+
+from lookahead_control.params import check_finite, check_range, ParameterError
+
+INPUT_NAMES = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
+
+
+@dataclass(frozen=True)
+class SafetyParams:
+    """
+    Limits of the inputs and of the command.
+
+    :param max_lateral_error: largest believable |lateral error| [m].
+    :param max_relative_yaw: largest believable |relative yaw| [rad].
+    :param max_yaw_rate: largest believable |yaw rate| [rad/s].
+    :param max_speed: largest believable |v_x| [m/s].
+    :param max_lateral_speed: largest believable |v_y| [m/s].
+    :param max_acceleration: largest believable |a_x| [m/s^2].
+    :param max_curvature: largest believable |road curvature| [1/m].
+    :param max_sensor_distance: largest believable measurement distance ahead [m].
+    :param max_future: a stamp this far ahead of the node's clock is refused [s].
+    :param input_timeout: an input older than this is stale [s].
+    :param hold_time: on stale inputs, hold the command this long, then ramp [s].
+    :param safe_angle: where the ramp goes [rad].
+    :param max_steering_angle: actuator angle limit [rad].
+    :param max_steering_rate: actuator rate limit [rad/s].
+    :param max_lateral_acceleration: speed-dependent angle limit a_lat [m/s^2].
+    :param low_speed: below this the law hands over to holding [m/s].
+    :param low_speed_blend: width of the hand-over [m/s].
+    """
+
+    max_lateral_error: float = 5.0
+    max_relative_yaw: float = 1.0
+    max_yaw_rate: float = 2.0
+    max_speed: float = 70.0
+    max_lateral_speed: float = 10.0
+    max_acceleration: float = 15.0
+    max_curvature: float = 0.2
+    max_sensor_distance: float = 100.0
+    max_future: float = 0.1
+    input_timeout: float = 0.2
+    hold_time: float = 0.5
+    safe_angle: float = 0.0
+    max_steering_angle: float = 0.6
+    max_steering_rate: float = 5.0
+    max_lateral_acceleration: float = 30.0
+    low_speed: float = 3.0
+    low_speed_blend: float = 1.0
+
+    def __post_init__(self) -> None:
+        """Check every limit is finite and positive, and the safe angle within limits."""
+        for name, value in vars(self).items():
+            check_finite(name, value)
+            if name != 'safe_angle':
+                check_range(name, value, 1e-9, 1e6)
+        if abs(self.safe_angle) > self.max_steering_angle:
+            raise ParameterError(f'safety.safe_angle = {self.safe_angle:g} rad: must be '
+                                 f'within +-max_steering_angle ({self.max_steering_angle:g})')
+        if self.low_speed_blend > self.low_speed:
+            raise ParameterError(f'safety.low_speed_blend = {self.low_speed_blend:g}: must '
+                                 f'be <= low_speed ({self.low_speed:g})')
+
+
+def _finite(*values: float) -> bool:
+    return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
+
+
+def check_sample(name: str, sample: Any, params: SafetyParams) -> Optional[str]:
+    """
+    Return why a sample cannot be used, or None if it can (values only, not stamps).
+
+    :param name: one of :data:`INPUT_NAMES`.
+    :param sample: the converted sample.
+    :param params: the limits.
+    :return: the reason, e.g. ``'yaw: yaw_rate = nan'``.
+    """
+    bounds: dict[str, float]
+    if name == 'lateral_error':
+        bounds = {'value': params.max_lateral_error, 'distance': params.max_sensor_distance}
+    elif name == 'yaw':
+        bounds = {'relative_yaw': params.max_relative_yaw, 'yaw_rate': params.max_yaw_rate,
+                  'accel_x': params.max_acceleration}
+    elif name == 'velocity':
+        bounds = {'v_x': params.max_speed, 'v_y': params.max_lateral_speed}
+    else:
+        bounds = {'rho': params.max_curvature, 'slope': params.max_curvature}
+    for field, limit in bounds.items():
+        value = getattr(sample, field)
+        if not _finite(value):
+            return f'{name}: {field} = {value}'
+        if abs(value) > limit:
+            return f'{name}: |{field}| = {abs(value):.4g} > {limit:g}'
+    if name == 'lateral_error' and sample.distance < 0.0:
+        return f'{name}: distance = {sample.distance:g} m behind the CG'
+    return None
+
+
+def check_stamp(name: str, stamp_ns: int, last_ns: Optional[int], now_ns: Optional[int],
+                params: SafetyParams) -> Optional[str]:
+    """
+    Return why a stamp cannot be used, or None.
+
+    :param name: the input.
+    :param stamp_ns: its stamp.
+    :param last_ns: the stamp of the last accepted sample of this input.
+    :param now_ns: the node's clock (None: unknown, no future check).
+    :param params: the limits.
+    :return: the reason.
+    """
+    if last_ns is not None and stamp_ns < last_ns:
+        return f'{name}: stamp {stamp_ns * 1e-9:.3f} s goes back from {last_ns * 1e-9:.3f} s'
+    if now_ns is not None and stamp_ns > now_ns + params.max_future * 1e9:
+        return (f'{name}: stamp {stamp_ns * 1e-9:.3f} s is in the future (now '
+                f'{now_ns * 1e-9:.3f} s)')
+    return None
+
+
+def angle_limit(v_x: float, wheelbase: float, params: SafetyParams) -> float:
+    """
+    Return the steering angle limit at a speed [rad].
+
+    :param v_x: speed [m/s] (any value; non-finite gives the static limit).
+    :param wheelbase: l_1 + l_2 [m].
+    :param params: the limits.
+    :return: ``min(max_steering_angle, atan(a_lat L / v_x^2))``.
+    """
+    squared = v_x * v_x if _finite(v_x) else 0.0
+    if not squared > 0.0:            # also a speed so small its square underflows
+        return params.max_steering_angle
+    return min(params.max_steering_angle,
+               math.atan(params.max_lateral_acceleration * wheelbase / squared))
+
+
+def low_speed_weight(v_x: float, params: SafetyParams) -> float:
+    """
+    Return the law's share of the command: 1 above ``low_speed``, 0 below the blend.
+
+    :param v_x: speed [m/s].
+    :param params: the limits.
+    :return: the weight in [0, 1].
+    """
+    if not _finite(v_x):
+        return 0.0
+    low = params.low_speed - params.low_speed_blend
+    return min(1.0, max(0.0, (v_x - low) / params.low_speed_blend))
+
+
+@dataclass(frozen=True)
+class Limited:
+    """
+    A command after the limits.
+
+    :param angle: the command [rad].
+    :param saturated: the angle limit cut it.
+    :param rate_limited: the rate limit cut it.
+    """
+
+    angle: float
+    saturated: bool
+    rate_limited: bool
+
+
+def limit(raw: float, previous: Optional[float], dt: float, v_x: float, wheelbase: float,
+          params: SafetyParams) -> Limited:
+    """
+    Clamp to the angle limit, then rate-limit from the previous command.
+
+    A non-finite ``raw`` holds the previous command (0 if none).
+
+    :param raw: the wanted angle [rad].
+    :param previous: the last command sent [rad] (None: no rate limit).
+    :param dt: time since it [s] (non-finite or negative: 0).
+    :param v_x: speed for the angle limit [m/s].
+    :param wheelbase: l_1 + l_2 [m].
+    :param params: the limits.
+    :return: the limited command, always finite and within the limits.
+    """
+    cap = angle_limit(v_x, wheelbase, params)
+    if previous is not None and not _finite(previous):
+        previous = None
+    wanted = raw if _finite(raw) else (previous if previous is not None else 0.0)
+    angle = min(cap, max(-cap, wanted))
+    saturated = angle != wanted
+    rate_limited = False
+    if previous is not None:
+        step = params.max_steering_rate * (dt if _finite(dt) and dt > 0.0 else 0.0)
+        low, high = previous - step, previous + step
+        if angle < low or angle > high:
+            angle = min(high, max(low, angle))
+            rate_limited = True
+        # the angle limit has the last word (it can fall faster than the rate allows
+        # when the speed rises)
+        angle = min(cap, max(-cap, angle))
+    return Limited(float(angle), saturated, rate_limited)
+
+
+def stale_target(held: float, stale_for: float, params: SafetyParams) -> float:
+    """
+    Return the command wanted while inputs are stale: hold, then ramp to the safe angle.
+
+    :param held: the command when the inputs went stale [rad].
+    :param stale_for: time since then [s].
+    :param params: the limits.
+    :return: the wanted angle (the rate limiter then applies).
+    """
+    if stale_for <= params.hold_time:
+        return held
+    ramp = params.max_steering_rate * (stale_for - params.hold_time)
+    if held > params.safe_angle:
+        return max(params.safe_angle, held - ramp)
+    return min(params.safe_angle, held + ramp)
