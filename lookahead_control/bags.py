@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import os
 from pathlib import Path
 import shutil
+import struct
 import tempfile
 import time
 from typing import Any, Iterator, Mapping, Optional, Sequence
@@ -336,7 +337,7 @@ def recover(path: Path) -> Recovery:
                     channels[record.id] = record
                 elif isinstance(record, McapMessage):
                     messages.append(record)
-    except (McapError, EOFError, ValueError, struct_error()) as err:
+    except (McapError, EOFError, ValueError, struct.error) as err:
         if not channels:
             raise BagError(f'{source}: nothing recoverable: cut inside its first chunk '
                            f'({type(err).__name__})') from err
@@ -376,12 +377,6 @@ def recover(path: Path) -> Recovery:
         shutil.rmtree(tmp.parent, ignore_errors=True)
     _fix_file_name(path, source.name)
     return Recovery(path, saved, len(conns), original)
-
-
-def struct_error() -> type[Exception]:
-    """Return ``struct.error`` (raised by the MCAP parser on a cut record)."""
-    import struct
-    return struct.error
 
 
 def _fix_file_name(path: Path, name: str) -> None:

@@ -157,9 +157,7 @@ class SteeringController:
         reason = check_sample(name, sample, self.safety) or check_stamp(
             name, sample.stamp_ns, current.stamp_ns if current else None, now_ns, self.safety)
         if reason is not None:
-            key = reason.split(':')[0] + ':' + reason.split(':')[1].split()[0]
-            self.rejected[key] = self.rejected.get(key, 0) + 1
-            self.last_rejection = reason
+            self.count_rejection(reason)
             return reason
         if now_ns is not None:
             self._received[name] = now_ns
@@ -169,6 +167,17 @@ class SteeringController:
             'velocity': self.update_velocity, 'road_curvature': self.update_curvature}
         update[name](sample)
         return None
+
+    def count_rejection(self, reason: str) -> None:
+        """
+        Count a refused message under ``'<input>: <field or cause>'``.
+
+        :param reason: why it was refused, ``'<input>: <detail>'``.
+        """
+        name, _, detail = reason.partition(':')
+        key = f'{name}: {(detail.split() or ["?"])[0]}'
+        self.rejected[key] = self.rejected.get(key, 0) + 1
+        self.last_rejection = reason
 
     def stale(self, now_ns: int) -> list[str]:
         """
@@ -284,9 +293,8 @@ class SteeringController:
         v_x = float(state.v_x)
         weight = low_speed_weight(v_x, self.safety)
         raw = float(law.steering)
-        if weight >= 1.0 or self._hold_value is None:
-            if weight >= 1.0:
-                self._hold_value = raw
+        if weight >= 1.0:
+            self._hold_value = raw
         hold = self._hold_value if self._hold_value is not None else 0.0
         wanted = weight * raw + (1.0 - weight) * hold
         dt = (stamp - previous.stamp_ns) * 1e-9 if previous is not None else 0.0

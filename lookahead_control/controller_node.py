@@ -224,27 +224,22 @@ class ControllerNode(LifecycleNode):
         :return: whether it was accepted.
         """
         frame = self.param('frame_id')
-        reason: Optional[str] = None
         if frame and msg.header.frame_id != frame:
             reason = f'{name}: frame {msg.header.frame_id!r} is not {frame!r}'
+            self.core.count_rejection(reason)
         else:
             try:
                 sample = parse(msg)
             except (ValueError, IndexError, TypeError, AttributeError,
                     OverflowError) as err:
                 reason = f'{name}: malformed message ({err})'
+                self.core.count_rejection(reason)
             else:
-                reason = self.core.accept(name, sample, self.get_clock().now().nanoseconds)
-                if reason is None:
+                # the core checks the values and stamps, and counts what it refuses
+                refused = self.core.accept(name, sample, self.get_clock().now().nanoseconds)
+                if refused is None:
                     return True
-                return self._refused(reason, counted=True)
-        return self._refused(reason, counted=False)
-
-    def _refused(self, reason: str, counted: bool) -> bool:
-        if not counted:
-            key = reason.split(':')[0] + ': ' + reason.split(':')[1].split()[0]
-            self.core.rejected[key] = self.core.rejected.get(key, 0) + 1
-            self.core.last_rejection = reason
+                reason = refused
         self.get_logger().warn(f'refused {reason}', throttle_duration_sec=1.0)
         return False
 

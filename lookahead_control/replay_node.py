@@ -37,7 +37,7 @@ from lookahead_control import conversions as conv
 from lookahead_control.bags import bag_reader
 from lookahead_control.recorder_node import message_class
 from lookahead_control.run_data import load_run, rerun
-from lookahead_control.tools.cli import run_tool, ToolError
+from lookahead_control.tools.cli import assignments, run_tool, ToolError
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
@@ -48,20 +48,6 @@ import yaml
 EXIT_CHECK_FAILED = 1
 
 
-def parse_override(text: str) -> tuple[str, Any]:
-    """
-    Parse ``name=value`` (the value as YAML: numbers, booleans, strings).
-
-    :param text: the override.
-    :return: ``(name, value)``.
-    :raises ToolError: no ``=``.
-    """
-    name, sep, value = text.partition('=')
-    if not sep or not name:
-        raise ToolError(f'-p {text!r}: expected name=value')
-    return name.strip(), yaml.safe_load(value)
-
-
 def offline(args: argparse.Namespace) -> int:
     """
     Re-run the controller core on a bag's inputs and compare with its steering.
@@ -69,9 +55,9 @@ def offline(args: argparse.Namespace) -> int:
     :param args: the parsed command line.
     :return: 0, or 1 if ``--check`` failed.
     """
-    overrides = dict(parse_override(p) for p in args.param)
-    topics = dict(parse_override(t) for t in args.topic)
-    run = load_run(args.bag, {k: str(v) for k, v in topics.items()})
+    # override values as YAML: numbers, booleans, strings
+    overrides = {k: yaml.safe_load(v) for k, v in assignments(args.param, '-p').items()}
+    run = load_run(args.bag, assignments(args.topic, '--topic'))
     result = rerun(run, overrides, args.order)
     report = {'bag': str(args.bag), 'order': result.order, 'compared': result.compared,
               'recorded': len(run.steering), 'recomputed': len(result.commands),

@@ -24,7 +24,8 @@ from lookahead_control.analysis import schedule_table, speed_grid
 from lookahead_control.bag_analysis import bag_row, run_series, RunSeries, speed_points
 from lookahead_control.params import VehicleParams
 from lookahead_control.run_data import load_run, RunData
-from lookahead_control.tools.cli import markdown_table, run_tool, write_csv, write_json
+from lookahead_control.tools.cli import (assignments, markdown_table, run_tool, write_csv,
+                                         write_json)
 
 COLUMNS = ('run', 'speed_mps', 'd_v_final', 'peak_cg', 'rms_cg', 'peak_bumper',
            'rms_bumper', 'peak_look_ahead', 'rms_look_ahead', 'yaw_overshoot',
@@ -113,13 +114,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='contract topic name in the bags, e.g. lateral_error=/lane/offset')
     p.add_argument('--no-plots', action='store_true')
     args = p.parse_args(argv)
-    topics = {}
-    for item in args.topic:
-        role, sep, name = item.partition('=')
-        if not sep:
-            raise ValueError(f'--topic {item!r}: expected ROLE=TOPIC')
-        topics[role] = name
-    results = analyze(args.bags, topics)
+    results = analyze(args.bags, assignments(args.topic, '--topic'))
     report = write_outputs(results, args.out, plots=not args.no_plots)
     print(markdown_table([{k: row[k] for k in COLUMNS} for _, _, row in results], digits=3))
     print(f'wrote {report}')

@@ -44,6 +44,24 @@ def one_line(text: str) -> str:
     return ' '.join(text.split())
 
 
+def assignments(items: Sequence[str], option: str) -> dict[str, str]:
+    """
+    Parse repeated ``NAME=VALUE`` options.
+
+    :param items: the option's values.
+    :param option: its name, for the error.
+    :return: name -> value (text).
+    :raises ToolError: an item without ``=`` or without a name.
+    """
+    out = {}
+    for item in items:
+        name, sep, value = item.partition('=')
+        if not sep or not name.strip():
+            raise ToolError(f'{option} {item!r}: expected NAME=VALUE')
+        out[name.strip()] = value
+    return out
+
+
 def run_tool(main: Callable[[Sequence[str] | None], int],
              argv: Sequence[str] | None = None) -> int:
     """
