@@ -319,7 +319,8 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
             # the lockstep bag holds 4000 messages/s of receive time; at a quarter of
             # that a loaded 2-core machine keeps up with the controller's depth-10 queue
             sys.executable, '-m', 'lookahead_control.replay_node', str(loop_bag),
-            '--rate', '0.25', '--topics', '/lateral_error', '/yaw', '/velocity', '/road_curvature'],
+            '--rate', '0.25', '--topics', '/lateral_error', '/yaw', '/velocity',
+            '/road_curvature'],
             stdout=subprocess.PIPE, text=True)
         while player.poll() is None:
             executor.spin_once(timeout_sec=0.05)
