@@ -236,7 +236,9 @@ class ControllerNode(LifecycleNode):
                 self.core.count_rejection(reason)
             else:
                 # the core checks the values and stamps, and counts what it refuses
-                refused = self.core.accept(name, sample, self.get_clock().now().nanoseconds)
+                # sim time before the first /clock reads 0: no future check until it runs
+                now = self.get_clock().now().nanoseconds
+                refused = self.core.accept(name, sample, now or None)
                 if refused is None:
                     return True
                 reason = refused

@@ -81,7 +81,7 @@ SIM_SPECS = (
 )
 ALL_SPECS = VEHICLE_SPECS + PLANT_SPECS + SIM_SPECS
 GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_cmd',
-                'v_x', 'a_x', 'rho')
+                'v_x', 'a_x', 'rho', 'command_time')
 
 
 class SimPlantNode(Node):
@@ -171,7 +171,11 @@ class SimPlantNode(Node):
         self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
                                                      self.preview(x[0])))
         steering = self.command if self.plant.model == 'linear' else x[5]
-        truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, v_x, a_x, rho)
+        # command_time: the stamp of the step whose answer is applied (-1: none yet)
+        answered = self.answered_stamp
+        command_time = answered * 1e-9 if answered is not None and answered >= 0 else -1.0
+        truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, v_x, a_x, rho,
+                 command_time)
         self.pub_truth.publish(conv.to_named_values(stamp, list(zip(GROUND_TRUTH, truth))))
         self.pub_lateral.publish(conv.to_lateral_error(
             stamp, self.frame, self.sensor_distance, x[1] + self.sensor_distance * x[2]))
@@ -231,6 +235,7 @@ class SimPlantNode(Node):
             return
         if self.waiting_stamp is not None and stamp == self.waiting_stamp:
             self.command = angle
+            self.answered_stamp = stamp
             self.waiting_stamp = None
             self.lockstep_advance()
 
@@ -288,6 +293,10 @@ class SimPlantNode(Node):
             return
         if self.k > 0 and self.answered_stamp != self.stamp_ns(self.k - 1):
             self.missed += 1
+            self.get_logger().warn(
+                f'no steering for t = {(self.k - 1) * self.period:g} s within one period: '
+                f'applying {self.command:+.4f} rad ({self.missed} missed)',
+                throttle_duration_sec=1.0)
         self.publish_measurements()
         self.integrate()
         self.finished()

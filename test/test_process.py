@@ -15,13 +15,15 @@
 """Real processes over real DDS (session-unique domain, loopback only)."""
 
 from pathlib import Path
+import re
 import subprocess
 import sys
 import time
 
 from lookahead_control import conversions as conv
-from lookahead_control.closed_loop import LoopConfig, node_commands, stop
+from lookahead_control.closed_loop import LoopConfig, node_commands, recorder_command, stop
 from lookahead_control.params import ControllerParams, VehicleParams
+from lookahead_control.run_data import load_run
 import numpy as np
 import pytest
 import rclpy
@@ -142,11 +144,17 @@ def _short_scenario(tmp_path, duration):
 
 
 @pytest.mark.parametrize('executor', ['events', 'single_threaded'])
-def test_realtime_100hz_runs_without_missed_steps(tmp_path, executor):
+def test_realtime_applies_each_answer_and_counts_every_miss(tmp_path, executor):
+    # Realtime is paced by the wall clock, so how many answers come late depends on the
+    # machine (the miss rate is a benchmark figure, `make bench`). What must hold on any
+    # machine: the step after an answered step applies that answer, and every step whose
+    # answer was late is counted as missed, no more and no fewer.
     exe = ['-p', f'executor:={executor}']
-    sim_cmd, ctl_cmd = node_commands(LoopConfig(_short_scenario(tmp_path, 3.0), speed=30.0,
-                                                mode='realtime', extra_sim_args=exe,
-                                                extra_controller_args=exe))
+    bag = tmp_path / 'run'
+    cfg = LoopConfig(_short_scenario(tmp_path, 3.0), speed=30.0, mode='realtime',
+                     extra_sim_args=exe, extra_controller_args=exe, bag=bag)
+    sim_cmd, ctl_cmd = node_commands(cfg)
+    recorder = subprocess.Popen(recorder_command(bag))
     controller = subprocess.Popen(ctl_cmd)
     sim = subprocess.Popen(sim_cmd, stderr=subprocess.PIPE, text=True)
     try:
@@ -156,9 +164,24 @@ def test_realtime_100hz_runs_without_missed_steps(tmp_path, executor):
     finally:
         stop(sim, 'sim')
         assert stop(controller, 'controller') == 0
+        assert stop(recorder, 'record') == 0
     assert sim.returncode == 0, err
-    assert 'finished at t = 3 s: 300 steps, 0 missed deadlines' in err, err
+    found = re.search(r'finished at t = 3 s: 300 steps, (\d+) missed deadlines', err)
+    assert found, err
     assert elapsed >= 3.0        # wall-clock paced, not as fast as possible
+    run = load_run(bag)
+    period = 10_000_000
+    assert sorted(run.truth) == [k * period for k in range(300)]
+    late = 0
+    for k in range(1, 300):
+        truth = run.truth[k * period]
+        # the command applied over step k is the latest answer received, stamped with it
+        applied = round(truth['command_time'] * 1e9)
+        assert truth['steering_cmd'] == run.steering[applied][0]
+        late += applied != (k - 1) * period
+    assert late == int(found.group(1)), err
+    # a loop that does not close misses nearly every step; an overloaded machine a few
+    assert late < 30, err
 
 
 def test_use_sim_time_is_honoured(probe):
@@ -173,17 +196,18 @@ def test_use_sim_time_is_honoured(probe):
                              lambda m: answers.append(conv.from_steering(m)), 100)
     cmd = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
            '-p', 'use_sim_time:=true', '-p', 'mode:=timer', '-p', 'rate_hz:=10.0']
-    controller = subprocess.Popen(cmd)
+    controller = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
 
     def publish(t_ns):
+        # like sim_plant: the step's measurements, then /clock
         pubs['/yaw'].publish(conv.to_yaw(t_ns, 'base_link', 0.0, 0.0, 0.0))
         pubs['/velocity'].publish(conv.to_velocity(t_ns, 'base_link', 20.0, 0.0, 0.0))
         pubs['/lateral_error'].publish(conv.to_lateral_error(t_ns, 'base_link', 0.0, 0.5))
         clock.publish(Clock(clock=conv.ns_to_stamp(t_ns)))
-        _spin_until(executor, lambda: False, 0.02)
 
     try:
         assert _spin_until(executor, lambda: node.count_subscribers('/clock') > 0
+                           and node.count_subscribers('/lateral_error') > 0
                            and node.count_publishers('/steering') > 0, 30)
         _spin_until(executor, lambda: False, 0.5)
         publish(1_000_000_000)
@@ -191,15 +215,25 @@ def test_use_sim_time_is_honoured(probe):
         _spin_until(executor, lambda: False, 1.5)
         held = len(answers)
         assert held <= 1
-        # 2 s of sim time in 50 ms steps at 10 Hz: 20 ticks, each answering its step
+        # 2 s of sim time in 50 ms steps, each tick's answer awaited (the wall time per
+        # step does not matter): a 10 Hz timer ticks on every second step, 20 times
         for k in range(1, 41):
             publish(1_000_000_000 + k * 50_000_000)
-        _spin_until(executor, lambda: False, 0.5)
-        ticks = len(answers) - held
-        assert 18 <= ticks <= 21, ticks
+            if k % 2 == 0:
+                assert _spin_until(executor, lambda: len(answers) >= held + k // 2, 10), k
+            else:
+                _spin_until(executor, lambda: False, 0.02)
+        # and nothing more while sim time stands still at 3 s
+        _spin_until(executor, lambda: False, 1.0)
+        assert len(answers) - held == 20
+        stamps = [stamp for stamp, _ in answers]
+        assert stamps == sorted(stamps) and stamps[-1] <= 3_000_000_000
         assert all(angle < 0.0 for _, angle in answers)
     finally:
         assert stop(controller, 'controller') == 0
+    _, err = controller.communicate()
+    # the first measurements come before the first /clock: accepted, not "in the future"
+    assert 'refused' not in err, err
 
 
 def test_closed_loop_executable_succeeds_and_fails_cleanly(tmp_path):
