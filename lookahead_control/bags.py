@@ -118,6 +118,28 @@ class BagWriter:
         self.custom: dict[str, str] = {}
         self._flushed_at = time.monotonic()
         self.closed = False
+        self.error: Optional[BagError] = None
+
+    def _abort(self, err: OSError) -> BagError:
+        """
+        Stop writing after an I/O error (disk full, file too large, device gone).
+
+        What reached the file stays there: complete chunks are read back by ``recover``.
+
+        :param err: the error.
+        :return: the error to raise, naming the file and the problem.
+        """
+        if self.error is None:
+            self.error = BagError(
+                f'{self.path / (self.path.name + ".mcap")}: write failed: '
+                f'{err.strerror or err}; the chunks written before it are kept: run '
+                f'`recover {self.path}`')
+            self.closed = True
+            try:
+                self.writer.abort()
+            except OSError:
+                pass        # the unwritten rest of the buffer is lost with the disk
+        return self.error
 
     def add_topic(self, topic: str, msgtype: str, offered: Sequence[Qos] = ()) -> None:
         """
@@ -128,13 +150,18 @@ class BagWriter:
         :param offered: QoS profiles of its publishers.
         :raises BagError: the type is not in the Jazzy type store.
         """
+        if self.error is not None:
+            raise self.error
         if topic in self.connections:
             return
         if msgtype not in self.store.fielddefs:
             raise BagError(f'{self.path}: {topic}: type {msgtype} is not a Jazzy '
                            'common_interfaces type; it cannot be recorded')
-        self.connections[topic] = self.writer.add_connection(
-            topic, msgtype, typestore=self.store, offered_qos_profiles=list(offered))
+        try:
+            self.connections[topic] = self.writer.add_connection(
+                topic, msgtype, typestore=self.store, offered_qos_profiles=list(offered))
+        except OSError as err:
+            raise self._abort(err) from err
 
     def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
         """
@@ -143,12 +170,18 @@ class BagWriter:
         :param topic: a topic added with :meth:`add_topic`.
         :param stamp_ns: its receive time [ns].
         :param data: the serialized message.
+        :raises BagError: the file cannot be written (the bag is aborted).
         """
-        self.writer.write(self.connections[topic], stamp_ns, data)
-        storage: Any = self.writer.storage
-        if (storage.chunk.bio.tell() > self.chunk_bytes
-                or time.monotonic() - self._flushed_at > self.chunk_interval):
-            self.flush()
+        if self.error is not None:
+            raise self.error
+        try:
+            self.writer.write(self.connections[topic], stamp_ns, data)
+            storage: Any = self.writer.storage
+            if (storage.chunk.bio.tell() > self.chunk_bytes
+                    or time.monotonic() - self._flushed_at > self.chunk_interval):
+                self.flush()
+        except OSError as err:
+            raise self._abort(err) from err
 
     def flush(self) -> None:
         """Close the pending chunk (if it holds messages) and hand it to the OS."""
@@ -166,20 +199,33 @@ class BagWriter:
 
         :param key: the ``custom_data`` key.
         :param value: its text.
+        :raises BagError: the side file cannot be written (the bag is aborted).
         """
+        if self.error is not None:
+            raise self.error
         self.custom[key] = value
         self.writer.set_custom_data(key, value)
-        _atomic_write(self.path / DESCRIPTION_FILE, yaml.safe_dump(self.custom))
+        try:
+            _atomic_write(self.path / DESCRIPTION_FILE, yaml.safe_dump(self.custom))
+        except OSError as err:
+            raise self._abort(err) from err
 
     def counts(self) -> dict[str, int]:
         """Return the messages written per topic."""
         return {topic: self.writer.counts[conn.id] for topic, conn in self.connections.items()}
 
     def close(self) -> None:
-        """Write the summary and ``metadata.yaml``."""
+        """
+        Write the summary and ``metadata.yaml``.
+
+        :raises BagError: they cannot be written (the chunks stay for ``recover``).
+        """
         if not self.closed:
             self.closed = True
-            self.writer.close()
+            try:
+                self.writer.close()
+            except OSError as err:
+                raise self._abort(err) from err
 
 
 # -- reading ---------------------------------------------------------------------------

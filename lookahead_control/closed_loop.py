@@ -35,6 +35,7 @@ from typing import Optional, Sequence
 from lookahead_control.config import source_config_dir
 from lookahead_control.params import SCHEDULE_MODES
 from lookahead_control.tools.cli import run_tool, ToolError
+from sim_plant.scenario import load_scenario
 
 
 @dataclass
@@ -131,6 +132,7 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     """
     if not cfg.scenario.is_file():
         raise ToolError(f'{cfg.scenario}: no such scenario file')
+    load_scenario(cfg.scenario, cfg.speed or None)    # a bad file: one line, no processes
     sim_cmd, ctl_cmd = node_commands(cfg)
     # the recorder first: the simulator starts once it and the controller are matched
     recorder = (subprocess.Popen(recorder_command(cfg.bag), env=env) if cfg.bag
@@ -190,8 +192,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     bag = None if args.no_record else (args.bag or Path('bags') / (
         f'{args.scenario.stem}_{args.schedule}_{args.speed:g}_'
         f'{datetime.datetime.now():%Y%m%d_%H%M%S}'))
-    if bag is not None and bag.exists():
-        raise ToolError(f'{bag}: exists already; choose another --bag')
+    if bag is not None:
+        if bag.exists():
+            raise ToolError(f'{bag}: exists already; choose another --bag')
+        # an unwritable place: one line now, not a failed recorder after start-up
+        bag.mkdir(parents=True)
+        bag.rmdir()
     code = run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
                                args.plant, args.rate, args.timeout, bag=bag))
     if bag is not None and code == 0:

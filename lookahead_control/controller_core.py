@@ -100,6 +100,11 @@ class SteeringController:
         self._previous_velocity: Optional[VelocitySample] = None
         self._accel_estimate = 0.0
         self.last: Optional[Command] = None
+        # the rate limit's reference: the last angle sent (kept across resets: the
+        # actuator is still there) and the newest stamp sent (so a command answering an
+        # older step, or following a watchdog command, or after a time jump, holds)
+        self._rate_angle: Optional[float] = None
+        self._rate_time: Optional[int] = None
 
     def configure(self, vehicle: VehicleParams, controller: ControllerParams,
                   acceleration_source: str, use_preview: bool,
@@ -128,6 +133,7 @@ class SteeringController:
         self._previous_velocity = None
         self._accel_estimate = 0.0
         self.last = None
+        self._rate_time = None
         self._received.clear()
         self._stale_since = None
         self._hold_value = None
@@ -199,20 +205,51 @@ class SteeringController:
         :param now_ns: the node's clock [ns]; the command is stamped with it.
         :return: the command, None before any command was sent.
         """
-        if self.last is None:
+        sent = self._rate_angle
+        if sent is None:
             return None
         if self._stale_since is None:
             self._stale_since = now_ns
-            self._held = self.last.steering
-        held = self._held if self._held is not None else self.last.steering
+            self._held = sent
+        held = self._held if self._held is not None else sent
         wanted = stale_target(held, (now_ns - self._stale_since) * 1e-9, self.safety)
-        dt = max(0.0, (now_ns - self.last.stamp_ns) * 1e-9)
         v_x = self.velocity.v_x if self.velocity else 0.0
-        out = limit(wanted, self.last.steering, dt, v_x, self.vehicle.wheelbase, self.safety)
-        rate = (out.angle - self.last.steering) / dt if dt > 0.0 else 0.0
-        self.last = Command(max(now_ns, self.last.stamp_ns), out.angle, rate, None, 'stale',
-                            out.saturated, out.rate_limited)
+        self.last = self._limited(wanted, now_ns, v_x, None, 'stale')
         return self.last
+
+    def _limited(self, wanted: float, stamp_ns: int, v_x: float, law: Optional[LawOutput],
+                 status: str) -> Command:
+        """
+        Apply the output limits to a wanted angle and make it the command sent.
+
+        :param wanted: the angle wanted [rad].
+        :param stamp_ns: its stamp [ns].
+        :param v_x: the speed, for the angle limit [m/s].
+        :param law: the law's output it comes from (None: the watchdog).
+        :param status: ``ok``, ``low_speed`` or ``stale``.
+        :return: the command.
+        """
+        sent = self._rate_angle
+        dt, newest = self._rate_step(stamp_ns)
+        out = limit(wanted, sent, dt, v_x, self.vehicle.wheelbase, self.safety)
+        rate = (out.angle - sent) / dt if sent is not None and dt > 0.0 else 0.0
+        self._rate_angle = out.angle
+        # a watchdog command carries the newest stamp; an answer, its measurement's
+        stamp = newest if law is None else stamp_ns
+        return Command(stamp, out.angle, float(rate), law, status, out.saturated,
+                       out.rate_limited)
+
+    def _rate_step(self, stamp_ns: int) -> tuple[float, int]:
+        """
+        Advance the rate limit's time axis to a new command's stamp.
+
+        :param stamp_ns: the stamp of the command about to be sent [ns].
+        :return: the time the rate limit allows for [s] (0 when the stamp is not newer
+            than the last command's: the command holds), and the newest stamp.
+        """
+        latest = self._rate_time if self._rate_time is not None else stamp_ns
+        self._rate_time = max(latest, stamp_ns)
+        return max(0, stamp_ns - latest) * 1e-9, self._rate_time
 
     # -- unchecked input (trusted sources: offline re-runs, tests) ----------------
 
@@ -285,10 +322,6 @@ class SteeringController:
         if state is None or self.lateral is None:
             return None
         law = steering_law(state, self.vehicle, self.params)
-        stamp = self.lateral.stamp_ns
-        previous = self.last
-        if previous is not None and stamp < previous.stamp_ns:
-            previous = None          # answering an older step: no rate reference
         self._stale_since = None
         v_x = float(state.v_x)
         weight = low_speed_weight(v_x, self.safety)
@@ -297,11 +330,6 @@ class SteeringController:
             self._hold_value = raw
         hold = self._hold_value if self._hold_value is not None else 0.0
         wanted = weight * raw + (1.0 - weight) * hold
-        dt = (stamp - previous.stamp_ns) * 1e-9 if previous is not None else 0.0
-        out = limit(wanted, previous.steering if previous else None, dt, v_x,
-                    self.vehicle.wheelbase, self.safety)
-        rate = (out.angle - previous.steering) / dt if previous is not None and dt > 0 else 0.0
-        self.last = Command(stamp, out.angle, float(rate), law,
-                            'ok' if weight >= 1.0 else 'low_speed', out.saturated,
-                            out.rate_limited)
+        self.last = self._limited(wanted, self.lateral.stamp_ns, v_x, law,
+                                  'ok' if weight >= 1.0 else 'low_speed')
         return self.last

@@ -309,7 +309,10 @@ class ControllerNode(LifecycleNode):
                                     'ramping to the safe angle')
         elif self.stale_inputs and not stale:
             self.get_logger().info('inputs are back: control resumes')
+        changed = stale != self.stale_inputs
         self.stale_inputs = stale
+        if changed:
+            self.on_diagnostics()       # ERROR (and its end) at once, not at the next 1 Hz
         if not stale or not self.active:
             return
         command = self.core.safe_command(now)

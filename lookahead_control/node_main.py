@@ -21,17 +21,22 @@ and ``try_shutdown``.
 
 from __future__ import annotations
 
+import re
 import sys
-from typing import Callable, Optional, TypeVar
+from typing import Callable, Optional, Sequence, TypeVar
 
-from lookahead_control.config import ConfigError
+from lookahead_control.config import ConfigError, read_yaml
 from lookahead_control.params import ParameterError
 from lookahead_control.tools.cli import one_line
 import rclpy
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
 N = TypeVar('N', bound=Node)
+RCLError = _rclpy.RCLError
+_RCL_LOCATION = re.compile(r', at /\S+:\d+')
 
 
 def make_executor(kind: str) -> Executor:
@@ -64,6 +69,19 @@ def spin_until(executor: Executor, done: Callable[[], bool], period: float = 0.1
         executor.spin_once(timeout_sec=period)
 
 
+def check_params_files(args: Sequence[str]) -> None:
+    """
+    Read each ``--params-file`` before rcl does, for a one-line error naming it.
+
+    :param args: command-line arguments.
+    :raises ConfigError: a file is missing, unreadable, malformed or not a mapping.
+    """
+    for flag, path in zip(args, args[1:]):
+        if flag == '--params-file' and not isinstance(read_yaml(path), dict):
+            raise ConfigError(f'{path}: not a ROS parameters file (expected '
+                              '"<node>: {ros__parameters: {...}}")')
+
+
 def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
              done: Callable[[N], bool] = lambda node: False) -> int:
     """
@@ -75,7 +93,17 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
     :param done: True when the node has finished (default: run until shut down).
     :return: 0, or 2 for bad parameters or config.
     """
-    rclpy.init(args=args)
+    try:
+        check_params_files(args or [])
+        rclpy.init(args=args)
+    except ConfigError as err:
+        print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
+        return 2
+    except RCLError as err:
+        # a missing or malformed --params-file, a bad remapping: rcl's message, minus
+        # the C source locations it appends
+        print(f'{name}: error: {one_line(_RCL_LOCATION.sub("", str(err)))}', file=sys.stderr)
+        return 2
     node: Optional[N] = None
     try:
         node = make()
@@ -88,6 +116,11 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
         pass
     except (ConfigError, ParameterError) as err:
         print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
+        return 2
+    except (InvalidParameterTypeException, InvalidParameterValueException) as err:
+        # a parameter override out of its descriptor's range or of the wrong type
+        reason = str(err).split('Reason: ', 1)[-1].rsplit(': ', 1)[0]
+        print(f'{name}: error: {one_line(reason)}', file=sys.stderr)
         return 2
     finally:
         if node is not None:

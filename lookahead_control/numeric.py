@@ -31,8 +31,10 @@ Real = Union[float, npt.NDArray[np.float64]]
 T = TypeVar('T', float, Any)
 
 
-def _is_array(*values: Any) -> bool:
-    return any(isinstance(v, np.ndarray) for v in values)
+def _is_array(a: Any, b: Any, c: Any = None) -> bool:
+    # no *args / any(): this runs several times per control step (pure-Python floats)
+    return (isinstance(a, np.ndarray) or isinstance(b, np.ndarray)
+            or isinstance(c, np.ndarray))
 
 
 def sin(x: Real) -> Real:
@@ -74,12 +76,16 @@ def sign(x: Real) -> Real:
 
 def maximum(a: Real, b: Real) -> Real:
     """Element-wise maximum."""
-    return np.maximum(a, b) if _is_array(a, b) else max(a, b)
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.maximum(a, b)
+    return max(a, b)
 
 
 def minimum(a: Real, b: Real) -> Real:
     """Element-wise minimum."""
-    return np.minimum(a, b) if _is_array(a, b) else min(a, b)
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.minimum(a, b)
+    return min(a, b)
 
 
 def clip(x: Real, low: Real, high: Real) -> Real:

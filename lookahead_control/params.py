@@ -23,6 +23,7 @@ Symbols follow ``docs/model.md`` (REP-103 signs, SI units).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from functools import cached_property
 import math
 from typing import Iterable
 
@@ -131,12 +132,12 @@ class VehicleParams:
                 f'vehicle.{item.name}', getattr(self, item.name), low, high,
                 low_open=True, unit=unit))
 
-    @property
+    @cached_property
     def wheelbase(self) -> float:
         """Wheelbase l_1 + l_2 [m]."""
         return self.l1 + self.l2
 
-    @property
+    @cached_property
     def eta(self) -> float:
         """Zero-dynamics constant eta = m l_1 / (C_r (l_1 + l_2)) [s^2/m]."""
         return self.mass * self.l1 / (self.c_r * self.wheelbase)
@@ -189,12 +190,12 @@ class ControllerParams:
                      'max_look_ahead', 'min_speed'):
             object.__setattr__(self, name, float(getattr(self, name)))
 
-    @property
+    @cached_property
     def k_p(self) -> float:
         """Return the proportional gain k_p = w_n^2 [1/s^2]."""
         return self.natural_frequency ** 2
 
-    @property
+    @cached_property
     def k_d(self) -> float:
         """Return the derivative gain k_d = 2 zeta w_n [1/s]."""
         return 2.0 * self.damping_ratio * self.natural_frequency

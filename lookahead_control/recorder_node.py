@@ -161,6 +161,8 @@ class RecorderNode(Node):
                 self.bag.add_topic(topic, types[0],
                                    [qos_from_ints(qos_as_ints(i.qos_profile)) for i in infos])
             except (ImportError, AttributeError, BagError) as err:
+                if self.bag.error is not None:
+                    return          # the bag failed: the node stops, main reports it
                 self.get_logger().warn(f'{topic}: not recorded: {err}')
                 self._subs[topic] = None
                 continue
@@ -175,7 +177,10 @@ class RecorderNode(Node):
 
     def on_message(self, topic: str, data: bytes, info: dict[str, Any]) -> None:
         """Write one serialized message with its receive time."""
-        self.bag.write(topic, self.get_clock().now().nanoseconds, data)
+        try:
+            self.bag.write(topic, self.get_clock().now().nanoseconds, data)
+        except BagError:
+            return              # the bag failed: the node stops, main reports it
         stats = self.stats[topic]
         stats.received += 1
         seq = info.get('publication_sequence_number')
@@ -207,15 +212,20 @@ class RecorderNode(Node):
         self.parameters[target] = dict(sorted(zip(names, values)))
         text = yaml.safe_dump({node: {'ros__parameters': params}
                                for node, params in self.parameters.items()})
-        self.bag.describe(PARAMETERS_KEY, text)
         scenario = self.parameters[target].get('scenario_file')
-        if scenario is not None:
-            path = Path(scenario) if scenario else (
-                source_config_dir() / 'scenarios' / 'paper_r400.yaml')
-            try:
-                self.bag.describe(SCENARIO_KEY, path.read_text())
-            except OSError as err:
-                self.get_logger().warn(f'scenario {path} not stored: {err}')
+        try:
+            self.bag.describe(PARAMETERS_KEY, text)
+            if scenario is not None:
+                path = Path(scenario) if scenario else (
+                    source_config_dir() / 'scenarios' / 'paper_r400.yaml')
+                try:
+                    scenario_text = path.read_text()
+                except OSError as err:
+                    self.get_logger().warn(f'scenario {path} not stored: {err}')
+                else:
+                    self.bag.describe(SCENARIO_KEY, scenario_text)
+        except BagError:
+            return              # the bag failed: the node stops, main reports it
         self.get_logger().info(f'stored the parameters of {target}')
 
     # -- end ------------------------------------------------------------------------
@@ -234,8 +244,12 @@ class RecorderNode(Node):
         """Finalize the bag (also on SIGINT / SIGTERM) and report."""
         if not self.bag.closed:
             report = self.report()
-            self.bag.describe(RECORDER_KEY, yaml.safe_dump(report))
-            self.bag.close()
+            try:
+                self.bag.describe(RECORDER_KEY, yaml.safe_dump(report))
+                self.bag.close()
+            except BagError:
+                super().destroy_node()
+                return          # main reports the failure
             total = sum(r['received'] or 0 for r in report.values())
             dropped = sum(r['dropped'] or 0 for r in report.values())
             missing = [n for n in self.to_describe if n in self._asked
@@ -281,10 +295,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         raise ToolError(f'--chunk-interval {args.chunk_interval}: must be > 0')
     bag = BagWriter(args.output or Path(default_bag_name()), args.chunk_interval)
     try:
-        return run_node('record', full, lambda: RecorderNode(bag, args.topics, args.regex,
-                                                             args.describe))
+        code = run_node('record', full, lambda: RecorderNode(bag, args.topics, args.regex,
+                                                             args.describe),
+                        lambda node: bag.error is not None)
     finally:
-        bag.close()
+        bag.close()         # once; after a write error the bag is already aborted
+    if bag.error is not None:
+        raise bag.error
+    return code
 
 
 def entry() -> int:

@@ -45,13 +45,15 @@ def paper_look_ahead(v_x: Real, a_x: Real, vehicle: VehicleParams,
     :param d_max: upper clamp [m].
     :return: ``(d_v [m], dd_v/dt [m/s])``.
     """
-    eta = vehicle.eta
+    eta, d_s = vehicle.eta, vehicle.d_s
     raw = 4.0 * eta * v_x * v_x - vehicle.l2
-    free = (raw > vehicle.d_s) & (raw < d_max) if isinstance(raw, xp.np.ndarray) else (
-        vehicle.d_s < raw < d_max)
-    d_v = xp.clip(raw, vehicle.d_s, d_max)
-    rate = xp.where(free, 8.0 * eta * v_x * a_x, 0.0 * v_x)
-    return d_v, rate
+    if isinstance(raw, xp.np.ndarray):
+        free = (raw > d_s) & (raw < d_max)
+        return xp.clip(raw, d_s, d_max), xp.where(free, 8.0 * eta * v_x * a_x, 0.0 * v_x)
+    # one float (a node's control step): no array dispatch
+    if d_s < raw < d_max:
+        return raw, 8.0 * eta * v_x * a_x
+    return (d_s if raw <= d_s else d_max), 0.0 * v_x * a_x
 
 
 def exact_look_ahead(v_x: Real, a_x: Real, vehicle: VehicleParams,

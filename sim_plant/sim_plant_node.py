@@ -117,6 +117,7 @@ class SimPlantNode(Node):
         self.answered_stamp: Optional[int] = None
         self.waiting_stamp: Optional[int] = None
         self.sent_at = 0.0
+        self.started_at = 0.0       # wall clock of the first step of the loop
         self.done = Future()
         frame = p['frame_id']
         self.frame = frame
@@ -210,10 +211,12 @@ class SimPlantNode(Node):
         if self.k < self.n_steps or not self.params['exit_at_end']:
             return False
         if not self.done.done():
+            wall = time.monotonic() - self.started_at
             self.get_logger().info(
                 f'scenario {self.scenario.name!r} finished at t = '
                 f'{self.k * self.period:g} s: {self.k} steps, {self.missed} missed '
-                f'deadlines, {self.rejected} rejected commands')
+                f'deadlines, {self.rejected} rejected commands; {wall:.3f} s wall '
+                f'({self.k / max(wall, 1e-9):.0f} steps/s)')
             self.done.set_result(True)
         return True
 
@@ -264,7 +267,7 @@ class SimPlantNode(Node):
                 return
             self.answered_stamp = -1
             self.waiting_stamp = self.publish_measurements()
-            self.sent_at = time.monotonic()
+            self.sent_at = self.started_at = time.monotonic()
             return
         if (self.waiting_stamp is not None
                 and time.monotonic() - self.sent_at > self.params['deadline']):
@@ -289,8 +292,10 @@ class SimPlantNode(Node):
         """Publish the current step, then integrate one period with the latest command."""
         if self.done.done():
             return
-        if self.k == 0 and not self.loop_closed():
-            return
+        if self.k == 0:
+            if not self.loop_closed():
+                return
+            self.started_at = time.monotonic()
         if self.k > 0 and self.answered_stamp != self.stamp_ns(self.k - 1):
             self.missed += 1
             self.get_logger().warn(

@@ -74,6 +74,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     scenario = source_config_dir() / 'scenarios' / 'paper_r400.yaml'
     if args.out.exists():
         shutil.rmtree(args.out)
+    args.out.mkdir(parents=True)            # unwritable: one line, before any run
     bags = []
     for schedule in args.schedules:
         for speed in args.speeds:

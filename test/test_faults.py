@@ -1,0 +1,376 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Fault injection: bad files, unwritable and full disks, killed processes, bad peers."""
+
+import ast
+import ctypes
+import os
+from pathlib import Path
+import random
+import resource
+import signal
+import subprocess
+import sys
+import time
+
+from lookahead_control import conversions as conv
+from lookahead_control.bags import read_messages, recover
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENARIO = ROOT / 'config' / 'scenarios' / 'paper_r400.yaml'
+# where setup.cfg installs the executables: <prefix>/lib/lookahead_control, as ros2 run
+EXES = Path(sys.prefix) / 'lib' / 'lookahead_control'
+pytestmark = pytest.mark.process
+
+
+def _executables() -> dict:
+    tree = ast.parse((ROOT / 'setup.py').read_text(encoding='utf-8'))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Assign) and getattr(node.targets[0], 'id', '') == \
+                'EXECUTABLES':
+            return ast.literal_eval(node.value)
+    raise AssertionError('setup.py has no EXECUTABLES mapping')
+
+
+def _run(exe, *args, timeout=60, **kwargs):
+    return subprocess.run([str(EXES / exe), *map(str, args)], cwd=kwargs.pop('cwd', ROOT),
+                          capture_output=True, text=True, timeout=timeout, **kwargs)
+
+
+@pytest.fixture(scope='module')
+def bad(tmp_path_factory):
+    """Bad files of every kind: malformed, missing, out of range, not a dir, not a bag."""
+    tmp = tmp_path_factory.mktemp('bad')
+    files = {'malformed': tmp / 'malformed.yaml', 'missing': tmp / 'missing.yaml',
+             'range': tmp / 'range.yaml', 'plain': tmp / 'plain.txt',
+             'junk_bag': tmp / 'junk_bag', 'garbage_bag': tmp / 'garbage_bag',
+             'no_bag': tmp / 'no_bag'}
+    files['malformed'].write_text('controller:\n  ros__parameters: [1,\n')
+    files['range'].write_text('controller:\n  ros__parameters:\n    controller:\n'
+                              '      natural_frequency: -3.0\n')
+    files['plain'].write_text('a file, not a directory\n')
+    files['junk_bag'].mkdir()
+    (files['junk_bag'] / 'metadata.yaml').write_text('not: [a bag')
+    files['garbage_bag'].mkdir()
+    (files['garbage_bag'] / 'garbage_bag.mcap').write_bytes(bytes(range(256)) * 40)
+    return files
+
+
+# executable -> (arguments, the file the one line must name), built from the bad files
+CASES = {
+    'schedule': [(['--vehicle', '{malformed}'], 'malformed.yaml'),
+                 (['--vehicle', '{missing}'], 'missing.yaml')],
+    'zero_dynamics': [(['--vehicle', '{malformed}'], 'malformed.yaml')],
+    'certificate': [(['--vehicle', '{missing}'], 'missing.yaml')],
+    'paper_scenario': [(['--controller', '{malformed}', '--no-plots'], 'malformed.yaml'),
+                       (['--no-plots', '--out', '{plain}/out'], 'plain.txt')],
+    'controller': [(['--ros-args', '--params-file', '{malformed}'], 'malformed.yaml'),
+                   (['--ros-args', '--params-file', '{missing}'], 'missing.yaml'),
+                   (['--ros-args', '--params-file', '{range}'], 'natural_frequency')],
+    'sim_plant': [(['--ros-args', '-p', 'scenario_file:={malformed}'], 'malformed.yaml'),
+                  (['--ros-args', '-p', 'scenario_file:={missing}'], 'missing.yaml')],
+    'closed_loop': [(['--scenario', '{malformed}', '--no-record'], 'malformed.yaml'),
+                    (['--scenario', '{missing}', '--no-record'], 'missing.yaml'),
+                    (['--bag', '{plain}/run'], 'plain.txt')],
+    'record': [(['/talk', '-o', '{plain}/run'], 'plain.txt')],
+    'recover': [(['{no_bag}'], 'no_bag'), (['{garbage_bag}'], 'garbage_bag')],
+    'replay': [(['{no_bag}'], 'no_bag'), (['{junk_bag}', '--offline'], 'junk_bag')],
+    'analyze': [(['{junk_bag}', '--no-plots'], 'junk_bag'),
+                (['{garbage_bag}', '--no-plots'], 'garbage_bag')],
+    'demo': [(['--out', '{plain}/demo'], 'plain.txt')],
+}
+
+
+def test_every_executable_has_bad_file_cases():
+    assert set(CASES) == set(_executables())
+
+
+@pytest.mark.parametrize('exe', sorted(CASES))
+def test_every_cli_given_a_bad_file_prints_one_line_and_fails(exe, bad, tmp_path):
+    for args, named in CASES[exe]:
+        argv = [a.format(**bad) for a in args]
+        out = _run(exe, *argv, cwd=tmp_path)
+        assert out.returncode != 0, (argv, out.stderr)
+        lines = out.stderr.strip().splitlines()
+        assert len(lines) == 1, (argv, out.stderr)
+        assert lines[0].startswith(f'{exe}: ') and named in lines[0], (argv, lines)
+        assert 'Traceback' not in out.stderr
+
+
+def _drop_root_file_override():
+    """Run as if not root: without CAP_DAC_OVERRIDE a directory's mode bits apply."""
+    if os.geteuid() != 0:
+        return
+    libc = ctypes.CDLL(None, use_errno=True)
+    pr_capbset_drop = 24            # root's capabilities after exec come from this set
+    for cap in (1, 2):              # CAP_DAC_OVERRIDE, CAP_DAC_READ_SEARCH
+        if libc.prctl(pr_capbset_drop, cap, 0, 0, 0) != 0:
+            raise OSError(ctypes.get_errno(), 'prctl(PR_CAPBSET_DROP)')
+
+
+def test_unwritable_bags_dir_is_one_line_and_records_nothing(tmp_path):
+    bags = tmp_path / 'bags'
+    bags.mkdir()
+    bags.chmod(0o555)
+    try:
+        for exe, args in (('record', ['/talk', '-o', bags / 'run']),
+                          ('closed_loop', ['--bag', bags / 'run']),
+                          ('demo', ['--out', bags / 'demo'])):
+            out = _run(exe, *args, preexec_fn=_drop_root_file_override)
+            assert out.returncode != 0, out.stderr
+            lines = out.stderr.strip().splitlines()
+            assert len(lines) == 1 and 'Permission denied' in lines[0], out.stderr
+            assert str(bags) in lines[0]
+        assert list(bags.iterdir()) == []
+    finally:
+        bags.chmod(0o755)
+
+
+TALKER = """
+import sys, time, rclpy
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+rclpy.init()
+node = Node('talker')
+pub = node.create_publisher(Float64MultiArray, '/talk', 1000)
+start, k = time.monotonic(), 0
+print('up', flush=True)
+while time.monotonic() - start < float(sys.argv[1]):
+    pub.publish(Float64MultiArray(data=[float(k)] * 50))    # about 450 bytes
+    k += 1
+    time.sleep(max(0.0, start + k * 0.005 - time.monotonic()))   # 200 Hz
+"""
+
+
+@pytest.fixture
+def talker():
+    """Publish a counter on /talk at 200 Hz while the test runs."""
+    proc = subprocess.Popen([sys.executable, '-c', TALKER, '600'], stdout=subprocess.PIPE,
+                            text=True)
+    try:
+        assert proc.stdout.readline().strip() == 'up'
+        yield proc
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def _counter(bag):
+    return [int(m.msg.data[0]) for m in read_messages(bag)]
+
+
+def _record(bag, stderr=subprocess.PIPE, **kwargs):
+    return subprocess.Popen([str(EXES / 'record'), '/talk', '-o', str(bag),
+                             '--chunk-interval', '0.2'], stderr=stderr, text=True, **kwargs)
+
+
+def _wait_recording(bag, timeout=30):
+    """Wait until the recorder has flushed its first chunk of /talk messages."""
+    end = time.monotonic() + timeout
+    mcap = bag / f'{bag.name}.mcap'
+    while time.monotonic() < end:
+        if mcap.is_file() and mcap.stat().st_size > 4096:
+            return
+        time.sleep(0.02)
+    raise AssertionError(f'{bag}: nothing recorded within {timeout} s')
+
+
+def test_full_disk_is_one_line_and_keeps_what_was_recorded(tmp_path, talker):
+    limit = 300_000           # the recorder's files may not grow past 300 kB: EFBIG
+
+    def small_disk():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    bag = tmp_path / 'run'
+    recorder = _record(bag, preexec_fn=small_disk)
+    _, err = recorder.communicate(timeout=60)
+    assert recorder.returncode != 0
+    lines = err.strip().splitlines()
+    assert [line for line in lines if '[INFO]' not in line] == [lines[-1]], err
+    assert f'{bag.name}.mcap: write failed: File too large' in lines[-1], err
+    assert f'recover {bag}' in lines[-1] and 'Traceback' not in err
+    result = recover(bag)
+    values = _counter(bag)
+    # everything in the chunks that reached the file: about 300 kB of 0.5 kB messages
+    assert values == list(range(values[0], values[0] + len(values)))
+    assert result.messages == len(values) >= 0.7 * limit / 500
+
+
+def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
+    rng = random.Random(20261121)
+    for batch in range(5):              # four recorders at a time, each killed on its own
+        bags = [tmp_path / f'run{batch}_{i}' for i in range(4)]
+        recorders = [_record(bag, stderr=subprocess.DEVNULL) for bag in bags]
+        for bag in bags:
+            _wait_recording(bag)
+        killed_at = {}
+        start = time.monotonic()
+        for delay, bag, recorder in sorted(zip([rng.uniform(0.0, 1.0) for _ in bags],
+                                               bags, recorders)):
+            time.sleep(max(0.0, start + delay - time.monotonic()))
+            killed_at[bag] = time.time_ns()
+            recorder.send_signal(signal.SIGKILL)
+            recorder.wait()
+        for bag in bags:
+            result = recover(bag)
+            messages = list(read_messages(bag))
+            values = [int(m.msg.data[0]) for m in messages]
+            assert result.messages == len(values) > 0, bag
+            # no gap, no duplicate, nothing out of order
+            assert values == list(range(values[0], values[0] + len(values))), bag
+            # lost: what the recorder received after its last chunk closed: at most the
+            # chunk interval (0.2 s) plus a message period and scheduling slack (0.15 s)
+            assert (killed_at[bag] - messages[-1].recv_ns) * 1e-9 <= 0.2 + 0.15, bag
+
+
+@pytest.fixture
+def probe():
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node('fault_probe', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    yield node, executor
+    node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+
+
+def _spin_until(executor, condition, timeout):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and not condition():
+        executor.spin_once(timeout_sec=0.01)
+    return condition()
+
+
+BRIDGE = """
+import sys, time, rclpy
+from rclpy.node import Node
+from lookahead_control import conversions as conv
+rclpy.init()
+node = Node('bridge_' + '_'.join(sys.argv[1:]))
+make = {'lateral_error': lambda t: conv.to_lateral_error(t, 'base_link', 1.96, 0.5),
+        'yaw': lambda t: conv.to_yaw(t, 'base_link', 0.0, 0.0, 0.0),
+        'velocity': lambda t: conv.to_velocity(t, 'base_link', 20.0, 0.0, 0.0)}
+pubs = {n: node.create_publisher(type(make[n](0)), '/' + n, 10) for n in sys.argv[1:]}
+print('up', flush=True)
+while True:                                        # 100 Hz, stamped with the wall clock
+    now = node.get_clock().now().nanoseconds
+    for name, pub in pubs.items():
+        pub.publish(make[name](now))
+    time.sleep(0.01)
+"""
+
+
+def _bridge(*inputs):
+    proc = subprocess.Popen([sys.executable, '-c', BRIDGE, *inputs], stdout=subprocess.PIPE,
+                            text=True)
+    assert proc.stdout.readline().strip() == 'up'
+    return proc
+
+
+def test_killed_lateral_error_publisher_gives_safe_command_error_and_recovery(probe):
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from sensor_msgs.msg import JointState
+    node, executor = probe
+    steering, diagnostics = [], []
+    node.create_subscription(JointState, '/steering', lambda m: steering.append(
+        (time.monotonic(), *conv.from_steering(m))), 100)
+    node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: diagnostics.append(
+        (time.monotonic(), m.status[0].level, m.status[0].message)), 100)
+    rate = 0.5
+    controller = subprocess.Popen([str(EXES / 'controller'), '--ros-args', '-p',
+                                   f'safety.max_steering_rate:={rate}'])
+    others = _bridge('yaw', 'velocity')
+    lateral = _bridge('lateral_error')
+    try:
+        assert _spin_until(executor, lambda: len(steering) > 100, 30)
+        held = steering[-1][2]
+        assert held < -0.005                     # steering against a 0.5 m offset
+        killed = time.monotonic()
+        lateral.kill()
+        lateral.wait()
+        timeout = 0.2                            # safety.input_timeout
+        assert _spin_until(executor, lambda: any(
+            t > killed and level == DiagnosticStatus.ERROR for t, level, _ in diagnostics),
+            5)
+        error_at, _, message = next(d for d in diagnostics
+                                    if d[0] > killed and d[1] == DiagnosticStatus.ERROR)
+        assert error_at - killed <= 2 * timeout, error_at - killed
+        assert 'stale inputs: lateral_error' in message
+        # the watchdog holds the last command, then ramps to 0 within the rate limit
+        _spin_until(executor, lambda: False, 1.5)
+        after = [(t, stamp, a) for t, stamp, a in steering if t > killed]
+        assert after and after[0][0] - killed <= 2 * timeout + 0.05
+        assert after[0][2] == held and after[-1][2] == 0.0
+        lateral = _bridge('lateral_error')
+        resumed = len(steering)
+        assert _spin_until(executor, lambda: len(steering) > resumed + 100, 30)
+        assert _spin_until(executor, lambda: diagnostics[-1][1] != DiagnosticStatus.ERROR,
+                           5)
+        # control resumes without a jump: back to the held angle at the rate limit
+        assert steering[-1][2] == pytest.approx(held, abs=1e-6)
+        for (_, s0, a0), (_, s1, a1) in zip(steering, steering[1:]):
+            assert abs(a1 - a0) <= rate * max(s1 - s0, 0) * 1e-9 + 1e-9, (s0, a0, s1, a1)
+    finally:
+        for proc in (lateral, others):
+            proc.kill()
+            proc.wait()
+        controller.send_signal(signal.SIGINT)
+        assert controller.wait(10) == 0
+
+
+def test_sim_plant_ignores_bad_commands_and_holds_on_missing_answers(probe, tmp_path):
+    from sensor_msgs.msg import JointState
+    node, executor = probe
+    scenario = tmp_path / 'one_second.yaml'
+    scenario.write_text(SCENARIO.read_text().replace('duration: 10.0', 'duration: 1.0'))
+    steering = node.create_publisher(JointState, '/steering', 10)
+    nan, huge, skip = range(10, 15), (30,), range(20, 25)
+    seen = []
+
+    def answer(msg):
+        stamp = conv.stamp_to_ns(msg.header.stamp)
+        k = round(stamp / 10_000_000)
+        seen.append(k)
+        if k in skip:
+            return
+        angle = float('nan') if k in nan else 50.0 if k in huge else -0.001 * k
+        steering.publish(conv.to_steering(stamp, angle, 0.0))
+
+    node.create_subscription(type(conv.to_lateral_error(0, '', 0, 0)), '/lateral_error',
+                             answer, 10)
+    for topic, msg in (('/yaw', conv.to_yaw(0, '', 0, 0, 0)),
+                       ('/velocity', conv.to_velocity(0, '', 0, 0, 0)),
+                       ('/road_curvature', conv.to_curvature(0, '', [(0.0, 0.0)]))):
+        node.create_subscription(type(msg), topic, lambda m: None, 10)
+    sim = subprocess.Popen([str(EXES / 'sim_plant'), '--ros-args', '-p',
+                            f'scenario_file:={scenario}', '-p', 'deadline:=0.05'],
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        assert _spin_until(executor, lambda: sim.poll() is not None, 60)
+    finally:
+        if sim.poll() is None:
+            sim.kill()
+        _, err = sim.communicate()
+    assert sim.returncode == 0, err
+    # NaN and 50 rad are refused (6), and those steps and the silent ones time out (11)
+    assert 'finished at t = 1 s: 100 steps, 11 missed deadlines, 6 rejected commands' \
+        in err, err
+    assert sorted(set(seen)) == list(range(100))
