@@ -35,6 +35,10 @@ test: $(STAMP)
 fuzz: $(STAMP)
 	FUZZ_EXAMPLES=100000 $(PY) -m pytest -q -s test/test_fuzz.py
 
+# Benchmarks (not part of `make test`): bench/results/*.json and a table; about 20 min.
+bench: $(STAMP)
+	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( $$$$ % 100 + 1 ))} $(PY) -m bench.run $(BENCH_ARGS)
+
 lint: $(STAMP)
 	$(PY) -m pytest -m lint
 

@@ -71,14 +71,11 @@ def _latest(samples: list[tuple[int, Any]], stamps: list[int]) -> list[Any]:
 
 
 def _forward_fill(values: list[float]) -> Array:
+    """Replace each NaN by the last value before it (0 before the first value)."""
     out = np.array(values, dtype=float)
-    last = math.nan
-    for i, value in enumerate(out):
-        if math.isnan(value):
-            out[i] = last
-        else:
-            last = value
-    return np.nan_to_num(out, nan=0.0)
+    index = np.where(np.isnan(out), 0, np.arange(out.size))
+    np.maximum.accumulate(index, out=index)
+    return np.nan_to_num(out[index], nan=0.0)
 
 
 def run_series(run: RunData) -> RunSeries:

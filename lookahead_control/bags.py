@@ -39,7 +39,7 @@ import shutil
 import struct
 import tempfile
 import time
-from typing import Any, Iterator, Mapping, Optional, Sequence
+from typing import Any, Callable, Iterator, Mapping, NamedTuple, Optional, Sequence
 
 from lookahead_control.config import ConfigError
 from rosbags.highlevel import AnyReader, AnyReaderError
@@ -261,9 +261,31 @@ def bag_reader(path: Path) -> AnyReader:
     return reader
 
 
-def read_messages(path: Path, topics: Optional[Sequence[str]] = None) -> Iterator[BagMessage]:
+class RawMessage(NamedTuple):
     """
-    Yield a bag's messages in receive-time order, decoded.
+    One message of a bag, still serialized.
+
+    :param topic: its topic.
+    :param msgtype: its type.
+    :param recv_ns: its receive time [ns].
+    :param data: its CDR bytes.
+    :param deserialize: the bag's deserializer, ``deserialize(data, msgtype)``.
+    """
+
+    topic: str
+    msgtype: str
+    recv_ns: int
+    data: bytes
+    deserialize: Callable[[bytes, str], Any]
+
+    def decode(self) -> Any:
+        """Return the decoded message."""
+        return self.deserialize(self.data, self.msgtype)
+
+
+def read_raw(path: Path, topics: Optional[Sequence[str]] = None) -> Iterator[RawMessage]:
+    """
+    Yield a bag's messages in receive-time order, serialized.
 
     :param path: the bag.
     :param topics: only these topics (default: all).
@@ -273,14 +295,31 @@ def read_messages(path: Path, topics: Optional[Sequence[str]] = None) -> Iterato
     reader = bag_reader(path)
     try:
         conns = [c for c in reader.connections if topics is None or c.topic in topics]
+        deserialize = reader.deserialize
         try:
             for conn, stamp, data in reader.messages(connections=conns):
-                yield BagMessage(conn.topic, conn.msgtype, stamp,
-                                 reader.deserialize(data, conn.msgtype))
+                yield RawMessage(conn.topic, conn.msgtype, stamp, data, deserialize)
         except (AnyReaderError, OSError, ValueError, AssertionError) as err:
             raise BagError(f'{path}: corrupt message data: {err}') from err
     finally:
         reader.close()
+
+
+def read_messages(path: Path, topics: Optional[Sequence[str]] = None) -> Iterator[BagMessage]:
+    """
+    Yield a bag's messages in receive-time order, decoded.
+
+    :param path: the bag.
+    :param topics: only these topics (default: all).
+    :return: the messages.
+    :raises BagError: the bag cannot be read.
+    """
+    for raw in read_raw(path, topics):
+        try:
+            msg = raw.decode()
+        except (AnyReaderError, ValueError, AssertionError, struct.error) as err:
+            raise BagError(f'{path}: corrupt message data: {err}') from err
+        yield BagMessage(raw.topic, raw.msgtype, raw.recv_ns, msg)
 
 
 def bag_topics(path: Path) -> dict[str, tuple[str, int]]:

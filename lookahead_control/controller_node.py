@@ -348,6 +348,8 @@ class ControllerNode(LifecycleNode):
         if law is None:
             return
         self.counters['d_v_clamped'] += int(float(law.d_v) >= self.core.params.max_look_ahead)
+        if self._debug_pub.get_subscription_count() == 0:
+            return                  # nobody listens: do not build the debug message
         mode = self.core.params.schedule
         debug = [(name, float(getattr(law, name))) for name in DEBUG_FIELDS]
         debug.append((f'schedule:{mode}', float(SCHEDULE_MODES.index(mode))))

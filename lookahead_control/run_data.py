@@ -26,10 +26,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
+import struct
 from typing import Any, Callable, Mapping, Optional, Sequence
 
+from lookahead_control import cdr_decode as cdr
 from lookahead_control import conversions as conv
-from lookahead_control.bags import (bag_topics, node_parameters, read_messages,
+from lookahead_control.bags import (bag_topics, node_parameters, RawMessage, read_raw,
                                     run_description)
 from lookahead_control.config import ConfigError, dataclass_from_params
 from lookahead_control.controller_core import Command, SteeringController
@@ -39,6 +41,12 @@ TOPICS = {'lateral_error': '/lateral_error', 'yaw': '/yaw', 'velocity': '/veloci
           'road_curvature': '/road_curvature', 'steering': '/steering',
           'debug': '/controller/debug', 'ground_truth': '/sim_plant/ground_truth'}
 INPUTS = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
+_JOINTS = ('sensor_msgs/msg/JointState',)
+_FAST_TYPES = {'lateral_error': ('geometry_msgs/msg/PointStamped',),
+               'yaw': ('sensor_msgs/msg/Imu',),
+               'velocity': ('geometry_msgs/msg/TwistStamped',),
+               'road_curvature': (), 'steering': _JOINTS, 'debug': _JOINTS,
+               'ground_truth': _JOINTS}
 _PARSE: dict[str, Callable[[Any], Any]] = {
     'lateral_error': conv.from_lateral_error, 'yaw': conv.from_yaw,
     'velocity': conv.from_velocity, 'road_curvature': conv.from_curvature}
@@ -90,22 +98,36 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
     run = RunData(Path(bag), counts={t: c for t, (_, c) in available.items()},
                   description=run_description(Path(bag)))
     run.controller_params = node_parameters(Path(bag), '/controller')
-    for message in read_messages(bag, [t for t in role_of if t in available]):
-        role = role_of[message.topic]
-        if role in _PARSE:
-            sample = _PARSE[role](message.msg)
-            run.inputs.append((message.recv_ns, role, sample))
-            if role == 'lateral_error':
-                run.lateral_received.setdefault(sample.stamp_ns, message.recv_ns)
-        elif role == 'steering':
-            parsed = conv.from_steering(message.msg)
-            if parsed is not None:
-                run.steering[parsed[0]] = (parsed[1], message.recv_ns)
-        else:
-            values = conv.from_named_values(message.msg)
-            getattr(run, 'debug' if role == 'debug' else 'truth')[
-                conv.stamp_to_ns(message.msg.header.stamp)] = values
+    for raw in read_raw(bag, [t for t in role_of if t in available]):
+        role = role_of[raw.topic]
+        # the contract types are read straight from their bytes (long bags); others,
+        # and anything not plain little-endian CDR, through the general deserializer
+        fast = cdr.little_endian(raw.data) and raw.msgtype in _FAST_TYPES[role]
+        try:
+            _store(run, role, raw, fast)
+        except (ValueError, AssertionError, struct.error, UnicodeDecodeError) as err:
+            raise ConfigError(f'{bag}: corrupt {raw.topic} message: {err}') from err
     return run
+
+
+def _store(run: RunData, role: str, raw: RawMessage, fast: bool) -> None:
+    if role in _PARSE:
+        sample = (cdr.DECODERS[raw.msgtype](raw.data) if fast
+                  else _PARSE[role](raw.decode()))
+        run.inputs.append((raw.recv_ns, role, sample))
+        if role == 'lateral_error':
+            run.lateral_received.setdefault(sample.stamp_ns, raw.recv_ns)
+    elif role == 'steering':
+        parsed = cdr.steering(raw.data) if fast else conv.from_steering(raw.decode())
+        if parsed is not None:
+            run.steering[parsed[0]] = (parsed[1], raw.recv_ns)
+    else:
+        if fast:
+            stamp, values = cdr.named_values(raw.data)
+        else:
+            msg = raw.decode()
+            stamp, values = conv.stamp_to_ns(msg.header.stamp), conv.from_named_values(msg)
+        getattr(run, 'debug' if role == 'debug' else 'truth')[stamp] = values
 
 
 def controller_from_params(params: Mapping[str, Any],

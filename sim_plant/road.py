@@ -77,6 +77,8 @@ class Road:
         self._rho0 = np.array([s.curvature_start for s in self.segments])
         self._slope = np.array([(s.curvature_end - s.curvature_start) / s.length
                                 for s in self.segments])
+        self._rho0_list = [float(v) for v in self._rho0]     # scalar path: no numpy
+        self._slope_list = [float(v) for v in self._slope]
         self.length = starts[-1] + self.segments[-1].length
         self._end_rho = self.segments[-1].curvature_end
 
@@ -99,5 +101,5 @@ class Road:
         if s >= self.length:
             return self._end_rho, 0.0
         i = max(bisect.bisect_right(self._starts, s) - 1, 0)
-        seg_slope = float(self._slope[i])
-        return float(self._rho0[i]) + seg_slope * (s - self._starts[i]), seg_slope
+        seg_slope = self._slope_list[i]
+        return self._rho0_list[i] + seg_slope * (s - self._starts[i]), seg_slope

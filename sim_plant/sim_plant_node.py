@@ -171,13 +171,16 @@ class SimPlantNode(Node):
                                                    x[4]))
         self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
                                                      self.preview(x[0])))
-        steering = self.command if self.plant.model == 'linear' else x[5]
-        # command_time: the stamp of the step whose answer is applied (-1: none yet)
-        answered = self.answered_stamp
-        command_time = answered * 1e-9 if answered is not None and answered >= 0 else -1.0
-        truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, v_x, a_x, rho,
-                 command_time)
-        self.pub_truth.publish(conv.to_named_values(stamp, list(zip(GROUND_TRUTH, truth))))
+        if self.pub_truth.get_subscription_count() > 0:     # a recorder, a probe
+            steering = self.command if self.plant.model == 'linear' else x[5]
+            # command_time: the stamp of the step whose answer is applied (-1: none yet)
+            answered = self.answered_stamp
+            command_time = (answered * 1e-9 if answered is not None and answered >= 0
+                            else -1.0)
+            truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, v_x, a_x,
+                     rho, command_time)
+            self.pub_truth.publish(conv.to_named_values(stamp,
+                                                        list(zip(GROUND_TRUTH, truth))))
         self.pub_lateral.publish(conv.to_lateral_error(
             stamp, self.frame, self.sensor_distance, x[1] + self.sensor_distance * x[2]))
         # /clock last: a controller on a sim-time timer wakes to this step's measurements

@@ -188,9 +188,19 @@ def rk4_step(f: Callable[[float, State], State], t: float, x: State, h: float) -
     k3 = f(t + 0.5 * h, _axpy(x, 0.5 * h, k2))
     k4 = f(t + h, _axpy(x, h, k3))
     w = h / 6.0
+    if len(x) == 6:             # the plant state: unrolled, the scalar sim's hot loop
+        return (x[0] + w * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
+                x[1] + w * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
+                x[2] + w * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]),
+                x[3] + w * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3]),
+                x[4] + w * (k1[4] + 2.0 * k2[4] + 2.0 * k3[4] + k4[4]),
+                x[5] + w * (k1[5] + 2.0 * k2[5] + 2.0 * k3[5] + k4[5]))
     return tuple(xi + w * (a + 2.0 * b + 2.0 * c + d)
                  for xi, a, b, c, d in zip(x, k1, k2, k3, k4))
 
 
 def _axpy(x: Sequence[Real], a: float, k: Sequence[Real]) -> State:
+    if len(x) == 6:
+        return (x[0] + a * k[0], x[1] + a * k[1], x[2] + a * k[2], x[3] + a * k[3],
+                x[4] + a * k[4], x[5] + a * k[5])
     return tuple(xi + a * ki for xi, ki in zip(x, k))

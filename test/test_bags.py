@@ -28,6 +28,7 @@ from lookahead_control.bags import (bag_topics, BagError, BagWriter, node_parame
                                     PARAMETERS_KEY, qos_from_ints, recover, run_description)
 from lookahead_control.closed_loop import LoopConfig, run_loop
 from lookahead_control.run_data import load_run, rerun
+import numpy as np
 import pytest
 import yaml
 
@@ -341,3 +342,51 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
     assert len(common) >= 395
     # the same inputs give the same commands as in the recorded run
     assert max(abs(recorded[s][0] - answers[s]) for s in common) < 1e-15
+
+
+def test_forward_fill_carries_the_last_value_and_zero_before_the_first():
+    from lookahead_control.bag_analysis import _forward_fill
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        values = rng.normal(size=rng.integers(0, 30))
+        values[rng.random(values.size) < 0.4] = math.nan
+        expected, last = [], 0.0
+        for value in values:
+            last = last if math.isnan(value) else value
+            expected.append(last)
+        assert _forward_fill(list(values)).tolist() == expected
+
+
+def test_direct_cdr_decoding_equals_the_general_deserializer():
+    from lookahead_control import cdr_decode as cdr
+    from lookahead_control.bags import typestore
+    store = typestore()
+    rng = np.random.default_rng(11)
+
+    def cdr_bytes(msg):
+        converted = _rosbags_message(msg, store)
+        return bytes(store.serialize_cdr(converted, converted.__msgtype__))
+
+    def general(msg):
+        converted = _rosbags_message(msg, store)
+        return store.deserialize_cdr(cdr_bytes(msg), converted.__msgtype__)
+
+    for _ in range(300):
+        frame = 'f' * int(rng.integers(0, 20))          # every alignment of the body
+        stamp = int(rng.integers(0, 2**31)) * 1_000_000_000 + int(rng.integers(0, 10**9))
+        a, b, c, d = (float(v) for v in rng.normal(size=4) * 10.0 ** rng.integers(-3, 4))
+        for msg, direct, converter in (
+                (conv.to_lateral_error(stamp, frame, a, b), cdr.lateral_error,
+                 conv.from_lateral_error),
+                (conv.to_yaw(stamp, frame, a, b, c), cdr.yaw, conv.from_yaw),
+                (conv.to_velocity(stamp, frame, a, b, c), cdr.velocity, conv.from_velocity),
+                (conv.to_steering(stamp, a, b), cdr.steering, conv.from_steering)):
+            data = cdr_bytes(msg)
+            assert cdr.little_endian(data)
+            assert direct(data) == converter(general(msg))
+        names = [f'joint_{i}' * int(rng.integers(1, 3)) for i in range(int(rng.integers(0, 6)))]
+        values = [(n, float(v)) for n, v in zip(names, rng.normal(size=len(names)))]
+        named = conv.to_named_values(stamp, values)
+        assert cdr.named_values(cdr_bytes(named)) == (stamp, conv.from_named_values(
+            general(named)))
+        assert cdr.steering(cdr_bytes(named)) == conv.from_steering(general(named))

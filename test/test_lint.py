@@ -21,7 +21,7 @@ import sys
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-SOURCES = ['lookahead_control', 'sim_plant', 'test', 'setup.py', 'launch']
+SOURCES = ['lookahead_control', 'sim_plant', 'test', 'bench', 'setup.py', 'launch']
 HEADER = ('# Copyright 2026 The lookahead_control Authors', '#',
           '# Licensed under the Apache License, Version 2.0 (the "License");')
 
