@@ -61,7 +61,7 @@ def latency(quick: bool = False) -> list[Result]:
     :param quick: one short repetition each.
     :return: one result per rate.
     """
-    repeat, seconds = (1, 2.0) if quick else (3, 5.0)
+    repeat, seconds = (1, 2.0) if quick else (5, 5.0)
     results = []
     for rate in (100.0, 1000.0):
         runs: dict[str, list[dict[str, Any]]] = {'controller': [], 'echo': []}
@@ -70,23 +70,29 @@ def latency(quick: bool = False) -> list[Result]:
             runs['controller'].append(_latency_once(CONTROLLER, rate, seconds))
 
         def summary(items: list[dict[str, Any]]) -> dict[str, Any]:
-            return {'p50_us': [percentile(r['latency_us'], 50) for r in items],
+            # percentiles of all samples pooled (a p99 of one short run is mostly the
+            # scheduler's noise), and per run for the spread
+            pooled = [x for r in items for x in r['latency_us']]
+            return {'p50_us_pooled': percentile(pooled, 50),
+                    'p99_us_pooled': percentile(pooled, 99),
+                    'p50_us': [percentile(r['latency_us'], 50) for r in items],
                     'p99_us': [percentile(r['latency_us'], 99) for r in items],
-                    'sent': sum(r['sent'] for r in items),
+                    'samples': len(pooled), 'sent': sum(r['sent'] for r in items),
                     'lost': sum(r['lost'] for r in items)}
 
         ctl, base = summary(runs['controller']), summary(runs['echo'])
-        p99, p99_base = median(ctl['p99_us']), median(base['p99_us'])
+        p99, p99_base = ctl['p99_us_pooled'], base['p99_us_pooled']
         ratio = p99 / p99_base
         hz = f'{rate:g} Hz'
         results.append(Result(
-            f'2_latency_{int(rate)}hz', f'controller p99 latency, input -> steering, {hz}',
-            p99, 'us', f'bare echo node p99, {hz}', p99_base, ratio,
+            f'2_latency_{int(rate)}hz',
+            f'controller p99 latency, input -> steering, {hz} (pooled runs)', p99, 'us',
+            f'bare echo node p99, {hz}', p99_base, ratio,
             'p99 <= 1.2x echo' + ('; 0 lost' if rate >= 1000 else ''),
             ratio <= 1.2 and (rate < 1000 or ctl['lost'] == 0), repeat,
             (min(ctl['p99_us']), max(ctl['p99_us'])),
-            {'controller': ctl, 'echo': base, 'p50_us': median(ctl['p50_us']),
-             'p50_us_echo': median(base['p50_us']), 'seconds_per_run': seconds}))
+            {'controller': ctl, 'echo': base, 'p50_us': ctl['p50_us_pooled'],
+             'p50_us_echo': base['p50_us_pooled'], 'seconds_per_run': seconds}))
     return results
 
 

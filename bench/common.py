@@ -26,7 +26,7 @@ import sys
 from typing import Any, Optional, Sequence
 
 ROOT = Path(__file__).resolve().parent.parent
-RESULTS = ROOT / 'bench' / 'results'
+RESULTS = Path(os.environ.get('BENCH_RESULTS', ROOT / 'bench' / 'results'))
 TICKS = os.sysconf('SC_CLK_TCK')
 
 

@@ -15,14 +15,15 @@
 """
 ``make bench``: every benchmark, each next to a baseline measured in the same run.
 
-Writes ``bench/results/<name>.json`` and ``bench/results/table.md`` and prints the
-table. ``--only NAME ...`` runs some; ``--quick`` shortens every one (for a smoke run,
-not for figures).
+Writes ``bench/results/<name>.json`` and ``bench/results/table.md`` (every result on
+file) and prints the table. ``--only NAME ...`` runs some; ``--quick`` shortens every
+one (for a smoke run, not for figures); ``BENCH_RESULTS`` sets another results folder.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import sys
@@ -76,9 +77,12 @@ def main() -> int:
                   f'{result.baseline_value:.4g} (ratio {result.ratio:.3g}); goal '
                   f'{result.goal}: {"met" if result.met else "MISSED"}', file=sys.stderr,
                   flush=True)
+    # the table holds every result on file, so `--only` refreshes some of them
+    on_file = [Result(**json.loads(path.read_text()))
+               for path in sorted(RESULTS.glob('[0-9]_*.json'))]
     text = (f'Machine: {platform.node()}, {os.cpu_count()} cores, Python '
             f'{platform.python_version()}{", quick" if args.quick else ""}\n\n'
-            + table(results) + '\n')
+            + table(on_file) + '\n')
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / 'table.md').write_text(text)
     print(text)

@@ -23,6 +23,7 @@ remap them), publishes ``steering`` and ``~/debug``. Auto-activates unless
 from __future__ import annotations
 
 import sys
+import time
 from typing import Any, Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -114,6 +115,8 @@ class ControllerNode(LifecycleNode):
         self._debug_pub: Any = None
         self.active = False
         self.published = 0
+        self._warned_at: float = -1e18     # monotonic time of the last refusal warning
+        self._cache_input_parameters()
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._parameters_set)
 
@@ -131,6 +134,13 @@ class ControllerNode(LifecycleNode):
 
     def _parameters_set(self, params: list[Parameter]) -> None:
         self._dirty = True   # applied before the next control step
+        self._cache_input_parameters()
+
+    def _cache_input_parameters(self) -> None:
+        # read on every message: plain attributes, not a parameter lookup each time
+        self._frame = self.param('frame_id')
+        self._mode = self.param('mode')
+        self._wait_for_stamps = self.param('wait_for_matching_stamps')
 
     def _apply_parameters(self) -> None:
         if not self._dirty:
@@ -223,7 +233,7 @@ class ControllerNode(LifecycleNode):
         :param parse: its converter.
         :return: whether it was accepted.
         """
-        frame = self.param('frame_id')
+        frame = self._frame
         if frame and msg.header.frame_id != frame:
             reason = f'{name}: frame {msg.header.frame_id!r} is not {frame!r}'
             self.core.count_rejection(reason)
@@ -242,17 +252,22 @@ class ControllerNode(LifecycleNode):
                 if refused is None:
                     return True
                 reason = refused
-        self.get_logger().warn(f'refused {reason}', throttle_duration_sec=1.0)
+        # throttled here: rclpy's own throttling inspects the caller's frame on every
+        # call (about 40 us), which a flood of bad messages would pay per message
+        wall = time.monotonic()
+        if wall - self._warned_at >= 1.0:
+            self._warned_at = wall
+            self.get_logger().warn(f'refused {reason}')
         return False
 
     def on_lateral_error(self, msg: PointStamped) -> None:
         """Store the lateral error; in event mode, answer it."""
         if not self._input('lateral_error', msg, conv.from_lateral_error):
             return
-        if self.param('mode') != 'event':
+        if self._mode != 'event':
             return
         stamp = self.core.lateral.stamp_ns if self.core.lateral else 0
-        if self.param('wait_for_matching_stamps') and not self.core.inputs_at(stamp):
+        if self._wait_for_stamps and not self.core.inputs_at(stamp):
             self._pending_stamp = stamp
             self._arm_sync_timer()
             return
