@@ -257,9 +257,12 @@ class SimPlantNode(Node):
         """
         wanted = self.params['subscribers']
         pubs = (self.pub_lateral, self.pub_yaw, self.pub_velocity, self.pub_curvature)
+        # steering: the controller publishes it; a recorder subscribes to it like this
+        # node does (the graph's count: their match is not visible from here)
         return (all(pub.get_subscription_count() >= wanted for pub in pubs)
                 and self.pub_truth.get_subscription_count() >= wanted - 1
-                and self.sub_steering.get_publisher_count() > 0)
+                and self.sub_steering.get_publisher_count() > 0
+                and self.count_subscribers(self.sub_steering.topic_name) >= wanted)
 
     def on_poll(self) -> None:
         """Start once the controller is connected; enforce the deadline."""

@@ -12,11 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Test session setup: DDS isolated to this session and to loopback."""
+"""Test session setup (DDS isolated to this session and to loopback) and shared helpers."""
 
+import ast
 import os
 from pathlib import Path
 import sys
+import time
+
+import pytest
 
 # A unique ROS_DOMAIN_ID per test session (0..101 are safe for Fast DDS ports), set
 # before anything imports rclpy, and discovery on loopback only.
@@ -27,3 +31,38 @@ os.environ.setdefault('MPLBACKEND', 'Agg')
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+
+
+def entry_points() -> dict:
+    """Return setup.py's EXECUTABLES (name -> module:function) without running it."""
+    tree = ast.parse((ROOT / 'setup.py').read_text(encoding='utf-8'))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Assign) and getattr(node.targets[0], 'id', '') == \
+                'EXECUTABLES':
+            return ast.literal_eval(node.value)
+    raise AssertionError('setup.py has no EXECUTABLES mapping')
+
+
+def spin_until(executor, condition, timeout):
+    """Spin until ``condition()`` or ``timeout`` seconds; return ``condition()``."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and not condition():
+        executor.spin_once(timeout_sec=0.01)
+    return condition()
+
+
+@pytest.fixture
+def probe():
+    """Yield a node in a private context and its executor: ``(node, executor)``."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node('test_probe', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    yield node, executor
+    node.destroy_node()
+    rclpy.try_shutdown(context=ctx)

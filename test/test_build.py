@@ -14,26 +14,17 @@
 
 """colcon builds the package; ament finds every executable where `ros2 run` looks."""
 
-import ast
 import os
 from pathlib import Path
 import shutil
 import subprocess
 import sys
 
+from conftest import entry_points
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.build
-
-
-def _entry_points() -> dict:
-    tree = ast.parse((ROOT / 'setup.py').read_text(encoding='utf-8'))
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Assign) and getattr(node.targets[0], 'id', '') == \
-                'EXECUTABLES':
-            return ast.literal_eval(node.value)
-    raise AssertionError('setup.py has no EXECUTABLES mapping')
 
 
 @pytest.fixture(scope='module')
@@ -70,7 +61,7 @@ def test_colcon_build_and_ament_lookup(colcon_install):
         '"paper_r400.yaml"))\n'
         'print(prefix)\n')
     env = dict(os.environ, AMENT_PREFIX_PATH=prefix_path)
-    result = subprocess.run([sys.executable, '-c', code, *_entry_points()], env=env,
+    result = subprocess.run([sys.executable, '-c', code, *entry_points()], env=env,
                             capture_output=True, text=True, cwd='/')
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == prefix_path

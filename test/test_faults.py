@@ -14,7 +14,6 @@
 
 """Fault injection: bad files, unwritable and full disks, killed processes, bad peers."""
 
-import ast
 import ctypes
 import os
 from pathlib import Path
@@ -25,28 +24,16 @@ import subprocess
 import sys
 import time
 
+from conftest import entry_points, spin_until
 from lookahead_control import conversions as conv
 from lookahead_control.bags import read_messages, recover
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / 'config' / 'scenarios' / 'paper_r400.yaml'
 # where setup.cfg installs the executables: <prefix>/lib/lookahead_control, as ros2 run
 EXES = Path(sys.prefix) / 'lib' / 'lookahead_control'
 pytestmark = pytest.mark.process
-
-
-def _executables() -> dict:
-    tree = ast.parse((ROOT / 'setup.py').read_text(encoding='utf-8'))
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Assign) and getattr(node.targets[0], 'id', '') == \
-                'EXECUTABLES':
-            return ast.literal_eval(node.value)
-    raise AssertionError('setup.py has no EXECUTABLES mapping')
 
 
 def _run(exe, *args, timeout=60, **kwargs):
@@ -99,7 +86,7 @@ CASES = {
 
 
 def test_every_executable_has_bad_file_cases():
-    assert set(CASES) == set(_executables())
+    assert set(CASES) == set(entry_points())
 
 
 @pytest.mark.parametrize('exe', sorted(CASES))
@@ -240,25 +227,6 @@ def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
             assert (killed_at[bag] - messages[-1].recv_ns) * 1e-9 <= 0.2 + 0.15, bag
 
 
-@pytest.fixture
-def probe():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    node = Node('fault_probe', context=ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    yield node, executor
-    node.destroy_node()
-    rclpy.try_shutdown(context=ctx)
-
-
-def _spin_until(executor, condition, timeout):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end and not condition():
-        executor.spin_once(timeout_sec=0.01)
-    return condition()
-
-
 BRIDGE = """
 import sys, time, rclpy
 from rclpy.node import Node
@@ -281,7 +249,9 @@ while True:                                        # 100 Hz, stamped with the wa
 def _bridge(*inputs):
     proc = subprocess.Popen([sys.executable, '-c', BRIDGE, *inputs], stdout=subprocess.PIPE,
                             text=True)
-    assert proc.stdout.readline().strip() == 'up'
+    if proc.stdout.readline().strip() != 'up':
+        proc.kill()
+        raise AssertionError(f'the bridge for {inputs} did not start ({proc.wait()})')
     return proc
 
 
@@ -297,17 +267,19 @@ def test_killed_lateral_error_publisher_gives_safe_command_error_and_recovery(pr
     rate = 0.5
     controller = subprocess.Popen([str(EXES / 'controller'), '--ros-args', '-p',
                                    f'safety.max_steering_rate:={rate}'])
-    others = _bridge('yaw', 'velocity')
-    lateral = _bridge('lateral_error')
+    bridges = []
     try:
-        assert _spin_until(executor, lambda: len(steering) > 100, 30)
+        bridges.append(_bridge('yaw', 'velocity'))
+        lateral = _bridge('lateral_error')
+        bridges.append(lateral)
+        assert spin_until(executor, lambda: len(steering) > 100, 30)
         held = steering[-1][2]
         assert held < -0.005                     # steering against a 0.5 m offset
         killed = time.monotonic()
         lateral.kill()
         lateral.wait()
         timeout = 0.2                            # safety.input_timeout
-        assert _spin_until(executor, lambda: any(
+        assert spin_until(executor, lambda: any(
             t > killed and level == DiagnosticStatus.ERROR for t, level, _ in diagnostics),
             5)
         error_at, _, message = next(d for d in diagnostics
@@ -315,21 +287,21 @@ def test_killed_lateral_error_publisher_gives_safe_command_error_and_recovery(pr
         assert error_at - killed <= 2 * timeout, error_at - killed
         assert 'stale inputs: lateral_error' in message
         # the watchdog holds the last command, then ramps to 0 within the rate limit
-        _spin_until(executor, lambda: False, 1.5)
+        spin_until(executor, lambda: False, 1.5)
         after = [(t, stamp, a) for t, stamp, a in steering if t > killed]
         assert after and after[0][0] - killed <= 2 * timeout + 0.05
         assert after[0][2] == held and after[-1][2] == 0.0
-        lateral = _bridge('lateral_error')
+        bridges.append(_bridge('lateral_error'))
         resumed = len(steering)
-        assert _spin_until(executor, lambda: len(steering) > resumed + 100, 30)
-        assert _spin_until(executor, lambda: diagnostics[-1][1] != DiagnosticStatus.ERROR,
-                           5)
+        assert spin_until(executor, lambda: len(steering) > resumed + 100, 30)
+        assert spin_until(executor, lambda: diagnostics[-1][1] != DiagnosticStatus.ERROR,
+                          5)
         # control resumes without a jump: back to the held angle at the rate limit
         assert steering[-1][2] == pytest.approx(held, abs=1e-6)
         for (_, s0, a0), (_, s1, a1) in zip(steering, steering[1:]):
             assert abs(a1 - a0) <= rate * max(s1 - s0, 0) * 1e-9 + 1e-9, (s0, a0, s1, a1)
     finally:
-        for proc in (lateral, others):
+        for proc in bridges:
             proc.kill()
             proc.wait()
         controller.send_signal(signal.SIGINT)
@@ -364,7 +336,7 @@ def test_sim_plant_ignores_bad_commands_and_holds_on_missing_answers(probe, tmp_
                             f'scenario_file:={scenario}', '-p', 'deadline:=0.05'],
                            stderr=subprocess.PIPE, text=True)
     try:
-        assert _spin_until(executor, lambda: sim.poll() is not None, 60)
+        assert spin_until(executor, lambda: sim.poll() is not None, 60)
     finally:
         if sim.poll() is None:
             sim.kill()
