@@ -216,15 +216,40 @@ def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
             recorder.send_signal(signal.SIGKILL)
             recorder.wait()
         for bag in bags:
+            in_complete_chunks = _messages_in_complete_chunks(bag / f'{bag.name}.mcap')
             result = recover(bag)
             messages = list(read_messages(bag))
             values = [int(m.msg.data[0]) for m in messages]
-            assert result.messages == len(values) > 0, bag
-            # no gap, no duplicate, nothing out of order
+            # everything the killed recorder had written in whole chunks is back, and
+            # nothing else: no gap, no duplicate, nothing out of order
+            assert result.messages == len(values) == in_complete_chunks > 0, bag
             assert values == list(range(values[0], values[0] + len(values))), bag
-            # lost: what the recorder received after its last chunk closed: at most the
-            # chunk interval (0.2 s) plus a message period and scheduling slack (0.15 s)
-            assert (killed_at[bag] - messages[-1].recv_ns) * 1e-9 <= 0.2 + 0.15, bag
+            # and the recorder kept writing chunks: the last one closed shortly before
+            # the kill (chunk interval 0.2 s; the slack covers four recorders, a talker
+            # and pytest on two cores)
+            assert (killed_at[bag] - messages[-1].recv_ns) * 1e-9 <= 0.2 + 1.0, bag
+
+
+def _messages_in_complete_chunks(path):
+    """Count the messages in the whole chunks of a cut MCAP file (spec, by hand)."""
+    data = path.read_bytes()
+    pos, count = 8, 0                               # after the magic
+    while pos + 9 <= len(data):
+        opcode, length = data[pos], int.from_bytes(data[pos + 1:pos + 9], 'little')
+        end = pos + 9 + length
+        if end > len(data):
+            break                                   # the record the kill cut
+        if opcode == 0x06:                          # Chunk, uncompressed
+            body = data[pos + 9:end]
+            compression = int.from_bytes(body[28:32], 'little')
+            assert body[32:32 + compression] == b''
+            size = int.from_bytes(body[32 + compression:40 + compression], 'little')
+            records, inner = body[40 + compression:40 + compression + size], 0
+            while inner < len(records):
+                count += records[inner] == 0x05     # Message
+                inner += 9 + int.from_bytes(records[inner + 1:inner + 9], 'little')
+        pos = end
+    return count
 
 
 BRIDGE = """
