@@ -128,7 +128,12 @@ class SteeringController:
     # -- checked input ------------------------------------------------------------
 
     def reset(self) -> None:
-        """Forget inputs and the last command (time jumped: replay restart, sim reset)."""
+        """
+        Forget the inputs and the last command (time jumped: replay restart, sim reset).
+
+        The last angle sent stays the rate limit's reference (the actuator is still
+        there); the first command after the reset holds it, the next ones move from it.
+        """
         self.lateral = self.yaw = self.velocity = self.curvature = None
         self._previous_velocity = None
         self._accel_estimate = 0.0
