@@ -207,7 +207,8 @@ class SteeringController:
         """
         Return the stale-input command: hold, then ramp to the safe angle.
 
-        :param now_ns: the node's clock [ns]; the command is stamped with it.
+        :param now_ns: the node's clock [ns]; the command is stamped with this instant
+            on the measurements' clock.
         :return: the command, None before any command was sent.
         """
         sent = self._rate_angle
@@ -219,8 +220,25 @@ class SteeringController:
         held = self._held if self._held is not None else sent
         wanted = stale_target(held, (now_ns - self._stale_since) * 1e-9, self.safety)
         v_x = self.velocity.v_x if self.velocity else 0.0
-        self.last = self._limited(wanted, now_ns, v_x, None, 'stale')
+        self.last = self._limited(wanted, self._measurement_time(now_ns), v_x, None,
+                                  'stale')
         return self.last
+
+    def _measurement_time(self, now_ns: int) -> int:
+        """
+        Return the node's time on the measurements' clock.
+
+        The last lateral-error stamp plus the time since it arrived. Commands are
+        stamped, and rate limited, on the measurements' clock. That clock need not be
+        the node's: a replayed bag, or a sensor clock that is not synchronized.
+
+        :param now_ns: the node's clock [ns].
+        :return: the same instant on the measurements' clock [ns].
+        """
+        received = self._received.get('lateral_error')
+        if self.lateral is not None and received is not None:
+            return self.lateral.stamp_ns + max(0, now_ns - received)
+        return self._rate_time if self._rate_time is not None else now_ns
 
     def _limited(self, wanted: float, stamp_ns: int, v_x: float, law: Optional[LawOutput],
                  status: str) -> Command:

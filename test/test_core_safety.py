@@ -61,3 +61,27 @@ def test_a_time_jump_resets_the_inputs_but_not_the_angle_reference():
     assert after.steering == before
     moved = _step(core, 10 * MS, -0.5).steering
     assert 0.0 < moved - before <= 0.1 * 0.01 + 1e-12
+
+
+def test_sensors_on_another_clock_do_not_freeze_the_command_after_a_stale_period():
+    # the node's clock runs 100 s ahead of the sensors' (a replayed bag, no time sync)
+    core, offset = _core(), 100_000 * MS
+
+    def step(stamp, y):
+        for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
+                             ('velocity', VelocitySample(stamp, 25.0, 0.0)),
+                             ('lateral_error', LateralErrorSample(stamp, 1.96, y))):
+            assert core.accept(name, sample, stamp + offset) is None
+        return core.compute()
+
+    first = step(1000 * MS, 0.5).steering
+    # stale: the watchdog's commands are stamped on the sensors' clock, not the node's
+    held = core.safe_command(1300 * MS + offset)
+    assert held.stamp_ns == 1300 * MS and held.steering == first
+    ramped = core.safe_command(2000 * MS + offset).steering
+    assert first < ramped <= 0.0
+    # inputs return: the law's answers move again, within the rate limit
+    angles = [step((2000 + 100 * k) * MS, -0.5).steering for k in range(1, 6)]
+    assert angles[0] > ramped
+    for before, after in zip([ramped] + angles, angles):
+        assert 0.0 <= after - before <= 0.1 * 0.1 + 1e-12
