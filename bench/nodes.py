@@ -27,7 +27,7 @@ import json
 import sys
 import threading
 import time
-from typing import Any
+from typing import Any, Iterator
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control import conversions as conv
@@ -42,6 +42,7 @@ from sensor_msgs.msg import Imu, JointState
 INPUTS = (('lateral_error', PointStamped), ('yaw', Imu), ('velocity', TwistStamped),
           ('road_curvature', PolygonStamped))
 PREVIEW = [(5.0 * i, -0.0025) for i in range(11)]     # sim_plant's default preview
+TRUTH_NAMES = [f'v{i}' for i in range(12)]             # as many as sim_plant's
 
 
 def _answerer(name: str, with_clock: bool) -> Node:
@@ -73,20 +74,14 @@ def ping(args: argparse.Namespace) -> None:
     """Lockstep like sim_plant: publish a step's messages, wait for the answer, repeat."""
     node = Node('ping')
     reliable = qos('reliable')
-    pubs = {name: node.create_publisher(kind, name, reliable) for name, kind in INPUTS}
-    truth = node.create_publisher(JointState, '~/ground_truth', reliable)
-    clock = node.create_publisher(Clock, '/clock', 10)
+    pubs: dict[str, Any] = {name: node.create_publisher(kind, name, reliable)
+                            for name, kind in INPUTS}
+    pubs['truth'] = node.create_publisher(JointState, '~/ground_truth', reliable)
+    pubs['clock'] = node.create_publisher(Clock, '/clock', 10)
     state = {'k': 0, 'start': 0.0, 'end': 0.0}
-    names = [f'v{i}' for i in range(12)]
 
     def publish_step() -> None:
-        stamp = state['k'] * 10_000_000
-        pubs['yaw'].publish(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
-        pubs['velocity'].publish(conv.to_velocity(stamp, 'base_link', 30.0, 0.0, 0.0))
-        pubs['road_curvature'].publish(conv.to_curvature(stamp, 'base_link', PREVIEW))
-        truth.publish(conv.to_named_values(stamp, [(n, 0.0) for n in names]))
-        pubs['lateral_error'].publish(conv.to_lateral_error(stamp, 'base_link', 1.96, 0.1))
-        clock.publish(Clock(clock=conv.ns_to_stamp(stamp)))
+        _publish_step(pubs, state['k'] * 10_000_000)
 
     def on_answer(msg: JointState) -> None:
         if conv.stamp_to_ns(msg.header.stamp) != state['k'] * 10_000_000:
@@ -100,7 +95,7 @@ def ping(args: argparse.Namespace) -> None:
     sub = node.create_subscription(JointState, 'steering', on_answer, reliable)
     executor = make_executor(args.executor)
     executor.add_node(node)
-    spin_until(executor, lambda: all(p.get_subscription_count() > 0 for p in pubs.values())
+    spin_until(executor, lambda: all(pubs[n].get_subscription_count() > 0 for n, _ in INPUTS)
                and sub.get_publisher_count() > 0)
     state['start'] = time.monotonic()
     publish_step()
@@ -132,10 +127,7 @@ def driver(args: argparse.Namespace) -> None:
     done = threading.Event()
 
     def publish() -> None:
-        period = 1.0 / args.rate
-        start = time.perf_counter()
-        for k in range(count):
-            time.sleep(max(0.0, start + k * period - time.perf_counter()))
+        for _ in _paced(args.rate, count):
             stamp = node.get_clock().now().nanoseconds
             pubs['yaw'].publish(conv.to_yaw(stamp, 'base_link', 0.01, 0.02, 0.0))
             pubs['velocity'].publish(conv.to_velocity(stamp, 'base_link', 25.0, 0.1, 0.02))
@@ -163,25 +155,15 @@ def blast(args: argparse.Namespace) -> None:
     pubs['debug'] = node.create_publisher(JointState, '/controller/debug', reliable)
     pubs['truth'] = node.create_publisher(JointState, '/sim_plant/ground_truth', reliable)
     pubs['clock'] = node.create_publisher(Clock, '/clock', 10)
-    names = [f'v{i}' for i in range(12)]
     deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline and not all(
             p.get_subscription_count() >= args.subscribers for p in pubs.values()):
         rclpy.spin_once(node, timeout_sec=0.05)
     time.sleep(1.0)
-    period, count = 1.0 / args.rate, int(args.rate * args.seconds)
+    count = int(args.rate * args.seconds)
     start = time.perf_counter()
-    for k in range(count):
-        time.sleep(max(0.0, start + k * period - time.perf_counter()))
-        stamp = node.get_clock().now().nanoseconds
-        pubs['yaw'].publish(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
-        pubs['velocity'].publish(conv.to_velocity(stamp, 'base_link', 30.0, 0.0, 0.0))
-        pubs['road_curvature'].publish(conv.to_curvature(stamp, 'base_link', PREVIEW))
-        pubs['lateral_error'].publish(conv.to_lateral_error(stamp, 'base_link', 1.96, 0.1))
-        pubs['steering'].publish(conv.to_steering(stamp, 0.0, 0.0))
-        pubs['debug'].publish(conv.to_named_values(stamp, [(n, 0.0) for n in names]))
-        pubs['truth'].publish(conv.to_named_values(stamp, [(n, 0.0) for n in names]))
-        pubs['clock'].publish(Clock(clock=conv.ns_to_stamp(stamp)))
+    for _ in _paced(args.rate, count):
+        _publish_step(pubs, node.get_clock().now().nanoseconds)
     print(json.dumps({'per_topic': count, 'topics': len(pubs),
                       'wall_s': time.perf_counter() - start}), flush=True)
     time.sleep(2.0)
@@ -206,6 +188,28 @@ def counter(args: argparse.Namespace) -> None:
         _spin(node, 'single_threaded')
     finally:
         print(json.dumps(counts), file=sys.stderr, flush=True)
+
+
+def _publish_step(pubs: dict[str, Any], stamp: int) -> None:
+    """Publish one step of the contract topics in ``pubs``, in sim_plant's order."""
+    values = [(n, 0.0) for n in TRUTH_NAMES]
+    pubs['yaw'].publish(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
+    pubs['velocity'].publish(conv.to_velocity(stamp, 'base_link', 30.0, 0.0, 0.0))
+    pubs['road_curvature'].publish(conv.to_curvature(stamp, 'base_link', PREVIEW))
+    pubs['truth'].publish(conv.to_named_values(stamp, values))
+    pubs['lateral_error'].publish(conv.to_lateral_error(stamp, 'base_link', 1.96, 0.1))
+    if 'steering' in pubs:
+        pubs['steering'].publish(conv.to_steering(stamp, 0.0, 0.0))
+        pubs['debug'].publish(conv.to_named_values(stamp, values))
+    pubs['clock'].publish(Clock(clock=conv.ns_to_stamp(stamp)))
+
+
+def _paced(rate: float, count: int) -> Iterator[int]:
+    """Yield 0 .. count-1, the k-th at k / rate seconds from now."""
+    start = time.perf_counter()
+    for k in range(count):
+        time.sleep(max(0.0, start + k / rate - time.perf_counter()))
+        yield k
 
 
 def spin_until_time(executor: Any, seconds: float) -> None:

@@ -67,6 +67,44 @@ def typestore() -> Typestore:
     return get_typestore(Stores.ROS2_JAZZY)
 
 
+def to_rosbags(msg: Any, store: Typestore) -> Any:
+    """
+    Convert a ROS (rclpy) message to the rosbags class of the same type, recursively.
+
+    :param msg: the message.
+    :param store: the type store.
+    :return: the rosbags message.
+    """
+    import array
+    import numpy as np
+    name = f'{type(msg).__module__.split(".")[0]}/msg/{type(msg).__name__}'
+    fields = {}
+    for field in msg.get_fields_and_field_types():
+        value = getattr(msg, field)
+        if hasattr(value, 'get_fields_and_field_types'):
+            value = to_rosbags(value, store)
+        elif isinstance(value, (array.array, np.ndarray)):
+            value = np.array(value, dtype=np.float64)
+        elif isinstance(value, list) and value and hasattr(
+                value[0], 'get_fields_and_field_types'):
+            value = [to_rosbags(v, store) for v in value]
+        fields[field] = value
+    return store.types[name](**fields)
+
+
+def serialize_cdr(msg: Any, store: Optional[Typestore] = None) -> bytes:
+    """
+    Serialize a ROS message the way rosbag2 stores it (rclpy's own adds 4 bytes).
+
+    :param msg: the message.
+    :param store: the type store (default: Jazzy's).
+    :return: the CDR bytes.
+    """
+    store = store or typestore()
+    converted = to_rosbags(msg, store)
+    return bytes(store.serialize_cdr(converted, converted.__msgtype__))
+
+
 def qos_from_ints(profile: Mapping[str, int]) -> Qos:
     """
     Return a rosbags QoS from rmw enum values (rclpy's policies use the same numbers).

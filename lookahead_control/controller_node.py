@@ -23,7 +23,6 @@ remap them), publishes ``steering`` and ``~/debug``. Auto-activates unless
 from __future__ import annotations
 
 import sys
-import time
 from typing import Any, Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -31,7 +30,7 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control import conversions as conv
 from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
                                                SteeringController)
-from lookahead_control.node_main import run_node
+from lookahead_control.node_main import run_node, Throttle
 from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare,
                                            EXECUTOR_SPEC, safety_params, SAFETY_SPECS, Spec,
                                            values, vehicle_and_controller,
@@ -115,7 +114,7 @@ class ControllerNode(LifecycleNode):
         self._debug_pub: Any = None
         self.active = False
         self.published = 0
-        self._warned_at: float = -1e18     # monotonic time of the last refusal warning
+        self._refusal_log = Throttle(1.0)
         self._cache_input_parameters()
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._parameters_set)
@@ -252,11 +251,7 @@ class ControllerNode(LifecycleNode):
                 if refused is None:
                     return True
                 reason = refused
-        # throttled here: rclpy's own throttling inspects the caller's frame on every
-        # call (about 40 us), which a flood of bad messages would pay per message
-        wall = time.monotonic()
-        if wall - self._warned_at >= 1.0:
-            self._warned_at = wall
+        if self._refusal_log.ready():
             self.get_logger().warn(f'refused {reason}')
         return False
 

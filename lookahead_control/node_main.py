@@ -21,8 +21,10 @@ and ``try_shutdown``.
 
 from __future__ import annotations
 
+import math
 import re
 import sys
+import time
 from typing import Callable, Optional, Sequence, TypeVar
 
 from lookahead_control.config import ConfigError, read_yaml
@@ -37,6 +39,32 @@ from rclpy.node import Node
 N = TypeVar('N', bound=Node)
 RCLError = _rclpy.RCLError
 _RCL_LOCATION = re.compile(r', at /\S+:\d+')
+
+
+class Throttle:
+    """
+    Let a log line through at most once per period.
+
+    rclpy's ``throttle_duration_sec`` inspects the caller's frame on every call (about
+    40 us), which a flood of bad messages or missed deadlines would pay each time.
+    """
+
+    def __init__(self, period: float) -> None:
+        """
+        Start open.
+
+        :param period: least time between two lines [s].
+        """
+        self.period = period
+        self._last = -math.inf
+
+    def ready(self) -> bool:
+        """Return True (and restart the period) if a line may be logged now."""
+        now = time.monotonic()
+        if now - self._last < self.period:
+            return False
+        self._last = now
+        return True
 
 
 def make_executor(kind: str) -> Executor:

@@ -33,7 +33,7 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control import conversions as conv
 from lookahead_control.config import source_config_dir
 from lookahead_control.controller_node import qos
-from lookahead_control.node_main import run_node
+from lookahead_control.node_main import run_node, Throttle
 from lookahead_control.node_params import (build, declare, EXECUTOR_SPEC, Spec, values,
                                            VEHICLE_SPECS)
 from lookahead_control.params import VehicleParams
@@ -118,6 +118,7 @@ class SimPlantNode(Node):
         self.waiting_stamp: Optional[int] = None
         self.sent_at = 0.0
         self.started_at = 0.0       # wall clock of the first step of the loop
+        self._miss_log = Throttle(1.0)
         self.done = Future()
         frame = p['frame_id']
         self.frame = frame
@@ -304,10 +305,10 @@ class SimPlantNode(Node):
             self.started_at = time.monotonic()
         if self.k > 0 and self.answered_stamp != self.stamp_ns(self.k - 1):
             self.missed += 1
-            self.get_logger().warn(
-                f'no steering for t = {(self.k - 1) * self.period:g} s within one period: '
-                f'applying {self.command:+.4f} rad ({self.missed} missed)',
-                throttle_duration_sec=1.0)
+            if self._miss_log.ready():
+                self.get_logger().warn(
+                    f'no steering for t = {(self.k - 1) * self.period:g} s within one '
+                    f'period: applying {self.command:+.4f} rad ({self.missed} missed)')
         self.publish_measurements()
         self.integrate()
         self.finished()

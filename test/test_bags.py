@@ -25,7 +25,8 @@ import time
 from lookahead_control import conversions as conv
 from lookahead_control.bag_analysis import bag_row, run_series
 from lookahead_control.bags import (bag_topics, BagError, BagWriter, node_parameters,
-                                    PARAMETERS_KEY, qos_from_ints, recover, run_description)
+                                    PARAMETERS_KEY, qos_from_ints, recover, run_description,
+                                    serialize_cdr, to_rosbags, typestore)
 from lookahead_control.closed_loop import LoopConfig, run_loop
 from lookahead_control.run_data import load_run, rerun
 import numpy as np
@@ -223,32 +224,12 @@ def test_recover_and_analyze_fail_in_one_line(tmp_path):
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
 
 
-def _rosbags_message(msg, store):
-    """Convert an rclpy message to the rosbags class of the same type (recursively)."""
-    import array
-    import numpy as np
-    name = f'{type(msg).__module__.split(".")[0]}/msg/{type(msg).__name__}'
-    fields = {}
-    for field in msg.get_fields_and_field_types():
-        value = getattr(msg, field)
-        if hasattr(value, 'get_fields_and_field_types'):
-            value = _rosbags_message(value, store)
-        elif isinstance(value, (array.array, np.ndarray)):
-            value = np.array(value, dtype=np.float64)
-        elif isinstance(value, list) and value and hasattr(value[0], 'get_fields_and_field_types'):
-            value = [_rosbags_message(v, store) for v in value]
-        fields[field] = value
-    return store.types[name](**fields)
-
-
 def _synthetic_bag(path):
     """20 m/s, y_cg = 0.1 sin(t) measured at the CG, eps_r = 0, 2 ms latency."""
-    from lookahead_control.bags import typestore
     store = typestore()
 
     def serialize_message(msg):
-        converted = _rosbags_message(msg, store)
-        return store.serialize_cdr(converted, converted.__msgtype__)
+        return serialize_cdr(msg, store)
 
     writer = BagWriter(path)
     qos = [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})]
@@ -359,17 +340,14 @@ def test_forward_fill_carries_the_last_value_and_zero_before_the_first():
 
 def test_direct_cdr_decoding_equals_the_general_deserializer():
     from lookahead_control import cdr_decode as cdr
-    from lookahead_control.bags import typestore
     store = typestore()
     rng = np.random.default_rng(11)
 
     def cdr_bytes(msg):
-        converted = _rosbags_message(msg, store)
-        return bytes(store.serialize_cdr(converted, converted.__msgtype__))
+        return serialize_cdr(msg, store)
 
     def general(msg):
-        converted = _rosbags_message(msg, store)
-        return store.deserialize_cdr(cdr_bytes(msg), converted.__msgtype__)
+        return store.deserialize_cdr(cdr_bytes(msg), to_rosbags(msg, store).__msgtype__)
 
     for _ in range(300):
         frame = 'f' * int(rng.integers(0, 20))          # every alignment of the body
