@@ -26,18 +26,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, Mapping, Optional
+from typing import Any, Optional
 
 from lookahead_control.control_law import cg_error_from
 from lookahead_control.metrics import run_metrics
 from lookahead_control.params import VehicleParams
-from lookahead_control.run_data import rerun, RunData
+from lookahead_control.run_data import rerun_law, RunData, Samples
 import numpy as np
 import numpy.typing as npt
 import yaml
 
 Array = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 SERIES = ('y_cg', 'eps_r', 'rho', 'v_x', 'd_v', 'y_ref', 'error', 'steering_cmd')
+LAW_CHANNELS = ('d_v', 'y_ref', 'error')
 
 
 @dataclass(frozen=True)
@@ -57,20 +59,38 @@ class RunSeries:
     unanswered: int
 
 
-def _latest(samples: list[tuple[int, Any]], stamps: list[int]) -> list[Any]:
-    """Return, for each stamp, the newest sample stamped at or before it."""
-    out: list[Any] = []
-    ordered = sorted(samples, key=lambda item: item[0])
-    i, current = 0, None
-    for stamp in stamps:
-        while i < len(ordered) and ordered[i][0] <= stamp:
-            current = ordered[i][1]
-            i += 1
-        out.append(current)
-    return out
+def _latest(stamps_of: IntArray, stamps: IntArray) -> IntArray:
+    """
+    Return, for each stamp, the newest sample stamped at or before it.
+
+    :param stamps_of: the samples' stamps, in the order they came.
+    :param stamps: sorted stamps to look up.
+    :return: the index of the sample (of those stamped alike, the last to come), -1 for
+        none.
+    """
+    if not stamps_of.size:
+        return np.full(stamps.shape, -1, dtype=np.int64)
+    by_stamp = np.argsort(stamps_of, kind='stable')
+    at = np.searchsorted(stamps_of[by_stamp], stamps, side='right') - 1
+    return np.where(at >= 0, by_stamp[np.maximum(at, 0)], -1)
 
 
-def _forward_fill(values: list[float]) -> Array:
+def _exact(stamps_of: IntArray, stamps: IntArray) -> IntArray:
+    """Return, for each stamp, the last sample stamped exactly so (-1 for none)."""
+    found = _latest(stamps_of, stamps)
+    if stamps_of.size:
+        found[stamps_of[np.maximum(found, 0)] != stamps] = -1
+    return found
+
+
+def _take(values: Optional[Array], found: IntArray, default: float = math.nan) -> Array:
+    """Return ``values[found]`` where found (>= 0), else the default."""
+    if values is None or not values.size:
+        return np.broadcast_to(np.asarray(default, dtype=float), found.shape).copy()
+    return np.where(found >= 0, values[np.maximum(found, 0)], default)
+
+
+def _forward_fill(values: Array | list[float]) -> Array:
     """Replace each NaN by the last value before it (0 before the first value)."""
     out = np.array(values, dtype=float)
     index = np.where(np.isnan(out), 0, np.arange(out.size))
@@ -82,46 +102,58 @@ def run_series(run: RunData) -> RunSeries:
     """
     Return the per-step series of a run.
 
+    A ground-truth or debug value that is NaN counts as not recorded: the measured or
+    re-computed one is used, else the last value before it.
+
     :param run: the run read from a bag.
     :return: the series.
     :raises ValueError: no lateral-error message with yaw and velocity to go with it.
     """
-    by_role: dict[str, list[tuple[int, Any]]] = {}
-    for _, role, sample in run.inputs:
-        by_role.setdefault(role, []).append((sample.stamp_ns, sample))
-    stamps = sorted({s for s, _ in by_role.get('lateral_error', [])})
-    lateral = _latest(by_role.get('lateral_error', []), stamps)
-    yaw = _latest(by_role.get('yaw', []), stamps)
-    velocity = _latest(by_role.get('velocity', []), stamps)
-    curvature = _latest(by_role.get('road_curvature', []), stamps)
-    keep = [i for i in range(len(stamps)) if yaw[i] is not None and velocity[i] is not None]
-    if not keep:
+    empty = Samples.empty()
+    lateral = run.inputs.get('lateral_error', empty)
+    yaw, velocity = run.inputs.get('yaw', empty), run.inputs.get('velocity', empty)
+    curvature = run.inputs.get('road_curvature', empty)
+    stamps = np.unique(lateral.stamp_ns)
+    yaw_at, velocity_at = _latest(yaw.stamp_ns, stamps), _latest(velocity.stamp_ns, stamps)
+    keep = (yaw_at >= 0) & (velocity_at >= 0)
+    if not keep.any():
         raise ValueError(f'{run.bag}: no lateral error with yaw and velocity to go with it')
-    law = {} if run.debug else {s: c.law for s, c in rerun(run).commands.items()
-                                if c.law is not None}
-    rows: dict[str, list[float]] = {name: [] for name in SERIES}
-    for i in keep:
-        s = stamps[i]
-        truth = run.truth.get(s, {})
-        eps_r = truth.get('eps_r', yaw[i].relative_yaw)
-        rows['eps_r'].append(eps_r)
-        measured = float(cg_error_from(lateral[i].value, eps_r, lateral[i].distance))
-        rows['y_cg'].append(truth.get('y_cg', measured))
-        rows['rho'].append(truth.get('rho', curvature[i].rho if curvature[i] else 0.0))
-        rows['v_x'].append(velocity[i].v_x)
-        debug = run.debug.get(s)
-        if debug is None and s in law:
-            debug = {'d_v': float(law[s].d_v), 'y_ref': float(law[s].y_ref),
-                     'error': float(law[s].error)}
-        for name in ('d_v', 'y_ref', 'error'):
-            rows[name].append(debug[name] if debug else math.nan)
-        rows['steering_cmd'].append(run.steering[s][0] if s in run.steering else math.nan)
-    kept = [stamps[i] for i in keep]
-    channels = {name: _forward_fill(values) for name, values in rows.items()}
-    latency = np.array([(run.steering[s][1] - run.lateral_received[s]) * 1e-9
-                        for s in kept if s in run.steering and s in run.lateral_received])
-    return RunSeries(np.array([(s - kept[0]) * 1e-9 for s in kept]), channels, latency,
-                     sum(1 for s in kept if s not in run.steering))
+    kept, yaw_at, velocity_at = stamps[keep], yaw_at[keep], velocity_at[keep]
+    lateral_at = _latest(lateral.stamp_ns, kept)
+    truth_at = _exact(run.truth.stamp_ns, kept)
+
+    def truth(name: str, otherwise: Array | float) -> Array:
+        recorded = _take(run.truth.values.get(name), truth_at)
+        return np.where(np.isnan(recorded), otherwise, recorded)
+
+    channels: dict[str, Array] = {}
+    channels['eps_r'] = truth('eps_r', yaw.values['relative_yaw'][yaw_at])
+    channels['y_cg'] = truth('y_cg', cg_error_from(
+        lateral.values['value'][lateral_at], channels['eps_r'],
+        lateral.values['distance'][lateral_at]))
+    channels['rho'] = truth('rho', _take(curvature.values.get('rho'),
+                                         _latest(curvature.stamp_ns, kept), 0.0))
+    channels['v_x'] = velocity.values['v_x'][velocity_at]
+    debug_at = _exact(run.debug.stamp_ns, kept)
+    if len(run.debug):
+        law_at, law = debug_at, {name: run.debug.values.get(name) for name in LAW_CHANNELS}
+    else:       # not recorded: the controller re-run on the bag's inputs
+        law_stamps, output = rerun_law(run)
+        law_at = _exact(law_stamps, kept)
+        law = {name: getattr(output, name) for name in LAW_CHANNELS}
+    for name in LAW_CHANNELS:
+        channels[name] = _take(law[name], law_at)
+    steering_at = _exact(run.steering.stamp_ns, kept)
+    channels['steering_cmd'] = _take(run.steering.values.get('angle'), steering_at)
+    # latency: from the first arrival of a lateral error to its answer's
+    first_stamps, first = np.unique(lateral.stamp_ns, return_index=True)
+    received = lateral.recv_ns[first[np.searchsorted(first_stamps, kept)]]
+    answered = steering_at >= 0
+    latency = ((run.steering.recv_ns[steering_at[answered]] - received[answered]) * 1e-9
+               ).astype(float)
+    return RunSeries((kept - kept[0]) * 1e-9,
+                     {name: _forward_fill(channels[name]) for name in SERIES}, latency,
+                     int((~answered).sum()))
 
 
 def recorder_drops(run: RunData) -> Optional[int]:
@@ -161,7 +193,9 @@ def bag_row(run: RunData, series: RunSeries,
     return row
 
 
-def speed_points(series_list: list[RunSeries]) -> list[Mapping[str, float]]:
-    """Return ``(v_x, d_v)`` points of all runs for the d_v-vs-speed plot."""
-    return [{'speed': float(v), 'd_v': float(d)} for s in series_list
-            for v, d in zip(s.channels['v_x'], s.channels['d_v'])]
+def speed_points(series_list: list[RunSeries]) -> tuple[Array, Array]:
+    """Return the ``(v_x, d_v)`` of every step of all runs, for the d_v-vs-speed plot."""
+    if not series_list:
+        return np.zeros(0), np.zeros(0)
+    return (np.concatenate([s.channels['v_x'] for s in series_list]),
+            np.concatenate([s.channels['d_v'] for s in series_list]))

@@ -164,9 +164,23 @@ def from_curvature(msg: PolygonStamped) -> CurvatureSample:
     :param msg: the message.
     :return: the sample (curvature 0 if the polygon is empty).
     """
-    stamp = stamp_to_ns(msg.header.stamp)
+    return curvature_from_points(stamp_to_ns(msg.header.stamp),
+                                 [(float(p.x), float(p.y)) for p in msg.polygon.points])
+
+
+def curvature_from_points(stamp: int, polygon: Sequence[tuple[float, float]]
+                          ) -> CurvatureSample:
+    """
+    Return the curvature sample of (distance ahead, curvature) points.
+
+    As :func:`from_curvature` describes it.
+
+    :param stamp: the stamp [ns].
+    :param polygon: the points.
+    :return: the sample.
+    """
     points: list[tuple[float, float]] = []
-    for p in sorted((float(p.x), float(p.y)) for p in msg.polygon.points):
+    for p in sorted(polygon):
         if not points or p[0] > points[-1][0]:     # drop repeated distances
             points.append(p)
     if not points:

@@ -60,12 +60,13 @@ def plot_schedule(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:
 
 
 def plot_measured_look_ahead(rows: Sequence[Mapping[str, Any]],
-                             points: Sequence[Mapping[str, float]], path: Path) -> Path:
+                             points: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]],
+                             path: Path) -> Path:
     """
     Plot the schedules against speed with the d_v recorded runs used.
 
     :param rows: rows of ``analysis.schedule_table`` (the curves).
-    :param points: ``{'speed', 'd_v'}`` of every recorded step.
+    :param points: speed and d_v of every recorded step.
     :param path: the PNG file.
     :return: the path written.
     """
@@ -74,8 +75,7 @@ def plot_measured_look_ahead(rows: Sequence[Mapping[str, Any]],
     v = [r['speed_mps'] for r in rows]
     for key, label in (('d_v_paper_m', 'paper, eq. 26'), ('d_v_fixed_m', 'fixed d_s')):
         ax.plot(v, [r[key] for r in rows], label=label)
-    ax.plot([p['speed'] for p in points], [p['d_v'] for p in points], '.', ms=3,
-            label='recorded runs')
+    ax.plot(points[0], points[1], '.', ms=3, label='recorded runs')
     ax.set_xlabel('speed v_x [m/s]')
     ax.set_ylabel('look-ahead d_v [m]')
     ax.grid(True, alpha=0.3)
@@ -135,6 +135,7 @@ def plot_runs(runs: Sequence[Mapping[str, Any]], path: Path, title: str) -> Path
         ax.set_ylabel(label, fontsize=8)
         ax.grid(True, alpha=0.3)
     axes[0].set_title(title)
-    axes[0].legend(fontsize=7)
+    # a fixed place: 'best' searches the lines' points, seconds on hour-long runs
+    axes[0].legend(fontsize=7, loc='upper right')
     axes[-1].set_xlabel('time [s]')
     return _save(fig, path)

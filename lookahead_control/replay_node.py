@@ -60,7 +60,7 @@ def offline(args: argparse.Namespace) -> int:
     run = load_run(args.bag, assignments(args.topic, '--topic'))
     result = rerun(run, overrides, args.order)
     report = {'bag': str(args.bag), 'order': result.order, 'compared': result.compared,
-              'recorded': len(run.steering), 'recomputed': len(result.commands),
+              'recorded': len(run.steering.by_stamp()), 'recomputed': len(result.commands),
               'max_diff_rad': result.max_diff, 'rms_diff_rad': result.rms_diff,
               'overrides': overrides}
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '

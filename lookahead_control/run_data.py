@@ -31,49 +31,125 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 
 from lookahead_control import cdr_decode as cdr
 from lookahead_control import conversions as conv
-from lookahead_control.bags import (bag_topics, node_parameters, RawMessage, read_raw,
-                                    run_description)
+from lookahead_control.bags import bag_topics, node_parameters, run_description, typestore
 from lookahead_control.config import ConfigError, dataclass_from_params
+from lookahead_control.control_law import cg_error_from, LateralState, LawOutput, steering_law
 from lookahead_control.controller_core import Command, SteeringController
+from lookahead_control.mcap_columns import RawColumns, read_columns
 from lookahead_control.params import ControllerParams, VehicleParams
+import numpy as np
+import numpy.typing as npt
+
+Array = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 TOPICS = {'lateral_error': '/lateral_error', 'yaw': '/yaw', 'velocity': '/velocity',
           'road_curvature': '/road_curvature', 'steering': '/steering',
           'debug': '/controller/debug', 'ground_truth': '/sim_plant/ground_truth'}
 INPUTS = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
-_JOINTS = ('sensor_msgs/msg/JointState',)
-_FAST_TYPES = {'lateral_error': ('geometry_msgs/msg/PointStamped',),
-               'yaw': ('sensor_msgs/msg/Imu',),
-               'velocity': ('geometry_msgs/msg/TwistStamped',),
-               'road_curvature': (), 'steering': _JOINTS, 'debug': _JOINTS,
-               'ground_truth': _JOINTS}
+MSGTYPES = {'lateral_error': 'geometry_msgs/msg/PointStamped',
+            'yaw': 'sensor_msgs/msg/Imu', 'velocity': 'geometry_msgs/msg/TwistStamped',
+            'road_curvature': 'geometry_msgs/msg/PolygonStamped',
+            'steering': 'sensor_msgs/msg/JointState', 'debug': 'sensor_msgs/msg/JointState',
+            'ground_truth': 'sensor_msgs/msg/JointState'}
+SAMPLES: dict[str, Any] = {
+    'lateral_error': conv.LateralErrorSample, 'yaw': conv.YawSample,
+    'velocity': conv.VelocitySample, 'road_curvature': conv.CurvatureSample}
 _PARSE: dict[str, Callable[[Any], Any]] = {
     'lateral_error': conv.from_lateral_error, 'yaw': conv.from_yaw,
     'velocity': conv.from_velocity, 'road_curvature': conv.from_curvature}
+_CORRUPT = (ValueError, AssertionError, struct.error, UnicodeDecodeError, IndexError,
+            KeyError)
+
+
+@dataclass(frozen=True)
+class Samples:
+    """
+    The messages of one topic as columns, in receive order.
+
+    :param recv_ns: receive times [ns].
+    :param stamp_ns: header stamps [ns].
+    :param order: position in the file (breaks receive-time ties).
+    :param values: one array per field; NaN where a message lacks the field.
+    """
+
+    recv_ns: IntArray
+    stamp_ns: IntArray
+    order: IntArray
+    values: dict[str, Array]
+
+    def __len__(self) -> int:
+        """Return the number of messages."""
+        return int(self.stamp_ns.size)
+
+    @staticmethod
+    def empty(names: Sequence[str] = ()) -> Samples:
+        """Return no messages with the given fields."""
+        none = np.zeros(0, dtype=np.int64)
+        return Samples(none, none, none, {name: np.zeros(0) for name in names})
+
+    def by_stamp(self) -> dict[int, dict[str, float]]:
+        """Return stamp -> field values, the last received message of each stamp."""
+        names = list(self.values)
+        rows = zip(*(self.values[n].tolist() for n in names)) if names else (
+            () for _ in range(len(self)))
+        return {stamp: dict(zip(names, row))
+                for stamp, row in zip(self.stamp_ns.tolist(), rows)}
+
+
+class _Pieces:
+    """Columns of one role gathered batch by batch (and message by message)."""
+
+    def __init__(self, names: Sequence[str] = ()) -> None:
+        self.names = list(names)
+        self.pieces: list[tuple[IntArray, IntArray, IntArray, dict[str, Array]]] = []
+        self.single: list[tuple[int, int, int, dict[str, float]]] = []
+
+    def add(self, raw: RawColumns, columns: cdr.Columns, mask: npt.NDArray[np.bool_]
+            ) -> None:
+        self.pieces.append((raw.recv_ns[mask], raw.order[mask], columns.stamp_ns[mask],
+                            {name: v[mask] for name, v in columns.values.items()}))
+
+    def samples(self) -> Samples:
+        if self.single:
+            rows = [row for *_, row in self.single]
+            heads = np.array([head for *head, _ in self.single], dtype=np.int64)
+            self.pieces.append((heads[:, 0], heads[:, 1], heads[:, 2],
+                                {n: np.array([r.get(n, math.nan) for r in rows], dtype=float)
+                                 for n in {name for row in rows for name in row}}))
+            self.single = []
+        if not self.pieces:
+            return Samples.empty(self.names)
+        names = list(dict.fromkeys(self.names + [n for p in self.pieces for n in p[3]]))
+        recv, order, stamp = (np.concatenate([p[i] for p in self.pieces]) for i in range(3))
+        values = {n: np.concatenate([p[3].get(n, np.full(p[0].size, math.nan))
+                                     for p in self.pieces]) for n in names}
+        sort = np.lexsort((order, recv))
+        return Samples(recv[sort], stamp[sort], order[sort],
+                       {n: v[sort] for n, v in values.items()})
 
 
 @dataclass
 class RunData:
     """
-    The contract messages of one bag.
+    The contract messages of one bag, as columns.
 
     :param bag: where they came from.
-    :param inputs: ``(receive ns, input name, sample)`` in receive order.
-    :param steering: stamp -> (angle, receive ns) of the recorded commands.
-    :param debug: stamp -> the controller's debug values.
-    :param truth: stamp -> the simulator's ground truth (empty for real vehicles).
-    :param lateral_received: stamp -> receive ns of the lateral error.
+    :param inputs: per input (:data:`INPUTS`): the controller's input samples, with the
+        fields of :data:`SAMPLES` (none if the bag lacks the topic).
+    :param steering: the recorded commands (``angle``).
+    :param debug: the controller's debug values.
+    :param truth: the simulator's ground truth (empty for real vehicles).
     :param counts: messages per topic in the bag.
     :param description: the bag's ``lookahead_control/*`` run description.
     :param controller_params: the recorded parameters of ``/controller``.
     """
 
     bag: Path
-    inputs: list[tuple[int, str, Any]] = field(default_factory=list)
-    steering: dict[int, tuple[float, int]] = field(default_factory=dict)
-    debug: dict[int, dict[str, float]] = field(default_factory=dict)
-    truth: dict[int, dict[str, float]] = field(default_factory=dict)
-    lateral_received: dict[int, int] = field(default_factory=dict)
+    inputs: dict[str, Samples] = field(default_factory=dict)
+    steering: Samples = field(default_factory=Samples.empty)
+    debug: Samples = field(default_factory=Samples.empty)
+    truth: Samples = field(default_factory=Samples.empty)
     counts: dict[str, int] = field(default_factory=dict)
     description: dict[str, str] = field(default_factory=dict)
     controller_params: dict[str, Any] = field(default_factory=dict)
@@ -83,10 +159,15 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
     """
     Read the contract topics of a bag.
 
+    The contract types are read as columns straight from the bag's bytes (about a
+    microsecond per message); anything else (big-endian CDR, unusual joint layouts)
+    through the general deserializer.
+
     :param bag: the bag directory.
     :param topics: role -> topic name overrides of :data:`TOPICS`.
     :return: the run.
-    :raises ConfigError: the bag is unreadable or lacks the lateral-error topic.
+    :raises ConfigError: the bag is unreadable, lacks the lateral-error topic, or a
+        contract topic has another type.
     """
     names = {**TOPICS, **(topics or {})}
     role_of = {topic: role for role, topic in names.items()}
@@ -95,39 +176,68 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
         raise ConfigError(f'{bag}: no {names["lateral_error"]} topic (has: '
                           f'{", ".join(sorted(available)) or "none"}); remap with '
                           '--topic lateral_error=NAME')
-    run = RunData(Path(bag), counts={t: c for t, (_, c) in available.items()},
+    for topic, (msgtype, _) in available.items():
+        role = role_of.get(topic)
+        if role is not None and msgtype != MSGTYPES[role]:
+            raise ConfigError(f'{bag}: {topic} ({role}) has type {msgtype}; the contract '
+                              f'type is {MSGTYPES[role]} (remap with --topic {role}=NAME)')
+    pieces = {role: _Pieces(SAMPLES[role]._fields[1:] if role in SAMPLES else ())
+              for role in TOPICS}
+    pieces['steering'].names = ['angle']
+    store = typestore()
+    for topic, msgtype, raw in read_columns(bag, [t for t in role_of if t in available]):
+        role = role_of[topic]
+        try:
+            _decode(pieces[role], role, raw, lambda data: store.deserialize_cdr(data, msgtype))
+        except _CORRUPT as err:
+            raise ConfigError(f'{bag}: corrupt {topic} message: {err}') from err
+    run = RunData(Path(bag), {role: pieces[role].samples() for role in INPUTS},
+                  pieces['steering'].samples(), pieces['debug'].samples(),
+                  pieces['ground_truth'].samples(),
+                  counts={t: c for t, (_, c) in available.items()},
                   description=run_description(Path(bag)))
     run.controller_params = node_parameters(Path(bag), '/controller')
-    for raw in read_raw(bag, [t for t in role_of if t in available]):
-        role = role_of[raw.topic]
-        # the contract types are read straight from their bytes (long bags); others,
-        # and anything not plain little-endian CDR, through the general deserializer
-        fast = cdr.little_endian(raw.data) and raw.msgtype in _FAST_TYPES[role]
-        try:
-            _store(run, role, raw, fast)
-        except (ValueError, AssertionError, struct.error, UnicodeDecodeError) as err:
-            raise ConfigError(f'{bag}: corrupt {raw.topic} message: {err}') from err
     return run
 
 
-def _store(run: RunData, role: str, raw: RawMessage, fast: bool) -> None:
-    if role in _PARSE:
-        sample = (cdr.DECODERS[raw.msgtype](raw.data) if fast
-                  else _PARSE[role](raw.decode()))
-        run.inputs.append((raw.recv_ns, role, sample))
-        if role == 'lateral_error':
-            run.lateral_received.setdefault(sample.stamp_ns, raw.recv_ns)
-    elif role == 'steering':
-        parsed = cdr.steering(raw.data) if fast else conv.from_steering(raw.decode())
-        if parsed is not None:
-            run.steering[parsed[0]] = (parsed[1], raw.recv_ns)
+def _fields(sample: Any) -> dict[str, float]:
+    """Return the fields of an input sample but its stamp."""
+    return {name: value for name, value in sample._asdict().items() if name != 'stamp_ns'}
+
+
+def _decode(pieces: _Pieces, role: str, raw: RawColumns,
+            deserialize: Callable[[bytes], Any]) -> None:
+    """Decode one batch of a role's messages: as columns, the rest one by one."""
+    args = (raw.buffer, raw.start, raw.length)
+    if role == 'steering':
+        columns, present = cdr.steering_columns(*args)
+        pieces.add(raw, columns, present)
+    elif role in ('debug', 'ground_truth'):
+        columns = cdr.named_columns(*args)
+        pieces.add(raw, columns, columns.ok)
+    elif role == 'road_curvature':         # a list of points: one by one
+        columns = cdr.Columns(np.zeros(raw.start.size, dtype=bool), raw.recv_ns, {})
     else:
-        if fast:
-            stamp, values = cdr.named_values(raw.data)
+        columns = cdr.COLUMN_DECODERS[MSGTYPES[role]](*args)
+        pieces.add(raw, columns, columns.ok)
+    for i in np.nonzero(~columns.ok)[0].tolist():
+        data = raw.data(i)
+        head = (int(raw.recv_ns[i]), int(raw.order[i]))
+        if role == 'road_curvature':
+            sample = (cdr.curvature(data) if cdr.little_endian(data)
+                      else conv.from_curvature(deserialize(data)))
+            pieces.single.append((*head, sample.stamp_ns, _fields(sample)))
+        elif role in _PARSE:
+            sample = _PARSE[role](deserialize(data))
+            pieces.single.append((*head, sample.stamp_ns, _fields(sample)))
+        elif role == 'steering':
+            parsed = conv.from_steering(deserialize(data))
+            if parsed is not None:
+                pieces.single.append((*head, parsed[0], {'angle': parsed[1]}))
         else:
-            msg = raw.decode()
-            stamp, values = conv.stamp_to_ns(msg.header.stamp), conv.from_named_values(msg)
-        getattr(run, 'debug' if role == 'debug' else 'truth')[stamp] = values
+            msg = deserialize(data)
+            pieces.single.append((*head, conv.stamp_to_ns(msg.header.stamp),
+                                  conv.from_named_values(msg)))
 
 
 def controller_from_params(params: Mapping[str, Any],
@@ -176,10 +286,35 @@ class Rerun:
     order: str
 
 
+def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
+    """
+    Return the recorded inputs as samples, in the order they were received.
+
+    :param run: the run.
+    :return: ``(receive ns, input name, sample)``.
+    """
+    events: list[tuple[int, int, str, Any]] = []
+    for role, samples in run.inputs.items():
+        fields = SAMPLES[role]._fields[1:]
+        columns = [samples.values[name].tolist() for name in fields]
+        events += [(recv, order, role, SAMPLES[role](stamp, *row)) for recv, order, stamp, *row
+                   in zip(samples.recv_ns.tolist(), samples.order.tolist(),
+                          samples.stamp_ns.tolist(), *columns)]
+    events.sort(key=lambda e: (e[0], e[1]))
+    return [(recv, role, sample) for recv, _, role, sample in events]
+
+
 def _stamp_order(inputs: Sequence[tuple[int, str, Any]]) -> list[tuple[int, str, Any]]:
     # the node answers a step once all inputs of its stamp are in: lateral error last
     return sorted(inputs, key=lambda item: (item[2].stamp_ns, item[1] == 'lateral_error',
                                             item[0]))
+
+
+def _resolve_order(order: Optional[str], matched: bool) -> str:
+    order = order or ('stamp' if matched else 'receive')
+    if order not in ('stamp', 'receive'):
+        raise ConfigError(f'order {order!r}: must be stamp or receive')
+    return order
 
 
 def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
@@ -194,10 +329,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     :return: commands and differences.
     """
     core, matched = controller_from_params(run.controller_params, overrides)
-    order = order or ('stamp' if matched else 'receive')
-    if order not in ('stamp', 'receive'):
-        raise ConfigError(f'order {order!r}: must be stamp or receive')
-    feed = _stamp_order(run.inputs) if order == 'stamp' else run.inputs
+    order = _resolve_order(order, matched)
+    inputs = input_stream(run)
+    feed = _stamp_order(inputs) if order == 'stamp' else inputs
     update: dict[str, Callable[[Any], None]] = {
         'lateral_error': core.update_lateral_error, 'yaw': core.update_yaw,
         'velocity': core.update_velocity, 'road_curvature': core.update_curvature}
@@ -208,8 +342,93 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             command = core.compute()
             if command is not None:
                 commands[command.stamp_ns] = command
-    diffs = [abs(run.steering[s][0] - c.steering) for s, c in commands.items()
-             if s in run.steering]
+    recorded = {stamp: v['angle'] for stamp, v in run.steering.by_stamp().items()}
+    diffs = [abs(recorded[s] - c.steering) for s, c in commands.items() if s in recorded]
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order)
+
+
+def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
+              order: Optional[str] = None) -> tuple[IntArray, LawOutput]:
+    """
+    Evaluate the law on the recorded inputs as :func:`rerun` does, for all steps at once.
+
+    The law's output (``d_v``, ``y_ref``, the error ...) depends only on the latest
+    inputs when a lateral error arrives, not on the controller's output limits; this
+    gives for each such arrival what ``rerun(run).commands[stamp].law`` holds, as arrays
+    (numpy's functions may differ from ``math``'s in the last bit).
+
+    :param run: the recorded run.
+    :param overrides: parameter overrides.
+    :param order: as for :func:`rerun`.
+    :return: the lateral-error stamp of each evaluation (in feed order: the last of a
+        stamp is the one ``rerun`` keeps) and the law's outputs.
+    """
+    core, matched = controller_from_params(run.controller_params, overrides)
+    order = _resolve_order(order, matched)
+    roles = [role for role in INPUTS if len(run.inputs.get(role, Samples.empty()))]
+    if not {'lateral_error', 'yaw', 'velocity'} <= set(roles):
+        none = np.zeros(0)
+        return np.zeros(0, dtype=np.int64), steering_law(
+            LateralState(none, none, none, none, none, none, none, none), core.vehicle,
+            core.params)
+    inputs = [run.inputs[role] for role in roles]
+    code = np.concatenate([np.full(len(samples), i) for i, samples in enumerate(inputs)])
+    index = np.concatenate([np.arange(len(samples)) for samples in inputs])
+    recv, file_order, stamp = (np.concatenate([getattr(samples, name) for samples in inputs])
+                               for name in ('recv_ns', 'order', 'stamp_ns'))
+    lateral_code = roles.index('lateral_error')
+    feed = np.lexsort((file_order, recv) if order == 'receive' else
+                      (file_order, recv, code == lateral_code, stamp))
+    code, index = code[feed], index[feed]
+    # at each position of the feed: the position of each input's latest sample (-1)
+    latest = {role: np.maximum.accumulate(np.where(code == i, np.arange(code.size), -1))
+              for i, role in enumerate(roles)}
+    at = np.nonzero(code == lateral_code)[0]
+    at = at[(latest['yaw'][at] >= 0) & (latest['velocity'][at] >= 0)]
+
+    def column(role: str, name: str) -> Array:
+        if role not in latest:
+            return np.zeros(at.size)
+        where = latest[role][at]
+        values = run.inputs[role].values[name][index[np.maximum(where, 0)]]
+        return np.where(where >= 0, values, 0.0)
+
+    eps_r, v_x = column('yaw', 'relative_yaw'), column('velocity', 'v_x')
+    v_y, rate = column('velocity', 'v_y'), column('yaw', 'yaw_rate')
+    if core.acceleration_source == 'imu':
+        a_x = column('yaw', 'accel_x') + v_y * rate
+    elif core.acceleration_source == 'differentiate':
+        fed = np.nonzero(code == roles.index('velocity'))[0]
+        a_x = _differentiated(run.inputs['velocity'], index[fed])[
+            np.searchsorted(fed, latest['velocity'][at])]
+    else:
+        a_x = np.zeros(at.size)
+    lateral = run.inputs['lateral_error']
+    state = LateralState(
+        y_cg=cg_error_from(column('lateral_error', 'value'), eps_r,
+                           column('lateral_error', 'distance')),
+        eps_r=eps_r, v_y=v_y, r=rate, v_x=v_x, a_x=a_x, rho=column('road_curvature', 'rho'),
+        rho_rate=(v_x * column('road_curvature', 'slope') if core.use_preview
+                  else np.zeros(at.size)))
+    return lateral.stamp_ns[index[at]], steering_law(state, core.vehicle, core.params)
+
+
+def _differentiated(velocity: Samples, fed: IntArray) -> Array:
+    """
+    Return the controller's differentiated a_x after each velocity sample of a feed.
+
+    :param velocity: the velocity samples.
+    :param fed: their indexes in the order they are fed.
+    :return: a_x after each (as ``SteeringController.update_velocity``: updated when a
+        sample is newer than the one before, else kept; 0 before the first update).
+    """
+    v, stamp = velocity.values['v_x'][fed], velocity.stamp_ns[fed]
+    updated = np.zeros(fed.size, dtype=bool)
+    updated[1:] = stamp[1:] > stamp[:-1]
+    estimate = np.zeros(fed.size)
+    estimate[1:][updated[1:]] = ((v[1:] - v[:-1])[updated[1:]]
+                                 / ((stamp[1:] - stamp[:-1])[updated[1:]] * 1e-9))
+    last = np.maximum.accumulate(np.where(updated, np.arange(fed.size), -1))
+    return np.where(last >= 0, estimate[np.maximum(last, 0)], 0.0)

@@ -14,6 +14,7 @@
 
 """Bags: record a real closed loop, read it two ways, recover, replay, analyze."""
 
+import dataclasses
 import math
 from pathlib import Path
 import shutil
@@ -28,7 +29,7 @@ from lookahead_control.bags import (bag_topics, BagError, BagWriter, node_parame
                                     PARAMETERS_KEY, qos_from_ints, recover, run_description,
                                     serialize_cdr, to_rosbags, typestore)
 from lookahead_control.closed_loop import LoopConfig, run_loop
-from lookahead_control.run_data import load_run, rerun
+from lookahead_control.run_data import load_run, rerun, Samples
 import numpy as np
 import pytest
 import yaml
@@ -117,6 +118,18 @@ def test_offline_rerun_reproduces_the_steering_exactly(loop_bag):
     bad = _tool('lookahead_control.replay_node', loop_bag, '--check', '0',
                 '-p', 'controller.natural_frequency=-1')
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_series_without_debug_topic_re_run_the_law_as_recorded(loop_bag):
+    run = load_run(loop_bag)
+    recorded = run_series(run)
+    rerun_series = run_series(dataclasses.replace(run, debug=Samples.empty()))
+    assert recorded.time.size == rerun_series.time.size == 400
+    assert not np.allclose(recorded.channels['error'], 0.0)
+    assert (recorded.channels['d_v'] > 1.0).all()
+    for name in ('d_v', 'y_ref', 'error'):
+        np.testing.assert_allclose(rerun_series.channels[name], recorded.channels[name],
+                                   rtol=1e-12, atol=1e-15)
 
 
 @pytest.mark.parametrize('fraction', [0.3, 0.6, 0.9])
@@ -316,13 +329,13 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
         controller.wait(10)
         node.destroy_node()
         rclpy.try_shutdown(context=ctx)
-    recorded = load_run(loop_bag).steering
+    recorded = {s: v['angle'] for s, v in load_run(loop_bag).steering.by_stamp().items()}
     # after the bag ends the inputs go stale: the watchdog's safe commands carry the
     # controller's clock as stamp, not a step of the bag
     common = [s for s in answers if s in recorded]
     assert len(common) >= 395
     # the same inputs give the same commands as in the recorded run
-    assert max(abs(recorded[s][0] - answers[s]) for s in common) < 1e-15
+    assert max(abs(recorded[s] - answers[s]) for s in common) < 1e-15
 
 
 def test_forward_fill_carries_the_last_value_and_zero_before_the_first():

@@ -149,15 +149,16 @@ def test_realtime_applies_each_answer_and_counts_every_miss(tmp_path, executor):
     assert elapsed >= 3.0        # wall-clock paced, not as fast as possible
     run = load_run(bag)
     period = 10_000_000
-    assert sorted(run.truth) == [k * period for k in range(300)]
+    truths, steering = run.truth.by_stamp(), run.steering.by_stamp()
+    assert sorted(truths) == [k * period for k in range(300)]
     late = 0
-    first_recorded = min(run.steering)
+    first_recorded = min(steering)
     for k in range(1, 300):
-        truth = run.truth[k * period]
+        truth = truths[k * period]
         # the command applied over step k is the latest answer received, stamped with it
         applied = round(truth['command_time'] * 1e9)
-        if applied in run.steering:
-            assert truth['steering_cmd'] == run.steering[applied][0]
+        if applied in steering:
+            assert truth['steering_cmd'] == steering[applied]['angle']
         else:       # the recorder may join the controller's topic after its first answers
             assert applied < first_recorded, applied
         late += applied != (k - 1) * period
