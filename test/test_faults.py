@@ -371,3 +371,32 @@ def test_sim_plant_ignores_bad_commands_and_holds_on_missing_answers(probe, tmp_
     assert 'finished at t = 1 s: 100 steps, 11 missed deadlines, 6 rejected commands' \
         in err, err
     assert sorted(set(seen)) == list(range(100))
+
+
+SHUTDOWN_MID_CALLBACK = """
+import rclpy
+from rclpy.node import Node
+from lookahead_control.node_main import run_node
+
+
+class Querier(Node):
+    def __init__(self):
+        super().__init__('querier')
+        self.create_timer(0.05, self.query)
+
+    def query(self):
+        rclpy.shutdown()                    # what SIGTERM's handler does, mid-callback
+        self.count_publishers('/talk')      # RCLError: the context is invalid
+
+
+raise SystemExit(run_node('querier', [], Querier))
+"""
+
+
+def test_shutdown_while_a_callback_uses_the_context_is_a_clean_stop():
+    # a recorder stopped by SIGTERM during its topic discovery once exited 1 with a
+    # traceback: rcl_count_publishers on the context the signal had just shut down
+    out = subprocess.run([sys.executable, '-c', SHUTDOWN_MID_CALLBACK], capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert 'Traceback' not in out.stderr
