@@ -30,7 +30,7 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control import conversions as conv
 from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
                                                SteeringController)
-from lookahead_control.node_main import run_node, Throttle
+from lookahead_control.node_main import now_ns, run_node, Throttle
 from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare,
                                            EXECUTOR_SPEC, safety_params, SAFETY_SPECS, Spec,
                                            values, vehicle_and_controller,
@@ -246,7 +246,7 @@ class ControllerNode(LifecycleNode):
             else:
                 # the core checks the values and stamps, and counts what it refuses
                 # sim time before the first /clock reads 0: no future check until it runs
-                now = self.get_clock().now().nanoseconds
+                now = now_ns(self)
                 refused = self.core.accept(name, sample, now or None)
                 if refused is None:
                     return True
@@ -307,12 +307,12 @@ class ControllerNode(LifecycleNode):
 
     def on_timer(self) -> None:
         """Timer mode: one command from the latest inputs (unless they are stale)."""
-        if not self.core.stale(self.get_clock().now().nanoseconds):
+        if not self.core.stale(now_ns(self)):
             self.step()
 
     def on_watchdog(self) -> None:
         """Publish the safe command while an input is stale."""
-        now = self.get_clock().now().nanoseconds
+        now = now_ns(self)
         stale = self.core.stale(now)
         if stale and not self.stale_inputs:
             self.get_logger().error(f'stale inputs: {", ".join(stale)}: holding, then '

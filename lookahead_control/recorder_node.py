@@ -38,7 +38,7 @@ from typing import Any, Optional, Sequence
 from lookahead_control.bags import (BagError, BagWriter, PARAMETERS_KEY, qos_from_ints,
                                     RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.config import source_config_dir
-from lookahead_control.node_main import run_node
+from lookahead_control.node_main import now_ns, run_node
 from lookahead_control.tools.cli import run_tool, ToolError
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
@@ -178,7 +178,7 @@ class RecorderNode(Node):
     def on_message(self, topic: str, data: bytes, info: dict[str, Any]) -> None:
         """Write one serialized message with its receive time."""
         try:
-            self.bag.write(topic, self.get_clock().now().nanoseconds, data)
+            self.bag.write(topic, now_ns(self), data)
         except BagError:
             return              # the bag failed: the node stops, main reports it
         stats = self.stats[topic]

@@ -24,7 +24,7 @@ import pytest
 from sim_plant.closed_loop_sim import run
 from sim_plant.road import Road, Segment
 from sim_plant.scenario import InitialState, paper_scenario, Scenario
-from sim_plant.speed_profile import SpeedProfile
+from sim_plant.speed_profile import speed_at, SpeedProfile
 from sim_plant.vehicle_model import actuator_rate, axle_forces, fiala_force, PlantParams
 
 VEHICLE = VehicleParams()
@@ -149,6 +149,18 @@ def test_road_curvature_profile():
     rho, slope = road.curvature(s)
     assert_allclose(rho, [0.0, 0.005, 0.01, 0.01])
     assert_allclose(slope, [0.0, 0.0005, 0.0, 0.0])
+
+
+def test_speed_profile_float_path_equals_the_array_path():
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        start, duration = (float(v) for v in rng.uniform(0.0, 5.0, 2))
+        t = float(rng.choice([rng.uniform(-1.0, 10.0), start, start + duration]))
+        v, a = float(rng.uniform(1.0, 40.0)), float(rng.uniform(-3.0, 3.0))
+        scalar = speed_at(t, v, a, start, duration)
+        array = speed_at(np.array([t]), np.array([v]), np.array([a]), start, duration)
+        assert type(scalar[0]) is float and type(scalar[1]) is float
+        assert scalar == (array[0][0], array[1][0])
 
 
 def test_speed_profile_and_bad_steps():

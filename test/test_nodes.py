@@ -269,3 +269,21 @@ def test_stale_inputs_hold_then_ramp_and_resume_without_a_jump(context):
         assert abs(core.last.steering - angles[-1]) <= 0.1 * 0.2 + 1e-12
     finally:
         node.destroy_node()
+
+
+def test_now_ns_reads_the_nodes_clock_system_and_simulated(context):
+    from lookahead_control.node_main import now_ns
+    from rclpy.node import Node
+    from rclpy.time import Time
+    node = Node('clock_probe', context=context)
+    try:
+        before = node.get_clock().now().nanoseconds
+        read = now_ns(node)
+        assert before <= read <= node.get_clock().now().nanoseconds
+        node.set_parameters([Parameter('use_sim_time', value=True)])
+        clock = node.get_clock()
+        assert now_ns(node) == clock.now().nanoseconds == 0      # no /clock yet
+        clock.set_ros_time_override(Time(nanoseconds=1_234_567_891))
+        assert now_ns(node) == clock.now().nanoseconds == 1_234_567_891
+    finally:
+        node.destroy_node()
