@@ -16,9 +16,11 @@
 A recorded run as data: the contract topics of a bag, and the controller re-run on them.
 
 No ROS here. :func:`load_run` reads any rosbag2 MCAP bag with the contract topics (names
-can be remapped); :func:`rerun` feeds the recorded inputs into
+can be remapped) into columns (:class:`Samples`: numpy arrays, an hour of 100 Hz in
+about a second); :func:`rerun` feeds the recorded inputs into
 :class:`~lookahead_control.controller_core.SteeringController` in the order the node
-saw them and compares its commands with the recorded steering.
+saw them and compares its commands with the recorded steering; :func:`rerun_law` gives
+the law's values of that re-run for all steps at once.
 """
 
 from __future__ import annotations

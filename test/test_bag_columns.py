@@ -113,6 +113,15 @@ def _big_endian(msg, store):
     return bytes(store.serialize_cdr(converted, converted.__msgtype__, little_endian=False))
 
 
+def _serialized(msg, store, rng, odds):
+    """Serialize a message whole (ok), big-endian (big) or cut short (cut), at random."""
+    kind = str(rng.choice(['ok', 'big', 'cut'], p=list(odds)))
+    data = _big_endian(msg, store) if kind == 'big' else serialize_cdr(msg, store)
+    if kind == 'cut':
+        data = data[:int(rng.integers(0, len(data)))]
+    return kind, data
+
+
 def _reads(decode, data):
     try:
         decode(data)
@@ -135,10 +144,7 @@ def test_column_decoders_equal_the_message_decoders():
             frame = 'f' * int(rng.integers(0, 20))      # every alignment of the body
             stamp = int(rng.integers(0, 2**31)) * 1_000_000_000 + int(rng.integers(0, 10**9))
             msg = make(stamp, frame, *(rng.normal(size=3) * 10.0 ** rng.integers(-3, 4)))
-            kind = rng.choice(['ok', 'big', 'cut'], p=[0.8, 0.1, 0.1])
-            data = _big_endian(msg, store) if kind == 'big' else serialize_cdr(msg, store)
-            if kind == 'cut':
-                data = data[:int(rng.integers(0, len(data)))]
+            kind, data = _serialized(msg, store, rng, (0.8, 0.1, 0.1))
             messages.append(data)
             kinds.append(kind)
         columns = columns_of(*_pack(messages, rng))
@@ -170,10 +176,7 @@ def test_joint_columns_equal_the_message_decoders(monkeypatch, layouts_read):
         msg.header.frame_id = 'f' * int(rng.integers(0, 9))
         msg.name = list(names)
         msg.position = [float(v) for v in rng.normal(size=max(count, 0))]
-        kind = rng.choice(['ok', 'big', 'cut'], p=[0.85, 0.1, 0.05])
-        data = _big_endian(msg, store) if kind == 'big' else serialize_cdr(msg, store)
-        if kind == 'cut':
-            data = data[:int(rng.integers(0, len(data)))]
+        kind, data = _serialized(msg, store, rng, (0.85, 0.1, 0.05))
         messages.append(data)
         kinds.append(kind)
     packed = _pack(messages, rng)
