@@ -183,9 +183,8 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
         if role is not None and msgtype != MSGTYPES[role]:
             raise ConfigError(f'{bag}: {topic} ({role}) has type {msgtype}; the contract '
                               f'type is {MSGTYPES[role]} (remap with --topic {role}=NAME)')
-    pieces = {role: _Pieces(SAMPLES[role]._fields[1:] if role in SAMPLES else ())
-              for role in TOPICS}
-    pieces['steering'].names = ['angle']
+    fields = {**{role: SAMPLES[role]._fields[1:] for role in SAMPLES}, 'steering': ('angle',)}
+    pieces = {role: _Pieces(fields.get(role, ())) for role in TOPICS}
     store = typestore()
     for topic, msgtype, raw in read_columns(bag, [t for t in role_of if t in available]):
         role = role_of[topic]
