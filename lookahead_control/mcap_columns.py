@@ -200,26 +200,31 @@ def _add_chunk(reader: _Reader, batch: _Batch, records: bytes,
     else:
         offsets = {cid: idx['offset'].astype(np.int64) for cid, idx in indexes.items()}
         times = {cid: idx['log_time'].astype(np.int64) for cid, idx in indexes.items()}
+    view = np.frombuffer(records, dtype=np.uint8)
+    kept = False
     for cid in offsets:
         if not reader.wanted(cid) or not offsets[cid].size:
             continue
         at = offsets[cid]
         if int(at.max()) + MESSAGE_HEADER > len(records) or int(at.min()) < 0:
             raise ValueError('message index points past the chunk')
-        view = np.frombuffer(records, dtype=np.uint8)
-        ops = view[at]
         sizes = view[at[:, None] + np.arange(1, 9)].copy().view('<u8')[:, 0].astype(np.int64)
-        if (ops != OP_MESSAGE).any() or (at + 9 + sizes > len(records)).any() or (
-                sizes < MESSAGE_HEADER - 9).any():
-            raise ValueError('message index points at no message record')
+        channels = view[at[:, None] + np.arange(9, 11)].copy().view('<u2')[:, 0]
+        if ((view[at] != OP_MESSAGE).any() or (channels != cid).any()
+                or (at + 9 + sizes > len(records)).any()
+                or (sizes < MESSAGE_HEADER - 9).any()):
+            raise ValueError(f'the message index of channel {cid} points at no message '
+                             'record of it')
         order = (np.int64(reader.chunks) << np.int64(32)) + at
         # the data: after the record's fixed fields, to its end
         batch.index.setdefault(cid, []).append(
             (at + MESSAGE_HEADER + batch.size, sizes - (MESSAGE_HEADER - 9), times[cid],
              order))
-    batch.records.append(records)
-    batch.size += len(records)
+        kept = True
     reader.chunks += 1
+    if kept:                # a chunk of other topics only is not kept in memory
+        batch.records.append(records)
+        batch.size += len(records)
 
 
 def _flush(reader: _Reader, batch: _Batch) -> Iterator[tuple[str, str, RawColumns]]:
