@@ -255,7 +255,7 @@ def yaw_columns(buffer: ByteArray, start: IntArray, length: IntArray) -> Columns
     # inputs, and a re-run must reproduce the node's commands exactly
     yaw_ = np.array([quaternion_to_yaw(*xyzw) for xyzw in zip(
         q['x'].tolist(), q['y'].tolist(), q['z'].tolist(), q['w'].tolist())], dtype=float)
-    return Columns(g.ok, stamp, {'relative_yaw': yaw_.reshape(-1), 'yaw_rate': rate,
+    return Columns(g.ok, stamp, {'relative_yaw': yaw_, 'yaw_rate': rate,
                                  'accel_x': accel})
 
 
