@@ -102,8 +102,8 @@ def run_series(run: RunData) -> RunSeries:
     """
     Return the per-step series of a run.
 
-    A ground-truth or debug value that is NaN counts as not recorded: the measured or
-    re-computed one is used, else the last value before it.
+    A ground-truth or debug value that is missing or NaN counts as not recorded: the
+    measured or re-computed one is used, else the last value before it.
 
     :param run: the run read from a bag.
     :return: the series.
@@ -135,14 +135,17 @@ def run_series(run: RunData) -> RunSeries:
                                          _latest(curvature.stamp_ns, kept), 0.0))
     channels['v_x'] = velocity.values['v_x'][velocity_at]
     debug_at = _exact(run.debug.stamp_ns, kept)
-    if len(run.debug):
-        law_at, law = debug_at, {name: run.debug.values.get(name) for name in LAW_CHANNELS}
-    else:       # not recorded: the controller re-run on the bag's inputs
+    for name in LAW_CHANNELS:
+        channels[name] = _take(run.debug.values.get(name), debug_at)
+    if any(np.isnan(channels[name]).any() for name in LAW_CHANNELS):
+        # not recorded (no debug topic, or a recorder that subscribed to it late): the
+        # controller re-run on the bag's inputs
         law_stamps, output = rerun_law(run)
         law_at = _exact(law_stamps, kept)
-        law = {name: getattr(output, name) for name in LAW_CHANNELS}
-    for name in LAW_CHANNELS:
-        channels[name] = _take(law[name], law_at)
+        for name in LAW_CHANNELS:
+            recorded = channels[name]
+            channels[name] = np.where(np.isnan(recorded),
+                                      _take(getattr(output, name), law_at), recorded)
     steering_at = _exact(run.steering.stamp_ns, kept)
     channels['steering_cmd'] = _take(run.steering.values.get('angle'), steering_at)
     # latency: from the first arrival of a lateral error to its answer's

@@ -67,6 +67,18 @@ class TopicStats:
             return None
         return max(0, self.last_seq - self.first_seq + 1 - self.received)
 
+    def before_first(self) -> Optional[int]:
+        """
+        Return the messages published before the first one received.
+
+        A writer numbers its messages from 1; a recorder that subscribed (or matched)
+        after the publisher started misses the first ``first_seq - 1`` of them. None when
+        the sequence cannot tell (many writers, nothing received).
+        """
+        if self.publishers != 1 or self.first_seq is None:
+            return None
+        return self.first_seq - 1
+
 
 def message_class(msgtype: str) -> Any:
     """
@@ -231,13 +243,19 @@ class RecorderNode(Node):
     # -- end ------------------------------------------------------------------------
 
     def report(self) -> dict[str, dict[str, Optional[int]]]:
-        """Return received / published / dropped per topic."""
+        """
+        Return what arrived per topic, against what its publisher numbered.
+
+        ``dropped``: gaps after the first message received; ``before_first``: messages
+        published before it (the recorder subscribed late); ``published``: the last
+        sequence number, all of them. None where the sequence cannot tell.
+        """
         out: dict[str, dict[str, Optional[int]]] = {}
         for topic, stats in sorted(self.stats.items()):
             dropped = stats.dropped()
             out[topic] = {'received': stats.received, 'dropped': dropped,
-                          'published': None if dropped is None
-                          else stats.received + dropped}
+                          'before_first': stats.before_first(),
+                          'published': None if dropped is None else stats.last_seq}
         return out
 
     def destroy_node(self) -> None:
@@ -252,11 +270,15 @@ class RecorderNode(Node):
                 return          # main reports the failure
             total = sum(r['received'] or 0 for r in report.values())
             dropped = sum(r['dropped'] or 0 for r in report.values())
+            late = ', '.join(f'{r["before_first"]} on {t}' for t, r in report.items()
+                             if r['before_first'])
             missing = [n for n in self.to_describe if n in self._asked
                        and n not in self.parameters]
             print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
-                  f'{dropped} dropped' + (f'; no parameters from {", ".join(missing)}'
-                                          if missing else ''), file=sys.stderr)
+                  f'{dropped} dropped'
+                  + (f'; subscribed late: missed the first {late}' if late else '')
+                  + (f'; no parameters from {", ".join(missing)}' if missing else ''),
+                  file=sys.stderr)
         super().destroy_node()
 
 

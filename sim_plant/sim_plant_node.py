@@ -77,6 +77,9 @@ SIM_SPECS = (
     Spec('preview_step', 5.0, 'spacing of the curvature preview points [m]', 0.1, 100.0),
     Spec('subscribers', 1, 'start once each contract topic has this many matched '
          'subscriptions (2: controller and recorder)', 1, 100),
+    Spec('settle', 0.3, 'wall-clock time the topics must stay matched before the first '
+         "step [s]: a recorder subscribes to the controller's topics on its own poll "
+         '(0.1 s for record and rosbag2)', 0.0, 10.0),
     EXECUTOR_SPEC,
 )
 ALL_SPECS = VEHICLE_SPECS + PLANT_SPECS + SIM_SPECS
@@ -117,6 +120,7 @@ class SimPlantNode(Node):
         self.answered_stamp: Optional[int] = None
         self.waiting_stamp: Optional[int] = None
         self.sent_at = 0.0
+        self._connected_since: Optional[float] = None
         self.started_at = 0.0       # wall clock of the first step of the loop
         self._miss_log = Throttle(1.0)
         self.done = Future()
@@ -265,12 +269,28 @@ class SimPlantNode(Node):
                 and self.sub_steering.get_publisher_count() > 0
                 and self.count_subscribers(self.sub_steering.topic_name) >= wanted)
 
+    def settled(self) -> bool:
+        """
+        Return True once :meth:`connected` has held for ``settle`` seconds.
+
+        The simulator sees its own matches and who subscribes to ``steering``, but not
+        whether a recorder is matched to the controller's other topics (its debug
+        output): a recorder polling the graph subscribes to them up to one poll later.
+        """
+        if not self.connected():
+            self._connected_since = None
+            return False
+        now = time.monotonic()
+        if self._connected_since is None:
+            self._connected_since = now
+        return now - self._connected_since >= self.params['settle']
+
     def on_poll(self) -> None:
         """Start once the controller is connected; enforce the deadline."""
         if self.done.done():
             return
         if self.waiting_stamp is None and self.k == 0 and self.answered_stamp is None:
-            if not self.connected():
+            if not self.settled():
                 return
             self.answered_stamp = -1
             self.waiting_stamp = self.publish_measurements()
@@ -324,7 +344,7 @@ class SimPlantNode(Node):
         """
         if self.answered_stamp is not None:
             return True
-        if not self.connected():
+        if not self.settled():
             return False
         now = time.monotonic()
         if not self.sent_at:

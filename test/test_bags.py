@@ -67,7 +67,8 @@ def test_bag_reads_with_rosbags_and_mcap_and_counts_match(loop_bag):
     # what the recorder counted against the publishers' sequence numbers
     recorded = yaml.safe_load(info['custom_data']['lookahead_control/recorder'])
     for topic in CONTRACT:
-        assert recorded[topic] == {'received': 400, 'published': 400, 'dropped': 0}
+        assert recorded[topic] == {'received': 400, 'published': 400, 'dropped': 0,
+                                   'before_first': 0}
     # reader 1: rosbags with the Jazzy type store decodes every message
     from rosbags.highlevel import AnyReader
     from lookahead_control.bags import typestore
@@ -129,6 +130,21 @@ def test_series_without_debug_topic_re_run_the_law_as_recorded(loop_bag):
     assert (recorded.channels['d_v'] > 1.0).all()
     for name in ('d_v', 'y_ref', 'error'):
         np.testing.assert_allclose(rerun_series.channels[name], recorded.channels[name],
+                                   rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize('late', [1, 68, 399])
+def test_series_of_a_late_debug_subscription_re_run_the_steps_it_missed(loop_bag, late):
+    # a recorder that subscribed to /controller/debug late: its first steps are re-run
+    run = load_run(loop_bag)
+    recorded = run_series(run)
+    debug = Samples(run.debug.recv_ns[late:], run.debug.stamp_ns[late:],
+                    run.debug.order[late:],
+                    {name: column[late:] for name, column in run.debug.values.items()})
+    partial = run_series(dataclasses.replace(run, debug=debug))
+    assert (partial.channels['d_v'] > 1.0).all()
+    for name in ('d_v', 'y_ref', 'error'):
+        np.testing.assert_allclose(partial.channels[name], recorded.channels[name],
                                    rtol=1e-12, atol=1e-15)
 
 

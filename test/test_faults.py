@@ -26,8 +26,9 @@ import time
 
 from conftest import entry_points, spin_until
 from lookahead_control import conversions as conv
-from lookahead_control.bags import read_messages, recover
+from lookahead_control.bags import read_messages, RECORDER_KEY, recover, run_description
 import pytest
+import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / 'config' / 'scenarios' / 'paper_r400.yaml'
@@ -198,6 +199,23 @@ def test_full_disk_is_one_line_and_keeps_what_was_recorded(tmp_path, talker):
     # everything in the chunks that reached the file: about 300 kB of 0.5 kB messages
     assert values == list(range(values[0], values[0] + len(values)))
     assert result.messages == len(values) >= 0.7 * limit / 500
+
+
+def test_a_late_recorder_counts_what_it_missed_before_subscribing(tmp_path, talker):
+    time.sleep(0.5)                 # the talker has published about 100 messages
+    bag = tmp_path / 'run'
+    recorder = _record(bag)
+    _wait_recording(bag)
+    recorder.send_signal(signal.SIGINT)
+    _, err = recorder.communicate(timeout=30)
+    assert recorder.returncode == 0, err
+    values = _counter(bag)          # the talker's k is its message k + 1
+    report = yaml.safe_load(run_description(bag)[RECORDER_KEY])['/talk']
+    assert values[0] >= 50 and report['before_first'] == values[0]
+    assert report['published'] == values[-1] + 1
+    assert report['received'] == len(values)
+    assert report['dropped'] == values[-1] + 1 - values[0] - len(values)
+    assert f'subscribed late: missed the first {values[0]} on /talk' in err
 
 
 def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):

@@ -200,6 +200,34 @@ def test_sim_plant_node_publishes_the_contract(context, tmp_path):
         node.destroy_node()
 
 
+def test_sim_plant_starts_once_connected_for_the_settle_time(context, monkeypatch):
+    from sim_plant import sim_plant_node
+    node = sim_plant_node.SimPlantNode(context=context, parameter_overrides=[
+        Parameter('settle', value=0.3)])
+    now = [100.0]
+    monkeypatch.setattr(sim_plant_node.time, 'monotonic', lambda: now[0])
+    sent = []
+    node.publish_measurements = lambda: sent.append(node.k) or 0
+    link = [True]
+    node.connected = lambda: link[0]
+    try:
+        node.on_poll()                  # connected: the settle time starts
+        now[0] += 0.2
+        node.on_poll()
+        link[0], now[0] = False, now[0] + 0.2
+        node.on_poll()                  # the link dropped: it starts again
+        link[0], now[0] = True, now[0] + 0.01
+        node.on_poll()
+        now[0] += 0.29
+        node.on_poll()
+        assert sent == [] and node.waiting_stamp is None
+        now[0] += 0.02
+        node.on_poll()                  # 0.31 s connected: step 0 goes out
+        assert sent == [0] and node.waiting_stamp == 0
+    finally:
+        node.destroy_node()
+
+
 def test_controller_keeps_the_clock_subscription_of_use_sim_time(context):
     # regression: an attribute named like rclpy's Node._subscriptions dropped /clock
     from lookahead_control.controller_node import ControllerNode
