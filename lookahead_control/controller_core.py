@@ -23,7 +23,7 @@ and the whole input -> command path testable without DDS.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any, Optional
 
 from lookahead_control.control_law import cg_error_from, LateralState, LawOutput, steering_law
 from lookahead_control.conversions import (CurvatureSample, LateralErrorSample,
@@ -33,6 +33,11 @@ from lookahead_control.safety import (check_sample, check_stamp, limit, low_spee
                                       SafetyParams, stale_target)
 
 ACCELERATION_SOURCES = ('imu', 'differentiate', 'zero')
+# per input: the attribute holding its latest sample, and the method storing a new one
+_LATEST = {'lateral_error': 'lateral', 'yaw': 'yaw', 'velocity': 'velocity',
+           'road_curvature': 'curvature'}
+_UPDATE = {'lateral_error': 'update_lateral_error', 'yaw': 'update_yaw',
+           'velocity': 'update_velocity', 'road_curvature': 'update_curvature'}
 
 
 @dataclass(frozen=True)
@@ -156,8 +161,7 @@ class SteeringController:
         :param now_ns: the node's clock (receive time) [ns].
         :return: None if accepted, else the reason.
         """
-        current = {'lateral_error': self.lateral, 'yaw': self.yaw,
-                   'velocity': self.velocity, 'road_curvature': self.curvature}[name]
+        current = getattr(self, _LATEST[name])
         jumped = ((current is not None and sample.stamp_ns < current.stamp_ns - 1_000_000_000)
                   or (now_ns is not None and self._last_now is not None
                       and now_ns < self._last_now - 1_000_000_000))
@@ -173,10 +177,7 @@ class SteeringController:
         if now_ns is not None:
             self._received[name] = now_ns
             self._last_now = now_ns
-        update: dict[str, Callable[[Any], None]] = {
-            'lateral_error': self.update_lateral_error, 'yaw': self.update_yaw,
-            'velocity': self.update_velocity, 'road_curvature': self.update_curvature}
-        update[name](sample)
+        getattr(self, _UPDATE[name])(sample)
         return None
 
     def count_rejection(self, reason: str) -> None:

@@ -103,6 +103,16 @@ def _finite(*values: float) -> bool:
     return True
 
 
+# the limits each input's fields are checked against: (field, SafetyParams attribute)
+SAMPLE_LIMITS = {
+    'lateral_error': (('value', 'max_lateral_error'), ('distance', 'max_sensor_distance')),
+    'yaw': (('relative_yaw', 'max_relative_yaw'), ('yaw_rate', 'max_yaw_rate'),
+            ('accel_x', 'max_acceleration')),
+    'velocity': (('v_x', 'max_speed'), ('v_y', 'max_lateral_speed')),
+    'road_curvature': (('rho', 'max_curvature'), ('slope', 'max_curvature')),
+}
+
+
 def check_sample(name: str, sample: Any, params: SafetyParams) -> Optional[str]:
     """
     Return why a sample cannot be used, or None if it can (values only, not stamps).
@@ -112,20 +122,11 @@ def check_sample(name: str, sample: Any, params: SafetyParams) -> Optional[str]:
     :param params: the limits.
     :return: the reason, e.g. ``'yaw: yaw_rate = nan'``.
     """
-    bounds: dict[str, float]
-    if name == 'lateral_error':
-        bounds = {'value': params.max_lateral_error, 'distance': params.max_sensor_distance}
-    elif name == 'yaw':
-        bounds = {'relative_yaw': params.max_relative_yaw, 'yaw_rate': params.max_yaw_rate,
-                  'accel_x': params.max_acceleration}
-    elif name == 'velocity':
-        bounds = {'v_x': params.max_speed, 'v_y': params.max_lateral_speed}
-    else:
-        bounds = {'rho': params.max_curvature, 'slope': params.max_curvature}
-    for field, limit in bounds.items():
+    for field, limit_name in SAMPLE_LIMITS[name]:      # once per message: no dicts built
         value = getattr(sample, field)
-        if not _finite(value):
+        if not (isinstance(value, (int, float)) and math.isfinite(value)):
             return f'{name}: {field} = {value}'
+        limit = getattr(params, limit_name)
         if abs(value) > limit:
             return f'{name}: |{field}| = {abs(value):.4g} > {limit:g}'
     if name == 'lateral_error' and sample.distance < 0.0:

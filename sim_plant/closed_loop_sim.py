@@ -133,6 +133,75 @@ def plant_derivatives(scenario: Scenario, vehicle: VehicleParams, plant: PlantPa
     return rhs
 
 
+Stepper = Callable[[State, float, float, int, float], State]
+
+
+def linear_plant_stepper(scenario: Scenario, vehicle: VehicleParams, plant: PlantParams,
+                         initial_speed: float, acceleration: float) -> Stepper:
+    """
+    Return ``step(x, t, dt, substeps, command)`` for one run of the linear plant.
+
+    It gives what :func:`advance` with :func:`plant_derivatives` gives, to the last bit
+    (the same operations in the same order), in about half the time: the equations of
+    :func:`~sim_plant.vehicle_model.derivatives` for the linear plant on plain floats,
+    with the constants bound once. The simulator node integrates every step with it.
+
+    :param scenario: road and speed profile.
+    :param vehicle: vehicle parameters.
+    :param plant: plant options (``model`` must be ``linear``).
+    :param initial_speed: initial speed [m/s].
+    :param acceleration: ramp acceleration [m/s^2].
+    :return: the stepper.
+    :raises ValueError: the plant is not the linear one.
+    """
+    if plant.model != 'linear':
+        raise ValueError(f'plant.model = {plant.model!r}: the stepper is for the linear plant')
+    c_f, neg_c_r, l1, l2 = vehicle.c_f, -vehicle.c_r, vehicle.l1, vehicle.l2
+    mass, inertia = vehicle.mass, vehicle.yaw_inertia
+    start, duration = scenario.speed.start, scenario.speed.duration
+    constant = acceleration == 0.0          # initial + 0.0 * ramp == initial
+    exact = plant.kinematics == 'exact'
+    curvature = scenario.road.curvature_function()
+    sin, cos = math.sin, math.cos
+
+    def rates(t: float, s: float, y: float, e: float, v_y: float, r: float,
+              u: float) -> tuple[float, float, float, float, float]:
+        v_x = initial_speed if constant else (
+            initial_speed + acceleration * min(max(t - start, 0.0), duration))
+        rho = curvature(s)
+        f_front = c_f * (u - (v_y + l1 * r) / v_x)
+        f_rear = neg_c_r * (v_y - l2 * r) / v_x
+        if exact:
+            sin_e, cos_e = sin(e), cos(e)
+            s_rate = (v_x * cos_e - v_y * sin_e) / (1.0 - rho * y)
+            y_rate = v_x * sin_e + v_y * cos_e
+        else:
+            s_rate = v_x + 0.0 * y
+            y_rate = v_y + v_x * e
+        return (s_rate, y_rate, r - rho * s_rate, (f_front + f_rear) / mass - v_x * r,
+                (l1 * f_front - l2 * f_rear) / inertia)
+
+    def step(x: State, t: float, dt: float, substeps: int, command: float) -> State:
+        s, y, e, v_y, r = float(x[0]), float(x[1]), float(x[2]), float(x[3]), float(x[4])
+        u, half, w = command, 0.5 * dt, dt / 6.0
+        for j in range(substeps):           # rk4_step, unrolled
+            tj = t + j * dt
+            a0, a1, a2, a3, a4 = rates(tj, s, y, e, v_y, r, u)
+            b0, b1, b2, b3, b4 = rates(tj + half, s + half * a0, y + half * a1,
+                                       e + half * a2, v_y + half * a3, r + half * a4, u)
+            c0, c1, c2, c3, c4 = rates(tj + half, s + half * b0, y + half * b1,
+                                       e + half * b2, v_y + half * b3, r + half * b4, u)
+            d0, d1, d2, d3, d4 = rates(tj + dt, s + dt * c0, y + dt * c1, e + dt * c2,
+                                       v_y + dt * c3, r + dt * c4, u)
+            s = s + w * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
+            y = y + w * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
+            e = e + w * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
+            v_y = v_y + w * (a3 + 2.0 * b3 + 2.0 * c3 + d3)
+            r = r + w * (a4 + 2.0 * b4 + 2.0 * c4 + d4)
+        return (s, y, e, v_y, r, command)
+    return step
+
+
 def advance(rhs: Callable[[float, State], State], x: State, t: float, dt: float,
             substeps: int, plant: PlantParams, command: Real) -> State:
     """

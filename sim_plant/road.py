@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass
-from typing import Sequence
+import math
+from typing import Callable, Sequence
 
 from lookahead_control.numeric import Real
 from lookahead_control.params import check_choice, check_range, ParameterError
@@ -81,6 +82,30 @@ class Road:
         self._slope_list = [float(v) for v in self._slope]
         self.length = starts[-1] + self.segments[-1].length
         self._end_rho = self.segments[-1].curvature_end
+
+    def curvature_function(self) -> Callable[[float], float]:
+        """
+        Return ``s -> rho`` for a float, equal to ``curvature(s)[0]``, for one caller.
+
+        It remembers the segment it found last and checks it before bisecting: the
+        simulator asks 40 times a step at nearly the same arc length.
+
+        :return: the function.
+        """
+        starts, rho0, slopes = self._starts, self._rho0_list, self._slope_list
+        length, end_rho = self.length, self._end_rho
+        # segment i serves [bounds[i], bounds[i + 1]); the first also what lies before
+        bounds = [-math.inf, *starts[1:], length]
+        last = [0]
+
+        def rho(s: float) -> float:
+            i = last[0]
+            if not bounds[i] <= s < bounds[i + 1]:
+                if s >= length:
+                    return end_rho
+                i = last[0] = max(bisect.bisect_right(starts, s) - 1, 0)
+            return rho0[i] + slopes[i] * (s - starts[i])
+        return rho
 
     def curvature(self, s: Real) -> tuple[Real, Real]:
         """

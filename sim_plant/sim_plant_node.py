@@ -42,7 +42,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu, JointState
-from sim_plant.closed_loop_sim import advance, check_steps, measure, plant_derivatives
+from sim_plant.closed_loop_sim import (advance, check_steps, linear_plant_stepper, measure,
+                                       plant_derivatives, Stepper)
 from sim_plant.scenario import load_scenario, Scenario
 from sim_plant.vehicle_model import KINEMATICS, PLANT_MODELS, PlantParams, State
 
@@ -110,6 +111,12 @@ class SimPlantNode(Node):
                                                   self.scenario.duration)
         self.sensor_distance = (p['sensor_distance'] if p['sensor_distance'] >= 0.0
                                 else self.vehicle.d_s)
+        speed = self.scenario.speed
+        self._preview_rho = self.scenario.road.curvature_function()
+        self.stepper: Optional[Stepper] = (
+            linear_plant_stepper(self.scenario, self.vehicle, self.plant, float(speed.initial),
+                                 float(speed.acceleration))
+            if self.plant.model == 'linear' else None)
         init = self.scenario.initial
         self.x: State = (0.0, init.lateral_error, init.relative_yaw, init.lateral_velocity,
                          init.yaw_rate, 0.0)
@@ -201,17 +208,20 @@ class SimPlantNode(Node):
         """
         step, total = self.params['preview_step'], self.params['preview_distance']
         count = int(total / step) + 1
-        return [(i * step, float(self.scenario.road.curvature(s + i * step)[0]))
-                for i in range(count)]
+        rho = self._preview_rho
+        return [(i * step, float(rho(s + i * step))) for i in range(count)]
 
     def integrate(self) -> None:
         """Advance the plant by one period with the held command."""
         t = self.k * self.period
-        scenario = self.scenario
-        rhs = plant_derivatives(scenario, self.vehicle, self.plant, self.command,
-                                scenario.speed.initial, scenario.speed.acceleration)
-        self.x = advance(rhs, self.x, t, self.params['dt'], self.substeps, self.plant,
-                         self.command)
+        if self.stepper is not None:
+            self.x = self.stepper(self.x, t, self.params['dt'], self.substeps, self.command)
+        else:
+            scenario = self.scenario
+            rhs = plant_derivatives(scenario, self.vehicle, self.plant, self.command,
+                                    scenario.speed.initial, scenario.speed.acceleration)
+            self.x = advance(rhs, self.x, t, self.params['dt'], self.substeps, self.plant,
+                             self.command)
         self.k += 1
 
     def finished(self) -> bool:

@@ -21,7 +21,8 @@ from lookahead_control.zero_dynamics import steady_relative_yaw
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
-from sim_plant.closed_loop_sim import run
+from sim_plant.closed_loop_sim import (advance, linear_plant_stepper, plant_derivatives,
+                                       run)
 from sim_plant.road import Road, Segment
 from sim_plant.scenario import InitialState, paper_scenario, Scenario
 from sim_plant.speed_profile import speed_at, SpeedProfile
@@ -149,6 +150,40 @@ def test_road_curvature_profile():
     rho, slope = road.curvature(s)
     assert_allclose(rho, [0.0, 0.005, 0.01, 0.01])
     assert_allclose(slope, [0.0, 0.0005, 0.0, 0.0])
+
+
+def test_cached_curvature_function_equals_the_curvature():
+    road = Road([Segment('straight', 10.0), Segment('clothoid', 20.0, 0.0, 0.01),
+                 Segment('arc', 30.0, 0.01, 0.01), Segment('clothoid', 5.0, 0.01, -0.02)])
+    rho = road.curvature_function()
+    rng = np.random.default_rng(8)
+    # the segment ends, then walks forward, backward and jumping
+    points = [-5.0, 0.0, 10.0, 30.0, 60.0, 65.0, 64.999, 9.999, -1e-9, 1e9]
+    points += list(np.cumsum(rng.uniform(0.0, 0.4, 300)) - 5.0)
+    points += list(rng.uniform(-10.0, 80.0, 300)) + list(rng.uniform(-10.0, 80.0, 300))[::-1]
+    for s in map(float, points):
+        assert rho(s) == road.curvature(s)[0], s
+
+
+@pytest.mark.parametrize('kinematics', ['exact', 'small_angle'])
+@pytest.mark.parametrize('accel', [0.0, 2.5])
+def test_linear_plant_stepper_equals_the_generic_integrator_bit_for_bit(kinematics, accel):
+    scenario = paper_scenario(25.0)
+    scenario = Scenario(scenario.name, scenario.duration, scenario.road,
+                        SpeedProfile(25.0, accel, 1.0, 4.0), scenario.initial)
+    plant = PlantParams(kinematics=kinematics)
+    step = linear_plant_stepper(scenario, VEHICLE, plant, 25.0, accel)
+    rng = np.random.default_rng(9)
+    x = (0.0, 0.3, 0.01, 0.0, 0.0, 0.0)
+    for k in range(600):        # along the paper's road (straight, then the curve), 6 s
+        command = float(rng.uniform(-0.05, 0.05))
+        rhs = plant_derivatives(scenario, VEHICLE, plant, command, 25.0, accel)
+        expected = advance(rhs, x, k * 0.01, 0.001, 10, plant, command)
+        x = step(x, k * 0.01, 0.001, 10, command)
+        assert x == expected, k
+    assert x[0] > 100.0          # well into the curve
+    with pytest.raises(ValueError, match="plant.model = 'nonlinear'"):
+        linear_plant_stepper(scenario, VEHICLE, PlantParams(model='nonlinear'), 25.0, 0.0)
 
 
 def test_speed_profile_float_path_equals_the_array_path():
