@@ -142,7 +142,7 @@ def linear_plant_stepper(scenario: Scenario, vehicle: VehicleParams, plant: Plan
     Return ``step(x, t, dt, substeps, command)`` for one run of the linear plant.
 
     It gives what :func:`advance` with :func:`plant_derivatives` gives, to the last bit
-    (the same operations in the same order), in about half the time: the equations of
+    (the same operations in the same order), in a third of the time: the equations of
     :func:`~sim_plant.vehicle_model.derivatives` for the linear plant on plain floats,
     with the constants bound once. The simulator node integrates every step with it.
 
