@@ -70,14 +70,24 @@ def pong(args: argparse.Namespace) -> None:
     _spin(_answerer('pong', True), args.executor)
 
 
+def _step_publishers(node: Node, truth: str, answers: bool = False) -> dict[str, Any]:
+    """Create the publishers of a step's messages (and of the controller's answers)."""
+    reliable = qos('reliable')
+    pubs: dict[str, Any] = {name: node.create_publisher(kind, name, reliable)
+                            for name, kind in INPUTS}
+    if answers:
+        pubs['steering'] = node.create_publisher(JointState, 'steering', reliable)
+        pubs['debug'] = node.create_publisher(JointState, '/controller/debug', reliable)
+    pubs['truth'] = node.create_publisher(JointState, truth, reliable)
+    pubs['clock'] = node.create_publisher(Clock, '/clock', 10)
+    return pubs
+
+
 def ping(args: argparse.Namespace) -> None:
     """Lockstep like sim_plant: publish a step's messages, wait for the answer, repeat."""
     node = Node('ping')
     reliable = qos('reliable')
-    pubs: dict[str, Any] = {name: node.create_publisher(kind, name, reliable)
-                            for name, kind in INPUTS}
-    pubs['truth'] = node.create_publisher(JointState, '~/ground_truth', reliable)
-    pubs['clock'] = node.create_publisher(Clock, '/clock', 10)
+    pubs = _step_publishers(node, '~/ground_truth')
     state = {'k': 0, 'start': 0.0, 'end': 0.0}
 
     def publish_step() -> None:
@@ -148,13 +158,7 @@ def driver(args: argparse.Namespace) -> None:
 def blast(args: argparse.Namespace) -> None:
     """Publish every contract topic at a rate (for the recorder), then print counts."""
     node = Node('blast')
-    reliable = qos('reliable')
-    pubs: dict[str, Any] = {name: node.create_publisher(kind, name, reliable)
-                            for name, kind in INPUTS}
-    pubs['steering'] = node.create_publisher(JointState, 'steering', reliable)
-    pubs['debug'] = node.create_publisher(JointState, '/controller/debug', reliable)
-    pubs['truth'] = node.create_publisher(JointState, '/sim_plant/ground_truth', reliable)
-    pubs['clock'] = node.create_publisher(Clock, '/clock', 10)
+    pubs = _step_publishers(node, '/sim_plant/ground_truth', answers=True)
     deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline and not all(
             p.get_subscription_count() >= args.subscribers for p in pubs.values()):

@@ -137,15 +137,15 @@ def run_series(run: RunData) -> RunSeries:
     debug_at = _exact(run.debug.stamp_ns, kept)
     for name in LAW_CHANNELS:
         channels[name] = _take(run.debug.values.get(name), debug_at)
-    if any(np.isnan(channels[name]).any() for name in LAW_CHANNELS):
+    missing = {name: np.isnan(channels[name]) for name in LAW_CHANNELS}
+    if any(gaps.any() for gaps in missing.values()):
         # not recorded (no debug topic, or a recorder that subscribed to it late): the
         # controller re-run on the bag's inputs
         law_stamps, output = rerun_law(run)
         law_at = _exact(law_stamps, kept)
-        for name in LAW_CHANNELS:
-            recorded = channels[name]
-            channels[name] = np.where(np.isnan(recorded),
-                                      _take(getattr(output, name), law_at), recorded)
+        for name, gaps in missing.items():
+            channels[name] = np.where(gaps, _take(getattr(output, name), law_at),
+                                      channels[name])
     steering_at = _exact(run.steering.stamp_ns, kept)
     channels['steering_cmd'] = _take(run.steering.values.get('angle'), steering_at)
     # latency: from the first arrival of a lateral error to its answer's

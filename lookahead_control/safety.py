@@ -124,7 +124,7 @@ def check_sample(name: str, sample: Any, params: SafetyParams) -> Optional[str]:
     """
     for field, limit_name in SAMPLE_LIMITS[name]:      # once per message: no dicts built
         value = getattr(sample, field)
-        if not (isinstance(value, (int, float)) and math.isfinite(value)):
+        if not _finite(value):
             return f'{name}: {field} = {value}'
         limit = getattr(params, limit_name)
         if abs(value) > limit:

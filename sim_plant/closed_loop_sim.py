@@ -143,8 +143,9 @@ def linear_plant_stepper(scenario: Scenario, vehicle: VehicleParams, plant: Plan
 
     It gives what :func:`advance` with :func:`plant_derivatives` gives, to the last bit
     (the same operations in the same order), in a third of the time: the equations of
-    :func:`~sim_plant.vehicle_model.derivatives` for the linear plant on plain floats,
-    with the constants bound once. The simulator node integrates every step with it.
+    :func:`~sim_plant.vehicle_model.derivatives` for the linear plant and the float path
+    of :func:`~sim_plant.speed_profile.speed_at`, on plain floats with the constants
+    bound once. The simulator node integrates every step with it.
 
     :param scenario: road and speed profile.
     :param vehicle: vehicle parameters.
