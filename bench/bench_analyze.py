@@ -27,8 +27,8 @@ import time
 from typing import Any, Callable
 
 from bench.common import median, Result, RESULTS, ROOT
-from lookahead_control import conversions as conv
-from lookahead_control.bags import BagWriter, qos_from_ints, serialize_cdr, typestore
+from lookahead_control.bags.rosbag_io import BagWriter, qos_from_ints, serialize_cdr, typestore
+from lookahead_control.ros import conversions as conv
 
 TOPICS = {'/lateral_error': 'geometry_msgs/msg/PointStamped',
           '/yaw': 'sensor_msgs/msg/Imu', '/velocity': 'geometry_msgs/msg/TwistStamped',

@@ -20,8 +20,8 @@ import time
 import timeit
 
 from bench.common import median, Result
-from lookahead_control.control_law import LateralState, steering_law
-from lookahead_control.params import ControllerParams, VehicleParams
+from lookahead_control.core.control_law import LateralState, steering_law
+from lookahead_control.core.params import ControllerParams, VehicleParams
 import numpy as np
 from sim_plant.closed_loop_sim import run
 from sim_plant.scenario import paper_scenario

@@ -25,15 +25,14 @@ import tempfile
 import time
 from typing import Any
 
-from bench.common import (cpu_seconds, median, percentile, python_process, Result, ROOT,
-                          rss_mib)
-from lookahead_control.bags import bag_topics
-from lookahead_control.closed_loop import LoopConfig, node_commands, recorder_command, stop
+from bench.common import cpu_seconds, median, percentile, python_process, Result, ROOT, rss_mib
+from lookahead_control.bags.rosbag_io import bag_topics
+from lookahead_control.ros.closed_loop import LoopConfig, node_commands, recorder_command, stop
 
 SCENARIO = ROOT / 'config' / 'scenarios' / 'paper_r400.yaml'
 BLASTED = ('/lateral_error', '/yaw', '/velocity', '/road_curvature', '/steering',
            '/controller/debug', '/sim_plant/ground_truth', '/clock')
-CONTROLLER = ['lookahead_control.controller_node', '--ros-args', '--params-file',
+CONTROLLER = ['lookahead_control.ros.controller_node', '--ros-args', '--params-file',
               str(ROOT / 'config' / 'vehicle.yaml'), '--params-file',
               str(ROOT / 'config' / 'controller.yaml')]
 

@@ -30,9 +30,9 @@ import time
 from typing import Any, Iterator
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
-from lookahead_control import conversions as conv
-from lookahead_control.controller_node import qos
-from lookahead_control.node_main import make_executor, spin_until
+from lookahead_control.ros import conversions as conv
+from lookahead_control.ros.controller_node import qos
+from lookahead_control.ros.node_main import make_executor, spin_until
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node

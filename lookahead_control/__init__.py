@@ -15,7 +15,18 @@
 """
 Variable look-ahead lateral controller (Hingwe & Tomizuka) for ROS 2 Jazzy.
 
-The modules of this package that implement the math (``params``, ``config``,
-``schedule``, ``control_law``, ``zero_dynamics``, ``stability``, ``metrics``) import no
-ROS; the nodes are thin shells around them.
+The package is layered; each layer imports only the layers below it, and
+``test/test_layers.py`` enforces it:
+
+- :mod:`lookahead_control.core`: the math and the controller's state machine (parameters,
+  schedules, the law, safety, zero dynamics, the certificate, sample types, config files).
+  No ROS.
+- :mod:`sim_plant` (outside this package, same level as the core): vehicle models, roads,
+  scenarios and the offline closed loop; only ``sim_plant.sim_plant_node`` uses ROS.
+- :mod:`lookahead_control.ros`: the controller node, message conversions, parameter
+  declarations, the shared node ``main()`` and the closed-loop bringup.
+- :mod:`lookahead_control.bags`: MCAP bag writing, reading, recovery, columnar decoding,
+  run data, and the recorder and replay nodes.
+- :mod:`lookahead_control.analysis`: metrics, series from bags, tables and plots.
+- :mod:`lookahead_control.tools`: command-line executables only.
 """

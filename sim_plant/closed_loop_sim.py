@@ -27,9 +27,9 @@ from dataclasses import dataclass
 import math
 from typing import Any, Callable, Iterator
 
-from lookahead_control.control_law import LateralState, LawOutput, steering_law
-from lookahead_control.numeric import Real
-from lookahead_control.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.control_law import LateralState, LawOutput, steering_law
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 import numpy as np
 import numpy.typing as npt
 from sim_plant.scenario import Scenario

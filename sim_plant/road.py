@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import math
 from typing import Callable, Sequence
 
-from lookahead_control.numeric import Real
-from lookahead_control.params import check_choice, check_range, ParameterError
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import check_choice, check_range, ParameterError
 import numpy as np
 
 

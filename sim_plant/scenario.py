@@ -38,8 +38,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
-from lookahead_control.config import ConfigError, read_yaml
-from lookahead_control.params import check_range, ParameterError
+from lookahead_control.core.config import ConfigError, read_yaml
+from lookahead_control.core.params import check_range, ParameterError
 from sim_plant.road import Road, Segment
 from sim_plant.speed_profile import SpeedProfile
 

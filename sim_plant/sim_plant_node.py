@@ -30,13 +30,13 @@ import time
 from typing import Any, Optional
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
-from lookahead_control import conversions as conv
-from lookahead_control.config import source_config_dir
-from lookahead_control.controller_node import qos
-from lookahead_control.node_main import run_node, Throttle
-from lookahead_control.node_params import (build, declare, EXECUTOR_SPEC, Spec, values,
-                                           VEHICLE_SPECS)
-from lookahead_control.params import VehicleParams
+from lookahead_control.core.config import source_config_dir
+from lookahead_control.core.params import VehicleParams
+from lookahead_control.ros import conversions as conv
+from lookahead_control.ros.controller_node import qos
+from lookahead_control.ros.node_main import run_node, Throttle
+from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, Spec, values,
+                                               VEHICLE_SPECS)
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.task import Future

@@ -18,9 +18,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from lookahead_control import numeric as xp
-from lookahead_control.numeric import Real
-from lookahead_control.params import check_range, ParameterError
+from lookahead_control.core import numeric as xp
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import check_range, ParameterError
 
 MAX_ACCELERATION = 3.5  # the paper's envelope, Section 4 [m/s^2]
 

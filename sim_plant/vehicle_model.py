@@ -34,9 +34,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from lookahead_control import numeric as xp
-from lookahead_control.numeric import Real
-from lookahead_control.params import check_choice, check_range, VehicleParams
+from lookahead_control.core import numeric as xp
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import check_choice, check_range, VehicleParams
 
 State = tuple[Real, ...]
 GRAVITY = 9.80665

@@ -17,13 +17,13 @@
 import math
 import struct
 
-from lookahead_control import cdr_decode as cdr
-from lookahead_control import conversions as conv
-from lookahead_control import mcap_columns
-from lookahead_control.bags import (BagError, BagWriter, qos_from_ints, serialize_cdr,
-                                    to_rosbags, typestore)
-from lookahead_control.config import ConfigError
-from lookahead_control.run_data import load_run, rerun, rerun_law, RunData, Samples
+from lookahead_control.bags import cdr_decode as cdr
+from lookahead_control.bags import mcap_columns
+from lookahead_control.bags.rosbag_io import (BagError, BagWriter, qos_from_ints, serialize_cdr,
+                                              to_rosbags, typestore)
+from lookahead_control.bags.run_data import load_run, rerun, rerun_law, RunData, Samples
+from lookahead_control.core.config import ConfigError
+from lookahead_control.ros import conversions as conv
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, IndexType, Writer
 import numpy as np

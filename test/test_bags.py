@@ -23,13 +23,14 @@ import subprocess
 import sys
 import time
 
-from lookahead_control import conversions as conv
-from lookahead_control.bag_analysis import bag_row, run_series
-from lookahead_control.bags import (bag_topics, BagError, BagWriter, node_parameters,
-                                    PARAMETERS_KEY, qos_from_ints, recover, run_description,
-                                    serialize_cdr, to_rosbags, typestore)
-from lookahead_control.closed_loop import LoopConfig, run_loop
-from lookahead_control.run_data import load_run, rerun, Samples
+from lookahead_control.analysis.bag_analysis import bag_row, run_series
+from lookahead_control.bags.rosbag_io import (bag_topics, BagError, BagWriter, node_parameters,
+                                              PARAMETERS_KEY, qos_from_ints, recover,
+                                              run_description, serialize_cdr, to_rosbags,
+                                              typestore)
+from lookahead_control.bags.run_data import load_run, rerun, Samples
+from lookahead_control.ros import conversions as conv
+from lookahead_control.ros.closed_loop import LoopConfig, run_loop
 import numpy as np
 import pytest
 import yaml
@@ -71,7 +72,7 @@ def test_bag_reads_with_rosbags_and_mcap_and_counts_match(loop_bag):
                                    'before_first': 0}
     # reader 1: rosbags with the Jazzy type store decodes every message
     from rosbags.highlevel import AnyReader
-    from lookahead_control.bags import typestore
+    from lookahead_control.bags.rosbag_io import typestore
     with AnyReader([loop_bag], default_typestore=typestore()) as reader:
         decoded = sum(1 for c, _, raw in reader.messages()
                       if reader.deserialize(raw, c.msgtype) is not None)
@@ -110,13 +111,13 @@ def test_offline_rerun_reproduces_the_steering_exactly(loop_bag):
     result = rerun(load_run(loop_bag))
     assert result.order == 'stamp' and result.compared == 400
     assert result.max_diff == 0.0
-    ok = _tool('lookahead_control.replay_node', loop_bag, '--check', '0')
+    ok = _tool('lookahead_control.bags.replay_node', loop_bag, '--check', '0')
     assert ok.returncode == 0, ok.stderr
     assert '400 commands compared' in ok.stdout
-    changed = _tool('lookahead_control.replay_node', loop_bag, '--check', '1e-6',
+    changed = _tool('lookahead_control.bags.replay_node', loop_bag, '--check', '1e-6',
                     '-p', 'controller.natural_frequency=3.5')
     assert changed.returncode == 1 and 'check failed' in changed.stderr
-    bad = _tool('lookahead_control.replay_node', loop_bag, '--check', '0',
+    bad = _tool('lookahead_control.bags.replay_node', loop_bag, '--check', '0',
                 '-p', 'controller.natural_frequency=-1')
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
 
@@ -157,7 +158,7 @@ def test_truncated_bag_is_recovered(loop_bag, tmp_path, fraction):
     shutil.copy(loop_bag / 'run_description.yaml', bag)     # no metadata.yaml: killed
     with pytest.raises(BagError, match='recover'):
         bag_topics(bag)
-    out = _tool('lookahead_control.recorder_node', '--recover', bag)
+    out = _tool('lookahead_control.bags.recorder_node', '--recover', bag)
     assert out.returncode == 0, out.stderr
     saved = int(out.stdout.split('recovered ')[1].split()[0])
     total = yaml.safe_load((loop_bag / 'metadata.yaml').read_text())[
@@ -198,7 +199,7 @@ time.sleep({seconds})
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_signals_finalize_the_bag(tmp_path, sig):
     bag = tmp_path / 'bag'
-    recorder = subprocess.Popen([sys.executable, '-m', 'lookahead_control.recorder_node',
+    recorder = subprocess.Popen([sys.executable, '-m', 'lookahead_control.bags.recorder_node',
                                  '/talk', '-o', str(bag)], stderr=subprocess.PIPE, text=True)
     talker = _publisher(300, 200.0, 5.0)
     try:
@@ -216,7 +217,7 @@ def test_signals_finalize_the_bag(tmp_path, sig):
 
 def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
     bag = tmp_path / 'bag'
-    recorder = subprocess.Popen([sys.executable, '-m', 'lookahead_control.recorder_node',
+    recorder = subprocess.Popen([sys.executable, '-m', 'lookahead_control.bags.recorder_node',
                                  '/talk', '-o', str(bag), '--chunk-interval', '0.2'])
     talker = _publisher(400, 200.0, 5.0)
     try:
@@ -236,14 +237,14 @@ def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
 
 
 def load_floats(bag):
-    from lookahead_control.bags import read_messages
+    from lookahead_control.bags.rosbag_io import read_messages
     return [int(m.msg.data) for m in read_messages(bag)]
 
 
 def test_recover_and_analyze_fail_in_one_line(tmp_path):
-    for module, args in (('lookahead_control.recorder_node', ['--recover', tmp_path / 'x']),
+    for module, args in (('lookahead_control.bags.recorder_node', ['--recover', tmp_path / 'x']),
                          ('lookahead_control.tools.analyze_tool', [tmp_path / 'x']),
-                         ('lookahead_control.replay_node', [tmp_path / 'x', '--offline'])):
+                         ('lookahead_control.bags.replay_node', [tmp_path / 'x', '--offline'])):
         out = _tool(module, *args)
         assert out.returncode == 2, out.stderr
         assert len(out.stderr.strip().splitlines()) == 1 and 'x' in out.stderr
@@ -320,7 +321,7 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
                                    lambda m: answers.__setitem__(*conv.from_steering(m)),
                                    1000)
     controller = subprocess.Popen([
-        sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
+        sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
         '-r', 'steering:=/replayed/steering', '-p', 'wait_for_matching_stamps:=true'])
     try:
         end = time.monotonic() + 30
@@ -329,7 +330,7 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
         player = subprocess.Popen([
             # the lockstep bag holds 4000 messages/s of receive time; at a quarter of
             # that a loaded 2-core machine keeps up with the controller's depth-10 queue
-            sys.executable, '-m', 'lookahead_control.replay_node', str(loop_bag),
+            sys.executable, '-m', 'lookahead_control.bags.replay_node', str(loop_bag),
             '--rate', '0.25', '--topics', '/lateral_error', '/yaw', '/velocity',
             '/road_curvature'],
             stdout=subprocess.PIPE, text=True)
@@ -355,7 +356,7 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
 
 
 def test_forward_fill_carries_the_last_value_and_zero_before_the_first():
-    from lookahead_control.bag_analysis import _forward_fill
+    from lookahead_control.analysis.bag_analysis import _forward_fill
     rng = np.random.default_rng(7)
     for _ in range(50):
         values = rng.normal(size=rng.integers(0, 30))
@@ -368,7 +369,7 @@ def test_forward_fill_carries_the_last_value_and_zero_before_the_first():
 
 
 def test_direct_cdr_decoding_equals_the_general_deserializer():
-    from lookahead_control import cdr_decode as cdr
+    from lookahead_control.bags import cdr_decode as cdr
     store = typestore()
     rng = np.random.default_rng(11)
 

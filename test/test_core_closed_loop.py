@@ -16,13 +16,12 @@
 
 import math
 
-from lookahead_control.params import ControllerParams, ParameterError, VehicleParams
-from lookahead_control.zero_dynamics import steady_relative_yaw
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.zero_dynamics import steady_relative_yaw
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
-from sim_plant.closed_loop_sim import (advance, linear_plant_stepper, plant_derivatives,
-                                       run)
+from sim_plant.closed_loop_sim import advance, linear_plant_stepper, plant_derivatives, run
 from sim_plant.road import Road, Segment
 from sim_plant.scenario import InitialState, paper_scenario, Scenario
 from sim_plant.speed_profile import speed_at, SpeedProfile
@@ -211,7 +210,7 @@ def test_speed_profile_and_bad_steps():
 def test_paper_scenario_shows_the_paper_effect():
     # Fig. 4 vs Fig. 5: at 37 m/s the fixed look-down d_v leaves the relative yaw
     # under-damped, the eq. 26 schedule damps it; tracking at the CG gets worse.
-    from lookahead_control.metrics import run_metrics
+    from lookahead_control.analysis.metrics import run_metrics
     fixed = run(paper_scenario(37.0), VEHICLE, ControllerParams(schedule='fixed'))
     sched = run(paper_scenario(37.0), VEHICLE, ControllerParams(schedule='paper'))
     m_fixed = run_metrics(fixed.time, fixed.channels, VEHICLE.d_s)

@@ -18,17 +18,17 @@ from pathlib import Path
 import subprocess
 import sys
 
-from lookahead_control.config import ConfigError, load_controller, load_vehicle
-from lookahead_control.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.config import ConfigError, load_controller, load_vehicle
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 import pytest
 from sim_plant.scenario import load_scenario
 from sim_plant.vehicle_model import PlantParams
 
 ROOT = Path(__file__).resolve().parent.parent
-CORE_MODULES = ['lookahead_control.params', 'lookahead_control.config',
-                'lookahead_control.schedule', 'lookahead_control.control_law',
-                'lookahead_control.zero_dynamics', 'lookahead_control.stability',
-                'lookahead_control.metrics', 'lookahead_control.analysis',
+CORE_MODULES = ['lookahead_control.core.params', 'lookahead_control.core.config',
+                'lookahead_control.core.schedule', 'lookahead_control.core.control_law',
+                'lookahead_control.core.zero_dynamics', 'lookahead_control.core.stability',
+                'lookahead_control.analysis.metrics', 'lookahead_control.analysis.paper_tables',
                 'sim_plant.vehicle_model', 'sim_plant.road', 'sim_plant.scenario',
                 'sim_plant.closed_loop_sim', 'lookahead_control.tools.paper_scenario']
 

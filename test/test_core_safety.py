@@ -14,10 +14,10 @@
 
 """The output limits' reference: the last angle sent and the newest stamp sent."""
 
-from lookahead_control.controller_core import SteeringController
-from lookahead_control.conversions import LateralErrorSample, VelocitySample, YawSample
-from lookahead_control.params import ControllerParams, VehicleParams
-from lookahead_control.safety import SafetyParams
+from lookahead_control.core.controller import SteeringController
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.safety import SafetyParams
+from lookahead_control.ros.conversions import LateralErrorSample, VelocitySample, YawSample
 
 SAFETY = SafetyParams(max_steering_rate=0.1)
 MS = 1_000_000

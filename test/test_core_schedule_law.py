@@ -16,10 +16,10 @@
 
 import math
 
-from lookahead_control.control_law import arc_offset, LateralState, steering_law
-from lookahead_control.params import ControllerParams, VehicleParams
-from lookahead_control.schedule import exact_look_ahead, look_ahead, paper_look_ahead
-from lookahead_control.zero_dynamics import steady_relative_yaw, zero_dynamics
+from lookahead_control.core.control_law import arc_offset, LateralState, steering_law
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.schedule import exact_look_ahead, look_ahead, paper_look_ahead
+from lookahead_control.core.zero_dynamics import steady_relative_yaw, zero_dynamics
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

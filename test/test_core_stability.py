@@ -16,10 +16,10 @@
 
 import math
 
-from lookahead_control.metrics import damping_from_overshoot, step_metrics
-from lookahead_control.params import VehicleParams
-from lookahead_control.stability import certificate, lyapunov, lyapunov_derivative
-from lookahead_control.zero_dynamics import system_matrix
+from lookahead_control.analysis.metrics import damping_from_overshoot, step_metrics
+from lookahead_control.core.params import VehicleParams
+from lookahead_control.core.stability import certificate, lyapunov, lyapunov_derivative
+from lookahead_control.core.zero_dynamics import system_matrix
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest

@@ -25,8 +25,8 @@ import sys
 import time
 
 from conftest import entry_points, spin_until
-from lookahead_control import conversions as conv
-from lookahead_control.bags import read_messages, RECORDER_KEY, recover, run_description
+from lookahead_control.bags.rosbag_io import read_messages, RECORDER_KEY, recover, run_description
+from lookahead_control.ros import conversions as conv
 import pytest
 import yaml
 
@@ -273,7 +273,7 @@ def _messages_in_complete_chunks(path):
 BRIDGE = """
 import sys, time, rclpy
 from rclpy.node import Node
-from lookahead_control import conversions as conv
+from lookahead_control.ros import conversions as conv
 rclpy.init()
 node = Node('bridge_' + '_'.join(sys.argv[1:]))
 make = {'lateral_error': lambda t: conv.to_lateral_error(t, 'base_link', 1.96, 0.5),
@@ -394,7 +394,7 @@ def test_sim_plant_ignores_bad_commands_and_holds_on_missing_answers(probe, tmp_
 SHUTDOWN_MID_CALLBACK = """
 import rclpy
 from rclpy.node import Node
-from lookahead_control.node_main import run_node
+from lookahead_control.ros.node_main import run_node
 
 
 class Querier(Node):

@@ -26,12 +26,12 @@ import os
 
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped, TwistStamped
 from hypothesis import given, HealthCheck, settings, strategies as st
-from lookahead_control import conversions as conv
-from lookahead_control.controller_core import SteeringController
-from lookahead_control.conversions import (CurvatureSample, LateralErrorSample,
-                                           VelocitySample, YawSample)
-from lookahead_control.params import ControllerParams, VehicleParams
-from lookahead_control.safety import angle_limit, SafetyParams
+from lookahead_control.core.controller import SteeringController
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.safety import angle_limit, SafetyParams
+from lookahead_control.ros import conversions as conv
+from lookahead_control.ros.conversions import (CurvatureSample, LateralErrorSample, VelocitySample,
+                                               YawSample)
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -119,7 +119,7 @@ class OutputLimits:
 
 @pytest.fixture(scope='module')
 def node():
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     ctx = Context()
     rclpy.init(context=ctx)
     controller = ControllerNode(context=ctx)

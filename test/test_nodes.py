@@ -16,9 +16,9 @@
 
 import math
 
-from lookahead_control import conversions as conv
-from lookahead_control.control_law import LateralState, steering_law
-from lookahead_control.params import ControllerParams, VehicleParams
+from lookahead_control.core.control_law import LateralState, steering_law
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.ros import conversions as conv
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -75,7 +75,7 @@ def _feed(node, stamp, y=0.5, d=1.96, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-
 
 
 def test_controller_node_answers_each_lateral_error(context):
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context)
     try:
         node.trigger_configure()
@@ -93,7 +93,7 @@ def test_controller_node_answers_each_lateral_error(context):
 
 
 def test_inactive_controller_publishes_nothing(context):
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context)
     try:
         node.trigger_configure()
@@ -109,7 +109,7 @@ def test_inactive_controller_publishes_nothing(context):
 
 
 def test_controller_waits_for_inputs(context):
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context)
     try:
         node.trigger_configure()
@@ -122,7 +122,7 @@ def test_controller_waits_for_inputs(context):
 
 
 def test_matching_stamps_hold_the_answer_until_inputs_catch_up(context):
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
         Parameter('wait_for_matching_stamps', value=True)])
     try:
@@ -142,7 +142,7 @@ def test_matching_stamps_hold_the_answer_until_inputs_catch_up(context):
 
 
 def test_parameter_changes_applied_or_refused(context):
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context)
     try:
         node.trigger_configure()
@@ -230,7 +230,7 @@ def test_sim_plant_starts_once_connected_for_the_settle_time(context, monkeypatc
 
 def test_controller_keeps_the_clock_subscription_of_use_sim_time(context):
     # regression: an attribute named like rclpy's Node._subscriptions dropped /clock
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('mode', value='timer')])
     try:
@@ -244,7 +244,7 @@ def test_controller_keeps_the_clock_subscription_of_use_sim_time(context):
 
 def test_bad_inputs_are_refused_counted_and_never_used(context):
     from diagnostic_msgs.msg import DiagnosticStatus
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context)
     try:
         node.trigger_configure()
@@ -268,7 +268,7 @@ def test_bad_inputs_are_refused_counted_and_never_used(context):
 
 def test_stale_inputs_hold_then_ramp_and_resume_without_a_jump(context):
     from diagnostic_msgs.msg import DiagnosticStatus
-    from lookahead_control.controller_node import ControllerNode
+    from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
         Parameter('safety.max_steering_rate', value=0.1)])
     core = node.core
@@ -300,7 +300,7 @@ def test_stale_inputs_hold_then_ramp_and_resume_without_a_jump(context):
 
 
 def test_now_ns_reads_the_nodes_clock_system_and_simulated(context):
-    from lookahead_control.node_main import now_ns
+    from lookahead_control.ros.node_main import now_ns
     from rclpy.node import Node
     from rclpy.time import Time
     node = Node('clock_probe', context=context)

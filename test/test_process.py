@@ -21,10 +21,10 @@ import sys
 import time
 
 from conftest import spin_until
-from lookahead_control import conversions as conv
-from lookahead_control.closed_loop import LoopConfig, node_commands, recorder_command, stop
-from lookahead_control.params import ControllerParams, VehicleParams
-from lookahead_control.run_data import load_run
+from lookahead_control.bags.run_data import load_run
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.ros import conversions as conv
+from lookahead_control.ros.closed_loop import LoopConfig, node_commands, recorder_command, stop
 import numpy as np
 import pytest
 from sensor_msgs.msg import JointState
@@ -92,7 +92,7 @@ def test_remapped_bridge_drives_the_controller(probe):
     answers = []
     node.create_subscription(JointState, '/vehicle/steering_cmd',
                              lambda m: answers.append(conv.from_steering(m)), 10)
-    cmd = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
+    cmd = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
            '-r', 'lateral_error:=/bridge/lane_offset', '-r', 'yaw:=/bridge/imu',
            '-r', 'velocity:=/bridge/twist', '-r', 'steering:=/vehicle/steering_cmd',
            '-p', 'qos_reliability:=best_effort']
@@ -177,7 +177,7 @@ def test_use_sim_time_is_honoured(probe):
     answers = []
     node.create_subscription(JointState, '/steering',
                              lambda m: answers.append(conv.from_steering(m)), 100)
-    cmd = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
+    cmd = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
            '-p', 'use_sim_time:=true', '-p', 'mode:=timer', '-p', 'rate_hz:=10.0']
     controller = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
 
@@ -220,7 +220,7 @@ def test_use_sim_time_is_honoured(probe):
 
 
 def test_closed_loop_executable_succeeds_and_fails_cleanly(tmp_path):
-    code = 'import sys\nfrom lookahead_control.closed_loop import entry\nsys.exit(entry())'
+    code = 'import sys\nfrom lookahead_control.ros.closed_loop import entry\nsys.exit(entry())'
     ok = subprocess.run([sys.executable, '-c', code, '--speed', '20', '--bag',
                          str(tmp_path / 'run')], cwd=ROOT,
                         capture_output=True, text=True, timeout=120)

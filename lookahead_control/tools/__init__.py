@@ -12,4 +12,8 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Command-line analysis tools (each an executable; see setup.py)."""
+"""
+Command-line executables (see ``setup.py``): thin ``main()`` functions over the layers.
+
+May import every other layer; nothing imports tools.
+"""

@@ -18,10 +18,10 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from lookahead_control.analysis import schedule_table, speed_grid, zero_dynamics_table
-from lookahead_control.config import load_vehicle
-from lookahead_control.stability import certificate, PAPER_GERSHGORIN, PAPER_NORM_BOUND
-from lookahead_control.tools.cli import markdown_table, parser, run_tool, write_json
+from lookahead_control.analysis.paper_tables import schedule_table, speed_grid, zero_dynamics_table
+from lookahead_control.core.cli import markdown_table, parser, run_tool, write_json
+from lookahead_control.core.config import load_vehicle
+from lookahead_control.core.stability import certificate, PAPER_GERSHGORIN, PAPER_NORM_BOUND
 
 
 def schedule_main(argv: Sequence[str] | None = None) -> int:
@@ -43,7 +43,7 @@ def schedule_main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         write_json(args.json, rows)
     if args.plot:
-        from lookahead_control.plotting import plot_schedule
+        from lookahead_control.analysis.plotting import plot_schedule
         print(f'wrote {plot_schedule(rows, args.plot)}')
     return 0
 
@@ -66,7 +66,7 @@ def zero_dynamics_main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         write_json(args.json, rows)
     if args.plot:
-        from lookahead_control.plotting import plot_roots
+        from lookahead_control.analysis.plotting import plot_roots
         print(f'wrote {plot_roots(rows, args.plot)}')
     return 0
 

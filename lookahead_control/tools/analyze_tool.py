@@ -20,12 +20,11 @@ import argparse
 from pathlib import Path
 from typing import Any, Sequence
 
-from lookahead_control.analysis import schedule_table, speed_grid
-from lookahead_control.bag_analysis import bag_row, run_series, RunSeries, speed_points
-from lookahead_control.params import VehicleParams
-from lookahead_control.run_data import load_run, RunData
-from lookahead_control.tools.cli import (assignments, markdown_table, run_tool, write_csv,
-                                         write_json)
+from lookahead_control.analysis.bag_analysis import bag_row, run_series, RunSeries, speed_points
+from lookahead_control.analysis.paper_tables import schedule_table, speed_grid
+from lookahead_control.bags.run_data import load_run, RunData
+from lookahead_control.core.cli import assignments, markdown_table, run_tool, write_csv, write_json
+from lookahead_control.core.params import VehicleParams
 
 COLUMNS = ('run', 'speed_mps', 'd_v_final', 'peak_cg', 'rms_cg', 'peak_bumper',
            'rms_bumper', 'peak_look_ahead', 'rms_look_ahead', 'yaw_overshoot',
@@ -74,7 +73,7 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
             markdown_table(rows, digits=3), '',
             'Bags: ' + ', '.join(f'`{run.bag}`' for run, _, _ in results), '']
     if plots:
-        from lookahead_control.plotting import plot_measured_look_ahead, plot_runs
+        from lookahead_control.analysis.plotting import plot_measured_look_ahead, plot_runs
         groups: dict[str, list[dict[str, Any]]] = {}
         for run, series, row in results:
             groups.setdefault(row['run'], []).append(

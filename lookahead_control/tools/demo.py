@@ -29,12 +29,12 @@ import shutil
 import sys
 from typing import Sequence
 
-from lookahead_control.analysis import PAPER_SPEEDS
-from lookahead_control.closed_loop import LoopConfig, run_loop
-from lookahead_control.config import source_config_dir
-from lookahead_control.params import ControllerParams, VehicleParams
+from lookahead_control.analysis.paper_tables import PAPER_SPEEDS
+from lookahead_control.core.cli import markdown_table, run_tool, ToolError
+from lookahead_control.core.config import source_config_dir
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.ros.closed_loop import LoopConfig, run_loop
 from lookahead_control.tools.analyze_tool import analyze, COLUMNS, write_outputs
-from lookahead_control.tools.cli import markdown_table, run_tool, ToolError
 import numpy as np
 from sim_plant.closed_loop_sim import run
 from sim_plant.scenario import load_scenario

@@ -25,12 +25,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
-from lookahead_control.analysis import PAPER_FIG5_LEGEND, PAPER_SPEEDS
-from lookahead_control.config import load_controller, load_vehicle
-from lookahead_control.metrics import run_metrics
-from lookahead_control.params import ControllerParams, VehicleParams
-from lookahead_control.tools.cli import (markdown_table, parser, run_tool, write_csv,
-                                         write_json)
+from lookahead_control.analysis.metrics import run_metrics
+from lookahead_control.analysis.paper_tables import PAPER_FIG5_LEGEND, PAPER_SPEEDS
+from lookahead_control.core.cli import markdown_table, parser, run_tool, write_csv, write_json
+from lookahead_control.core.config import load_controller, load_vehicle
+from lookahead_control.core.params import ControllerParams, VehicleParams
 from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import paper_scenario
 from sim_plant.vehicle_model import PlantParams
@@ -119,7 +118,7 @@ def write_report(runs: Sequence[tuple[str, SimResult]], rows: Sequence[dict[str,
         f"The paper's Fig. 5 legend gives d_v = {legend}; eq. 26 with Table 1 gives "
         'the d_v_final column. This package follows eq. 26.', '']
     if plots:
-        from lookahead_control.plotting import plot_runs
+        from lookahead_control.analysis.plotting import plot_runs
         for label in dict.fromkeys(lbl for lbl, _ in runs):
             series = [{'label': f'{r.scenario.speed.initial:g} m/s', 'time': r.time,
                        **r.channels} for lbl, r in runs if lbl == label]

@@ -25,12 +25,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Optional
 
-from lookahead_control.control_law import cg_error_from, LateralState, LawOutput, steering_law
-from lookahead_control.conversions import (CurvatureSample, LateralErrorSample,
-                                           VelocitySample, YawSample)
-from lookahead_control.params import check_choice, ControllerParams, VehicleParams
-from lookahead_control.safety import (check_sample, check_stamp, limit, low_speed_weight,
-                                      SafetyParams, stale_target)
+from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput, steering_law
+from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
+from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
+                                           SafetyParams, stale_target)
+from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
+                                            YawSample)
 
 ACCELERATION_SOURCES = ('imu', 'differentiate', 'zero')
 # per input: the attribute holding its latest sample, and the method storing a new one

@@ -27,20 +27,18 @@ from typing import Any, Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
-from lookahead_control import conversions as conv
-from lookahead_control.controller_core import (ACCELERATION_SOURCES, Command,
-                                               SteeringController)
-from lookahead_control.node_main import now_ns, run_node, Throttle
-from lookahead_control.node_params import (check_choices, CONTROLLER_SPECS, declare,
-                                           EXECUTOR_SPEC, safety_params, SAFETY_SPECS, Spec,
-                                           values, vehicle_and_controller,
-                                           VEHICLE_SPECS)
-from lookahead_control.params import ParameterError, SCHEDULE_MODES
+from lookahead_control.core.controller import ACCELERATION_SOURCES, Command, SteeringController
+from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
+from lookahead_control.ros import conversions as conv
+from lookahead_control.ros.node_main import now_ns, run_node, Throttle
+from lookahead_control.ros.node_params import (check_choices, CONTROLLER_SPECS, declare,
+                                               EXECUTOR_SPEC, safety_params, SAFETY_SPECS, Spec,
+                                               values, vehicle_and_controller, VEHICLE_SPECS)
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, JointState
 
 NODE_SPECS = (

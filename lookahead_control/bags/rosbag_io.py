@@ -41,7 +41,7 @@ import tempfile
 import time
 from typing import Any, Callable, Iterator, Mapping, NamedTuple, Optional, Sequence
 
-from lookahead_control.config import ConfigError
+from lookahead_control.core.config import ConfigError
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.interfaces import (Connection, Qos, QosDurability, QosHistory, QosLiveliness,
                                 QosReliability, QosTime)

@@ -33,47 +33,14 @@ contract") in short, REP-103 signs and SI units, vehicle frame at the CG:
 
 from __future__ import annotations
 
-import math
-from typing import NamedTuple, Sequence
+from typing import Sequence
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped, TwistStamped
+from lookahead_control.core.samples import (curvature_from_points, CurvatureSample,
+                                            LateralErrorSample, quaternion_to_yaw, STEERING_JOINT,
+                                            VelocitySample, yaw_to_quaternion, YawSample)
 from sensor_msgs.msg import Imu, JointState
-
-STEERING_JOINT = 'front_wheel_steering'
-
-
-class LateralErrorSample(NamedTuple):
-    """Lateral error ``value`` [m] measured ``distance`` [m] ahead of the CG."""
-
-    stamp_ns: int
-    distance: float
-    value: float
-
-
-class YawSample(NamedTuple):
-    """Relative yaw [rad], yaw rate [rad/s], body longitudinal acceleration [m/s^2]."""
-
-    stamp_ns: int
-    relative_yaw: float
-    yaw_rate: float
-    accel_x: float
-
-
-class VelocitySample(NamedTuple):
-    """Longitudinal and lateral body velocity [m/s]."""
-
-    stamp_ns: int
-    v_x: float
-    v_y: float
-
-
-class CurvatureSample(NamedTuple):
-    """Curvature at the CG [1/m] and its slope along the road [1/m^2]."""
-
-    stamp_ns: int
-    rho: float
-    slope: float
 
 
 def stamp_to_ns(stamp: Time) -> int:
@@ -94,29 +61,6 @@ def ns_to_stamp(ns: int) -> Time:
     :return: the stamp.
     """
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-
-
-def yaw_to_quaternion(yaw: float) -> tuple[float, float, float, float]:
-    """
-    Return the quaternion ``(x, y, z, w)`` of a rotation by ``yaw`` about z.
-
-    :param yaw: angle [rad].
-    :return: the quaternion.
-    """
-    return 0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)
-
-
-def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
-    """
-    Return the rotation about z of a quaternion (REP-103, counter-clockwise +).
-
-    :param x: quaternion x.
-    :param y: quaternion y.
-    :param z: quaternion z.
-    :param w: quaternion w.
-    :return: yaw [rad] in (-pi, pi].
-    """
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def from_lateral_error(msg: PointStamped) -> LateralErrorSample:
@@ -166,35 +110,6 @@ def from_curvature(msg: PolygonStamped) -> CurvatureSample:
     """
     return curvature_from_points(stamp_to_ns(msg.header.stamp),
                                  [(float(p.x), float(p.y)) for p in msg.polygon.points])
-
-
-def curvature_from_points(stamp: int, polygon: Sequence[tuple[float, float]]
-                          ) -> CurvatureSample:
-    """
-    Return the curvature sample of (distance ahead, curvature) points.
-
-    As :func:`from_curvature` describes it.
-
-    :param stamp: the stamp [ns].
-    :param polygon: the points.
-    :return: the sample.
-    """
-    points: list[tuple[float, float]] = []
-    for p in sorted(polygon):
-        if not points or p[0] > points[-1][0]:     # drop repeated distances
-            points.append(p)
-    if not points:
-        return CurvatureSample(stamp, 0.0, 0.0)
-    if points[-1][0] <= 0.0:
-        return CurvatureSample(stamp, points[-1][1], 0.0)
-    i = 0
-    while i + 2 < len(points) and points[i + 1][0] <= 0.0:
-        i += 1
-    if len(points) == 1:
-        return CurvatureSample(stamp, points[0][1], 0.0)
-    (x0, k0), (x1, k1) = points[i], points[i + 1]
-    slope = (k1 - k0) / (x1 - x0)
-    return CurvatureSample(stamp, k0 + slope * max(0.0 - x0, 0.0), slope)
 
 
 def to_lateral_error(stamp_ns: int, frame_id: str, distance: float,

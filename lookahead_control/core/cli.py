@@ -24,8 +24,8 @@ from pathlib import Path
 import sys
 from typing import Any, Callable, Mapping, Sequence
 
-from lookahead_control.config import ConfigError
-from lookahead_control.params import ParameterError
+from lookahead_control.core.config import ConfigError
+from lookahead_control.core.params import ParameterError
 
 EXIT_USAGE = 2
 

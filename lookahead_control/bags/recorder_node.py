@@ -35,16 +35,16 @@ import re
 import sys
 from typing import Any, Optional, Sequence
 
-from lookahead_control.bags import (BagError, BagWriter, PARAMETERS_KEY, qos_from_ints,
-                                    RECORDER_KEY, recover, SCENARIO_KEY)
-from lookahead_control.config import source_config_dir
-from lookahead_control.node_main import now_ns, run_node
-from lookahead_control.tools.cli import run_tool, ToolError
+from lookahead_control.bags.rosbag_io import (BagError, BagWriter, PARAMETERS_KEY, qos_from_ints,
+                                              RECORDER_KEY, recover, SCENARIO_KEY)
+from lookahead_control.core.cli import run_tool, ToolError
+from lookahead_control.core.config import source_config_dir
+from lookahead_control.ros.node_main import now_ns, run_node
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 import yaml

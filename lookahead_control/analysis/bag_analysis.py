@@ -28,10 +28,10 @@ from dataclasses import dataclass
 import math
 from typing import Any, Optional
 
-from lookahead_control.control_law import cg_error_from
-from lookahead_control.metrics import run_metrics
-from lookahead_control.params import VehicleParams
-from lookahead_control.run_data import rerun_law, RunData, Samples
+from lookahead_control.analysis.metrics import run_metrics
+from lookahead_control.bags.run_data import rerun_law, RunData, Samples
+from lookahead_control.core.control_law import cg_error_from
+from lookahead_control.core.params import VehicleParams
 import numpy as np
 import numpy.typing as npt
 import yaml

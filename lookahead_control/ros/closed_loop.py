@@ -32,9 +32,9 @@ import sys
 import time
 from typing import Optional, Sequence
 
-from lookahead_control.config import source_config_dir
-from lookahead_control.params import SCHEDULE_MODES
-from lookahead_control.tools.cli import run_tool, ToolError
+from lookahead_control.core.cli import run_tool, ToolError
+from lookahead_control.core.config import source_config_dir
+from lookahead_control.core.params import SCHEDULE_MODES
 from sim_plant.scenario import load_scenario
 
 
@@ -81,7 +81,7 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
            '-p', f'mode:={cfg.mode}', '-p', f'rate_hz:={float(cfg.rate_hz)}',
            '-p', f'plant.model:={cfg.plant}', '-p', 'use_sim_time:=false',
            '-p', f'subscribers:={2 if cfg.bag else 1}', *cfg.extra_sim_args]
-    controller = [sys.executable, '-m', 'lookahead_control.controller_node', '--ros-args',
+    controller = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
                   *common, '--params-file', str(config / 'controller.yaml'),
                   '-p', f'controller.schedule:={cfg.schedule}',
                   '-p', f'wait_for_matching_stamps:={str(cfg.mode == "lockstep").lower()}',
@@ -96,7 +96,7 @@ def recorder_command(bag: Path) -> list[str]:
     :param bag: the bag directory to create.
     :return: the command.
     """
-    return [sys.executable, '-m', 'lookahead_control.recorder_node', '-o', str(bag)]
+    return [sys.executable, '-m', 'lookahead_control.bags.recorder_node', '-o', str(bag)]
 
 
 def stop(process: subprocess.Popen, name: str, grace: float = 10.0) -> int:

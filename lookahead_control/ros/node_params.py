@@ -24,9 +24,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping, NamedTuple, Sequence
 
-from lookahead_control.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
-                                      VehicleParams)
-from lookahead_control.safety import SafetyParams
+from lookahead_control.core.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
+                                           VehicleParams)
+from lookahead_control.core.safety import SafetyParams
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from typing import Mapping, NamedTuple
 
-from lookahead_control.control_law import arc_offset
+from lookahead_control.core.control_law import arc_offset
 import numpy as np
 import numpy.typing as npt
 

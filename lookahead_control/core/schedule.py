@@ -29,9 +29,9 @@ Scheduled values are clamped to ``max_look_ahead``; where a bound binds, dd_v/dt
 
 from __future__ import annotations
 
-from lookahead_control import numeric as xp
-from lookahead_control.numeric import Real
-from lookahead_control.params import ControllerParams, VehicleParams
+from lookahead_control.core import numeric as xp
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import ControllerParams, VehicleParams
 
 
 def paper_look_ahead(v_x: Real, a_x: Real, vehicle: VehicleParams,

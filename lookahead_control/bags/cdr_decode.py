@@ -18,10 +18,10 @@ Direct decoding of the contract messages from their CDR bytes, for reading long 
 A general deserializer builds every field of every message (about 12 us each); the
 analysis needs a few numbers. These read them at their offsets (XCDR1, little endian,
 alignment counted after the 4-byte encapsulation header) and give what the converters
-in :mod:`~lookahead_control.conversions` give from the decoded message.
+in :mod:`~lookahead_control.ros.conversions` give from the decoded message.
 
 Two forms: one message from its bytes, and the columns of many messages at once, read
-with numpy from a shared buffer (:mod:`~lookahead_control.mcap_columns`). The column
+with numpy from a shared buffer (:mod:`~lookahead_control.bags.mcap_columns`). The column
 decoders return a mask of the messages they could read; the others (big endian, cut
 short, an unusual layout) are for the caller to decode the general way.
 """
@@ -32,9 +32,9 @@ import math
 import struct
 from typing import Any, Callable, NamedTuple, Optional
 
-from lookahead_control.conversions import (curvature_from_points, CurvatureSample,
-                                           LateralErrorSample, quaternion_to_yaw,
-                                           STEERING_JOINT, VelocitySample, YawSample)
+from lookahead_control.core.samples import (curvature_from_points, CurvatureSample,
+                                            LateralErrorSample, quaternion_to_yaw, STEERING_JOINT,
+                                            VelocitySample, YawSample)
 import numpy as np
 import numpy.typing as npt
 

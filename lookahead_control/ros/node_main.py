@@ -27,9 +27,9 @@ import sys
 import time
 from typing import Callable, Optional, Sequence, TypeVar
 
-from lookahead_control.config import ConfigError, read_yaml
-from lookahead_control.params import ParameterError
-from lookahead_control.tools.cli import one_line
+from lookahead_control.core.cli import one_line
+from lookahead_control.core.config import ConfigError, read_yaml
+from lookahead_control.core.params import ParameterError
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor

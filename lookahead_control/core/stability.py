@@ -27,8 +27,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from lookahead_control.params import VehicleParams
-from lookahead_control.zero_dynamics import system_matrix
+from lookahead_control.core.params import VehicleParams
+from lookahead_control.core.zero_dynamics import system_matrix
 import numpy as np
 import numpy.typing as npt
 

@@ -33,14 +33,14 @@ import sys
 import time
 from typing import Any, Optional, Sequence
 
-from lookahead_control import conversions as conv
-from lookahead_control.bags import bag_reader
-from lookahead_control.recorder_node import message_class
-from lookahead_control.run_data import load_run, rerun
-from lookahead_control.tools.cli import assignments, run_tool, ToolError
+from lookahead_control.bags.recorder_node import message_class
+from lookahead_control.bags.rosbag_io import bag_reader
+from lookahead_control.bags.run_data import load_run, rerun
+from lookahead_control.core.cli import assignments, run_tool, ToolError
+from lookahead_control.ros import conversions as conv
 import rclpy
 from rclpy.node import Node
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock as ClockMsg
 import yaml

@@ -28,10 +28,10 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from lookahead_control import numeric as xp
-from lookahead_control.numeric import Real
-from lookahead_control.params import ControllerParams, VehicleParams
-from lookahead_control.schedule import look_ahead
+from lookahead_control.core import numeric as xp
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.schedule import look_ahead
 
 
 class LateralState(NamedTuple):

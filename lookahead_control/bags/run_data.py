@@ -18,7 +18,7 @@ A recorded run as data: the contract topics of a bag, and the controller re-run 
 No ROS here. :func:`load_run` reads any rosbag2 MCAP bag with the contract topics (names
 can be remapped) into columns (:class:`Samples`: numpy arrays, an hour of 100 Hz in
 about a second); :func:`rerun` feeds the recorded inputs into
-:class:`~lookahead_control.controller_core.SteeringController` in the order the node
+:class:`~lookahead_control.core.controller.SteeringController` in the order the node
 saw them and compares its commands with the recorded steering; :func:`rerun_law` gives
 the law's values of that re-run for all steps at once.
 """
@@ -31,14 +31,15 @@ from pathlib import Path
 import struct
 from typing import Any, Callable, Mapping, Optional, Sequence
 
-from lookahead_control import cdr_decode as cdr
-from lookahead_control import conversions as conv
-from lookahead_control.bags import bag_topics, node_parameters, run_description, typestore
-from lookahead_control.config import ConfigError, dataclass_from_params
-from lookahead_control.control_law import cg_error_from, LateralState, LawOutput, steering_law
-from lookahead_control.controller_core import Command, SteeringController
-from lookahead_control.mcap_columns import RawColumns, read_columns
-from lookahead_control.params import ControllerParams, VehicleParams
+from lookahead_control.bags import cdr_decode as cdr
+from lookahead_control.bags.mcap_columns import RawColumns, read_columns
+from lookahead_control.bags.rosbag_io import (bag_topics, node_parameters, run_description,
+                                              typestore)
+from lookahead_control.core.config import ConfigError, dataclass_from_params
+from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput, steering_law
+from lookahead_control.core.controller import Command, SteeringController
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.ros import conversions as conv
 import numpy as np
 import numpy.typing as npt
 

@@ -20,7 +20,7 @@ message; an hour at 100 Hz of the contract topics is 1.4 million of them. This r
 walks only the top-level records (a few per chunk) and takes each chunk's message
 index: the receive time and offset of every message, one array per channel. The
 messages are then numpy offsets into the chunk's bytes, and the decoders of
-:mod:`~lookahead_control.cdr_decode` gather their fields for all of them at once.
+:mod:`~lookahead_control.bags.cdr_decode` gather their fields for all of them at once.
 
 A chunk written without a message index is walked record by record; ``zstd`` and
 ``lz4`` chunks are decompressed. Chunks are gathered into batches of about
@@ -34,7 +34,7 @@ from pathlib import Path
 import struct
 from typing import BinaryIO, Collection, Iterator, Optional
 
-from lookahead_control.bags import BagError
+from lookahead_control.bags.rosbag_io import BagError
 import numpy as np
 import numpy.typing as npt
 import yaml

@@ -18,9 +18,9 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-from lookahead_control.params import ControllerParams, VehicleParams
-from lookahead_control.schedule import exact_look_ahead, paper_look_ahead
-from lookahead_control.zero_dynamics import zero_dynamics
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.schedule import exact_look_ahead, paper_look_ahead
+from lookahead_control.core.zero_dynamics import zero_dynamics
 import numpy as np
 
 

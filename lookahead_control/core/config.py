@@ -27,7 +27,7 @@ import dataclasses
 from pathlib import Path
 from typing import Any, Mapping, Type, TypeVar
 
-from lookahead_control.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 import yaml
 
 
@@ -41,7 +41,7 @@ class ConfigError(ValueError):
 
 def source_config_dir() -> Path:
     """Return the ``config/`` folder of the source tree (or of the installed share)."""
-    here = Path(__file__).resolve().parent.parent / 'config'
+    here = Path(__file__).resolve().parents[2] / 'config'
     if here.is_dir():
         return here
     try:

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import math
 from typing import Any, Optional
 
-from lookahead_control.params import check_finite, check_range, ParameterError
+from lookahead_control.core.params import check_finite, check_range, ParameterError
 
 INPUT_NAMES = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 import cmath
 from typing import NamedTuple
 
-from lookahead_control.params import VehicleParams
+from lookahead_control.core.params import VehicleParams
 import numpy as np
 import numpy.typing as npt
 

@@ -1,0 +1,113 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Sample types: the controller core's view of one measurement, free of ROS.
+
+Each sample carries the stamp of the message it came from (integer nanoseconds) and the
+values in SI units, REP-103 signs. :mod:`lookahead_control.ros.conversions` builds them
+from messages; :mod:`lookahead_control.bags.cdr_decode` builds them from raw bag bytes.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Sequence
+
+STEERING_JOINT = 'front_wheel_steering'
+
+
+class LateralErrorSample(NamedTuple):
+    """Lateral error ``value`` [m] measured ``distance`` [m] ahead of the CG."""
+
+    stamp_ns: int
+    distance: float
+    value: float
+
+
+class YawSample(NamedTuple):
+    """Relative yaw [rad], yaw rate [rad/s], body longitudinal acceleration [m/s^2]."""
+
+    stamp_ns: int
+    relative_yaw: float
+    yaw_rate: float
+    accel_x: float
+
+
+class VelocitySample(NamedTuple):
+    """Longitudinal and lateral body velocity [m/s]."""
+
+    stamp_ns: int
+    v_x: float
+    v_y: float
+
+
+class CurvatureSample(NamedTuple):
+    """Curvature at the CG [1/m] and its slope along the road [1/m^2]."""
+
+    stamp_ns: int
+    rho: float
+    slope: float
+
+
+def yaw_to_quaternion(yaw: float) -> tuple[float, float, float, float]:
+    """
+    Return the quaternion ``(x, y, z, w)`` of a rotation by ``yaw`` about z.
+
+    :param yaw: angle [rad].
+    :return: the quaternion.
+    """
+    return 0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)
+
+
+def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
+    """
+    Return the rotation about z of a quaternion (REP-103, counter-clockwise +).
+
+    :param x: quaternion x.
+    :param y: quaternion y.
+    :param z: quaternion z.
+    :param w: quaternion w.
+    :return: yaw [rad] in (-pi, pi].
+    """
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def curvature_from_points(stamp: int, polygon: Sequence[tuple[float, float]]
+                          ) -> CurvatureSample:
+    """
+    Return the curvature sample of (distance ahead, curvature) points.
+
+    As :func:`lookahead_control.ros.conversions.from_curvature` describes it.
+
+    :param stamp: the stamp [ns].
+    :param polygon: the points.
+    :return: the sample.
+    """
+    points: list[tuple[float, float]] = []
+    for p in sorted(polygon):
+        if not points or p[0] > points[-1][0]:     # drop repeated distances
+            points.append(p)
+    if not points:
+        return CurvatureSample(stamp, 0.0, 0.0)
+    if points[-1][0] <= 0.0:
+        return CurvatureSample(stamp, points[-1][1], 0.0)
+    i = 0
+    while i + 2 < len(points) and points[i + 1][0] <= 0.0:
+        i += 1
+    if len(points) == 1:
+        return CurvatureSample(stamp, points[0][1], 0.0)
+    (x0, k0), (x1, k1) = points[i], points[i + 1]
+    slope = (k1 - k0) / (x1 - x0)
+    return CurvatureSample(stamp, k0 + slope * max(0.0 - x0, 0.0), slope)
