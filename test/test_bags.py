@@ -15,6 +15,7 @@
 """Bags: record a real closed loop, read it two ways, recover, replay, analyze."""
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 import shutil
@@ -254,7 +255,7 @@ def test_recover_and_analyze_fail_in_one_line(tmp_path):
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
 
 
-def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001):
+def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steering=True):
     """20 m/s, y_cg = 0.1 sin(t) measured at the CG, eps_r = 0, 2 ms latency."""
     store = typestore()
 
@@ -280,8 +281,9 @@ def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001):
             conv.to_velocity(stamp, 'b', 20.0, 0.0, 0.0)))
         writer.write('/lateral_error', recv + 1, serialize_message(
             conv.to_lateral_error(stamp, 'b', 0.0, 0.1 * math.sin(2 * math.pi * t / 10))))
-        writer.write('/steering', recv + answer_delay_ns, serialize_message(
-            conv.to_steering(stamp, 0.01 * math.cos(2 * math.pi * t / 10), 0.0)))
+        if steering:
+            writer.write('/steering', recv + answer_delay_ns, serialize_message(
+                conv.to_steering(stamp, 0.01 * math.cos(2 * math.pi * t / 10), 0.0)))
     writer.close()
 
 
@@ -471,3 +473,30 @@ def test_direct_cdr_decoding_equals_the_general_deserializer():
         assert cdr.named_values(cdr_bytes(named)) == (stamp, conv.from_named_values(
             general(named)))
         assert cdr.steering(cdr_bytes(named)) == conv.from_steering(general(named))
+
+
+def test_replay_offline_json_is_strict_json_when_nothing_compares(tmp_path):
+    # issue 12 item 12: replay --offline --json wrote NaN (invalid JSON)
+    _synthetic_bag(tmp_path / 'quiet', steps=200, steering=False)
+    out = _tool('lookahead_control.bags.replay_node', tmp_path / 'quiet', '--offline',
+                '--json', tmp_path / 'report.json')
+    assert out.returncode == 0, out.stderr
+
+    def refuse(name):
+        raise ValueError(f'not JSON: {name}')
+
+    report = json.loads((tmp_path / 'report.json').read_text(), parse_constant=refuse)
+    assert report['compared'] == 0 and report['max_diff_rad'] is None
+
+
+def test_the_default_bag_name_has_the_speed_of_the_run():
+    # issue 12 item 12: the default bag name said speed 0 for a 37 m/s run
+    from lookahead_control.core.config import source_config_dir
+    from lookahead_control.ros.closed_loop import default_bag
+    scenarios = source_config_dir() / 'scenarios'
+    assert default_bag(scenarios / 'paper_r400.yaml', 'paper', 0.0).name.startswith(
+        'paper_r400_paper_37_')
+    assert default_bag(scenarios / 'paper_r400.yaml', 'fixed', 20.0).name.startswith(
+        'paper_r400_fixed_20_')
+    assert default_bag(scenarios / 's_curve_accel.yaml', 'paper', 0.0).name.startswith(
+        's_curve_accel_paper_15_')
