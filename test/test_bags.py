@@ -255,7 +255,8 @@ def test_recover_and_analyze_fail_in_one_line(tmp_path):
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
 
 
-def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steering=True):
+def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steering=True,
+                   stall=(math.inf, 0), twin=False):
     """20 m/s, y_cg = 0.1 sin(t) measured at the CG, eps_r = 0, 2 ms latency."""
     store = typestore()
 
@@ -275,12 +276,15 @@ def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steerin
             continue
         stamp = k * 10_000_000
         t = stamp * 1e-9
-        recv = start + stamp
+        recv = start + stamp + (stall[1] if k >= stall[0] else 0)
         writer.write('/yaw', recv, serialize_message(conv.to_yaw(stamp, 'b', 0, 0, 0)))
         writer.write('/velocity', recv, serialize_message(
             conv.to_velocity(stamp, 'b', 20.0, 0.0, 0.0)))
         writer.write('/lateral_error', recv + 1, serialize_message(
             conv.to_lateral_error(stamp, 'b', 0.0, 0.1 * math.sin(2 * math.pi * t / 10))))
+        if twin:                              # a second source on the same topic
+            writer.write('/lateral_error', recv + 3, serialize_message(
+                conv.to_lateral_error(stamp, 'b', 0.0, 0.5)))
         if steering:
             writer.write('/steering', recv + answer_delay_ns, serialize_message(
                 conv.to_steering(stamp, 0.01 * math.cos(2 * math.pi * t / 10), 0.0)))
@@ -338,7 +342,30 @@ def test_a_gap_in_every_input_is_named(tmp_path):
     row = bag_row(run, run_series(run))
     assert row['max_gap_s'] == pytest.approx(0.51, abs=1e-9)
     for role in ('lateral_error', 'yaw', 'velocity', 'steering'):
-        assert f'{role} 0.51 s at t = 4.99 s' in row['notes']
+        assert f'{role} (stamps) 0.51 s at t = 4.99 s' in row['notes']
+        assert f'{role} (arrival) 0.51 s at t = 4.99 s' in row['notes']
+
+
+def test_a_stalled_link_is_a_gap_even_with_contiguous_stamps(tmp_path):
+    # a publisher or link that stalls 0.5 s and then delivers every step late
+    _synthetic_bag(tmp_path / 'stall', steps=400, stall=(200, 500_000_000))
+    run = load_run(tmp_path / 'stall')
+    row = bag_row(run, run_series(run))
+    assert row['max_gap_s'] == pytest.approx(0.51, abs=1e-6)
+    assert 'lateral_error (arrival) 0.51 s at t = 1.99 s' in row['notes']
+    assert '(stamps)' not in row['notes']
+
+
+def test_two_sources_on_one_topic_are_named(tmp_path):
+    # found while attacking: concurrent closed_loop runs on one ROS domain record each
+    # other's topics; the series mixed two runs without a word
+    _synthetic_bag(tmp_path / 'twin', steps=300, twin=True)
+    run = load_run(tmp_path / 'twin')
+    row = bag_row(run, run_series(run))
+    assert 'conflicting: lateral_error 300 stamps recorded twice' in row['notes']
+    _synthetic_bag(tmp_path / 'one', steps=300)
+    run = load_run(tmp_path / 'one')
+    assert 'conflicting' not in bag_row(run, run_series(run))['notes']
 
 
 def test_answers_recorded_before_their_question_give_no_latency(tmp_path):

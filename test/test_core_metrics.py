@@ -184,3 +184,15 @@ def test_too_short_runs_give_no_metrics_but_counts_and_a_reason():
 def test_every_quantity_has_a_symbol_and_a_unit():
     for name, q in QUANTITIES.items():
         assert q.symbol and q.unit and q.label and q.meaning, name
+
+
+def test_a_missing_wheel_angle_sample_does_not_inflate_its_rate():
+    t = np.arange(0.0, 2.0, 0.01)
+    wheel = 0.5 * t                                   # 0.5 rad/s
+    wheel[50:53] = np.nan                             # three samples not recorded
+    channels = {name: np.zeros(t.size) for name in ('y_cg', 'eps_r', 'rho', 'd_v',
+                                                    'y_ref', 'steering_cmd')}
+    channels['steering'] = wheel
+    row = run_metrics(t, channels, 1.96)
+    assert row['peak_steering_rate_rad_per_s'] == pytest.approx(0.5)
+    assert row['peak_steering_rad'] == pytest.approx(0.5 * t[-1])

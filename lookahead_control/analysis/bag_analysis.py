@@ -44,6 +44,7 @@ import yaml
 Array = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 SERIES = ('y_cg', 'eps_r', 'rho', 'v_x', 'd_v', 'y_ref', 'error', 'steering_cmd', 'steering')
+STATE_FIELDS = ('s', 'y_cg', 'eps_r', 'v_y', 'r', 'v_x')
 GAP_FACTOR = 5.0
 GAP_MIN = 0.05
 MIN_LATENCY_SAMPLES = 10
@@ -165,9 +166,10 @@ def run_series(run: RunData) -> RunSeries:
     answered = steering_at >= 0
     latency = ((run.steering.recv_ns[steering_at[answered]] - received[answered]) * 1e-9
                ).astype(float)
-    filled = {name: (_forward_fill(channels[name])
-                     if not np.isnan(channels[name]).all() else channels[name])
-              for name in SERIES}
+    # the plant's wheel angle is a measurement: a missing one stays missing (NaN); the
+    # rest carry the last value (the command the plant holds)
+    filled = {name: (channels[name] if name == 'steering' else
+                     _forward_fill(channels[name])) for name in SERIES}
     return RunSeries((kept - kept[0]) * 1e-9, filled, latency, int((~answered).sum()))
 
 
@@ -182,27 +184,65 @@ def recorder_drops(run: RunData) -> Optional[int]:
 
 def input_gaps(run: RunData) -> dict[str, tuple[float, float]]:
     """
-    Return the largest gap between stamps of each input and of the steering.
+    Return the largest gap of each input and of the steering, in stamps or in arrival.
 
-    A gap is a stamp step longer than :data:`GAP_FACTOR` times the topic's median step
-    and than :data:`GAP_MIN`.
+    A gap is a step between consecutive stamps, or between consecutive receive times
+    (a stalled publisher or link: the stamps may be contiguous), longer than
+    :data:`GAP_FACTOR` times the topic's median step and than :data:`GAP_MIN`.
 
     :param run: the run.
-    :return: topic role -> ``(largest gap [s], its start from the first lateral stamp
-        [s])``, only roles with a gap.
+    :return: ``'<role> (stamps)'`` or ``'<role> (arrival)'`` -> ``(gap [s], its start
+        [s] from the first lateral-error stamp or receive time)``, only where there is
+        a gap.
     """
     lateral = run.inputs.get('lateral_error', Samples.empty())
-    origin = int(lateral.stamp_ns.min()) if len(lateral) else 0
+    origins = ((int(lateral.stamp_ns.min()), int(lateral.recv_ns.min())) if len(lateral)
+               else (0, 0))
     out = {}
     for role, samples in (*run.inputs.items(), ('steering', run.steering)):
-        stamps = np.unique(samples.stamp_ns)
-        if stamps.size < 3:
+        for kind, times, origin in (('stamps', samples.stamp_ns, origins[0]),
+                                    ('arrival', samples.recv_ns, origins[1])):
+            ordered = np.unique(times)
+            if ordered.size < 3:
+                continue
+            steps = np.diff(ordered) * 1e-9
+            limit = max(GAP_FACTOR * float(np.median(steps)), GAP_MIN)
+            worst = int(np.argmax(steps))
+            if steps[worst] > limit:
+                out[f'{role} ({kind})'] = (float(steps[worst]),
+                                           (int(ordered[worst]) - origin) * 1e-9)
+    return out
+
+
+def conflicting_stamps(run: RunData) -> dict[str, int]:
+    """
+    Return, per topic role, how many stamps were recorded twice with different values.
+
+    A re-sent message repeats its values; different values under one stamp mean two
+    sources (e.g. another run on the same ROS domain), whose steps the series mixes.
+
+    :param run: the run.
+    :return: role -> number of conflicting stamps, only roles with some.
+    """
+    out = {}
+    for role, samples in (*run.inputs.items(), ('steering', run.steering),
+                          ('ground_truth', run.truth)):
+        if len(samples) < 2 or not samples.values:
             continue
-        steps = np.diff(stamps) * 1e-9
-        limit = max(GAP_FACTOR * float(np.median(steps)), GAP_MIN)
-        worst = int(np.argmax(steps))
-        if steps[worst] > limit:
-            out[role] = (float(steps[worst]), (int(stamps[worst]) - origin) * 1e-9)
+        order = np.lexsort((samples.order, samples.stamp_ns))
+        stamps = samples.stamp_ns[order]
+        same = stamps[1:] == stamps[:-1]
+        if not same.any():
+            continue
+        differ = np.zeros(same.shape, dtype=bool)
+        # the simulator re-sends a step with the command it then knows: compare its state
+        names = (STATE_FIELDS if role == 'ground_truth' else samples.values)
+        for name in names:
+            v = samples.values.get(name, np.full(len(samples), np.nan))[order]
+            differ |= ~((v[1:] == v[:-1]) | (np.isnan(v[1:]) & np.isnan(v[:-1])))
+        count = np.unique(stamps[1:][same & differ]).size
+        if count:
+            out[role] = int(count)
     return out
 
 
@@ -309,6 +349,12 @@ def bag_row(run: RunData, series: RunSeries,
     row['dropped'] = -1 if drops is None else drops
     if drops is None:
         notes.append('dropped: the recorder did not count lost messages (-1)')
+    conflicts = conflicting_stamps(run)
+    if conflicts:
+        notes.append('conflicting: ' + ', '.join(
+            f'{role} {count} stamps recorded twice with different values'
+            for role, count in conflicts.items()) + ' (two sources, e.g. another run on '
+            'the same ROS domain: the metrics mix them)')
     gaps = input_gaps(run)
     row['max_gap_s'] = max((g for g, _ in gaps.values()), default=0.0)
     if gaps:

@@ -421,9 +421,13 @@ def run_metrics(time: Array, channels: Mapping[str, Array], d_s: float) -> dict[
                yaw_settling_s=yaw.settling_time)
     for name, unit in (('steering_cmd', 'commanded'), ('steering', 'wheel angle')):
         series = channels.get(name, np.zeros(0))
-        known = series.size == time.size and enough and not np.isnan(series).all()
-        row[f'peak_{name}_rad'] = peak(series) if known else math.nan
-        row[f'peak_{name}_rate_rad_per_s'] = peak(rate(time, series)) if known else math.nan
+        valid = ~np.isnan(series) if series.size == time.size else np.zeros(0, dtype=bool)
+        known = enough and int(valid.sum()) >= 2
+        # rates between consecutive samples only: a missing sample is not a hold
+        steps = valid[1:] & valid[:-1]
+        row[f'peak_{name}_rad'] = peak(series[valid]) if known else math.nan
+        row[f'peak_{name}_rate_rad_per_s'] = (peak(rate(time, series)[steps])
+                                              if known else math.nan)
         if enough and not known:
             notes.append(f'{name}: the plant does not report its {unit}')
     row['d_v_final_m'] = float(channels['d_v'][-1]) if time.size else math.nan

@@ -187,10 +187,28 @@ def _chunk_records(content: bytes) -> bytes:
     return records
 
 
+def _has_other_records(records: bytes, indexes: dict[int, npt.NDArray[np.void]]) -> bool:
+    """Return whether a chunk holds records besides the messages its index lists."""
+    view = np.frombuffer(records, dtype=np.uint8)
+    total = 0
+    for idx in indexes.values():
+        at = idx['offset'].astype(np.int64)
+        if not at.size:
+            continue
+        if int(at.max()) + 9 > len(records) or int(at.min()) < 0:
+            raise ValueError('message index points past the chunk')
+        sizes = view[at[:, None] + np.arange(1, 9)].copy().view('<u8')[:, 0]
+        total += int(sizes.sum()) + 9 * at.size
+    return total < len(records)
+
+
 def _add_chunk(reader: _Reader, batch: _Batch, records: bytes,
                indexes: dict[int, npt.NDArray[np.void]]) -> None:
     """Add one chunk's wanted messages to the batch."""
     unknown = [cid for cid in indexes if cid not in reader.channels]
+    if indexes and not unknown and _has_other_records(records, indexes):
+        # a chunk may define a channel (or schema) before any message of it: learn it
+        reader.walk_chunk(records)
     if not indexes or unknown:
         # no message index (or channels defined inside the chunk): walk its records
         walked = reader.walk_chunk(records)
