@@ -139,3 +139,25 @@ def test_paper_reproduction_tables_are_what_paper_scenario_computes():
                     assert math.isnan(value), (plant, row, name)
                 else:
                     assert _same(stated, value), (plant, row, name, value)
+
+
+def test_paper_reproduction_prose_numbers():
+    from lookahead_control.core.params import ControllerParams
+    text = (DOC.parent / 'paper_reproduction.md').read_text(encoding='utf-8')
+    ctl, rho = ControllerParams(), 1.0 / 400.0
+    d_30 = float(paper_look_ahead(30.0, 0.0, VEHICLE)[0])
+    d_37 = float(paper_look_ahead(37.0, 0.0, VEHICLE)[0])
+    real = [zero_dynamics(VEHICLE, v, d).roots[0].real for v, d in ((30.0, d_30),
+                                                                    (37.0, d_37))]
+    assert 'real parts -2.2 to -1.8 1/s at 30-37 m/s' in text
+    assert (round(real[0], 1), round(real[1], 1)) == (-2.2, -1.8)
+    jump = d_37 * 37.0 * rho
+    assert f'{jump:.2g} m/s at 37 m/s' in text
+    beta_1 = VEHICLE.c_f * (1.0 / VEHICLE.mass + VEHICLE.l1 * d_37 / VEHICLE.yaw_inertia)
+    assert f'{ctl.k_d * jump / beta_1:.2g} rad at 37 m/s' in text
+    gap = max(float(exact_look_ahead(v, 0.0, VEHICLE)[0] - paper_look_ahead(v, 0.0, VEHICLE)[0])
+              for v in [15.0 + 0.5 * i for i in range(45)])
+    assert 'by less than 0.2 m over 15-37 m/s' in text and gap < 0.2
+    inside = -arc_offset(-rho, d_37, 0.0, exact=False) + d_37 * steady_relative_yaw(
+        VEHICLE, 37.0, -rho)
+    assert f'curve ({inside:.2g} m at 37 m/s on R = 400 m)' in text

@@ -117,7 +117,8 @@ def write_report(runs: Sequence[tuple[str, SimResult]], rows: Sequence[dict[str,
             series = [{'label': f'{r.scenario.speed.initial:g} m/s', 'time': r.time,
                        **r.channels} for lbl, r in runs if lbl == label]
             png = plot_runs(series, out / f'fig_{label}.png',
-                            f'{label} d_v: 2 s straight, then right curve R = 400 m')
+                            f'{label} d_v, {runs[0][1].plant.model} plant: 2 s straight, '
+                            'then right curve R = 400 m')
             text.append(f'![{label}]({png.name})')
     report.write_text('\n'.join(text) + '\n', encoding='utf-8')
     return report
