@@ -182,7 +182,7 @@ def recorder_drops(run: RunData) -> Optional[int]:
     return int(sum((entry or {}).get('dropped') or 0 for entry in report.values()))
 
 
-def input_gaps(run: RunData) -> dict[str, tuple[float, float]]:
+def input_gaps(run: RunData, arrival: bool = True) -> dict[str, tuple[float, float]]:
     """
     Return the largest gap of each input and of the steering, in stamps or in arrival.
 
@@ -191,6 +191,8 @@ def input_gaps(run: RunData) -> dict[str, tuple[float, float]]:
     :data:`GAP_FACTOR` times the topic's median step and than :data:`GAP_MIN`.
 
     :param run: the run.
+    :param arrival: also look at receive times (not for a lockstep simulation, whose
+        plant waits for the controller: a stall there delays no step).
     :return: ``'<role> (stamps)'`` or ``'<role> (arrival)'`` -> ``(gap [s], its start
         [s] from the first lateral-error stamp or receive time)``, only where there is
         a gap.
@@ -200,8 +202,9 @@ def input_gaps(run: RunData) -> dict[str, tuple[float, float]]:
                else (0, 0))
     out = {}
     for role, samples in (*run.inputs.items(), ('steering', run.steering)):
-        for kind, times, origin in (('stamps', samples.stamp_ns, origins[0]),
-                                    ('arrival', samples.recv_ns, origins[1])):
+        kinds = (('stamps', samples.stamp_ns, origins[0]),
+                 ('arrival', samples.recv_ns, origins[1]))
+        for kind, times, origin in kinds[:2 if arrival else 1]:
             ordered = np.unique(times)
             if ordered.size < 3:
                 continue
@@ -355,7 +358,7 @@ def bag_row(run: RunData, series: RunSeries,
             f'{role} {count} stamps recorded twice with different values'
             for role, count in conflicts.items()) + ' (two sources, e.g. another run on '
             'the same ROS domain: the metrics mix them)')
-    gaps = input_gaps(run)
+    gaps = input_gaps(run, arrival=run.plant_params.get('mode') != 'lockstep')
     row['max_gap_s'] = max((g for g, _ in gaps.values()), default=0.0)
     if gaps:
         notes.append('gaps: ' + ', '.join(f'{role} {gap:.3g} s at t = {start:.3g} s'

@@ -27,6 +27,7 @@ from lookahead_control.analysis.paper_tables import schedule_table, speed_grid
 from lookahead_control.bags.run_data import load_run, RunData, TOPICS
 from lookahead_control.core.cli import (assignments, markdown_table, run_tool, ToolError,
                                         write_csv, write_json)
+from lookahead_control.core.config import dataclass_from_params
 from lookahead_control.core.params import VehicleParams
 
 LABEL_COLUMNS = ('bag', 'scenario', 'plant', 'mode', 'rate_hz', 'schedule', 'speed_mps')
@@ -70,6 +71,24 @@ def analyze(bags: Sequence[Path], topics: dict[str, str] | None = None
     return out
 
 
+def curve_vehicle(runs: Sequence[RunData]) -> tuple[VehicleParams, str]:
+    """
+    Return the vehicle of the d_v-vs-speed curves and a sentence saying which it is.
+
+    :param runs: the analysed runs.
+    :return: the bags' vehicle if they all record the same one, else the default.
+    """
+    recorded = {tuple(sorted((k, v) for k, v in run.controller_params.items()
+                             if k.startswith('vehicle.'))) for run in runs}
+    if len(recorded) == 1 and next(iter(recorded)):
+        vehicle = dataclass_from_params(VehicleParams, dict(next(iter(recorded))), 'vehicle',
+                                        'bag parameters')
+        return vehicle, (f"d_v against speed: the curves are the bags' vehicle "
+                         f'(d_s = {vehicle.d_s:g} m, eta = {vehicle.eta:.4g} s^2/m).')
+    return VehicleParams(), ('d_v against speed: the bags record no vehicle or several; '
+                             'the curves are the default vehicle (assumed).')
+
+
 def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
                   out: Path, plots: bool = True, title: str = 'Recorded runs') -> Path:
     """
@@ -110,7 +129,9 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
         png = plot_runs(overlay, out / 'overlay.png', 'all bags')
         text.append(f'![overlay]({png.name})')
         top = max(float(s.channels['v_x'].max()) for _, s, _ in results)
-        curve = schedule_table(VehicleParams(), speed_grid(1.0, max(top, 40.0), 0.5))
+        vehicle, said = curve_vehicle([run for run, _, _ in results])
+        text.append(said)
+        curve = schedule_table(vehicle, speed_grid(1.0, max(top, 40.0), 0.5))
         png = plot_measured_look_ahead(curve, speed_points([s for _, s, _ in results]),
                                        out / 'look_ahead_vs_speed.png')
         text.append(f'![d_v vs speed]({png.name})')
