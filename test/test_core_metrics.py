@@ -196,3 +196,10 @@ def test_a_missing_wheel_angle_sample_does_not_inflate_its_rate():
     row = run_metrics(t, channels, 1.96)
     assert row['peak_steering_rate_rad_per_s'] == pytest.approx(0.5)
     assert row['peak_steering_rad'] == pytest.approx(0.5 * t[-1])
+
+
+def test_plot_lines_are_distinguishable():
+    # issue 12 item 11: more than 10 runs reused the colours of the first ten
+    from lookahead_control.analysis.plotting import line_styles
+    styles = line_styles(25)
+    assert len({(s['color'], s['linestyle']) for s in styles}) == 25
