@@ -205,7 +205,9 @@ def input_gaps(run: RunData, arrival: bool = True) -> dict[str, tuple[float, flo
         kinds = (('stamps', samples.stamp_ns, origins[0]),
                  ('arrival', samples.recv_ns, origins[1]))
         for kind, times, origin in kinds[:2 if arrival else 1]:
-            ordered = np.unique(times)
+            ordered = np.sort(times)        # (np.unique hashes: seconds on long bags)
+            if ordered.size:
+                ordered = ordered[np.concatenate([[True], ordered[1:] != ordered[:-1]])]
             if ordered.size < 3:
                 continue
             steps = np.diff(ordered) * 1e-9
