@@ -185,7 +185,7 @@ class Road:
         """
         check_range('path_spacing', spacing, 0.0, 1.0e4, low_open=True, unit='m')
         s = np.arange(0.0, length, spacing)
-        return self.poses(np.append(s, length) if length - s[-1] > 1e-9 else s)
+        return self.poses(list(np.append(s, length) if length - s[-1] > 1e-9 else s))
 
     def global_pose(self, s: float, lateral: float,
                     relative_yaw: float) -> tuple[float, float, float]:

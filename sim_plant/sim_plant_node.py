@@ -20,9 +20,9 @@ Publishes the controller's input contract (``lateral_error``, ``yaw``, ``velocit
 ``steering``. With ``output: vehicle`` it speaks like a vehicle instead: ``odometry``
 (``nav_msgs/Odometry`` of the CG in ``map_frame``, body twist), ``imu`` and the
 scenario's road as a ``path`` (``nav_msgs/Path``, transient local, once), for
-``path_bridge`` to turn into the contract. ``lockstep``: publish step k, wait for the command stamped k, integrate,
-repeat (a missed ``deadline`` holds the last command and is counted). ``realtime``:
-one step per wall-clock period with the latest command.
+``path_bridge`` to turn into the contract. ``lockstep``: publish step k, wait for the
+command stamped k, integrate, repeat (a missed ``deadline`` holds the last command and is
+counted). ``realtime``: one step per wall-clock period with the latest command.
 """
 
 from __future__ import annotations

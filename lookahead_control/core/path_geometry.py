@@ -294,7 +294,7 @@ class ReferencePath:
 
     def nearest_segment(self, x: float, y: float, heading: float, lo_s: float = -math.inf,
                         hi_s: float = math.inf, hint_s: Optional[float] = None,
-                        ambiguity: float = 0.0) -> tuple[int, float, bool]:
+                        ambiguity: float = 0.0) -> tuple[float, float, bool]:
         """
         Return the nearest polyline point among the segments overlapping ``[lo_s, hi_s]``.
 
@@ -338,8 +338,8 @@ class ReferencePath:
         elif i0 + best == n_seg - 1 and t[best] == 1.0:
             s_found = float(self.s[n_seg - 1] + (rx[best] * d[best, 0] + ry[best] * d[best, 1])
                             / self.seg_length[n_seg - 1])
-        edge = ((best == 0 and t[best] == 0.0 and i0 > 0)
-                or (best == len(t) - 1 and t[best] == 1.0 and i1 < n_seg))
+        edge = bool((best == 0 and t[best] == 0.0 and i0 > 0)
+                    or (best == len(t) - 1 and t[best] == 1.0 and i1 < n_seg))
         return s_found, float(dist[best]), edge
 
     def project(self, x: float, y: float, s0: float) -> tuple[PathPoint, float]:

@@ -398,7 +398,7 @@ class PathBridgeNode(LifecycleNode):
             reasons.append(', '.join(f'{k}: {v}' for k, v in sorted(self.events.items()))
                            + f' (last: {self.last_event})')
         self.events = {}
-        counts = dict(self.counters)
+        counts: dict[str, float] = dict(self.counters)
         if self.path is not None:
             counts.update(path_points=self.path.size, path_length=round(self.path.length, 3))
         values = [KeyValue(key=k, value=str(v)) for k, v in counts.items()]

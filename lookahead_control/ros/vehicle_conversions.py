@@ -139,7 +139,8 @@ def to_path(stamp_ns: int, frame_id: str, points: Sequence[tuple[float, float, f
     poses = []
     for x, y, heading in points:
         pose = PoseStamped()
-        pose.header = msg.header
+        pose.header.stamp = msg.header.stamp
+        pose.header.frame_id = frame_id
         pose.pose.position.x, pose.pose.position.y = float(x), float(y)
         o = pose.pose.orientation
         o.x, o.y, o.z, o.w = yaw_to_quaternion(float(heading))
