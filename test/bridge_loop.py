@@ -22,13 +22,12 @@ sim_plant publishes in contract mode (the offline runner ``closed_loop_sim.run``
 it feeds the curvature's rate forward, the node only with ``use_curvature_preview``).
 """
 
-import numpy as np
-
 from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.path_geometry import PathFollower, PathParams, ReferencePath
 from lookahead_control.core.samples import (curvature_from_points, LateralErrorSample,
                                             VelocitySample, YawSample)
+import numpy as np
 from sim_plant.closed_loop_sim import check_steps, linear_plant_stepper, measure
 from sim_plant.vehicle_model import PlantParams
 
