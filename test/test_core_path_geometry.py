@@ -317,3 +317,26 @@ def test_path_params_validate_themselves():
 def test_cg_pose_moves_the_rear_axle_frame_forward():
     x, y, v_y = cg_pose(1.0, 2.0, math.pi / 2, 0.1, 0.2, 1.5)
     assert (x, y, v_y) == pytest.approx((1.0, 3.5, 0.1 + 1.5 * 0.2))
+
+
+def test_map_coordinates_far_from_the_origin_lose_nothing():
+    # UTM-sized map coordinates: the fit works on offsets from each vertex
+    points = circle(-100.0, 1.0)
+    road = Road([Segment('arc', 1000.0, -0.01, -0.01)])
+    near, far = (PathFollower(ReferencePath(points + offset))
+                 for offset in (np.zeros(2), np.array([512_345.0, 5_412_345.0])))
+    for k, s in enumerate(np.arange(20.0, 60.0, 0.37)):
+        x, y, yaw = road.global_pose(s, 0.25, 0.01)
+        a = near.locate(k, x, y, yaw, 37.0)
+        b = far.locate(k, x + 512_345.0, y + 5_412_345.0, yaw, 37.0)
+        assert (b.lateral_error, b.relative_yaw, b.curvature) == pytest.approx(
+            (a.lateral_error, a.relative_yaw, a.curvature), abs=1e-8)
+
+
+def test_slow_odometry_at_speed_is_no_jump():
+    # 10 Hz odometry at 37 m/s: 3.7 m between messages, predicted from the twist
+    road = Road([Segment('straight', 100.0), Segment('arc', 900.0, 0.005, 0.005)])
+    follower = PathFollower(ReferencePath(road.sample(1000.0, 0.5)[:, :2]))
+    lanes = drive(follower, road, np.arange(0.0, 800.0, 3.7), 0.2, 0.0, period=0.1,
+                  speed=37.0)
+    assert all(lane.note == '' for lane in lanes) and follower.rematches == 0
