@@ -331,6 +331,17 @@ def test_child_frame_and_lifecycle(bridge):
     assert len(node.out) == 4
 
 
+def test_path_durability_matches_latched_and_volatile_planners(bridge):
+    from rclpy.qos import DurabilityPolicy
+    # transient local receives a path published once; Nav2's plan is volatile, and a
+    # transient-local subscription would never match it
+    for durability, policy in (('transient_local', DurabilityPolicy.TRANSIENT_LOCAL),
+                               ('volatile', DurabilityPolicy.VOLATILE)):
+        node = bridge(path_durability=durability)
+        path_sub = [s for s in node._subs if s.topic_name == '/path'][0]
+        assert path_sub.qos_profile.durability == policy
+
+
 def test_parameters_are_checked_and_a_new_fit_window_refits_the_path(bridge):
     node = bridge()
     node.on_path(road_path())

@@ -46,6 +46,7 @@ Pure Python and numpy; no ROS.
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 import math
 from typing import Optional, Sequence
@@ -214,23 +215,25 @@ class ReferencePath:
             self.cusp_at = float(self.s[-1])
         self.length = float(self.s[-1])
         self.size = len(pts)
-        self._coeffs = np.zeros((self.size, 2, 4))
-        self._fitted = np.zeros(self.size, dtype=bool)
+        # per message only a few vertices are evaluated: plain floats, fitted on first use
+        self._s_list = self.s.tolist()
+        self._fits: list[Optional[tuple[float, ...]]] = [None] * self.size
 
     # -- smooth fit -------------------------------------------------------------------
 
-    def fit(self, i: int) -> Array:
+    def fit(self, i: int) -> tuple[float, ...]:
         """
-        Return the local cubic at vertex ``i``: ``coeffs[axis, k]`` of ``u^k``.
+        Return the local cubic at vertex ``i``: ``(x0, x1, x2, x3, y0, y1, y2, y3)``.
 
-        ``u`` is the chord length from vertex ``i``; axis 0 is x, axis 1 is y. Fitted on
-        first use and kept.
+        ``x(u) = x0 + x1 u + x2 u^2 + x3 u^3`` and likewise y, ``u`` the chord length from
+        vertex ``i``. Fitted on first use and kept.
 
         :param i: the vertex.
-        :return: shape (2, 4).
+        :return: the eight coefficients.
         """
-        if self._fitted[i]:
-            return self._coeffs[i]
+        cached = self._fits[i]
+        if cached is not None:
+            return cached
         s, h, n = self.s, self.params.fit_half_window, self.size
         lo = min(int(np.searchsorted(s, s[i] - h, 'left')), max(i - 2, 0))
         hi = max(int(np.searchsorted(s, s[i] + h, 'right')), min(i + 3, n))
@@ -241,13 +244,12 @@ class ReferencePath:
         solution, *_ = np.linalg.lstsq(basis, self.points[lo:hi], rcond=None)
         coeffs = np.zeros((2, 4))
         coeffs[:, :degree + 1] = (solution / scale ** np.arange(degree + 1)[:, None]).T
-        self._coeffs[i] = coeffs
-        self._fitted[i] = True
-        return coeffs
+        fitted = tuple(coeffs.ravel().tolist())
+        self._fits[i] = fitted
+        return fitted
 
     def _local(self, i: int, u: float) -> tuple[float, float, float, float]:
-        c = self.fit(i)
-        (x0, x1, x2, x3), (y0, y1, y2, y3) = c[0], c[1]
+        x0, x1, x2, x3, y0, y1, y2, y3 = self._fits[i] or self.fit(i)
         x = x0 + u * (x1 + u * (x2 + u * x3))
         y = y0 + u * (y1 + u * (y2 + u * y3))
         dx, dy = x1 + u * (2.0 * x2 + 3.0 * u * x3), y1 + u * (2.0 * y2 + 3.0 * u * y3)
@@ -269,12 +271,11 @@ class ReferencePath:
         if s <= 0.0 or s >= self.length:
             i = 0 if s <= 0.0 else self.size - 1
             x, y, heading, curvature = self._local(i, 0.0)
-            u = s - float(self.s[i])
+            u = s - self._s_list[i]
             return PathPoint(s, x + u * math.cos(heading), y + u * math.sin(heading),
                              heading, curvature)
-        i = int(np.searchsorted(self.s, s, 'right')) - 1
-        i = min(max(i, 0), self.size - 2)
-        s0, s1 = float(self.s[i]), float(self.s[i + 1])
+        i = min(max(bisect.bisect_right(self._s_list, s) - 1, 0), self.size - 2)
+        s0, s1 = self._s_list[i], self._s_list[i + 1]
         w = (s - s0) / (s1 - s0)
         xa, ya, ha, ka = self._local(i, s - s0)
         xb, yb, hb, kb = self._local(i + 1, s - s1)

@@ -183,8 +183,9 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     finally:
         sim_code = stop(sim, 'sim_plant') if sim.poll() is None else sim.returncode
         finished_in_time = time.monotonic() - start <= cfg.timeout
-        ctl_code = stop(controller, 'controller')
+        # the bridge right after the simulator: it reports silent odometry after 0.5 s
         bridge_code = stop(bridge, 'path_bridge') if bridge is not None else 0
+        ctl_code = stop(controller, 'controller')
         rec_code = stop(recorder, 'record') if recorder is not None else 0
     if (sim_code != 0 or ctl_code != 0 or rec_code != 0 or bridge_code != 0
             or not finished_in_time):
