@@ -340,3 +340,17 @@ def test_slow_odometry_at_speed_is_no_jump():
     lanes = drive(follower, road, np.arange(0.0, 800.0, 3.7), 0.2, 0.0, period=0.1,
                   speed=37.0)
     assert all(lane.note == '' for lane in lanes) and follower.rematches == 0
+
+
+def test_a_parent_frame_twist_is_told_from_a_body_one():
+    from lookahead_control.core.path_geometry import twist_in_parent_frame
+    yaw, dt = 1.2, 0.01
+    dx, dy = 20.0 * math.cos(yaw) * dt, 20.0 * math.sin(yaw) * dt
+    assert not twist_in_parent_frame(dx, dy, dt, yaw, 20.0, 0.0)          # body: fine
+    assert twist_in_parent_frame(dx, dy, dt, yaw, dx / dt, dy / dt)        # parent frame
+    # heading along x the two readings agree: nothing to tell; slow or stale: no verdict
+    assert not twist_in_parent_frame(0.2, 0.0, dt, 0.0, 20.0, 0.0)
+    assert not twist_in_parent_frame(0.001, 0.0, dt, yaw, 0.1, 0.0)
+    assert not twist_in_parent_frame(dx, dy, 0.0, yaw, dx / dt, dy / dt)
+    # a 5 m relocalization jump fits neither reading
+    assert not twist_in_parent_frame(dx + 5.0, dy, dt, yaw, dx / dt, dy / dt)

@@ -15,6 +15,7 @@
 """The path bridge node and sim_plant's vehicle output: private context, callbacks called."""
 
 import math
+from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from lookahead_control.ros import conversions as conv
@@ -28,6 +29,7 @@ from sim_plant.road import Road, Segment
 
 ROAD = Road([Segment('straight', 50.0), Segment('arc', 300.0, -0.01, -0.01)])
 PERIOD = 10_000_000
+ROOT_SCENARIO = Path(__file__).resolve().parent.parent / 'config' / 'scenarios' / 'paper_r400.yaml'
 # the fit's bias on the R = 100 m arc at 1 m spacing, h = 5 m (test_core_path_geometry):
 # lateral 3 h^4 / (280 R^3) = 6.7e-6 m, curvature 3 h^2 / (14 R^3) = 5.4e-6 1/m
 TOL = 1e-5
@@ -403,3 +405,88 @@ def test_sim_plant_vehicle_output_through_the_bridge_equals_its_contract(context
         node.destroy_node()
         for sim in sims.values():
             sim.destroy_node()
+
+
+def test_sim_plant_vehicle_output_repeats_step_zero_until_answered(context, monkeypatch):
+    # through a bridge, step 0 may reach the bridge before the controller's subscriptions
+    # to it are matched (which the simulator cannot see): it is sent again every 50 ms
+    from sim_plant import sim_plant_node
+    node = sim_plant_node.SimPlantNode(context=context, parameter_overrides=[
+        Parameter('output', value='vehicle'), Parameter('settle', value=0.0)])
+    now = [100.0]
+    monkeypatch.setattr(sim_plant_node.time, 'monotonic', lambda: now[0])
+    sent = []
+    node.pub_odometry.publish = lambda msg: sent.append(conv.stamp_to_ns(msg.header.stamp))
+    node.connected = lambda: True
+    try:
+        node.on_poll()                              # settled: step 0 goes out
+        assert sent == [0] and node.waiting_stamp == 0
+        for _ in range(20):                         # 1 s: twice the deadline, no answer
+            now[0] += 0.051
+            node.on_poll()
+        assert sent == [0] * 21 and node.missed == 0 and node.k == 0
+        node.on_steering(conv.to_steering(0, 0.0, 0.0))
+        assert node.k == 1 and sent[-1] == PERIOD
+        now[0] += 0.6                               # later steps: the normal deadline
+        node.on_poll()
+        assert node.missed == 1
+    finally:
+        node.destroy_node()
+
+
+def test_sim_plant_vehicle_output_waits_for_the_bridge_on_odometry_and_path(context):
+    from sim_plant.sim_plant_node import SimPlantNode
+    node = SimPlantNode(context=context, parameter_overrides=[
+        Parameter('output', value='vehicle')])
+    counts = {'odometry': 1, 'path': 0}
+    try:
+        node.pub_odometry.get_subscription_count = lambda: counts['odometry']
+        node.pub_path.get_subscription_count = lambda: counts['path']
+        node.pub_truth.get_subscription_count = lambda: 0
+        node.sub_steering.get_publisher_count = lambda: 1
+        node.count_subscribers = lambda topic: 1
+        assert not node.connected()                 # nobody has the path yet
+        counts['path'] = 1
+        assert node.connected()
+    finally:
+        node.destroy_node()
+
+
+def test_closed_loop_via_bridge_commands():
+    from lookahead_control.ros.closed_loop import bridge_command, LoopConfig, node_commands
+    cfg = LoopConfig(ROOT_SCENARIO, via_bridge=True, extra_bridge_args=['-p', 'x:=1'])
+    sim, controller = node_commands(cfg)
+    assert 'output:=vehicle' in sim and 'output:=vehicle' not in controller
+    bridge = bridge_command(cfg)
+    assert bridge[2] == 'lookahead_control.ros.path_bridge_node'
+    assert bridge[bridge.index('--params-file') + 1].endswith('path_bridge.yaml')
+    assert 'use_imu:=false' in bridge and bridge[-2:] == ['-p', 'x:=1']
+    assert 'output:=vehicle' not in node_commands(LoopConfig(ROOT_SCENARIO))[0]
+
+
+def test_a_twist_in_the_parent_frame_is_refused(bridge):
+    # driving north-west (yaw 2.4 rad) with the twist given in map, not base_link
+    heading = 2.4
+    road = Road([Segment('straight', 400.0)])
+    turned = [(x * math.cos(heading), x * math.sin(heading), heading)
+              for x, _, _ in road.sample(400.0, 1.0)]
+    node = bridge()
+    node.on_path(vconv.to_path(0, 'map', turned))
+    for k in range(8):
+        s = 10.0 + 0.2 * k
+        msg = vconv.to_odometry(k * PERIOD, 'map', 'base_link', s * math.cos(heading),
+                                s * math.sin(heading), heading, 20.0 * math.cos(heading),
+                                20.0 * math.sin(heading), 0.0)
+        node.on_odometry(msg)
+    # the first messages go out (one is not proof), then none
+    assert [name for name, _ in node.out].count('lateral_error') == 5
+    assert 'twist is in the parent frame' in node.diag[-1].message
+    # the same motion with a body-frame twist is fine
+    node = bridge()
+    node.on_path(vconv.to_path(0, 'map', turned))
+    for k in range(8):
+        s = 10.0 + 0.2 * k
+        node.on_odometry(vconv.to_odometry(k * PERIOD, 'map', 'base_link',
+                                           s * math.cos(heading), s * math.sin(heading),
+                                           heading, 20.0, 0.0, 0.0))
+    assert [name for name, _ in node.out].count('lateral_error') == 8

@@ -515,3 +515,34 @@ def cg_pose(x: float, y: float, yaw: float, v_y: float, yaw_rate: float,
     if not math.isfinite(offset):
         raise ParameterError(f'base_to_cg = {offset!r} m is not finite')
     return (x + offset * math.cos(yaw), y + offset * math.sin(yaw), v_y + offset * yaw_rate)
+
+
+def twist_in_parent_frame(dx: float, dy: float, dt: float, yaw: float, v_x: float,
+                          v_y: float) -> bool:
+    """
+    Return True if a twist fits the pose's motion as a parent-frame velocity, not a body one.
+
+    REP-105 puts an odometry twist in the child (body) frame; some publishers (a world
+    frame simulator plugin, a misconfigured filter) put it in the parent frame. The two
+    agree when the yaw is near 0 and differ otherwise; this says "parent frame" only when
+    the motion over ``dt`` matches the twist as given to 10 % of the speed and the body
+    reading of it is off by 30 % or more, at 2 m/s or faster.
+
+    :param dx: motion along the parent frame's x since the last pose [m].
+    :param dy: motion along its y [m].
+    :param dt: time since the last pose [s].
+    :param yaw: yaw, mean over the interval [rad].
+    :param v_x: twist linear x [m/s].
+    :param v_y: twist linear y [m/s].
+    :return: whether the twist looks like a parent-frame velocity.
+    """
+    if not 0.0 < dt <= 0.5:
+        return False
+    wx, wy = dx / dt, dy / dt
+    speed = math.hypot(wx, wy)
+    if speed < 2.0:
+        return False
+    c, s = math.cos(yaw), math.sin(yaw)
+    body_error = math.hypot(wx - (c * v_x - s * v_y), wy - (s * v_x + c * v_y))
+    parent_error = math.hypot(wx - v_x, wy - v_y)
+    return parent_error < 0.1 * speed and body_error > 0.3 * speed

@@ -27,6 +27,7 @@ goes to its safe behaviour. The geometry is :mod:`lookahead_control.core.path_ge
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from typing import Any, Optional
@@ -35,7 +36,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.params import ParameterError
 from lookahead_control.core.path_geometry import (cg_pose, PathError, PathFollower, PathParams,
-                                                  ReferencePath)
+                                                  ReferencePath, twist_in_parent_frame)
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros import vehicle_conversions as vconv
 from lookahead_control.ros.controller_node import qos
@@ -124,6 +125,8 @@ class PathBridgeNode(LifecycleNode):
         self._reported: dict[str, int] = {}
         self._imu: Optional[tuple[int, float, float]] = None
         self._prev_speed: Optional[tuple[int, float]] = None
+        self._prev_pose: Optional[vconv.OdometrySample] = None
+        self._parent_twists = 0     # consecutive odometry messages whose twist looks wrong
         self._odometry_wall: Optional[float] = None
         self.silent = False
         self._level = DiagnosticStatus.OK
@@ -283,6 +286,11 @@ class PathBridgeNode(LifecycleNode):
             self._refuse(f'odometry child frame {odom.child_frame_id!r} is not '
                          f'base_frame_id {p["base_frame_id"]!r}')
             return
+        if self._twist_frame_wrong(odom):
+            self._refuse(f'odometry twist is in the parent frame {odom.frame_id!r}, not in '
+                         f'the child frame {odom.child_frame_id!r} (REP-105): the speed '
+                         'would be wrong')
+            return
         if self.follower is None:
             self._refuse(self.path_problem)
             return
@@ -323,6 +331,25 @@ class PathBridgeNode(LifecycleNode):
             self.get_logger().info(f'output resumes (was: {self.problem})')
         self.problem = ''
         self._report_if_changed()
+
+    def _twist_frame_wrong(self, odom: vconv.OdometrySample) -> bool:
+        """
+        Return True once 5 consecutive messages' twists fit a parent-frame velocity.
+
+        :param odom: the odometry.
+        :return: whether to refuse it.
+        """
+        prev, self._prev_pose = self._prev_pose, odom
+        if prev is None:
+            return False
+        yaw = prev.yaw + 0.5 * math.remainder(odom.yaw - prev.yaw, 2.0 * math.pi)
+        if twist_in_parent_frame(odom.x - prev.x, odom.y - prev.y,
+                                 (odom.stamp_ns - prev.stamp_ns) * 1e-9, yaw, odom.v_x,
+                                 odom.v_y):
+            self._parent_twists += 1
+        elif odom.stamp_ns != prev.stamp_ns:
+            self._parent_twists = 0
+        return self._parent_twists >= 5
 
     def _rates(self, odom: vconv.OdometrySample, v_y: float) -> tuple[float, float]:
         """
