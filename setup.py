@@ -29,6 +29,7 @@ EXECUTABLES = {
     'controller': 'lookahead_control.ros.controller_node:entry',
     'sim_plant': 'sim_plant.sim_plant_node:entry',
     'closed_loop': 'lookahead_control.ros.closed_loop:entry',
+    'path_bridge': 'lookahead_control.ros.path_bridge_node:entry',
     'record': 'lookahead_control.bags.recorder_node:entry',
     'recover': 'lookahead_control.bags.recorder_node:recover_entry',
     'replay': 'lookahead_control.bags.replay_node:entry',

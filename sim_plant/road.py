@@ -128,3 +128,109 @@ class Road:
         i = max(bisect.bisect_right(self._starts, s) - 1, 0)
         seg_slope = self._slope_list[i]
         return self._rho0_list[i] + seg_slope * (s - self._starts[i]), seg_slope
+
+    def _start_poses(self) -> list[tuple[float, float, float]]:
+        poses = getattr(self, '_poses', None)
+        if poses is None:
+            poses = [(0.0, 0.0, 0.0)]
+            for i, seg in enumerate(self.segments[:-1]):
+                poses.append(_advance(poses[-1], self._rho0_list[i], self._slope_list[i],
+                                      seg.length))
+            self._poses = poses
+        return poses
+
+    def pose(self, s: float) -> tuple[float, float, float]:
+        """
+        Return the centreline's global ``(x, y, heading)`` at arc length ``s``.
+
+        The road starts at the origin heading along +x (REP-103: x forward, y left,
+        heading counter-clockwise); each segment continues from the end of the one
+        before. Straights and arcs are closed forms; a clothoid's position is the
+        Fresnel integral of its heading by Gauss-Legendre quadrature (exact to rounding
+        for phase changes up to 0.5 rad a panel). Before the start the first segment's
+        start curvature holds, past the end the last one's end curvature, as in
+        :meth:`curvature`.
+
+        :param s: arc length [m].
+        :return: x [m], y [m], heading [rad] (not wrapped).
+        """
+        s = float(s)
+        if s >= self.length:
+            i = len(self.segments) - 1
+            end = _advance(self._start_poses()[i], self._rho0_list[i], self._slope_list[i],
+                           self.segments[i].length)
+            return _advance(end, self._end_rho, 0.0, s - self.length)
+        i = max(bisect.bisect_right(self._starts, s) - 1, 0)
+        start = self._starts[i]
+        return _advance(self._start_poses()[i], self._rho0_list[i], self._slope_list[i],
+                        s - start)
+
+    def poses(self, s: Sequence[float]) -> np.ndarray:
+        """
+        Return :meth:`pose` at each arc length, as rows ``(x, y, heading)``.
+
+        :param s: arc lengths [m].
+        :return: an array of shape (len(s), 3).
+        """
+        return np.array([self.pose(v) for v in s], dtype=float).reshape(-1, 3)
+
+    def sample(self, length: float, spacing: float) -> np.ndarray:
+        """
+        Return the centreline every ``spacing`` metres from 0 to ``length`` (included).
+
+        :param length: how far [m] (past the road's end it continues with its last
+            curvature).
+        :param spacing: distance between points [m].
+        :return: rows ``(x, y, heading)``.
+        """
+        check_range('path_spacing', spacing, 0.0, 1.0e4, low_open=True, unit='m')
+        s = np.arange(0.0, length, spacing)
+        return self.poses(list(np.append(s, length) if length - s[-1] > 1e-9 else s))
+
+    def global_pose(self, s: float, lateral: float,
+                    relative_yaw: float) -> tuple[float, float, float]:
+        """
+        Return the global pose of a body at road coordinates (Frenet to global).
+
+        :param s: arc length of its projection [m].
+        :param lateral: its distance from the centreline [m] (+ left).
+        :param relative_yaw: its yaw relative to the road's heading [rad].
+        :return: x [m], y [m], yaw [rad].
+        """
+        x, y, heading = self.pose(s)
+        return (x - lateral * math.sin(heading), y + lateral * math.cos(heading),
+                heading + relative_yaw)
+
+
+_GAUSS_NODES, _GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(16)
+
+
+def _advance(pose: tuple[float, float, float], rho: float, slope: float,
+             u: float) -> tuple[float, float, float]:
+    """
+    Move ``u`` metres along a curve of curvature ``rho + slope * u`` (u may be < 0).
+
+    :param pose: the start ``(x, y, heading)``.
+    :param rho: curvature at the start [1/m].
+    :param slope: curvature change per metre [1/m^2].
+    :param u: distance [m].
+    :return: the pose at the end.
+    """
+    x, y, theta = pose
+    heading = theta + rho * u + 0.5 * slope * u * u
+    if slope == 0.0:
+        # chord of an arc (or a straight line): length u sinc(rho u / 2), at the mean
+        # heading; stable for rho -> 0
+        half = 0.5 * rho * u
+        chord = u * (math.sin(half) / half if half != 0.0 else 1.0)
+        mid = theta + half
+        return x + chord * math.cos(mid), y + chord * math.sin(mid), heading
+    panels = max(1, math.ceil(max(abs(u) / 50.0,
+                                  max(abs(rho), abs(rho + slope * u)) * abs(u) / 0.5)))
+    edges = np.linspace(0.0, u, panels + 1)
+    mids, halves = 0.5 * (edges[1:] + edges[:-1]), 0.5 * np.diff(edges)
+    nodes = (mids[:, None] + halves[:, None] * _GAUSS_NODES[None, :]).ravel()
+    weights = (halves[:, None] * _GAUSS_WEIGHTS[None, :]).ravel()
+    phase = theta + rho * nodes + 0.5 * slope * nodes * nodes
+    return (x + float(np.dot(weights, np.cos(phase))),
+            y + float(np.dot(weights, np.sin(phase))), heading)

@@ -17,9 +17,12 @@ The ``sim_plant`` node: integrates the plant and publishes what a vehicle bridge
 
 Publishes the controller's input contract (``lateral_error``, ``yaw``, ``velocity``,
 ``road_curvature``), ground truth on ``~/ground_truth`` and ``/clock``; subscribes
-``steering``. ``lockstep``: publish step k, wait for the command stamped k, integrate,
-repeat (a missed ``deadline`` holds the last command and is counted). ``realtime``:
-one step per wall-clock period with the latest command.
+``steering``. With ``output: vehicle`` it speaks like a vehicle instead: ``odometry``
+(``nav_msgs/Odometry`` of the CG in ``map_frame``, body twist), ``imu`` and the
+scenario's road as a ``path`` (``nav_msgs/Path``, transient local, once), for
+``path_bridge`` to turn into the contract. ``lockstep``: publish step k, wait for the
+command stamped k, integrate, repeat (a missed ``deadline`` holds the last command and is
+counted). ``realtime``: one step per wall-clock period with the latest command.
 """
 
 from __future__ import annotations
@@ -37,8 +40,11 @@ from lookahead_control.ros.controller_node import qos
 from lookahead_control.ros.node_main import run_node, Throttle
 from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, Spec, values,
                                                VEHICLE_SPECS)
+from lookahead_control.ros.vehicle_conversions import to_odometry, to_path
+from nav_msgs.msg import Odometry, Path as PathMsg
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu, JointState
@@ -47,6 +53,7 @@ from sim_plant.closed_loop_sim import (advance, check_steps, linear_plant_steppe
 from sim_plant.scenario import load_scenario, Scenario
 from sim_plant.vehicle_model import KINEMATICS, PLANT_MODELS, PlantParams, State
 
+OUTPUTS = ('contract', 'vehicle')
 PLANT_SPECS = (
     Spec('plant.model', 'linear', 'linear (paper eq. 1) or nonlinear (Fiala tyres, '
          'actuator)', choices=PLANT_MODELS),
@@ -78,6 +85,12 @@ SIM_SPECS = (
     Spec('preview_step', 5.0, 'spacing of the curvature preview points [m]', 0.1, 100.0),
     Spec('subscribers', 1, 'start once each contract topic has this many matched '
          'subscriptions (2: controller and recorder)', 1, 100),
+    Spec('output', 'contract', 'contract: the lane-relative topics; vehicle: odometry, '
+         'imu and the road as a path (through path_bridge, as a real vehicle)',
+         choices=OUTPUTS),
+    Spec('map_frame', 'map', 'output vehicle: frame of the odometry pose and the path'),
+    Spec('path_spacing', 1.0, 'output vehicle: spacing of the published path points [m]',
+         0.01, 100.0),
     Spec('settle', 0.3, 'wall-clock time the topics must stay matched before the first '
          "step [s]: a recorder subscribes to the controller's topics on its own poll "
          '(0.1 s for record and rosbag2)', 0.0, 10.0),
@@ -134,11 +147,22 @@ class SimPlantNode(Node):
         frame = p['frame_id']
         self.frame = frame
         reliable = qos('reliable')
-        self.pub_lateral = self.create_publisher(PointStamped, 'lateral_error', reliable)
-        self.pub_yaw = self.create_publisher(Imu, 'yaw', reliable)
-        self.pub_velocity = self.create_publisher(TwistStamped, 'velocity', reliable)
-        self.pub_curvature = self.create_publisher(PolygonStamped, 'road_curvature',
-                                                   reliable)
+        self.vehicle_output = p['output'] == 'vehicle'
+        self._resent_at = 0.0
+        if self.vehicle_output:
+            self.pub_odometry = self.create_publisher(Odometry, 'odometry', reliable)
+            self.pub_imu = self.create_publisher(Imu, 'imu', reliable)
+            self.pub_path = self.create_publisher(PathMsg, 'path', QoSProfile(
+                history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL))
+            self.path_msg = self.road_path()
+            self.pub_path.publish(self.path_msg)
+        else:
+            self.pub_lateral = self.create_publisher(PointStamped, 'lateral_error', reliable)
+            self.pub_yaw = self.create_publisher(Imu, 'yaw', reliable)
+            self.pub_velocity = self.create_publisher(TwistStamped, 'velocity', reliable)
+            self.pub_curvature = self.create_publisher(PolygonStamped, 'road_curvature',
+                                                       reliable)
         self.pub_truth = self.create_publisher(JointState, '~/ground_truth', reliable)
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
         self.sub_steering = self.create_subscription(JointState, 'steering',
@@ -151,7 +175,23 @@ class SimPlantNode(Node):
         self.get_logger().info(
             f'scenario {self.scenario.name!r}: {self.scenario.duration:g} s at '
             f'{self.scenario.speed.initial:g} m/s, {p["mode"]} at {p["rate_hz"]:g} Hz, '
-            f'{self.plant.model} plant')
+            f'{self.plant.model} plant, {p["output"]} output')
+
+    def road_path(self) -> PathMsg:
+        """
+        Return the scenario's road as a path in ``map_frame``, every ``path_spacing``.
+
+        It covers the road and, past its end, as far as the scenario can drive plus the
+        curvature preview (the road continues with its last curvature).
+
+        :return: the message (stamp 0).
+        """
+        speed = self.scenario.speed
+        fastest = max(speed.initial, speed.initial + speed.acceleration * speed.duration)
+        length = (max(self.scenario.road.length, fastest * self.scenario.duration)
+                  + self.params['preview_distance'] + 50.0)
+        points = self.scenario.road.sample(length, self.params['path_spacing'])
+        return to_path(0, self.params['map_frame'], points.tolist())
 
     # -- time and measurements ------------------------------------------------------
 
@@ -176,13 +216,10 @@ class SimPlantNode(Node):
         x = tuple(float(v) for v in self.x)
         inputs = measure(x, t, scenario, scenario.speed.initial, scenario.speed.acceleration)
         v_x, a_x, rho = float(inputs.v_x), float(inputs.a_x), float(inputs.rho)
-        # the IMU measures body acceleration: dv_x/dt - v_y r
-        self.pub_yaw.publish(conv.to_yaw(stamp, self.frame, x[2], x[4],
-                                         a_x - x[3] * x[4]))
-        self.pub_velocity.publish(conv.to_velocity(stamp, self.frame, v_x, x[3],
-                                                   x[4]))
-        self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
-                                                     self.preview(x[0])))
+        if self.vehicle_output:
+            self.publish_vehicle(stamp, x, v_x, a_x)
+        else:
+            self.publish_contract(stamp, x, v_x, a_x)
         if self.pub_truth.get_subscription_count() > 0:     # a recorder, a probe
             steering = self.command if self.plant.model == 'linear' else x[5]
             # command_time: the stamp of the step whose answer is applied (-1: none yet)
@@ -193,11 +230,51 @@ class SimPlantNode(Node):
                      rho, command_time)
             self.pub_truth.publish(conv.to_named_values(stamp,
                                                         list(zip(GROUND_TRUTH, truth))))
-        self.pub_lateral.publish(conv.to_lateral_error(
-            stamp, self.frame, self.sensor_distance, x[1] + self.sensor_distance * x[2]))
+        if self.vehicle_output:
+            self.pub_odometry.publish(self._odometry)
+        else:
+            self.pub_lateral.publish(conv.to_lateral_error(
+                stamp, self.frame, self.sensor_distance, x[1] + self.sensor_distance * x[2]))
         # /clock last: a controller on a sim-time timer wakes to this step's measurements
         self.pub_clock.publish(ClockMsg(clock=conv.ns_to_stamp(stamp)))
         return stamp
+
+    def publish_vehicle(self, stamp: int, x: tuple[float, ...], v_x: float,
+                        a_x: float) -> None:
+        """
+        Publish the imu and prepare the odometry of the CG (sent after ground truth).
+
+        The CG's pose: the road's point at ``s`` moved ``y_cg`` along its normal, yaw the
+        road's heading plus ``eps_r``; twist in the body frame (REP-105).
+
+        :param stamp: the stamp [ns].
+        :param x: the plant state.
+        :param v_x: longitudinal speed [m/s].
+        :param a_x: dv_x/dt [m/s^2].
+        """
+        pos_x, pos_y, yaw = self.scenario.road.global_pose(x[0], x[1], x[2])
+        self._imu = conv.to_yaw(stamp, self.frame, yaw, x[4], a_x - x[3] * x[4])
+        self.pub_imu.publish(self._imu)
+        self._odometry = to_odometry(stamp, self.params['map_frame'], self.frame, pos_x,
+                                     pos_y, yaw, v_x, x[3], x[4])
+
+    def publish_contract(self, stamp: int, x: tuple[float, ...], v_x: float,
+                         a_x: float) -> None:
+        """
+        Publish yaw, velocity and curvature (the lateral error goes after ground truth).
+
+        :param stamp: the stamp [ns].
+        :param x: the plant state.
+        :param v_x: longitudinal speed [m/s].
+        :param a_x: dv_x/dt [m/s^2].
+        """
+        # the IMU measures body acceleration: dv_x/dt - v_y r
+        self.pub_yaw.publish(conv.to_yaw(stamp, self.frame, x[2], x[4],
+                                         a_x - x[3] * x[4]))
+        self.pub_velocity.publish(conv.to_velocity(stamp, self.frame, v_x, x[3],
+                                                   x[4]))
+        self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
+                                                     self.preview(x[0])))
 
     def preview(self, s: float) -> list[tuple[float, float]]:
         """
@@ -271,7 +348,11 @@ class SimPlantNode(Node):
         step published into that gap is lost to it.
         """
         wanted = self.params['subscribers']
-        pubs = (self.pub_lateral, self.pub_yaw, self.pub_velocity, self.pub_curvature)
+        # vehicle output: the bridge (and a recorder) on odometry, the bridge on the path
+        pubs = ((self.pub_odometry,) if self.vehicle_output else
+                (self.pub_lateral, self.pub_yaw, self.pub_velocity, self.pub_curvature))
+        if self.vehicle_output and self.pub_path.get_subscription_count() < 1:
+            return False
         # steering: the controller publishes it; a recorder subscribes to it like this
         # node does (the graph's count: their match is not visible from here)
         return (all(pub.get_subscription_count() >= wanted for pub in pubs)
@@ -306,8 +387,17 @@ class SimPlantNode(Node):
             self.waiting_stamp = self.publish_measurements()
             self.sent_at = self.started_at = time.monotonic()
             return
+        if (self.vehicle_output and self.k == 0 and self.waiting_stamp == 0
+                and time.monotonic() - self._resent_at > 0.05):
+            # through a bridge, step 0 can reach it before the controller's subscriptions
+            # to the bridge are matched (invisible from here): repeat it until answered
+            self._resent_at = time.monotonic()
+            self.pub_imu.publish(self._imu)
+            self.pub_odometry.publish(self._odometry)
+        # step 0 through a bridge: up to 10 deadlines for the chain to connect
+        deadline = self.params['deadline'] * (10 if self.vehicle_output and self.k == 0 else 1)
         if (self.waiting_stamp is not None
-                and time.monotonic() - self.sent_at > self.params['deadline']):
+                and time.monotonic() - self.sent_at > deadline):
             self.missed += 1
             self.get_logger().warn(f'no steering for t = {self.waiting_stamp * 1e-9:g} s '
                                    f'within {self.params["deadline"]:g} s: holding '

@@ -72,6 +72,8 @@ CASES = {
     'controller': [(['--ros-args', '--params-file', '{malformed}'], 'malformed.yaml'),
                    (['--ros-args', '--params-file', '{missing}'], 'missing.yaml'),
                    (['--ros-args', '--params-file', '{range}'], 'natural_frequency')],
+    'path_bridge': [(['--ros-args', '--params-file', '{malformed}'], 'malformed.yaml'),
+                    (['--ros-args', '-p', 'path.fit_half_window:=-1.0'], 'fit_half_window')],
     'sim_plant': [(['--ros-args', '-p', 'scenario_file:={malformed}'], 'malformed.yaml'),
                   (['--ros-args', '-p', 'scenario_file:={missing}'], 'missing.yaml')],
     'closed_loop': [(['--scenario', '{malformed}', '--no-record'], 'malformed.yaml'),

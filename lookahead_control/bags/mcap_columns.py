@@ -187,30 +187,13 @@ def _chunk_records(content: bytes) -> bytes:
     return records
 
 
-def _has_other_records(records: bytes, indexes: dict[int, npt.NDArray[np.void]]) -> bool:
-    """Return whether a chunk holds records besides the messages its index lists."""
-    view = np.frombuffer(records, dtype=np.uint8)
-    total = 0
-    for idx in indexes.values():
-        at = idx['offset'].astype(np.int64)
-        if not at.size:
-            continue
-        if int(at.max()) + 9 > len(records) or int(at.min()) < 0:
-            raise ValueError('message index points past the chunk')
-        sizes = view[at[:, None] + np.arange(1, 9)].copy().view('<u8')[:, 0]
-        total += int(sizes.sum()) + 9 * at.size
-    return total < len(records)
-
-
 def _add_chunk(reader: _Reader, batch: _Batch, records: bytes,
                indexes: dict[int, npt.NDArray[np.void]]) -> None:
     """Add one chunk's wanted messages to the batch."""
     unknown = [cid for cid in indexes if cid not in reader.channels]
-    if indexes and not unknown and _has_other_records(records, indexes):
-        # a chunk may define a channel (or schema) before any message of it: learn it
-        reader.walk_chunk(records)
-    if not indexes or unknown:
-        # no message index (or channels defined inside the chunk): walk its records
+    if not indexes or unknown or not _only_messages(records, indexes):
+        # no message index, or channels (schemas) defined inside the chunk: walk its
+        # records (the definitions may be of channels whose messages come later)
         walked = reader.walk_chunk(records)
         pairs = {cid: np.array(v, dtype=np.int64).reshape(-1, 2) for cid, v in walked.items()}
         offsets = {cid: p[:, 0] for cid, p in pairs.items()}
@@ -243,6 +226,21 @@ def _add_chunk(reader: _Reader, batch: _Batch, records: bytes,
     if kept:                # a chunk of other topics only is not kept in memory
         batch.records.append(records)
         batch.size += len(records)
+
+
+def _only_messages(records: bytes, indexes: dict[int, npt.NDArray[np.void]]) -> bool:
+    """Return True if the indexed message records fill the chunk (no definitions in it)."""
+    view = np.frombuffer(records, dtype=np.uint8)
+    total = 0
+    for idx in indexes.values():
+        at = idx['offset'].astype(np.int64)
+        if not at.size:
+            continue
+        if int(at.max()) + 9 > len(records) or int(at.min()) < 0:
+            return False            # the walk checks and reports it
+        sizes = view[at[:, None] + np.arange(1, 9)].copy().view('<u8')[:, 0]
+        total += int(np.sum(sizes, dtype=np.uint64)) + 9 * at.size
+    return total == len(records)
 
 
 def _flush(reader: _Reader, batch: _Batch) -> Iterator[tuple[str, str, RawColumns]]:

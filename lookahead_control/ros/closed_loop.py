@@ -17,6 +17,8 @@ Executable ``closed_loop``: sim_plant and controller as two processes, one scena
 
 Starts both nodes with the package's params files, waits for the simulator to finish
 the scenario, stops the controller with SIGINT, and exits non-zero if either failed.
+``--via-bridge``: the simulator speaks like a vehicle (odometry, imu, the road as a path)
+and ``path_bridge`` turns that into the controller's contract, as on a real vehicle.
 """
 
 from __future__ import annotations
@@ -53,6 +55,8 @@ class LoopConfig:
     :param extra_controller_args: more ROS arguments for the controller.
     :param extra_sim_args: more ROS arguments for the simulator.
     :param bag: record the run into this bag directory (None: do not record).
+    :param via_bridge: sim_plant publishes odometry and a path; path_bridge converts.
+    :param extra_bridge_args: more ROS arguments for the bridge.
     """
 
     scenario: Path
@@ -65,6 +69,8 @@ class LoopConfig:
     extra_controller_args: list[str] = field(default_factory=list)
     extra_sim_args: list[str] = field(default_factory=list)
     bag: Optional[Path] = None
+    via_bridge: bool = False
+    extra_bridge_args: list[str] = field(default_factory=list)
 
 
 def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
@@ -80,13 +86,31 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
            '-p', f'scenario_file:={cfg.scenario}', '-p', f'speed:={float(cfg.speed)}',
            '-p', f'mode:={cfg.mode}', '-p', f'rate_hz:={float(cfg.rate_hz)}',
            '-p', f'plant.model:={cfg.plant}', '-p', 'use_sim_time:=false',
-           '-p', f'subscribers:={2 if cfg.bag else 1}', *cfg.extra_sim_args]
+           '-p', f'subscribers:={2 if cfg.bag else 1}',
+           *(['-p', 'output:=vehicle'] if cfg.via_bridge else []), *cfg.extra_sim_args]
     controller = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
                   *common, '--params-file', str(config / 'controller.yaml'),
                   '-p', f'controller.schedule:={cfg.schedule}',
                   '-p', f'wait_for_matching_stamps:={str(cfg.mode == "lockstep").lower()}',
                   '-p', 'use_sim_time:=true', *cfg.extra_controller_args]
     return sim, controller
+
+
+def bridge_command(cfg: LoopConfig) -> list[str]:
+    """
+    Return the command line of the path bridge (``--via-bridge``).
+
+    The yaw rate comes from the odometry twist (the same r as the imu): in lockstep the
+    imu of a step may arrive after its odometry, and a bridge waiting for it would wait
+    on every step.
+
+    :param cfg: what to run.
+    :return: the command.
+    """
+    config = source_config_dir()
+    return [sys.executable, '-m', 'lookahead_control.ros.path_bridge_node', '--ros-args',
+            '--params-file', str(config / 'path_bridge.yaml'), '-p', 'use_imu:=false',
+            *cfg.extra_bridge_args]
 
 
 def recorder_command(bag: Path) -> list[str]:
@@ -138,11 +162,13 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     recorder = (subprocess.Popen(recorder_command(cfg.bag), env=env) if cfg.bag
                 else None)
     controller = subprocess.Popen(ctl_cmd, env=env)
+    bridge = (subprocess.Popen(bridge_command(cfg), env=env) if cfg.via_bridge else None)
     sim = subprocess.Popen(sim_cmd, env=env)
     start = time.monotonic()
     try:
         while sim.poll() is None:
             early = [(name, proc) for name, proc in (('controller', controller),
+                                                     ('path_bridge', bridge),
                                                      ('record', recorder))
                      if proc is not None and proc.poll() is not None]
             if early:
@@ -157,26 +183,32 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     finally:
         sim_code = stop(sim, 'sim_plant') if sim.poll() is None else sim.returncode
         finished_in_time = time.monotonic() - start <= cfg.timeout
+        # the bridge right after the simulator: it reports silent odometry after 0.5 s
+        bridge_code = stop(bridge, 'path_bridge') if bridge is not None else 0
         ctl_code = stop(controller, 'controller')
         rec_code = stop(recorder, 'record') if recorder is not None else 0
-    if sim_code != 0 or ctl_code != 0 or rec_code != 0 or not finished_in_time:
+    if (sim_code != 0 or ctl_code != 0 or rec_code != 0 or bridge_code != 0
+            or not finished_in_time):
         print(f'closed_loop: failed (sim_plant {sim_code}, controller {ctl_code}, '
-              f'record {rec_code})', file=sys.stderr)
+              f'record {rec_code}'
+              + (f', path_bridge {bridge_code})' if bridge is not None else ')'),
+              file=sys.stderr)
         return 1
     return 0
 
 
-def default_bag(scenario: Path, schedule: str, speed: float) -> Path:
+def default_bag(scenario: Path, schedule: str, speed: float, tag: str = '') -> Path:
     """
-    Return ``bags/<scenario>_<schedule>_<speed>_<time>``, with the speed the run has.
+    Return ``bags/<scenario>_<schedule>_<speed>_<tag><time>``, with the run's speed.
 
     :param scenario: the scenario file.
     :param schedule: the d_v schedule.
     :param speed: the ``--speed`` option (0: the scenario's own initial speed) [m/s].
+    :param tag: inserted before the time (``bridge_`` for a run through path_bridge).
     :return: the bag directory.
     """
     speed = speed or load_scenario(scenario).speed.initial
-    return Path('bags') / (f'{scenario.stem}_{schedule}_{speed:g}_'
+    return Path('bags') / (f'{scenario.stem}_{schedule}_{speed:g}_{tag}'
                            f'{datetime.datetime.now():%Y%m%d_%H%M%S}')
 
 
@@ -201,10 +233,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--bag', type=Path, default=None,
                    help='bag directory (default: bags/<scenario>_<schedule>_<speed>_<time>)')
     p.add_argument('--no-record', action='store_true', help='do not record a bag')
+    p.add_argument('--via-bridge', action='store_true',
+                   help='sim_plant publishes odometry and the road as a path; path_bridge '
+                   'turns them into the contract (as on a real vehicle)')
     args = p.parse_args(argv)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    bag = None if args.no_record else (args.bag or default_bag(args.scenario, args.schedule,
-                                                               args.speed))
+    bag = None if args.no_record else (args.bag or default_bag(
+        args.scenario, args.schedule, args.speed, 'bridge_' if args.via_bridge else ''))
     if bag is not None:
         if bag.exists():
             raise ToolError(f'{bag}: exists already; choose another --bag')
@@ -212,7 +247,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         bag.mkdir(parents=True)
         bag.rmdir()
     code = run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
-                               args.plant, args.rate, args.timeout, bag=bag))
+                               args.plant, args.rate, args.timeout, bag=bag,
+                               via_bridge=args.via_bridge))
     if bag is not None and code == 0:
         print(f'closed_loop: recorded {bag}')
     return code
