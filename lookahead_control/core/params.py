@@ -151,8 +151,9 @@ class ControllerParams:
     The error dynamics are ``e'' + k_d e' + k_p e = 0`` with ``k_p = w_n^2`` and
     ``k_d = 2 zeta w_n``.
 
-    :param natural_frequency: w_n of the look-ahead error loop [rad/s].
-    :param damping_ratio: zeta of the look-ahead error loop [-].
+    :param natural_frequency: w_n of the loop of the regulated error e = y_v - y_ref
+        [rad/s].
+    :param damping_ratio: zeta of that loop [-].
     :param schedule: d_v schedule: ``paper`` (eq. 26), ``exact`` (eq. 24) or ``fixed``
         (d_v = the vehicle's ``d_s``, the look-down controller; ``VehicleParams.d_s`` is
         the one source of d_s).
