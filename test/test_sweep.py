@@ -30,7 +30,7 @@ from sim_plant.sensors import NoiseParams
 from sim_plant.vehicle_model import PlantParams
 
 SPEC = sw.SweepSpec(runs=3, scenarios=('s1_paper_step',), speeds=(25.0, 37.0), batch=2,
-                    duration=0.6, dt=0.002)
+                    duration=1.2, dt=0.002)
 VEHICLE = VehicleParams()
 CONTROLLER = ControllerParams()
 
@@ -51,12 +51,13 @@ def _sweep(out, spec=SPEC, **kwargs):
 def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
     table, count = _sweep(tmp_path / 'a')
     assert count == 4 and table.num_rows == 6          # 2 laws x 3 conditions
-    for name in sw.PARAMETER_COLUMNS + ('peak_cg', 'yaw_overshoot', 'peak_steering',
-                                        'rms_steering_noise', 'failed'):
+    for name in sw.PARAMETER_COLUMNS + ('peak_cg_error_m', 'yaw_overshoot',
+                                        'peak_steering_rad', 'rms_steering_noise_rad',
+                                        'failed'):
         assert name in table.column_names, name
     row = {k: v[0] for k, v in table.to_pydict().items()}
     assert row['law'] == 'paper' and row['run_id'] == 0
-    scenario = replace(load_scenario(sw.scenario_path('s1_paper_step')), duration=0.6)
+    scenario = replace(load_scenario(sw.scenario_path('s1_paper_step')), duration=1.2)
     body = VehicleParams(mass=VEHICLE.mass * (1 + row['mass']),
                          yaw_inertia=VEHICLE.yaw_inertia * (1 + row['mass']),
                          c_f=VEHICLE.c_f * (1 + row['cornering']),
@@ -65,7 +66,8 @@ def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
                                                             friction=row['friction']),
                  dt=0.002, initial_speed=row['speed'], plant_vehicle=body,
                  delay=row['delay'], noise=NoiseParams(), seed=row['seed'])
-    assert row['peak_cg'] == pytest.approx(np.max(np.abs(single['y_cg'])), rel=1e-9)
+    peak = np.max(np.abs(single['y_cg']))
+    assert row['peak_cg_error_m'] == pytest.approx(peak, rel=1e-9)
     assert 0.0 <= row['delay'] <= 0.05 and round(row['delay'] / 0.002, 9) % 1 == 0
     # the same conditions for every law (common random numbers)
     data = table.to_pydict()
