@@ -56,7 +56,7 @@ def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
                                         'failed'):
         assert name in table.column_names, name
     row = {k: v[0] for k, v in table.to_pydict().items()}
-    assert row['law'] == 'paper' and row['run_id'] == 0
+    assert row['law'] == 'paper_eq26' and row['run_id'] == 0
     scenario = replace(load_scenario(sw.scenario_path('s1_paper_step')), duration=1.2)
     body = VehicleParams(mass=VEHICLE.mass * (1 + row['mass']),
                          yaw_inertia=VEHICLE.yaw_inertia * (1 + row['mass']),
@@ -74,7 +74,7 @@ def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
     for name in ('speed', 'cornering', 'mass', 'friction', 'delay', 'seed'):
         assert data[name][:3] == data[name][3:]
     text = (tmp_path / 'a' / 'summary.md').read_text()
-    assert '| paper | all | 3 |' in text and 'paper_fixed' in text
+    assert '| paper_eq26 | all | 3 |' in text and 'paper_fixed' in text
 
 
 def test_grid_enumerates_every_combination():
@@ -104,7 +104,7 @@ def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path):
 def crash_once(task, data, vehicle, controller):
     """Kill the worker process the first time the first task runs."""
     marker = Path(os.environ['SWEEP_TEST_MARKER'])
-    if task['task'].endswith('-00000') and task['law'] == 'paper' and not marker.exists():
+    if task['task'].endswith('-00000') and task['law'] == 'paper_eq26' and not marker.exists():
         marker.write_text('crashed')
         os._exit(1)
     return sw.run_task(task, data, vehicle, controller)

@@ -73,9 +73,10 @@ def paper_fixed_law(vehicle: VehicleParams, controller: ControllerParams) -> Law
 
 
 # name -> factory(controller's vehicle model, paper-law parameters); a new law registers
-# here (one law object serves a whole batch: see core/laws.py).
+# here (one law object serves a whole batch: see core/laws.py). The names are those of the
+# compare tool's league.
 LAWS: dict[str, Callable[[VehicleParams, ControllerParams], Law]] = {
-    'paper': paper_law,
+    'paper_eq26': paper_law,
     'paper_fixed': paper_fixed_law,
 }
 
@@ -110,7 +111,7 @@ class SweepSpec:
     seed: int = 0
     scenarios: tuple[str, ...] = ('s1_paper_step', 's2_curve_entry', 's3_s_bend')
     speeds: tuple[float, ...] = (20.0, 37.0)
-    laws: tuple[str, ...] = ('paper', 'paper_fixed')
+    laws: tuple[str, ...] = ('paper_eq26', 'paper_fixed')
     plant: str = 'nonlinear'
     cornering: tuple[float, float] = (-0.3, 0.3)
     mass: tuple[float, float] = (-0.2, 0.2)
