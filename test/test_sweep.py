@@ -139,3 +139,18 @@ def test_output_folder_that_is_not_a_sweep_is_refused(tmp_path):
     (tmp_path / 'o' / 'notes.txt').write_text('mine')
     with pytest.raises(ToolError, match='not a sweep folder'):
         _sweep(tmp_path / 'o')
+
+
+def fail_third(task, data, vehicle, controller):
+    """Fail on the third task (a bug in a law, say)."""
+    if task['task'] == 'paper_fixed-s1_paper_step-00000':
+        raise ValueError('law exploded')
+    return sw.run_task(task, data, vehicle, controller)
+
+
+def test_a_failing_task_stops_the_sweep_and_keeps_finished_parts(tmp_path):
+    with pytest.raises(ValueError, match='law exploded'):
+        _sweep(tmp_path / 'e', runner=fail_third)
+    assert len(list((tmp_path / 'e' / 'parts').glob('*.parquet'))) == 2
+    table, count = _sweep(tmp_path / 'e')
+    assert count == 2 and table.num_rows == 6

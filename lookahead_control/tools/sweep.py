@@ -443,9 +443,11 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     else:
         client = Client(scheduler, timeout=30)
     try:
+        # no retries: an exception is deterministic (it stops the sweep, finished parts
+        # stay); a worker that dies is rerun elsewhere by the scheduler (allowed-failures)
         futures = {client.submit(runner, task, data, vehicle, controller,
                                  key=f'sweep-{task["task"]}-{time.time_ns()}',
-                                 pure=False, retries=2): task for task in todo}
+                                 pure=False): task for task in todo}
         for future in as_completed(futures):
             task = futures[future]
             write_parquet(future.result(), part_path(out, task['task']))
