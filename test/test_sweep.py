@@ -48,9 +48,18 @@ def _sweep(out, spec=SPEC, **kwargs):
                     **{'workers': 0, **kwargs})
 
 
-def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
-    table, count = _sweep(tmp_path / 'a')
-    assert count == 4 and table.num_rows == 6          # 2 laws x 3 conditions
+@pytest.fixture(scope='module')
+def reference(tmp_path_factory):
+    """Return the folder and the table of one undisturbed sweep in this process."""
+    folder = tmp_path_factory.mktemp('sweep') / 'a'
+    table, count = _sweep(folder)
+    assert count == 4
+    return folder, table
+
+
+def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(reference):
+    folder, table = reference
+    assert table.num_rows == 6          # 2 laws x 3 conditions
     for name in sw.PARAMETER_COLUMNS + ('peak_cg_error_m', 'yaw_overshoot',
                                         'peak_steering_rad', 'rms_steering_noise_rad',
                                         'failed'):
@@ -73,7 +82,7 @@ def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
     data = table.to_pydict()
     for name in ('speed', 'cornering', 'mass', 'friction', 'delay', 'seed'):
         assert data[name][:3] == data[name][3:]
-    text = (tmp_path / 'a' / 'summary.md').read_text()
+    text = (folder / 'summary.md').read_text()
     assert '| paper_eq26 | all | 3 |' in text and 'paper_fixed' in text
 
 
@@ -85,7 +94,7 @@ def test_grid_enumerates_every_combination():
     assert {c['delay'] for c in conds} == {0.0, 0.05}
 
 
-def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path):
+def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path, reference):
     partial, count = _sweep(tmp_path / 'r', max_tasks=1)
     assert partial is None and count == 1
     parts = sorted((tmp_path / 'r' / 'parts').glob('*.parquet'))
@@ -95,8 +104,7 @@ def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path):
     table, count = _sweep(tmp_path / 'r')
     assert count == 3 and parts[0].stat().st_mtime_ns == stamp     # not redone
     assert not list((tmp_path / 'r' / 'parts').glob('.*.tmp'))
-    fresh, _ = _sweep(tmp_path / 'f')
-    assert _same(table, fresh)
+    assert _same(table, reference[1])
     with pytest.raises(ToolError, match='options differ: runs'):
         _sweep(tmp_path / 'r', replace(SPEC, runs=4))
 
@@ -110,14 +118,13 @@ def crash_once(task, data, vehicle, controller):
     return sw.run_task(task, data, vehicle, controller)
 
 
-def test_a_killed_dask_worker_loses_no_result(tmp_path, monkeypatch):
+def test_a_killed_dask_worker_loses_no_result(tmp_path, monkeypatch, reference):
     marker = tmp_path / 'marker'
     monkeypatch.setenv('SWEEP_TEST_MARKER', str(marker))
     table, count = _sweep(tmp_path / 'd', workers=2, runner=crash_once)
     assert marker.exists()                      # a worker did die mid-task
-    reference, _ = _sweep(tmp_path / 'ref')
-    assert _same(table, reference)
-    assert _same(pq.read_table(tmp_path / 'd' / 'results.parquet'), reference)
+    assert _same(table, reference[1])
+    assert _same(pq.read_table(tmp_path / 'd' / 'results.parquet'), reference[1])
 
 
 @pytest.mark.parametrize('args, expected', [
