@@ -31,16 +31,18 @@ Kinematics relative to the road: ``exact`` Frenet equations (the default) or the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable, Sequence
+from dataclasses import dataclass, fields
+from typing import Any, Callable, Sequence
 
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import check_choice, check_range, VehicleParams
+from lookahead_control.core.params import (check_choice, check_range, ParameterError,
+                                           VehicleParams)
+import numpy as np
 
 State = tuple[Real, ...]
 GRAVITY = 9.80665
-PLANT_MODELS = ('linear', 'nonlinear')
+PLANT_MODELS = ('linear', 'nonlinear', 'commonroad_st', 'commonroad_mb')
 KINEMATICS = ('exact', 'small_angle')
 STATE_NAMES = ('s', 'y_cg', 'eps_r', 'v_y', 'r', 'steering')
 
@@ -50,12 +52,15 @@ class PlantParams:
     """
     Plant options beyond the single-track parameters.
 
-    :param model: ``linear`` (the paper's eq. 1) or ``nonlinear`` (Fiala tyres, actuator).
+    :param model: ``linear`` (the paper's eq. 1), ``nonlinear`` (Fiala tyres, actuator),
+        ``commonroad_st`` or ``commonroad_mb`` (:mod:`sim_plant.commonroad_plant`).
     :param kinematics: ``exact`` Frenet kinematics or the ``small_angle`` design model.
     :param friction: tyre-road friction coefficient mu (nonlinear model) [-].
     :param steering_time_constant: actuator lag (nonlinear model) [s].
     :param max_steering_angle: actuator angle limit (nonlinear model) [rad].
     :param max_steering_rate: actuator rate limit (nonlinear model) [rad/s].
+    :param vehicle_id: CommonRoad parameter set (1 Ford Escort, 2 BMW 320i, 3 VW
+        Vanagon) of the CommonRoad models.
     """
 
     model: str = 'linear'
@@ -64,6 +69,7 @@ class PlantParams:
     steering_time_constant: float = 0.05
     max_steering_angle: float = 0.6
     max_steering_rate: float = 0.8
+    vehicle_id: int = 2
 
     def __post_init__(self) -> None:
         check_choice('plant.model', self.model, PLANT_MODELS)
@@ -75,6 +81,59 @@ class PlantParams:
                     low_open=True, unit='rad')
         check_range('plant.max_steering_rate', self.max_steering_rate, 0.0, 20.0,
                     low_open=True, unit='rad/s')
+        if self.vehicle_id not in (1, 2, 3, 4) or isinstance(self.vehicle_id, bool):
+            raise ParameterError(f'plant.vehicle_id = {self.vehicle_id!r} is not allowed; '
+                                 'choose one of 1, 2, 3 (CommonRoad parameter sets)')
+
+
+class Stacked:
+    """
+    Frozen parameter dataclasses of a batch, one per run, as one duck-typed object.
+
+    Each numeric field is an array of shape ``(N,)`` (or the float itself when every run
+    has the same value); text fields must agree. ``wheelbase`` (and ``eta``) are
+    computed like :class:`~lookahead_control.core.params.VehicleParams` does.
+    """
+
+    def __init__(self, items: Sequence[Any]) -> None:
+        """
+        Stack the items.
+
+        :param items: dataclass instances of one type, at least one.
+        :raises ParameterError: the list is empty, or a text field differs.
+        """
+        if not items:
+            raise ParameterError('a batch needs at least one parameter set')
+        kind = type(items[0])
+        for item in fields(kind):
+            values = [getattr(i, item.name) for i in items]
+            if isinstance(values[0], str):
+                if len(set(values)) > 1:
+                    raise ParameterError(f'{item.name} differs within a batch '
+                                         f'({sorted(set(values))}); run one batch each')
+                setattr(self, item.name, values[0])
+            elif all(v == values[0] for v in values):
+                setattr(self, item.name, float(values[0]))
+            else:
+                setattr(self, item.name, np.array(values, dtype=float))
+        self.items = tuple(items)
+        self.l1: Any
+        self.l2: Any
+        if hasattr(self, 'l1') and hasattr(self, 'l2'):
+            self.wheelbase = self.l1 + self.l2
+            self.eta = getattr(self, 'mass') * self.l1 / (getattr(self, 'c_r') * self.wheelbase)
+
+
+def stack(items: Sequence[Any]) -> Any:
+    """
+    Return one parameter set when all runs share it, else a :class:`Stacked` of them.
+
+    :param items: one frozen parameter dataclass per run.
+    :return: the shared instance or the stacked batch.
+    """
+    if items and all(i == items[0] for i in items):
+        return items[0]
+    return Stacked(items)
 
 
 def fiala_force(slip: Real, stiffness: float, limit: float) -> Real:
