@@ -235,6 +235,7 @@ def _advance(pose: tuple[float, float, float], rho: float, slope: float,
     return (x + float(np.dot(weights, np.cos(phase))),
             y + float(np.dot(weights, np.sin(phase))), heading)
 
+
 class RoadBatch:
     """
     One road per run of a batch (each laid out for its run's speed).
