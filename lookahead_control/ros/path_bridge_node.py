@@ -281,6 +281,12 @@ class PathBridgeNode(LifecycleNode):
         except ValueError as err:
             self._refuse(str(err))
             return
+        if not (abs(odom.v_x) < 1e6 and abs(odom.v_y) < 1e6 and abs(odom.yaw_rate) < 1e6):
+            # as for the imu: beyond, the acceleration from speed differences and v_y r
+            # overflow to inf or NaN
+            self._refuse(f'odometry twist out of range (v_x {odom.v_x:g}, v_y {odom.v_y:g}, '
+                         f'yaw rate {odom.yaw_rate:g}): each must be within +-1e6')
+            return
         p = self.params
         if p['base_frame_id'] and odom.child_frame_id != p['base_frame_id']:
             self._refuse(f'odometry child frame {odom.child_frame_id!r} is not '
