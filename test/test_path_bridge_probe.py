@@ -228,3 +228,29 @@ def test_the_bridge_takes_the_path_as_bytes_over_dds(bridge):
     finally:
         executor.remove_node(bridge)
         sender.destroy_node()
+
+
+# -- stamps -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize('stamp', [0, 1_795_000_000_123_000_000])
+def test_frozen_odometry_stamps_are_refused(bridge, stamp):
+    # found: odometry whose stamp never advances (a frozen clock, or stamp 0) while the
+    # vehicle moves was published with that one stamp, diagnostics OK; the controller
+    # answered each with the same stamp, its rate limit saw no time pass and held the
+    # steering, also reporting OK (measured over DDS: 200 messages in 2.5 s)
+    bridge.on_path(vconv.to_path(0, 'map', [(float(k), 0.0, 0.0) for k in range(200)]))
+
+    def odometry(x, at=stamp):
+        return vconv.to_odometry(at, 'map', 'base_link', x, 0.2, 0.0, 10.0, 0.0, 0.0)
+
+    bridge.on_odometry(odometry(10.0))
+    assert [name for name, _ in bridge.out][-1] == 'lateral_error'
+    bridge.on_odometry(odometry(10.0))          # the same message again: answered again
+    assert len(bridge.out) == 8 and bridge.problem == ''
+    bridge.on_odometry(odometry(10.1))
+    assert len(bridge.out) == 8
+    assert 'did not advance while the pose moved 0.100 m' in bridge.problem
+    assert bridge.diag[-1].level == DiagnosticStatus.ERROR
+    bridge.on_odometry(odometry(10.2, stamp + PERIOD))
+    assert len(bridge.out) == 12 and bridge.problem == ''

@@ -302,6 +302,17 @@ class PathBridgeNode(LifecycleNode):
             self._refuse(f'odometry child frame {odom.child_frame_id!r} is not '
                          f'base_frame_id {p["base_frame_id"]!r}')
             return
+        prev = self._prev_pose
+        if (prev is not None and odom.stamp_ns == prev.stamp_ns
+                and (odom.x, odom.y, odom.yaw) != (prev.x, prev.y, prev.yaw)):
+            # a frozen clock: the controller would answer every message with the same
+            # stamp, its rate limit would see no time pass and hold the steering (OK on
+            # every status); a repeated identical message (a lockstep step 0) is answered
+            self._prev_pose = odom
+            moved = math.hypot(odom.x - prev.x, odom.y - prev.y)
+            self._refuse(f'odometry stamp {odom.stamp_ns * 1e-9:.3f} s did not advance '
+                         f'while the pose moved {moved:.3f} m (a frozen clock?)')
+            return
         if self._twist_frame_wrong(odom):
             self._refuse(f'odometry twist is in the parent frame {odom.frame_id!r}, not in '
                          f'the child frame {odom.child_frame_id!r} (REP-105): the speed '
