@@ -57,6 +57,11 @@ import numpy.typing as npt
 
 Array = npt.NDArray[np.float64]
 
+# path and pose coordinates beyond this are refused: a planar frame in metres never needs
+# more (UTM northings are < 1e7 m), and the projection's products of such coordinates
+# overflow no float (beyond, inf - inf gave NaN output or an uncaught ValueError)
+MAX_COORDINATE = 1e9
+
 
 class PathError(ValueError):
     """A path that cannot be used, or a pose that has no place on the path."""
@@ -192,6 +197,11 @@ class ReferencePath:
             i = int(bad[0])
             raise PathError(f'path point {i} is not finite ({raw[i, 0]!r}, {raw[i, 1]!r}); '
                             f'{bad.size} such point(s)')
+        far = np.flatnonzero((np.abs(raw) > MAX_COORDINATE).any(axis=1))
+        if far.size:
+            i = int(far[0])
+            raise PathError(f'path point {i} is out of range ({raw[i, 0]:g}, {raw[i, 1]:g}): '
+                            f'coordinates must be within +-{MAX_COORDINATE:g} m')
         steps = np.hypot(*np.diff(raw, axis=0).T)
         keep = np.concatenate(([True], steps > self.params.duplicate_distance))
         pts = raw[keep]
@@ -429,6 +439,10 @@ class PathFollower:
         for name, value in (('x', x), ('y', y), ('yaw', yaw), ('v_x', v_x), ('v_y', v_y)):
             if not math.isfinite(value):
                 raise PathError(f'odometry {name} is not finite ({value!r})')
+        for name, value in (('x', x), ('y', y)):
+            if abs(value) > MAX_COORDINATE:
+                raise PathError(f'odometry {name} is out of range ({value:g}): coordinates '
+                                f'must be within +-{MAX_COORDINATE:g} m')
         path, p = self.path, self.path.params
         last, last_s = self._last, self.last_s
         note = ''

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
@@ -174,7 +174,10 @@ class PathBridgeNode(LifecycleNode):
         path_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                               reliability=ReliabilityPolicy.RELIABLE, durability=durability)
         self._subs = [self.create_subscription(Odometry, 'odometry', self.on_odometry, inputs),
-                      self.create_subscription(Path, 'path', self.on_path, path_qos)]
+                      # raw: rclpy's deserialization of a long path stalls the node (see
+                      # vehicle_conversions.path_points_cdr)
+                      self.create_subscription(Path, 'path', self.on_path_data, path_qos,
+                                               raw=True)]
         if self.params['use_imu']:
             self._subs.append(self.create_subscription(Imu, 'imu', self.on_imu, inputs))
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -241,15 +244,22 @@ class PathBridgeNode(LifecycleNode):
 
     def on_path(self, msg: Path) -> None:
         """Replace the path (an unusable one leaves none: no output until the next)."""
+        self._new_path(lambda: (msg.header.frame_id, vconv.path_points(msg)))
+
+    def on_path_data(self, data: bytes) -> None:
+        """Replace the path from the serialized message (the subscription's callback)."""
+        self._new_path(lambda: vconv.path_points_cdr(data))
+
+    def _new_path(self, convert: Callable[[], tuple[str, Any]]) -> None:
         self.counters['paths'] += 1
         try:
-            points = vconv.path_points(msg)
+            frame, points = convert()
         except ValueError as err:
             self.path, self.follower, self._path_points = None, None, None
             self.path_problem = f'path refused: {err}'
             self.get_logger().error(self.path_problem)
         else:
-            self._set_path(points, msg.header.frame_id)
+            self._set_path(points, frame)
             if self.path is not None and self._log.ready():
                 self.get_logger().info(f'path: {self.path.size} points, '
                                        f'{self.path.length:.1f} m in {self.path_frame!r}')
@@ -281,10 +291,27 @@ class PathBridgeNode(LifecycleNode):
         except ValueError as err:
             self._refuse(str(err))
             return
+        if not (abs(odom.v_x) < 1e6 and abs(odom.v_y) < 1e6 and abs(odom.yaw_rate) < 1e6):
+            # as for the imu: beyond, the acceleration from speed differences and v_y r
+            # overflow to inf or NaN
+            self._refuse(f'odometry twist out of range (v_x {odom.v_x:g}, v_y {odom.v_y:g}, '
+                         f'yaw rate {odom.yaw_rate:g}): each must be within +-1e6')
+            return
         p = self.params
         if p['base_frame_id'] and odom.child_frame_id != p['base_frame_id']:
             self._refuse(f'odometry child frame {odom.child_frame_id!r} is not '
                          f'base_frame_id {p["base_frame_id"]!r}')
+            return
+        prev = self._prev_pose
+        if (prev is not None and odom.stamp_ns == prev.stamp_ns
+                and (odom.x, odom.y, odom.yaw) != (prev.x, prev.y, prev.yaw)):
+            # a frozen clock: the controller would answer every message with the same
+            # stamp, its rate limit would see no time pass and hold the steering (OK on
+            # every status); a repeated identical message (a lockstep step 0) is answered
+            self._prev_pose = odom
+            moved = math.hypot(odom.x - prev.x, odom.y - prev.y)
+            self._refuse(f'odometry stamp {odom.stamp_ns * 1e-9:.3f} s did not advance '
+                         f'while the pose moved {moved:.3f} m (a frozen clock?)')
             return
         if self._twist_frame_wrong(odom):
             self._refuse(f'odometry twist is in the parent frame {odom.frame_id!r}, not in '

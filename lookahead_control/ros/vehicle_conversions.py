@@ -23,6 +23,7 @@ child frame.
 from __future__ import annotations
 
 import math
+import struct
 from typing import NamedTuple, Sequence
 
 from geometry_msgs.msg import PoseStamped
@@ -121,6 +122,55 @@ def path_points(msg: Path) -> npt.NDArray[np.float64]:
         position = pose.pose.position
         out[i, 0], out[i, 1] = position.x, position.y
     return out
+
+
+def path_points_cdr(data: bytes) -> tuple[str, npt.NDArray[np.float64]]:
+    """
+    Return the frame and the ``(x, y)`` of a serialized ``nav_msgs/Path`` (CDR).
+
+    The same result as :func:`path_points` on the deserialized message, without building
+    a Python object per pose: rclpy takes about 0.1 ms a pose to deserialize a path (a
+    2000-point plan 0.18 s, 100 000 points 12 s on a loaded 2-core machine), which
+    stalls every other callback of the node; this reads the bytes directly.
+
+    :param data: the serialized message (4-byte encapsulation header, then the CDR body).
+    :return: the path's ``header.frame_id`` and the points, shape (N, 2).
+    :raises ValueError: a truncated or malformed message, or a pose stamped in another
+        frame (the message names it).
+    """
+    if len(data) < 4 or data[1] not in (0, 1):
+        raise ValueError('path: not a CDR message')
+    order = '<' if data[1] == 1 else '>'
+    body = memoryview(data)[4:]
+    u32, f64 = struct.Struct(order + 'I'), struct.Struct(order + 'dd')
+
+    def string(at: int) -> tuple[str, int]:
+        at = (at + 3) & ~3
+        (size,) = u32.unpack_from(body, at)
+        end = at + 4 + size
+        if size == 0 or end > len(body):
+            raise ValueError('path: malformed string in the message')
+        return bytes(body[at + 4:end - 1]).decode('utf-8', 'replace'), end
+
+    try:
+        frame, at = string(8)
+        at = (at + 3) & ~3
+        (count,) = u32.unpack_from(body, at)
+        at += 4
+        if count * 64 > len(body) - at:
+            raise ValueError(f'path: {count} poses do not fit in {len(data)} bytes')
+        out = np.empty((count, 2))
+        for i in range(count):
+            other, at = string(((at + 3) & ~3) + 8)
+            if other and other != frame:
+                raise ValueError(f'path pose {i} is in frame {other!r}, the path in '
+                                 f'{frame!r}')
+            at = (at + 7) & ~7
+            out[i] = f64.unpack_from(body, at)
+            at += 56
+    except struct.error as err:
+        raise ValueError(f'path: truncated message ({len(data)} bytes)') from err
+    return frame, out
 
 
 def to_path(stamp_ns: int, frame_id: str, points: Sequence[tuple[float, float, float]]
