@@ -50,6 +50,8 @@ from functools import lru_cache
 import math
 from typing import Any, NamedTuple
 
+from lookahead_control.core.control_law import LateralState, LawOutput
+from lookahead_control.core.laws import Law, output, Preview
 from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import (check_choice, check_range, ParameterError,
                                            VehicleParams)
@@ -447,7 +449,8 @@ def discretize(a: Array, b: Array, period: float) -> tuple[Array, Array]:
     :return: ``((I - A T/2)^-1 (I + A T/2), B T)``.
     """
     eye = np.eye(a.shape[0])
-    ad: Array = np.linalg.solve(eye - 0.5 * period * a, eye + 0.5 * period * a)
+    ad = np.asarray(np.linalg.solve(eye - 0.5 * period * a, eye + 0.5 * period * a),
+                    dtype=np.float64)
     return ad, b * period
 
 
@@ -503,7 +506,7 @@ def lqr_gain(vehicle: VehicleParams, params: LqrParams, v_x: float) -> Array:
                  params.q_heading_rate])
     r = np.array([[params.r]])
     p = solve_dare(ad, bd, q, r)
-    gain: Array = np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)
+    gain = np.asarray(np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad), dtype=np.float64)
     return gain
 
 
@@ -595,3 +598,184 @@ def lqr(y_cg: Real, eps_r: Real, v_y: Real, r: Real, v_x: Real, rho: Real,
     return LqrOutput(_like(steering, template), _like(e1_rate, template),
                      _like(e2_rate, template), _like(feedback, template),
                      _like(forward, template), _like(gain[0], template))
+
+
+# -- the laws (core.laws.Law) ------------------------------------------------------------
+
+BASELINE_NAMES = ('pure_pursuit', 'stanley', 'lqr')
+
+
+def _road(state: LateralState, preview: Preview) -> tuple[Array, Array]:
+    """Return the preview's arrays, or the state's curvature held ahead if it is empty."""
+    if preview.distances.size == 0:
+        return np.zeros(1), np.asarray(state.rho, dtype=float)[None, ...]
+    return preview.distances, preview.curvatures
+
+
+def _flat(value: Real) -> Any:
+    """Return a batch field as a 1-D array (floats stay floats)."""
+    return value.reshape(-1) if isinstance(value, np.ndarray) else value
+
+
+def _shaped(value: Any, shape: tuple[int, ...]) -> Any:
+    """Return a 1-D batch result in the batch's shape (floats stay floats)."""
+    return value.reshape(shape) if isinstance(value, np.ndarray) else value
+
+
+class PurePursuitLaw:
+    """
+    Autoware's pure pursuit as a :class:`~lookahead_control.core.laws.Law` (stateless).
+
+    :class:`LawOutput` fields: ``d_v`` = look-ahead from the rear axle minus ``l_2`` (the
+    target's distance ahead of the CG), ``y_v`` = ``error`` = the vehicle's lateral offset
+    from the target in the vehicle frame (``-y_t``), ``f_v`` = commanded curvature; the
+    others 0.
+    """
+
+    def __init__(self, vehicle: VehicleParams, params: PurePursuitParams) -> None:
+        """
+        Create the law.
+
+        :param vehicle: the controller's vehicle model (l_2, wheelbase).
+        :param params: pure-pursuit parameters.
+        """
+        self.vehicle = vehicle
+        self.params = params
+
+    def reset(self) -> None:
+        """Nothing to clear: the law has no internal state."""
+
+    def step(self, state: LateralState, preview: Preview, dt: float) -> LawOutput:
+        """
+        Return the pure-pursuit command.
+
+        :param state: the measured state.
+        :param preview: the curvature ahead (empty: ``state.rho`` held).
+        :param dt: unused.
+        :return: the command.
+        """
+        shape = np.shape(state.y_cg)
+        distances, curvatures = _road(state, preview)
+        out = pure_pursuit(_flat(state.y_cg), _flat(state.eps_r), _flat(state.v_x), distances,
+                           curvatures.reshape(curvatures.shape[0], -1) if shape else
+                           curvatures, self.vehicle, self.params)
+        offset = _shaped(-out.target_lateral, shape)
+        return output(_shaped(out.steering, shape),
+                      d_v=_shaped(out.look_ahead, shape) - self.vehicle.l2, y_v=offset,
+                      error=offset, f_v=_shaped(out.curvature, shape))
+
+
+class StanleyLaw:
+    """
+    Stanley (Hoffmann et al. 2007) as a :class:`~lookahead_control.core.laws.Law`.
+
+    Stateless. :class:`LawOutput` fields: ``d_v`` = ``l_1`` (the front axle), ``y_v`` =
+    ``error`` = the front axle's lateral error from the lane, ``y_ref`` = the steady-state
+    yaw term psi_ss, ``f_v`` = r_traj; the others 0.
+    """
+
+    def __init__(self, vehicle: VehicleParams, params: StanleyParams) -> None:
+        """
+        Create the law.
+
+        :param vehicle: the controller's vehicle model.
+        :param params: Stanley parameters.
+        """
+        self.vehicle = vehicle
+        self.params = params
+
+    def reset(self) -> None:
+        """Nothing to clear: the law has no internal state."""
+
+    def step(self, state: LateralState, preview: Preview, dt: float) -> LawOutput:
+        """
+        Return the Stanley command.
+
+        :param state: the measured state.
+        :param preview: the curvature ahead (empty: ``state.rho`` held).
+        :param dt: unused.
+        :return: the command.
+        """
+        shape = np.shape(state.y_cg)
+        distances, curvatures = _road(state, preview)
+        out = stanley(_flat(state.y_cg), _flat(state.eps_r), _flat(state.r), _flat(state.v_x),
+                      distances, curvatures.reshape(curvatures.shape[0], -1) if shape else
+                      curvatures, self.vehicle, self.params)
+        error = _shaped(out.front_error, shape)
+        steering = _shaped(out.steering, shape)
+        return output(steering, d_v=self.vehicle.l1 + 0.0 * steering, y_v=error, error=error,
+                      y_ref=_shaped(out.steady_yaw, shape),
+                      f_v=_shaped(out.path_yaw_rate, shape))
+
+
+class LqrLaw:
+    """
+    Apollo's LQR lateral controller as a :class:`~lookahead_control.core.laws.Law`.
+
+    Stateless (the gain table is computed once per parameter set). The curvature fed
+    forward is ``state.rho`` (at the CG, as Apollo's matched point). :class:`LawOutput`
+    fields: ``d_v`` = 0, ``y_v`` = ``error`` = e_1, ``y_v_rate`` = ``error_rate`` = e_1',
+    ``y_ref`` = the feedforward angle, ``f_v`` = e_2', ``beta_1`` = K_1; the others 0.
+    """
+
+    def __init__(self, vehicle: VehicleParams, params: LqrParams) -> None:
+        """
+        Create the law and its gain table.
+
+        :param vehicle: the controller's vehicle model.
+        :param params: LQR parameters.
+        """
+        self.vehicle = vehicle
+        self.params = params
+        gain_table(vehicle, params)
+
+    def reset(self) -> None:
+        """Nothing to clear: the law has no internal state."""
+
+    def step(self, state: LateralState, preview: Preview, dt: float) -> LawOutput:
+        """
+        Return the LQR command.
+
+        :param state: the measured state.
+        :param preview: unused (``state.rho`` is the curvature at the CG).
+        :param dt: unused (the gains are designed for ``params.period``).
+        :return: the command.
+        """
+        out = lqr(state.y_cg, state.eps_r, state.v_y, state.r, state.v_x, state.rho,
+                  self.vehicle, self.params)
+        return output(out.steering, y_v=state.y_cg + 0.0 * out.steering,
+                      y_v_rate=out.lateral_rate, y_ref=out.feedforward,
+                      error=state.y_cg + 0.0 * out.steering, error_rate=out.lateral_rate,
+                      f_v=out.heading_rate, beta_1=out.k_lateral)
+
+
+@dataclass(frozen=True)
+class BaselineParams:
+    """
+    The parameters of every baseline law (the node holds all, uses the selected one).
+
+    :param pure_pursuit: pure-pursuit parameters.
+    :param stanley: Stanley parameters.
+    :param lqr: LQR parameters.
+    """
+
+    pure_pursuit: PurePursuitParams = PurePursuitParams()
+    stanley: StanleyParams = StanleyParams()
+    lqr: LqrParams = LqrParams()
+
+
+def baseline_law(name: str, vehicle: VehicleParams, params: BaselineParams) -> Law:
+    """
+    Return the baseline law called ``name``.
+
+    :param name: one of :data:`BASELINE_NAMES`.
+    :param vehicle: the controller's vehicle model.
+    :param params: the baselines' parameters.
+    :return: the law.
+    """
+    check_choice('law', name, BASELINE_NAMES)
+    if name == 'pure_pursuit':
+        return PurePursuitLaw(vehicle, params.pure_pursuit)
+    if name == 'stanley':
+        return StanleyLaw(vehicle, params.stanley)
+    return LqrLaw(vehicle, params.lqr)
