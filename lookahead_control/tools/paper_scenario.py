@@ -58,8 +58,7 @@ def reproduce(vehicle: VehicleParams, controller: ControllerParams,
     :return: ``(controller label, result)`` pairs.
     """
     scheduled = controller.schedule if controller.schedule != 'fixed' else 'paper'
-    designs = (('fixed', replace(controller, schedule='fixed',
-                                 fixed_look_ahead=vehicle.d_s)),
+    designs = (('fixed', replace(controller, schedule='fixed')),
                (scheduled, replace(controller, schedule=scheduled)))
     runs = []
     for label, ctl in designs:
