@@ -61,8 +61,7 @@ FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last s
 
 LawFactory = Callable[[VehicleParams], Law]
 LAWS: dict[str, LawFactory] = {
-    'paper_fixed': lambda v: PaperLaw(v, ControllerParams(schedule='fixed',
-                                                          fixed_look_ahead=v.d_s)),
+    'paper_fixed': lambda v: PaperLaw(v, ControllerParams(schedule='fixed')),
     'paper_eq26': lambda v: PaperLaw(v, ControllerParams()),
     'pure_pursuit': lambda v: baseline_law('pure_pursuit', v, BaselineParams()),
     'stanley': lambda v: baseline_law('stanley', v, BaselineParams()),
