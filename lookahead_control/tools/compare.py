@@ -78,17 +78,34 @@ class PlantCase:
     :param plant: the plant options.
     :param delay: transport delay control -> wheel [s].
     :param noisy: the default sensor noise (``sim_plant.sensors.NoiseParams()``) is on.
+    :param vehicle_id: a CommonRoad parameter set: the laws then use its single-track
+        mapping (``sim_plant.commonroad_plant.controller_vehicle``) as their model.
     """
 
     name: str
     plant: PlantParams
     delay: float = 0.0
     noisy: bool = False
+    vehicle_id: Optional[int] = None
+
+    def law_vehicle(self, vehicle: VehicleParams) -> VehicleParams:
+        """
+        Return the vehicle model the laws are given on this plant.
+
+        :param vehicle: the league's vehicle (the plant's, for the package's plants).
+        :return: that vehicle, or the CommonRoad set's single-track mapping.
+        """
+        if self.vehicle_id is None:
+            return vehicle
+        from sim_plant.commonroad_plant import controller_vehicle
+        return controller_vehicle(self.vehicle_id)
 
 
 NONLINEAR = PlantParams(model='nonlinear')
 PLANTS = (PlantCase('linear', PlantParams()), PlantCase('nonlinear', NONLINEAR),
-          PlantCase('nonlinear_delay_noise', NONLINEAR, DELAY, True))
+          PlantCase('nonlinear_delay_noise', NONLINEAR, DELAY, True),
+          PlantCase('commonroad_mb', PlantParams(model='commonroad_mb', vehicle_id=2),
+                    vehicle_id=2))
 GOAL_PLANT = 'nonlinear_delay_noise'
 
 
@@ -137,6 +154,8 @@ GOALS = (
     Goal('S0 yaw rebound <= 50 %', 'yaw_rebound', 0.50, ('s0_straight',)),
     Goal('S0 noise <= 5 mrad rms at 37', 'steering_noise_rms_rad', 0.005, ('s0_straight',),
          (37.0,)),
+    Goal('CommonRoad S2 <= 5 cm at 30-37', 'peak_cg_error_m', 0.05, ('s2_curve_entry',),
+         (30.0, 37.0), 'commonroad_mb'),
 )
 
 
@@ -281,13 +300,14 @@ def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], Vehicle
         objects: a task crosses to a worker process).
     :return: one row per run.
     """
-    law_name, scenario_name, speeds, plants, vehicle, dt = task
+    law_name, scenario_name, speeds, plants, league_vehicle, dt = task
     scenario = load_scenarios([scenario_name])[scenario_name]
-    law = LAWS[law_name](vehicle)
     v0 = np.asarray(speeds, dtype=float)
     seeds = [NOISE_SEED + i for i in range(v0.size)]
     rows = []
     for case in plants:
+        vehicle = case.law_vehicle(league_vehicle)
+        law = LAWS[law_name](vehicle)
         common: dict[str, Any] = {'initial_speed': v0, 'dt': dt,
                                   'preview_distance': PREVIEW_DISTANCE,
                                   'delay': np.full(v0.shape, case.delay)}
