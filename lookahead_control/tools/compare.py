@@ -57,6 +57,8 @@ PREVIEW_DISTANCE = 100.0        # [m] every law sees the curvature this far ahea
 DELAY = 0.02                    # [s] transport delay of the "nonlinear + delay + noise" plant
 NOISE_SEED = 1                  # seeds are NOISE_SEED + run index: runs repeat exactly
 FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last second
+NOISE_SCENARIO = 's0_straight'  # steering noise: command with noise minus without, here
+DT = 0.002                      # [s] plant step (CommonRoad's multi-body model: 0.001)
 
 
 LawFactory = Callable[[VehicleParams], Law]
@@ -80,6 +82,7 @@ class PlantCase:
     :param noisy: the default sensor noise (``sim_plant.sensors.NoiseParams()``) is on.
     :param vehicle_id: a CommonRoad parameter set: the laws then use its single-track
         mapping (``sim_plant.commonroad_plant.controller_vehicle``) as their model.
+    :param dt: its integration step [s] (None: the league's).
     """
 
     name: str
@@ -87,6 +90,7 @@ class PlantCase:
     delay: float = 0.0
     noisy: bool = False
     vehicle_id: Optional[int] = None
+    dt: Optional[float] = None
 
     def law_vehicle(self, vehicle: VehicleParams) -> VehicleParams:
         """
@@ -105,7 +109,7 @@ NONLINEAR = PlantParams(model='nonlinear')
 PLANTS = (PlantCase('linear', PlantParams()), PlantCase('nonlinear', NONLINEAR),
           PlantCase('nonlinear_delay_noise', NONLINEAR, DELAY, True),
           PlantCase('commonroad_mb', PlantParams(model='commonroad_mb', vehicle_id=2),
-                    vehicle_id=2))
+                    vehicle_id=2, dt=0.001))
 GOAL_PLANT = 'nonlinear_delay_noise'
 
 
@@ -165,21 +169,36 @@ def _peak_rate(x: Array, period: float) -> float:
     return float(np.max(np.abs(np.diff(x)))) / period if x.size > 1 else 0.0
 
 
-def curve_window(time: Array, rho: Array) -> Optional[tuple[float, float]]:
+def curve_window(time: Array, rho: Array, hold: float = 2.0 * FINAL_WINDOW
+                 ) -> Optional[tuple[float, float]]:
     """
-    Return ``(start, end)`` of the first curve: curvature leaves 0, until it changes sign.
+    Return ``(start, end)`` of the first curve entry, None if there is none.
+
+    From where the curvature leaves 0 to the end of the first stretch of constant,
+    non-zero curvature that holds ``hold``. A step (S1), a clothoid into an arc (S2) and
+    an S-bend's first arc (S3) have one; a lane change (S4) or a straight road has none.
 
     :param time: sample times [s].
     :param rho: road curvature at the CG [1/m].
-    :return: the window, None on a straight road.
+    :param hold: the constant stretch must last this long [s].
+    :return: the window, or None.
     """
     curved = np.nonzero(np.abs(rho) > 1e-9)[0]
     if curved.size == 0:
         return None
     first = int(curved[0])
-    flipped = np.nonzero(np.sign(rho[first:]) == -np.sign(rho[first]))[0]
-    end = float(time[first + int(flipped[0])]) if flipped.size else float(time[-1])
-    return float(time[first]), end
+    flat = np.abs(np.diff(rho)) <= 1e-12 * np.abs(rho[1:]) + 1e-15
+    i = first
+    while i < flat.size:
+        if flat[i] and abs(rho[i]) > 1e-9:
+            j = i
+            while j < flat.size and flat[j]:
+                j += 1
+            if time[j] - time[i] >= hold:
+                return float(time[first]), float(time[j])
+            i = j
+        i += 1
+    return None
 
 
 def yaw_rebound(eps_r: Array) -> float:
@@ -236,8 +255,10 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
     }
     window = curve_window(t, rho)
     notes = []
-    if window is None:
+    if not np.any(np.abs(rho) > 1e-9):
         row['yaw_rebound'] = yaw_rebound(eps)
+    elif window is None:
+        notes.append('no curve entry to a constant curvature: no overshoot')
     else:
         for name, signal in (('yaw_overshoot', eps), ('yaw_rate_overshoot', rate)):
             step = step_metrics(t, signal, window[0], FINAL_WINDOW, window[1])
@@ -292,31 +313,34 @@ def scenario_speeds(scenario: Scenario, speeds: Sequence[float]) -> list[float]:
 
 
 def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], VehicleParams,
-                         float]) -> list[dict[str, Any]]:
+                         float, Optional[float]]) -> list[dict[str, Any]]:
     """
     Run one law on one scenario: every plant, every speed (vectorized per plant).
 
-    :param task: ``(law, scenario name, speeds, plants, vehicle, dt)`` (names, not
-        objects: a task crosses to a worker process).
+    :param task: ``(law, scenario name, speeds, plants, vehicle, dt, duration)`` (names,
+        not objects: a task crosses to a worker process; duration None: the scenario's).
     :return: one row per run.
     """
-    law_name, scenario_name, speeds, plants, league_vehicle, dt = task
+    law_name, scenario_name, speeds, plants, league_vehicle, dt, duration = task
     scenario = load_scenarios([scenario_name])[scenario_name]
+    if duration is not None:
+        scenario = replace(scenario, duration=duration)
     v0 = np.asarray(speeds, dtype=float)
     seeds = [NOISE_SEED + i for i in range(v0.size)]
     rows = []
     for case in plants:
         vehicle = case.law_vehicle(league_vehicle)
         law = LAWS[law_name](vehicle)
-        common: dict[str, Any] = {'initial_speed': v0, 'dt': dt,
-                                  'preview_distance': PREVIEW_DISTANCE,
-                                  'delay': np.full(v0.shape, case.delay)}
-        result = run(scenario, vehicle, law, case.plant, **common)
+        common: dict[str, Any] = {'initial_speed': v0, 'dt': case.dt or dt,
+                                  'preview_distance': PREVIEW_DISTANCE, 'delay': case.delay}
         clean = None
         if case.noisy:
-            clean = result['steering_cmd']
+            if scenario_name == NOISE_SCENARIO:     # the noise-free twin of each run
+                clean = run(scenario, vehicle, law, case.plant, **common)['steering_cmd']
             result = run(scenario, vehicle, law, case.plant, noise=NoiseParams(), seed=seeds,
                          **common)
+        else:
+            result = run(scenario, vehicle, law, case.plant, **common)
         for i, speed in enumerate(v0):
             row: dict[str, Any] = {'law': law_name, 'scenario': scenario_name,
                                    'plant': case.name, 'speed_mps': float(speed)}
@@ -329,8 +353,8 @@ def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], Vehicle
 
 
 def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float],
-           plants: Sequence[PlantCase], vehicle: VehicleParams, dt: float = 0.001,
-           workers: int = 1) -> list[dict[str, Any]]:
+           plants: Sequence[PlantCase], vehicle: VehicleParams, dt: float = DT,
+           workers: int = 1, duration: Optional[float] = None) -> list[dict[str, Any]]:
     """
     Run the league: every law on every scenario, plant and speed.
 
@@ -341,16 +365,20 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     :param vehicle: the vehicle (controller model and plant).
     :param dt: plant step [s].
     :param workers: processes (1: in this process).
+    :param duration: cut every scenario to this duration [s] (None: their own; tests).
     :return: one row per run, in a fixed order (law, scenario, plant, speed).
     """
     loaded = load_scenarios(scenarios)
-    tasks = [(law, name, scenario_speeds(loaded[name], speeds), tuple(plants), vehicle, dt)
-             for law in laws for name in scenarios]
+    tasks = [(law, name, scenario_speeds(loaded[name], speeds), tuple(plants), vehicle, dt,
+              duration) for law in laws for name in scenarios]
     if workers <= 1:
         results = [run_case(task) for task in tasks]
     else:
+        # the longest tasks first (S5 runs 30 s at one speed); rows in the tasks' order
+        order = sorted(range(len(tasks)), key=lambda i: tasks[i][1] != 's5_envelope')
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            results = list(pool.map(run_case, tasks))
+            futures = {i: pool.submit(run_case, tasks[i]) for i in order}
+            results = [futures[i].result() for i in range(len(tasks))]
     return [row for rows in results for row in rows]
 
 
@@ -504,13 +532,14 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
 
 # -- tuning (the same procedure for every baseline) ----------------------------------------
 
+# the refined grids (docs/baselines.md gives the coarse 25-point first pass of each)
 TUNING_GRIDS: dict[str, list[Any]] = {
-    'pure_pursuit': [PurePursuitParams(velocity_ratio=a, min_look_ahead=b)
-                     for a in (0.6, 0.8, 1.0, 1.4, 2.0) for b in (4.35, 10.0)],
+    'pure_pursuit': [PurePursuitParams(velocity_ratio=a, curvature_ratio=b)
+                     for a in (0.3, 0.45, 0.6) for b in (0.0, 120.0)],
     'stanley': [StanleyParams(gain=a, yaw_rate_gain=b)
-                for a in (0.5, 1.0, 1.5, 2.5, 4.0, 6.0) for b in (0.0, 0.05, 0.1, 0.2)],
+                for a in (2.5, 4.0, 6.0) for b in (0.05, 0.1, 0.2)],
     'lqr': [LqrParams(q_lateral=a, q_heading=b)
-            for a in (0.003, 0.01, 0.03, 0.1, 0.3) for b in (0.01, 0.03, 0.1, 0.3, 1.0)],
+            for a in (0.003, 0.01, 0.03) for b in (0.03, 0.1, 0.3)],
 }
 TUNING_NOISE_LIMIT = 0.005      # [rad] rms on S0 at 37 m/s, the noise goal
 
@@ -547,7 +576,7 @@ def tune_point(task: tuple[str, Any, VehicleParams, float]) -> dict[str, Any]:
             'noise_s0_37_rad': noise, 'feasible': noise <= TUNING_NOISE_LIMIT}
 
 
-GRID_FIELDS = {'pure_pursuit': ('velocity_ratio', 'min_look_ahead'),
+GRID_FIELDS = {'pure_pursuit': ('velocity_ratio', 'curvature_ratio'),
                'stanley': ('gain', 'yaw_rate_gain'), 'lqr': ('q_lateral', 'q_heading')}
 
 
@@ -590,7 +619,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--plants', nargs='+', default=[c.name for c in PLANTS],
                    choices=[c.name for c in PLANTS])
     p.add_argument('--speeds', type=float, nargs='+', default=list(SPEEDS))
-    p.add_argument('--dt', type=float, default=0.001, help='plant step [s]')
+    p.add_argument('--dt', type=float, default=DT, help='plant step [s] (CommonRoad: 0.001)')
     p.add_argument('--workers', type=int, default=2, help='processes')
     p.add_argument('--out', type=Path, default=Path('bags') / 'compare',
                    help='folder for league.md, league.csv, league.png')
