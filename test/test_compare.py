@@ -48,7 +48,7 @@ def _row(**fields):
     row = {'law': 'x', 'scenario': 's1_paper_step', 'plant': compare.GOAL_PLANT,
            'speed_mps': 37.0, 'peak_cg_error_m': 0.05, 'steady_cg_error_m': 0.005,
            'yaw_overshoot': 0.05, 'yaw_rebound': math.nan,
-           'steering_noise_rms_rad': math.nan, 'diverged': False}
+           'steering_noise_rms_rad': math.nan, 'off_road': False}
     row.update(fields)
     return row
 
@@ -67,7 +67,7 @@ def test_goal_rows_apply_where_issue_14_puts_them():
     assert compare.goal_verdicts(s0) == (['S0 yaw rebound <= 50 %',
                                           'S0 noise <= 5 mrad rms at 37'],
                                          ['S0 yaw rebound <= 50 %'])
-    _, missed = compare.goal_verdicts(_row(diverged=True))
+    _, missed = compare.goal_verdicts(_row(off_road=True))
     assert len(missed) == 3
 
 

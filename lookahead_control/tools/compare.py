@@ -251,7 +251,7 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
         'peak_command_rate_rad_per_s': _peak_rate(command, period),
         'steering_noise_rms_rad': (math.nan if clean_command is None else float(
             np.sqrt(np.mean(np.square(command - clean_command))))),
-        'diverged': bool(not np.all(np.isfinite(y)) or np.max(np.abs(y)) > 5.0),
+        'off_road': bool(not np.all(np.isfinite(y)) or np.max(np.abs(y)) > 5.0),
     }
     window = curve_window(t, rho)
     notes = []
@@ -283,7 +283,7 @@ def goal_verdicts(row: Mapping[str, Any]) -> tuple[list[str], list[str]]:
         if goal.applies(row):
             applicable.append(goal.name)
             value = row[goal.metric]
-            if not (value <= goal.bound) or row['diverged']:
+            if not (value <= goal.bound) or row['off_road']:
                 missed.append(goal.name)
     return applicable, missed
 
@@ -421,7 +421,7 @@ def summary(rows: Sequence[Mapping[str, Any]], laws: Sequence[str]) -> list[dict
         entry['S0 noise 37 [mrad]'] = 1000.0 * _worst(
             [r for r in at37 if r['scenario'] == 's0_straight'], 'steering_noise_rms_rad')
         entry['peak wheel rate [rad/s]'] = _worst(goal, 'peak_wheel_rate_rad_per_s')
-        entry['diverged runs'] = sum(bool(r['diverged']) for r in mine)
+        entry['runs off the road'] = sum(bool(r['off_road']) for r in mine)
         entry['goals met'] = f'{applicable - missed}/{applicable}'
         table.append(entry)
     return table
