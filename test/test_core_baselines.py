@@ -164,7 +164,8 @@ def test_pure_pursuit_look_ahead_is_autowares():
 def test_pure_pursuit_on_a_straight_lane_by_hand():
     # rear axle at (-l2, 0.5), heading along the lane; look-ahead 1.4 * 20 + 3.6 * 0.5 =
     # 29.8 m; target at lateral -0.5: curvature -2 * 0.5 / 29.8^2
-    out = pure_pursuit(0.5, 0.0, 20.0, *STRAIGHT, VEHICLE, PurePursuitParams())
+    out = pure_pursuit(0.5, 0.0, 20.0, *STRAIGHT, VEHICLE,
+                       PurePursuitParams(velocity_ratio=1.4))
     assert out.look_ahead == pytest.approx(29.8)
     assert out.target_lateral == pytest.approx(-0.5, rel=1e-9)
     assert out.steering == pytest.approx(math.atan(-L / 29.8 ** 2), rel=1e-7)
@@ -179,7 +180,8 @@ def test_pure_pursuit_rear_axle_on_an_arc_steers_its_curvature(rho):
     a = math.atan(VEHICLE.l2 / radius)
     y_cg = math.copysign(1.0, rho) * (radius * (1.0 - math.cos(a)) - VEHICLE.l2 * math.sin(a))
     eps_r = -math.copysign(a, rho)
-    out = pure_pursuit(y_cg, eps_r, 15.0, *arc(rho), VEHICLE, PurePursuitParams())
+    out = pure_pursuit(y_cg, eps_r, 15.0, *arc(rho), VEHICLE,
+                       PurePursuitParams(velocity_ratio=1.4))
     # the target is interpolated on a chord of the 0.5 m-spaced lane points: it lies inside
     # the circle by at most h^2 |rho| / 8, which moves the curvature by < 3e-4 of itself
     assert out.curvature == pytest.approx(rho, rel=3e-4)
@@ -199,7 +201,7 @@ def test_lane_path_on_an_arc_is_exact():
 
 def test_stanley_on_a_straight_lane_by_hand():
     y, e, r, v = 0.5, 0.01, 0.02, 20.0
-    out = stanley(y, e, r, v, *STRAIGHT, VEHICLE, StanleyParams())
+    out = stanley(y, e, r, v, *STRAIGHT, VEHICLE, StanleyParams(gain=1.5, yaw_rate_gain=0.1))
     e_fa = y + VEHICLE.l1 * math.sin(e)
     assert out.front_error == pytest.approx(e_fa, rel=1e-12)
     assert out.steering == pytest.approx(-e - math.atan(1.5 * e_fa / 21.0) - 0.1 * r,
@@ -229,12 +231,13 @@ def test_stanley_holds_the_front_axle_on_an_arc(speed):
         mid = 0.5 * (low + high)
         low, high = (mid, high) if cg_x(mid)[0] < 0.0 else (low, mid)
     _, y_cg, heading = cg_x(low)
-    out = stanley(y_cg, heading, r, speed, *arc(rho), VEHICLE, StanleyParams())
+    params = StanleyParams(gain=1.5, yaw_rate_gain=0.1)
+    out = stanley(y_cg, heading, r, speed, *arc(rho), VEHICLE, params)
     assert abs(out.front_error) < 1e-4
     assert out.path_yaw_rate == pytest.approx(r, rel=1e-9)
     assert out.steering == pytest.approx(delta, rel=2e-3)
     without = stanley(y_cg, heading, r, speed, *arc(rho), VEHICLE,
-                      StanleyParams(steady_yaw_gain=0.0))
+                      StanleyParams(gain=1.5, yaw_rate_gain=0.1, steady_yaw_gain=0.0))
     assert abs(without.steering - delta) > 0.3 * abs(delta)     # the term matters
 
 
@@ -315,11 +318,11 @@ def test_runner_batch_equals_single_runs(name):
             assert_allclose(batch[channel][:, i], one[channel], rtol=1e-12, atol=1e-15)
 
 
-@pytest.mark.parametrize('name,bound', [('stanley', 0.10), ('lqr', 0.03)])
+@pytest.mark.parametrize('name,bound', [('stanley', 0.08), ('lqr', 0.10)])
 def test_stanley_and_lqr_track_the_paper_curve_on_the_linear_plant(name, bound):
     # the paper's 400 m curve at 10-37 m/s: both have curvature feedforward, so the CG
-    # stays within a few centimetres and settles near the lane (measured: Stanley 8.6 cm,
-    # LQR 2.0 cm peak at 37 m/s)
+    # stays within centimetres and settles near the lane (measured with the tuned defaults:
+    # peak Stanley 6.1 cm, LQR 8.8 cm at 37 m/s; final 2.3 cm and 0.01 mm)
     law = baseline_law(name, VEHICLE, BaselineParams())
     result = run(paper_scenario(37.0, 12.0), VEHICLE, law,
                  initial_speed=np.array([10.0, 20.0, 30.0, 37.0]), preview_distance=100.0)

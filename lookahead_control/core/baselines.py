@@ -184,7 +184,7 @@ class PurePursuitParams:
     :param max_look_ahead: Autoware's ``max_lookahead_distance`` [m].
     """
 
-    velocity_ratio: float = 1.4
+    velocity_ratio: float = 0.3
     lateral_error_ratio: float = 3.6
     lateral_error_threshold: float = 0.5
     curvature_ratio: float = 120.0
@@ -299,9 +299,9 @@ class StanleyParams:
     :param steady_yaw_gain: k_ag on the steady-state yaw term (1: the single-track value).
     """
 
-    gain: float = 1.5
+    gain: float = 4.0
     softening: float = 1.0
-    yaw_rate_gain: float = 0.1
+    yaw_rate_gain: float = 0.05
     steady_yaw_gain: float = 1.0
 
     def __post_init__(self) -> None:
@@ -387,9 +387,9 @@ class LqrParams:
     :param feedforward: add Apollo's curvature feedforward.
     """
 
-    q_lateral: float = 0.3
+    q_lateral: float = 0.01
     q_lateral_rate: float = 0.0
-    q_heading: float = 1.0
+    q_heading: float = 0.1
     q_heading_rate: float = 0.0
     r: float = 1.0
     period: float = 0.01

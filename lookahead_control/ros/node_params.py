@@ -80,7 +80,7 @@ LAW_SPEC = Spec('law', 'paper', 'steering law: paper (the look-ahead law, eq. 15
                 choices=LAW_NAMES)
 
 BASELINE_SPECS = (
-    Spec('pure_pursuit.velocity_ratio', 1.4, 'look-ahead per speed (Autoware '
+    Spec('pure_pursuit.velocity_ratio', 0.3, 'look-ahead per speed (Autoware '
          'ld_velocity_ratio) [s]', 0.0, 10.0),
     Spec('pure_pursuit.lateral_error_ratio', 3.6, 'look-ahead per |rear-axle error| past '
          'the threshold (ld_lateral_error_ratio) [-]', 0.0, 100.0),
@@ -90,13 +90,13 @@ BASELINE_SPECS = (
          '(ld_curvature_ratio) [m^2]', 0.0, 1.0e4),
     Spec('pure_pursuit.min_look_ahead', 4.35, 'min_lookahead_distance [m]', 0.01, 200.0),
     Spec('pure_pursuit.max_look_ahead', 60.0, 'max_lookahead_distance [m]', 0.01, 200.0),
-    Spec('stanley.gain', 1.5, 'k of atan(k e / (k_soft + v)) [1/s]', 0.001, 100.0),
+    Spec('stanley.gain', 4.0, 'k of atan(k e / (k_soft + v)) [1/s]', 0.001, 100.0),
     Spec('stanley.softening', 1.0, 'k_soft [m/s]', 0.001, 100.0),
-    Spec('stanley.yaw_rate_gain', 0.1, 'k_d,yaw on r - r_traj [s]', 0.0, 10.0),
+    Spec('stanley.yaw_rate_gain', 0.05, 'k_d,yaw on r - r_traj [s]', 0.0, 10.0),
     Spec('stanley.steady_yaw_gain', 1.0, 'k_ag on the steady-state yaw term [-]', 0.0, 5.0),
-    Spec('lqr.q_lateral', 0.3, 'Q weight of the lateral error [1/m^2]', 0.0, 1.0e6),
+    Spec('lqr.q_lateral', 0.01, 'Q weight of the lateral error [1/m^2]', 0.0, 1.0e6),
     Spec('lqr.q_lateral_rate', 0.0, 'Q weight of its rate [s^2/m^2]', 0.0, 1.0e6),
-    Spec('lqr.q_heading', 1.0, 'Q weight of the relative yaw [1/rad^2]', 0.0, 1.0e6),
+    Spec('lqr.q_heading', 0.1, 'Q weight of the relative yaw [1/rad^2]', 0.0, 1.0e6),
     Spec('lqr.q_heading_rate', 0.0, 'Q weight of its rate [s^2/rad^2]', 0.0, 1.0e6),
     Spec('lqr.r', 1.0, 'R weight of the steering angle [1/rad^2]', 1.0e-6, 1.0e6),
     Spec('lqr.period', 0.01, 'sampling period the gains are designed for [s]', 0.001, 1.0),
