@@ -30,14 +30,14 @@ import sys
 import time
 from typing import Callable, Union
 
-from bench import bench_analyze, bench_core, bench_dds
+from bench import bench_analyze, bench_core, bench_dds, bench_sweep
 from bench.common import Result, RESULTS
 
 BENCHMARKS: dict[str, Callable[[bool], Union[Result, list[Result]]]] = {
     'core': bench_core.core_step, 'latency': bench_dds.latency,
     'lockstep': bench_dds.lockstep, 'batch': bench_core.batch,
     'recorder': bench_dds.recorder, 'analyze': bench_analyze.analyze,
-    'memory': bench_dds.memory,
+    'memory': bench_dds.memory, 'sweep': bench_sweep.sweep_workers,
 }
 
 

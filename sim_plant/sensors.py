@@ -93,7 +93,14 @@ def noise_table(noise: NoiseParams, seed: int, steps: int) -> npt.NDArray[np.flo
 
 
 class NoiseStream:
-    """The noise of one run, one step at a time (the simulator node)."""
+    """
+    The noise of one run, row by row (the simulator node), equal to :func:`noise_table`.
+
+    Rows are drawn in blocks as the steps advance; a row may be asked for again (a
+    repeated first step), and rows before the current block are forgotten.
+    """
+
+    BLOCK = 4096
 
     def __init__(self, noise: NoiseParams, seed: int) -> None:
         """
@@ -104,8 +111,28 @@ class NoiseStream:
         """
         self._rng = np.random.default_rng(check_seed(seed))
         self._sigmas = noise.sigmas
+        self._start = 0
+        self._block = self._rng.standard_normal((self.BLOCK, 4)) * self._sigmas
+        self._next = 0
+
+    def row(self, step: int) -> tuple[float, float, float, float]:
+        """
+        Return the noise of control step ``step`` ``(lateral, yaw, v_y, r)``.
+
+        :param step: the step (not before the current block).
+        :return: the four noise values.
+        :raises ValueError: the step's block was already dropped.
+        """
+        if step < self._start:
+            raise ValueError(f'noise of step {step} is no longer kept')
+        while step >= self._start + self.BLOCK:
+            self._start += self.BLOCK
+            self._block = self._rng.standard_normal((self.BLOCK, 4)) * self._sigmas
+        r = self._block[step - self._start]
+        return float(r[0]), float(r[1]), float(r[2]), float(r[3])
 
     def draw(self) -> tuple[float, float, float, float]:
         """Return the next step's noise ``(lateral, yaw, v_y, r)``."""
-        row = self._rng.standard_normal(4) * self._sigmas
-        return float(row[0]), float(row[1]), float(row[2]), float(row[3])
+        value = self.row(self._next)
+        self._next += 1
+        return value

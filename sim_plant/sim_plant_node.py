@@ -24,6 +24,7 @@ one step per wall-clock period with the latest command.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 import sys
 import time
@@ -42,14 +43,18 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu, JointState
-from sim_plant.closed_loop_sim import (advance, check_steps, linear_plant_stepper, measure,
-                                       plant_derivatives, Stepper)
+from sim_plant.closed_loop_sim import (advance, check_steps, CommonRoadGroup, delay_steps,
+                                       linear_plant_stepper, measure, plant_derivatives,
+                                       Stepper)
+from sim_plant.commonroad_plant import COMMONROAD_MODELS
 from sim_plant.scenario import load_scenario, Scenario
+from sim_plant.sensors import NoiseParams, NoiseStream
 from sim_plant.vehicle_model import KINEMATICS, PLANT_MODELS, PlantParams, State
 
 PLANT_SPECS = (
-    Spec('plant.model', 'linear', 'linear (paper eq. 1) or nonlinear (Fiala tyres, '
-         'actuator)', choices=PLANT_MODELS),
+    Spec('plant.model', 'linear', 'linear (paper eq. 1), nonlinear (Fiala tyres, '
+         'actuator), commonroad_st or commonroad_mb (CommonRoad single-track / multi-body)',
+         choices=PLANT_MODELS),
     Spec('plant.kinematics', 'exact', 'Frenet kinematics: exact or small_angle',
          choices=KINEMATICS),
     Spec('plant.friction', 1.0, 'tyre-road friction mu (nonlinear) [-]', 0.01, 2.0),
@@ -58,6 +63,22 @@ PLANT_SPECS = (
          0.01, 1.2),
     Spec('plant.max_steering_rate', 0.8, 'actuator rate limit (nonlinear) [rad/s]',
          0.01, 20.0),
+    Spec('plant.vehicle_id', 2, 'CommonRoad parameter set of commonroad_* plants: 1 Ford '
+         'Escort, 2 BMW 320i, 3 VW Vanagon', 1, 3),
+    Spec('plant.delay', 0.0, 'transport delay from the steering command to the wheel [s], '
+         'a multiple of dt', 0.0, 1.0),
+    Spec('plant.mass_scale', 1.0, "plant mass / vehicle.mass (the controller's model: "
+         'mismatch)', 0.1, 10.0),
+    Spec('plant.inertia_scale', 1.0, 'plant yaw inertia / vehicle.yaw_inertia', 0.1, 10.0),
+    Spec('plant.cornering_scale', 1.0, 'plant cornering stiffness / vehicle.c_f, c_r',
+         0.1, 10.0),
+    Spec('noise.enabled', False, 'add seeded white noise to the published measurements'),
+    Spec('noise.lateral_error', 0.03, 'noise std of the lateral error [m]', 0.0, 5.0),
+    Spec('noise.relative_yaw', 0.002, 'noise std of the relative yaw [rad]', 0.0, 0.5),
+    Spec('noise.lateral_velocity', 0.02, 'noise std of v_y [m/s]', 0.0, 5.0),
+    Spec('noise.yaw_rate', 0.002, 'noise std of the yaw rate [rad/s]', 0.0, 0.5),
+    Spec('noise.seed', 0, 'noise seed (the same seed repeats the run exactly)', 0,
+         2 ** 31 - 1),
 )
 SIM_SPECS = (
     Spec('scenario_file', '', 'scenario YAML (empty: config/scenarios/paper_r400.yaml)'),
@@ -103,6 +124,13 @@ class SimPlantNode(Node):
         self.params = p
         self.vehicle: VehicleParams = build(VehicleParams, p, 'vehicle')
         self.plant: PlantParams = build(PlantParams, p, 'plant')
+        self.plant_vehicle = replace(
+            self.vehicle, mass=self.vehicle.mass * p['plant.mass_scale'],
+            yaw_inertia=self.vehicle.yaw_inertia * p['plant.inertia_scale'],
+            c_f=self.vehicle.c_f * p['plant.cornering_scale'],
+            c_r=self.vehicle.c_r * p['plant.cornering_scale'])
+        self.noise = (NoiseStream(build(NoiseParams, p, 'noise'), p['noise.seed'])
+                      if p['noise.enabled'] else None)
         path = Path(p['scenario_file']) if p['scenario_file'] else (
             source_config_dir() / 'scenarios' / 'paper_r400.yaml')
         self.scenario: Scenario = load_scenario(path, p['speed'] or None)
@@ -111,15 +139,22 @@ class SimPlantNode(Node):
                                                   self.scenario.duration)
         self.sensor_distance = (p['sensor_distance'] if p['sensor_distance'] >= 0.0
                                 else self.vehicle.d_s)
+        self.lag = delay_steps(p['plant.delay'], p['dt'])
+        self.commands: dict[int, float] = {}      # step -> command, for the delay
         speed = self.scenario.speed
         self._preview_rho = self.scenario.road.curvature_function()
         self.stepper: Optional[Stepper] = (
-            linear_plant_stepper(self.scenario, self.vehicle, self.plant, float(speed.initial),
-                                 float(speed.acceleration))
+            linear_plant_stepper(self.scenario, self.plant_vehicle, self.plant,
+                                 float(speed.initial), float(speed.acceleration))
             if self.plant.model == 'linear' else None)
         init = self.scenario.initial
         self.x: State = (0.0, init.lateral_error, init.relative_yaw, init.lateral_velocity,
                          init.yaw_rate, 0.0)
+        self.commonroad: Optional[CommonRoadGroup] = None
+        if self.plant.model in COMMONROAD_MODELS:
+            self.commonroad = CommonRoadGroup(self.scenario, [self.plant], speed.initial,
+                                              init.lateral_error, ())
+            self.x = self.commonroad.contract()
         self.k = 0
         self.command = 0.0
         self.missed = 0
@@ -174,17 +209,22 @@ class SimPlantNode(Node):
         t = stamp * 1e-9
         scenario = self.scenario
         x = tuple(float(v) for v in self.x)
-        inputs = measure(x, t, scenario, scenario.speed.initial, scenario.speed.acceleration)
+        inputs = (self.commonroad.measure(x, t, scenario, scenario.speed.acceleration)
+                  if self.commonroad is not None else
+                  measure(x, t, scenario, scenario.speed.initial, scenario.speed.acceleration))
         v_x, a_x, rho = float(inputs.v_x), float(inputs.a_x), float(inputs.rho)
-        # the IMU measures body acceleration: dv_x/dt - v_y r
-        self.pub_yaw.publish(conv.to_yaw(stamp, self.frame, x[2], x[4],
+        # sensor noise of this step (the same row however often a step is published)
+        n_lat, n_yaw, n_vy, n_r = (self.noise.row(self.k) if self.noise is not None
+                                   else (0.0, 0.0, 0.0, 0.0))
+        eps_m, v_y_m, r_m = x[2] + n_yaw, x[3] + n_vy, x[4] + n_r
+        # the IMU measures body acceleration: dv_x/dt - v_y r (true values)
+        self.pub_yaw.publish(conv.to_yaw(stamp, self.frame, eps_m, r_m,
                                          a_x - x[3] * x[4]))
-        self.pub_velocity.publish(conv.to_velocity(stamp, self.frame, v_x, x[3],
-                                                   x[4]))
+        self.pub_velocity.publish(conv.to_velocity(stamp, self.frame, v_x, v_y_m, r_m))
         self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
                                                      self.preview(x[0])))
         if self.pub_truth.get_subscription_count() > 0:     # a recorder, a probe
-            steering = self.command if self.plant.model == 'linear' else x[5]
+            steering = self.applied(0) if self.plant.model == 'linear' else x[5]
             # command_time: the stamp of the step whose answer is applied (-1: none yet)
             answered = self.answered_stamp
             command_time = (answered * 1e-9 if answered is not None and answered >= 0
@@ -194,7 +234,8 @@ class SimPlantNode(Node):
             self.pub_truth.publish(conv.to_named_values(stamp,
                                                         list(zip(GROUND_TRUTH, truth))))
         self.pub_lateral.publish(conv.to_lateral_error(
-            stamp, self.frame, self.sensor_distance, x[1] + self.sensor_distance * x[2]))
+            stamp, self.frame, self.sensor_distance,
+            x[1] + self.sensor_distance * x[2] + n_lat))
         # /clock last: a controller on a sim-time timer wakes to this step's measurements
         self.pub_clock.publish(ClockMsg(clock=conv.ns_to_stamp(stamp)))
         return stamp
@@ -211,17 +252,45 @@ class SimPlantNode(Node):
         rho = self._preview_rho
         return [(i * step, float(rho(s + i * step))) for i in range(count)]
 
+    def applied(self, substep: int) -> float:
+        """
+        Return the command at the wheel in plant step ``substep`` of this period.
+
+        :param substep: 0 .. substeps - 1.
+        :return: the command sent ``plant.delay`` earlier (0 before the first).
+        """
+        if self.lag == 0:
+            return self.command
+        source = (self.k * self.substeps + substep - self.lag) // self.substeps
+        return self.commands.get(source, 0.0)
+
     def integrate(self) -> None:
-        """Advance the plant by one period with the held command."""
+        """Advance the plant by one period with the held (and delayed) command."""
         t = self.k * self.period
-        if self.stepper is not None:
-            self.x = self.stepper(self.x, t, self.params['dt'], self.substeps, self.command)
-        else:
-            scenario = self.scenario
-            rhs = plant_derivatives(scenario, self.vehicle, self.plant, self.command,
+        dt = self.params['dt']
+        self.commands[self.k] = self.command
+        self.commands.pop(self.k - self.lag // self.substeps - 2, None)
+        scenario = self.scenario
+        if self.commonroad is not None:
+            for j in range(self.substeps):
+                self.commonroad.advance(t + j * dt, dt, self.applied(j))
+            self.x = self.commonroad.contract()
+        elif self.lag == 0 and self.stepper is not None:
+            self.x = self.stepper(self.x, t, dt, self.substeps, self.command)
+        elif self.lag == 0:
+            rhs = plant_derivatives(scenario, self.plant_vehicle, self.plant, self.command,
                                     scenario.speed.initial, scenario.speed.acceleration)
-            self.x = advance(rhs, self.x, t, self.params['dt'], self.substeps, self.plant,
-                             self.command)
+            self.x = advance(rhs, self.x, t, dt, self.substeps, self.plant, self.command)
+        else:
+            for j in range(self.substeps):
+                u = self.applied(j)
+                if self.stepper is not None:
+                    self.x = self.stepper(self.x, t + j * dt, dt, 1, u)
+                else:
+                    rhs = plant_derivatives(scenario, self.plant_vehicle, self.plant, u,
+                                            scenario.speed.initial,
+                                            scenario.speed.acceleration)
+                    self.x = advance(rhs, self.x, t + j * dt, dt, 1, self.plant, u)
         self.k += 1
 
     def finished(self) -> bool:

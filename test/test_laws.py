@@ -190,3 +190,18 @@ def test_batch_of_everything_equals_single_runs():
         for name in ('y_cg', 'eps_r', 'steering', 'steering_cmd', 'd_v'):
             np.testing.assert_allclose(batch[name][:, i], one[name], rtol=1e-10,
                                        atol=1e-13)
+
+
+def test_disturbance_force_and_moment_act_on_the_body():
+    scenario = Scenario('straight', 1.0, Road([Segment('straight', 500.0)]),
+                        SpeedProfile(20.0))
+    law = _Recorder()        # steers only on the preview and on y_cg (0.1 rad/m)
+    force = run(scenario, VEHICLE, law, disturbance=lambda t: (1000.0, 0.0))
+    moment = run(scenario, VEHICLE, law, disturbance=lambda t: (0.0, 1000.0))
+    # a left force first accelerates the body left: v_y' = F / m at t = 0
+    assert force['v_y'][1] == pytest.approx(1000.0 / VEHICLE.mass * 0.01, rel=0.05)
+    # a left (CCW) moment first yaws it left: r' = M / I_z
+    assert moment['r'][1] == pytest.approx(1000.0 / VEHICLE.yaw_inertia * 0.01, rel=0.05)
+    with pytest.raises(ParameterError, match='no disturbance'):
+        run(scenario, VEHICLE, law, PlantParams(model='commonroad_st'),
+            disturbance=lambda t: (1.0, 0.0))

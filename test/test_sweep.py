@@ -30,7 +30,7 @@ from sim_plant.sensors import NoiseParams
 from sim_plant.vehicle_model import PlantParams
 
 SPEC = sw.SweepSpec(runs=3, scenarios=('s1_paper_step',), speeds=(25.0, 37.0), batch=2,
-                    duration=0.6, dt=0.002)
+                    duration=1.2, dt=0.002)
 VEHICLE = VehicleParams()
 CONTROLLER = ControllerParams()
 
@@ -48,15 +48,25 @@ def _sweep(out, spec=SPEC, **kwargs):
                     **{'workers': 0, **kwargs})
 
 
-def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
-    table, count = _sweep(tmp_path / 'a')
-    assert count == 4 and table.num_rows == 6          # 2 laws x 3 conditions
-    for name in sw.PARAMETER_COLUMNS + ('peak_cg', 'yaw_overshoot', 'peak_steering',
-                                        'rms_steering_noise', 'failed'):
+@pytest.fixture(scope='module')
+def reference(tmp_path_factory):
+    """Return the folder and the table of one undisturbed sweep in this process."""
+    folder = tmp_path_factory.mktemp('sweep') / 'a'
+    table, count = _sweep(folder)
+    assert count == 4
+    return folder, table
+
+
+def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(reference):
+    folder, table = reference
+    assert table.num_rows == 6          # 2 laws x 3 conditions
+    for name in sw.PARAMETER_COLUMNS + ('peak_cg_error_m', 'yaw_overshoot',
+                                        'peak_steering_rad', 'rms_steering_noise_rad',
+                                        'failed'):
         assert name in table.column_names, name
     row = {k: v[0] for k, v in table.to_pydict().items()}
-    assert row['law'] == 'paper' and row['run_id'] == 0
-    scenario = replace(load_scenario(sw.scenario_path('s1_paper_step')), duration=0.6)
+    assert row['law'] == 'paper_eq26' and row['run_id'] == 0
+    scenario = replace(load_scenario(sw.scenario_path('s1_paper_step')), duration=1.2)
     body = VehicleParams(mass=VEHICLE.mass * (1 + row['mass']),
                          yaw_inertia=VEHICLE.yaw_inertia * (1 + row['mass']),
                          c_f=VEHICLE.c_f * (1 + row['cornering']),
@@ -65,14 +75,15 @@ def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
                                                             friction=row['friction']),
                  dt=0.002, initial_speed=row['speed'], plant_vehicle=body,
                  delay=row['delay'], noise=NoiseParams(), seed=row['seed'])
-    assert row['peak_cg'] == pytest.approx(np.max(np.abs(single['y_cg'])), rel=1e-9)
+    peak = np.max(np.abs(single['y_cg']))
+    assert row['peak_cg_error_m'] == pytest.approx(peak, rel=1e-9)
     assert 0.0 <= row['delay'] <= 0.05 and round(row['delay'] / 0.002, 9) % 1 == 0
     # the same conditions for every law (common random numbers)
     data = table.to_pydict()
     for name in ('speed', 'cornering', 'mass', 'friction', 'delay', 'seed'):
         assert data[name][:3] == data[name][3:]
-    text = (tmp_path / 'a' / 'summary.md').read_text()
-    assert '| paper | all | 3 |' in text and 'paper_fixed' in text
+    text = (folder / 'summary.md').read_text()
+    assert '| paper_eq26 | all | 3 |' in text and 'paper_fixed' in text
 
 
 def test_grid_enumerates_every_combination():
@@ -83,7 +94,7 @@ def test_grid_enumerates_every_combination():
     assert {c['delay'] for c in conds} == {0.0, 0.05}
 
 
-def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path):
+def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path, reference):
     partial, count = _sweep(tmp_path / 'r', max_tasks=1)
     assert partial is None and count == 1
     parts = sorted((tmp_path / 'r' / 'parts').glob('*.parquet'))
@@ -93,8 +104,7 @@ def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path):
     table, count = _sweep(tmp_path / 'r')
     assert count == 3 and parts[0].stat().st_mtime_ns == stamp     # not redone
     assert not list((tmp_path / 'r' / 'parts').glob('.*.tmp'))
-    fresh, _ = _sweep(tmp_path / 'f')
-    assert _same(table, fresh)
+    assert _same(table, reference[1])
     with pytest.raises(ToolError, match='options differ: runs'):
         _sweep(tmp_path / 'r', replace(SPEC, runs=4))
 
@@ -102,20 +112,19 @@ def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path):
 def crash_once(task, data, vehicle, controller):
     """Kill the worker process the first time the first task runs."""
     marker = Path(os.environ['SWEEP_TEST_MARKER'])
-    if task['task'].endswith('-00000') and task['law'] == 'paper' and not marker.exists():
+    if task['task'].endswith('-00000') and task['law'] == 'paper_eq26' and not marker.exists():
         marker.write_text('crashed')
         os._exit(1)
     return sw.run_task(task, data, vehicle, controller)
 
 
-def test_a_killed_dask_worker_loses_no_result(tmp_path, monkeypatch):
+def test_a_killed_dask_worker_loses_no_result(tmp_path, monkeypatch, reference):
     marker = tmp_path / 'marker'
     monkeypatch.setenv('SWEEP_TEST_MARKER', str(marker))
     table, count = _sweep(tmp_path / 'd', workers=2, runner=crash_once)
     assert marker.exists()                      # a worker did die mid-task
-    reference, _ = _sweep(tmp_path / 'ref')
-    assert _same(table, reference)
-    assert _same(pq.read_table(tmp_path / 'd' / 'results.parquet'), reference)
+    assert _same(table, reference[1])
+    assert _same(pq.read_table(tmp_path / 'd' / 'results.parquet'), reference[1])
 
 
 @pytest.mark.parametrize('args, expected', [
@@ -137,3 +146,18 @@ def test_output_folder_that_is_not_a_sweep_is_refused(tmp_path):
     (tmp_path / 'o' / 'notes.txt').write_text('mine')
     with pytest.raises(ToolError, match='not a sweep folder'):
         _sweep(tmp_path / 'o')
+
+
+def fail_third(task, data, vehicle, controller):
+    """Fail on the third task (a bug in a law, say)."""
+    if task['task'] == 'paper_fixed-s1_paper_step-00000':
+        raise ValueError('law exploded')
+    return sw.run_task(task, data, vehicle, controller)
+
+
+def test_a_failing_task_stops_the_sweep_and_keeps_finished_parts(tmp_path):
+    with pytest.raises(ValueError, match='law exploded'):
+        _sweep(tmp_path / 'e', runner=fail_third)
+    assert len(list((tmp_path / 'e' / 'parts').glob('*.parquet'))) == 2
+    table, count = _sweep(tmp_path / 'e')
+    assert count == 2 and table.num_rows == 6

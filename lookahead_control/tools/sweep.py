@@ -45,7 +45,7 @@ import sys
 import time
 from typing import Any, Callable, Mapping, Optional, Sequence
 
-from lookahead_control.analysis.metrics import peak, rms, run_metrics
+from lookahead_control.analysis.metrics import rms, run_metrics
 from lookahead_control.core.cli import markdown_table, run_tool, ToolError, write_csv
 from lookahead_control.core.config import load_controller, load_vehicle, source_config_dir
 from lookahead_control.core.laws import Law, PaperLaw
@@ -57,8 +57,9 @@ RANGES = ('cornering', 'mass', 'friction', 'delay')
 PARAMETER_COLUMNS = ('run_id', 'task', 'law', 'scenario', 'plant', 'speed', 'cornering',
                      'mass', 'friction', 'delay', 'seed', 'noise')
 PERCENTILES = (50.0, 95.0, 99.0)
-SUMMARY_METRICS = ('peak_cg', 'peak_look_ahead', 'peak_steering', 'peak_wheel_rate',
-                   'rms_steering_noise')
+SUMMARY_METRICS = ('peak_cg_error_m', 'peak_look_ahead_lane_error_m',
+                   'peak_steering_rad', 'peak_steering_rate_rad_per_s',
+                   'rms_steering_noise_rad')
 
 
 def paper_law(vehicle: VehicleParams, controller: ControllerParams) -> Law:
@@ -68,14 +69,14 @@ def paper_law(vehicle: VehicleParams, controller: ControllerParams) -> Law:
 
 def paper_fixed_law(vehicle: VehicleParams, controller: ControllerParams) -> Law:
     """Return the paper's law with the fixed look-down d_v = d_s."""
-    return PaperLaw(vehicle, ControllerParams(**{**asdict(controller), 'schedule': 'fixed',
-                                                 'fixed_look_ahead': vehicle.d_s}))
+    return PaperLaw(vehicle, ControllerParams(**{**asdict(controller), 'schedule': 'fixed'}))
 
 
 # name -> factory(controller's vehicle model, paper-law parameters); a new law registers
-# here (one law object serves a whole batch: see core/laws.py).
+# here (one law object serves a whole batch: see core/laws.py). The names are those of the
+# compare tool's league.
 LAWS: dict[str, Callable[[VehicleParams, ControllerParams], Law]] = {
-    'paper': paper_law,
+    'paper_eq26': paper_law,
     'paper_fixed': paper_fixed_law,
 }
 
@@ -110,7 +111,7 @@ class SweepSpec:
     seed: int = 0
     scenarios: tuple[str, ...] = ('s1_paper_step', 's2_curve_entry', 's3_s_bend')
     speeds: tuple[float, ...] = (20.0, 37.0)
-    laws: tuple[str, ...] = ('paper', 'paper_fixed')
+    laws: tuple[str, ...] = ('paper_eq26', 'paper_fixed')
     plant: str = 'nonlinear'
     cornering: tuple[float, float] = (-0.3, 0.3)
     mass: tuple[float, float] = (-0.2, 0.2)
@@ -298,9 +299,9 @@ def run_row(time_s: np.ndarray, channels: Mapping[str, np.ndarray], d_s: float,
     """
     Return the metrics of one run (``analysis.metrics.run_metrics`` and more).
 
-    Added: ``peak_wheel_rate`` (the actual wheel's rate), ``rms_steering_noise`` (the
-    command minus its 0.5 s moving average: what noise puts on the steering), and
-    ``failed`` (a value is not finite, or the peak CG error exceeds ``max_error``).
+    Added: ``rms_steering_noise_rad`` (the command minus its 0.5 s moving average: what
+    noise puts on the steering) and ``failed`` (a value is not finite, or the peak CG
+    error exceeds ``max_error``).
 
     :param time_s: sample times [s].
     :param channels: the run's channels.
@@ -311,17 +312,15 @@ def run_row(time_s: np.ndarray, channels: Mapping[str, np.ndarray], d_s: float,
     finite = all(bool(np.all(np.isfinite(channels[name])))
                  for name in ('y_cg', 'eps_r', 'steering', 'steering_cmd'))
     row: dict[str, Any] = dict(run_metrics(time_s, channels, d_s)) if finite else {}
-    wheel = channels['steering']
-    row['peak_wheel_rate'] = (peak(np.diff(wheel) / np.diff(time_s))
-                              if finite and wheel.size > 1 else math.nan)
     command = channels['steering_cmd']
     width = max(1, int(round(0.5 / float(time_s[1] - time_s[0])))) if time_s.size > 1 else 1
     if finite and command.size > width:
         smooth = np.convolve(command, np.ones(width) / width, mode='same')
-        row['rms_steering_noise'] = rms((command - smooth)[width:-width])
+        row['rms_steering_noise_rad'] = rms((command - smooth)[width:-width])
     else:
-        row['rms_steering_noise'] = math.nan
-    row['failed'] = (not finite) or not row.get('peak_cg', math.inf) <= max_error
+        row['rms_steering_noise_rad'] = math.nan
+    # the failure threshold on the CG error itself (run_metrics leaves short runs empty)
+    row['failed'] = (not finite) or float(np.max(np.abs(channels['y_cg']))) > max_error
     return {k: (float(v) if isinstance(v, (float, np.floating)) else v)
             for k, v in row.items()}
 
@@ -444,9 +443,11 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     else:
         client = Client(scheduler, timeout=30)
     try:
+        # no retries: an exception is deterministic (it stops the sweep, finished parts
+        # stay); a worker that dies is rerun elsewhere by the scheduler (allowed-failures)
         futures = {client.submit(runner, task, data, vehicle, controller,
                                  key=f'sweep-{task["task"]}-{time.time_ns()}',
-                                 pure=False, retries=2): task for task in todo}
+                                 pure=False): task for task in todo}
         for future in as_completed(futures):
             task = futures[future]
             write_parquet(future.result(), part_path(out, task['task']))
@@ -510,8 +511,8 @@ def summarize(table: Any) -> list[dict[str, Any]]:
             for q in PERCENTILES:
                 row[f'{metric}_p{q:g}'] = (float(np.percentile(finite, q)) if finite.size
                                            else math.nan)
-        peaks = np.array([np.inf if v is None else v for v in data['peak_cg'][mask]],
-                         dtype=float)
+        peaks = np.array([np.inf if v is None else v
+                          for v in data['peak_cg_error_m'][mask]], dtype=float)
         worst = int(np.nonzero(mask)[0][int(np.argmax(np.nan_to_num(peaks, nan=np.inf)))])
         row['worst_case'] = (f"{data['scenario'][worst]} {data['speed'][worst]:g} m/s, "
                              f"C x{1 + data['cornering'][worst]:.2f}, "
@@ -522,9 +523,10 @@ def summarize(table: Any) -> list[dict[str, Any]]:
     return rows
 
 
-SUMMARY_COLUMNS = ('law', 'scenario', 'runs', 'failure_rate', 'peak_cg_p50',
-                   'peak_cg_p95', 'peak_cg_p99', 'peak_cg_worst', 'peak_look_ahead_p95',
-                   'peak_steering_worst', 'peak_wheel_rate_p95', 'rms_steering_noise_p50',
+SUMMARY_COLUMNS = ('law', 'scenario', 'runs', 'failure_rate', 'peak_cg_error_m_p50',
+                   'peak_cg_error_m_p95', 'peak_cg_error_m_p99', 'peak_cg_error_m_worst',
+                   'peak_look_ahead_lane_error_m_p95', 'peak_steering_rad_worst',
+                   'peak_steering_rate_rad_per_s_p95', 'rms_steering_noise_rad_p50',
                    'worst_case')
 
 
@@ -543,8 +545,8 @@ def plot(table: Any, out: Path) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     laws = list(dict.fromkeys(table.column('law').to_pylist()))
     law_col = np.array(table.column('law').to_pylist())
-    peaks = np.array([np.nan if v is None else v for v in table.column('peak_cg').to_pylist()],
-                     dtype=float)
+    peaks = np.array([np.nan if v is None else v
+                      for v in table.column('peak_cg_error_m').to_pylist()], dtype=float)
     paths = []
     fig, ax = plt.subplots(figsize=(7, 4))
     for law in laws:
@@ -724,8 +726,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                          progress=not args.no_progress, plots=not args.no_plots)
     rows = summarize(table)
     print(markdown_table([r for r in rows if r['scenario'] == 'all'],
-                         ('law', 'runs', 'failure_rate', 'peak_cg_p50', 'peak_cg_p95',
-                          'peak_cg_worst', 'worst_case'), digits=3))
+                         ('law', 'runs', 'failure_rate', 'peak_cg_error_m_p50',
+                          'peak_cg_error_m_p95', 'peak_cg_error_m_worst', 'worst_case'),
+                         digits=3))
     print(f'{count} tasks run in {time.monotonic() - start:.1f} s; '
           f'wrote {args.out / "results.parquet"} and {args.out / "summary.md"}')
     return 0
