@@ -58,7 +58,7 @@ DELAY = 0.02                    # [s] transport delay of the "nonlinear + delay 
 NOISE_SEED = 1                  # seeds are NOISE_SEED + run index: runs repeat exactly
 FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last second
 NOISE_SCENARIO = 's0_straight'  # steering noise: command with noise minus without, here
-DT = 0.005                      # [s] plant step (CommonRoad's multi-body model: 0.001)
+DT = 0.005                      # [s] plant step (CommonRoad's multi-body model: 0.002)
 
 
 LawFactory = Callable[[VehicleParams], Law]
@@ -109,7 +109,7 @@ NONLINEAR = PlantParams(model='nonlinear')
 PLANTS = (PlantCase('linear', PlantParams()), PlantCase('nonlinear', NONLINEAR),
           PlantCase('nonlinear_delay_noise', NONLINEAR, DELAY, True),
           PlantCase('commonroad_mb', PlantParams(model='commonroad_mb', vehicle_id=2),
-                    vehicle_id=2, dt=0.001))
+                    vehicle_id=2, dt=0.002))
 GOAL_PLANT = 'nonlinear_delay_noise'
 
 
@@ -623,7 +623,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--plants', nargs='+', default=[c.name for c in PLANTS],
                    choices=[c.name for c in PLANTS])
     p.add_argument('--speeds', type=float, nargs='+', default=list(SPEEDS))
-    p.add_argument('--dt', type=float, default=DT, help='plant step [s] (CommonRoad: 0.001)')
+    p.add_argument('--dt', type=float, default=DT, help='plant step [s] (CommonRoad: 0.002)')
     p.add_argument('--workers', type=int, default=2, help='processes')
     p.add_argument('--out', type=Path, default=Path('bags') / 'compare',
                    help='folder for league.md, league.csv, league.png')
