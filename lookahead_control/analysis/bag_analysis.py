@@ -59,7 +59,8 @@ class RunSeries:
 
     :param time: step stamps from the first [s].
     :param channels: the arrays named in :data:`SERIES` (``steering``, the wheel angle
-        the plant reports, is NaN where the bag has no ground truth).
+        the plant reports, is NaN where the bag has no ground truth, ``steering_cmd``
+        NaN at unanswered steps).
     :param latency: steering receive minus lateral-error receive, per answered step [s].
     :param unanswered: steps without a recorded steering command.
     """
@@ -166,9 +167,10 @@ def run_series(run: RunData) -> RunSeries:
     answered = steering_at >= 0
     latency = ((run.steering.recv_ns[steering_at[answered]] - received[answered]) * 1e-9
                ).astype(float)
-    # the plant's wheel angle is a measurement: a missing one stays missing (NaN); the
-    # rest carry the last value (the command the plant holds)
-    filled = {name: (channels[name] if name == 'steering' else
+    # the commands and the plant's wheel angle are recorded values: a missing one stays
+    # missing (NaN; a recorder drop is no hold, and before the first answer is no 0); the
+    # rest carry the last value
+    filled = {name: (channels[name] if name in ('steering', 'steering_cmd') else
                      _forward_fill(channels[name])) for name in SERIES}
     return RunSeries((kept - kept[0]) * 1e-9, filled, latency, int((~answered).sum()))
 

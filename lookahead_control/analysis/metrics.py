@@ -305,6 +305,12 @@ def step_metrics(time: Array, x: Array, step_time: float,
     band = SETTLING_BAND * excursion
     last = int(np.nonzero(magnitude > band)[0][-1])
     if t[last] >= t[-1] - final_window:
+        # sample-to-sample noise (a slow, unsettled oscillation hardly shows in it)
+        noise = float(np.std(np.diff(y[t[1:] >= t[-1] - final_window]))) / math.sqrt(2.0)
+        if 3.0 * noise > band:
+            return _nan_step(initial, final, f'noise (std {noise:.3g}) beyond a third of '
+                             f'the 2% settling band ({band:.3g}): settling, overshoot and '
+                             'damping not measured', excursion)
         return _nan_step(initial, final, 'not settled within 2% of the excursion before '
                          f'the end of the response ({end - step_time:.3g} s)', excursion)
     settling = float(t[min(last + 1, t.size - 1)] - step_time)
