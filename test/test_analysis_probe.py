@@ -80,3 +80,54 @@ def test_noise_is_not_reported_as_a_response_that_never_settles():
     assert step_metrics(t, x, 2.0).settling_time == pytest.approx(2.7, abs=0.02)
     t, x = _second_order_step(0.1, duration=12.0)
     assert 'not settled' in step_metrics(t, x, 2.0).note
+
+
+def test_missed_realtime_deadlines_are_named():
+    # realtime: the plant applied an older answer in 45 of 1000 steps of a recorded run
+    # (its log said 45 missed deadlines); the row said unanswered 0 and nothing else
+    run = _curve_run([])
+    n = len(run.steering)
+    time = np.arange(n) * 0.01
+    applied = time - 0.01
+    applied[0] = -1.0
+    applied[[40, 41, 200]] -= 0.01                 # the answer of the step before that
+    stamp = np.round(time * 1e9).astype(np.int64)
+    run.truth = Samples(stamp + 500_000, stamp, np.arange(n, dtype=np.int64),
+                        {'time': time, 'command_time': applied})
+    row = bag_row(run, run_series(run))
+    assert 'missed deadlines: 3 of 299 ' in row['notes']
+    run.truth = Samples(run.truth.recv_ns, run.truth.stamp_ns, run.truth.order,
+                        {'time': time, 'command_time': np.maximum(time - 0.01, -1.0)})
+    assert 'missed deadlines' not in bag_row(run, run_series(run))['notes']
+
+
+def test_schedule_says_where_d_v_is_clamped(capsys):
+    # at 50 m/s eq. 26 gives 74.6 m and eq. 24 74.8 m; the table printed 60 and 60 (the
+    # max_look_ahead clamp) under 'd_v_paper_m' and a zeta_exact of 0.898, unexplained
+    from lookahead_control.tools.analysis_tools import schedule_main
+    assert schedule_main(['--v-min', '50', '--v-max', '50']) == 0
+    out = capsys.readouterr().out
+    assert '| 50 | 1.96 | 60 | 60 |' in out and 'clamped at max_look_ahead = 60 m' in out
+    assert schedule_main(['--v-min', '10', '--v-max', '40', '--step', '10']) == 0
+    assert 'clamped' not in capsys.readouterr().out
+
+
+def _twice(samples, later_ns):
+    """Return the samples followed by a copy received ``later_ns`` later (a second run)."""
+    n = len(samples)
+    return Samples(np.concatenate([samples.recv_ns, samples.recv_ns + later_ns]),
+                   np.concatenate([samples.stamp_ns, samples.stamp_ns]),
+                   np.arange(2 * n, dtype=np.int64),
+                   {k: np.concatenate([v, v]) for k, v in samples.values.items()})
+
+
+def test_latency_of_two_runs_in_one_bag_pairs_each_answer_with_its_question():
+    # two runs recorded into one bag (sim time restarts: every stamp twice, 100 s apart);
+    # the metrics are the second run's, but the latency paired the second run's answer
+    # with the first run's lateral error: p50 100002 ms instead of 2 ms
+    run = _curve_run([])
+    run.inputs = {role: _twice(s, 100 * 10**9) for role, s in run.inputs.items()}
+    run.steering = _twice(run.steering, 100 * 10**9)
+    row = bag_row(run, run_series(run))
+    assert row['latency_p50_ms'] == pytest.approx(2.0, abs=1e-9)
+    assert row['latency_p99_ms'] == pytest.approx(2.0, abs=1e-9)
