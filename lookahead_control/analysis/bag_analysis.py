@@ -129,7 +129,13 @@ def run_series(run: RunData) -> RunSeries:
     yaw_at, velocity_at = _latest(yaw.stamp_ns, stamps), _latest(velocity.stamp_ns, stamps)
     keep = (yaw_at >= 0) & (velocity_at >= 0)
     if not keep.any():
-        raise ValueError(f'{run.bag}: no lateral error with yaw and velocity to go with it')
+        empty_roles = [role for role, samples in (('yaw', yaw), ('velocity', velocity))
+                       if not len(samples)]
+        why = (f' (no {" and no ".join(empty_roles)} messages: is the topic missing or '
+               'named otherwise? --topic ROLE=NAME)' if empty_roles else
+               ' (none stamped at or before a lateral error)')
+        raise ValueError(f'{run.bag}: no lateral error with yaw and velocity to go with '
+                         f'it{why}')
     kept, yaw_at, velocity_at = stamps[keep], yaw_at[keep], velocity_at[keep]
     lateral_at = _latest(lateral.stamp_ns, kept)
     truth_at = _exact(run.truth.stamp_ns, kept)
