@@ -400,6 +400,10 @@ def bag_row(run: RunData, series: RunSeries,
             f'{role} {count} stamps recorded twice with different values'
             for role, count in conflicts.items()) + ' (two sources, e.g. another run on '
             'the same ROS domain: the metrics mix them)')
+    if run.bag is not None and run.bag.is_dir() and any(run.bag.glob('*.mcap.truncated')):
+        notes.append(f'recovered: the recorder was killed and the bag recovered; it ends '
+                     f'{float(series.time[-1]):.3g} s after its first step, and the '
+                     'metrics cover only that')
     missed, applied = missed_deadlines(run)
     if missed:
         notes.append(f'missed deadlines: {missed} of {applied} simulator steps applied an '
