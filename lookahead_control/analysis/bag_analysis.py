@@ -59,7 +59,8 @@ class RunSeries:
 
     :param time: step stamps from the first [s].
     :param channels: the arrays named in :data:`SERIES` (``steering``, the wheel angle
-        the plant reports, is NaN where the bag has no ground truth).
+        the plant reports, is NaN where the bag has no ground truth, ``steering_cmd``
+        NaN at unanswered steps).
     :param latency: steering receive minus lateral-error receive, per answered step [s].
     :param unanswered: steps without a recorded steering command.
     """
@@ -128,7 +129,13 @@ def run_series(run: RunData) -> RunSeries:
     yaw_at, velocity_at = _latest(yaw.stamp_ns, stamps), _latest(velocity.stamp_ns, stamps)
     keep = (yaw_at >= 0) & (velocity_at >= 0)
     if not keep.any():
-        raise ValueError(f'{run.bag}: no lateral error with yaw and velocity to go with it')
+        empty_roles = [role for role, samples in (('yaw', yaw), ('velocity', velocity))
+                       if not len(samples)]
+        why = (f' (no {" and no ".join(empty_roles)} messages: is the topic missing or '
+               'named otherwise? --topic ROLE=NAME)' if empty_roles else
+               ' (none stamped at or before a lateral error)')
+        raise ValueError(f'{run.bag}: no lateral error with yaw and velocity to go with '
+                         f'it{why}')
     kept, yaw_at, velocity_at = stamps[keep], yaw_at[keep], velocity_at[keep]
     lateral_at = _latest(lateral.stamp_ns, kept)
     truth_at = _exact(run.truth.stamp_ns, kept)
@@ -160,15 +167,24 @@ def run_series(run: RunData) -> RunSeries:
     steering_at = _exact(run.steering.stamp_ns, kept)
     channels['steering_cmd'] = _take(run.steering.values.get('angle'), steering_at)
     channels['steering'] = truth('steering', math.nan)
-    # latency: from the first arrival of a lateral error to its answer's
-    first_stamps, first = np.unique(lateral.stamp_ns, return_index=True)
-    received = lateral.recv_ns[first[np.searchsorted(first_stamps, kept)]]
+    # latency: from the arrival of the lateral error nearest to the answer used (the last
+    # of its stamp): one stamp can arrive more than once (re-sent, or two runs in a bag),
+    # and the recorder may receive an answer before its question
     answered = steering_at >= 0
-    latency = ((run.steering.recv_ns[steering_at[answered]] - received[answered]) * 1e-9
-               ).astype(float)
-    # the plant's wheel angle is a measurement: a missing one stays missing (NaN); the
-    # rest carry the last value (the command the plant holds)
-    filled = {name: (channels[name] if name == 'steering' else
+    answer_recv = run.steering.recv_ns[steering_at[answered]]
+    by = np.lexsort((lateral.recv_ns, lateral.stamp_ns))
+    stamp_sorted, recv_sorted = lateral.stamp_ns[by], lateral.recv_ns[by]
+    lo = np.searchsorted(stamp_sorted, kept[answered], side='left')
+    hi = np.searchsorted(stamp_sorted, kept[answered], side='right')
+    received = recv_sorted[lo]
+    for i in np.nonzero(hi - lo > 1)[0].tolist():   # a stamp that arrived more than once
+        arrivals = recv_sorted[lo[i]:hi[i]]
+        received[i] = arrivals[int(np.argmin(np.abs(arrivals - answer_recv[i])))]
+    latency = ((answer_recv - received) * 1e-9).astype(float)
+    # the commands and the plant's wheel angle are recorded values: a missing one stays
+    # missing (NaN; a recorder drop is no hold, and before the first answer is no 0); the
+    # rest carry the last value
+    filled = {name: (channels[name] if name in ('steering', 'steering_cmd') else
                      _forward_fill(channels[name])) for name in SERIES}
     return RunSeries((kept - kept[0]) * 1e-9, filled, latency, int((~answered).sum()))
 
@@ -217,6 +233,30 @@ def input_gaps(run: RunData, arrival: bool = True) -> dict[str, tuple[float, flo
                 out[f'{role} ({kind})'] = (float(steps[worst]),
                                            (int(ordered[worst]) - origin) * 1e-9)
     return out
+
+
+def missed_deadlines(run: RunData) -> tuple[int, int]:
+    """
+    Return how many simulator steps applied an answer older than the step before.
+
+    The ground truth's ``command_time`` is the stamp of the answer the plant applied
+    over the step that ends at ``time`` (-1: none yet); in realtime mode a late answer
+    leaves the plant holding the previous one (a missed deadline).
+
+    :param run: the run.
+    :return: ``(missed steps, steps with an applied answer)``; ``(0, 0)`` without
+        ground truth.
+    """
+    time, applied = run.truth.values.get('time'), run.truth.values.get('command_time')
+    if time is None or applied is None or time.size < 2:
+        return 0, 0
+    steps = np.unique(time)
+    if steps.size < 2:
+        return 0, 0
+    period = float(np.median(np.diff(steps)))
+    known = applied >= 0.0
+    late = known & (time - applied > 1.5 * period)
+    return int(np.unique(time[late]).size), int(np.unique(time[known]).size)
 
 
 def conflicting_stamps(run: RunData) -> dict[str, int]:
@@ -360,6 +400,15 @@ def bag_row(run: RunData, series: RunSeries,
             f'{role} {count} stamps recorded twice with different values'
             for role, count in conflicts.items()) + ' (two sources, e.g. another run on '
             'the same ROS domain: the metrics mix them)')
+    if run.bag is not None and run.bag.is_dir() and any(run.bag.glob('*.mcap.truncated')):
+        notes.append(f'recovered: the recorder was killed and the bag recovered; it ends '
+                     f'{float(series.time[-1]):.3g} s after its first step, and the '
+                     'metrics cover only that')
+    missed, applied = missed_deadlines(run)
+    if missed:
+        notes.append(f'missed deadlines: {missed} of {applied} simulator steps applied an '
+                     'older answer (the plant held its previous command; unanswered '
+                     'counts only answers missing from the bag)')
     gaps = input_gaps(run, arrival=run.plant_params.get('mode') != 'lockstep')
     row['max_gap_s'] = max((g for g, _ in gaps.values()), default=0.0)
     if gaps:

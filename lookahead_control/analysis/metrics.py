@@ -22,12 +22,10 @@ Every quantity has one name, one symbol and one unit (:data:`QUANTITIES`, also l
 
 The relative-yaw step response at curve entry is described without dividing by the
 final value (which is near zero for the paper's car at about 14.4 m/s, where
-``eta v_x^2 = l_2``): the deviation from the final value is split into lobes, and the
-ratio ``q`` of the largest lobe to the largest lobe of opposite sign after it is the
-decay per half period of the dominant oscillation. For a second-order step response
-``q`` is its overshoot ``exp(-pi zeta / sqrt(1 - zeta^2))``, and ``zeta = -ln q /
-sqrt(pi^2 + ln^2 q)`` is its damping ratio (logarithmic decrement); both hold whatever
-the final value, also for a response with a zero (a step of a road input).
+``eta v_x^2 = l_2``): the overshoot is over the step's own size ``|final - initial|``
+(none for a pulse), the damping ratio comes from a damped cosine fitted to the response
+from its largest extremum on (none when it does not oscillate or is not second-order),
+and the settling band is 2% of the largest excursion from the final value.
 """
 
 from __future__ import annotations
@@ -107,11 +105,12 @@ class StepMetrics(NamedTuple):
     :param initial: value before the step (the first sample after it if none).
     :param final: final value, the mean of the last ``final_window`` of the window.
     :param excursion: largest |x - final| after the step [unit of the signal].
-    :param overshoot: decay ratio q of the dominant oscillation: its largest lobe of
-        opposite sign over the largest lobe of ``x - final``; the overshoot of a
-        second-order step response [-].
-    :param damping_ratio: ``-ln q / sqrt(pi^2 + ln^2 q)`` [-]; NaN when the opposite
-        lobe is within the settling band (no oscillation to measure: zeta > 0.78).
+    :param overshoot: how far x goes beyond its final value, over the step's size
+        ``|final - initial|`` [-]; NaN for a pulse (step under a quarter of the
+        excursion).
+    :param damping_ratio: of the damped cosine fitted by :func:`decay_damping` [-]; NaN
+        when there is no second extremum beyond 2% of the first (zeta > 0.78) or the
+        response is not second-order.
     :param settling_time: time after the step to stay within 2% of the excursion [s].
     :param note: why a value is NaN ('' when all apply).
     """
@@ -305,6 +304,15 @@ def step_metrics(time: Array, x: Array, step_time: float,
     band = SETTLING_BAND * excursion
     last = int(np.nonzero(magnitude > band)[0][-1])
     if t[last] >= t[-1] - final_window:
+        # white noise from third differences (std sqrt(20) sigma), in which a smooth
+        # response, settled or not, hardly shows
+        settled = y[t[1:] >= t[-1] - final_window]
+        noise = (float(np.std(np.diff(settled, 3))) / math.sqrt(20.0) if settled.size > 3
+                 else 0.0)
+        if 3.0 * noise > band:
+            return _nan_step(initial, final, f'noise (std {noise:.3g}) beyond a third of '
+                             f'the 2% settling band ({band:.3g}): settling, overshoot and '
+                             'damping not measured', excursion)
         return _nan_step(initial, final, 'not settled within 2% of the excursion before '
                          f'the end of the response ({end - step_time:.3g} s)', excursion)
     settling = float(t[min(last + 1, t.size - 1)] - step_time)

@@ -21,6 +21,7 @@ from typing import Sequence
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid, zero_dynamics_table
 from lookahead_control.core.cli import markdown_table, parser, run_tool, write_json
 from lookahead_control.core.config import load_vehicle
+from lookahead_control.core.params import ControllerParams
 from lookahead_control.core.stability import certificate, PAPER_GERSHGORIN, PAPER_NORM_BOUND
 
 
@@ -40,6 +41,12 @@ def schedule_main(argv: Sequence[str] | None = None) -> int:
     rows = schedule_table(load_vehicle(args.vehicle),
                           speed_grid(args.v_min, args.v_max, args.step))
     print(markdown_table(rows))
+    limit = ControllerParams().max_look_ahead
+    clamped = [row['speed_mps'] for row in rows if row['d_v_exact_m'] >= limit]
+    if clamped:
+        print(f'd_v clamped at max_look_ahead = {limit:g} m (the controller default) from '
+              f'{min(clamped):g} m/s: there the d_v and zeta columns are not those of eq. '
+              '24 / 26')
     if args.json:
         write_json(args.json, rows)
     if args.plot:

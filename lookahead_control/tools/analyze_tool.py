@@ -110,7 +110,8 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
             'schedule. ' + metrics_legend() + ' Latency [ms]: steering receive time minus '
             'lateral-error receive time, as the recorder saw them; `dropped`: messages '
             'the recorder counted as lost (-1: not counted); `max_gap_s`: the longest '
-            'gap between stamps of any input or of the steering (0: none).', '',
+            'gap between stamps, or between receive times (not in lockstep), of any '
+            'input or of the steering (0: none).', '',
             markdown_table(rows, COLUMNS, digits=3), '',
             *notes_list(rows, ('bag',)),
             'Bags: ' + ', '.join(f'`{run.bag}`' for run, _, _ in results), '']

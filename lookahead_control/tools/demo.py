@@ -50,14 +50,16 @@ def offline_difference(scenario: Path, speed: float, schedule: str,
     :param speed: the run's speed [m/s].
     :param schedule: the d_v schedule.
     :param stamps_s: step times of the recording [s].
-    :param steering: the recorded steering at those steps [rad].
-    :return: the largest difference.
+    :param steering: the recorded steering at those steps [rad] (NaN: unanswered).
+    :return: the largest difference over the answered steps.
     """
     result = run(load_scenario(scenario, speed), VehicleParams(),
                  ControllerParams(schedule=schedule))
     index = np.clip(np.round(stamps_s / (result.time[1] - result.time[0])).astype(int), 0,
                     result.time.size - 1)
-    return float(np.max(np.abs(result['steering_cmd'][index] - steering)))
+    answered = ~np.isnan(steering)
+    return float(np.max(np.abs(result['steering_cmd'][index] - steering)[answered],
+                        initial=0.0))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
