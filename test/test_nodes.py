@@ -19,6 +19,7 @@ import math
 from lookahead_control.core.control_law import LateralState, steering_law
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.ros import conversions as conv
+import numpy as np
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -67,7 +68,22 @@ def context():
     rclpy.try_shutdown(context=ctx)
 
 
+def _controller(context, *overrides, sim=True):
+    """Create a controller in a private context, on a fake clock (sim time, set by hand)."""
+    from lookahead_control.ros.controller_node import ControllerNode
+    params = [Parameter('use_sim_time', value=True)] if sim else []
+    return ControllerNode(context=context, parameter_overrides=params + list(overrides))
+
+
+def _at(node, now_ns):
+    """Set a sim-time node's clock."""
+    from rclpy.time import Time
+    node.get_clock().set_ros_time_override(Time(nanoseconds=now_ns))
+
+
 def _feed(node, stamp, y=0.5, d=1.96, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-0.0025):
+    if node.get_clock().ros_time_is_active:
+        _at(node, stamp)            # the fake clock reads the measurements' time
     node.on_yaw(conv.to_yaw(stamp, 'base_link', eps, r, 0.0 - v_y * r))
     node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, v_y, r))
     node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
@@ -75,17 +91,18 @@ def _feed(node, stamp, y=0.5, d=1.96, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-
 
 
 def test_controller_node_answers_each_lateral_error(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
         _feed(node, 10_000_000)
         command = node.core.last
         assert command is not None and command.stamp_ns == 10_000_000
-        # the same numbers straight into the law: y_cg = 0.5 - 1.96 * 0.01
+        # the same numbers straight into the law: y_cg = 0.5 - 1.96 * 0.01; the
+        # curvature crosses as float32 (geometry_msgs/Point32)
+        rho = float(np.float32(-0.0025))
         expected = steering_law(LateralState(0.5 - 1.96 * 0.01, 0.01, 0.1, 0.02, 25.0, 0.0,
-                                             -0.0025), VehicleParams(), ControllerParams())
+                                             rho), VehicleParams(), ControllerParams())
         assert command.steering == pytest.approx(expected.steering, rel=1e-12)
         assert node.published == 1
     finally:
@@ -93,8 +110,7 @@ def test_controller_node_answers_each_lateral_error(context):
 
 
 def test_inactive_controller_publishes_nothing(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         _feed(node, 1)
@@ -109,8 +125,7 @@ def test_inactive_controller_publishes_nothing(context):
 
 
 def test_controller_waits_for_inputs(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
@@ -122,14 +137,13 @@ def test_controller_waits_for_inputs(context):
 
 
 def test_matching_stamps_hold_the_answer_until_inputs_catch_up(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('wait_for_matching_stamps', value=True)])
+    node = _controller(context, Parameter('wait_for_matching_stamps', value=True))
     try:
         node.trigger_configure()
         node.trigger_activate()
         _feed(node, 100)
         assert node.published == 1
+        _at(node, 200)
         node.on_lateral_error(conv.to_lateral_error(200, 'base_link', 1.96, 0.4))
         assert node.published == 0 + 1          # yaw, velocity, curvature still at 100
         node.on_yaw(conv.to_yaw(200, 'base_link', 0.01, 0.02, 0.0))
@@ -142,8 +156,7 @@ def test_matching_stamps_hold_the_answer_until_inputs_catch_up(context):
 
 
 def test_parameter_changes_applied_or_refused(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
@@ -163,7 +176,7 @@ def test_parameter_changes_applied_or_refused(context):
         paper = node.core.last.law.d_v
         ok = node.set_parameters([Parameter('controller.schedule', value='fixed')])[0]
         assert ok.successful
-        _feed(node, 2)       # applied between two control steps
+        _feed(node, 2)
         assert node.core.params.schedule == 'fixed'
         assert node.core.last.law.d_v == 1.96 != paper
     finally:
@@ -244,13 +257,13 @@ def test_controller_keeps_the_clock_subscription_of_use_sim_time(context):
 
 def test_bad_inputs_are_refused_counted_and_never_used(context):
     from diagnostic_msgs.msg import DiagnosticStatus
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
         _feed(node, 10_000_000)
         good = node.core.last
+        _at(node, 20_000_000)
         node.on_yaw(conv.to_yaw(20_000_000, 'base_link', float('nan'), 0.0, 0.0))
         node.on_velocity(conv.to_velocity(20_000_000, 'base_link', 1e4, 0.0, 0.0))
         node.on_lateral_error(conv.to_lateral_error(20_000_000, 'map', 1.96, 0.5))
@@ -268,14 +281,12 @@ def test_bad_inputs_are_refused_counted_and_never_used(context):
 
 def test_stale_inputs_hold_then_ramp_and_resume_without_a_jump(context):
     from diagnostic_msgs.msg import DiagnosticStatus
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('safety.max_steering_rate', value=0.1)])
+    node = _controller(context, Parameter('safety.max_steering_rate', value=0.1))
     core = node.core
     try:
         node.trigger_configure()
         node.trigger_activate()
-        now = node.get_clock().now().nanoseconds
+        now = 1_000_000_000_000
         _feed(node, now)
         start = core.last.steering
         assert start < -0.01
