@@ -123,7 +123,7 @@ class Invariants:
         self.time_jumps = core.time_jumps
 
     def delivered(self, name, stamp, now, accepted):
-        """Record one delivered (and accepted) sample."""
+        """Record the node clock at which a sample was delivered, if accepted."""
         if accepted:
             self.arrivals[(name, stamp)] = now
 
@@ -328,7 +328,8 @@ def test_no_message_sequence_makes_the_node_raise_or_command_badly(node, sequenc
 
 def test_zz_report_the_fuzz_count():
     print(f"\nfuzz: core {CASES['sequences']} sequences, {CASES['messages']} samples; "
-          f"{CASES['core commands']} commands; node {CASES['node sequences']} sequences, {CASES['node messages']} messages, "
+          f"{CASES['core commands']} commands; node {CASES['node sequences']} sequences, "
+          f"{CASES['node messages']} messages, "
           f"{CASES['node commands']} commands; {CASES['checked commands']} commands "
           f"checked ({CASES['law commands']} from the law); 0 exceptions, 0 violations")
     assert CASES['sequences'] >= EXAMPLES or CASES['sequences'] == 0

@@ -485,8 +485,8 @@ def test_issue11_changing_the_mode_at_runtime_is_refused_and_steering_goes_on(dr
     assert drive.node.diagnostics().level == DiagnosticStatus.OK
 
 
-def test_issue11_a_long_polygon_is_refused_before_its_points_are_decoded(drive,
-                                                                          monkeypatch):
+def test_issue11_a_long_polygon_is_refused_before_its_points_are_decoded(
+        drive, monkeypatch):
     def decode(*args):
         raise AssertionError('decoded a polygon over the cap')
 
