@@ -121,6 +121,7 @@ class Invariants:
         self.arrivals = {}              # (input, stamp) -> node clock of the last delivery
         self.used = {}                  # input -> the last stamp an answer used
         self.time_jumps = core.time_jumps
+        self.newest = None              # the newest command stamp so far
 
     def delivered(self, name, stamp, now, accepted):
         """Record the node clock at which a sample was delivered, if accepted."""
@@ -134,11 +135,20 @@ class Invariants:
         angle, rate = command.steering, command.steering_rate
         assert math.isfinite(angle) and math.isfinite(rate)
         assert abs(angle) <= safety.max_steering_angle + 1e-12
+        if core.time_jumps != self.time_jumps:      # stamps restart after a time jump
+            self.time_jumps, self.used, self.newest = core.time_jumps, {}, None
+        if self.previous is not None and now < self.previous[0]:
+            self.newest = None                      # the node's clock went back
+        allowed = 0.0
         if self.previous is not None:
             then, before = self.previous
             dt = max(0, now - then) * 1e-9
+            # also on the stamps (the newest so far): a recording obeys the limit
+            on_stamps = dt if self.newest is None else max(0, command.stamp_ns -
+                                                           self.newest) * 1e-9
+            allowed = safety.max_steering_rate * min(dt, on_stamps)
             step = abs(angle - before)
-            assert step <= safety.max_steering_rate * dt + 1e-12, (then, before, now, angle)
+            assert step <= allowed + 1e-12, (then, before, now, angle)
             if dt > 0.0:
                 assert abs(rate - (angle - before) / dt) <= 1e-9 * max(1.0, abs(rate))
             else:
@@ -146,11 +156,9 @@ class Invariants:
         v_x = core.velocity.v_x if core.velocity else 0.0
         cap = angle_limit(v_x, VEHICLE.wheelbase, safety)
         if abs(angle) > cap + 1e-12:        # only while moving towards it at the rate
-            then, before = self.previous
-            assert abs(before) - abs(angle) >= \
-                safety.max_steering_rate * max(0, now - then) * 1e-9 - 1e-12
-        if core.time_jumps != self.time_jumps:      # stamps restart after a time jump
-            self.time_jumps, self.used = core.time_jumps, {}
+            assert abs(self.previous[1]) - abs(angle) >= allowed - 1e-12
+        self.newest = command.stamp_ns if self.newest is None else max(self.newest,
+                                                                        command.stamp_ns)
         if command.law is not None:
             CASES['law commands'] += 1
             timeout = safety.input_timeout * 1e9
@@ -259,7 +267,7 @@ def test_no_message_sequence_makes_the_node_raise_or_command_badly(node, sequenc
     from rclpy.parameter import Parameter
     from rclpy.time import Time
     core = node.core
-    node.set_parameters([Parameter(s.name, value=s.default) for s in ALL_SPECS
+    node.set_parameters_atomically([Parameter(s.name, value=s.default) for s in ALL_SPECS
                          if s.name.startswith('safety.') or s.name == 'wait_for_matching_stamps'])
     core.reset()
     node._pending_stamp = None
