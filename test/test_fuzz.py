@@ -157,8 +157,8 @@ class Invariants:
         cap = angle_limit(v_x, VEHICLE.wheelbase, safety)
         if abs(angle) > cap + 1e-12:        # only while moving towards it at the rate
             assert abs(self.previous[1]) - abs(angle) >= allowed - 1e-12
-        self.newest = command.stamp_ns if self.newest is None else max(self.newest,
-                                                                        command.stamp_ns)
+        stamp = command.stamp_ns
+        self.newest = stamp if self.newest is None else max(self.newest, stamp)
         if command.law is not None:
             CASES['law commands'] += 1
             timeout = safety.input_timeout * 1e9
@@ -267,8 +267,9 @@ def test_no_message_sequence_makes_the_node_raise_or_command_badly(node, sequenc
     from rclpy.parameter import Parameter
     from rclpy.time import Time
     core = node.core
-    node.set_parameters_atomically([Parameter(s.name, value=s.default) for s in ALL_SPECS
-                         if s.name.startswith('safety.') or s.name == 'wait_for_matching_stamps'])
+    node.set_parameters_atomically([
+        Parameter(s.name, value=s.default) for s in ALL_SPECS
+        if s.name.startswith('safety.') or s.name == 'wait_for_matching_stamps'])
     core.reset()
     node._pending_stamp = None
     clock = [node.get_clock().now().nanoseconds or 1000 * 10**9]
