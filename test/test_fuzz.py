@@ -135,7 +135,8 @@ class Invariants:
         angle, rate = command.steering, command.steering_rate
         assert math.isfinite(angle) and math.isfinite(rate)
         assert abs(angle) <= safety.max_steering_angle + 1e-12
-        if core.time_jumps != self.time_jumps:      # stamps restart after a time jump
+        jumped = core.time_jumps != self.time_jumps
+        if jumped:                  # stamps restart; the first command after it holds
             self.time_jumps, self.used, self.newest = core.time_jumps, {}, None
         if self.previous is not None and now < self.previous[0]:
             self.newest = None                      # the node's clock went back
@@ -146,7 +147,7 @@ class Invariants:
             # also on the stamps (the newest so far): a recording obeys the limit
             on_stamps = dt if self.newest is None else max(0, command.stamp_ns -
                                                            self.newest) * 1e-9
-            allowed = safety.max_steering_rate * min(dt, on_stamps)
+            allowed = 0.0 if jumped else safety.max_steering_rate * min(dt, on_stamps)
             step = abs(angle - before)
             assert step <= allowed + 1e-12, (then, before, now, angle)
             if dt > 0.0:
