@@ -408,33 +408,39 @@ def test_analyze_rows_and_legends_tell_runs_apart(loop_bag, tmp_path):
 
 
 def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
+    # The bag is replayed over DDS with its own /clock into a controller on sim time (as
+    # `ros2 bag play` with the recorded /clock). The controller runs in this process so
+    # that the test knows what it actually received: a loaded machine drops messages
+    # from the controller's depth-10 queues, and the check must not depend on how many.
+    # What must hold for every answer: it answers a step of the bag, and an answer
+    # computed from exactly that step's inputs, at that step's time, is the recorded one.
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-    from sensor_msgs.msg import JointState
+    from rclpy.parameter import Parameter
+    from lookahead_control.ros.controller_node import ControllerNode
     ctx = Context()
     rclpy.init(context=ctx)
-    node = Node('replay_probe', context=ctx)
+    controller = ControllerNode(context=ctx, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('wait_for_matching_stamps', value=True)])
     executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    answers = {}
-    sub = node.create_subscription(JointState, '/replayed/steering',
-                                   lambda m: answers.__setitem__(*conv.from_steering(m)),
-                                   1000)
-    controller = subprocess.Popen([
-        sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
-        '-r', 'steering:=/replayed/steering', '-p', 'wait_for_matching_stamps:=true'])
+    executor.add_node(controller)
+    core, answers = controller.core, []
+    publish = controller._publish
+
+    def spy(command, now=None):
+        used = [core.lateral, core.yaw, core.velocity, core.curvature]
+        answers.append((command, now, [s.stamp_ns if s else None for s in used]))
+        publish(command, now)
+
+    controller._publish = spy
     try:
-        end = time.monotonic() + 30
-        while sub.get_publisher_count() == 0 and time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.05)
+        controller.trigger_configure()
+        controller.trigger_activate()
         player = subprocess.Popen([
-            # the lockstep bag holds 4000 messages/s of receive time; at a quarter of
-            # that a loaded 2-core machine keeps up with the controller's depth-10 queue
             sys.executable, '-m', 'lookahead_control.bags.replay_node', str(loop_bag),
             '--rate', '0.25', '--topics', '/lateral_error', '/yaw', '/velocity',
-            '/road_curvature'],
+            '/road_curvature', '/clock'],
             stdout=subprocess.PIPE, text=True)
         while player.poll() is None:
             executor.spin_once(timeout_sec=0.05)
@@ -442,19 +448,29 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
         while time.monotonic() < end:
             executor.spin_once(timeout_sec=0.05)
         assert player.returncode == 0
-        assert 'published 1600 messages on 4 topics' in player.stdout.read()
+        assert 'published 2000 messages on 5 topics' in player.stdout.read()
     finally:
-        controller.send_signal(signal.SIGINT)
-        controller.wait(10)
-        node.destroy_node()
+        controller.destroy_node()
         rclpy.try_shutdown(context=ctx)
     recorded = {s: v['angle'] for s, v in load_run(loop_bag).steering.by_stamp().items()}
-    # after the bag ends the inputs go stale: the watchdog's safe commands carry the
-    # controller's clock as stamp, not a step of the bag
-    common = [s for s in answers if s in recorded]
-    assert len(common) >= 395
-    # the same inputs give the same commands as in the recorded run
-    assert max(abs(recorded[s] - answers[s]) for s in common) < 1e-15
+    # sim time stops with the bag: no watchdog command after it, every command answers
+    # a step of the bag (none is invented, none answers an input it did not get)
+    assert answers and all(c.stamp_ns in recorded and c.law is not None
+                           for c, _, _ in answers)
+    # an answer from the step's own inputs is the recorded one, unless the rate limit
+    # cut it: a backlog makes the replayed /clock (depth 1) run ahead of the inputs, and
+    # the rate limit counts the node's clock between two answers; the recorded run,
+    # in lockstep, was never rate limited
+    same = [(c, recorded[c.stamp_ns]) for c, _, stamps in answers
+            if stamps == [c.stamp_ns] * 4 and not c.rate_limited]
+    assert same, 'no step was delivered whole'
+    assert max(abs(c.steering - angle) for c, angle in same) < 1e-15
+    # and the rate limit holds on the node's clock between every two commands
+    rate = core.safety.max_steering_rate
+    for (c0, t0, _), (c1, t1, _) in zip(answers, answers[1:]):
+        assert abs(c1.steering - c0.steering) <= rate * max(t1 - t0, 0) * 1e-9 + 1e-12
+    stamps = [c.stamp_ns for c, _, _ in answers]
+    assert stamps == sorted(set(stamps))        # one answer per step, in order
 
 
 def test_forward_fill_carries_the_last_value_and_zero_before_the_first():

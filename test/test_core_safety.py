@@ -16,8 +16,10 @@
 
 from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.params import ControllerParams, VehicleParams
-from lookahead_control.core.safety import SafetyParams
-from lookahead_control.ros.conversions import LateralErrorSample, VelocitySample, YawSample
+from lookahead_control.core.safety import check_stamp, SafetyParams
+from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
+                                            YawSample)
+import pytest
 
 SAFETY = SafetyParams(max_steering_rate=0.1)
 MS = 1_000_000
@@ -63,25 +65,139 @@ def test_a_time_jump_resets_the_inputs_but_not_the_angle_reference():
     assert 0.0 < moved - before <= 0.1 * 0.01 + 1e-12
 
 
-def test_sensors_on_another_clock_do_not_freeze_the_command_after_a_stale_period():
-    # the node's clock runs 100 s ahead of the sensors' (a replayed bag, no time sync)
-    core, offset = _core(), 100_000 * MS
+def _live(core, now, stamp=None, y=0.5, v_x=25.0, names=('yaw', 'velocity', 'lateral_error'),
+          steady=None):
+    """Give one step of inputs received at ``now`` (stamped ``stamp``), then compute."""
+    stamp = now if stamp is None else stamp
+    samples = {'yaw': YawSample(stamp, 0.0, 0.0, 0.0), 'velocity': VelocitySample(stamp, v_x, 0.0),
+               'lateral_error': LateralErrorSample(stamp, 1.96, y)}
+    refused = [core.accept(name, samples[name], now) for name in names]
+    # as the node: an accepted lateral error is answered
+    answered = 'lateral_error' in names and refused[names.index('lateral_error')] is None
+    return (core.compute(now, steady) if answered else None), refused
 
-    def step(stamp, y):
-        for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
-                             ('velocity', VelocitySample(stamp, 25.0, 0.0)),
-                             ('lateral_error', LateralErrorSample(stamp, 1.96, y))):
-            assert core.accept(name, sample, stamp + offset) is None
-        return core.compute()
 
-    first = step(1000 * MS, 0.5).steering
-    # stale: the watchdog's commands are stamped on the sensors' clock, not the node's
-    held = core.safe_command(1300 * MS + offset)
-    assert held.stamp_ns == 1300 * MS and held.steering == first
-    ramped = core.safe_command(2000 * MS + offset).steering
-    assert first < ramped <= 0.0
-    # inputs return: the law's answers move again, within the rate limit
-    angles = [step((2000 + 100 * k) * MS, -0.5).steering for k in range(1, 6)]
-    assert angles[0] > ramped
-    for before, after in zip([ramped] + angles, angles):
-        assert 0.0 <= after - before <= 0.1 * 0.1 + 1e-12
+def test_stamps_are_judged_on_both_sides_of_the_node_clock():
+    params = SafetyParams()                 # input_timeout 0.2 s, max_future 0.1 s
+    now = 50_000 * MS
+    assert check_stamp('yaw', now - 200 * MS, None, now, params) is None
+    assert check_stamp('yaw', now + 100 * MS, None, now, params) is None
+    old = check_stamp('yaw', now - 200 * MS - 1, None, now, params)
+    assert old.startswith('yaw: stamp 0.200 s behind the node clock')
+    new = check_stamp('yaw', now + 100 * MS + 1, None, now, params)
+    assert new.startswith('yaw: stamp 0.100 s ahead of the node clock')
+    assert 'does not advance' in check_stamp('yaw', now, now, now, params)
+    assert 'goes back' in check_stamp('yaw', now - 1, now, now, params)
+    # no clock (sim time before the first /clock, offline): only the ordering
+    assert check_stamp('yaw', 1, None, None, params) is None
+
+
+def test_a_sensor_clock_off_by_more_than_the_tolerance_gives_the_safe_behaviour():
+    # a node clock at 1000 s, sensors 1.5 s behind it after one good step
+    core = _core()
+    first, _ = _live(core, 1000_000 * MS)
+    refused = []
+    for k in range(1, 40):
+        now = (1000_000 + 10 * k) * MS
+        command, reasons = _live(core, now, stamp=now - 1500 * MS)
+        refused += reasons
+        assert command is None or command.law is None     # never the law on old data
+    assert all(r and 'behind the node clock' in r for r in refused)
+    now = 1000_390 * MS
+    assert core.stale(now) == ['lateral_error', 'yaw', 'velocity']
+    assert 'last refused: yaw: stamp 1.500 s behind' in core.describe_stale(['yaw'])
+    # the watchdog holds the last command, then ramps to the safe angle
+    assert core.safe_command(now).steering == first.steering
+    assert core.safe_command(now + 700 * MS).steering > first.steering
+
+
+def test_a_dead_yaw_is_never_used_and_answers_do_not_restart_the_hold():
+    core = SteeringController(VehicleParams(), ControllerParams(), 'imu', True,
+                              SafetyParams(max_steering_rate=0.05, hold_time=0.3))
+    t0 = 1000_000 * MS
+    for k in range(10):
+        good, _ = _live(core, t0 + 10 * k * MS)
+    assert good.law is not None and good.steering < -0.005
+    # yaw and velocity stop; the lateral error goes on at 100 Hz and keeps changing
+    angles = []
+    for k in range(10, 200):
+        now = t0 + 10 * k * MS
+        command, _ = _live(core, now, y=-0.5, names=('lateral_error',))
+        stale_for = now - (t0 + 90 * MS)
+        if stale_for <= 200 * MS:               # within input_timeout: still the law
+            assert command.law is not None
+            continue
+        assert command.law is None and command.status == 'stale', k
+        assert command.stamp_ns == now           # it answers this lateral error
+        angles.append((now, command.steering))
+    # hold for hold_time from the first safe command, then ramp at the rate limit;
+    # the lateral errors answered meanwhile do not restart the hold
+    start = angles[0][0]
+    held = [a for t, a in angles if t - start <= 300 * MS]
+    assert held and all(a == angles[0][1] for a in held)
+    assert angles[0][1] > 0.0 and angles[-1][1] == 0.0      # the safe angle
+    for (t0_, a0), (t1_, a1) in zip(angles, angles[1:]):
+        assert 0.0 <= a0 - a1 <= 0.05 * (t1_ - t0_) * 1e-9 + 1e-15
+
+
+def test_the_rate_limit_counts_the_node_clock_not_the_stamps():
+    core, now = _core(), 1000_000 * MS          # rate limit 0.1 rad/s
+    start = _step_at(core, now, now, 0.5)
+    # the stamps jump 90 ms ahead (within max_future) while the node's clock moves 10 ms
+    jump = _step_at(core, now + 10 * MS, now + 100 * MS, -0.5)
+    assert jump.steering - start.steering == pytest.approx(0.1 * 0.010, abs=1e-15)
+    # the published rate is the change over the node's clock
+    assert jump.steering_rate == pytest.approx(0.1, rel=1e-9)
+    # the node's clock stands still: the command holds, whatever the stamps do
+    held = _step_at(core, now + 10 * MS, now + 105 * MS, -0.5)
+    assert held.steering == jump.steering and held.steering_rate == 0.0
+    # and it cannot move faster than the stamps advance either
+    slow = _step_at(core, now + 60 * MS, now + 106 * MS, -0.5)
+    assert slow.steering - held.steering == pytest.approx(0.1 * 0.001, abs=1e-15)
+    assert slow.steering_rate == pytest.approx(0.1 * 0.001 / 0.050, rel=1e-9)
+
+
+def test_a_step_of_the_system_clock_does_not_open_the_rate_limit():
+    core, now, steady = _core(), 1000_000 * MS, 5_000 * MS
+    start, _ = _live(core, now, steady=steady)
+    # the system clock (and the sensors on it) jumps 10 s ahead; 10 ms pass
+    later = now + 10_000 * MS
+    jumped, _ = _live(core, later, y=-0.5, steady=steady + 10 * MS)
+    assert jumped.steering - start.steering == pytest.approx(0.1 * 0.010, abs=1e-15)
+
+
+def test_the_node_clock_going_back_holds_once_and_does_not_freeze():
+    core, now = _core(), 1000_000 * MS
+    start = _step_at(core, now, now, 3.0).steering
+    assert start < -0.03
+    # stale; after the 0.5 s hold the ramp to 0 runs at 0.1 rad/s
+    ramp = [core.safe_command(now + k * 100 * MS).steering for k in range(3, 11)]
+    assert ramp[:6] == [start] * 6 and start < ramp[6] < ramp[7]
+    # the node's clock goes back 0.5 s: that command holds, the ramp then goes on
+    # (it neither restarts the hold nor waits until the clock is back where it was)
+    back = core.safe_command(now + 500 * MS).steering
+    assert back == ramp[-1]
+    on = core.safe_command(now + 600 * MS).steering
+    assert on - back == pytest.approx(0.1 * 0.1, abs=1e-15)
+
+
+def test_a_lost_curvature_counts_as_zero_not_as_its_last_value():
+    core, now = _core(), 1000_000 * MS
+    assert core.accept('road_curvature', CurvatureSample(now, 0.01, 0.0), now) is None
+    with_curve, _ = _live(core, now)
+    # curvature silent for more than input_timeout: not stale (optional), but lost
+    later = now + 300 * MS
+    answer, _ = _live(core, later)
+    assert core.stale(later) == [] and core.curvature_lost(later)
+    assert answer.law is not None
+    zero = SteeringController(VehicleParams(), ControllerParams(), 'imu', True, SAFETY)
+    expected, _ = _live(zero, later)
+    assert answer.law.steering == expected.law.steering != with_curve.law.steering
+
+
+def _step_at(core, now, stamp, y):
+    for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
+                         ('velocity', VelocitySample(stamp, 25.0, 0.0)),
+                         ('lateral_error', LateralErrorSample(stamp, 1.96, y))):
+        assert core.accept(name, sample, now) is None
+    return core.compute(now)

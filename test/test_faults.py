@@ -423,3 +423,89 @@ def test_shutdown_while_a_callback_uses_the_context_is_a_clean_stop():
                          text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert 'Traceback' not in out.stderr
+
+
+FLOODER = """
+import sys, time, rclpy
+from rclpy.node import Node
+from rclpy.serialization import serialize_message
+from lookahead_control.ros import conversions as conv
+rclpy.init()
+node = Node('flooder')
+pubs = {n: node.create_publisher(type(m), '/' + n, 10) for n, m in (
+    ('lateral_error', conv.to_lateral_error(0, '', 0, 0)), ('yaw', conv.to_yaw(0, '', 0, 0, 0)),
+    ('velocity', conv.to_velocity(0, '', 0, 0, 0)),
+    ('road_curvature', conv.to_curvature(0, '', [])))}
+# a 10 000-point polygon, serialized once (its stamp does not matter: it is too long)
+huge = serialize_message(conv.to_curvature(0, 'base_link', [(0.01 * k, 0.001)
+                                                            for k in range(10_000)]))
+while node.count_subscribers('/lateral_error') == 0:
+    time.sleep(0.05)
+time.sleep(0.5)
+sent = []
+
+def phase(seconds, hz):
+    step, stop = 1.0 / hz, time.monotonic() + seconds
+    next_at = time.monotonic()
+    while time.monotonic() < stop:
+        t = node.get_clock().now().nanoseconds
+        pubs['yaw'].publish(conv.to_yaw(t, 'base_link', 0.0, 0.0, 0.0))
+        pubs['velocity'].publish(conv.to_velocity(t, 'base_link', 20.0, 0.0, 0.0))
+        if len(sent) % 10 == 0:
+            pubs['road_curvature'].publish(huge)
+        else:
+            pubs['road_curvature'].publish(conv.to_curvature(t, 'base_link', [(0.0, 0.001)]))
+        pubs['lateral_error'].publish(conv.to_lateral_error(t, 'base_link', 0.0, 0.5))
+        sent.append(t)
+        next_at += step
+        wait = next_at - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+
+phase(1.0, 100.0)
+start = len(sent)
+phase(2.0, 1000.0)                                 # as fast as it goes, up to 1 kHz
+print('flood', len(sent) - start, flush=True)
+print('after', sent[-1], flush=True)
+phase(1.0, 100.0)
+print(' '.join(map(str, sent)), flush=True)
+"""
+
+
+@pytest.mark.parametrize('executor', ['events', 'single_threaded'])
+def test_a_flood_builds_no_backlog_and_long_polygons_cost_nothing(probe, executor):
+    # Invariants only (how much gets through depends on the machine): every answer is
+    # to a measurement at most input_timeout old on the controller's clock (its own
+    # latency report), each measurement is answered at most once and never after a
+    # newer one, 10 000-point polygons are refused by count, and control resumes.
+    from diagnostic_msgs.msg import DiagnosticArray
+    from sensor_msgs.msg import JointState
+    node, executor_ = probe
+    steering, reports = [], []
+    node.create_subscription(JointState, '/steering', lambda m: steering.append(
+        conv.from_steering(m)), 1000)
+    node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: reports.append(
+        {kv.key: kv.value for kv in m.status[0].values}), 100)
+    controller = subprocess.Popen([str(EXES / 'controller'), '--ros-args', '-p',
+                                   f'executor:={executor}', '-p', 'diagnostics_rate_hz:=5.0'])
+    flooder = subprocess.Popen([sys.executable, '-c', FLOODER], stdout=subprocess.PIPE,
+                               text=True)
+    try:
+        assert spin_until(executor_, lambda: flooder.poll() is not None, 60)
+        out = flooder.stdout.read().splitlines()
+        flood_end = int(out[1].split()[1])
+        sent = [int(s) for s in out[2].split()]
+        # control resumes after the flood (however long the machine takes)
+        assert spin_until(executor_, lambda: any(s > flood_end for s, _ in steering), 10)
+        spin_until(executor_, lambda: False, 0.5)
+    finally:
+        flooder.kill()
+        controller.send_signal(signal.SIGINT)
+        assert controller.wait(10) == 0
+    latencies = [float(r['answer latency max [s]']) for r in reports
+                 if 'answer latency max [s]' in r]
+    assert latencies and max(latencies) <= 0.2          # safety.input_timeout
+    measured = set(sent)
+    answers = [stamp for stamp, _ in steering if stamp in measured]
+    assert answers == sorted(set(answers))
+    assert int(reports[-1]['rejected road_curvature: points']) > 0

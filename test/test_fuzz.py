@@ -24,6 +24,7 @@ fuzz``: 10^5); the node gets a fifth of that.
 import math
 import os
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped, TwistStamped
 from hypothesis import given, HealthCheck, settings, strategies as st
 from lookahead_control.core.controller import SteeringController
@@ -40,7 +41,7 @@ from sensor_msgs.msg import Imu
 EXAMPLES = int(os.environ.get('FUZZ_EXAMPLES', '10000'))
 NODE_EXAMPLES = max(1, EXAMPLES // 5)
 CASES = {'sequences': 0, 'messages': 0, 'node sequences': 0, 'node messages': 0,
-         'node commands': 0}
+         'node commands': 0, 'core commands': 0, 'checked commands': 0, 'law commands': 0}
 SAFETY = SafetyParams()
 VEHICLE = VehicleParams()
 
@@ -50,79 +51,137 @@ adversarial = st.one_of(
                      -float('inf'), 0.99, 1.01]),
     st.floats(-100.0, 100.0))
 stamps = st.one_of(st.integers(0, 10**12), st.sampled_from([0, 1, 2**62]))
+# the node's clock: mostly small steps forwards, some long ones, some back (a jump)
+clock_steps = st.one_of(*[st.integers(0, 20_000_000)] * 6, st.integers(0, 600_000_000),
+                        st.integers(-2_000_000_000, 0))
 message = st.one_of(
     st.tuples(st.just('lateral_error'), stamps, adversarial, adversarial),
     st.tuples(st.just('yaw'), stamps, adversarial, adversarial, adversarial),
     st.tuples(st.just('velocity'), stamps, adversarial, adversarial),
     st.tuples(st.just('road_curvature'), stamps, adversarial, adversarial),
     st.tuples(st.just('tick'), stamps))
+# and believable values (so that the law runs and its commands get checked)
+believable = st.one_of(
+    st.tuples(st.just('lateral_error'), stamps, st.floats(0.0, 30.0), st.floats(-3.0, 3.0)),
+    st.tuples(st.just('yaw'), stamps, st.floats(-0.5, 0.5), st.floats(-1.0, 1.0),
+              st.floats(-5.0, 5.0)),
+    st.tuples(st.just('velocity'), stamps, st.floats(0.0, 45.0), st.floats(-2.0, 2.0)),
+    st.tuples(st.just('road_curvature'), stamps, st.floats(-0.1, 0.1), st.floats(-0.01, 0.01)))
 SAMPLES = {'lateral_error': LateralErrorSample, 'yaw': YawSample,
            'velocity': VelocitySample, 'road_curvature': CurvatureSample}
 
 
 @settings(max_examples=EXAMPLES, deadline=None, database=None,
           suppress_health_check=list(HealthCheck))
-@given(st.lists(message, max_size=30),
+@given(st.lists(st.tuples(st.one_of(message, believable, believable), clock_steps,
+                          st.sampled_from([True, True, True, False])), max_size=30),
        st.sampled_from(['paper', 'exact', 'fixed']),
        st.sampled_from(['imu', 'differentiate', 'zero']))
 def test_no_input_sequence_gives_a_bad_command(sequence, schedule, acceleration):
     core = SteeringController(VEHICLE, ControllerParams(schedule=schedule), acceleration,
                               True, SAFETY)
     CASES['sequences'] += 1
-    limits = OutputLimits()
-    for item in sequence:
+    invariants = Invariants(core)
+    now = 10**12
+    for item, step, near in sequence:
         CASES['messages'] += 1
+        now = max(0, now + step)
         name, stamp = item[0], item[1]
+        if near:                        # a stamp near the clock, so that inputs pass
+            stamp = max(0, now - stamp % 250_000_000)
         if name == 'tick':
-            command = core.safe_command(stamp) if core.stale(stamp) else core.compute()
+            command = core.safe_command(now) if core.stale(now) else core.compute(now)
         else:
-            core.accept(name, SAMPLES[name](stamp, *item[2:]), stamp)
-            command = core.compute() if name == 'lateral_error' else None
-        if command is None:
-            continue
-        assert math.isfinite(command.steering_rate)
-        limits.check(command.stamp_ns, command.steering,
-                     core.velocity.v_x if core.velocity else 0.0, core.time_jumps)
+            accepted = core.accept(name, SAMPLES[name](stamp, *item[2:]), now) is None
+            invariants.delivered(name, stamp, now, accepted)
+            command = core.compute(now) if name == 'lateral_error' and accepted else None
+        if command is not None:
+            CASES['core commands'] += 1
+            invariants.check(command, now)
 
 
-class OutputLimits:
-    """The output contract, checked command by command in the order they are sent."""
+class Invariants:
+    """
+    The safety contract, checked at every command in the order they are sent.
 
-    def __init__(self):
-        self.latest = None
-        self.angle = None
-        self.time_jumps = 0
+    - finite; within ``max_steering_angle``; within the speed's angle limit or moving
+      towards it at the rate limit;
+    - the rate limit on the node's clock: ``|change| <= max_steering_rate x (time
+      between the two commands on the node's clock)``, with no exception (a clock going
+      back allows no change), and the published rate is that change over that time;
+    - no command from stale data: an answer of the law uses only samples delivered
+      within ``input_timeout`` of now and stamped within ``input_timeout`` of now
+      (judged here from the test's own record of what it delivered and when), and the
+      stamps each input used advance.
+    """
 
-    def check(self, stamp, angle, v_x, time_jumps):
-        """
-        Check one command.
+    def __init__(self, core):
+        self.core = core
+        self.previous = None            # (now, angle)
+        self.arrivals = {}              # (input, stamp) -> node clock of the last delivery
+        self.used = {}                  # input -> the last stamp an answer used
+        self.time_jumps = core.time_jumps
+        self.newest = None              # the newest command stamp so far
 
-        Finite; within the angle limit at the current speed; and moved no more than the
-        rate limit allows since the newest command so far (nothing for an older stamp,
-        nothing for the first after a time jump: stamps restart there). The one
-        exception: the angle limit falls faster than the rate (the speed rose), and the
-        command sits on it.
-        """
-        cap = angle_limit(v_x, VEHICLE.wheelbase, SAFETY)
-        assert math.isfinite(angle) and abs(angle) <= cap + 1e-12
-        if time_jumps != self.time_jumps:
-            self.time_jumps, self.latest = time_jumps, stamp
-        if self.angle is not None:
-            dt = max(0, stamp - self.latest) * 1e-9
-            on_falling_cap = abs(abs(angle) - cap) < 1e-12 and abs(angle) < abs(self.angle)
-            assert on_falling_cap or \
-                abs(angle - self.angle) <= SAFETY.max_steering_rate * dt + 1e-9, \
-                (stamp, angle, self.latest, self.angle)
-        self.latest = stamp if self.latest is None else max(self.latest, stamp)
-        self.angle = angle
+    def delivered(self, name, stamp, now, accepted):
+        """Record the node clock at which a sample was delivered, if accepted."""
+        if accepted:
+            self.arrivals[(name, stamp)] = now
+
+    def check(self, command, now):
+        """Check one command published at ``now`` on the node's clock."""
+        core, safety = self.core, self.core.safety
+        CASES['checked commands'] += 1
+        angle, rate = command.steering, command.steering_rate
+        assert math.isfinite(angle) and math.isfinite(rate)
+        assert abs(angle) <= safety.max_steering_angle + 1e-12
+        jumped = core.time_jumps != self.time_jumps
+        if jumped:                  # stamps restart; the first command after it holds
+            self.time_jumps, self.used, self.newest = core.time_jumps, {}, None
+        if self.previous is not None and now < self.previous[0]:
+            self.newest = None                      # the node's clock went back
+        allowed = 0.0
+        if self.previous is not None:
+            then, before = self.previous
+            dt = max(0, now - then) * 1e-9
+            # also on the stamps (the newest so far): a recording obeys the limit
+            on_stamps = dt if self.newest is None else max(0, command.stamp_ns -
+                                                           self.newest) * 1e-9
+            allowed = 0.0 if jumped else safety.max_steering_rate * min(dt, on_stamps)
+            step = abs(angle - before)
+            assert step <= allowed + 1e-12, (then, before, now, angle)
+            if dt > 0.0:
+                assert abs(rate - (angle - before) / dt) <= 1e-9 * max(1.0, abs(rate))
+            else:
+                assert rate == 0.0 and step == 0.0
+        v_x = core.velocity.v_x if core.velocity else 0.0
+        cap = angle_limit(v_x, VEHICLE.wheelbase, safety)
+        if abs(angle) > cap + 1e-12:        # only while moving towards it at the rate
+            assert abs(self.previous[1]) - abs(angle) >= allowed - 1e-12
+        stamp = command.stamp_ns
+        self.newest = stamp if self.newest is None else max(self.newest, stamp)
+        if command.law is not None:
+            CASES['law commands'] += 1
+            timeout = safety.input_timeout * 1e9
+            for name in ('lateral_error', 'yaw', 'velocity'):
+                sample = getattr(core, {'lateral_error': 'lateral'}.get(name, name))
+                arrived = self.arrivals.get((name, sample.stamp_ns))
+                assert arrived is not None and now - arrived <= timeout, (name, now)
+                assert now - sample.stamp_ns <= timeout, (name, now, sample.stamp_ns)
+                assert sample.stamp_ns >= self.used.get(name, -1), name
+                self.used[name] = sample.stamp_ns
+        self.previous = (now, angle)
 
 
 @pytest.fixture(scope='module')
 def node():
     from lookahead_control.ros.controller_node import ControllerNode
+    from rclpy.parameter import Parameter
     ctx = Context()
     rclpy.init(context=ctx)
-    controller = ControllerNode(context=ctx)
+    # on a fake clock: sim time, set by the test
+    controller = ControllerNode(context=ctx, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
     controller.trigger_configure()
     controller.trigger_activate()
     yield controller
@@ -132,13 +191,13 @@ def node():
 
 frames = st.sampled_from(['base_link'] * 8 + ['', 'map'])
 # stamps around the node's clock (now + offset [s]) and anywhere a Time can hold
-offsets = st.one_of(st.floats(-0.05, 0.0), st.floats(-1.5, 0.3),
-                    st.sampled_from([-1e6, 1e6]))
+offsets = st.one_of(st.floats(-0.05, 0.0), st.floats(-0.05, 0.0), st.floats(-0.05, 0.0),
+                    st.floats(-1.5, 0.3), st.sampled_from([-1e6, 1e6, -0.2, 0.1]))
 
 
 def mostly(plausible):
     """Plausible values most of the time (so commands come out), adversarial else."""
-    return st.one_of(plausible, plausible, plausible, adversarial)
+    return st.one_of(*[plausible] * 7, adversarial)
 
 
 points = st.lists(st.tuples(mostly(st.floats(-10.0, 100.0)), mostly(st.floats(-0.1, 0.1))),
@@ -188,20 +247,53 @@ def _f32(value):
         float('inf'), value)
 
 
+node_clock = st.one_of(*[st.integers(0, 20_000_000)] * 6, st.integers(0, 400_000_000),
+                       st.integers(-1_500_000_000, 0))
+runtime = st.tuples(st.just('param'), st.sampled_from([
+    ('safety.max_steering_rate', 0.2), ('safety.max_steering_rate', 5.0),
+    ('safety.input_timeout', 0.1), ('safety.input_timeout', 0.2),
+    ('safety.max_steering_angle', 0.3), ('safety.max_steering_angle', 0.6),
+    ('controller.natural_frequency', 6.0), ('controller.natural_frequency', 3.0),
+    ('wait_for_matching_stamps', True), ('wait_for_matching_stamps', False),
+    ('safety.max_curvature_points', 2), ('safety.max_curvature_points', 256)]))
+node_item = st.one_of(step, step, step, single, single,
+                      st.tuples(st.just('clock'), node_clock), runtime)
+
+
 @settings(max_examples=NODE_EXAMPLES, deadline=None, database=None,
           suppress_health_check=list(HealthCheck))
-@given(st.lists(node_message, max_size=20))
+@given(st.lists(node_item, max_size=24))
 def test_no_message_sequence_makes_the_node_raise_or_command_badly(node, sequence):
-    node.core.reset()
-    limits = OutputLimits()
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from rclpy.parameter import Parameter
+    from rclpy.time import Time
+    core = node.core
+    node.set_parameters_atomically([
+        Parameter(s.name, value=s.default) for s in ALL_SPECS
+        if s.name.startswith('safety.') or s.name == 'wait_for_matching_stamps'])
+    core.reset()
+    node._pending_stamp = None
+    clock = [node.get_clock().now().nanoseconds or 1000 * 10**9]
+    node.get_clock().set_ros_time_override(Time(nanoseconds=clock[0]))
+    invariants = Invariants(core)
+    accept = core.accept
+
+    def spy_accept(name, sample, now=None):
+        reason = accept(name, sample, now)
+        invariants.delivered(name, sample.stamp_ns, now, reason is None)
+        return reason
 
     def publish(msg):
         CASES['node commands'] += 1
         stamp, angle = conv.from_steering(msg)
-        assert math.isfinite(msg.velocity[0])
-        limits.check(stamp, angle, node.core.velocity.v_x if node.core.velocity else 0.0,
-                     node.core.time_jumps)
+        command = core.last
+        assert (command.stamp_ns, command.steering, command.steering_rate) == (
+            stamp, angle, msg.velocity[0])
+        invariants.check(command, clock[0])
+        # never an answer to a measurement older than input_timeout
+        assert clock[0] - stamp <= core.safety.input_timeout * 1e9
 
+    core.accept = spy_accept
     node._steering_pub.publish = publish
     callbacks = {'lateral_error': node.on_lateral_error, 'yaw': node.on_yaw,
                  'velocity': node.on_velocity, 'road_curvature': node.on_curvature,
@@ -213,25 +305,46 @@ def test_no_message_sequence_makes_the_node_raise_or_command_badly(node, sequenc
         CASES['node messages'] += 1
         if len(item) == 1:
             callbacks[item[0]]()
+            if item[0] == 'watchdog':
+                # stale inputs are an ERROR that names them
+                assert node.stale_inputs == core.stale(now_ns)
+                status = node.diagnostics()
+                assert (status.level == DiagnosticStatus.ERROR) == bool(node.stale_inputs)
+                assert all(name in status.message for name in node.stale_inputs)
         else:
             callbacks[item[0]](_ros_message(item, now_ns))
 
-    for item in sequence:
-        now_ns = node.get_clock().now().nanoseconds
-        if item[0] != 'step':
-            deliver(item, now_ns)
-            continue
-        _, frame, offset, *parts = item
-        for name, part in zip(('yaw', 'velocity', 'lateral_error'), parts):
-            values = part[3:] if part[0] == name else _plausible[name]
-            deliver((name, frame, offset, *values), now_ns)
+    try:
+        for item in sequence:
+            if item[0] == 'clock':
+                clock[0] = max(1, clock[0] + item[1])
+                node.get_clock().set_ros_time_override(Time(nanoseconds=clock[0]))
+                continue
+            if item[0] == 'param':
+                result = node.set_parameters([Parameter(item[1][0], value=item[1][1])])[0]
+                # refused only when it contradicts another (the angle below safe_angle)
+                assert result.successful or result.reason
+                continue
+            if item[0] != 'step':
+                deliver(item, clock[0])
+                continue
+            _, frame, offset, *parts = item
+            for name, part in zip(('yaw', 'velocity', 'lateral_error'), parts):
+                values = part[3:] if part[0] == name else _plausible[name]
+                deliver((name, frame, offset, *values), clock[0])
+    finally:
+        core.accept = accept
 
 
 def test_zz_report_the_fuzz_count():
     print(f"\nfuzz: core {CASES['sequences']} sequences, {CASES['messages']} samples; "
-          f"node {CASES['node sequences']} sequences, {CASES['node messages']} messages, "
-          f"{CASES['node commands']} commands; 0 exceptions, 0 commands out of limits")
+          f"{CASES['core commands']} commands; node {CASES['node sequences']} sequences, "
+          f"{CASES['node messages']} messages, "
+          f"{CASES['node commands']} commands; {CASES['checked commands']} commands "
+          f"checked ({CASES['law commands']} from the law); 0 exceptions, 0 violations")
     assert CASES['sequences'] >= EXAMPLES or CASES['sequences'] == 0
     assert CASES['node sequences'] >= NODE_EXAMPLES or CASES['node sequences'] == 0
     # the sequences reach the law, not only the input checks
     assert CASES['node commands'] > 0 or CASES['node sequences'] == 0
+    assert CASES['law commands'] > 0 or CASES['checked commands'] == 0
+    assert CASES['core commands'] > 0 or CASES['sequences'] == 0

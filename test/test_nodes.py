@@ -19,6 +19,7 @@ import math
 from lookahead_control.core.control_law import LateralState, steering_law
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.ros import conversions as conv
+import numpy as np
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -67,7 +68,22 @@ def context():
     rclpy.try_shutdown(context=ctx)
 
 
+def _controller(context, *overrides, sim=True):
+    """Create a controller in a private context, on a fake clock (sim time, set by hand)."""
+    from lookahead_control.ros.controller_node import ControllerNode
+    params = [Parameter('use_sim_time', value=True)] if sim else []
+    return ControllerNode(context=context, parameter_overrides=params + list(overrides))
+
+
+def _at(node, now_ns):
+    """Set a sim-time node's clock."""
+    from rclpy.time import Time
+    node.get_clock().set_ros_time_override(Time(nanoseconds=now_ns))
+
+
 def _feed(node, stamp, y=0.5, d=1.96, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-0.0025):
+    if node.get_clock().ros_time_is_active:
+        _at(node, stamp)            # the fake clock reads the measurements' time
     node.on_yaw(conv.to_yaw(stamp, 'base_link', eps, r, 0.0 - v_y * r))
     node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, v_y, r))
     node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
@@ -75,17 +91,18 @@ def _feed(node, stamp, y=0.5, d=1.96, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-
 
 
 def test_controller_node_answers_each_lateral_error(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
         _feed(node, 10_000_000)
         command = node.core.last
         assert command is not None and command.stamp_ns == 10_000_000
-        # the same numbers straight into the law: y_cg = 0.5 - 1.96 * 0.01
+        # the same numbers straight into the law: y_cg = 0.5 - 1.96 * 0.01; the
+        # curvature crosses as float32 (geometry_msgs/Point32)
+        rho = float(np.float32(-0.0025))
         expected = steering_law(LateralState(0.5 - 1.96 * 0.01, 0.01, 0.1, 0.02, 25.0, 0.0,
-                                             -0.0025, 0.0), VehicleParams(), ControllerParams())
+                                             rho, 0.0), VehicleParams(), ControllerParams())
         assert command.steering == pytest.approx(expected.steering, rel=1e-12)
         assert node.published == 1
     finally:
@@ -93,8 +110,7 @@ def test_controller_node_answers_each_lateral_error(context):
 
 
 def test_inactive_controller_publishes_nothing(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         _feed(node, 1)
@@ -109,8 +125,7 @@ def test_inactive_controller_publishes_nothing(context):
 
 
 def test_controller_waits_for_inputs(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
@@ -122,14 +137,13 @@ def test_controller_waits_for_inputs(context):
 
 
 def test_matching_stamps_hold_the_answer_until_inputs_catch_up(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('wait_for_matching_stamps', value=True)])
+    node = _controller(context, Parameter('wait_for_matching_stamps', value=True))
     try:
         node.trigger_configure()
         node.trigger_activate()
         _feed(node, 100)
         assert node.published == 1
+        _at(node, 200)
         node.on_lateral_error(conv.to_lateral_error(200, 'base_link', 1.96, 0.4))
         assert node.published == 0 + 1          # yaw, velocity, curvature still at 100
         node.on_yaw(conv.to_yaw(200, 'base_link', 0.01, 0.02, 0.0))
@@ -142,8 +156,7 @@ def test_matching_stamps_hold_the_answer_until_inputs_catch_up(context):
 
 
 def test_parameter_changes_applied_or_refused(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
@@ -159,7 +172,7 @@ def test_parameter_changes_applied_or_refused(context):
         paper = node.core.last.law.d_v
         ok = node.set_parameters([Parameter('controller.schedule', value='fixed')])[0]
         assert ok.successful
-        _feed(node, 2)       # applied between two control steps
+        _feed(node, 2)
         assert node.core.params.schedule == 'fixed'
         assert node.core.last.law.d_v == 1.96 != paper
     finally:
@@ -240,13 +253,13 @@ def test_controller_keeps_the_clock_subscription_of_use_sim_time(context):
 
 def test_bad_inputs_are_refused_counted_and_never_used(context):
     from diagnostic_msgs.msg import DiagnosticStatus
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
+    node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
         _feed(node, 10_000_000)
         good = node.core.last
+        _at(node, 20_000_000)
         node.on_yaw(conv.to_yaw(20_000_000, 'base_link', float('nan'), 0.0, 0.0))
         node.on_velocity(conv.to_velocity(20_000_000, 'base_link', 1e4, 0.0, 0.0))
         node.on_lateral_error(conv.to_lateral_error(20_000_000, 'map', 1.96, 0.5))
@@ -264,14 +277,12 @@ def test_bad_inputs_are_refused_counted_and_never_used(context):
 
 def test_stale_inputs_hold_then_ramp_and_resume_without_a_jump(context):
     from diagnostic_msgs.msg import DiagnosticStatus
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('safety.max_steering_rate', value=0.1)])
+    node = _controller(context, Parameter('safety.max_steering_rate', value=0.1))
     core = node.core
     try:
         node.trigger_configure()
         node.trigger_activate()
-        now = node.get_clock().now().nanoseconds
+        now = 1_000_000_000_000
         _feed(node, now)
         start = core.last.steering
         assert start < -0.01
@@ -309,5 +320,279 @@ def test_now_ns_reads_the_nodes_clock_system_and_simulated(context):
         assert now_ns(node) == clock.now().nanoseconds == 0      # no /clock yet
         clock.set_ros_time_override(Time(nanoseconds=1_234_567_891))
         assert now_ns(node) == clock.now().nanoseconds == 1_234_567_891
+    finally:
+        node.destroy_node()
+
+
+# -- issue 11: the five reproduced cases, at the node's callbacks on a fake clock -------
+
+MS = 1_000_000
+T0 = 1_790_000_000 * 10**9      # the fake clock starts in 2026
+
+
+class Drive:
+    """Run a controller node at 100 Hz on a fake clock; record what it publishes."""
+
+    def __init__(self, node):
+        self.node, self.now, self.sent = node, T0, []
+        node._steering_pub.publish = lambda msg: self.sent.append(
+            (self.now, *conv.from_steering(msg), msg.velocity[0], node.core.last))
+        _at(node, self.now)
+
+    def tick(self, inputs=('yaw', 'velocity', 'road_curvature', 'lateral_error'),
+             stamp=None, y=1.0, v_x=20.0, eps=0.0, r=0.0, steps=1, dt=10 * MS):
+        """Advance the clock by ``dt`` and deliver the inputs, ``steps`` times."""
+        for _ in range(steps):
+            self.now += dt
+            _at(self.node, self.now)
+            at = self.now if stamp is None else stamp(self.now)
+            messages = {
+                'yaw': lambda: self.node.on_yaw(conv.to_yaw(at, 'base_link', eps, r, 0.0)),
+                'velocity': lambda: self.node.on_velocity(
+                    conv.to_velocity(at, 'base_link', v_x, 0.0, 0.0)),
+                'road_curvature': lambda: self.node.on_curvature(
+                    conv.to_curvature(at, 'base_link', [(0.0, 0.001), (5.0, 0.001)])),
+                'lateral_error': lambda: self.node.on_lateral_error(
+                    conv.to_lateral_error(at, 'base_link', 0.0, y))}
+            for name in inputs:
+                messages[name]()
+            if (self.now - T0) % (50 * MS) == 0:
+                self.node.on_watchdog()             # 20 Hz, on the node's clock
+
+    def since(self, t):
+        """Return what was published from ``t`` on."""
+        return [s for s in self.sent if s[0] >= t]
+
+    def check_rate(self):
+        """Assert the rate limit and the rate field over the node's clock, all commands."""
+        rate = self.node.core.safety.max_steering_rate
+        for (t0, _, a0, *_), (t1, _, a1, r1, _) in zip(self.sent, self.sent[1:]):
+            dt = (t1 - t0) * 1e-9
+            assert abs(a1 - a0) <= rate * dt + 1e-12, (t0, a0, t1, a1)
+            assert r1 == (pytest.approx((a1 - a0) / dt, rel=1e-9, abs=1e-12) if dt > 0
+                          else 0.0)
+
+
+@pytest.fixture
+def drive(context):
+    node = _controller(context)
+    node.trigger_configure()
+    node.trigger_activate()
+    yield Drive(node)
+    node.destroy_node()
+
+
+@pytest.mark.parametrize('dead', [('yaw', 'velocity', 'road_curvature'), ('velocity',)])
+def test_issue11_a_dead_input_is_never_used(drive, dead):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    drive.tick(steps=100)
+    live = drive.sent[-1][2]
+    assert live < -0.01 and drive.sent[-1][4].law is not None
+    died = drive.now
+    alive = tuple(n for n in ('yaw', 'velocity', 'road_curvature', 'lateral_error')
+                  if n not in dead)
+    drive.tick(inputs=alive, y=-1.0, steps=400)          # 4 s, the lateral error changes
+    timeout = drive.node.core.safety.input_timeout
+    after = drive.since(died + int(timeout * 1e9) + 10 * MS)
+    # every command is the safe behaviour: never the law on the old yaw / velocity
+    assert after and all(c.law is None and c.status == 'stale' for *_, c in after)
+    # hold the last command for hold_time, then ramp to the safe angle within the rate
+    # limit; the lateral errors answered meanwhile do not restart the hold
+    first, held = after[0][0], drive.sent[drive.sent.index(after[0]) - 1][2]
+    assert all(a == held for t, _, a, _, _ in after if t - first <= 500 * MS)
+    assert any(a != held for t, _, a, _, _ in after if t - first <= 600 * MS)
+    assert after[-1][2] == 0.0
+    drive.check_rate()
+    status = drive.node.diagnostics()
+    assert status.level == DiagnosticStatus.ERROR
+    assert all(name in status.message for name in dead if name != 'road_curvature')
+
+
+def test_issue11_a_refused_yaw_is_not_replaced_by_the_last_good_one(drive):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    drive.tick(steps=100)
+    bad = drive.now
+    drive.tick(r=float('inf'), y=-1.0, steps=100)           # 1 s of refused yaw
+    after = drive.since(bad + 210 * MS)
+    assert after and all(c.law is None for *_, c in after)
+    status = drive.node.diagnostics()
+    assert status.level == DiagnosticStatus.ERROR
+    assert 'yaw (last refused: yaw: yaw_rate = inf)' in status.message
+    back = drive.now
+    drive.tick(y=-1.0, steps=50)                            # yaw is back: control resumes
+    assert drive.since(back + 10 * MS)[-1][4].law is not None
+    drive.check_rate()
+
+
+def test_issue11_stamp_jumps_do_not_open_the_rate_limit(drive):
+    # at 5 m/s: stamps 0 for 1 s, real ones, a sensor clock 1.5 s behind then back, and
+    # one message stamped 90 ms ahead (within max_future); the rate limit (5 rad/s)
+    # holds between every two commands on the node's clock, and the published rate is
+    # the change over that time
+    drive.tick(v_x=5.0, y=-1.0, steps=50)
+    drive.tick(v_x=5.0, y=1.0, stamp=lambda now: 0, steps=100)
+    drive.tick(v_x=5.0, y=-1.0, steps=50)
+    drive.tick(v_x=5.0, y=1.0, stamp=lambda now: now - 1500 * MS, steps=100)
+    drive.tick(v_x=5.0, y=-1.0, steps=50)
+    drive.tick(v_x=5.0, y=1.0, stamp=lambda now: now + 90 * MS)
+    drive.tick(v_x=5.0, y=1.0, steps=50, stamp=lambda now: now + 95 * MS)
+    angles = [a for _, _, a, _, _ in drive.sent]
+    assert min(angles) < -0.07 and max(angles) > 0.07
+    assert any(c.rate_limited for *_, c in drive.sent)      # the limit was tested
+    drive.check_rate()
+
+
+def test_issue11_old_and_frozen_stamps_are_refused(drive):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    drive.tick(steps=50)
+    for stamp in (lambda now: now - 5000 * MS, lambda now: 0,
+                  lambda now: 1_690_000_000 * 10**9 + now % 10**9):   # a 2023 bag
+        start = drive.now
+        drive.tick(y=-1.0, stamp=stamp, steps=100)
+        assert all(c.law is None for *_, c in drive.since(start + 10 * MS))
+        status = drive.node.diagnostics()
+        assert status.level == DiagnosticStatus.ERROR
+        assert 'behind the node clock' in status.message
+        drive.tick(steps=50)
+        assert drive.sent[-1][4].law is not None
+    # a stamp that stops advancing: refused as repeated, then the safe behaviour
+    frozen, start = drive.now + 10 * MS, drive.now
+    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=5)
+    assert 'does not advance' in drive.node.core.refusals['yaw']
+    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=195)
+    after = drive.since(start + 10 * MS)
+    assert all(c.law is None for *_, c in after[1:]) and after[-1][2] == 0.0
+    status = drive.node.diagnostics()
+    assert status.level == DiagnosticStatus.ERROR and 'yaw' in status.message
+    drive.check_rate()
+
+
+def test_issue11_changing_the_mode_at_runtime_is_refused_and_steering_goes_on(drive):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    drive.tick(steps=50)
+    for name, value in (('mode', 'timer'), ('qos_reliability', 'best_effort'),
+                        ('rate_hz', 10.0), ('watchdog_rate_hz', 5.0)):
+        result = drive.node.set_parameters([Parameter(name, value=value)])[0]
+        assert not result.successful and result.reason.startswith(f'{name}: read-only')
+        assert '\n' not in result.reason
+    start = drive.now
+    drive.tick(steps=300)
+    assert len(drive.since(start + 1)) == 300
+    assert drive.node.diagnostics().level == DiagnosticStatus.OK
+
+
+def test_issue11_a_long_polygon_is_refused_before_its_points_are_decoded(
+        drive, monkeypatch):
+    def decode(*args):
+        raise AssertionError('decoded a polygon over the cap')
+
+    drive.tick(steps=30)
+    monkeypatch.setattr(conv, 'curvature_points', decode)
+    long = conv.to_curvature(drive.now + 10 * MS, 'base_link',
+                             [(0.1 * k, 0.001) for k in range(10_000)])
+    drive.node.on_curvature(long)
+    assert drive.node.core.last_rejection == \
+        'road_curvature: points = 10000 > max_curvature_points 256'
+    # the curvature is lost, not stale: the law runs on without it, with a WARN
+    drive.tick(inputs=('yaw', 'velocity', 'lateral_error'), steps=30)
+    assert drive.sent[-1][4].law is not None and drive.node.curvature_lost
+    assert 'road_curvature lost' in drive.node.diagnostics().message
+
+
+def test_issue11_a_backlog_is_never_answered_late(drive):
+    # messages that wait in a queue for longer than input_timeout are refused when
+    # they are finally read, and no answer to them goes out
+    drive.tick(steps=30)
+    start, old = drive.now, drive.now
+    drive.now += 300 * MS                   # the executor was busy for 0.3 s
+    _at(drive.node, drive.now)
+    for k in range(10):                     # ... then reads the queued messages
+        stamp = old + k * 10 * MS
+        drive.node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
+        drive.node.on_velocity(conv.to_velocity(stamp, 'base_link', 20.0, 0.0, 0.0))
+        drive.node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 0.0, 1.0))
+    late = drive.since(start + 1)
+    assert all(drive.now - stamp <= 200 * MS for _, stamp, *_ in late)
+    assert all(c.law is None for *_, c in late)
+    status = drive.node.diagnostics()
+    assert 'late' in status.message or 'stale' in status.message
+
+
+# -- runtime parameters: every one takes effect or is refused ----------------------------
+
+def _other_value(spec):
+    """Return a valid value different from the default."""
+    if spec.choices:
+        return next(c for c in spec.choices if c != spec.default)
+    if isinstance(spec.default, bool):
+        return not spec.default
+    if isinstance(spec.default, int):
+        return spec.default + 1
+    if isinstance(spec.default, str):
+        return spec.default + '_2'
+    special = {'safety.safe_angle': 0.05, 'safety.low_speed_blend': 0.5,
+               'controller.fixed_look_ahead': 2.5}
+    if spec.name in special:
+        return special[spec.name]
+    value = spec.default * 0.9
+    return value if spec.low is None or value >= spec.low else spec.default * 1.1
+
+
+def _effect(node, name):
+    """Return the value in use for a parameter (what the node or its core works with)."""
+    core = node.core
+    prefix, _, field = name.partition('.')
+    holders = {'vehicle': core.vehicle, 'controller': core.params, 'safety': core.safety,
+               'pure_pursuit': core.baselines.pure_pursuit, 'stanley': core.baselines.stanley,
+               'lqr': core.baselines.lqr}
+    if prefix in holders and field:
+        return getattr(holders[prefix], field)
+    return {'law': lambda: core.law_name,
+            'frame_id': lambda: node._frame,
+            'wait_for_matching_stamps': lambda: node._wait_for_stamps,
+            'sync_timeout': lambda: node._sync_timeout,
+            'acceleration_source': lambda: core.acceleration_source,
+            'use_curvature_preview': lambda: core.use_preview}[name]()
+
+
+def test_every_parameter_set_at_runtime_takes_effect_or_is_refused(context):
+    from lookahead_control.ros.controller_node import (ALL_SPECS, READ_ONLY_CONFIGURED,
+                                                       READ_ONLY_STARTED)
+    specs = list(ALL_SPECS) + [type(ALL_SPECS[0])('use_sim_time', False, '')]
+    tried = 0
+    for spec in specs:
+        node = _controller(context, sim=False)
+        try:
+            node.trigger_configure()
+            node.trigger_activate()
+            value = _other_value(spec)
+            result = node.set_parameters([Parameter(spec.name, value=value)])[0]
+            tried += 1
+            if spec.name in READ_ONLY_CONFIGURED + READ_ONLY_STARTED:
+                assert not result.successful, spec.name
+                assert result.reason.startswith(f'{spec.name}: read') and \
+                    '\n' not in result.reason
+                assert node.get_parameter(spec.name).value == spec.default
+                continue
+            assert result.successful, (spec.name, result.reason)
+            # in effect at once, not at some later step
+            assert _effect(node, spec.name) == value, spec.name
+        finally:
+            node.destroy_node()
+    assert tried == len(ALL_SPECS) + 1
+
+
+def test_configure_only_parameters_apply_after_cleanup(context):
+    node = _controller(context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        node.trigger_deactivate()
+        node.trigger_cleanup()
+        assert node.set_parameters([Parameter('mode', value='timer')])[0].successful
+        node.trigger_configure()
+        node.trigger_activate()
+        assert node._timer is not None and node._mode == 'timer'
+        assert not node.set_parameters([Parameter('mode', value='event')])[0].successful
     finally:
         node.destroy_node()

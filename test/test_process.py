@@ -100,8 +100,12 @@ def test_remapped_bridge_drives_the_controller(probe):
     try:
         assert spin_until(executor, lambda: node.count_subscribers('/bridge/imu') > 0
                           and node.count_publishers('/vehicle/steering_cmd') > 0, 30)
-        for k in range(1, 40):
-            stamp = k * 10_000_000
+        # stamped with the bridge's clock, as a vehicle's would be (stamps older than
+        # input_timeout are refused), on a 10 ms grid
+        stamp = 0
+        for _ in range(1, 40):
+            now = node.get_clock().now().nanoseconds // 10_000_000 * 10_000_000
+            stamp = max(stamp + 10_000_000, now)
             pubs['yaw'].publish(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
             pubs['vel'].publish(conv.to_velocity(stamp, 'base_link', 20.0, 0.0, 0.0))
             pubs['lat'].publish(conv.to_lateral_error(stamp, 'base_link', 0.0, 0.5))

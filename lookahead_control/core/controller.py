@@ -58,6 +58,9 @@ def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
     return baseline_law(name, vehicle, baselines)
 
 
+# the law cannot run without these; road_curvature is optional (0 without it)
+REQUIRED_INPUTS = ('lateral_error', 'yaw', 'velocity')
+JUMP_NS = 1_000_000_000         # the node's clock going back further is a time jump
 # per input: the attribute holding its latest sample, and the method storing a new one
 _LATEST = {'lateral_error': 'lateral', 'yaw': 'yaw', 'velocity': 'velocity',
            'road_curvature': 'curvature'}
@@ -70,10 +73,11 @@ class Command:
     """
     One steering command and what produced it.
 
-    :param stamp_ns: stamp of the lateral-error measurement it answers [ns].
+    :param stamp_ns: stamp of the lateral-error measurement it answers [ns] (a watchdog
+        command: the node's time on the measurements' clock).
     :param steering: front-wheel angle (+ left) [rad].
     :param steering_rate: change since the previous command over the time between them
-        [rad/s] (0 for the first).
+        on the node's clock [rad/s] (0 for the first; without a clock, on the stamps).
     :param law: the law's intermediate values (None for a stale-input command).
     :param status: ``ok``, ``low_speed`` (handing over to hold) or ``stale`` (inputs
         timed out: hold, then ramp to the safe angle).
@@ -90,8 +94,62 @@ class Command:
     rate_limited: bool = False
 
 
+class InputTiming:
+    """
+    The largest input age and answer latency since the last report, on the node's clock.
+
+    Input age: the node's clock when a sample is accepted minus its stamp (transport and
+    queueing delay, plus any sensor clock offset). Answer latency: the node's clock when
+    an answer is computed minus the stamp of the lateral error it answers.
+    """
+
+    def __init__(self) -> None:
+        """Start empty."""
+        self.age: dict[str, float] = {}
+        self.latency: Optional[float] = None
+
+    def note_age(self, name: str, age: float) -> None:
+        """
+        Record one input's age [s].
+
+        :param name: the input.
+        :param age: its age [s].
+        """
+        self.age[name] = max(self.age.get(name, age), age)
+
+    def note_latency(self, latency: float) -> None:
+        """
+        Record one answer's latency [s].
+
+        :param latency: the latency [s].
+        """
+        self.latency = latency if self.latency is None else max(self.latency, latency)
+
+    def take(self) -> tuple[dict[str, float], Optional[float]]:
+        """Return the largest ages and latency since the last call, and start again."""
+        out = self.age, self.latency
+        self.age, self.latency = {}, None
+        return out
+
+
 class SteeringController:
-    """Holds the latest inputs and evaluates the law on demand."""
+    """
+    Holds the latest inputs and evaluates the law on demand.
+
+    Time, in one place (``docs/safety.md``, "Stamps and clocks"):
+
+    - **Stamps** order the samples of each input (a stamp must advance), judge their
+      age against the node's clock (refused outside ``[now - input_timeout, now +
+      max_future]``), measure latency, and name the measurement a command answers.
+    - **The node's clock** (sim time under ``use_sim_time``) judges staleness and times
+      the rate limit: between two commands the angle moves at most ``max_steering_rate``
+      times the node-clock time between them (on the wall clock, also at most times the
+      steady-clock time, so a system clock step cannot open the limit), and at most
+      that rate times the advance of the newest command stamp, so a recording of the
+      commands obeys the limit on its own time axis too.
+    - Without a clock (``now_ns`` None: offline re-runs, tests) the stamps are the only
+      time axis, as in a lockstep simulation.
+    """
 
     def __init__(self, vehicle: VehicleParams, controller: ControllerParams,
                  acceleration_source: str = 'imu', use_preview: bool = False,
@@ -120,11 +178,15 @@ class SteeringController:
         self.safety = safety or SafetyParams()
         self.rejected: dict[str, int] = {}
         self.last_rejection = ''
+        self.refusals: dict[str, str] = {}      # input -> why its last refused sample was
         self.time_jumps = 0
-        self._received: dict[str, int] = {}
+        self.timing = InputTiming()
+        self._received: dict[str, int] = {}     # input -> node clock of its last sample
+        self._first_received: Optional[int] = None
         self._last_now: Optional[int] = None
         self._held: Optional[float] = None
         self._stale_since: Optional[int] = None
+        self._stale_ns = 0
         self._hold_value: Optional[float] = None
         self.use_preview = use_preview
         self.vehicle = vehicle
@@ -139,9 +201,11 @@ class SteeringController:
         self._accel_estimate = 0.0
         self.last: Optional[Command] = None
         # the rate limit's reference: the last angle sent (kept across resets: the
-        # actuator is still there) and the newest stamp sent (so a command answering an
-        # older step, or following a watchdog command, or after a time jump, holds)
+        # actuator is still there), the node's clock and the steady clock when it was
+        # sent, and the newest command stamp so far
         self._rate_angle: Optional[float] = None
+        self._rate_now: Optional[int] = None
+        self._rate_steady: Optional[int] = None
         self._rate_time: Optional[int] = None
 
     def configure(self, vehicle: VehicleParams, controller: ControllerParams,
@@ -210,8 +274,10 @@ class SteeringController:
         self._previous_velocity = None
         self._accel_estimate = 0.0
         self.last = None
-        self._rate_time = None
+        self._rate_now = self._rate_steady = self._rate_time = None
         self._received.clear()
+        self._first_received = None
+        self._last_now = None
         self._stale_since = None
         self._hold_value = None
         self.law.reset()
@@ -221,31 +287,44 @@ class SteeringController:
         """
         Check a sample and store it; a refused one is counted and never used.
 
-        A stamp more than 1 s behind the last one of its input, or a node clock gone
-        back by more than 1 s, is a time jump: the state is reset instead of producing a
-        rate spike, and the sample is accepted.
+        The node's clock going back by more than 1 s (without a clock: a stamp more than
+        1 s behind the last one of its input) is a time jump (replay restart, sim
+        reset): the state is reset instead of producing a rate spike, and the sample is
+        checked afresh. With a clock, a stamp going back is refused: it is the sensor's
+        clock that jumped, not the node's.
 
         :param name: ``lateral_error``, ``yaw``, ``velocity`` or ``road_curvature``.
         :param sample: the converted sample.
-        :param now_ns: the node's clock (receive time) [ns].
+        :param now_ns: the node's clock (receive time) [ns]: 0 while it is not running
+            (sim time before the first ``/clock``), None without a clock (offline).
         :return: None if accepted, else the reason.
         """
         current = getattr(self, _LATEST[name])
-        jumped = ((current is not None and sample.stamp_ns < current.stamp_ns - 1_000_000_000)
-                  or (now_ns is not None and self._last_now is not None
-                      and now_ns < self._last_now - 1_000_000_000))
+        if now_ns is None:
+            jumped = current is not None and sample.stamp_ns < current.stamp_ns - JUMP_NS
+        else:
+            jumped = self._last_now is not None and now_ns < self._last_now - JUMP_NS
         if jumped:
             self.time_jumps += 1
             self.reset()
             current = None
+        # a clock reading 0 is not running yet (sim time before the first /clock): the
+        # stamps cannot be judged against it
+        clock = now_ns if now_ns is not None and now_ns > 0 else None
         reason = check_sample(name, sample, self.safety) or check_stamp(
-            name, sample.stamp_ns, current.stamp_ns if current else None, now_ns, self.safety)
+            name, sample.stamp_ns, current.stamp_ns if current else None, clock, self.safety)
         if reason is not None:
+            self.refusals[name] = reason
             self.count_rejection(reason)
             return reason
+        received = 0 if now_ns is None else now_ns
         if now_ns is not None:
-            self._received[name] = now_ns
             self._last_now = now_ns
+        if clock is not None:
+            self.timing.note_age(name, (clock - sample.stamp_ns) * 1e-9)
+        self._received[name] = received
+        if self._first_received is None:
+            self._first_received = received
         getattr(self, _UPDATE[name])(sample)
         return None
 
@@ -259,48 +338,103 @@ class SteeringController:
         key = f'{name}: {(detail.split() or ["?"])[0]}'
         self.rejected[key] = self.rejected.get(key, 0) + 1
         self.last_rejection = reason
+        if name in _LATEST:
+            self.refusals[name] = reason
 
-    def stale(self, now_ns: int) -> list[str]:
-        """
-        Return the inputs older than the timeout (curvature only once it was seen).
-
-        :param now_ns: the node's clock [ns].
-        :return: their names.
-        """
+    def _fresh(self, name: str, now_ns: int) -> bool:
+        """Return whether an input's last sample is fresh at ``now_ns``."""
+        received = self._received.get(name)
+        sample = getattr(self, _LATEST[name])
         timeout = self.safety.input_timeout * 1e9
-        names = ['lateral_error', 'yaw', 'velocity'] + (
-            ['road_curvature'] if 'road_curvature' in self._received else [])
-        return [n for n in names if n in self._received
-                and now_ns - self._received[n] > timeout]
+        return (received is not None and sample is not None
+                and now_ns - received <= timeout and now_ns - sample.stamp_ns <= timeout)
 
-    def safe_command(self, now_ns: int) -> Optional[Command]:
+    def stale(self, now_ns: Optional[int]) -> list[str]:
+        """
+        Return the required inputs that are stale at ``now_ns``.
+
+        Stale: received (on the node's clock) or stamped more than ``input_timeout``
+        ago, or never received although another input came in more than
+        ``input_timeout`` ago. An input refused over and over, or whose stamps stopped
+        advancing (refused as repeated), therefore goes stale too. ``road_curvature`` is
+        optional: see :meth:`curvature_lost`.
+
+        :param now_ns: the node's clock [ns] (None: not running, nothing is stale).
+        :return: their names, in the order of ``REQUIRED_INPUTS``.
+        """
+        if now_ns is None or self._first_received is None:
+            return []
+        timeout = self.safety.input_timeout * 1e9
+        return [name for name in REQUIRED_INPUTS
+                if (name in self._received and not self._fresh(name, now_ns))
+                or (name not in self._received and now_ns - self._first_received > timeout)]
+
+    def curvature_lost(self, now_ns: Optional[int]) -> bool:
+        """
+        Return True when ``road_curvature`` came in once and is now stale.
+
+        The law then runs without curvature feed-forward (curvature 0, the feedback
+        alone holds the lane) rather than on the old curvature or not at all: see
+        ``docs/safety.md``.
+
+        :param now_ns: the node's clock [ns] (None: not running).
+        :return: whether the curvature is lost.
+        """
+        return (now_ns is not None and 'road_curvature' in self._received
+                and not self._fresh('road_curvature', now_ns))
+
+    def describe_stale(self, names: list[str]) -> str:
+        """
+        Return ``'yaw (last refused: ...), velocity'``: the inputs and why, if known.
+
+        :param names: stale inputs.
+        :return: one line.
+        """
+        parts = []
+        for name in names:
+            why = self.refusals.get(name)
+            never = '' if name in self._received else ' never received'
+            parts.append(f'{name}{never}' + (f' (last refused: {why})' if why else ''))
+        return ', '.join(parts)
+
+    def safe_command(self, now_ns: int, steady_ns: Optional[int] = None,
+                     stamp_ns: Optional[int] = None) -> Optional[Command]:
         """
         Return the stale-input command: hold, then ramp to the safe angle.
 
-        :param now_ns: the node's clock [ns]; the command is stamped with this instant
-            on the measurements' clock.
+        The hold time runs from the first safe command; only an answer of the law from
+        fresh inputs ends it.
+
+        :param now_ns: the node's clock [ns].
+        :param steady_ns: the steady clock [ns] (None under sim time).
+        :param stamp_ns: the stamp to give it: the lateral error it answers, or None
+            for the node's time on the measurements' clock (the watchdog).
         :return: the command, None before any command was sent.
         """
         sent = self._rate_angle
         if sent is None:
             return None
         if self._stale_since is None:
-            self._stale_since = now_ns
+            self._stale_since, self._stale_ns = now_ns, 0
             self._held = sent
+        # time stale, on the node's clock, counted forwards only (a clock going back
+        # neither restarts the hold nor reverses the ramp)
+        self._stale_ns += max(0, now_ns - self._stale_since)
+        self._stale_since = now_ns
         held = self._held if self._held is not None else sent
-        wanted = stale_target(held, (now_ns - self._stale_since) * 1e-9, self.safety)
+        wanted = stale_target(held, self._stale_ns / 1e9, self.safety)
         v_x = self.velocity.v_x if self.velocity else 0.0
-        self.last = self._limited(wanted, self._measurement_time(now_ns), v_x, None,
-                                  'stale')
+        stamp = self._measurement_time(now_ns) if stamp_ns is None else stamp_ns
+        self.last = self._limited(wanted, stamp, now_ns, steady_ns, v_x, None, 'stale')
         return self.last
 
     def _measurement_time(self, now_ns: int) -> int:
         """
         Return the node's time on the measurements' clock.
 
-        The last lateral-error stamp plus the time since it arrived. Commands are
-        stamped, and rate limited, on the measurements' clock. That clock need not be
-        the node's: a replayed bag, or a sensor clock that is not synchronized.
+        The last lateral-error stamp plus the time since it arrived, so that the stamps
+        of watchdog commands continue those of the answers (sensors whose clock is
+        within the stamp tolerance of the node's).
 
         :param now_ns: the node's clock [ns].
         :return: the same instant on the measurements' clock [ns].
@@ -308,41 +442,46 @@ class SteeringController:
         received = self._received.get('lateral_error')
         if self.lateral is not None and received is not None:
             return self.lateral.stamp_ns + max(0, now_ns - received)
-        return self._rate_time if self._rate_time is not None else now_ns
+        return max(self._rate_time, now_ns) if self._rate_time is not None else now_ns
 
-    def _limited(self, wanted: float, stamp_ns: int, v_x: float, law: Optional[LawOutput],
+    def _limited(self, wanted: float, stamp_ns: int, now_ns: Optional[int],
+                 steady_ns: Optional[int], v_x: float, law: Optional[LawOutput],
                  status: str) -> Command:
         """
         Apply the output limits to a wanted angle and make it the command sent.
 
         :param wanted: the angle wanted [rad].
         :param stamp_ns: its stamp [ns].
+        :param now_ns: the node's clock [ns] (None: the stamps are the time axis).
+        :param steady_ns: the steady clock [ns] (None: not used).
         :param v_x: the speed, for the angle limit [m/s].
-        :param law: the law's output it comes from (None: the watchdog).
+        :param law: the law's output it comes from (None: a safe command).
         :param status: ``ok``, ``low_speed`` or ``stale``.
         :return: the command.
         """
         sent = self._rate_angle
-        dt, newest = self._rate_step(stamp_ns)
+        if now_ns is not None and self._rate_now is not None and now_ns < self._rate_now:
+            self._rate_time = None      # the node's clock went back: both axes restart
+        # time since the last command on the stamps' axis (newest stamp so far)
+        on_stamps = (max(0, stamp_ns - self._rate_time) * 1e-9
+                     if self._rate_time is not None else None)
+        if now_ns is None:
+            elapsed = on_stamps if on_stamps is not None else 0.0
+            dt = elapsed
+        else:
+            elapsed = (max(0, now_ns - self._rate_now) * 1e-9
+                       if self._rate_now is not None else 0.0)
+            if steady_ns is not None and self._rate_steady is not None:
+                elapsed = min(elapsed, max(0, steady_ns - self._rate_steady) * 1e-9)
+            dt = elapsed if on_stamps is None else min(elapsed, on_stamps)
+            self._rate_now, self._rate_steady = now_ns, steady_ns
         out = limit(wanted, sent, dt, v_x, self.vehicle.wheelbase, self.safety)
-        rate = (out.angle - sent) / dt if sent is not None and dt > 0.0 else 0.0
+        rate = (out.angle - sent) / elapsed if sent is not None and elapsed > 0.0 else 0.0
         self._rate_angle = out.angle
-        # a watchdog command carries the newest stamp; an answer, its measurement's
-        stamp = newest if law is None else stamp_ns
-        return Command(stamp, out.angle, float(rate), law, status, out.saturated,
+        self._rate_time = stamp_ns if self._rate_time is None else max(self._rate_time,
+                                                                       stamp_ns)
+        return Command(stamp_ns, out.angle, float(rate), law, status, out.saturated,
                        out.rate_limited)
-
-    def _rate_step(self, stamp_ns: int) -> tuple[float, int]:
-        """
-        Advance the rate limit's time axis to a new command's stamp.
-
-        :param stamp_ns: the stamp of the command about to be sent [ns].
-        :return: the time the rate limit allows for [s] (0 when the stamp is not newer
-            than the last command's: the command holds), and the newest stamp.
-        """
-        latest = self._rate_time if self._rate_time is not None else stamp_ns
-        self._rate_time = max(latest, stamp_ns)
-        return max(0, stamp_ns - latest) * 1e-9, self._rate_time
 
     # -- unchecked input (trusted sources: offline re-runs, tests) ----------------
 
@@ -390,13 +529,20 @@ class SteeringController:
             return self._accel_estimate
         return 0.0
 
-    def state(self) -> Optional[LateralState]:
-        """Return the law's inputs from the latest samples, None if any is missing."""
+    def state(self, now_ns: Optional[int] = None) -> Optional[LateralState]:
+        """
+        Return the law's inputs from the latest samples, None if any is missing.
+
+        :param now_ns: the node's clock [ns]; a lost curvature counts as 0 (None: use
+            the latest curvature, if any).
+        :return: the state.
+        """
         if self.lateral is None or self.yaw is None or self.velocity is None:
             return None
         eps_r = self.yaw.relative_yaw
-        rho, slope = (self.curvature.rho, self.curvature.slope) if self.curvature else (
-            0.0, 0.0)
+        use_curvature = self.curvature is not None and not self.curvature_lost(now_ns)
+        rho, slope = (self.curvature.rho, self.curvature.slope) if (
+            use_curvature and self.curvature is not None) else (0.0, 0.0)
         v_x = self.velocity.v_x
         return LateralState(
             y_cg=cg_error_from(self.lateral.value, eps_r, self.lateral.distance),
@@ -404,14 +550,22 @@ class SteeringController:
             a_x=self.acceleration(), rho=rho,
             rho_rate=v_x * slope if self.use_preview else 0.0)
 
-    def compute(self) -> Optional[Command]:
+    def compute(self, now_ns: Optional[int] = None,
+                steady_ns: Optional[int] = None) -> Optional[Command]:
         """
-        Evaluate the law on the latest inputs.
+        Evaluate the law on the latest inputs, or give the safe command if one is stale.
 
-        :return: the command answering the latest lateral error, None if an input is
-            missing.
+        :param now_ns: the node's clock [ns] (None: no clock, inputs are not judged
+            stale and the stamps time the rate limit: offline re-runs).
+        :param steady_ns: the steady clock [ns], on the wall clock (None: sim time).
+        :return: the command answering the latest lateral error (the safe command when
+            a required input is stale), None if an input is missing.
         """
-        state = self.state()
+        if now_ns is not None and self.lateral is not None and self.stale(now_ns):
+            fresh = self._fresh('lateral_error', now_ns)
+            return self.safe_command(now_ns, steady_ns,
+                                     self.lateral.stamp_ns if fresh else None)
+        state = self.state(now_ns)
         if state is None or self.lateral is None:
             return None
         stamp = self.lateral.stamp_ns
@@ -419,6 +573,8 @@ class SteeringController:
         self._law_stamp = stamp
         law = self.law.step(state, self.preview(), dt)
         self._stale_since = None
+        if now_ns is not None and now_ns > 0:
+            self.timing.note_latency((now_ns - self.lateral.stamp_ns) * 1e-9)
         v_x = float(state.v_x)
         weight = low_speed_weight(v_x, self.safety)
         raw = float(law.steering)
@@ -426,6 +582,6 @@ class SteeringController:
             self._hold_value = raw
         hold = self._hold_value if self._hold_value is not None else 0.0
         wanted = weight * raw + (1.0 - weight) * hold
-        self.last = self._limited(wanted, self.lateral.stamp_ns, v_x, law,
+        self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
         return self.last

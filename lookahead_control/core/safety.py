@@ -16,13 +16,15 @@
 Input checks, low-speed hand-over, stale-input behaviour and output limits.
 
 No ROS here. Modelled on Autoware's vehicle_cmd_gate: every input is checked before
-use (finite, within what a vehicle produces, stamps not from the future and not going
-backwards); the command is clamped, then rate limited, last; a stale input holds the
-command, then ramps it to a safe angle within the rate limit.
+use (finite, within what a vehicle produces, stamps advancing and neither older than
+``input_timeout`` nor further than ``max_future`` ahead of the node's clock); the
+command is clamped, then rate limited, last; a stale input holds the command, then
+ramps it to a safe angle within the rate limit.
 
 Output limits: ``|delta| <= min(max_steering_angle, atan(a_lat_max L / v_x^2))`` (the
 lateral-acceleration limit of a kinematic single track, speed-dependent like the
-gate's), ``|d delta / dt| <= max_steering_rate``.
+gate's), ``|d delta / dt| <= max_steering_rate``. The rate limit has the last word: a
+cap that falls faster than the rate allows (the speed rose) is approached at the rate.
 
 Low speed: the law divides by ``v_x``. Below ``low_speed`` the command is blended over
 ``low_speed_blend`` m/s from the law to the last command given above it (hold), so the
@@ -62,6 +64,8 @@ class SafetyParams:
     :param max_lateral_acceleration: speed-dependent angle limit a_lat [m/s^2].
     :param low_speed: below this the law hands over to holding [m/s].
     :param low_speed_blend: width of the hand-over [m/s].
+    :param max_curvature_points: a curvature polygon with more points is refused.
+    :param latency_warn: input age or answer latency above this is a warning [s].
     """
 
     max_lateral_error: float = 5.0
@@ -81,6 +85,8 @@ class SafetyParams:
     max_lateral_acceleration: float = 30.0
     low_speed: float = 3.0
     low_speed_blend: float = 1.0
+    max_curvature_points: int = 256
+    latency_warn: float = 0.05
 
     def __post_init__(self) -> None:
         """Check every limit is finite and positive, and the safe angle within limits."""
@@ -139,18 +145,42 @@ def check_stamp(name: str, stamp_ns: int, last_ns: Optional[int], now_ns: Option
     """
     Return why a stamp cannot be used, or None.
 
+    A stamp must advance past the input's last accepted one (ordering: a repeated stamp
+    is not fresh data) and lie within ``[now - input_timeout, now + max_future]`` on the
+    node's clock (staleness, judged on both sides).
+
     :param name: the input.
     :param stamp_ns: its stamp.
     :param last_ns: the stamp of the last accepted sample of this input.
-    :param now_ns: the node's clock (None: unknown, no future check).
+    :param now_ns: the node's clock (None: unknown, no check against it).
     :param params: the limits.
     :return: the reason.
     """
-    if last_ns is not None and stamp_ns < last_ns:
+    if now_ns is not None:
+        if stamp_ns > now_ns + params.max_future * 1e9:
+            return (f'{name}: stamp {(stamp_ns - now_ns) * 1e-9:.3f} s ahead of the node '
+                    f'clock (max_future {params.max_future:g} s; sensor clock ahead?)')
+        if stamp_ns < now_ns - params.input_timeout * 1e9:
+            return (f'{name}: stamp {(now_ns - stamp_ns) * 1e-9:.3f} s behind the node '
+                    f'clock (input_timeout {params.input_timeout:g} s; sensor clock behind?)')
+    if last_ns is not None and stamp_ns <= last_ns:
+        if stamp_ns == last_ns:
+            return f'{name}: stamp {stamp_ns * 1e-9:.3f} s does not advance (repeated)'
         return f'{name}: stamp {stamp_ns * 1e-9:.3f} s goes back from {last_ns * 1e-9:.3f} s'
-    if now_ns is not None and stamp_ns > now_ns + params.max_future * 1e9:
-        return (f'{name}: stamp {stamp_ns * 1e-9:.3f} s is in the future (now '
-                f'{now_ns * 1e-9:.3f} s)')
+    return None
+
+
+def check_points(count: int, params: SafetyParams) -> Optional[str]:
+    """
+    Return why a curvature polygon of ``count`` points is refused, or None.
+
+    :param count: its number of points.
+    :param params: the limits.
+    :return: the reason.
+    """
+    if count > params.max_curvature_points:
+        return (f'road_curvature: points = {count} > max_curvature_points '
+                f'{params.max_curvature_points}')
     return None
 
 
@@ -204,7 +234,9 @@ def limit(raw: float, previous: Optional[float], dt: float, v_x: float, wheelbas
     """
     Clamp to the angle limit, then rate-limit from the previous command.
 
-    A non-finite ``raw`` holds the previous command (0 if none).
+    A non-finite ``raw`` holds the previous command (0 if none). The rate limit has the
+    last word: when the angle limit falls below the previous command faster than the
+    rate allows, the command moves towards it at the rate limit.
 
     :param raw: the wanted angle [rad].
     :param previous: the last command sent [rad] (None: no rate limit).
@@ -212,7 +244,8 @@ def limit(raw: float, previous: Optional[float], dt: float, v_x: float, wheelbas
     :param v_x: speed for the angle limit [m/s].
     :param wheelbase: l_1 + l_2 [m].
     :param params: the limits.
-    :return: the limited command, always finite and within the limits.
+    :return: the limited command, always finite and within the rate limit; within the
+        angle limit, or moving towards it at the rate limit.
     """
     cap = angle_limit(v_x, wheelbase, params)
     if previous is not None and not _finite(previous):
@@ -227,9 +260,6 @@ def limit(raw: float, previous: Optional[float], dt: float, v_x: float, wheelbas
         if angle < low or angle > high:
             angle = min(high, max(low, angle))
             rate_limited = True
-        # the angle limit has the last word (it can fall faster than the rate allows
-        # when the speed rises)
-        angle = min(cap, max(-cap, angle))
     return Limited(float(angle), saturated, rate_limited)
 
 

@@ -22,7 +22,9 @@ remap them), publishes ``steering`` and ``~/debug``. Auto-activates unless
 
 from __future__ import annotations
 
+import struct
 import sys
+import time
 from typing import Any, Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -30,6 +32,8 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.controller import (ACCELERATION_SOURCES, Command, LAW_NAMES,
                                                SteeringController)
 from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
+from lookahead_control.core.safety import check_points
+from lookahead_control.core.samples import curvature_from_points
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.node_main import now_ns, run_node, Throttle
 from lookahead_control.ros.node_params import (baseline_params, BASELINE_SPECS, check_choices,
@@ -37,10 +41,12 @@ from lookahead_control.ros.node_params import (baseline_params, BASELINE_SPECS, 
                                                LAW_SPEC, safety_params, SAFETY_SPECS, Spec,
                                                values, vehicle_and_controller, VEHICLE_SPECS)
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.clock import Clock, ClockType
+from rclpy.clock import Clock, ClockType, JumpThreshold, ROSClock
+from rclpy.duration import Duration
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu, JointState
 
 NODE_SPECS = (
@@ -67,6 +73,13 @@ NODE_SPECS = (
 )
 ALL_SPECS = (VEHICLE_SPECS + (LAW_SPEC,) + CONTROLLER_SPECS + BASELINE_SPECS + SAFETY_SPECS
              + NODE_SPECS)
+# parameters on_configure reads (subscriptions, timers, clock): refused while configured
+# (deactivate, clean up, set, configure again); and those read only at start-up
+READ_ONLY_CONFIGURED = ('mode', 'rate_hz', 'qos_reliability', 'watchdog_rate_hz',
+                        'diagnostics_rate_hz', 'use_sim_time')
+READ_ONLY_STARTED = ('autostart', 'executor')
+MALFORMED = (ValueError, IndexError, TypeError, AttributeError, OverflowError, struct.error,
+             UnicodeDecodeError)
 DEBUG_FIELDS = ('d_v', 'd_v_rate', 'y_v', 'y_v_rate', 'y_ref', 'error', 'error_rate', 'f_v',
                 'beta_1')
 
@@ -104,18 +117,21 @@ class ControllerNode(LifecycleNode):
                          'd_v_clamped': 0, 'stale_commands': 0}
         self._reported: dict[str, int] = {}
         self.stale_inputs: list[str] = []
+        self.curvature_lost = False
         self._watchdog: Any = None
         self._diag_timer: Any = None
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self._dirty = False
         self._input_subs: list[Any] = []
         self._timer: Any = None
         self._sync_timer: Any = None
         self._pending_stamp: Optional[int] = None
         self._steering_pub: Any = None
         self._debug_pub: Any = None
+        self._jump_handle: Any = None
+        self.configured = False
         self.active = False
         self.published = 0
+        self._last_publish: Optional[int] = None
         self._refusal_log = Throttle(1.0)
         self._cache_input_parameters()
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -124,6 +140,14 @@ class ControllerNode(LifecycleNode):
     # -- parameters -----------------------------------------------------------------
 
     def _validate_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        for param in params:
+            if param.name in READ_ONLY_STARTED:
+                return SetParametersResult(successful=False, reason=(
+                    f'{param.name}: read only at start-up; pass it with -p or a params file'))
+            if param.name in READ_ONLY_CONFIGURED and self.configured:
+                return SetParametersResult(successful=False, reason=(
+                    f'{param.name}: read-only while the node is configured; deactivate, '
+                    'clean up, set it, configure again'))
         try:
             merged = values(self, ALL_SPECS, params)
             check_choices(ALL_SPECS, merged)
@@ -135,24 +159,24 @@ class ControllerNode(LifecycleNode):
         return SetParametersResult(successful=True)
 
     def _parameters_set(self, params: list[Parameter]) -> None:
-        self._dirty = True   # applied before the next control step
+        # applied at once (callbacks of a node run one at a time): a new input_timeout
+        # or rate limit counts for the watchdog too, not only from the next answer on
         self._cache_input_parameters()
+        self._apply_parameters()
 
     def _cache_input_parameters(self) -> None:
         # read on every message: plain attributes, not a parameter lookup each time
         self._frame = self.param('frame_id')
         self._mode = self.param('mode')
         self._wait_for_stamps = self.param('wait_for_matching_stamps')
+        self._sync_timeout = self.param('sync_timeout')
 
     def _apply_parameters(self) -> None:
-        if not self._dirty:
-            return
         params = values(self, ALL_SPECS)
         vehicle, controller = vehicle_and_controller(params)
         self.core.configure(vehicle, controller, params['acceleration_source'],
                             params['use_curvature_preview'], safety_params(params),
                             params['law'], baseline_params(params))
-        self._dirty = False
         self.get_logger().info(f'parameters applied: law={params["law"]}, '
                                f'schedule={controller.schedule}, '
                                f'w_n={controller.natural_frequency:g}, '
@@ -176,14 +200,15 @@ class ControllerNode(LifecycleNode):
                                                              qos('reliable'))
         self._debug_pub = self.create_lifecycle_publisher(JointState, '~/debug',
                                                           qos('reliable'))
-        subs: list[tuple[type, str, Callable[[Any], None]]] = [
-            (PointStamped, 'lateral_error', self.on_lateral_error),
-            (Imu, 'yaw', self.on_yaw),
-            (TwistStamped, 'velocity', self.on_velocity),
-            (PolygonStamped, 'road_curvature', self.on_curvature),
+        subs: list[tuple[type, str, Callable[[Any], None], bool]] = [
+            (PointStamped, 'lateral_error', self.on_lateral_error, False),
+            (Imu, 'yaw', self.on_yaw, False),
+            (TwistStamped, 'velocity', self.on_velocity, False),
+            # raw: a polygon's length is checked before its points are decoded
+            (PolygonStamped, 'road_curvature', self.on_curvature, True),
         ]
-        self._input_subs = [self.create_subscription(t, n, cb, profile)
-                            for t, n, cb in subs]
+        self._input_subs = [self.create_subscription(t, n, cb, profile, raw=raw)
+                            for t, n, cb, raw in subs]
         if self.param('mode') == 'timer':
             self._timer = self.create_timer(1.0 / self.param('rate_hz'), self.on_timer)
         self._watchdog = self.create_timer(1.0 / self.param('watchdog_rate_hz'),
@@ -191,6 +216,14 @@ class ControllerNode(LifecycleNode):
         self._diag_timer = self.create_timer(1.0 / self.param('diagnostics_rate_hz'),
                                              self.on_diagnostics,
                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
+        # a sim-time clock update may release an answer waiting for it (lockstep); run
+        # in the /clock callback, after the clock is set (the EventsExecutor has no
+        # guard conditions to defer it with)
+        self._jump_handle = self.get_clock().create_jump_callback(
+            JumpThreshold(min_forward=Duration(nanoseconds=1), min_backward=None,
+                          on_clock_change=False),
+            post_callback=lambda jump: self._maybe_release())
+        self.configured = True
         self.get_logger().info(
             f'configured: mode={self.param("mode")}, law={self.core.law_name}, schedule='
             f'{self.core.params.schedule}, inputs {self.param("qos_reliability")}')
@@ -219,12 +252,37 @@ class ControllerNode(LifecycleNode):
             if pub is not None:
                 self.destroy_publisher(pub)
         self._steering_pub = self._debug_pub = None
+        if self._jump_handle is not None:
+            self._jump_handle.unregister()
+            self._jump_handle = None
+        self._pending_stamp = None
+        self.configured = False
         return TransitionCallbackReturn.SUCCESS
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Shut down from any state."""
         self.active = False
         return TransitionCallbackReturn.SUCCESS
+
+    # -- time -----------------------------------------------------------------------
+
+    def clocks(self) -> tuple[int, Optional[int]]:
+        """
+        Return the node's clock and, on the wall clock, the steady clock [ns].
+
+        The node's clock judges stamps and staleness and times the rate limit; on the
+        wall clock the steady clock also bounds the rate limit's time, so a step of the
+        system clock cannot open it. Under sim time the steady clock has no part.
+
+        :return: ``(now, steady)``; ``steady`` is None under sim time.
+        """
+        now = now_ns(self)
+        return now, None if self.sim_time() else time.monotonic_ns()
+
+    def sim_time(self) -> bool:
+        """Return True while the node's clock is sim time (``/clock``)."""
+        clock = self.get_clock()
+        return isinstance(clock, ROSClock) and clock.ros_time_is_active
 
     # -- inputs ---------------------------------------------------------------------
 
@@ -244,21 +302,25 @@ class ControllerNode(LifecycleNode):
         else:
             try:
                 sample = parse(msg)
-            except (ValueError, IndexError, TypeError, AttributeError,
-                    OverflowError) as err:
+            except MALFORMED as err:
                 reason = f'{name}: malformed message ({err})'
                 self.core.count_rejection(reason)
             else:
-                # the core checks the values and stamps, and counts what it refuses
-                # sim time before the first /clock reads 0: no future check until it runs
-                now = now_ns(self)
-                refused = self.core.accept(name, sample, now or None)
+                refused = self._accept(name, sample)
                 if refused is None:
                     return True
                 reason = refused
+        self._log_refusal(reason)
+        return False
+
+    def _accept(self, name: str, sample: Any) -> Optional[str]:
+        # the core checks the values and stamps (against the node's clock; sim time
+        # before the first /clock reads 0: not against it), and counts what it refuses
+        return self.core.accept(name, sample, now_ns(self))
+
+    def _log_refusal(self, reason: str) -> None:
         if self._refusal_log.ready():
             self.get_logger().warn(f'refused {reason}')
-        return False
 
     def on_lateral_error(self, msg: PointStamped) -> None:
         """Store the lateral error; in event mode, answer it."""
@@ -267,16 +329,31 @@ class ControllerNode(LifecycleNode):
         if self._mode != 'event':
             return
         stamp = self.core.lateral.stamp_ns if self.core.lateral else 0
-        if self._wait_for_stamps and not self.core.inputs_at(stamp):
+        if self._wait_for_stamps and not self._caught_up(stamp):
             self._pending_stamp = stamp
             self._arm_sync_timer()
             return
         self.step()
 
+    def _caught_up(self, stamp: int) -> bool:
+        """
+        Return True when the other inputs, and a sim-time clock, reached ``stamp``.
+
+        Lockstep: the simulator publishes a step's measurements, then ``/clock``, and
+        waits for the answer; answering once the clock reads the step's time makes the
+        rate limit's time (the node's clock) the simulator's step.
+
+        :param stamp: the lateral error's stamp [ns].
+        :return: whether to answer now.
+        """
+        if not self.core.inputs_at(stamp):
+            return False
+        return not self.sim_time() or now_ns(self) >= stamp
+
     def _arm_sync_timer(self) -> None:
         if self._sync_timer is not None:
             self.destroy_timer(self._sync_timer)
-        self._sync_timer = self.create_timer(self.param('sync_timeout'), self._sync_expired,
+        self._sync_timer = self.create_timer(self._sync_timeout, self._sync_expired,
                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _sync_expired(self) -> None:
@@ -288,7 +365,7 @@ class ControllerNode(LifecycleNode):
             self.step()
 
     def _maybe_release(self) -> None:
-        if self._pending_stamp is not None and self.core.inputs_at(self._pending_stamp):
+        if self._pending_stamp is not None and self._caught_up(self._pending_stamp):
             self._pending_stamp = None
             if self._sync_timer is not None:
                 self.destroy_timer(self._sync_timer)
@@ -305,35 +382,82 @@ class ControllerNode(LifecycleNode):
         if self._input('velocity', msg, conv.from_velocity):
             self._maybe_release()
 
-    def on_curvature(self, msg: PolygonStamped) -> None:
-        """Store the road curvature."""
-        if self._input('road_curvature', msg, conv.from_curvature):
+    def on_curvature(self, msg: Any) -> None:
+        """
+        Store the road curvature.
+
+        :param msg: the serialized ``PolygonStamped`` (a raw subscription), or the
+            message itself (tests).
+        """
+        data = msg if isinstance(msg, bytes) else serialize_message(msg)
+        name = 'road_curvature'
+        try:
+            stamp, frame, count, at, order = conv.curvature_header(data)
+        except MALFORMED as err:
+            reason: Optional[str] = f'{name}: malformed message ({err})'
+            self.core.count_rejection(str(reason))
+        else:
+            reason = (f'{name}: frame {frame!r} is not {self._frame!r}'
+                      if self._frame and frame != self._frame else
+                      check_points(count, self.core.safety))
+            if reason is not None:
+                self.core.count_rejection(reason)
+            else:
+                try:
+                    sample = curvature_from_points(
+                        stamp, conv.curvature_points(data, count, at, order))
+                except MALFORMED as err:
+                    reason = f'{name}: malformed message ({err})'
+                    self.core.count_rejection(reason)
+                else:
+                    reason = self._accept(name, sample)
+        if reason is None:
             self._maybe_release()
+        else:
+            self._log_refusal(reason)
 
     def on_timer(self) -> None:
-        """Timer mode: one command from the latest inputs (unless they are stale)."""
-        if not self.core.stale(now_ns(self)):
-            self.step()
+        """Timer mode: one command from the latest inputs (the safe one if stale)."""
+        self.step()
 
     def on_watchdog(self) -> None:
-        """Publish the safe command while an input is stale."""
-        now = now_ns(self)
+        """
+        Judge the inputs; publish the safe command while stale and nothing else does.
+
+        In event mode a stale yaw or velocity is answered with the safe command at each
+        lateral error (so a lockstep simulator sees the ramp); the watchdog publishes it
+        when no command went out for one watchdog period (the lateral error is dead).
+        """
+        now, steady = self.clocks()
+        self._judge_inputs(now)
+        if not self.stale_inputs or not self.active:
+            return
+        period = int(1e9 / self.param('watchdog_rate_hz'))
+        if self._last_publish is not None and 0 <= now - self._last_publish < period:
+            return
+        command = self.core.safe_command(now, steady)
+        if command is not None:
+            self._publish(command, now)
+
+    def _judge_inputs(self, now: int) -> None:
+        """Update the stale inputs and the lost curvature; log and report changes."""
         stale = self.core.stale(now)
-        if stale and not self.stale_inputs:
-            self.get_logger().error(f'stale inputs: {", ".join(stale)}: holding, then '
-                                    'ramping to the safe angle')
+        lost = self.core.curvature_lost(now)
+        if stale and stale != self.stale_inputs:
+            self.get_logger().error(f'stale inputs: {self.core.describe_stale(stale)}: '
+                                    'holding, then ramping to the safe angle')
         elif self.stale_inputs and not stale:
             self.get_logger().info('inputs are back: control resumes')
-        changed = stale != self.stale_inputs
-        self.stale_inputs = stale
+        if lost and not self.curvature_lost:
+            self.get_logger().warn('road_curvature lost: '
+                                   f'{self.core.describe_stale(["road_curvature"])}: '
+                                   'steering without curvature feed-forward')
+        elif self.curvature_lost and not lost:
+            self.get_logger().info('road_curvature is back')
+        changed = stale != self.stale_inputs or lost != self.curvature_lost
+        self.stale_inputs, self.curvature_lost = stale, lost
         if changed:
             self.on_diagnostics()       # ERROR (and its end) at once, not at the next 1 Hz
-        if not stale or not self.active:
-            return
-        command = self.core.safe_command(now)
-        if command is not None:
-            self.counters['stale_commands'] += 1
-            self._publish(command)
 
     # -- output ---------------------------------------------------------------------
 
@@ -341,24 +465,30 @@ class ControllerNode(LifecycleNode):
         """
         Compute and publish one command (nothing while inactive or inputs are missing).
 
+        The law's answer if every required input is fresh, else the safe command.
+
         :return: the command, or None.
         """
-        self._apply_parameters()
         if not self.active:
             return None
-        command = self.core.compute()
+        now, steady = self.clocks()
+        command = self.core.compute(now, steady)
         if command is None:
             return None
-        self._publish(command)
+        if command.status == 'stale' or self.stale_inputs:
+            self._judge_inputs(now)
+        self._publish(command, now)
         return command
 
-    def _publish(self, command: Command) -> None:
+    def _publish(self, command: Command, now: Optional[int] = None) -> None:
         self._steering_pub.publish(conv.to_steering(command.stamp_ns, command.steering,
                                                     command.steering_rate))
         self.published += 1
+        self._last_publish = now
         for flag in ('saturated', 'rate_limited'):
             self.counters[flag] += int(getattr(command, flag))
         self.counters['low_speed'] += int(command.status == 'low_speed')
+        self.counters['stale_commands'] += int(command.status == 'stale')
         law = command.law
         if law is None:
             return
@@ -376,8 +506,10 @@ class ControllerNode(LifecycleNode):
         """
         Return the controller's status for ``/diagnostics``.
 
-        ERROR on stale inputs; WARN on refused messages, saturation, low-speed hand-over
-        or clamped d_v since the last report; else OK.
+        ERROR on stale inputs (named, with why their last message was refused); WARN on
+        a lost curvature, refused messages, saturation, low-speed hand-over, clamped
+        d_v, time jumps since the last report, or an input age or answer latency above
+        ``safety.latency_warn``; else OK.
 
         :return: the status with its reasons and counters.
         """
@@ -385,13 +517,18 @@ class ControllerNode(LifecycleNode):
                   'time_jumps': self.core.time_jumps}
         new = {k: v - self._reported.get(k, 0) for k, v in counts.items()}
         self._reported = counts
+        ages, latency = self.core.timing.take()
+        warn_at = self.core.safety.latency_warn
         reasons = []
         level = DiagnosticStatus.OK
         if self.stale_inputs:
             level = DiagnosticStatus.ERROR
-            reasons.append('stale inputs: ' + ', '.join(self.stale_inputs))
+            reasons.append('stale inputs: ' + self.core.describe_stale(self.stale_inputs))
         if not self.active:
             reasons.append('inactive')
+        if self.curvature_lost:
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append('road_curvature lost: no curvature feed-forward')
         for key in ('rejected', 'saturated', 'rate_limited', 'low_speed', 'd_v_clamped',
                     'time_jumps'):
             if new[key] > 0:
@@ -400,7 +537,17 @@ class ControllerNode(LifecycleNode):
                 if key == 'rejected':
                     text += f' (last: {self.core.last_rejection})'
                 reasons.append(text)
+        late = {k: v for k, v in {**ages, 'answer': latency}.items()
+                if v is not None and v > warn_at}
+        if late:
+            level = max(level, DiagnosticStatus.WARN)
+            listed = ', '.join(f'{k} {v * 1e3:.0f} ms' for k, v in sorted(late.items()))
+            reasons.append(f'late: {listed} (> latency_warn {warn_at * 1e3:g} ms)')
         values = [KeyValue(key=k, value=str(v)) for k, v in counts.items()]
+        values += [KeyValue(key=f'age max {k} [s]', value=f'{v:.6f}')
+                   for k, v in sorted(ages.items())]
+        if latency is not None:
+            values.append(KeyValue(key='answer latency max [s]', value=f'{latency:.6f}'))
         values += [KeyValue(key=f'rejected {k}', value=str(v))
                    for k, v in sorted(self.core.rejected.items())]
         return DiagnosticStatus(level=level, name='lookahead_control: controller',

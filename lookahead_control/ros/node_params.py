@@ -129,6 +129,10 @@ SAFETY_SPECS = tuple(
          'atan(a L / v^2), kinematic lateral acceleration a [m/s^2]', 0.1, 100.0),
         ('low_speed', 3.0, 'below this speed the law hands over to hold [m/s]', 0.1, 30.0),
         ('low_speed_blend', 1.0, 'width of the low-speed hand-over [m/s]', 0.01, 30.0),
+        ('max_curvature_points', 256, 'inputs: a road_curvature polygon with more points '
+         'is refused, before its points are decoded', 1, 100000),
+        ('latency_warn', 0.05, 'diagnostics: WARN when an input arrives, or an answer goes '
+         'out, this long after the stamp [s]', 0.001, 10.0),
     ))
 
 EXECUTORS = ('events', 'single_threaded')
