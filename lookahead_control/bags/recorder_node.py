@@ -310,6 +310,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = p.parse_args(remove_ros_args(full)[1:])
     if args.recover is not None:
         result = recover(args.recover)
+        if result.complete or result.original is None:
+            print(f'record: {result.bag} is complete ({result.messages} messages on '
+                  f'{result.topics} topics): nothing to recover, left as it is')
+            return 0
         print(f'record: recovered {result.messages} messages on {result.topics} topics '
               f'into {result.bag} (original kept as {result.original.name})')
         return 0

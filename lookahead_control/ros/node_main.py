@@ -23,9 +23,11 @@ from __future__ import annotations
 
 import math
 import re
+import signal
 import sys
 import time
-from typing import Callable, Optional, Sequence, TypeVar
+from types import FrameType
+from typing import Any, Callable, Optional, Sequence, TypeVar
 
 from lookahead_control.core.cli import one_line
 from lookahead_control.core.config import ConfigError, read_yaml
@@ -35,6 +37,8 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
 
 N = TypeVar('N', bound=Node)
 RCLError = _rclpy.RCLError
@@ -125,20 +129,100 @@ def check_params_files(args: Sequence[str]) -> None:
                               '"<node>: {ros__parameters: {...}}")')
 
 
+def wants_help(args: Sequence[str]) -> bool:
+    """
+    Return True if ``-h`` / ``--help`` is among the arguments before ``--ros-args``.
+
+    :param args: command-line arguments, the program first.
+    :return: whether to print the help.
+    """
+    return any(a in ('-h', '--help') for a in remove_ros_args(list(args))[1:])
+
+
+def help_text(name: str, description: str, specs: Sequence[Any]) -> str:
+    """
+    Return a node executable's ``--help``: usage, purpose and every parameter.
+
+    :param name: the executable's name.
+    :param description: what the node does (one line).
+    :param specs: its parameters (``node_params.Spec``: name, default, description,
+        range, choices).
+    :return: the text.
+    """
+    lines = [f'usage: {name} [-h] [--ros-args [--params-file FILE] [-p NAME:=VALUE] '
+             '[-r FROM:=TO] ...]', '', description, '',
+             'options:', '  -h, --help  show this help and exit (no node is started)', '',
+             'ROS parameters (--params-file FILE, -p NAME:=VALUE):']
+    for spec in specs:
+        kind = type(spec.default).__name__.replace('float', 'double').replace(
+            'str', 'string')
+        allowed = (f'; one of {", ".join(spec.choices)}' if spec.choices else
+                   f'; [{spec.low:g}, {spec.high:g}]' if spec.low is not None
+                   and spec.high is not None else '')
+        lines.append(f'  {spec.name} ({kind}, default {spec.default!r}{allowed})')
+        lines.append(f'      {spec.description}')
+    return '\n'.join(lines) + '\n'
+
+
+class _StopRequest:
+    """SIGINT / SIGTERM while a node runs: a flag the spin loop reads, not an exception."""
+
+    def __init__(self) -> None:
+        """Install the handlers (restored by :meth:`restore`)."""
+        self.signals: list[int] = []
+        self._previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+        for s in self._previous:
+            signal.signal(s, self._note)
+
+    def _note(self, signum: int, frame: Optional[FrameType]) -> None:
+        # no exception: one raised inside a callback is logged by the executor as
+        # "[FATAL] Exception in 'timers' callback" with a stack
+        self.signals.append(signum)
+
+    def __bool__(self) -> bool:
+        """Return True once a stop was asked for."""
+        return bool(self.signals)
+
+    def restore(self) -> None:
+        """Put back the handlers found at start."""
+        for s, handler in self._previous.items():
+            signal.signal(s, handler)
+
+
 def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
-             done: Callable[[N], bool] = lambda node: False) -> int:
+             done: Callable[[N], bool] = lambda node: False,
+             specs: Sequence[Any] = (), description: str = '') -> int:
     """
     Create a node, spin it until done or shut down, and clean up.
+
+    ``-h`` / ``--help`` prints the parameters and returns 0 without starting ROS.
+    SIGINT and SIGTERM stop the spin loop between callbacks (rclpy's own signal
+    handling is off, so no callback is cut by an exception), then the node is destroyed
+    (the recorder finalizes its bag there).
 
     :param name: the executable's name, for the one-line error.
     :param args: command-line arguments (ROS arguments included).
     :param make: creates (and, if needed, activates) the node after ``rclpy.init``.
     :param done: True when the node has finished (default: run until shut down).
+    :param specs: the node's parameters, for ``--help``.
+    :param description: what the node does, for ``--help``.
     :return: 0, or 2 for bad parameters or config.
     """
+    if wants_help([name, *(args or [])[1:]]):
+        print(help_text(name, description or f'the {name} node', specs), end='')
+        return 0
+    stop = _StopRequest()
+    try:
+        return _run(name, args, make, done, stop)
+    finally:
+        stop.restore()
+
+
+def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
+         done: Callable[[N], bool], stop: _StopRequest) -> int:
     try:
         check_params_files(args or [])
-        rclpy.init(args=args)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except ConfigError as err:
         print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
         return 2
@@ -154,12 +238,12 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
                 else 'single_threaded')
         executor = make_executor(kind)
         executor.add_node(node)
-        spin_until(executor, lambda: done(node))
+        spin_until(executor, lambda: bool(stop) or done(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RCLError:
-        # SIGINT / SIGTERM shut the context down while a callback was using it (a
-        # graph query, a publish): a clean stop; anything else is a real error
+        # the context was shut down while a callback was using it (a graph query, a
+        # publish): a clean stop; anything else is a real error
         if rclpy.ok():
             raise
     except (ConfigError, ParameterError) as err:

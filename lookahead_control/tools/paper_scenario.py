@@ -27,13 +27,17 @@ from typing import Any, Sequence
 
 from lookahead_control.analysis.metrics import run_metrics
 from lookahead_control.analysis.paper_tables import PAPER_FIG5_LEGEND, PAPER_SPEEDS
-from lookahead_control.core.cli import markdown_table, parser, run_tool, write_csv, write_json
+from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
+                                        write_csv, write_json)
 from lookahead_control.core.config import load_controller, load_vehicle
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import paper_scenario
 from sim_plant.vehicle_model import PlantParams
 
+DEFAULT_OUT = Path('bags') / 'paper_scenario'
+MAX_SPEED = 90.0        # m/s, the scenarios' limit
+MAX_DURATION = 600.0    # s of simulated time per run
 TABLE_COLUMNS = ('controller', 'speed_mps', 'd_v_final', 'peak_cg', 'rms_cg', 'peak_bumper',
                  'rms_bumper', 'peak_look_ahead', 'rms_look_ahead', 'peak_regulated',
                  'rms_regulated', 'yaw_overshoot', 'yaw_damping', 'yaw_settling',
@@ -139,19 +143,39 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = parser("reproduce the paper's Fig. 4/5 scenario: fixed d_v = d_s vs eq. 26")
     p.add_argument('--controller', type=Path, default=None,
                    help='controller params YAML (default: config/controller.yaml)')
-    p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear')
-    p.add_argument('--speeds', type=float, nargs='+', default=list(PAPER_SPEEDS))
-    p.add_argument('--duration', type=float, default=10.0)
-    p.add_argument('--out', type=Path, default=Path('bags') / 'paper_scenario',
-                   help='folder for report.md, metrics.csv/json and PNGs')
-    p.add_argument('--no-plots', action='store_true')
+    p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear',
+                   help='plant model (default linear)')
+    p.add_argument('--speeds', type=number(0.0, MAX_SPEED, low_open=True, unit='m/s'),
+                   nargs='+', default=list(PAPER_SPEEDS), metavar='M/S',
+                   help='constant speeds of the runs [m/s] (default: 10 20 30 37)')
+    p.add_argument('--duration', type=number(0.0, MAX_DURATION, low_open=True, unit='s'),
+                   default=10.0, metavar='S', help='simulated time per run [s] (default 10)')
+    p.add_argument('--out', type=Path, default=None,
+                   help='folder for report.md, metrics.csv/json and fig_*.png (default: '
+                   f'{DEFAULT_OUT} when neither --plot nor --json is given)')
+    p.add_argument('--no-plots', action='store_true',
+                   help='write no PNG into the --out folder')
     args = p.parse_args(argv)
+    out = args.out
+    if out is None and args.plot is None and args.json is None:
+        out = DEFAULT_OUT
+    if args.no_plots and out is None:
+        raise ToolError('--no-plots: no report folder is written (give --out)')
     runs = reproduce(load_vehicle(args.vehicle), load_controller(args.controller),
                      PlantParams(model=args.plant), args.speeds, args.duration)
     rows = metrics_rows(runs)
     print(markdown_table(rows, digits=3))
-    report = write_report(runs, rows, args.out, plots=not args.no_plots)
-    print(f'wrote {report}')
+    if args.json is not None:
+        write_json(args.json, rows)
+        print(f'wrote {args.json}')
+    if args.plot is not None:
+        from lookahead_control.analysis.plotting import plot_runs
+        series = [{'label': f'{label} {r.scenario.speed.initial:g} m/s', 'time': r.time,
+                   **r.channels} for label, r in runs]
+        print(f'wrote {plot_runs(series, args.plot, "fixed d_s vs scheduled d_v: 2 s "
+                                                  "straight, then right curve R = 400 m")}')
+    if out is not None:
+        print(f'wrote {write_report(runs, rows, out, plots=not args.no_plots)}')
     return 0
 
 
