@@ -34,14 +34,17 @@ at the initial speed, so "2 s of straight road" means the same at every speed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, MISSING, replace
 from pathlib import Path
 from typing import Any, Mapping
 
 from lookahead_control.core.config import ConfigError, read_yaml
-from lookahead_control.core.params import check_range, ParameterError
+from lookahead_control.core.params import check_finite, check_range, ParameterError
 from sim_plant.road import Road, Segment
 from sim_plant.speed_profile import SpeedProfile
+
+
+MAX_CURVATURE = 1.0     # 1/m: a 1 m radius
 
 
 @dataclass(frozen=True)
@@ -121,15 +124,35 @@ def _segment(entry: Any, index: int, initial_speed: float) -> Segment:
     else:
         length = initial_speed * check_range(f'road[{index}].time', entry['time'], 0.0,
                                              1.0e5, low_open=True, unit='s')
-    if kind == 'arc':
-        rho = entry.get('curvature')
-        if rho is None:
+    def curvature(key: str, default: float | None = None) -> float:
+        value = entry.get(key, default)
+        if value is None:
             raise ParameterError(f'road[{index}]: an arc needs curvature (1/m, + left)')
-        return Segment('arc', length, float(rho), float(rho))
+        return check_range(f'road[{index}].{key}', value, -MAX_CURVATURE, MAX_CURVATURE,
+                           unit='1/m')
+    if kind == 'arc':
+        rho = curvature('curvature')
+        return Segment('arc', length, rho, rho)
     if kind == 'clothoid':
-        return Segment('clothoid', length, float(entry.get('curvature_start', 0.0)),
-                       float(entry.get('curvature_end', 0.0)))
+        return Segment('clothoid', length, curvature('curvature_start', 0.0),
+                       curvature('curvature_end', 0.0))
     return Segment(str(kind), length)
+
+
+def _build(cls: Any, key: str, entry: Any) -> Any:
+    """Build a scenario part from its mapping, naming a missing or unknown key."""
+    if not isinstance(entry, Mapping):
+        raise ParameterError(f'{key} must be a mapping, got {entry!r}')
+    known = [f.name for f in fields(cls)]
+    unknown = sorted(set(entry) - set(known))
+    if unknown:
+        raise ParameterError(f'{key}: unknown keys {unknown}; known: {known}')
+    required = [f.name for f in fields(cls) if f.default is MISSING
+                and f.default_factory is MISSING]
+    absent = [name for name in required if name not in entry]
+    if absent:
+        raise ParameterError(f'{key}: missing {", ".join(f"{key}.{a}" for a in absent)}')
+    return cls(**entry)
 
 
 def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
@@ -140,18 +163,22 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
     :param source: where it came from, for messages.
     :return: the scenario.
     """
+    if document is None:
+        raise ConfigError(f'{source}: empty file; expected a mapping \'scenario:\' with '
+                          'name, duration, speed, initial, road')
     try:
         body = document['scenario']
         if not isinstance(body, Mapping):
             raise ParameterError('scenario must be a mapping')
-        speed = SpeedProfile(**dict(body.get('speed', {})))
-        initial = InitialState(**dict(body.get('initial', {})))
+        speed = _build(SpeedProfile, 'speed', body.get('speed', {}))
+        initial = _build(InitialState, 'initial', body.get('initial', {}))
         road_entries = body.get('road')
         if not isinstance(road_entries, list) or not road_entries:
             raise ParameterError('road must be a non-empty list of segments')
         road = Road([_segment(e, i, speed.initial) for i, e in enumerate(road_entries)])
         return Scenario(str(body.get('name', Path(source).stem)),
-                        float(body.get('duration', 10.0)), road, speed, initial)
+                        check_finite('scenario.duration', body.get('duration', 10.0)), road,
+                        speed, initial)
     except (KeyError, TypeError) as err:
         raise ConfigError(f'{source}: not a scenario ({err}); expected a mapping '
                           "'scenario:' with name, duration, speed, initial, road") from err
@@ -168,7 +195,7 @@ def load_scenario(path: Path | str, speed: float | None = None) -> Scenario:
     :return: the scenario.
     """
     document = read_yaml(path)
-    if speed is not None:
+    if speed is not None and document is not None:
         if not isinstance(document, Mapping) or not isinstance(
                 document.get('scenario'), Mapping):
             raise ConfigError(f'{path}: expected a mapping with a scenario key')
