@@ -124,6 +124,7 @@ def _segment(entry: Any, index: int, initial_speed: float) -> Segment:
     else:
         length = initial_speed * check_range(f'road[{index}].time', entry['time'], 0.0,
                                              1.0e5, low_open=True, unit='s')
+
     def curvature(key: str, default: float | None = None) -> float:
         value = entry.get(key, default)
         if value is None:
@@ -164,7 +165,7 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
     :return: the scenario.
     """
     if document is None:
-        raise ConfigError(f'{source}: empty file; expected a mapping \'scenario:\' with '
+        raise ConfigError(f"{source}: empty file; expected a mapping 'scenario:' with "
                           'name, duration, speed, initial, road')
     try:
         body = document['scenario']

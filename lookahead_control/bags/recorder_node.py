@@ -294,14 +294,15 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     :return: exit code.
     """
     full = list(sys.argv if argv is None else argv)
-    p = ArgumentParser(prog='record', description='record topics into a rosbag2 '
-                                'MCAP bag (stop with Ctrl-C)')
+    p = ArgumentParser(prog='record', description='record topics into a rosbag2 MCAP bag '
+                       '(stop with Ctrl-C or SIGTERM: the bag is finalized)')
     p.add_argument('topics', nargs='*', help='topics to record (default: all)')
     p.add_argument('-o', '--output', type=Path, help='bag directory (default: '
                    'bags/run_<date>_<time>)')
     p.add_argument('-e', '--regex', help='also record topics matching this regex')
-    p.add_argument('--describe', nargs='*', default=list(DEFAULT_DESCRIBE),
-                   help='nodes whose parameters are stored in the bag')
+    p.add_argument('--describe', nargs='*', default=list(DEFAULT_DESCRIBE), metavar='NODE',
+                   help='nodes whose parameters are stored in the bag (default: '
+                   f'{" ".join(DEFAULT_DESCRIBE)}; none: --describe alone)')
     p.add_argument('--chunk-interval', type=number(0.0, 60.0, low_open=True, unit='s'),
                    default=None, metavar='S',
                    help='longest time a message waits in memory before it is written [s] '

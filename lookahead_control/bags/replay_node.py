@@ -132,7 +132,12 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
         while (time.monotonic() < end and rclpy.ok()
                and not all(pub.get_subscription_count() for pub in pubs.values())):
             rclpy.spin_once(node, timeout_sec=0.05)
+        alone = [c.topic for c in conns if not pubs[c.id].get_subscription_count()]
+        if alone:
+            print(f'replay: after --wait {args.wait:g} s, {len(alone)} of {len(conns)} '
+                  'topics have no subscriber; playing anyway', file=sys.stderr)
         start_wall = time.monotonic()
+        clocks = 0
         start_bag: Optional[int] = None
         next_clock = 0
         for conn, stamp, data in reader.messages(connections=conns):
@@ -145,10 +150,12 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
             if clock is not None and stamp >= next_clock:
                 clock.publish(ClockMsg(clock=conv.ns_to_stamp(stamp)))
                 next_clock = stamp + clock_period
+                clocks += 1
             pubs[conn.id].publish(bytes(data))
             published += 1
         print(f'replay: {args.bag}: published {published} messages on {len(conns)} topics '
-              f'in {time.monotonic() - start_wall:.2f} s')
+              f'at {args.rate:g}x in {time.monotonic() - start_wall:.2f} s'
+              + (f', and {clocks} on /clock at {args.clock:g} Hz' if clock else ''))
     except KeyboardInterrupt:
         print(f'replay: interrupted after {published} messages', file=sys.stderr)
     finally:

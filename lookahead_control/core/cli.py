@@ -20,6 +20,7 @@ import argparse
 import csv
 import json
 import math
+import os
 from pathlib import Path
 import sys
 from typing import Any, Callable, Mapping, NoReturn, Sequence
@@ -29,6 +30,7 @@ from lookahead_control.core.interrupts import exit_code, install, Terminated
 from lookahead_control.core.params import ParameterError
 
 EXIT_USAGE = 2
+EXIT_BROKEN_PIPE = 128 + 13     # as a shell reports a process ended by SIGPIPE
 
 
 class ToolError(RuntimeError):
@@ -76,6 +78,11 @@ def run_tool(main: Callable[[Sequence[str] | None], int],
     install()           # SIGTERM stops the tool as Ctrl-C does (children, bags)
     try:
         return main(argv)
+    except BrokenPipeError:
+        # `tool | head`: the reader left; no message (nobody reads it), and no second
+        # error when Python flushes stdout at exit
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except (ConfigError, ParameterError, ToolError, ValueError) as err:
         print(f'{prog}: error: {one_line(str(err))}', file=sys.stderr)
         return EXIT_USAGE

@@ -22,15 +22,19 @@ and ``try_shutdown``.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 import re
 import signal
 import sys
+import tempfile
 import time
 from types import FrameType
 from typing import Any, Callable, Optional, Sequence, TypeVar
 
 from lookahead_control.core.cli import one_line
-from lookahead_control.core.config import ConfigError, read_yaml
+from lookahead_control.core.config import (check_params_file, ConfigError, flat_parameters,
+                                           read_yaml)
+from lookahead_control.core.param_schema import check_params
 from lookahead_control.core.params import ParameterError
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -39,6 +43,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
+import yaml
 
 N = TypeVar('N', bound=Node)
 RCLError = _rclpy.RCLError
@@ -129,6 +134,64 @@ def check_params_files(args: Sequence[str]) -> None:
                               '"<node>: {ros__parameters: {...}}")')
 
 
+def _nested(flat: dict[str, Any]) -> dict[str, Any]:
+    tree: dict[str, Any] = {}
+    for name, value in flat.items():
+        *heads, last = name.split('.')
+        branch = tree
+        for head in heads:
+            branch = branch.setdefault(head, {})
+        branch[last] = value
+    return tree
+
+
+def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
+                      scratch: list[Path]) -> list[str]:
+    """
+    Check the parameters given on the command line against the node's schema.
+
+    The same check as the offline tools make (``core.param_schema``): unknown names in
+    the node's sections (``vehicle.masss``), wrong types and values out of range are one
+    line naming the file (or ``-p``). An integer for a real (``mass: 1485``) is taken as
+    that real: the file is passed to rcl as a converted copy, ``-p`` rewritten.
+
+    :param args: command-line arguments (ROS arguments included).
+    :param node_name: the node's name (its sections in params files).
+    :param specs: its parameters (empty: only the files' syntax is checked).
+    :param scratch: converted copies written are appended here (the caller deletes them).
+    :return: the arguments to give rcl.
+    :raises ConfigError: a bad file or value.
+    """
+    check_params_files(args)
+    if not specs:
+        return list(args)
+    out = list(args)
+    for i, (flag, value) in enumerate(zip(args, args[1:])):
+        if flag == '--params-file':
+            document = read_yaml(value)
+            sections = check_params_file(value, node_name, specs)
+            if any(type(v) is not type(flat_parameters(document[key])[name])
+                   for key, flat in sections.items() for name, v in flat.items()):
+                handle = tempfile.NamedTemporaryFile(
+                    'w', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)
+                with handle:
+                    yaml.safe_dump({key: {'ros__parameters': _nested(flat)}
+                                    for key, flat in sections.items()}, handle)
+                scratch.append(Path(handle.name))
+                out[i + 1] = handle.name
+        elif flag == '-p' and ':=' in value and ':' not in value.partition(':=')[0]:
+            # (``-p node:name:=value`` is for another node)
+            name, _, text = value.partition(':=')
+            try:
+                parsed = check_params({name: yaml.safe_load(text) if text else ''},
+                                      specs)[name]
+            except (ParameterError, yaml.YAMLError) as err:
+                raise ConfigError(f'-p {value}: {one_line(str(err))}') from err
+            if isinstance(parsed, float):
+                out[i + 1] = f'{name}:={parsed!r}'
+    return out
+
+
 def wants_help(args: Sequence[str]) -> bool:
     """
     Return True if ``-h`` / ``--help`` is among the arguments before ``--ros-args``.
@@ -212,17 +275,21 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
         print(help_text(name, description or f'the {name} node', specs), end='')
         return 0
     stop = _StopRequest()
+    scratch: list[Path] = []
     try:
-        return _run(name, args, make, done, stop)
+        return _run(name, args, make, done, stop, specs, scratch)
     finally:
         stop.restore()
+        for path in scratch:
+            path.unlink(missing_ok=True)
 
 
 def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
-         done: Callable[[N], bool], stop: _StopRequest) -> int:
+         done: Callable[[N], bool], stop: _StopRequest, specs: Sequence[Any],
+         scratch: list[Path]) -> int:
     try:
-        check_params_files(args or [])
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        rcl_args = checked_arguments(args or [], name, specs, scratch)
+        rclpy.init(args=rcl_args, signal_handler_options=SignalHandlerOptions.NO)
     except ConfigError as err:
         print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
         return 2

@@ -13,88 +13,32 @@
 # limitations under the License.
 
 """
-ROS parameter declarations generated from the core's parameter dataclasses.
+ROS parameter declarations built from the core's parameter schema.
 
-One table of names, defaults, descriptions and ranges serves both nodes, so a
-``--params-file`` works on either and rclpy rejects out-of-range values itself.
+The tables (``VEHICLE_SPECS``, ``CONTROLLER_SPECS``, ``SAFETY_SPECS``: names, defaults,
+descriptions, ranges) are in :mod:`lookahead_control.core.param_schema`, which the
+offline tools check params files with too; here each :class:`Spec` becomes a
+``ParameterDescriptor``, so a ``--params-file`` works on either node and rclpy rejects
+out-of-range values itself.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Mapping, NamedTuple, Sequence
+from typing import Any, Mapping, Sequence
 
-from lookahead_control.core.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
-                                           VehicleParams)
+# the schema (names, types, defaults, ranges) is the core's, shared with the offline tools
+from lookahead_control.core.param_schema import (CONTROLLER_SPECS, SAFETY_SPECS, Spec,
+                                                 VEHICLE_SPECS)
+from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.safety import SafetyParams
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-
-class Spec(NamedTuple):
-    """A parameter: name, default, description, numeric range or string choices."""
-
-    name: str
-    default: Any
-    description: str
-    low: float | None = None
-    high: float | None = None
-    choices: Sequence[str] = ()
-
-
-VEHICLE_SPECS = (
-    Spec('vehicle.mass', 1485.0, 'vehicle mass m [kg]', 1.0, 1.0e5),
-    Spec('vehicle.yaw_inertia', 2872.0, 'yaw moment of inertia I_z [kg m^2]', 1.0, 1.0e6),
-    Spec('vehicle.l1', 1.1, 'CG to front axle l_1 [m]', 0.01, 20.0),
-    Spec('vehicle.l2', 1.58, 'CG to rear axle l_2 [m]', 0.01, 20.0),
-    Spec('vehicle.c_f', 80000.0, 'front axle cornering stiffness C_f [N/rad]', 1.0, 1.0e7),
-    Spec('vehicle.c_r', 80000.0, 'rear axle cornering stiffness C_r [N/rad]', 1.0, 1.0e7),
-    Spec('vehicle.d_s', 1.96, 'CG to front bumper, look-down sensor d_s [m]', 0.01, 50.0),
-)
-
-CONTROLLER_SPECS = (
-    Spec('controller.natural_frequency', 3.0,
-         'natural frequency w_n of the look-ahead error loop, k_p = w_n^2 [rad/s]',
-         0.01, 100.0),
-    Spec('controller.damping_ratio', 1.0, 'damping ratio zeta, k_d = 2 zeta w_n [-]',
-         0.01, 10.0),
-    Spec('controller.schedule', 'paper',
-         'd_v schedule: paper (eq. 26), exact (eq. 24) or fixed', choices=SCHEDULE_MODES),
-    Spec('controller.fixed_look_ahead', 1.96, 'd_v of the fixed schedule [m]', 0.0, 200.0),
-    Spec('controller.max_look_ahead', 60.0, 'upper clamp of the scheduled d_v [m]',
-         0.01, 200.0),
-    Spec('controller.reference', 'lane_tangent',
-         'regulate y_v to 0 (lane_tangent) or to the lane offset y_o (arc_approx, '
-         'arc_exact)', choices=REFERENCE_MODES),
-    Spec('controller.min_speed', 1.0, 'the law divides by v_x; floor of v_x [m/s]',
-         0.01, 20.0),
-)
-
-SAFETY_SPECS = tuple(
-    Spec(f'safety.{name}', default, text, low, high) for name, default, text, low, high in (
-        ('max_lateral_error', 5.0, 'inputs: largest believable |lateral error| [m]', 0.01, 100.0),
-        ('max_relative_yaw', 1.0, 'inputs: largest believable |relative yaw| [rad]', 0.01, 3.2),
-        ('max_yaw_rate', 2.0, 'inputs: largest believable |yaw rate| [rad/s]', 0.01, 10.0),
-        ('max_speed', 70.0, 'inputs: largest believable |v_x| [m/s]', 1.0, 150.0),
-        ('max_lateral_speed', 10.0, 'inputs: largest believable |v_y| [m/s]', 0.01, 50.0),
-        ('max_acceleration', 15.0, 'inputs: largest believable |a_x| [m/s^2]', 0.1, 100.0),
-        ('max_curvature', 0.2, 'inputs: largest believable |curvature| [1/m]', 1e-4, 10.0),
-        ('max_sensor_distance', 100.0, 'inputs: largest measurement distance ahead [m]',
-         0.1, 1000.0),
-        ('max_future', 0.1, 'inputs: stamps further ahead of the clock are refused [s]',
-         0.0, 10.0),
-        ('input_timeout', 0.2, 'an input older than this is stale [s]', 0.01, 10.0),
-        ('hold_time', 0.5, 'stale inputs: hold the command this long, then ramp [s]',
-         0.0, 10.0),
-        ('safe_angle', 0.0, 'stale inputs: the ramp goes to this angle [rad]', -1.0, 1.0),
-        ('max_steering_angle', 0.6, 'output: angle limit [rad]', 0.01, 1.2),
-        ('max_steering_rate', 5.0, 'output: rate limit [rad/s]', 0.01, 50.0),
-        ('max_lateral_acceleration', 30.0, 'output: speed-dependent angle limit '
-         'atan(a L / v^2), kinematic lateral acceleration a [m/s^2]', 0.1, 100.0),
-        ('low_speed', 3.0, 'below this speed the law hands over to hold [m/s]', 0.1, 30.0),
-        ('low_speed_blend', 1.0, 'width of the low-speed hand-over [m/s]', 0.01, 30.0),
-    ))
+__all__ = ['build', 'check_choices', 'CONTROLLER_SPECS', 'declare', 'descriptor', 'EXECUTOR_SPEC',
+           'EXECUTORS', 'SAFETY_SPECS', 'safety_params', 'Spec', 'values', 'VEHICLE_SPECS',
+           'vehicle_and_controller']
 
 EXECUTORS = ('events', 'single_threaded')
 EXECUTOR_SPEC = Spec('executor', 'events', 'rclpy executor: events '

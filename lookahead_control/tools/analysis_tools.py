@@ -146,8 +146,9 @@ def certificate_main(argv: Sequence[str] | None = None) -> int:
          'paper': float('nan'), 'passes if': '< 0'},
     ]
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
-          f'{cert.a_max:g} m/s^2, d_v (eq. 25) <= {cert.d_v_max:.2f} m; worst norm at '
-          f'{cert.max_norm_speed:.2f} m/s')
+          f'{cert.a_max:g} m/s^2, d_v (eq. 25) <= {cert.d_v_max:.2f} m; checked at '
+          f'{args.samples} speeds (every {(cert.v_max - cert.v_min) / (args.samples - 1):.3g} '
+          f'm/s); worst norm at {cert.max_norm_speed:.2f} m/s')
     print(markdown_table(rows))
     verdict = cert.holds_norm or cert.holds_gershgorin
     print(f'Bauer-Fike: {"holds" if cert.holds_norm else "fails"}; Gershgorin: '

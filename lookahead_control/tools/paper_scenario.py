@@ -172,8 +172,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         from lookahead_control.analysis.plotting import plot_runs
         series = [{'label': f'{label} {r.scenario.speed.initial:g} m/s', 'time': r.time,
                    **r.channels} for label, r in runs]
-        print(f'wrote {plot_runs(series, args.plot, "fixed d_s vs scheduled d_v: 2 s "
-                                                  "straight, then right curve R = 400 m")}')
+        png = plot_runs(series, args.plot, 'fixed d_s vs scheduled d_v: 2 s straight, then '
+                        'right curve R = 400 m')
+        print(f'wrote {png}')
     if out is not None:
         print(f'wrote {write_report(runs, rows, out, plots=not args.no_plots)}')
     return 0
