@@ -31,6 +31,7 @@ import time
 from types import FrameType
 from typing import Any, Callable, Optional, Sequence, TypeVar
 
+from lookahead_control.core import interrupts
 from lookahead_control.core.cli import one_line
 from lookahead_control.core.config import (check_params_file, ConfigError, flat_parameters,
                                            read_yaml)
@@ -232,7 +233,7 @@ class _StopRequest:
 
     def __init__(self) -> None:
         """Install the handlers (restored by :meth:`restore`)."""
-        self.signals: list[int] = []
+        self.signals: list[int] = list(interrupts.received)    # one a library swallowed
         self._previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
         for s in self._previous:
             signal.signal(s, self._note)
