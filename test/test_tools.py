@@ -289,7 +289,7 @@ def test_node_command_line_values_are_checked_with_the_same_schema():
     out = _exe('controller', '--ros-args', '-p', 'vehicle.masss:=1500', '-p',
                'vehicle.mass:=1485')
     assert out.returncode == 2
-    assert out.stderr.strip() == ("controller: error: -p vehicle.masss:=1500: unknown "
+    assert out.stderr.strip() == ('controller: error: -p vehicle.masss:=1500: unknown '
                                   "parameter 'vehicle.masss'; did you mean vehicle.mass or "
                                   'vehicle.d_s?')
 

@@ -249,6 +249,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.no_record and args.bag is not None:
         raise ToolError('--bag and --no-record contradict each other: give one')
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    if not args.scenario.is_file():
+        raise ToolError(f'{args.scenario}: no such scenario file')
     scenario = load_scenario(args.scenario, args.speed or None)    # one line, no process
     bag = None if args.no_record else (args.bag or Path('bags') / (
         f'{args.scenario.stem}_{args.schedule}_{float(scenario.speed.initial):g}_'
