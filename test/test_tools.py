@@ -303,3 +303,19 @@ def test_tool_piped_into_head_exits_quietly():
     _, err = proc.communicate(timeout=120)
     assert err.decode() == ''
     assert proc.returncode in (0, 141)
+
+
+def test_paper_scenario_never_overwrites_a_report_it_did_not_write(tmp_path):
+    home = tmp_path / 'thesis'
+    home.mkdir()
+    (home / 'report.md').write_text('my report\n')
+    out = _exe('paper_scenario', '--out', home, '--speeds', '20', '--duration', '1',
+               '--no-plots', cwd=tmp_path)
+    assert out.returncode == 2 and 'report.md' in out.stderr, out.stderr
+    assert (home / 'report.md').read_text() == 'my report\n'
+    # its own folder it rewrites, run after run
+    mine = tmp_path / 'mine'
+    for _ in range(2):
+        assert _exe('paper_scenario', '--out', mine, '--speeds', '20', '--duration', '1',
+                    '--no-plots', cwd=tmp_path).returncode == 0
+    assert (mine / 'report.md').read_text().startswith('# Paper scenario')

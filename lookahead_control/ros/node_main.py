@@ -43,7 +43,6 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import remove_ros_args
 import yaml
 
 N = TypeVar('N', bound=Node)
@@ -200,7 +199,12 @@ def wants_help(args: Sequence[str]) -> bool:
     :param args: command-line arguments, the program first.
     :return: whether to print the help.
     """
-    return any(a in ('-h', '--help') for a in remove_ros_args(list(args))[1:])
+    # not rclpy's remove_ros_args: it parses the params files (a bad one is not --help's
+    # business, and rcl's error is not one line)
+    own = list(args)[1:]
+    if '--ros-args' in own:
+        own = own[:own.index('--ros-args')]
+    return any(a in ('-h', '--help') for a in own)
 
 
 def help_text(name: str, description: str, specs: Sequence[Any]) -> str:

@@ -36,6 +36,8 @@ from sim_plant.scenario import paper_scenario
 from sim_plant.vehicle_model import PlantParams
 
 DEFAULT_OUT = Path('bags') / 'paper_scenario'
+MARKER = '.paper_scenario'      # in an --out folder this tool wrote
+REPORT_FILES = ('report.md', 'metrics.csv', 'metrics.json')
 MAX_SPEED = 90.0        # m/s, the scenarios' limit
 MAX_DURATION = 600.0    # s of simulated time per run
 TABLE_COLUMNS = ('controller', 'speed_mps', 'd_v_final', 'peak_cg', 'rms_cg', 'peak_bumper',
@@ -161,6 +163,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         out = DEFAULT_OUT
     if args.no_plots and out is None:
         raise ToolError('--no-plots: no report folder is written (give --out)')
+    if out is not None:
+        check_out(out)              # before the runs: nothing of the user's is replaced
     runs = reproduce(load_vehicle(args.vehicle), load_controller(args.controller),
                      PlantParams(model=args.plant), args.speeds, args.duration)
     rows = metrics_rows(runs)
@@ -177,7 +181,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'wrote {png}')
     if out is not None:
         print(f'wrote {write_report(runs, rows, out, plots=not args.no_plots)}')
+        (out / MARKER).write_text('report.md, metrics.csv, metrics.json, fig_*.png\n',
+                                  encoding='utf-8')
     return 0
+
+
+def check_out(out: Path) -> None:
+    """
+    Refuse an output folder holding files of the report's names that this tool did not write.
+
+    :param out: the ``--out`` folder.
+    :raises ToolError: ``out`` is a file, or would lose a file it did not write.
+    """
+    if out.exists() and not out.is_dir():
+        raise ToolError(f'--out {out}: is a file, not a folder')
+    if not out.is_dir() or (out / MARKER).is_file():
+        return
+    taken = sorted(p.name for p in out.iterdir() if p.name in REPORT_FILES
+                   or (p.name.startswith('fig_') and p.suffix == '.png'))
+    if taken:
+        raise ToolError(f'--out {out}: holds {", ".join(taken)}, not written by '
+                        'paper_scenario; give a new or empty folder')
 
 
 def entry() -> int:
