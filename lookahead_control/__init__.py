@@ -30,3 +30,8 @@ The package is layered; each layer imports only the layers below it, and
 - :mod:`lookahead_control.analysis`: metrics, series from bags, tables and plots.
 - :mod:`lookahead_control.tools`: command-line executables only.
 """
+
+# executables only: Ctrl-C while starting is one line, SIGTERM stops like Ctrl-C
+from lookahead_control.core.interrupts import install_if_executable
+
+install_if_executable()

@@ -17,3 +17,8 @@ Plant side of lookahead_control: vehicle models, roads, scenarios, the sim node.
 
 The modules here import no ROS except ``sim_plant_node``.
 """
+
+# executables only: Ctrl-C while starting is one line, SIGTERM stops like Ctrl-C
+from lookahead_control.core.interrupts import install_if_executable
+
+install_if_executable()

@@ -46,7 +46,7 @@ recipe (:meth:`Scenario.at_speed`) and a batch over speeds gives each run its ro
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, MISSING, replace
 import math
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional
@@ -56,6 +56,9 @@ from lookahead_control.core.params import check_range, ParameterError
 import numpy as np
 from sim_plant.road import Road, Segment
 from sim_plant.speed_profile import SpeedProfile
+
+
+MAX_CURVATURE = 1.0     # 1/m: a 1 m radius
 
 
 @dataclass(frozen=True)
@@ -274,6 +277,22 @@ def _speed_profile(body: Mapping[str, Any]) -> SpeedProfile:
                         tuple(ramps[1:]), **spec)
 
 
+def _build(cls: Any, key: str, entry: Any) -> Any:
+    """Build a scenario part from its mapping, naming a missing or unknown key."""
+    if not isinstance(entry, Mapping):
+        raise ParameterError(f'{key} must be a mapping, got {entry!r}')
+    known = [f.name for f in fields(cls)]
+    unknown = sorted(set(entry) - set(known))
+    if unknown:
+        raise ParameterError(f'{key}: unknown keys {unknown}; known: {known}')
+    required = [f.name for f in fields(cls) if f.default is MISSING
+                and f.default_factory is MISSING]
+    absent = [name for name in required if name not in entry]
+    if absent:
+        raise ParameterError(f'{key}: missing {", ".join(f"{key}.{a}" for a in absent)}')
+    return cls(**entry)
+
+
 def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
     """
     Build a scenario from its parsed YAML document.
@@ -282,6 +301,9 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
     :param source: where it came from, for messages.
     :return: the scenario.
     """
+    if document is None:
+        raise ConfigError(f"{source}: empty file; expected a mapping 'scenario:' with "
+                          'name, duration, speed, initial, road')
     try:
         body = document['scenario']
         if not isinstance(body, Mapping):
@@ -291,7 +313,7 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
             raise ParameterError(f'unknown keys {sorted(unknown)}; known: duration, '
                                  'initial, name, road, speed')
         speed = _speed_profile(body)
-        initial = InitialState(**dict(body.get('initial', {})))
+        initial = _build(InitialState, 'initial', body.get('initial', {}))
         road_entries = body.get('road')
         if not isinstance(road_entries, list) or not road_entries:
             raise ParameterError('road must be a non-empty list of segments')

@@ -536,7 +536,9 @@ def main(args: Optional[list[str]] = None) -> int:
     :param args: command-line arguments (ROS arguments included).
     :return: exit code.
     """
-    return run_node('sim_plant', args, SimPlantNode, lambda node: node.done.done())
+    return run_node('sim_plant', args, SimPlantNode, lambda node: node.done.done(),
+                    specs=ALL_SPECS, description='plant simulator: publishes the '
+                    "controller's inputs for a scenario, integrates its steering")
 
 
 def entry() -> int:

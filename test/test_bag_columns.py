@@ -294,7 +294,9 @@ def test_the_law_as_arrays_equals_the_controller_rerun(source, order):
         commands = rerun(run, order=order).commands
         stamps, law = rerun_law(run, order=order)
         last = {int(s): i for i, s in enumerate(stamps)}
-        assert set(last) == set(commands) and len(commands) > 100
+        # 120 steps; late and repeated stamps are refused by the controller (issue 11),
+        # so about 100 lateral errors are answered: enough to compare
+        assert set(last) == set(commands) and len(commands) > 80
         for stamp, command in commands.items():
             i = last[stamp]
             for name in ('d_v', 'd_v_rate', 'y_ref', 'error', 'error_rate', 'steering'):

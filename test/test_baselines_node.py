@@ -110,6 +110,9 @@ def context():
 
 
 def _feed(node, stamp, y=0.5, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-0.0025):
+    from rclpy.time import Time
+    # a fake sim clock that reads the measurements' time (stamps are judged against it)
+    node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
     node.on_yaw(conv.to_yaw(stamp, 'base_link', eps, r, 0.0 - v_y * r))
     node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, v_y, r))
     node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
@@ -119,7 +122,8 @@ def _feed(node, stamp, y=0.5, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-0.0025):
 def test_node_switches_law_while_active_through_the_rate_limiter(context):
     from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('law', value='stanley'), Parameter('safety.max_steering_rate', value=0.5)])
+        Parameter('use_sim_time', value=True), Parameter('law', value='stanley'),
+        Parameter('safety.max_steering_rate', value=0.5)])
     try:
         node.trigger_configure()
         node.trigger_activate()

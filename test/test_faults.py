@@ -509,3 +509,144 @@ def test_a_flood_builds_no_backlog_and_long_polygons_cost_nothing(probe, executo
     answers = [stamp for stamp, _ in steering if stamp in measured]
     assert answers == sorted(set(answers))
     assert int(reports[-1]['rejected road_curvature: points']) > 0
+
+
+# -- issue 12: SIGTERM, SIGKILL and Ctrl-C of the bringup tools ---------------------------
+
+def _children(pid):
+    """Return the pids whose parent is ``pid``."""
+    found = []
+    for stat in Path('/proc').glob('[0-9]*/stat'):
+        try:
+            fields = stat.read_text().rsplit(')', 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def _alive(pid):
+    try:
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != 'Z'
+
+
+def _start_default_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)    # as from a shell, not a background job
+
+
+def _wait_for_bag_data(bag, proc, timeout=120):
+    """Wait until the recorder of a running bringup has flushed messages into ``bag``."""
+    end = time.monotonic() + timeout
+    mcap = bag / f'{bag.name}.mcap'
+    while time.monotonic() < end and proc.poll() is None:
+        if mcap.is_file() and mcap.stat().st_size > 20000:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f'{bag}: nothing recorded ({proc.poll()})')
+
+
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGKILL, signal.SIGINT])
+def test_stopping_closed_loop_stops_its_nodes_and_finalizes_the_bag(tmp_path, sig):
+    bag = tmp_path / 'run'
+    proc = subprocess.Popen([str(EXES / 'closed_loop'), '--mode', 'realtime', '--bag',
+                             str(bag)], cwd=tmp_path, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_start_default_sigint)
+    _wait_for_bag_data(bag, proc)
+    children = _children(proc.pid)
+    assert len(children) == 3, children         # recorder, controller, simulator
+    proc.send_signal(sig)                       # to closed_loop only, as systemd would
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == {signal.SIGTERM: 143, signal.SIGINT: 130,
+                               signal.SIGKILL: -signal.SIGKILL}[sig], err
+    end = time.monotonic() + 30
+    while time.monotonic() < end and any(_alive(c) for c in children):
+        time.sleep(0.1)
+    assert not any(_alive(c) for c in children), 'nodes left running'
+    assert (bag / 'metadata.yaml').is_file(), err     # finalized, no `recover` needed
+    assert sum(c for _, c in __import__('lookahead_control.bags.rosbag_io', fromlist=['x'])
+               .bag_topics(bag).values()) > 0
+    assert 'Traceback' not in err and '[FATAL]' not in err, err
+
+
+def test_sigterm_to_demo_stops_its_nodes_and_keeps_what_it_recorded(tmp_path):
+    out = tmp_path / 'demo'
+    proc = subprocess.Popen([str(EXES / 'demo'), '--out', str(out), '--speeds', '37',
+                             '--schedules', 'fixed'], cwd=tmp_path, stderr=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
+    _wait_for_bag_data(out / 'fixed_37', proc)
+    children = _children(proc.pid)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    time.sleep(0.5)
+    assert children and not any(_alive(c) for c in children)
+    assert (out / 'fixed_37' / 'metadata.yaml').is_file()
+    # what it wrote is listed: the next demo run may replace it, and nothing else
+    from lookahead_control.tools.demo import MANIFEST
+    assert (out / MANIFEST).read_text().split() == ['fixed_37']
+
+
+# executables and arguments that start quickly into their real work
+EARLY = {'closed_loop': ['--mode', 'realtime', '--no-record'],
+         'controller': [], 'sim_plant': [], 'record': ['/x', '-o', '{tmp}/bag'],
+         'schedule': [], 'paper_scenario': ['--out', '{tmp}/paper'],
+         'demo': ['--out', '{tmp}/demo'], 'replay': ['{tmp}/none']}
+
+
+INTERRUPTS = 'lookahead_control.core.interrupts'
+
+
+@pytest.mark.parametrize('exe', sorted(EARLY))
+def test_ctrl_c_in_the_first_second_is_one_line_not_a_traceback(exe, tmp_path):
+    """
+    Ctrl-C to the process group (a terminal) at 8 moments of the first second.
+
+    From the moment the package has been imported (Python reports each import as it
+    ends: ``PYTHONPROFILEIMPORTTIME``); before that, the interpreter and the console
+    script run and nothing of this repository can act.
+    """
+    repo_frames = (f'File "{ROOT}/lookahead_control', f'File "{ROOT}/sim_plant')
+    for k in range(8):
+        folder = tmp_path / str(k)
+        folder.mkdir()
+        args = [a.format(tmp=folder) for a in EARLY[exe]]
+        proc = subprocess.Popen([str(EXES / exe), *args], cwd=folder, text=True,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                env={**os.environ, 'PYTHONPROFILEIMPORTTIME': '1'},
+                                preexec_fn=lambda: (os.setpgrp(), _start_default_sigint()))
+        seen = []
+        try:
+            # the next import after the interrupts module's is the executable's own: by
+            # then the package's __init__ has installed the handling
+            for line in proc.stderr:
+                seen.append(line)
+                if seen[-2:-1] and seen[-2].split('|')[-1].strip() == INTERRUPTS:
+                    break
+            time.sleep(k * 0.12 + random.uniform(0.0, 0.1))
+            os.killpg(proc.pid, signal.SIGINT)
+            err = ''.join(seen) + proc.communicate(timeout=60)[1]
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+        err = ''.join(line for line in err.splitlines(keepends=True)
+                      if not line.startswith('import time:'))
+        assert not any(frame in err for frame in repo_frames), (k, err)
+        assert 'Traceback' not in err and '[FATAL]' not in err, (k, err)
+
+
+def test_ctrl_c_of_a_realtime_closed_loop_has_no_fatal_callback_error(tmp_path):
+    proc = subprocess.Popen([str(EXES / 'closed_loop'), '--mode', 'realtime', '--bag',
+                             str(tmp_path / 'run')], cwd=tmp_path, text=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            preexec_fn=lambda: (os.setpgrp(), _start_default_sigint()))
+    _wait_for_bag_data(tmp_path / 'run', proc)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert '[FATAL]' not in err and 'Traceback' not in err, err
+    assert (tmp_path / 'run' / 'metadata.yaml').is_file()

@@ -25,7 +25,6 @@ recorder was killed.
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass
 import datetime
 import functools
@@ -37,7 +36,7 @@ from typing import Any, Optional, Sequence
 
 from lookahead_control.bags.rosbag_io import (BagError, BagWriter, PARAMETERS_KEY, qos_from_ints,
                                               RECORDER_KEY, recover, SCENARIO_KEY)
-from lookahead_control.core.cli import run_tool, ToolError
+from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
 from lookahead_control.ros.node_main import now_ns, run_node
 from rcl_interfaces.srv import GetParameters, ListParameters
@@ -295,27 +294,49 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     :return: exit code.
     """
     full = list(sys.argv if argv is None else argv)
-    p = argparse.ArgumentParser(prog='record', description='record topics into a rosbag2 '
-                                'MCAP bag (stop with Ctrl-C)')
+    p = ArgumentParser(prog='record', description='record topics into a rosbag2 MCAP bag '
+                       '(stop with Ctrl-C or SIGTERM: the bag is finalized)')
     p.add_argument('topics', nargs='*', help='topics to record (default: all)')
     p.add_argument('-o', '--output', type=Path, help='bag directory (default: '
                    'bags/run_<date>_<time>)')
     p.add_argument('-e', '--regex', help='also record topics matching this regex')
-    p.add_argument('--describe', nargs='*', default=list(DEFAULT_DESCRIBE),
-                   help='nodes whose parameters are stored in the bag')
-    p.add_argument('--chunk-interval', type=float, default=0.5,
-                   help='longest time a message waits in memory [s]')
+    p.add_argument('--describe', nargs='*', default=list(DEFAULT_DESCRIBE), metavar='NODE',
+                   help='nodes whose parameters are stored in the bag (default: '
+                   f'{" ".join(DEFAULT_DESCRIBE)}; none: --describe alone)')
+    p.add_argument('--chunk-interval', type=number(0.0, 60.0, low_open=True, unit='s'),
+                   default=None, metavar='S',
+                   help='longest time a message waits in memory before it is written [s] '
+                   '(default 0.5)')
     p.add_argument('--recover', type=Path, metavar='BAG',
                    help='rewrite a truncated bag into a readable one and exit')
     args = p.parse_args(remove_ros_args(full)[1:])
     if args.recover is not None:
+        given = [name for name, used in (
+            ('topics', args.topics), ('-o', args.output), ('-e', args.regex),
+            ('--chunk-interval', args.chunk_interval is not None),
+            ('--describe', args.describe != list(DEFAULT_DESCRIBE))) if used]
+        if given:
+            raise ToolError(f'{", ".join(given)}: not with --recover (it rewrites a bag '
+                            'and exits)')
         result = recover(args.recover)
+        if result.complete or result.original is None:
+            print(f'record: {result.bag} is complete ({result.messages} messages on '
+                  f'{result.topics} topics): nothing to recover, left as it is')
+            return 0
         print(f'record: recovered {result.messages} messages on {result.topics} topics '
               f'into {result.bag} (original kept as {result.original.name})')
         return 0
-    if args.chunk_interval <= 0:
-        raise ToolError(f'--chunk-interval {args.chunk_interval}: must be > 0')
-    bag = BagWriter(args.output or Path(default_bag_name()), args.chunk_interval)
+    if args.regex is not None:
+        try:
+            re.compile(args.regex)
+        except re.error as err:
+            raise ToolError(f'-e {args.regex!r}: not a regular expression: {err}') from err
+    if args.describe and args.describe != list(DEFAULT_DESCRIBE):
+        bad = [n for n in args.describe if not n.startswith('/')]
+        if bad:
+            raise ToolError(f'--describe {" ".join(bad)}: node names start with /')
+    bag = BagWriter(args.output or Path(default_bag_name()),
+                    0.5 if args.chunk_interval is None else args.chunk_interval)
     try:
         code = run_node('record', full, lambda: RecorderNode(bag, args.topics, args.regex,
                                                              args.describe),
@@ -335,9 +356,10 @@ def entry() -> int:
 def recover_entry() -> int:
     """Entry point of ``recover``: ``recover BAG``."""
     def recover_main(argv: Optional[Sequence[str]] = None) -> int:
-        p = argparse.ArgumentParser(prog='recover', description='rewrite a bag whose '
-                                    'recorder was killed into a readable one')
-        p.add_argument('bag', type=Path)
+        p = ArgumentParser(prog='recover', description='rewrite a bag whose recorder was '
+                           'killed into a readable one (a complete bag is left alone; the '
+                           'original file is kept as <name>.mcap.truncated)')
+        p.add_argument('bag', type=Path, help='the bag directory')
         args = p.parse_args(argv)
         return main(['record', '--recover', str(args.bag)])
     return run_tool(recover_main)

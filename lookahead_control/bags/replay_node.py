@@ -26,7 +26,6 @@ vs re-computed steering; ``--check TOL`` exits 1 above the tolerance.
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 import sys
 import time
@@ -35,7 +34,8 @@ from typing import Any, Optional, Sequence
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader
 from lookahead_control.bags.run_data import load_run, rerun
-from lookahead_control.core.cli import assignments, run_tool, ToolError, write_json
+from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
+                                        ToolError, write_json)
 from lookahead_control.ros import conversions as conv
 import rclpy
 from rclpy.node import Node
@@ -65,7 +65,7 @@ def offline(args: argparse.Namespace) -> int:
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
     if args.json:
-        write_json(Path(args.json), report)
+        write_json(Path(args.json), report)         # NaN (nothing compared) as null
     if args.check is not None:
         if result.compared == 0:
             print('replay: check failed: no command to compare', file=sys.stderr)
@@ -107,15 +107,22 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
     if not args.rate > 0.0:
         raise ToolError(f'--rate {args.rate}: must be > 0')
     reader = bag_reader(args.bag)
+    present = {c.topic for c in reader.connections}
+    missing = sorted(set(args.topics) - present)
+    if missing:
+        reader.close()
+        raise ToolError(f'--topics: {args.bag} has no {", ".join(missing)} (has: '
+                        f'{", ".join(sorted(present))})')
+    conns = [c for c in reader.connections
+             if (not args.topics or c.topic in args.topics)
+             and not (args.clock and c.topic == '/clock')]
+    if not conns:
+        reader.close()
+        raise ToolError(f'{args.bag}: nothing to publish')
     rclpy.init(args=ros_args)
     node = Node('replay')
     published = 0
     try:
-        conns = [c for c in reader.connections
-                 if (not args.topics or c.topic in args.topics)
-                 and not (args.clock and c.topic == '/clock')]
-        if not conns:
-            raise ToolError(f'{args.bag}: none of the topics {args.topics} is in the bag')
         pubs = {c.id: node.create_publisher(message_class(c.msgtype), c.topic, qos_of(c))
                 for c in conns}
         clock = node.create_publisher(ClockMsg, '/clock', 10) if args.clock else None
@@ -125,7 +132,12 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
         while (time.monotonic() < end and rclpy.ok()
                and not all(pub.get_subscription_count() for pub in pubs.values())):
             rclpy.spin_once(node, timeout_sec=0.05)
+        alone = [c.topic for c in conns if not pubs[c.id].get_subscription_count()]
+        if alone:
+            print(f'replay: after --wait {args.wait:g} s, {len(alone)} of {len(conns)} '
+                  'topics have no subscriber; playing anyway', file=sys.stderr)
         start_wall = time.monotonic()
+        clocks = 0
         start_bag: Optional[int] = None
         next_clock = 0
         for conn, stamp, data in reader.messages(connections=conns):
@@ -138,10 +150,12 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
             if clock is not None and stamp >= next_clock:
                 clock.publish(ClockMsg(clock=conv.ns_to_stamp(stamp)))
                 next_clock = stamp + clock_period
+                clocks += 1
             pubs[conn.id].publish(bytes(data))
             published += 1
         print(f'replay: {args.bag}: published {published} messages on {len(conns)} topics '
-              f'in {time.monotonic() - start_wall:.2f} s')
+              f'at {args.rate:g}x in {time.monotonic() - start_wall:.2f} s'
+              + (f', and {clocks} on /clock at {args.clock:g} Hz' if clock else ''))
     except KeyboardInterrupt:
         print(f'replay: interrupted after {published} messages', file=sys.stderr)
     finally:
@@ -159,31 +173,59 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     :return: exit code.
     """
     full = list(sys.argv if argv is None else ['replay', *argv])
-    p = argparse.ArgumentParser(prog='replay', description='play a bag over DDS, or '
-                                're-run the controller on it offline (--offline)')
-    p.add_argument('bag', type=Path)
-    p.add_argument('--rate', type=float, default=1.0, help='playback rate factor')
-    p.add_argument('--topics', nargs='*', default=[], help='only these topics')
-    p.add_argument('--clock', type=float, nargs='?', const=100.0, default=0.0,
-                   metavar='HZ', help='publish /clock from the bag time (default 100 Hz)')
-    p.add_argument('--wait', type=float, default=5.0,
-                   help='longest wait for a subscriber on every topic before playing [s]')
-    p.add_argument('--offline', action='store_true',
-                   help='re-run the controller core on the inputs instead of publishing')
-    p.add_argument('-p', '--param', action='append', default=[], metavar='NAME=VALUE',
-                   help='offline: override a recorded controller parameter')
-    p.add_argument('--topic', action='append', default=[], metavar='ROLE=TOPIC',
-                   help='offline: contract topic names in the bag (lateral_error=/x)')
-    p.add_argument('--order', choices=('stamp', 'receive'), default=None,
-                   help='offline: input order (default: as the recorded node worked)')
-    p.add_argument('--check', type=float, default=None, metavar='TOL',
-                   help='offline: exit 1 if any |recorded - recomputed| > TOL [rad]')
-    p.add_argument('--json', type=Path, default=None, help='offline: write the report')
+    p = ArgumentParser(prog='replay', description='play a bag over DDS, or re-run the '
+                       'controller core on it offline (--offline)')
+    p.add_argument('bag', type=Path, help='the bag directory')
+    play_only = p.add_argument_group('playing over DDS')
+    play_only.add_argument('--rate', type=number(0.0, 1000.0, low_open=True, unit='x'),
+                           default=None, metavar='FACTOR',
+                           help='playback speed factor [-] (default 1)')
+    play_only.add_argument('--topics', nargs='+', default=None, metavar='TOPIC',
+                           help='publish only these topics (default: all)')
+    play_only.add_argument('--clock', type=number(0.0, 10000.0, low_open=True, unit='Hz'),
+                           nargs='?', const=100.0, default=None, metavar='HZ',
+                           help='also publish /clock from the bag time at HZ [Hz] '
+                           '(default off; without a value 100 Hz)')
+    play_only.add_argument('--wait', type=number(0.0, 3600.0, unit='s'), default=None,
+                           metavar='S', help='longest wait for a subscriber on every topic '
+                           'before playing [s] (default 5)')
+    offline_only = p.add_argument_group('re-running offline (--offline)')
+    offline_only.add_argument('--offline', action='store_true',
+                              help='re-run the controller core (input checks, law, '
+                              'low-speed hold, output limits) on the recorded inputs and '
+                              'compare with the recorded steering, instead of publishing')
+    offline_only.add_argument('-p', '--param', action='append', default=[],
+                              metavar='NAME=VALUE', help='override a recorded controller '
+                              'parameter (vehicle.*, controller.*, safety.*); clock-driven '
+                              'ones (watchdog, timer) are refused')
+    offline_only.add_argument('--topic', action='append', default=[], metavar='ROLE=TOPIC',
+                              help='contract topic names in the bag (lateral_error=/x)')
+    offline_only.add_argument('--order', choices=('stamp', 'receive'), default=None,
+                              help='input order (default: as the recorded node worked)')
+    offline_only.add_argument('--check', type=number(0.0, unit='rad'), default=None,
+                              metavar='TOL', help='exit 1 if any |recorded - recomputed| '
+                              'steering > TOL [rad]; implies --offline')
+    offline_only.add_argument('--json', type=Path, default=None, metavar='FILE',
+                              help='write the comparison as JSON')
     args = p.parse_args(remove_ros_args(full)[1:])
-    if args.offline or args.check is not None:
-        if args.check is not None and not (args.check >= 0.0 and math.isfinite(args.check)):
-            raise ToolError(f'--check {args.check}: must be a finite tolerance >= 0')
+    offline_run = args.offline or args.check is not None
+    played = [name for name, value in (('--rate', args.rate), ('--topics', args.topics),
+                                       ('--clock', args.clock), ('--wait', args.wait))
+              if value is not None]
+    offline_given = [name for name, value in (
+        ('-p', args.param), ('--topic', args.topic), ('--order', args.order),
+        ('--json', args.json)) if value]
+    if offline_run:
+        if played:
+            raise ToolError(f'{", ".join(played)}: only for playing over DDS, not with '
+                            '--offline')
         return offline(args)
+    if offline_given:
+        raise ToolError(f'{", ".join(offline_given)}: only with --offline')
+    args.rate = 1.0 if args.rate is None else args.rate
+    args.wait = 5.0 if args.wait is None else args.wait
+    args.clock = args.clock or 0.0
+    args.topics = args.topics or []
     return play(args, full)
 
 

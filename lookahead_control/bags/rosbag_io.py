@@ -418,7 +418,24 @@ class Recovery:
     bag: Path
     messages: int
     topics: int
-    original: Path
+    original: Optional[Path]
+    complete: bool = False
+
+
+def _backup_name(source: Path) -> Path:
+    """
+    Return a name for the original file that no existing file has.
+
+    :param source: the ``.mcap`` file being replaced.
+    :return: ``<name>.truncated``, or ``<name>.truncated.<n>`` when that exists (a
+        second recovery never overwrites the first one's backup).
+    """
+    candidate = source.with_name(source.name + '.truncated')
+    number = 1
+    while candidate.exists():
+        number += 1
+        candidate = source.with_name(f'{source.name}.truncated.{number}')
+    return candidate
 
 
 def _mcap_file(path: Path) -> Path:
@@ -434,14 +451,17 @@ def recover(path: Path) -> Recovery:
 
     Reads the MCAP records in order up to the first incomplete one (a partial last
     chunk is lost), rewrites them with rosbags and ``metadata.yaml``, and keeps the
-    original file as ``<name>.mcap.truncated``.
+    original file as ``<name>.mcap.truncated`` (``.truncated.2`` ... if that exists: a
+    backup is never overwritten). A complete bag (the MCAP file ends with its footer and
+    ``metadata.yaml`` is there) is left alone and reported with ``complete`` set.
 
     :param path: the bag directory.
     :return: what was saved.
     :raises BagError: nothing readable, or the directory cannot be written.
     """
     from mcap.exceptions import McapError
-    from mcap.records import Channel as McapChannel, Message as McapMessage, Schema
+    from mcap.records import (Channel as McapChannel, Footer, Message as McapMessage,
+                              Schema)
     from mcap.stream_reader import StreamReader
 
     path = Path(path)
@@ -451,10 +471,13 @@ def recover(path: Path) -> Recovery:
     schemas: dict[int, Schema] = {}
     channels: dict[int, McapChannel] = {}
     messages: list[McapMessage] = []
+    footer = False
     try:
         with source.open('rb') as stream:
             for record in StreamReader(stream, skip_magic=False).records:
-                if isinstance(record, Schema):
+                if isinstance(record, Footer):
+                    footer = True
+                elif isinstance(record, Schema):
                     schemas[record.id] = record
                 elif isinstance(record, McapChannel):
                     channels[record.id] = record
@@ -466,6 +489,8 @@ def recover(path: Path) -> Recovery:
                            f'({type(err).__name__})') from err
     except OSError as err:
         raise BagError(f'{source}: cannot read: {err}') from err
+    if footer and (path / 'metadata.yaml').is_file():
+        return Recovery(path, len(messages), len(channels), None, complete=True)
     description = run_description(path)
     store = typestore()
     tmp = Path(tempfile.mkdtemp(prefix='recover-', dir=path.parent)) / path.name
@@ -490,7 +515,7 @@ def recover(path: Path) -> Recovery:
         for key, value in description.items():
             writer.set_custom_data(key, value)
         writer.close()
-        original = source.with_name(source.name + '.truncated')
+        original = _backup_name(source)
         os.replace(source, original)
         for item in tmp.iterdir():
             os.replace(item, path / (item.name if item.suffix != '.mcap' else source.name))

@@ -39,6 +39,7 @@ from lookahead_control.core.config import ConfigError, dataclass_from_params
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput, steering_law
 from lookahead_control.core.controller import Command, SteeringController
 from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.safety import SafetyParams
 from lookahead_control.ros import conversions as conv
 import numpy as np
 import numpy.typing as npt
@@ -245,30 +246,47 @@ def _decode(pieces: _Pieces, role: str, raw: RawColumns,
                                   conv.from_named_values(msg)))
 
 
+# node parameters the offline re-run does not model: it has no node clock (the recorder's
+# receive times are another node's clock), so no watchdog (stale inputs, hold, ramp), no
+# future-stamp check and no timer mode; overriding them would report a difference of 0
+NOT_MODELED = frozenset({
+    'safety.input_timeout', 'safety.hold_time', 'safety.safe_angle', 'safety.max_future',
+    'watchdog_rate_hz', 'mode', 'rate_hz', 'sync_timeout', 'qos_reliability', 'frame_id',
+    'autostart', 'diagnostics_rate_hz', 'executor', 'use_sim_time'})
+# node parameters it models besides the vehicle.*, controller.* and safety.* sets
+MODELED = ('acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps')
+
+
 def controller_from_params(params: Mapping[str, Any],
                            overrides: Optional[Mapping[str, Any]] = None
                            ) -> tuple[SteeringController, bool]:
     """
-    Build the controller core from recorded node parameters plus overrides.
+    Build the controller core (law, input checks, output limits) from recorded parameters.
 
     :param params: flat ``/controller`` parameters (empty: defaults).
     :param overrides: ``name -> value`` replacing recorded values.
     :return: the controller and whether it waited for matching stamps.
-    :raises ConfigError: an override names an unknown parameter or a bad value.
+    :raises ConfigError: an override names an unknown parameter, one the re-run does not
+        model (:data:`NOT_MODELED`), or a bad value.
     """
     merged = {**params, **(overrides or {})}
-    known = set(params) | {'acceleration_source', 'use_curvature_preview',
-                           'wait_for_matching_stamps'}
     for name in overrides or {}:
         head = name.partition('.')[0]
-        if name not in known and head not in ('vehicle', 'controller'):
-            raise ConfigError(f'override {name!r}: not a controller parameter')
+        if name in NOT_MODELED:
+            raise ConfigError(f'override {name!r}: the offline re-run does not model it (no '
+                              'node clock: no watchdog, hold or timer); replay the bag '
+                              'over DDS to a controller node instead')
+        if name not in MODELED and head not in ('vehicle', 'controller', 'safety'):
+            raise ConfigError(f'override {name!r}: not a controller parameter the offline '
+                              're-run uses (vehicle.*, controller.*, safety.*, '
+                              f'{", ".join(MODELED)})')
     vehicle = dataclass_from_params(VehicleParams, merged, 'vehicle', 'bag parameters')
     controller = dataclass_from_params(ControllerParams, merged, 'controller',
                                        'bag parameters')
+    safety = dataclass_from_params(SafetyParams, merged, 'safety', 'bag parameters')
     core = SteeringController(vehicle, controller,
                               str(merged.get('acceleration_source', 'imu')),
-                              bool(merged.get('use_curvature_preview', False)))
+                              bool(merged.get('use_curvature_preview', False)), safety)
     return core, bool(merged.get('wait_for_matching_stamps', False))
 
 
@@ -327,6 +345,11 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     """
     Feed the recorded inputs into a fresh controller and compare with the recording.
 
+    The whole controller core runs as in the node: input checks, the law, the low-speed
+    hold and the output limits (angle, rate, lateral acceleration), with the recorded
+    ``safety.*`` values or the overrides. Not modeled (no node clock): the watchdog's
+    stale-input hold and ramp, the future-stamp check, timer mode.
+
     :param run: the recorded run.
     :param overrides: parameter overrides (``controller.natural_frequency`` ...).
     :param order: ``stamp`` or ``receive`` (default: ``stamp`` if the node waited for
@@ -337,13 +360,12 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     order = _resolve_order(order, matched)
     inputs = input_stream(run)
     feed = _stamp_order(inputs) if order == 'stamp' else inputs
-    update: dict[str, Callable[[Any], None]] = {
-        'lateral_error': core.update_lateral_error, 'yaw': core.update_yaw,
-        'velocity': core.update_velocity, 'road_curvature': core.update_curvature}
     commands: dict[int, Command] = {}
     for _, role, sample in feed:
-        update[role](sample)
-        if role == 'lateral_error':
+        # the node's path: input checks (a refused sample is never used), then the law,
+        # the low-speed hand-over and the output limits in compute()
+        refused = core.accept(role, sample)
+        if role == 'lateral_error' and refused is None:
             command = core.compute()
             if command is not None:
                 commands[command.stamp_ns] = command
@@ -386,7 +408,14 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     lateral_code = roles.index('lateral_error')
     feed = np.lexsort((file_order, recv) if order == 'receive' else
                       (file_order, recv, code == lateral_code, stamp))
-    code, index = code[feed], index[feed]
+    code, index, fed_stamp = code[feed], index[feed], stamp[feed]
+    # as the controller's accept(): a sample whose stamp does not advance past its input's
+    # newest one (repeated, or arriving late) is refused and never used
+    for i in range(len(roles)):
+        where = np.nonzero(code == i)[0]
+        newest = np.maximum.accumulate(fed_stamp[where])
+        refused = np.concatenate(([False], fed_stamp[where][1:] <= newest[:-1]))
+        code[where[refused]] = -1
     # at each position of the feed: the position of each input's latest sample (-1)
     latest = {role: np.maximum.accumulate(np.where(code == i, np.arange(code.size), -1))
               for i, role in enumerate(roles)}

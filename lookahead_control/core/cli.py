@@ -20,14 +20,17 @@ import argparse
 import csv
 import json
 import math
+import os
 from pathlib import Path
 import sys
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, NoReturn, Sequence
 
 from lookahead_control.core.config import ConfigError
+from lookahead_control.core.interrupts import exit_code, install, Terminated
 from lookahead_control.core.params import ParameterError
 
 EXIT_USAGE = 2
+EXIT_BROKEN_PIPE = 128 + 13     # as a shell reports a process ended by SIGPIPE
 
 
 class ToolError(RuntimeError):
@@ -72,8 +75,14 @@ def run_tool(main: Callable[[Sequence[str] | None], int],
     :return: the exit code.
     """
     prog = Path(sys.argv[0]).name
+    install()           # SIGTERM stops the tool as Ctrl-C does (children, bags)
     try:
         return main(argv)
+    except BrokenPipeError:
+        # `tool | head`: the reader left; no message (nobody reads it), and no second
+        # error when Python flushes stdout at exit
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except (ConfigError, ParameterError, ToolError, ValueError) as err:
         print(f'{prog}: error: {one_line(str(err))}', file=sys.stderr)
         return EXIT_USAGE
@@ -81,23 +90,89 @@ def run_tool(main: Callable[[Sequence[str] | None], int],
         where = f'{err.filename}: ' if err.filename else ''
         print(f'{prog}: error: {where}{err.strerror or err}', file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print(f'{prog}: interrupted', file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:          # SIGINT, or SIGTERM (Terminated)
+        print(f'{prog}: {"terminated" if isinstance(err, Terminated) else "interrupted"}',
+              file=sys.stderr)
+        return exit_code(err)
 
 
-def parser(description: str) -> argparse.ArgumentParser:
+class ArgumentParser(argparse.ArgumentParser):
+    """An ``argparse`` parser whose usage errors are one line (and exit 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        """
+        Print ``<prog>: error: <message> (see --help)`` and exit 2.
+
+        :param message: argparse's message.
+        """
+        self.exit(EXIT_USAGE, f'{self.prog}: error: {one_line(message)} (see --help)\n')
+
+
+def number(low: float = -math.inf, high: float = math.inf, *, low_open: bool = False,
+           high_open: bool = False, unit: str = '',
+           integer: bool = False) -> Callable[[str], Any]:
+    """
+    Return an argparse ``type`` that accepts a finite number in a range.
+
+    :param low: the lower bound.
+    :param high: the upper bound.
+    :param low_open: the lower bound itself is not allowed.
+    :param high_open: the upper bound itself is not allowed.
+    :param unit: the unit, for the message.
+    :param integer: accept integers only.
+    :return: the converter (raises ``argparse.ArgumentTypeError`` naming the range).
+    """
+    suffix = f' {unit}' if unit else ''
+    allowed = (f'{"(" if low_open else "["}{low:g}, {high:g}{")" if high_open else "]"}'
+               f'{suffix}').replace('[-inf', '(-inf').replace('inf]', 'inf)')
+
+    def convert(text: str) -> Any:
+        try:
+            value: Any = int(text) if integer else float(text)
+        except ValueError:
+            kind = 'an integer' if integer else 'a number'
+            raise argparse.ArgumentTypeError(f'{text!r} is not {kind}') from None
+        below = value <= low if low_open else value < low
+        above = value >= high if high_open else value > high
+        if not math.isfinite(value) or below or above:
+            raise argparse.ArgumentTypeError(f'{text}{suffix} is out of range; allowed: '
+                                             f'{allowed}')
+        return value
+    convert.__name__ = 'integer' if integer else 'number'
+    return convert
+
+
+def output_file(suffix: str) -> Callable[[str], Path]:
+    """
+    Return an argparse ``type`` for an output file that must end with ``suffix``.
+
+    :param suffix: e.g. ``.png``.
+    :return: the converter (a name with another suffix is refused: matplotlib would
+        pick the format from it, or fail late).
+    """
+    def convert(text: str) -> Path:
+        path = Path(text)
+        if path.suffix.lower() != suffix:
+            raise argparse.ArgumentTypeError(f'{text}: expected a {suffix} file name')
+        return path
+    convert.__name__ = 'path'
+    return convert
+
+
+def parser(description: str, plot: bool = True) -> ArgumentParser:
     """
     Return an argument parser with the options every analysis tool shares.
 
     :param description: the tool's one-line purpose.
+    :param plot: offer ``--plot`` (tools without a plot must not accept it).
     :return: the parser.
     """
-    p = argparse.ArgumentParser(description=description)
+    p = ArgumentParser(description=description)
     p.add_argument('--vehicle', type=Path, default=None,
                    help='vehicle params YAML (default: config/vehicle.yaml)')
-    p.add_argument('--plot', type=Path, default=None, metavar='PNG',
-                   help='also write a PNG plot to this path')
+    if plot:
+        p.add_argument('--plot', type=output_file('.png'), default=None, metavar='PNG',
+                       help='also write a PNG plot to this path')
     p.add_argument('--json', type=Path, default=None, metavar='FILE',
                    help='also write the table as JSON')
     return p

@@ -24,15 +24,23 @@ nested keys flatten to dotted names (``vehicle.mass``).
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
 from pathlib import Path
-from typing import Any, Mapping, Type, TypeVar
+from typing import Any, Mapping, Sequence, Type, TypeVar
 
+from lookahead_control.core.param_schema import (check_params, CONTROLLER_SPECS, namespaces_of,
+                                                 SAFETY_SPECS, Spec, unknown_name,
+                                                 VEHICLE_SPECS)
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 import yaml
 
 
 PACKAGE_NAME = 'lookahead_control'
 D = TypeVar('D')
+
+
+SPECS_BY_NAMESPACE = {'vehicle': VEHICLE_SPECS, 'controller': CONTROLLER_SPECS,
+                      'safety': SAFETY_SPECS}
 
 
 class ConfigError(ValueError):
@@ -82,6 +90,19 @@ def _flatten(prefix: str, tree: Mapping[str, Any], out: dict[str, Any]) -> None:
             out[name] = value
 
 
+def flat_parameters(section: Any) -> dict[str, Any]:
+    """
+    Return a params file section's ``ros__parameters`` as dotted names.
+
+    :param section: ``{ros__parameters: {...}}``.
+    :return: dotted name -> value (empty if the section has none).
+    """
+    out: dict[str, Any] = {}
+    if isinstance(section, Mapping) and isinstance(section.get('ros__parameters'), Mapping):
+        _flatten('', section['ros__parameters'], out)
+    return out
+
+
 def load_ros_params(path: Path | str, node_name: str | None = None) -> dict[str, Any]:
     """
     Read the flattened parameters of a ROS 2 params YAML file.
@@ -117,29 +138,73 @@ def dataclass_from_params(cls: Type[D], params: Mapping[str, Any], prefix: str,
     """
     Build a parameter dataclass from flattened ``prefix.field`` entries.
 
-    Missing fields keep their defaults; unknown ``prefix.*`` names are an error, so a
-    typo in a config file is not silently ignored.
+    Each entry is checked against the parameter schema the nodes declare their
+    parameters from (:mod:`~lookahead_control.core.param_schema`): an unknown name (a
+    typo) is an error, an integer for a real is that real, a value outside the node's
+    range is refused. Missing fields keep their defaults.
 
     :param cls: the dataclass type.
     :param params: flattened parameters.
     :param prefix: the namespace of the dataclass fields, e.g. ``vehicle``.
-    :param source: where the parameters came from, for messages.
+    :param source: where the parameters came from (the file), for messages.
     :return: the validated dataclass.
+    :raises ConfigError: ``<source>: <name> = <value> ...``.
     """
     names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-    values: dict[str, Any] = {}
-    for key, value in params.items():
-        head, _, field = key.partition('.')
-        if head != prefix:
-            continue
-        if field not in names:
-            raise ConfigError(f'{source}: unknown parameter {key!r}; known: '
-                              f'{", ".join(sorted(prefix + "." + n for n in names))}')
-        values[field] = value
+    specs = [s for s in SPECS_BY_NAMESPACE.get(prefix, ())
+             if s.name.partition('.')[2] in names]
+    mine = {k: v for k, v in params.items() if k.partition('.')[0] == prefix}
     try:
+        if specs:
+            mine = check_params(mine, specs)
+        values: dict[str, Any] = {}
+        for key, value in mine.items():
+            field = key.partition('.')[2]
+            if field not in names:
+                raise ParameterError(unknown_name(key, (f'{prefix}.{n}' for n in names)))
+            values[field] = value
         return cls(**values)
     except ParameterError as err:
         raise ConfigError(f'{source}: {err}') from err
+
+
+def check_params_file(path: Path | str, node_name: str,
+                      specs: Sequence[Spec]) -> dict[str, dict[str, Any]]:
+    """
+    Check a ROS params file for one node against its schema, as the node would read it.
+
+    Sections for the node (``controller``, ``/controller``, ``/**/controller``) must
+    hold only its parameters; wildcard sections (``/**``) serve other nodes too, so
+    there only names in the node's namespaces (``vehicle.*`` ...) are checked.
+
+    :param path: the params file.
+    :param node_name: the node's name.
+    :param specs: the node's parameters.
+    :return: section -> the section's flat parameters, integers for reals converted.
+    :raises ConfigError: ``<file>: <name> = <value> ...``, or a malformed file.
+    """
+    document = read_yaml(path)
+    if not isinstance(document, Mapping):
+        raise ConfigError(f'{path}: not a ROS parameters file (expected '
+                          '"<node>: {ros__parameters: {...}}")')
+    out: dict[str, dict[str, Any]] = {}
+    for key, section in document.items():
+        pattern = str(key)
+        target = '/' + node_name.lstrip('/')
+        glob = '/' + pattern.lstrip('/')
+        if not fnmatch.fnmatchcase(target, glob.replace('/**', '*')):
+            continue
+        if not isinstance(section, Mapping) or not isinstance(
+                section.get('ros__parameters'), Mapping):
+            raise ConfigError(f'{path}: section {key!r} has no ros__parameters mapping')
+        flat = flat_parameters(section)
+        wildcard = '*' in pattern
+        try:
+            out[pattern] = check_params(flat, specs,
+                                        namespaces_of(specs) if wildcard else None)
+        except ParameterError as err:
+            raise ConfigError(f'{path}: {err}') from err
+    return out
 
 
 def load_vehicle(path: Path | str | None = None) -> VehicleParams:

@@ -15,15 +15,17 @@
 """
 Executable ``closed_loop``: sim_plant and controller as two processes, one scenario.
 
-Starts both nodes with the package's params files, waits for the simulator to finish
-the scenario, stops the controller with SIGINT, and exits non-zero if either failed.
+Starts both nodes (and the recorder) with the package's params files, waits for the
+simulator to finish the scenario, stops the others with SIGTERM, and exits non-zero if
+any failed. SIGINT or SIGTERM to ``closed_loop`` stops them the same way (bag
+finalized).
 ``--via-bridge``: the simulator speaks like a vehicle (odometry, imu, the road as a path)
 and ``path_bridge`` turns that into the controller's contract, as on a real vehicle.
 """
 
 from __future__ import annotations
 
-import argparse
+import ctypes
 from dataclasses import dataclass, field
 import datetime
 import os
@@ -34,10 +36,14 @@ import sys
 import time
 from typing import Optional, Sequence
 
-from lookahead_control.core.cli import run_tool, ToolError
+from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
+from lookahead_control.core.interrupts import deferred
 from lookahead_control.core.params import SCHEDULE_MODES
 from sim_plant.scenario import load_scenario
+
+MAX_SPEED = 90.0        # m/s, the scenarios' limit
+PR_SET_PDEATHSIG = 1    # prctl option (linux/prctl.h)
 
 
 @dataclass
@@ -123,32 +129,67 @@ def recorder_command(bag: Path) -> list[str]:
     return [sys.executable, '-m', 'lookahead_control.bags.recorder_node', '-o', str(bag)]
 
 
+def _child_setup() -> None:
+    """
+    Run in each child before it starts Python (``preexec_fn``).
+
+    Its own process group: a terminal's Ctrl-C reaches closed_loop only, which stops
+    the children deliberately (a SIGINT while a child's Python is still starting would
+    print an import traceback). ``PR_SET_PDEATHSIG``: if closed_loop dies (SIGKILL) the
+    children get SIGTERM and finalize, instead of running on unsupervised.
+    """
+    os.setpgrp()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    except (OSError, AttributeError):    # pragma: no cover - not Linux
+        pass
+
+
+def spawn(command: list[str], env: Optional[dict[str, str]] = None) -> subprocess.Popen:
+    """
+    Start a node process, supervised by this one (see :func:`_child_setup`).
+
+    :param command: its command line.
+    :param env: its environment (default: ours).
+    :return: the process.
+    """
+    return subprocess.Popen(command, env=env, preexec_fn=_child_setup)
+
+
 def stop(process: subprocess.Popen, name: str, grace: float = 10.0) -> int:
     """
-    Stop a node with SIGINT (then SIGKILL after ``grace`` seconds).
+    Stop a node with SIGTERM (then SIGKILL after ``grace`` seconds).
+
+    The nodes treat SIGTERM as SIGINT (the recorder finalizes its bag); a child whose
+    Python is still starting ends silently on it, where SIGINT prints a traceback.
 
     :param process: the process.
     :param name: its name, for messages.
     :param grace: seconds to wait for a clean exit.
-    :return: its exit code (0 for a clean SIGINT exit).
+    :return: its exit code (0 for a clean exit on the signal).
     """
     if process.poll() is None:
-        process.send_signal(signal.SIGINT)
+        process.send_signal(signal.SIGTERM)
         try:
             process.wait(grace)
         except subprocess.TimeoutExpired:
-            print(f'closed_loop: {name} ignored SIGINT for {grace:g} s: killed',
+            print(f'closed_loop: {name} ignored SIGTERM for {grace:g} s: killed',
                   file=sys.stderr)
             process.kill()
             process.wait()
             return 1
     code = process.returncode
-    return 0 if code in (0, -signal.SIGINT) else code
+    return 0 if code in (0, -signal.SIGINT, -signal.SIGTERM) else code
 
 
 def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     """
     Run the scenario through both processes.
+
+    SIGINT and SIGTERM (``Terminated``) stop the children (SIGTERM each, the recorder
+    last, so the bag is finalized) and are re-raised; a second signal during that
+    cleanup is held, not obeyed half-way.
 
     :param cfg: what to run.
     :param env: environment of the child processes (default: ours).
@@ -156,43 +197,48 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     """
     if not cfg.scenario.is_file():
         raise ToolError(f'{cfg.scenario}: no such scenario file')
+    if not cfg.timeout > 0.0:
+        raise ToolError(f'timeout {cfg.timeout:g} s: must be > 0')
     load_scenario(cfg.scenario, cfg.speed or None)    # a bad file: one line, no processes
     sim_cmd, ctl_cmd = node_commands(cfg)
-    # the recorder first: the simulator starts once it and the controller are matched
-    recorder = (subprocess.Popen(recorder_command(cfg.bag), env=env) if cfg.bag
-                else None)
-    controller = subprocess.Popen(ctl_cmd, env=env)
-    bridge = (subprocess.Popen(bridge_command(cfg), env=env) if cfg.via_bridge else None)
-    sim = subprocess.Popen(sim_cmd, env=env)
+    processes: dict[str, subprocess.Popen] = {}
+    why = ''
     start = time.monotonic()
     try:
+        # the recorder first: the simulator starts once it and the controller are matched
+        if cfg.bag:
+            processes['record'] = spawn(recorder_command(cfg.bag), env)
+        processes['controller'] = spawn(ctl_cmd, env)
+        if cfg.via_bridge:
+            processes['path_bridge'] = spawn(bridge_command(cfg), env)
+        processes['sim_plant'] = spawn(sim_cmd, env)
+        sim = processes['sim_plant']
         while sim.poll() is None:
-            early = [(name, proc) for name, proc in (('controller', controller),
-                                                     ('path_bridge', bridge),
-                                                     ('record', recorder))
-                     if proc is not None and proc.poll() is not None]
+            early = [name for name in ('controller', 'path_bridge', 'record')
+                     if name in processes and processes[name].poll() is not None]
             if early:
-                print(f'closed_loop: {early[0][0]} exited early ({early[0][1].returncode})',
-                      file=sys.stderr)
+                why = (f'{early[0]} exited early (exit code '
+                       f'{processes[early[0]].returncode}) before the scenario ended')
                 break
             if time.monotonic() - start > cfg.timeout:
-                print(f'closed_loop: simulator did not finish within {cfg.timeout:g} s',
-                      file=sys.stderr)
+                why = (f'the simulator did not finish the scenario within --timeout '
+                       f'{cfg.timeout:g} s (wall clock, start-up included): stopped it')
                 break
             time.sleep(0.05)
     finally:
-        sim_code = stop(sim, 'sim_plant') if sim.poll() is None else sim.returncode
-        finished_in_time = time.monotonic() - start <= cfg.timeout
-        # the bridge right after the simulator: it reports silent odometry after 0.5 s
-        bridge_code = stop(bridge, 'path_bridge') if bridge is not None else 0
-        ctl_code = stop(controller, 'controller')
-        rec_code = stop(recorder, 'record') if recorder is not None else 0
-    if (sim_code != 0 or ctl_code != 0 or rec_code != 0 or bridge_code != 0
-            or not finished_in_time):
-        print(f'closed_loop: failed (sim_plant {sim_code}, controller {ctl_code}, '
-              f'record {rec_code}'
-              + (f', path_bridge {bridge_code})' if bridge is not None else ')'),
-              file=sys.stderr)
+        with deferred():
+            # the simulator first (it drives the loop), the bridge right after it (it
+            # reports silent odometry after 0.5 s), the recorder last
+            codes = {name: stop(processes[name], name)
+                     for name in ('sim_plant', 'path_bridge', 'controller', 'record')
+                     if name in processes}
+    failed = {name: code for name, code in codes.items() if code != 0}
+    if why or failed:
+        detail = ', '.join(f'{name} exit code {code}' for name, code in failed.items())
+        print(f'closed_loop: failed: {why or "a node failed"}'
+              + (f' ({detail})' if detail else '')
+              + (f'; the bag {cfg.bag} holds what was recorded until then'
+                 if cfg.bag and cfg.bag.is_dir() else ''), file=sys.stderr)
         return 1
     return 0
 
@@ -219,27 +265,42 @@ def main(argv: Sequence[str] | None = None) -> int:
     :param argv: command-line arguments.
     :return: exit code.
     """
-    p = argparse.ArgumentParser(description='run sim_plant and controller as two '
-                                'processes over DDS for one scenario')
+    p = ArgumentParser(prog='closed_loop', description='run sim_plant and controller as '
+                       'two processes over DDS for one scenario, recorded into a bag')
     p.add_argument('--scenario', type=Path,
-                   default=source_config_dir() / 'scenarios' / 'paper_r400.yaml')
-    p.add_argument('--speed', type=float, default=0.0,
-                   help="initial speed [m/s] (0: the scenario's)")
-    p.add_argument('--schedule', choices=SCHEDULE_MODES, default='paper')
-    p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep')
-    p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear')
-    p.add_argument('--rate', type=float, default=100.0, help='control rate [Hz]')
-    p.add_argument('--timeout', type=float, default=300.0)
+                   default=source_config_dir() / 'scenarios' / 'paper_r400.yaml',
+                   help='scenario YAML (default: config/scenarios/paper_r400.yaml)')
+    p.add_argument('--speed', type=number(0.0, MAX_SPEED, unit='m/s'), default=0.0,
+                   metavar='M/S', help="initial speed [m/s] (default 0: the scenario's)")
+    p.add_argument('--schedule', choices=SCHEDULE_MODES, default='paper',
+                   help='d_v schedule of the controller (default paper, eq. 26)')
+    p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep',
+                   help='lockstep: the simulator waits for each answer; realtime: wall '
+                   'clock (default lockstep)')
+    p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear',
+                   help='plant model (default linear)')
+    p.add_argument('--rate', type=number(1.0, 2000.0, unit='Hz'), default=100.0,
+                   metavar='HZ', help='measurement and control rate [Hz] (default 100)')
+    p.add_argument('--timeout', type=number(0.0, 1.0e6, low_open=True, unit='s'),
+                   default=300.0, metavar='S', help='wall-clock limit for the whole run, '
+                   'start-up included [s] (default 300)')
     p.add_argument('--bag', type=Path, default=None,
-                   help='bag directory (default: bags/<scenario>_<schedule>_<speed>_<time>)')
+                   help='bag directory, must not exist (default: '
+                   'bags/<scenario>_<schedule>_<speed>_<time>)')
     p.add_argument('--no-record', action='store_true', help='do not record a bag')
     p.add_argument('--via-bridge', action='store_true',
                    help='sim_plant publishes odometry and the road as a path; path_bridge '
                    'turns them into the contract (as on a real vehicle)')
     args = p.parse_args(argv)
+    if args.no_record and args.bag is not None:
+        raise ToolError('--bag and --no-record contradict each other: give one')
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    if not args.scenario.is_file():
+        raise ToolError(f'{args.scenario}: no such scenario file')
+    scenario = load_scenario(args.scenario, args.speed or None)    # one line, no process
     bag = None if args.no_record else (args.bag or default_bag(
-        args.scenario, args.schedule, args.speed, 'bridge_' if args.via_bridge else ''))
+        args.scenario, args.schedule, float(scenario.speed.initial),
+        'bridge_' if args.via_bridge else ''))
     if bag is not None:
         if bag.exists():
             raise ToolError(f'{bag}: exists already; choose another --bag')
@@ -257,3 +318,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def entry() -> int:
     """Entry point of ``closed_loop``."""
     return run_tool(main)
+
+
+if __name__ == '__main__':
+    sys.exit(entry())

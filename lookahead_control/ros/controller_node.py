@@ -576,7 +576,8 @@ def main(args: Optional[list[str]] = None) -> int:
     :param args: command-line arguments (ROS arguments included).
     :return: exit code.
     """
-    return run_node('controller', args, _make_controller)
+    return run_node('controller', args, _make_controller, specs=ALL_SPECS,
+                    description='variable look-ahead lateral controller (lifecycle node)')
 
 
 def entry() -> int:

@@ -22,19 +22,28 @@ and ``try_shutdown``.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 import re
+import signal
 import sys
+import tempfile
 import time
-from typing import Callable, Optional, Sequence, TypeVar
+from types import FrameType
+from typing import Any, Callable, Optional, Sequence, TypeVar
 
+from lookahead_control.core import interrupts
 from lookahead_control.core.cli import one_line
-from lookahead_control.core.config import ConfigError, read_yaml
+from lookahead_control.core.config import (check_params_file, ConfigError, flat_parameters,
+                                           read_yaml)
+from lookahead_control.core.param_schema import check_params
 from lookahead_control.core.params import ParameterError
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+import yaml
 
 N = TypeVar('N', bound=Node)
 RCLError = _rclpy.RCLError
@@ -125,20 +134,167 @@ def check_params_files(args: Sequence[str]) -> None:
                               '"<node>: {ros__parameters: {...}}")')
 
 
+def _nested(flat: dict[str, Any]) -> dict[str, Any]:
+    tree: dict[str, Any] = {}
+    for name, value in flat.items():
+        *heads, last = name.split('.')
+        branch = tree
+        for head in heads:
+            branch = branch.setdefault(head, {})
+        branch[last] = value
+    return tree
+
+
+def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
+                      scratch: list[Path]) -> list[str]:
+    """
+    Check the parameters given on the command line against the node's schema.
+
+    The same check as the offline tools make (``core.param_schema``): unknown names in
+    the node's sections (``vehicle.masss``), wrong types and values out of range are one
+    line naming the file (or ``-p``). An integer for a real (``mass: 1485``) is taken as
+    that real: the file is passed to rcl as a converted copy, ``-p`` rewritten.
+
+    :param args: command-line arguments (ROS arguments included).
+    :param node_name: the node's name (its sections in params files).
+    :param specs: its parameters (empty: only the files' syntax is checked).
+    :param scratch: converted copies written are appended here (the caller deletes them).
+    :return: the arguments to give rcl.
+    :raises ConfigError: a bad file or value.
+    """
+    check_params_files(args)
+    if not specs:
+        return list(args)
+    out = list(args)
+    for i, (flag, value) in enumerate(zip(args, args[1:])):
+        if flag == '--params-file':
+            document = read_yaml(value)
+            sections = check_params_file(value, node_name, specs)
+            if any(type(v) is not type(flat_parameters(document[key])[name])
+                   for key, flat in sections.items() for name, v in flat.items()):
+                handle = tempfile.NamedTemporaryFile(
+                    'w', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)
+                with handle:
+                    yaml.safe_dump({key: {'ros__parameters': _nested(flat)}
+                                    for key, flat in sections.items()}, handle)
+                scratch.append(Path(handle.name))
+                out[i + 1] = handle.name
+        elif flag == '-p' and ':=' in value and ':' not in value.partition(':=')[0]:
+            # (``-p node:name:=value`` is for another node)
+            name, _, text = value.partition(':=')
+            try:
+                parsed = check_params({name: yaml.safe_load(text) if text else ''},
+                                      specs)[name]
+            except (ParameterError, yaml.YAMLError) as err:
+                raise ConfigError(f'-p {value}: {one_line(str(err))}') from err
+            if isinstance(parsed, float):
+                out[i + 1] = f'{name}:={parsed!r}'
+    return out
+
+
+def wants_help(args: Sequence[str]) -> bool:
+    """
+    Return True if ``-h`` / ``--help`` is among the arguments before ``--ros-args``.
+
+    :param args: command-line arguments, the program first.
+    :return: whether to print the help.
+    """
+    # not rclpy's remove_ros_args: it parses the params files (a bad one is not --help's
+    # business, and rcl's error is not one line)
+    own = list(args)[1:]
+    if '--ros-args' in own:
+        own = own[:own.index('--ros-args')]
+    return any(a in ('-h', '--help') for a in own)
+
+
+def help_text(name: str, description: str, specs: Sequence[Any]) -> str:
+    """
+    Return a node executable's ``--help``: usage, purpose and every parameter.
+
+    :param name: the executable's name.
+    :param description: what the node does (one line).
+    :param specs: its parameters (``node_params.Spec``: name, default, description,
+        range, choices).
+    :return: the text.
+    """
+    lines = [f'usage: {name} [-h] [--ros-args [--params-file FILE] [-p NAME:=VALUE] '
+             '[-r FROM:=TO] ...]', '', description, '',
+             'options:', '  -h, --help  show this help and exit (no node is started)', '',
+             'ROS parameters (--params-file FILE, -p NAME:=VALUE):']
+    for spec in specs:
+        kind = type(spec.default).__name__.replace('float', 'double').replace(
+            'str', 'string')
+        allowed = (f'; one of {", ".join(spec.choices)}' if spec.choices else
+                   f'; [{spec.low:g}, {spec.high:g}]' if spec.low is not None
+                   and spec.high is not None else '')
+        lines.append(f'  {spec.name} ({kind}, default {spec.default!r}{allowed})')
+        lines.append(f'      {spec.description}')
+    return '\n'.join(lines) + '\n'
+
+
+class _StopRequest:
+    """SIGINT / SIGTERM while a node runs: a flag the spin loop reads, not an exception."""
+
+    def __init__(self) -> None:
+        """Install the handlers (restored by :meth:`restore`)."""
+        self.signals: list[int] = list(interrupts.received)    # one a library swallowed
+        self._previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+        for s in self._previous:
+            signal.signal(s, self._note)
+
+    def _note(self, signum: int, frame: Optional[FrameType]) -> None:
+        # no exception: one raised inside a callback is logged by the executor as
+        # "[FATAL] Exception in 'timers' callback" with a stack
+        self.signals.append(signum)
+
+    def __bool__(self) -> bool:
+        """Return True once a stop was asked for."""
+        return bool(self.signals)
+
+    def restore(self) -> None:
+        """Put back the handlers found at start."""
+        for s, handler in self._previous.items():
+            signal.signal(s, handler)
+
+
 def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
-             done: Callable[[N], bool] = lambda node: False) -> int:
+             done: Callable[[N], bool] = lambda node: False,
+             specs: Sequence[Any] = (), description: str = '') -> int:
     """
     Create a node, spin it until done or shut down, and clean up.
+
+    ``-h`` / ``--help`` prints the parameters and returns 0 without starting ROS.
+    SIGINT and SIGTERM stop the spin loop between callbacks (rclpy's own signal
+    handling is off, so no callback is cut by an exception), then the node is destroyed
+    (the recorder finalizes its bag there).
 
     :param name: the executable's name, for the one-line error.
     :param args: command-line arguments (ROS arguments included).
     :param make: creates (and, if needed, activates) the node after ``rclpy.init``.
     :param done: True when the node has finished (default: run until shut down).
+    :param specs: the node's parameters, for ``--help``.
+    :param description: what the node does, for ``--help``.
     :return: 0, or 2 for bad parameters or config.
     """
+    if wants_help([name, *(args or [])[1:]]):
+        print(help_text(name, description or f'the {name} node', specs), end='')
+        return 0
+    stop = _StopRequest()
+    scratch: list[Path] = []
     try:
-        check_params_files(args or [])
-        rclpy.init(args=args)
+        return _run(name, args, make, done, stop, specs, scratch)
+    finally:
+        stop.restore()
+        for path in scratch:
+            path.unlink(missing_ok=True)
+
+
+def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
+         done: Callable[[N], bool], stop: _StopRequest, specs: Sequence[Any],
+         scratch: list[Path]) -> int:
+    try:
+        rcl_args = checked_arguments(args or [], name, specs, scratch)
+        rclpy.init(args=rcl_args, signal_handler_options=SignalHandlerOptions.NO)
     except ConfigError as err:
         print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
         return 2
@@ -154,12 +310,12 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
                 else 'single_threaded')
         executor = make_executor(kind)
         executor.add_node(node)
-        spin_until(executor, lambda: done(node))
+        spin_until(executor, lambda: bool(stop) or done(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RCLError:
-        # SIGINT / SIGTERM shut the context down while a callback was using it (a
-        # graph query, a publish): a clean stop; anything else is a real error
+        # the context was shut down while a callback was using it (a graph query, a
+        # publish): a clean stop; anything else is a real error
         if rclpy.ok():
             raise
     except (ConfigError, ParameterError) as err:

@@ -13,127 +13,35 @@
 # limitations under the License.
 
 """
-ROS parameter declarations generated from the core's parameter dataclasses.
+ROS parameter declarations built from the core's parameter schema.
 
-One table of names, defaults, descriptions and ranges serves both nodes, so a
-``--params-file`` works on either and rclpy rejects out-of-range values itself.
+The tables (``VEHICLE_SPECS``, ``CONTROLLER_SPECS``, ``SAFETY_SPECS``: names, defaults,
+descriptions, ranges) are in :mod:`lookahead_control.core.param_schema`, which the
+offline tools check params files with too; here each :class:`Spec` becomes a
+``ParameterDescriptor``, so a ``--params-file`` works on either node and rclpy rejects
+out-of-range values itself.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Mapping, NamedTuple, Sequence
+from typing import Any, Mapping, Sequence
 
-from lookahead_control.core.baselines import (BaselineParams, LATERAL_RATE_MODES, LqrParams,
-                                              PurePursuitParams, StanleyParams)
-from lookahead_control.core.controller import LAW_NAMES
-from lookahead_control.core.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
-                                           VehicleParams)
+from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
+                                              StanleyParams)
+# the schema (names, types, defaults, ranges) is the core's, shared with the offline tools
+from lookahead_control.core.param_schema import (BASELINE_SPECS, CONTROLLER_SPECS, LAW_SPEC,
+                                                 SAFETY_SPECS, Spec, VEHICLE_SPECS)
+from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.safety import SafetyParams
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-
-class Spec(NamedTuple):
-    """A parameter: name, default, description, numeric range or string choices."""
-
-    name: str
-    default: Any
-    description: str
-    low: float | None = None
-    high: float | None = None
-    choices: Sequence[str] = ()
-
-
-VEHICLE_SPECS = (
-    Spec('vehicle.mass', 1485.0, 'vehicle mass m [kg]', 1.0, 1.0e5),
-    Spec('vehicle.yaw_inertia', 2872.0, 'yaw moment of inertia I_z [kg m^2]', 1.0, 1.0e6),
-    Spec('vehicle.l1', 1.1, 'CG to front axle l_1 [m]', 0.01, 20.0),
-    Spec('vehicle.l2', 1.58, 'CG to rear axle l_2 [m]', 0.01, 20.0),
-    Spec('vehicle.c_f', 80000.0, 'front axle cornering stiffness C_f [N/rad]', 1.0, 1.0e7),
-    Spec('vehicle.c_r', 80000.0, 'rear axle cornering stiffness C_r [N/rad]', 1.0, 1.0e7),
-    Spec('vehicle.d_s', 1.96, 'CG to front bumper, look-down sensor d_s [m]', 0.01, 50.0),
-)
-
-CONTROLLER_SPECS = (
-    Spec('controller.natural_frequency', 3.0,
-         'natural frequency w_n of the look-ahead error loop, k_p = w_n^2 [rad/s]',
-         0.01, 100.0),
-    Spec('controller.damping_ratio', 1.0, 'damping ratio zeta, k_d = 2 zeta w_n [-]',
-         0.01, 10.0),
-    Spec('controller.schedule', 'paper',
-         'd_v schedule: paper (eq. 26), exact (eq. 24) or fixed (d_v = vehicle.d_s)',
-         choices=SCHEDULE_MODES),
-    Spec('controller.max_look_ahead', 60.0, 'upper clamp of the scheduled d_v [m]',
-         0.01, 200.0),
-    Spec('controller.reference', 'lane_tangent',
-         'regulate y_v to 0 (lane_tangent) or to the lane offset y_o (arc_approx, '
-         'arc_exact)', choices=REFERENCE_MODES),
-    Spec('controller.min_speed', 1.0, 'the law divides by v_x; floor of v_x [m/s]',
-         0.01, 20.0),
-)
-
-LAW_SPEC = Spec('law', 'paper', 'steering law: paper (the look-ahead law, eq. 15 with the '
-                'controller.* schedule) or a baseline with its own parameters below; '
-                'switchable while active (the rate limit applies to the change)',
-                choices=LAW_NAMES)
-
-BASELINE_SPECS = (
-    Spec('pure_pursuit.velocity_ratio', 0.3, 'look-ahead per speed (Autoware '
-         'ld_velocity_ratio) [s]', 0.0, 10.0),
-    Spec('pure_pursuit.lateral_error_ratio', 3.6, 'look-ahead per |rear-axle error| past '
-         'the threshold (ld_lateral_error_ratio) [-]', 0.0, 100.0),
-    Spec('pure_pursuit.lateral_error_threshold', 0.5, 'long_ld_lateral_error_threshold [m]',
-         0.0, 100.0),
-    Spec('pure_pursuit.curvature_ratio', 120.0, 'look-ahead taken off per |curvature| '
-         '(ld_curvature_ratio) [m^2]', 0.0, 1.0e4),
-    Spec('pure_pursuit.min_look_ahead', 4.35, 'min_lookahead_distance [m]', 0.01, 200.0),
-    Spec('pure_pursuit.max_look_ahead', 60.0, 'max_lookahead_distance [m]', 0.01, 200.0),
-    Spec('stanley.gain', 4.0, 'k of atan(k e / (k_soft + v)) [1/s]', 0.001, 100.0),
-    Spec('stanley.softening', 1.0, 'k_soft [m/s]', 0.001, 100.0),
-    Spec('stanley.yaw_rate_gain', 0.05, 'k_d,yaw on r - r_traj [s]', 0.0, 10.0),
-    Spec('stanley.steady_yaw_gain', 1.0, 'k_ag on the steady-state yaw term [-]', 0.0, 5.0),
-    Spec('lqr.q_lateral', 0.01, 'Q weight of the lateral error [1/m^2]', 0.0, 1.0e6),
-    Spec('lqr.q_lateral_rate', 0.0, 'Q weight of its rate [s^2/m^2]', 0.0, 1.0e6),
-    Spec('lqr.q_heading', 0.1, 'Q weight of the relative yaw [1/rad^2]', 0.0, 1.0e6),
-    Spec('lqr.q_heading_rate', 0.0, 'Q weight of its rate [s^2/rad^2]', 0.0, 1.0e6),
-    Spec('lqr.r', 1.0, 'R weight of the steering angle [1/rad^2]', 1.0e-6, 1.0e6),
-    Spec('lqr.period', 0.01, 'sampling period the gains are designed for [s]', 0.001, 1.0),
-    Spec('lqr.lateral_rate', 'kinematic', "e1' measured as v_y cos e2 + v_x sin e2 "
-         "(kinematic) or Apollo's v_x sin e2, which ignores v_y (apollo)",
-         choices=LATERAL_RATE_MODES),
-    Spec('lqr.feedforward', True, "Apollo's curvature feedforward"),
-)
-
-SAFETY_SPECS = tuple(
-    Spec(f'safety.{name}', default, text, low, high) for name, default, text, low, high in (
-        ('max_lateral_error', 5.0, 'inputs: largest believable |lateral error| [m]', 0.01, 100.0),
-        ('max_relative_yaw', 1.0, 'inputs: largest believable |relative yaw| [rad]', 0.01, 3.2),
-        ('max_yaw_rate', 2.0, 'inputs: largest believable |yaw rate| [rad/s]', 0.01, 10.0),
-        ('max_speed', 70.0, 'inputs: largest believable |v_x| [m/s]', 1.0, 150.0),
-        ('max_lateral_speed', 10.0, 'inputs: largest believable |v_y| [m/s]', 0.01, 50.0),
-        ('max_acceleration', 15.0, 'inputs: largest believable |a_x| [m/s^2]', 0.1, 100.0),
-        ('max_curvature', 0.2, 'inputs: largest believable |curvature| [1/m]', 1e-4, 10.0),
-        ('max_sensor_distance', 100.0, 'inputs: largest measurement distance ahead [m]',
-         0.1, 1000.0),
-        ('max_future', 0.1, 'inputs: stamps further ahead of the clock are refused [s]',
-         0.0, 10.0),
-        ('input_timeout', 0.2, 'an input older than this is stale [s]', 0.01, 10.0),
-        ('hold_time', 0.5, 'stale inputs: hold the command this long, then ramp [s]',
-         0.0, 10.0),
-        ('safe_angle', 0.0, 'stale inputs: the ramp goes to this angle [rad]', -1.0, 1.0),
-        ('max_steering_angle', 0.6, 'output: angle limit [rad]', 0.01, 1.2),
-        ('max_steering_rate', 5.0, 'output: rate limit [rad/s]', 0.01, 50.0),
-        ('max_lateral_acceleration', 30.0, 'output: speed-dependent angle limit '
-         'atan(a L / v^2), kinematic lateral acceleration a [m/s^2]', 0.1, 100.0),
-        ('low_speed', 3.0, 'below this speed the law hands over to hold [m/s]', 0.1, 30.0),
-        ('low_speed_blend', 1.0, 'width of the low-speed hand-over [m/s]', 0.01, 30.0),
-        ('max_curvature_points', 256, 'inputs: a road_curvature polygon with more points '
-         'is refused, before its points are decoded', 1, 100000),
-        ('latency_warn', 0.05, 'diagnostics: WARN when an input arrives, or an answer goes '
-         'out, this long after the stamp [s]', 0.001, 10.0),
-    ))
+__all__ = ['baseline_params', 'BASELINE_SPECS', 'build', 'check_choices',
+           'CONTROLLER_SPECS', 'declare', 'descriptor', 'EXECUTOR_SPEC', 'EXECUTORS',
+           'LAW_SPEC', 'SAFETY_SPECS', 'safety_params', 'Spec', 'values',
+           'VEHICLE_SPECS', 'vehicle_and_controller']
 
 EXECUTORS = ('events', 'single_threaded')
 EXECUTOR_SPEC = Spec('executor', 'events', 'rclpy executor: events '

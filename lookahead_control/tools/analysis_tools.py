@@ -19,10 +19,51 @@ from __future__ import annotations
 from typing import Sequence
 
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid, zero_dynamics_table
-from lookahead_control.core.cli import markdown_table, parser, run_tool, write_json
+from lookahead_control.core.cli import (ArgumentParser, markdown_table, number, parser,
+                                        run_tool, ToolError, write_json)
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.params import ControllerParams
 from lookahead_control.core.stability import certificate, PAPER_GERSHGORIN, PAPER_NORM_BOUND
+
+# the speeds the tools accept [m/s] (the scenarios' limit is 90 m/s; 150 covers any car)
+MAX_SPEED = 150.0
+MAX_ROWS = 10000
+
+
+def add_speed_grid(p: ArgumentParser, v_min: float, v_max: float, step: float) -> None:
+    """
+    Add ``--v-min``, ``--v-max`` and ``--step`` to a table tool's parser.
+
+    :param p: the parser.
+    :param v_min: default first speed [m/s].
+    :param v_max: default last speed [m/s].
+    :param step: default spacing [m/s].
+    """
+    speed = number(0.0, MAX_SPEED, low_open=True, unit='m/s')
+    p.add_argument('--v-min', type=speed, default=v_min, metavar='M/S',
+                   help=f'first speed of the table [m/s] (default {v_min:g})')
+    p.add_argument('--v-max', type=speed, default=v_max, metavar='M/S',
+                   help=f'last speed of the table [m/s] (default {v_max:g})')
+    p.add_argument('--step', type=number(0.0, MAX_SPEED, low_open=True, unit='m/s'),
+                   default=step, metavar='M/S',
+                   help=f'speed spacing of the table [m/s] (default {step:g})')
+
+
+def grid(v_min: float, v_max: float, step: float) -> list[float]:
+    """
+    Return the table's speeds, or refuse an empty or huge grid in one line.
+
+    :param v_min: first speed [m/s].
+    :param v_max: last speed [m/s].
+    :param step: spacing [m/s].
+    :return: the speeds.
+    """
+    if v_max < v_min:
+        raise ToolError(f'--v-max {v_max:g} m/s is below --v-min {v_min:g} m/s')
+    if (v_max - v_min) / step + 1 > MAX_ROWS:
+        raise ToolError(f'--step {step:g} m/s gives more than {MAX_ROWS} rows from '
+                        f'{v_min:g} to {v_max:g} m/s; use a larger step')
+    return speed_grid(v_min, v_max, step)
 
 
 def schedule_main(argv: Sequence[str] | None = None) -> int:
@@ -34,12 +75,9 @@ def schedule_main(argv: Sequence[str] | None = None) -> int:
     """
     p = parser('d_v schedules over speed (eq. 24, 26) and the zero-dynamics damping '
                'each gives')
-    p.add_argument('--v-min', type=float, default=5.0)
-    p.add_argument('--v-max', type=float, default=40.0)
-    p.add_argument('--step', type=float, default=5.0)
+    add_speed_grid(p, 5.0, 40.0, 5.0)
     args = p.parse_args(argv)
-    rows = schedule_table(load_vehicle(args.vehicle),
-                          speed_grid(args.v_min, args.v_max, args.step))
+    rows = schedule_table(load_vehicle(args.vehicle), grid(args.v_min, args.v_max, args.step))
     print(markdown_table(rows))
     limit = ControllerParams().max_look_ahead
     clamped = [row['speed_mps'] for row in rows if row['d_v_exact_m'] >= limit]
@@ -63,12 +101,10 @@ def zero_dynamics_main(argv: Sequence[str] | None = None) -> int:
     :return: exit code.
     """
     p = parser('zero-dynamics roots over speed, fixed d_v = d_s vs eq. 26 (Fig. 2/3)')
-    p.add_argument('--v-min', type=float, default=5.0)
-    p.add_argument('--v-max', type=float, default=40.0)
-    p.add_argument('--step', type=float, default=2.5)
+    add_speed_grid(p, 5.0, 40.0, 2.5)
     args = p.parse_args(argv)
     rows = zero_dynamics_table(load_vehicle(args.vehicle),
-                               speed_grid(args.v_min, args.v_max, args.step))
+                               grid(args.v_min, args.v_max, args.step))
     print(markdown_table(rows))
     if args.json:
         write_json(args.json, rows)
@@ -86,12 +122,22 @@ def certificate_main(argv: Sequence[str] | None = None) -> int:
     :return: exit code (1 if the certificate does not hold).
     """
     p = parser('Section 4 stability certificate of the zero dynamics under varying '
-               'speed (Bauer-Fike and Gershgorin)')
-    p.add_argument('--v-min', type=float, default=10.0)
-    p.add_argument('--v-max', type=float, default=37.0)
-    p.add_argument('--a-max', type=float, default=3.5)
-    p.add_argument('--samples', type=int, default=2701)
+               'speed (Bauer-Fike and Gershgorin)', plot=False)
+    speed = number(0.0, MAX_SPEED, low_open=True, unit='m/s')
+    p.add_argument('--v-min', type=speed, default=10.0, metavar='M/S',
+                   help='lowest speed of the envelope [m/s] (default 10)')
+    p.add_argument('--v-max', type=speed, default=37.0, metavar='M/S',
+                   help='highest speed of the envelope [m/s] (default 37)')
+    p.add_argument('--a-max', type=number(0.0, 20.0, unit='m/s^2'), default=3.5,
+                   metavar='M/S^2',
+                   help='largest |longitudinal acceleration| [m/s^2] (default 3.5)')
+    p.add_argument('--samples', type=number(2, 1_000_000, integer=True), default=2701,
+                   metavar='N', help='speeds checked, evenly spaced from --v-min to '
+                   '--v-max, both included [-] (default 2701: every 0.01 m/s)')
     args = p.parse_args(argv)
+    if not args.v_max > args.v_min:
+        raise ToolError(f'--v-max {args.v_max:g} m/s must be above --v-min '
+                        f'{args.v_min:g} m/s')
     cert = certificate(load_vehicle(args.vehicle), args.v_min, args.v_max, args.a_max,
                        args.samples)
     rows = [
@@ -107,8 +153,9 @@ def certificate_main(argv: Sequence[str] | None = None) -> int:
          'paper': float('nan'), 'passes if': '< 0'},
     ]
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
-          f'{cert.a_max:g} m/s^2, d_v (eq. 25) <= {cert.d_v_max:.2f} m; worst norm at '
-          f'{cert.max_norm_speed:.2f} m/s')
+          f'{cert.a_max:g} m/s^2, d_v (eq. 25) <= {cert.d_v_max:.2f} m; checked at '
+          f'{args.samples} speeds (every {(cert.v_max - cert.v_min) / (args.samples - 1):.3g} '
+          f'm/s); worst norm at {cert.max_norm_speed:.2f} m/s')
     print(markdown_table(rows))
     verdict = cert.holds_norm or cert.holds_gershgorin
     print(f'Bauer-Fike: {"holds" if cert.holds_norm else "fails"}; Gershgorin: '

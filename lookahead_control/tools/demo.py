@@ -24,21 +24,23 @@ run's steering and the offline core runner's. One more run goes through path_bri
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 import shutil
 import sys
 from typing import Sequence
 
 from lookahead_control.analysis.paper_tables import PAPER_SPEEDS
-from lookahead_control.core.cli import markdown_table, run_tool, ToolError
+from lookahead_control.core.cli import ArgumentParser, markdown_table, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
-from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.params import ControllerParams, SCHEDULE_MODES, VehicleParams
 from lookahead_control.ros.closed_loop import LoopConfig, run_loop
 from lookahead_control.tools.analyze_tool import analyze, COLUMNS, write_outputs
 import numpy as np
 from sim_plant.closed_loop_sim import run
 from sim_plant.scenario import load_scenario
+
+MANIFEST = '.demo_written'     # what the last demo run wrote into its --out folder
+MAX_SPEED = 90.0               # m/s, the scenarios' limit
 
 
 def offline_difference(scenario: Path, speed: float, schedule: str,
@@ -62,6 +64,49 @@ def offline_difference(scenario: Path, speed: float, schedule: str,
                         initial=0.0))
 
 
+def prepare_out(out: Path) -> None:
+    """
+    Make ``out`` ready for a demo run without deleting anything demo did not write.
+
+    A missing or empty folder is used as it is. A folder a previous demo run made (it
+    holds :data:`MANIFEST`, listing what that run wrote) loses exactly those entries,
+    and only if it holds nothing else. Any other non-empty folder is refused.
+
+    :param out: the output folder.
+    :raises ToolError: ``out`` is a file, or holds files demo did not write.
+    """
+    if out.exists() and not out.is_dir():
+        raise ToolError(f'--out {out}: is a file, not a folder')
+    entries = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
+    if entries:
+        manifest = out / MANIFEST
+        written = (set(manifest.read_text(encoding='utf-8').split('\n')) - {''}
+                   if manifest.is_file() else set())
+        foreign = [e for e in entries if e != MANIFEST and e not in written]
+        if not manifest.is_file() or foreign:
+            raise ToolError(f'--out {out}: not empty and not a demo folder (holds '
+                            f'{", ".join(foreign[:3])}{" ..." if len(foreign) > 3 else ""}'
+                            '); give a new or empty folder: demo deletes only what it wrote')
+        for name in sorted(written & set(entries)):
+            target = out / name
+            if target.is_dir() and not target.is_symlink():
+                shutil.rmtree(target)
+            else:
+                target.unlink()
+        manifest.unlink()
+    out.mkdir(parents=True, exist_ok=True)         # unwritable: one line, before any run
+
+
+def record_written(out: Path) -> None:
+    """
+    List what this run wrote into ``out`` (the next run may replace exactly that).
+
+    :param out: the output folder.
+    """
+    names = sorted(p.name for p in out.iterdir() if p.name != MANIFEST)
+    (out / MANIFEST).write_text('\n'.join(names) + '\n', encoding='utf-8')
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """
     Run, record and analyse the demo.
@@ -69,23 +114,35 @@ def main(argv: Sequence[str] | None = None) -> int:
     :param argv: command-line arguments.
     :return: exit code.
     """
-    p = argparse.ArgumentParser(prog='demo', description=__doc__.strip().splitlines()[0])
-    p.add_argument('--out', type=Path, default=Path('bags') / 'demo')
-    p.add_argument('--speeds', type=float, nargs='+', default=list(PAPER_SPEEDS))
-    p.add_argument('--schedules', nargs='+', default=['fixed', 'paper'])
+    p = ArgumentParser(prog='demo', description=__doc__.strip().splitlines()[0])
+    p.add_argument('--out', type=Path, default=Path('bags') / 'demo',
+                   help='output folder for the bags, report.md and plots (default '
+                   'bags/demo); must be new, empty or made by demo: demo replaces what '
+                   'its previous run wrote there and refuses any other non-empty folder')
+    p.add_argument('--speeds', type=number(0.0, MAX_SPEED, low_open=True, unit='m/s'),
+                   nargs='+', default=list(PAPER_SPEEDS), metavar='M/S',
+                   help='constant speeds of the runs [m/s] (default: 10 20 30 37)')
+    p.add_argument('--schedules', nargs='+', default=['fixed', 'paper'],
+                   choices=SCHEDULE_MODES, metavar='SCHEDULE',
+                   help=f'd_v schedules to run, of {", ".join(SCHEDULE_MODES)} '
+                   '(default: fixed paper)')
     args = p.parse_args(argv)
     scenario = source_config_dir() / 'scenarios' / 'paper_r400.yaml'
-    if args.out.exists():
-        shutil.rmtree(args.out)
-    args.out.mkdir(parents=True)            # unwritable: one line, before any run
+    for speed in args.speeds:                   # a bad scenario: one line, no processes
+        load_scenario(scenario, speed)
+    prepare_out(args.out)
     bags = []
-    for schedule in args.schedules:
-        for speed in args.speeds:
-            bag = args.out / f'{schedule}_{speed:g}'
-            print(f'demo: {schedule} d_v at {speed:g} m/s -> {bag}', flush=True)
-            if run_loop(LoopConfig(scenario, speed=speed, schedule=schedule, bag=bag)) != 0:
-                raise ToolError(f'the closed loop {schedule} at {speed:g} m/s failed')
-            bags.append(bag)
+    try:
+        for schedule in dict.fromkeys(args.schedules):
+            for speed in dict.fromkeys(args.speeds):
+                bag = args.out / f'{schedule}_{speed:g}'
+                print(f'demo: {schedule} d_v at {speed:g} m/s -> {bag}', flush=True)
+                if run_loop(LoopConfig(scenario, speed=speed, schedule=schedule,
+                                       bag=bag)) != 0:
+                    raise ToolError(f'the closed loop {schedule} at {speed:g} m/s failed')
+                bags.append(bag)
+    finally:
+        record_written(args.out)
     results = analyze(bags)
     for (run_data, series, row), bag in zip(results, bags):
         schedule, speed = bag.name.split('_')
@@ -114,6 +171,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f'path_bridge -> controller, paper d_v at 37 m/s (`{bridge.name}`): largest '
                 f'|steering - offline runner| {gap:.3g} rad, at the straight-to-curve step '
                 '(derived bound 0.020 rad, docs/vehicle_bridge.md).\n')
+    record_written(args.out)
     print(markdown_table(rows, digits=3))
     print(f'through path_bridge: largest |steering - offline| {gap:.3g} rad')
     print(f'wrote {report}')

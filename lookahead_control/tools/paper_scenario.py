@@ -28,13 +28,19 @@ from typing import Any, Sequence
 from lookahead_control.analysis.metrics import (METRIC_COLUMNS, metrics_legend, notes_list,
                                                 run_metrics)
 from lookahead_control.analysis.paper_tables import PAPER_FIG5_LEGEND, PAPER_SPEEDS
-from lookahead_control.core.cli import markdown_table, parser, run_tool, write_csv, write_json
+from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
+                                        write_csv, write_json)
 from lookahead_control.core.config import load_controller, load_vehicle
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import paper_scenario
 from sim_plant.vehicle_model import PlantParams
 
+DEFAULT_OUT = Path('bags') / 'paper_scenario'
+MARKER = '.paper_scenario'      # in an --out folder this tool wrote
+REPORT_FILES = ('report.md', 'metrics.csv', 'metrics.json')
+MAX_SPEED = 90.0        # m/s, the scenarios' limit
+MAX_DURATION = 600.0    # s of simulated time per run
 TABLE_COLUMNS = ('controller', 'speed_mps', 'd_v_final_m', *METRIC_COLUMNS)
 
 
@@ -134,21 +140,64 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = parser("reproduce the paper's Fig. 4/5 scenario: fixed d_v = d_s vs eq. 26")
     p.add_argument('--controller', type=Path, default=None,
                    help='controller params YAML (default: config/controller.yaml)')
-    p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear')
-    p.add_argument('--speeds', type=float, nargs='+', default=list(PAPER_SPEEDS))
-    p.add_argument('--duration', type=float, default=10.0)
-    p.add_argument('--out', type=Path, default=Path('bags') / 'paper_scenario',
-                   help='folder for report.md, metrics.csv/json and PNGs')
-    p.add_argument('--no-plots', action='store_true')
+    p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear',
+                   help='plant model (default linear)')
+    p.add_argument('--speeds', type=number(0.0, MAX_SPEED, low_open=True, unit='m/s'),
+                   nargs='+', default=list(PAPER_SPEEDS), metavar='M/S',
+                   help='constant speeds of the runs [m/s] (default: 10 20 30 37)')
+    p.add_argument('--duration', type=number(0.0, MAX_DURATION, low_open=True, unit='s'),
+                   default=10.0, metavar='S', help='simulated time per run [s] (default 10)')
+    p.add_argument('--out', type=Path, default=None,
+                   help='folder for report.md, metrics.csv/json and fig_*.png (default: '
+                   f'{DEFAULT_OUT} when neither --plot nor --json is given)')
+    p.add_argument('--no-plots', action='store_true',
+                   help='write no PNG into the --out folder')
     args = p.parse_args(argv)
+    out = args.out
+    if out is None and args.plot is None and args.json is None:
+        out = DEFAULT_OUT
+    if args.no_plots and out is None:
+        raise ToolError('--no-plots: no report folder is written (give --out)')
+    if out is not None:
+        check_out(out)              # before the runs: nothing of the user's is replaced
     runs = reproduce(load_vehicle(args.vehicle), load_controller(args.controller),
                      PlantParams(model=args.plant), args.speeds, args.duration)
     rows = metrics_rows(runs)
     print(markdown_table(rows, TABLE_COLUMNS, digits=3))
     print('\n'.join(notes_list(rows, ('controller', 'speed_mps'))))
-    report = write_report(runs, rows, args.out, plots=not args.no_plots)
-    print(f'wrote {report}')
+    if args.json is not None:
+        write_json(args.json, rows)
+        print(f'wrote {args.json}')
+    if args.plot is not None:
+        from lookahead_control.analysis.plotting import plot_runs
+        series = [{'label': f'{label} {r.scenario.speed.initial:g} m/s', 'time': r.time,
+                   **r.channels} for label, r in runs]
+        png = plot_runs(series, args.plot, 'fixed d_s vs scheduled d_v: 2 s straight, then '
+                        'right curve R = 400 m')
+        print(f'wrote {png}')
+    if out is not None:
+        print(f'wrote {write_report(runs, rows, out, plots=not args.no_plots)}')
+        (out / MARKER).write_text('report.md, metrics.csv, metrics.json, fig_*.png\n',
+                                  encoding='utf-8')
     return 0
+
+
+def check_out(out: Path) -> None:
+    """
+    Refuse an output folder holding files of the report's names that this tool did not write.
+
+    :param out: the ``--out`` folder.
+    :raises ToolError: ``out`` is a file, or would lose a file it did not write.
+    """
+    if out.exists() and not out.is_dir():
+        raise ToolError(f'--out {out}: is a file, not a folder')
+    if not out.is_dir() or (out / MARKER).is_file():
+        return
+    taken = sorted(p.name for p in out.iterdir() if p.name in REPORT_FILES
+                   or (p.name.startswith('fig_') and p.suffix == '.png'))
+    if taken:
+        raise ToolError(f'--out {out}: holds {", ".join(taken)}, not written by '
+                        'paper_scenario; give a new or empty folder')
 
 
 def entry() -> int:

@@ -1,0 +1,184 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Interrupts of the executables: Ctrl-C and SIGTERM as a clean stop, never a traceback.
+
+Imported first by the packages (``lookahead_control/__init__.py``,
+``sim_plant/__init__.py``), before any heavy import (numpy, rclpy): an executable
+interrupted while it starts prints one line, not a stack of import frames. Only modules
+the interpreter has loaded at start-up (and ``signal``), so the import itself is short.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from types import FrameType, TracebackType
+
+PACKAGE_NAME = 'lookahead_control'
+_installed = False
+# `python -m lookahead_control.x`: argv[0] is '-m' while the package is being imported
+_STARTED_AS_MODULE = sys.argv[:1] == ['-m']
+# SIGINT / SIGTERM received by an executable, in order (a library may swallow the
+# KeyboardInterrupt; the node's spin loop and the excepthook still see the signal)
+received: list[int] = []
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where SIGINT raises KeyboardInterrupt (so every cleanup runs)."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        """
+        Remember the signal.
+
+        :param signum: the signal number (for the exit code 128 + signum).
+        """
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def exit_code(interrupt: BaseException) -> int:
+    """
+    Return the shell's exit code for an interrupt: 128 + the signal number.
+
+    :param interrupt: a KeyboardInterrupt (SIGINT) or :class:`Terminated`.
+    :return: 130 for SIGINT, 143 for SIGTERM.
+    """
+    return 128 + int(getattr(interrupt, 'signum', signal.SIGINT))
+
+
+def running_as_executable(argv0: str | None = None) -> bool:
+    """
+    Return True when this process is one of the package's executables.
+
+    ``python -m <module>`` (``sys.argv[0]`` is ``-m`` while the package is imported,
+    then the module's file) or a console script installed in ``lib/lookahead_control/``
+    (``ros2 run``'s place; the venv's ``bin/`` links there). A library import (a test, a
+    notebook, a user's script) is left alone.
+
+    :param argv0: the program (default ``sys.argv[0]``).
+    :return: whether to install the executables' interrupt handling.
+    """
+    program = argv0 if argv0 is not None else (sys.argv[0] if sys.argv else '')
+    if program == '-m' or (argv0 is None and _STARTED_AS_MODULE):
+        return True
+    try:
+        return os.path.basename(os.path.dirname(os.path.realpath(program))) == PACKAGE_NAME
+    except (OSError, ValueError):
+        return False
+
+
+def _interrupted(value: BaseException | None) -> BaseException | None:
+    """Return the KeyboardInterrupt behind an exception (an import wraps it), or None."""
+    for _ in range(20):
+        if value is None or isinstance(value, KeyboardInterrupt):
+            return value
+        value = value.__cause__ or value.__context__
+    return None
+
+
+class _Hook:
+    """The excepthook: one line for an executable's interrupt, else the previous hook."""
+
+    def __init__(self, previous: object) -> None:
+        self.previous = previous
+
+    def __call__(self, kind: type[BaseException], value: BaseException,
+                 trace: TracebackType | None) -> None:
+        # a library may wrap the interrupt into its own error (numpy's, rclpy's import
+        # failures), or lose it: the signal was received all the same
+        interrupt = _interrupted(value)
+        if (interrupt is not None or received) and running_as_executable():
+            terminated = isinstance(interrupt, Terminated) or (
+                interrupt is None and received[-1] == signal.SIGTERM)
+            name = os.path.basename(sys.argv[0]).rsplit('.py', 1)[0]
+            print(f'{name}: {"terminated" if terminated else "interrupted"}',
+                  file=sys.stderr)
+            return
+        self.previous(kind, value, trace)       # type: ignore[operator]
+
+
+def _on_signal(signum: int, frame: FrameType | None) -> None:
+    """Remember the signal, then raise as Python does for SIGINT (Terminated for SIGTERM)."""
+    received.append(signum)
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Terminated(signum)
+
+
+def _handle(signum: int, default: object) -> None:
+    """Route a signal to :func:`_on_signal` unless someone else handles it already."""
+    try:
+        if signal.getsignal(signum) == default:
+            signal.signal(signum, _on_signal)
+    except ValueError:          # not the main thread
+        pass
+
+
+def install() -> None:
+    """
+    Make an interrupt of a tool one line, and SIGTERM act like SIGINT.
+
+    An uncaught KeyboardInterrupt (also one an import wrapped into another error)
+    prints ``<program>: interrupted`` instead of a traceback (Python still exits with the
+    signal's code); SIGTERM raises :class:`Terminated`, a KeyboardInterrupt, so
+    ``finally`` blocks stop children and finalize bags as for Ctrl-C (nodes handle both
+    in ``ros.node_main.run_node``). Idempotent.
+    """
+    global _installed
+    if _installed:
+        return
+    _installed = True
+    if not isinstance(sys.excepthook, _Hook):
+        sys.excepthook = _Hook(sys.excepthook)
+    _handle(signal.SIGTERM, signal.SIG_DFL)
+    _handle(signal.SIGINT, signal.default_int_handler)
+
+
+def install_if_executable() -> None:
+    """
+    Install the start-up part of :func:`install` when this process is an executable.
+
+    The excepthook goes in first, whatever the process (it only acts for an
+    executable): an interrupt while this very check runs is one line too. Then SIGINT
+    is remembered as it raises (:data:`received`); SIGTERM keeps its default until
+    :func:`install` (a tool) or ``run_node`` (a node): a node told to stop while its
+    Python is still starting just ends, silently.
+    """
+    if not isinstance(sys.excepthook, _Hook):
+        sys.excepthook = _Hook(sys.excepthook)
+    if running_as_executable():
+        _handle(signal.SIGINT, signal.default_int_handler)
+
+
+class deferred:  # noqa: N801 - used as a context manager, like contextlib's
+    """Hold SIGINT and SIGTERM while a cleanup runs (a second Ctrl-C must not cut it)."""
+
+    def __enter__(self) -> list[int]:
+        """Hold the signals; return the list of those that arrive meanwhile."""
+        self.held: list[int] = []
+        self._previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+        for s in self._previous:
+            signal.signal(s, self._note)
+        return self.held
+
+    def _note(self, signum: int, frame: FrameType | None) -> None:
+        self.held.append(signum)
+
+    def __exit__(self, *exc: object) -> None:
+        """Put the previous handlers back."""
+        for s, handler in self._previous.items():
+            signal.signal(s, handler)

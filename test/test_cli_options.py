@@ -1,0 +1,544 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Every executable's ``--help``, and every option either changes the output or is refused.
+
+The options are read from each executable's own ``--help`` (what its argparse parser
+declares), so an option added without a case here fails
+``test_every_option_has_a_case``. Each case runs the executable as a process, as a user
+would: a valid value must change what it prints or writes (compared with the same run
+without the option), a bad value must be refused in one line naming the option, before
+any process or file is made.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+import re
+import signal
+import subprocess
+import sys
+import time
+
+from conftest import entry_points
+from lookahead_control.bags.rosbag_io import bag_topics, node_parameters
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+EXES = Path(sys.prefix) / 'lib' / 'lookahead_control'
+pytestmark = pytest.mark.process
+ENV = {**os.environ, 'MPLBACKEND': 'Agg'}
+
+
+def _command(exe):
+    """Return the command line of an executable (installed, else its entry point)."""
+    if (EXES / exe).exists():
+        return [str(EXES / exe)]
+    module, func = entry_points()[exe].split(':')
+    return [sys.executable, '-c', f'import sys\nsys.argv[0] = {exe!r}\nfrom {module} import '
+            f'{func}\nsys.exit({func}())']
+
+
+def run(exe, *args, cwd=ROOT, timeout=300, env=None):
+    """Run an executable to its end."""
+    return subprocess.run([*_command(exe), *map(str, args)], cwd=cwd, capture_output=True,
+                          text=True, timeout=timeout, env=env or ENV)
+
+
+# -- --help -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize('exe', sorted(entry_points()))
+def test_help_prints_usage_and_starts_nothing(exe, tmp_path):
+    # an invalid domain: a node started despite --help would fail to be created
+    env = {**ENV, 'ROS_DOMAIN_ID': '99999'}
+    for flag in ('--help', '-h'):
+        out = run(exe, flag, cwd=tmp_path, timeout=60, env=env)
+        assert out.returncode == 0, (exe, flag, out.stderr)
+        assert out.stdout.startswith('usage: ') and exe in out.stdout.splitlines()[0]
+        assert out.stderr == '', (exe, out.stderr)
+        assert list(tmp_path.iterdir()) == [], f'{exe} {flag} wrote files'
+
+
+def options_of(exe):
+    """Return the options an executable's --help lists (its parser's), without -h."""
+    text = run(exe, '--help', timeout=60).stdout
+    found = set()
+    for line in text.splitlines():
+        if re.match(r'^  -', line):
+            items = line.strip().split('  ')[0].split(', ')
+            names = [item.split()[0] for item in items if item.startswith('-')]
+            longest = max(names, key=len)
+            if longest not in ('--help', '-h'):
+                found.add(longest)
+    return found
+
+
+# -- the cases --------------------------------------------------------------------------
+#
+# CASES[exe][option] = (bad values, effect): bad values must be refused in one line naming
+# the option; effect(ctx) runs the option with a valid value and asserts what changed.
+
+NON_NUMBERS = ('nan', 'inf', '-inf', '1e400', 'abc')
+SHORT_SCENARIO = """scenario:
+  name: short
+  duration: 1.0
+  speed: {initial: 20.0}
+  road:
+    - {type: straight, time: 0.5}
+    - {type: arc, length: 500.0, curvature: -0.0025}
+"""
+
+
+class Ctx:
+    """Shared inputs (made once) and the tool's baseline output."""
+
+    def __init__(self, tmp):
+        self.tmp = tmp
+        self.scenario = tmp / 'short.yaml'
+        self.scenario.write_text(SHORT_SCENARIO)
+        self.vehicle = tmp / 'vehicle.yaml'
+        self.vehicle.write_text('/**:\n  ros__parameters:\n    vehicle:\n      d_s: 2.5\n'
+                                '      mass: 1800\n')
+        self.controller = tmp / 'controller.yaml'
+        self.controller.write_text('controller:\n  ros__parameters:\n    controller:\n'
+                                   '      natural_frequency: 1.5\n')
+        self._bag = None
+        self._baselines = {}
+
+    def folder(self, name):
+        path = self.tmp / name
+        path.mkdir(exist_ok=True)
+        return path
+
+    @property
+    def bag(self):
+        """Return a recorded lockstep closed loop of the short scenario."""
+        if self._bag is None:
+            bag = self.tmp / 'loop_bag'
+            out = run('closed_loop', '--scenario', self.scenario, '--bag', bag,
+                      cwd=self.tmp)
+            assert out.returncode == 0, out.stderr
+            self._bag = bag
+        return self._bag
+
+    def baseline(self, exe, *args):
+        key = (exe, args)
+        if key not in self._baselines:
+            out = run(exe, *args, cwd=self.folder('base_' + exe))
+            assert out.returncode == 0, out.stderr
+            self._baselines[key] = out
+        return self._baselines[key]
+
+
+@pytest.fixture(scope='module')
+def ctx(tmp_path_factory):
+    return Ctx(tmp_path_factory.mktemp('options'))
+
+
+def _ok(out):
+    assert out.returncode == 0, out.stderr
+    return out
+
+
+def _table_tool(exe, base):
+    """Cases shared by schedule and zero_dynamics."""
+    def changes(option, value):
+        def effect(c):
+            out = _ok(run(exe, *base, option, value, cwd=c.folder(exe)))
+            assert out.stdout != c.baseline(exe, *base).stdout
+        return effect
+
+    def writes(option, name, check):
+        def effect(c):
+            path = c.folder(exe) / name
+            _ok(run(exe, *base, option, path, cwd=c.folder(exe)))
+            check(path)
+        return effect
+
+    return {
+        '--vehicle': ((), lambda c: (_ok(run(exe, *base, '--vehicle', c.vehicle)).stdout
+                                     != c.baseline(exe, *base).stdout) or pytest.fail()),
+        '--plot': (('plot.txt',), writes('--plot', 'p.png',
+                                         lambda p: p.read_bytes()[:4] == b'\x89PNG'
+                                         or pytest.fail('no PNG'))),
+        '--json': ((), writes('--json', 't.json', lambda p: json.loads(p.read_text()))),
+        '--v-min': (NON_NUMBERS + ('0', '-5', '200'), changes('--v-min', '20')),
+        '--v-max': (NON_NUMBERS + ('0', '1e300', '200'), changes('--v-max', '20')),
+        '--step': (NON_NUMBERS + ('0', '-1', '1e-6'), changes('--step', '10')),
+    }
+
+
+def _certificate():
+    def changes(*args):
+        def effect(c):
+            out = run('certificate', *args, cwd=c.folder('cert'))
+            assert out.returncode in (0, 1), out.stderr
+            assert out.stdout != c.baseline('certificate').stdout
+        return effect
+
+    def json_effect(c):
+        path = c.folder('cert') / 'c.json'
+        _ok(run('certificate', '--json', path))
+        assert json.loads(path.read_text())['certificate']['v_max'] == 37.0
+    return {
+        '--vehicle': ((), lambda c: changes('--vehicle', str(c.vehicle))(c)),
+        '--json': ((), json_effect),
+        '--v-min': (NON_NUMBERS + ('0', '-5', '1e300'), changes('--v-min', '20')),
+        '--v-max': (NON_NUMBERS + ('0', '1e300', '5'), changes('--v-max', '30')),
+        '--a-max': (NON_NUMBERS + ('-1', '1e300'), changes('--a-max', '12')),
+        '--samples': (NON_NUMBERS + ('0', '1', '-3', '2.5'), changes('--samples', '11')),
+    }
+
+
+PAPER_BASE = ('--speeds', '20', '--duration', '3')
+
+
+def _paper():
+    def table(c, *args):
+        out = _ok(run('paper_scenario', *PAPER_BASE, *args, '--out', 'o',
+                      cwd=c.folder('paper_table')))
+        return out.stdout.split('wrote')[0]
+
+    def into(c, *args):
+        folder = c.folder('paper_' + '_'.join(a.strip('-') for a in args if
+                                              a.startswith('--')))
+        _ok(run('paper_scenario', *PAPER_BASE, *args, cwd=folder))
+        return folder
+
+    def plot(c):
+        folder = into(c, '--plot', 'mine.png')
+        assert (folder / 'mine.png').read_bytes()[:4] == b'\x89PNG'
+        assert not (folder / 'bags').exists(), 'output went to bags/paper_scenario'
+
+    def json_file(c):
+        folder = into(c, '--json', 'mine.json')
+        rows = json.loads((folder / 'mine.json').read_text())
+        assert [r['speed_mps'] for r in rows] == [20.0, 20.0]
+        assert not (folder / 'bags').exists(), 'output went to bags/paper_scenario'
+
+    def out(c):
+        folder = into(c, '--out', 'here')
+        assert (folder / 'here' / 'report.md').exists() and not (folder / 'bags').exists()
+
+    def no_plots(c):
+        folder = into(c, '--out', 'here', '--no-plots')
+        assert not list((folder / 'here').glob('*.png'))
+        assert (folder / 'here' / 'report.md').exists()
+        refused = run('paper_scenario', *PAPER_BASE, '--json', 'x.json', '--no-plots',
+                      cwd=folder)
+        assert refused.returncode == 2 and '--no-plots' in refused.stderr
+
+    def differs(*args):
+        def effect(c):
+            assert table(c, *args) != table(c)
+        return effect
+    return {
+        '--vehicle': ((), lambda c: differs('--vehicle', str(c.vehicle))(c)),
+        '--controller': ((), lambda c: differs('--controller', str(c.controller))(c)),
+        '--plant': (('bicycle',), differs('--plant', 'nonlinear')),
+        '--speeds': (NON_NUMBERS + ('-5', '0', '200'), differs('--speeds', '30')),
+        '--duration': (NON_NUMBERS + ('0', '-1', '1e9'), differs('--duration', '4')),
+        '--plot': (('plot.jpg',), plot),
+        '--json': ((), json_file),
+        '--out': ((), out),
+        '--no-plots': ((), no_plots),
+    }
+
+
+def _closed_loop():
+    def recorded(c):
+        """One run with every option changed; the bag records what each set."""
+        bag = c.tmp / 'cl_all'
+        if not bag.exists():
+            out = run('closed_loop', '--scenario', c.scenario, '--speed', '15',
+                      '--schedule', 'fixed', '--mode', 'realtime', '--plant', 'nonlinear',
+                      '--rate', '50', '--timeout', '120', '--bag', bag, cwd=c.tmp)
+            assert out.returncode == 0, out.stderr
+            assert f'recorded {bag}' in out.stdout
+        return node_parameters(bag, '/sim_plant'), node_parameters(bag, '/controller')
+
+    def check(fn):
+        def effect(c):
+            sim, controller = recorded(c)
+            fn(sim, controller, c)
+        return effect
+
+    def timeout(c):
+        out = run('closed_loop', '--scenario', c.scenario, '--timeout', '0.5', '--bag',
+                  c.tmp / 'cl_timeout', cwd=c.tmp)
+        assert out.returncode == 1
+        line = out.stderr.strip().splitlines()[-1]
+        assert 'within --timeout 0.5 s' in line and '(sim_plant 0' not in line, line
+
+    def no_record(c):
+        folder = c.folder('cl_norecord')
+        out = run('closed_loop', '--scenario', c.scenario, '--no-record', cwd=folder)
+        assert out.returncode == 0, out.stderr
+        assert 'recorded' not in out.stdout and not (folder / 'bags').exists()
+    return {
+        '--scenario': ((), check(lambda s, ctl, c: s['scenario_file'] == str(c.scenario)
+                                 or pytest.fail(s['scenario_file']))),
+        '--speed': (NON_NUMBERS + ('-5', '200'),
+                    check(lambda s, ctl, c: s['speed'] == 15.0 or pytest.fail())),
+        '--schedule': (('bogus',), check(lambda s, ctl, c: ctl['controller.schedule']
+                                         == 'fixed' or pytest.fail())),
+        '--mode': (('fast',), check(lambda s, ctl, c: s['mode'] == 'realtime'
+                                    or pytest.fail())),
+        '--plant': (('bicycle',), check(lambda s, ctl, c: s['plant.model'] == 'nonlinear'
+                                        or pytest.fail())),
+        '--rate': (NON_NUMBERS + ('0', '-100', '1e6'),
+                   check(lambda s, ctl, c: s['rate_hz'] == 50.0 or pytest.fail())),
+        '--timeout': (NON_NUMBERS + ('0', '-1'), timeout),
+        '--bag': ((), check(lambda s, ctl, c: None)),
+        '--no-record': ((), no_record),
+    }
+
+
+def _demo():
+    def effect(c):
+        folder = c.tmp / 'demo_out'
+        if not folder.exists():
+            out = run('demo', '--out', folder, '--speeds', '15', '--schedules', 'fixed',
+                      cwd=c.tmp)
+            assert out.returncode == 0, out.stderr
+        assert sorted(p.name for p in folder.iterdir() if p.is_dir()) == ['fixed_15']
+        assert (folder / 'report.md').exists()
+    return {
+        '--out': ((), effect),
+        '--speeds': (NON_NUMBERS + ('-5', '0', '200'), effect),
+        '--schedules': (('bogus',), effect),
+    }
+
+
+def _record():
+    talker = ('import rclpy, time\nfrom rclpy.node import Node\nfrom std_msgs.msg import '
+              'Float64\nrclpy.init()\nn = Node("talker")\np = n.create_publisher(Float64, '
+              '"/talk", 10)\nq = n.create_publisher(Float64, "/other", 10)\n'
+              'while True:\n    p.publish(Float64(data=1.0))\n'
+              '    q.publish(Float64(data=2.0))\n    rclpy.spin_once(n, timeout_sec=0.01)\n')
+
+    def record(c, name, *args, flushed=True):
+        """Record the talker; with ``flushed``, until a chunk with messages is written."""
+        bag = c.tmp / name
+        if bag.exists():
+            return bag
+        pub = subprocess.Popen([sys.executable, '-c', talker])
+        try:
+            proc = subprocess.Popen([*_command('record'), *args, '-o', str(bag)],
+                                    stderr=subprocess.PIPE, text=True)
+            end = time.monotonic() + 60
+            mcap = bag / f'{bag.name}.mcap'
+            while time.monotonic() < end and not (mcap.is_file() and (
+                    not flushed or mcap.stat().st_size > 2000)):
+                time.sleep(0.05)
+            time.sleep(1.0 if flushed else 3.0)
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=60)
+            assert proc.returncode == 0, err
+        finally:
+            pub.kill()
+            pub.wait()
+        return bag
+
+    def topics(c):
+        assert set(bag_topics(record(c, 'rec_talk', '/talk'))) == {'/talk'}
+
+    def regex(c):
+        assert set(bag_topics(record(c, 'rec_regex', '/talk', '-e', '/oth.*'))) == {
+            '/talk', '/other'}
+
+    def describe(c):
+        bag = record(c, 'rec_describe', '/talk', '--describe', '/talker')
+        assert 'use_sim_time' in node_parameters(bag, '/talker')
+        assert node_parameters(record(c, 'rec_talk', '/talk'), '/talker') == {}
+
+    def chunks(c):
+        from mcap.reader import make_reader
+        counts = []
+        for name, interval in (('rec_chunk_small', '0.05'), ('rec_chunk_large', '30')):
+            bag = record(c, name, '/talk', '--chunk-interval', interval,
+                         flushed=interval != '30')
+            with open(bag / f'{name}.mcap', 'rb') as f:
+                counts.append(make_reader(f).get_summary().statistics.chunk_count)
+        assert counts[0] >= 2 and counts[1] <= 1, counts
+
+    def recover_option(c):
+        out = _ok(run('record', '--recover', record(c, 'rec_talk', '/talk')))
+        assert 'is complete' in out.stdout
+
+    def output(c):
+        assert (record(c, 'rec_talk', '/talk') / 'metadata.yaml').exists()
+    return {
+        '--output': ((), output),
+        '--regex': (('[unclosed',), regex),
+        '--describe': (('no_slash',), describe),
+        '--chunk-interval': (NON_NUMBERS + ('0', '-1', '1e9'), chunks),
+        '--recover': ((), recover_option),
+        'topics': ((), topics),
+    }
+
+
+def _replay():
+    def offline(c, *args, code=0):
+        out = run('replay', c.bag, '--offline', *args, cwd=c.tmp)
+        assert out.returncode == code, out.stderr
+        return out
+
+    def base(c):
+        return offline(c).stdout
+
+    def param(c):
+        # the curve needs about 0.007 rad within 0.5 s; 0.01 rad/s allows 0.005 rad
+        out = offline(c, '-p', 'safety.max_steering_rate=0.01')
+        assert out.stdout != base(c)
+        diff = float(out.stdout.split('max |diff| ')[1].split()[0])
+        assert diff > 0.001, out.stdout
+        for unmodeled in ('safety.hold_time=1', 'watchdog_rate_hz=5', 'safety.bogus=1'):
+            refused = offline(c, '-p', unmodeled, code=2)
+            assert unmodeled.split('=')[0] in refused.stderr
+
+    def order(c):
+        assert '(receive order)' in offline(c, '--order', 'receive').stdout
+
+    def check(c):
+        offline(c, '--check', '0')
+        offline(c, '--check', '0.0001', '-p', 'controller.natural_frequency=1', code=1)
+
+    def json_file(c):
+        path = c.tmp / 'replay.json'
+        offline(c, '--json', path, '-p', 'controller.damping_ratio=0.7')
+        report = json.loads(path.read_text())
+        assert report['overrides'] == {'controller.damping_ratio': 0.7}
+
+    def topic(c):
+        out = offline(c, '--topic', 'lateral_error=/nope', code=2)
+        assert '/nope' in out.stderr
+
+    def play(c, *args):
+        out = run('replay', c.bag, '--wait', '0', *args, cwd=c.tmp)
+        assert out.returncode == 0, out.stderr
+        return out
+
+    def rate(c):
+        assert 'at 5x' in play(c, '--rate', '5').stdout
+
+    def topics(c):
+        assert 'on 1 topics' in play(c, '--topics', '/lateral_error').stdout
+        refused = run('replay', c.bag, '--topics', '/nope', cwd=c.tmp)
+        assert refused.returncode == 2 and '/nope' in refused.stderr
+
+    def clock(c):
+        assert '/clock at 50 Hz' in play(c, '--topics', '/lateral_error', '--clock',
+                                         '50').stdout
+
+    def wait(c):
+        assert 'after --wait 0 s' in play(c, '--topics', '/lateral_error').stderr
+
+    def offline_flag(c):
+        assert 'commands compared' in base(c)
+    return {
+        '--rate': (NON_NUMBERS + ('0', '-1'), rate),
+        '--topics': ((), topics),
+        '--clock': (NON_NUMBERS + ('-5', '0'), clock),
+        '--wait': (NON_NUMBERS + ('-1',), wait),
+        '--offline': ((), offline_flag),
+        '--param': (('novalue',), param),
+        '--topic': (('norole',), topic),
+        '--order': (('sideways',), order),
+        '--check': (NON_NUMBERS + ('-1',), check),
+        '--json': ((), json_file),
+    }
+
+
+def _analyze():
+    def out_folder(c):
+        folder = c.tmp / 'an_out'
+        _ok(run('analyze', c.bag, '--out', folder, '--no-plots'))
+        assert (folder / 'report.md').exists()
+
+    def no_plots(c):
+        folder = c.tmp / 'an_noplots'
+        _ok(run('analyze', c.bag, '--out', folder, '--no-plots'))
+        assert not list(folder.glob('*.png'))
+
+    def topic(c):
+        out = run('analyze', c.bag, '--out', c.tmp / 'an_topic', '--topic',
+                  'lateral_error=/nope')
+        assert out.returncode == 2 and '/nope' in out.stderr
+    return {
+        '--out': ((), out_folder),
+        '--no-plots': ((), no_plots),
+        '--topic': (('bogus=/x', 'novalue'), topic),
+    }
+
+
+CASES = {
+    'schedule': _table_tool('schedule', ()),
+    'zero_dynamics': _table_tool('zero_dynamics', ()),
+    'certificate': _certificate(),
+    'paper_scenario': _paper(),
+    'closed_loop': _closed_loop(),
+    'demo': _demo(),
+    'record': _record(),
+    'recover': {},
+    'replay': _replay(),
+    'analyze': _analyze(),
+    'controller': {},
+    'sim_plant': {},
+}
+# a positional argument the option's refusal needs (the tool checks options after it)
+POSITIONAL = {'replay': lambda c: [str(c.bag)], 'analyze': lambda c: [str(c.bag)]}
+
+
+@pytest.mark.parametrize('exe', sorted(entry_points()))
+def test_every_option_has_a_case(exe):
+    assert exe in CASES, f'{exe}: no option cases'
+    declared = options_of(exe) | ({'topics'} if exe == 'record' else set())
+    assert declared == set(CASES[exe]), (exe, declared ^ set(CASES[exe]))
+
+
+ALL = [(exe, option) for exe in sorted(CASES) for option in sorted(CASES[exe])]
+
+
+@pytest.mark.parametrize('exe,option', ALL)
+def test_option_bad_values_are_refused_in_one_line(exe, option, ctx):
+    bad, _ = CASES[exe][option]
+    folder = ctx.folder(f'bad_{exe}')
+    before = sorted(folder.iterdir())
+    for value in bad:
+        lead = POSITIONAL[exe](ctx) if exe in POSITIONAL else []
+        extra = ['--offline'] if exe == 'replay' and option in (
+            '--param', '--topic', '--order') else []
+        out = run(exe, *lead, *extra, option, value, cwd=folder, timeout=60)
+        assert out.returncode == 2, (option, value, out.stdout, out.stderr)
+        lines = out.stderr.strip().splitlines()
+        assert len(lines) == 1, (option, value, out.stderr)
+        short = {'--param': '-p', '--regex': '-e', '--output': '-o'}.get(option, option)
+        assert option in lines[0] or short in lines[0] or value in lines[0], lines
+        assert 'Traceback' not in out.stderr
+    assert sorted(folder.iterdir()) == before, f'{exe} {option}: wrote files'
+
+
+@pytest.mark.parametrize('exe,option', ALL)
+def test_option_changes_the_output(exe, option, ctx):
+    _, effect = CASES[exe][option]
+    effect(ctx)
+
+
+def test_non_numbers_are_what_they_say():
+    assert all(not math.isfinite(float(v)) for v in NON_NUMBERS[:4])
+    assert yaml.safe_load('1e400') == '1e400'    # argparse sees text, float() gives inf
