@@ -16,8 +16,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from lookahead_control.core.cli import run_tool
 from lookahead_control.core.params import VehicleParams
-from lookahead_control.tools import compare
+from lookahead_control.tools import compare, sweep
+import pytest
 
 
 def test_league_row_does_not_depend_on_the_other_speeds() -> None:
@@ -37,3 +41,21 @@ def test_default_speeds_keep_their_seeds() -> None:
     """The full league's seeds are unchanged (1, 2, 3, 4 at 10, 20, 30, 37 m/s)."""
     assert [compare.speed_seed(v) for v in compare.SPEEDS] == [1, 2, 3, 4]
     assert compare.speed_seed(25.0) not in (1, 2, 3, 4)
+
+
+@pytest.mark.parametrize('args, expected', [
+    (['--max-error', '-1'], '--max-error -1.0: a peak CG error in (0, 100] m'),
+    (['--max-error', 'nan'], '--max-error nan: a peak CG error in (0, 100] m'),
+    (['--dt', '0'], '--dt 0.0: a plant step in (0, 0.01] s'),
+    (['--duration', '-5'], "--duration -5.0: 0 (each scenario's own) or a time"),
+])
+def test_sweep_refuses_bad_numbers(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                   args: list[str], expected: str) -> None:
+    """A negative or NaN failure threshold, a zero step, a negative duration: one line."""
+    out = tmp_path / 'sweep'
+    code = run_tool(sweep.main, ['--out', str(out), '--runs', '1', '--speeds', '20',
+                                 '--scenarios', 's0_straight', '--laws', 'paper_fixed',
+                                 '--workers', '0', '--no-plots', '--no-progress', *args])
+    err = capsys.readouterr().err
+    assert code == 2 and expected in err and err.count('\n') == 1
+    assert not out.exists()
