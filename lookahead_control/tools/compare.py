@@ -55,7 +55,7 @@ SCENARIOS = ('s0_straight', 's1_paper_step', 's2_curve_entry', 's3_s_bend',
 SPEEDS = (10.0, 20.0, 30.0, 37.0)
 PREVIEW_DISTANCE = 100.0        # [m] every law sees the curvature this far ahead
 DELAY = 0.02                    # [s] transport delay of the "nonlinear + delay + noise" plant
-NOISE_SEED = 1                  # seeds are NOISE_SEED + run index: runs repeat exactly
+NOISE_SEED = 1                  # seeds: speed_seed(speed): a run repeats in any subset
 FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last second
 NOISE_SCENARIO = 's0_straight'  # steering noise: command with noise minus without, here
 DT = 0.005                      # [s] plant step (CommonRoad's multi-body model: 0.002)
@@ -312,6 +312,19 @@ def scenario_speeds(scenario: Scenario, speeds: Sequence[float]) -> list[float]:
         speeds)
 
 
+def speed_seed(speed: float) -> int:
+    """
+    Return the noise seed of the runs at one speed (the same whichever speeds are run).
+
+    :param speed: the run's initial speed [m/s].
+    :return: ``NOISE_SEED`` + the speed's index in :data:`SPEEDS`, or for another speed
+        ``NOISE_SEED + len(SPEEDS)`` + the speed in mm/s.
+    """
+    if speed in SPEEDS:
+        return NOISE_SEED + SPEEDS.index(speed)
+    return NOISE_SEED + len(SPEEDS) + int(round(speed * 1000.0))
+
+
 def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], VehicleParams,
                          float, Optional[float]]) -> list[dict[str, Any]]:
     """
@@ -326,7 +339,7 @@ def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], Vehicle
     if duration is not None:
         scenario = replace(scenario, duration=duration)
     v0 = np.asarray(speeds, dtype=float)
-    seeds = [NOISE_SEED + i for i in range(v0.size)]
+    seeds = [speed_seed(float(v)) for v in v0]
     rows = []
     for case in plants:
         vehicle = case.law_vehicle(league_vehicle)

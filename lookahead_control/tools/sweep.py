@@ -152,6 +152,15 @@ class SweepSpec:
                                 f'[{low:g}, {high:g}]')
         if any(not (0.0 < v <= 90.0) for v in self.speeds):
             raise ToolError(f'--speeds {self.speeds!r}: each in (0, 90] m/s')
+        if not 0.0 < self.max_error <= 100.0:
+            raise ToolError(f'--max-error {self.max_error!r}: a peak CG error in (0, 100] m '
+                            'is required')
+        if not 0.0 < self.dt <= 0.01:
+            raise ToolError(f'--dt {self.dt!r}: a plant step in (0, 0.01] s (at most the '
+                            'control period) is required')
+        if not 0.0 <= self.duration <= 1.0e5:
+            raise ToolError(f"--duration {self.duration!r}: 0 (each scenario's own) or a "
+                            'time in (0, 1e5] s is required')
 
     def to_json(self) -> dict[str, Any]:
         """Return the spec as JSON-able data."""
