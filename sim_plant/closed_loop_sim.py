@@ -13,33 +13,40 @@
 # limitations under the License.
 
 """
-Offline closed loop (no DDS): plant + controller core, one run or a vectorized batch.
+Offline closed loop (no DDS): plant + any steering law, one run or a vectorized batch.
 
-The controller samples the plant every ``control_period`` and holds its command (zero-
-order hold), as the ROS system does; ``control_period = 0`` evaluates the law inside
-every integrator stage (the continuous-time loop the paper analyses). The plant is
-integrated with fixed-step RK4 at ``dt``.
+The law (:class:`~lookahead_control.core.laws.Law`) samples the plant every
+``control_period`` and its command is held (zero-order hold), as the ROS system does;
+``control_period = 0`` evaluates the law inside every integrator stage (the
+continuous-time loop the paper analyses). The plant is integrated with fixed-step RK4 at
+``dt``. Between law and plant: a transport delay (control to wheel, whole plant steps);
+between plant and law: sensor noise (:mod:`sim_plant.sensors`); on the plant: a lateral
+force and yaw moment disturbance. A batch varies speed, initial error, plant parameters,
+delay, noise seed and (through the law) gains, one run per element.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, Sequence
 
-from lookahead_control.core.control_law import LateralState, LawOutput, steering_law
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 import numpy as np
 import numpy.typing as npt
 from sim_plant.scenario import Scenario
+from sim_plant.sensors import check_seed, noise_table, NoiseParams
 from sim_plant.speed_profile import speed_at
-from sim_plant.vehicle_model import derivatives, PlantParams, rk4_step, State
+from sim_plant.vehicle_model import derivatives, PlantParams, rk4_step, stack, State
 
 
 Array = npt.NDArray[np.float64]
 CHANNELS = ('s', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'v_x', 'a_x', 'rho',
             'steering_cmd', 'd_v', 'y_v', 'y_ref', 'error', 'error_rate')
+Disturbance = Callable[[float], tuple[Real, Real]]
 
 
 @dataclass(frozen=True)
@@ -51,16 +58,20 @@ class SimResult:
     :param channels: one array per name in ``CHANNELS`` (SI units, REP-103 signs).
     :param scenario: the scenario that was run.
     :param vehicle: the vehicle parameters.
-    :param controller: the controller parameters.
-    :param plant: the plant options.
+    :param controller: the paper law's parameters (the law's ``controller`` attribute
+        when it has one; None for other laws).
+    :param plant: the plant options (a :class:`~sim_plant.vehicle_model.Stacked` batch
+        when the runs' options differ).
+    :param law: the law that was run.
     """
 
     time: Array
     channels: dict[str, Array]
     scenario: Scenario
     vehicle: VehicleParams
-    controller: ControllerParams
-    plant: PlantParams
+    controller: Any
+    plant: Any
+    law: Any = None
 
     def __getitem__(self, name: str) -> Array:
         """
@@ -111,25 +122,32 @@ def measure(x: State, t: float, scenario: Scenario, initial_speed: Real,
     return LateralState(x[1], x[2], x[3], x[4], v_x, a_x, rho, v_x * rho_slope)
 
 
-def plant_derivatives(scenario: Scenario, vehicle: VehicleParams, plant: PlantParams,
-                      command: Real, initial_speed: Real,
-                      acceleration: Real) -> Callable[[float, State], State]:
+def plant_derivatives(scenario: Scenario, vehicle: Any, plant: Any,
+                      command: Real, initial_speed: Real, acceleration: Real,
+                      disturbance: Disturbance | None = None
+                      ) -> Callable[[float, State], State]:
     """
     Return the plant's right-hand side ``f(t, x)`` for a held steering command.
 
     :param scenario: road and speed profile.
-    :param vehicle: vehicle parameters.
-    :param plant: plant options.
+    :param vehicle: the plant's vehicle parameters (or a stacked batch of them).
+    :param plant: plant options (or a stacked batch).
     :param command: the steering command held over the step [rad].
     :param initial_speed: initial speed(s) [m/s].
     :param acceleration: ramp acceleration(s) [m/s^2].
+    :param disturbance: ``t -> (lateral force [N], yaw moment [N m])`` on the body.
     :return: the right-hand side.
     """
     def rhs(t: float, state: State) -> State:
         v_x, a_x = speed_at(t, initial_speed, acceleration, scenario.speed.start,
                             scenario.speed.duration)
         rho, _ = scenario.road.curvature(state[0])
-        return derivatives(state, command, v_x, a_x, rho, vehicle, plant)
+        rates = derivatives(state, command, v_x, a_x, rho, vehicle, plant)
+        if disturbance is None:
+            return rates
+        force, moment = disturbance(t)
+        return (rates[0], rates[1], rates[2], rates[3] + force / vehicle.mass,
+                rates[4] + moment / vehicle.yaw_inertia, rates[5])
     return rhs
 
 
@@ -231,33 +249,126 @@ def _progress(n: int, enabled: bool) -> Iterator[int]:
     return iter(tqdm(range(n), desc='simulating', unit='step', mininterval=0.5))
 
 
-def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams,
-        plant: PlantParams | None = None, *, dt: float = 0.001,
-        control_period: float = 0.01, initial_speed: Real | None = None,
-        initial_error: Real | None = None, progress: bool = False) -> SimResult:
+def road_preview(scenario: Scenario, s: Real, distances: Array) -> Preview:
     """
-    Simulate the closed loop of plant and controller core.
+    Return the curvature preview at arc length(s) ``s`` (what the node publishes).
 
-    Passing arrays as ``initial_speed`` and/or ``initial_error`` runs a vectorized
-    batch (one run per element) on the scenario's road.
+    :param scenario: the scenario (road).
+    :param s: arc length of the CG [m] (float or batch array).
+    :param distances: preview distances ahead of the CG [m].
+    :return: the preview; curvatures of shape ``(K,) + shape(s)``.
+    """
+    if isinstance(s, np.ndarray):
+        rho, _ = scenario.road.curvature(s[None, ...] + distances.reshape(
+            (-1,) + (1,) * s.ndim))
+        return Preview(distances, np.asarray(rho, dtype=float))
+    curvature = scenario.road.curvature_function()
+    return Preview(distances, np.array([curvature(s + float(d)) for d in distances]))
+
+
+def preview_distances(distance: float, step: float) -> Array:
+    """
+    Return the preview points' distances ``0, step, ...`` up to ``distance`` (the node's).
+
+    :param distance: how far ahead [m] (0: only the CG).
+    :param step: spacing [m].
+    :return: the distances.
+    """
+    if not (np.isfinite(distance) and distance >= 0.0 and np.isfinite(step) and step > 0.0):
+        raise ParameterError(f'preview distance = {distance!r} m (>= 0) and step = '
+                             f'{step!r} m (> 0) are required')
+    return np.arange(int(distance / step) + 1, dtype=float) * step
+
+
+def delay_steps(delay: Real, dt: float) -> Any:
+    """
+    Return the transport delay in plant steps (int, or int array for a batch).
+
+    :param delay: control-to-wheel delay(s) [s], each a whole multiple of ``dt``.
+    :param dt: plant integration step [s].
+    :return: the delay in steps.
+    """
+    value = np.asarray(delay, dtype=float)
+    if not np.all(np.isfinite(value)) or np.any(value < 0.0) or np.any(value > 1.0):
+        raise ParameterError(f'delay = {delay!r} s is out of range; allowed: [0, 1] s')
+    steps = np.round(value / dt)
+    if np.any(np.abs(steps * dt - value) > 1e-9):
+        raise ParameterError(f'delay = {delay!r} s is not a whole multiple of dt = '
+                             f'{dt!r} s')
+    return int(steps) if steps.ndim == 0 else steps.astype(np.int64)
+
+
+def _batch_shape(*values: Any) -> tuple[int, ...]:
+    shapes = [np.shape(v) for v in values if v is not None]
+    return np.broadcast_shapes(*shapes) if shapes else ()
+
+
+def _as_law(controller: ControllerParams | Law, vehicle: VehicleParams) -> Law:
+    if isinstance(controller, ControllerParams):
+        return PaperLaw(vehicle, controller)
+    if not isinstance(controller, Law):
+        raise TypeError(f'controller must be ControllerParams or a Law (reset, step); '
+                        f'got {type(controller).__name__}')
+    return controller
+
+
+def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams | Law,
+        plant: PlantParams | Sequence[PlantParams] | None = None, *, dt: float = 0.001,
+        control_period: float = 0.01, initial_speed: Real | None = None,
+        initial_error: Real | None = None, progress: bool = False,
+        plant_vehicle: VehicleParams | Sequence[VehicleParams] | None = None,
+        delay: Real = 0.0, noise: NoiseParams | None = None,
+        seed: int | Sequence[int] = 0, disturbance: Disturbance | None = None,
+        preview_distance: float = 50.0, preview_step: float = 5.0) -> SimResult:
+    """
+    Simulate the closed loop of plant and steering law.
+
+    A batch (one run per element) is run when any of ``initial_speed``,
+    ``initial_error``, ``delay``, ``seed`` is an array / sequence, ``plant`` or
+    ``plant_vehicle`` a sequence, or the law a batch law (e.g.
+    :meth:`~lookahead_control.core.laws.PaperLaw.batch`); sizes must agree. Every
+    run of a batch equals the single run with its values.
 
     :param scenario: road, speed profile, initial state and duration.
-    :param vehicle: vehicle parameters (used by plant and controller alike).
-    :param controller: controller parameters.
-    :param plant: plant options (default: linear, exact kinematics).
+    :param vehicle: vehicle parameters: the paper law's model (when ``controller`` is
+        ControllerParams) and the plant's unless ``plant_vehicle`` is given.
+    :param controller: the law: a :class:`~lookahead_control.core.laws.Law`, or
+        ControllerParams for :class:`~lookahead_control.core.laws.PaperLaw`.
+    :param plant: plant options (default: linear, exact kinematics); a sequence: per run.
     :param dt: plant integration step [s].
     :param control_period: controller period [s]; 0 for continuous control.
     :param initial_speed: override of the scenario's initial speed [m/s] (array: batch).
     :param initial_error: override of the initial CG lateral error [m] (array: batch).
     :param progress: show a progress bar.
+    :param plant_vehicle: the plant's vehicle parameters when they differ from the
+        controller's model (mismatch); a sequence: one per run.
+    :param delay: transport delay from the law's output to the wheel [s], a whole
+        multiple of ``dt`` (array: per run). The wheel holds 0 until the first command
+        arrives.
+    :param noise: sensor noise standard deviations (None: ideal sensors).
+    :param seed: noise seed (sequence: one per run).
+    :param disturbance: ``t -> (lateral force [N], yaw moment [N m])`` on the plant's
+        body (floats or batch arrays).
+    :param preview_distance: the law's curvature preview reaches this far [m].
+    :param preview_step: spacing of the preview points [m].
     :return: the time series.
     """
     plant = plant or PlantParams()
+    law = _as_law(controller, vehicle)
     ratio, n_steps = check_steps(dt, control_period, scenario.duration)
+    seeds = None if isinstance(seed, (int, np.integer)) else np.asarray(seed)
+    plants = None if isinstance(plant, PlantParams) else list(plant)
+    vehicles = (None if plant_vehicle is None or isinstance(plant_vehicle, VehicleParams)
+                else list(plant_vehicle))
+    law_size = getattr(getattr(law, 'controller', None), 'k_p', None)
+    shape = _batch_shape(initial_speed, initial_error,
+                         None if np.ndim(delay) == 0 else delay, seeds,
+                         None if plants is None else (len(plants),),
+                         None if vehicles is None else (len(vehicles),),
+                         law_size if isinstance(law_size, np.ndarray) else None)
+    batch = len(shape) > 0
     v0: Real = scenario.speed.initial if initial_speed is None else initial_speed
     y0: Real = scenario.initial.lateral_error if initial_error is None else initial_error
-    shape = np.broadcast(np.asarray(v0), np.asarray(y0)).shape
-    batch = len(shape) > 0
 
     def fill(value: float | Real) -> Real:
         return np.full(shape, value, dtype=float) if batch else float(value)
@@ -266,35 +377,98 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
         raise ParameterError('initial_speed must be positive in every run')
     v0, y0 = fill(v0), fill(y0)
     accel = fill(scenario.speed.acceleration)
+    plant_model: Any = plant if plants is None else stack(plants)
+    body = stack(vehicles) if vehicles is not None else (plant_vehicle or vehicle)
+    lag = delay_steps(delay, dt)
+    if control_period == 0.0 and (np.any(np.asarray(lag) != 0) or noise is not None):
+        raise ParameterError('a transport delay or sensor noise needs a sampled '
+                             'controller (control_period > 0)')
+    if batch and isinstance(lag, np.ndarray):
+        lag = np.broadcast_to(lag, shape)
+    noise_rows = None
+    if noise is not None:
+        if batch:
+            run_seeds = np.broadcast_to(np.asarray(seed), shape).ravel()
+            noise_rows = np.stack([noise_table(noise, int(check_seed(int(k))), n_steps + 1)
+                                   for k in run_seeds], axis=-1).reshape(
+                                       (n_steps + 1, 4) + shape)
+        else:
+            noise_rows = noise_table(noise, check_seed(seed), n_steps + 1)  # type: ignore
+    distances = preview_distances(preview_distance, preview_step)
+    sensor = vehicle.d_s
     init = scenario.initial
     x: State = (fill(0.0), y0, fill(init.relative_yaw), fill(init.lateral_velocity),
                 fill(init.yaw_rate), fill(0.0))
 
-    def law(t: float, state: State) -> LawOutput:
-        return steering_law(measure(state, t, scenario, v0, accel), vehicle, controller)
+    def observe(state: State, t: float, k: int) -> LateralState:
+        truth = measure(state, t, scenario, v0, accel)
+        if noise_rows is None:
+            return truth
+        n = noise_rows[k]
+        eps_r = truth.eps_r + n[1]
+        y_cg = (truth.y_cg + sensor * truth.eps_r + n[0]) - sensor * eps_r
+        return truth._replace(y_cg=y_cg, eps_r=eps_r, v_y=truth.v_y + n[2],
+                              r=truth.r + n[3])
 
     def plant_rhs(command: Real) -> Callable[[float, State], State]:
-        return plant_derivatives(scenario, vehicle, plant, command, v0, accel)
+        return plant_derivatives(scenario, body, plant_model, command, v0, accel,
+                                 disturbance)
 
     def continuous_rhs(t: float, state: State) -> State:
-        command = law(t, state).steering
+        command = law.step(measure(state, t, scenario, v0, accel),
+                           road_preview(scenario, state[0], distances), 0.0).steering
         return plant_rhs(command)(t, state)
 
+    law.reset()
+    commands: list[Real] = []
     rows: list[list[Any]] = []
+    linear = plant_model.model == 'linear'
     t = 0.0
     for k in _progress(n_steps + 1, progress):
         t = k * ratio * dt
-        out = law(t, x)
-        inputs = measure(x, t, scenario, v0, accel)
-        steering = out.steering if plant.model == 'linear' else x[5]
-        rows.append([x[0], x[1], x[2], x[3], x[4], steering, inputs.v_x, inputs.a_x,
-                     inputs.rho, out.steering, out.d_v, out.y_v, out.y_ref, out.error,
+        inputs = observe(x, t, k)
+        out = law.step(inputs, road_preview(scenario, x[0], distances),
+                       0.0 if k == 0 else ratio * dt)
+        commands.append(out.steering)
+        wheel = _applied(commands, k * ratio, lag, ratio, fill) if linear else x[5]
+        truth = inputs if noise_rows is None else measure(x, t, scenario, v0, accel)
+        rows.append([x[0], x[1], x[2], x[3], x[4], wheel, truth.v_x, truth.a_x,
+                     truth.rho, out.steering, out.d_v, out.y_v, out.y_ref, out.error,
                      out.error_rate])
         if k == n_steps:
             break
-        rhs = continuous_rhs if control_period == 0.0 else plant_rhs(out.steering)
-        x = advance(rhs, x, t, dt, ratio, plant, out.steering)
+        if control_period == 0.0:
+            x = advance(continuous_rhs, x, t, dt, ratio, plant_model, out.steering)
+        elif isinstance(lag, int) and lag == 0:
+            x = advance(plant_rhs(out.steering), x, t, dt, ratio, plant_model, out.steering)
+        else:
+            for j in range(ratio):
+                applied = _applied(commands, k * ratio + j, lag, ratio, fill)
+                x = advance(plant_rhs(applied), x, t + j * dt, dt, 1, plant_model, applied)
     time = np.arange(len(rows), dtype=float) * (ratio * dt)
     columns = list(zip(*rows))
     channels = {name: np.asarray(col, dtype=float) for name, col in zip(CHANNELS, columns)}
-    return SimResult(time, channels, scenario, vehicle, controller, plant)
+    return SimResult(time, channels, scenario, vehicle, getattr(law, 'controller', None),
+                     plant_model, law)
+
+
+def _applied(commands: list[Real], step: int, lag: Any, ratio: int,
+             fill: Callable[[float], Real]) -> Real:
+    """
+    Return the command at the wheel during plant step ``step`` (0 before the first).
+
+    :param commands: the law's commands so far, one per control step.
+    :param step: the plant step index.
+    :param lag: the delay in plant steps (int or per-run int array).
+    :param ratio: plant steps per control step.
+    :param fill: makes a float into the batch's shape.
+    :return: the applied command.
+    """
+    if isinstance(lag, int):
+        source = (step - lag) // ratio
+        return commands[source] if source >= 0 else fill(0.0)
+    sources = (step - lag) // ratio
+    first = max(int(np.min(sources)), 0)          # only the commands still in flight
+    table = np.stack([np.broadcast_to(c, sources.shape) for c in commands[first:]])
+    picked = np.take_along_axis(table, np.clip(sources - first, 0, None)[None, ...], 0)[0]
+    return np.where(sources >= 0, picked, 0.0)

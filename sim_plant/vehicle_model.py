@@ -31,12 +31,14 @@ Kinematics relative to the road: ``exact`` Frenet equations (the default) or the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable, Sequence
+from dataclasses import dataclass, fields
+from typing import Any, Callable, Sequence
 
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import check_choice, check_range, VehicleParams
+from lookahead_control.core.params import (check_choice, check_range, ParameterError,
+                                           VehicleParams)
+import numpy as np
 
 State = tuple[Real, ...]
 GRAVITY = 9.80665
@@ -75,6 +77,56 @@ class PlantParams:
                     low_open=True, unit='rad')
         check_range('plant.max_steering_rate', self.max_steering_rate, 0.0, 20.0,
                     low_open=True, unit='rad/s')
+
+
+class Stacked:
+    """
+    Frozen parameter dataclasses of a batch, one per run, as one duck-typed object.
+
+    Each numeric field is an array of shape ``(N,)`` (or the float itself when every run
+    has the same value); text fields must agree. ``wheelbase`` (and ``eta``) are
+    computed like :class:`~lookahead_control.core.params.VehicleParams` does.
+    """
+
+    def __init__(self, items: Sequence[Any]) -> None:
+        """
+        Stack the items.
+
+        :param items: dataclass instances of one type, at least one.
+        :raises ParameterError: the list is empty, or a text field differs.
+        """
+        if not items:
+            raise ParameterError('a batch needs at least one parameter set')
+        kind = type(items[0])
+        for item in fields(kind):
+            values = [getattr(i, item.name) for i in items]
+            if isinstance(values[0], str):
+                if len(set(values)) > 1:
+                    raise ParameterError(f'{item.name} differs within a batch '
+                                         f'({sorted(set(values))}); run one batch each')
+                setattr(self, item.name, values[0])
+            elif all(v == values[0] for v in values):
+                setattr(self, item.name, float(values[0]))
+            else:
+                setattr(self, item.name, np.array(values, dtype=float))
+        self.items = tuple(items)
+        self.l1: Any
+        self.l2: Any
+        if hasattr(self, 'l1') and hasattr(self, 'l2'):
+            self.wheelbase = self.l1 + self.l2
+            self.eta = getattr(self, 'mass') * self.l1 / (getattr(self, 'c_r') * self.wheelbase)
+
+
+def stack(items: Sequence[Any]) -> Any:
+    """
+    Return one parameter set when all runs share it, else a :class:`Stacked` of them.
+
+    :param items: one frozen parameter dataclass per run.
+    :return: the shared instance or the stacked batch.
+    """
+    if items and all(i == items[0] for i in items):
+        return items[0]
+    return Stacked(items)
 
 
 def fiala_force(slip: Real, stiffness: float, limit: float) -> Real:
