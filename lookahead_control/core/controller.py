@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import Any, Optional
 
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput, steering_law
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
 from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
                                            SafetyParams, stale_target)
@@ -70,7 +71,8 @@ class SteeringController:
 
     def __init__(self, vehicle: VehicleParams, controller: ControllerParams,
                  acceleration_source: str = 'imu', use_preview: bool = False,
-                 safety: Optional[SafetyParams] = None) -> None:
+                 safety: Optional[SafetyParams] = None,
+                 lane_keeping: Optional[LaneKeepingParams] = None) -> None:
         """
         Create the controller state.
 
@@ -83,6 +85,8 @@ class SteeringController:
             curvature preview; if false, only the curvature at the CG is used and its
             changes act as a disturbance (as in the paper).
         :param safety: input and output limits (default limits if None).
+        :param lane_keeping: settings of the ``cg_compensated`` reference's law (defaults
+            if None).
         """
         self.safety = safety or SafetyParams()
         self.rejected: dict[str, int] = {}
@@ -110,10 +114,16 @@ class SteeringController:
         # older step, or following a watchdog command, or after a time jump, holds)
         self._rate_angle: Optional[float] = None
         self._rate_time: Optional[int] = None
+        # lane keeping (reference cg_compensated): a law with state, reset with the inputs
+        self._lane_settings = lane_keeping or LaneKeepingParams()
+        self._lane_law: Optional[CgCompensatedLaw] = None
+        self._lane_stamp: Optional[int] = None
+        self._make_lane_law()
 
     def configure(self, vehicle: VehicleParams, controller: ControllerParams,
                   acceleration_source: str, use_preview: bool,
-                  safety: Optional[SafetyParams] = None) -> None:
+                  safety: Optional[SafetyParams] = None,
+                  lane_keeping: Optional[LaneKeepingParams] = None) -> None:
         """
         Replace the parameters (between two control steps).
 
@@ -122,6 +132,7 @@ class SteeringController:
         :param acceleration_source: see the constructor.
         :param use_preview: see the constructor.
         :param safety: see the constructor (None: keep).
+        :param lane_keeping: see the constructor (None: keep).
         """
         self.safety = safety or self.safety
         self.use_preview = use_preview
@@ -129,6 +140,35 @@ class SteeringController:
         self.params = controller
         self.acceleration_source = check_choice('acceleration_source', acceleration_source,
                                                 ACCELERATION_SOURCES)
+        self._lane_settings = lane_keeping or self._lane_settings
+        self._make_lane_law()
+
+    def _make_lane_law(self) -> None:
+        """(Re)create the lane-keeping law when the reference selects it (fresh state)."""
+        self._lane_stamp = None
+        self._lane_law = (CgCompensatedLaw(self.vehicle, self.params, self._lane_settings)
+                          if self.params.reference == 'cg_compensated' else None)
+
+    def _evaluate(self, state: LateralState, stamp_ns: int) -> LawOutput:
+        """
+        Return the law's output: the paper's law, or the lane-keeping law with its state.
+
+        :param state: the law's inputs.
+        :param stamp_ns: the lateral error's stamp: the lane-keeping law's clock [ns].
+        :return: the output.
+        """
+        if self._lane_law is None:
+            return steering_law(state, self.vehicle, self.params)
+        dt = 0.0 if self._lane_stamp is None else (stamp_ns - self._lane_stamp) * 1e-9
+        self._lane_stamp = stamp_ns
+        # the node holds the curvature at the CG and its slope: the law extrapolates
+        return self._lane_law.step(state, None, dt)
+
+    def _reset_lane_law(self) -> None:
+        """Restart the lane-keeping law's integral and estimate (time jump, stale)."""
+        if self._lane_law is not None:
+            self._lane_law.reset()
+        self._lane_stamp = None
 
     # -- checked input ------------------------------------------------------------
 
@@ -147,6 +187,7 @@ class SteeringController:
         self._received.clear()
         self._stale_since = None
         self._hold_value = None
+        self._reset_lane_law()
 
     def accept(self, name: str, sample: Any, now_ns: Optional[int] = None) -> Optional[str]:
         """
@@ -218,6 +259,7 @@ class SteeringController:
         if self._stale_since is None:
             self._stale_since = now_ns
             self._held = sent
+            self._reset_lane_law()
         held = self._held if self._held is not None else sent
         wanted = stale_target(held, (now_ns - self._stale_since) * 1e-9, self.safety)
         v_x = self.velocity.v_x if self.velocity else 0.0
@@ -345,7 +387,7 @@ class SteeringController:
         state = self.state()
         if state is None or self.lateral is None:
             return None
-        law = steering_law(state, self.vehicle, self.params)
+        law = self._evaluate(state, self.lateral.stamp_ns)
         self._stale_since = None
         v_x = float(state.v_x)
         weight = low_speed_weight(v_x, self.safety)

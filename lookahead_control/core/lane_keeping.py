@@ -48,6 +48,7 @@ from typing import Any, Optional
 
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.control_law import drift_term, LateralState, LawOutput
+from lookahead_control.core.estimator import ComplianceEstimator
 from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import (check_range, ControllerParams, ParameterError,
                                            VehicleParams)
@@ -60,8 +61,12 @@ class LaneKeepingParams:
     """
     Settings of the CG-compensated law (its gains replace the paper modes' gains).
 
-    :param natural_frequency: w_n of the y_v loop [rad/s] (``k_p = w_n^2``).
+    :param natural_frequency: w_n of the y_v loop at and above ``frequency_speed``
+        [rad/s] (``k_p = w_n^2``).
     :param damping_ratio: zeta of the y_v loop (``k_d = 2 zeta w_n``).
+    :param frequency_speed: below this speed w_n falls in proportion to the speed [m/s].
+    :param low_speed_frequency: ... but not below this [rad/s]: at low speed ``beta_1`` is
+        small and a high w_n would put the lateral-error noise on the steering.
     :param reference_preview: ``T_ref``: the reference uses the curvature
         ``v_x T_ref`` ahead [s].
     :param feedforward_preview: ``T_ff``: the drift term uses the curvature ``v_x T_ff``
@@ -79,10 +84,14 @@ class LaneKeepingParams:
     :param compliance_prior: weight of the model's compliance in the estimate, as a
         lateral acceleration [m/s^2]: below it the estimate stays near ``eta``.
     :param compliance_range: the estimate stays within ``eta / r`` and ``eta r`` [-].
+    :param rate_feedforward: add the curvature-rate term that makes the CG stay on the
+        lane on a clothoid (first-order inverse of the zero dynamics).
     """
 
     natural_frequency: float = 7.0
     damping_ratio: float = 1.0
+    frequency_speed: float = 30.0
+    low_speed_frequency: float = 3.0
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
     integral_gain: float = 0.3
@@ -94,12 +103,17 @@ class LaneKeepingParams:
     compliance_filter: float = 0.3
     compliance_prior: float = 0.5
     compliance_range: float = 3.0
+    rate_feedforward: bool = False
 
     def __post_init__(self) -> None:
         check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,
                     low_open=True, unit='rad/s')
         check_range('lane_keeping.damping_ratio', self.damping_ratio, 0.0, 10.0,
                     low_open=True)
+        check_range('lane_keeping.frequency_speed', self.frequency_speed, 0.0, 100.0,
+                    low_open=True, unit='m/s')
+        check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0,
+                    self.natural_frequency, low_open=True, unit='rad/s')
         check_range('lane_keeping.reference_preview', self.reference_preview, 0.0, 3.0,
                     unit='s')
         check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
@@ -119,8 +133,29 @@ class LaneKeepingParams:
         check_range('lane_keeping.compliance_prior', self.compliance_prior, 0.0, 20.0,
                     low_open=True, unit='m/s^2')
         check_range('lane_keeping.compliance_range', self.compliance_range, 1.0, 100.0)
+        if not isinstance(self.rate_feedforward, bool):
+            raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
+                                 'must be true or false')
         for item in fields(self):
+            if item.name == 'rate_feedforward':
+                continue
             object.__setattr__(self, item.name, float(getattr(self, item.name)))
+
+
+def loop_gains(settings: LaneKeepingParams, v_x: Real) -> tuple[Real, Real]:
+    """
+    Return ``(k_p, k_d)`` of the y_v loop at a speed (w_n scheduled on speed).
+
+    ``w_n = clip(natural_frequency v_x / frequency_speed, low_speed_frequency,
+    natural_frequency)``, ``k_p = w_n^2``, ``k_d = 2 zeta w_n``.
+
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :return: the two gains [1/s^2], [1/s].
+    """
+    w_n = xp.clip(settings.natural_frequency * v_x / settings.frequency_speed,
+                  settings.low_speed_frequency, settings.natural_frequency)
+    return w_n * w_n, 2.0 * settings.damping_ratio * w_n
 
 
 def steady_relative_yaw(vehicle: VehicleParams, v_x: Real, rho: Real,
@@ -194,7 +229,9 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        controller: ControllerParams, rho_ref: Real, rho_ref_rate: Real,
                        rho_ff: Real, rho_ff_rate: Real, offset: Real = 0.0,
                        offset_rate: Real = 0.0,
-                       compliance: Optional[Real] = None) -> LawOutput:
+                       compliance: Optional[Real] = None,
+                       rate_feedforward: bool = False,
+                       gains: Optional[tuple[Real, Real]] = None) -> LawOutput:
     """
     Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
 
@@ -213,6 +250,9 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     :param offset_rate: its time derivative [m/s].
     :param compliance: rear slip per lateral acceleration in ``eps_ss`` [s^2/m]
         (None: the model's eta).
+    :param rate_feedforward: add the curvature-rate term of the zero dynamics' inverse
+        to the reference's relative yaw.
+    :param gains: ``(k_p, k_d)`` (None: the controller's).
     :return: the steering angle and the intermediate values.
     """
     eta = vehicle.eta if compliance is None else compliance
@@ -223,6 +263,13 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     y_v_rate = state.v_y + v_x * eps_r + d_v * (state.r - v_x * rho) + d_v_rate * eps_r
     gain = eta * v_x * v_x - vehicle.l2
     eps_ss = gain * rho_ref
+    if rate_feedforward:
+        # first-order inverse of the zero dynamics (docs/lane_keeping.md): with the CG
+        # held on the lane, eps_r = eps_ss + (eta d_v v_x - v_x / alpha - g l_2 / v_x) rho'
+        #   = -(v_x I_z eta / (m l_1) + g l_2 / v_x) rho'
+        lead = -(v_x * vehicle.yaw_inertia * eta / (vehicle.mass * vehicle.l1)
+                 + gain * vehicle.l2 / v_x)
+        eps_ss = eps_ss + lead * rho_ref_rate
     eps_ss_rate = 2.0 * eta * v_x * state.a_x * rho_ref + gain * rho_ref_rate
     y_ref = d_v * eps_ss - offset
     y_ref_rate = d_v_rate * eps_ss + d_v * eps_ss_rate - offset_rate
@@ -230,7 +277,8 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                              d_v, d_v_rate, v_x)
     error = y_v - y_ref
     error_rate = y_v_rate - y_ref_rate
-    steering = (-f_v - controller.k_p * error - controller.k_d * error_rate) / beta_1
+    k_p, k_d = gains if gains is not None else (controller.k_p, controller.k_d)
+    steering = (-f_v - k_p * error - k_d * error_rate) / beta_1
     return LawOutput(steering, d_v, d_v_rate, y_v, y_v_rate, y_ref, error, error_rate,
                      f_v, beta_1)
 
@@ -271,10 +319,10 @@ class CgCompensatedLaw:
         :param settings: gains, preview, compliance and integral settings (defaults if
             None).
         """
-        if controller.reference != 'lane_tangent':
+        if controller.reference not in ('lane_tangent', 'cg_compensated'):
             raise ParameterError(
                 f'controller.reference = {controller.reference!r}: the CG-compensated law '
-                'builds its own reference; use lane_tangent')
+                'builds its own reference; use cg_compensated or lane_tangent')
         self.vehicle = vehicle
         self.settings = settings or LaneKeepingParams()
         self.controller = replace(controller,
@@ -282,26 +330,22 @@ class CgCompensatedLaw:
                                   damping_ratio=self.settings.damping_ratio)
         self.integral: Real = 0.0
         self.last_steering: Real = 0.0
-        self.moment: Real = 0.0          # N [rad m/s^2]
-        self.energy: Real = 0.0          # D [m^2/s^4]
-        self.filtered: Optional[tuple[Real, Real, Real]] = None   # F alpha_r, F v r, F w
+        st = self.settings
+        self.estimator = ComplianceEstimator(
+            vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
+            st.compliance_prior, st.compliance_range)
         self.resets = 0
 
     def reset(self) -> None:
         """Forget the integral, the estimate and the last command (time jump, stale)."""
         self.integral = 0.0
         self.last_steering = 0.0
-        self.moment = 0.0
-        self.energy = 0.0
-        self.filtered = None
+        self.estimator.reset()
         self.resets += 1
 
     def compliance(self) -> Real:
-        """Return the current rear-compliance estimate [s^2/m]."""
-        s, eta = self.settings, self.vehicle.eta
-        prior = s.compliance_prior * s.compliance_prior
-        estimate = (self.moment + prior * eta) / (self.energy + prior)
-        return xp.clip(estimate, eta / s.compliance_range, eta * s.compliance_range)
+        """Return the rear-compliance estimate [s^2/m] (eta before anything is learned)."""
+        return self.estimator.compliance()
 
     def step(self, state: LateralState, preview: Any, dt: float) -> LawOutput:
         """
@@ -330,37 +374,21 @@ class CgCompensatedLaw:
                   & (xp.absolute(self.last_steering) < s.steering_limit))
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
-            veh = self.vehicle
-            slip = (veh.l2 * state.r - state.v_y) / v_x
-            turn = v_x * state.r
-            w = state.v_y - veh.yaw_inertia / (veh.mass * veh.l1) * state.r
-            if self.filtered is None:
-                self.filtered = (slip, turn, w)
-            f = min(dt / s.compliance_filter, 1.0)
-            f_slip, f_turn, f_w = (old + f * (new - old) for old, new in
-                                   zip(self.filtered, (slip, turn, w)))
-            phi = f_turn + (w - f_w) / s.compliance_filter
-            self.filtered = (f_slip, f_turn, f_w)
-            gain = xp.where(active, min(dt / s.compliance_time_constant, 1.0) + zero, zero)
-            moment = self.moment + gain * (f_slip * phi - self.moment)
-            energy = self.energy + gain * (phi * phi - self.energy)
-        else:
-            moment, energy = self.moment + zero, self.energy + zero
+            self.estimator.update(state, dt, active)
         rate = xp.where(active, s.integral_gain * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
-        self.moment, self.energy = moment, energy
         out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
                                  v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,
-                                 self.compliance())
+                                 self.compliance(), s.rate_feedforward,
+                                 loop_gains(s, v_x))
         finite = _finite(out.steering)
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)
-            self.moment = np.where(finite, moment, 0.0)
-            self.energy = np.where(finite, energy, 0.0)
             self.last_steering = np.where(finite, out.steering, 0.0)
+            self.estimator.forget(~finite)
         elif not finite:
             self.integral, self.last_steering = 0.0, 0.0
-            self.moment, self.energy = 0.0, 0.0
+            self.estimator.reset()
         else:
             self.integral, self.last_steering = integral, out.steering
         return out

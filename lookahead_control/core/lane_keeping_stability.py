@@ -35,7 +35,7 @@ from __future__ import annotations
 import itertools
 from typing import NamedTuple, Optional
 
-from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.lane_keeping import LaneKeepingParams, loop_gains
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
@@ -47,7 +47,7 @@ STATE_NAMES = ('y_cg', 'eps_r', 'v_y', 'r', 'integral')
 # the certificate's coordinates z = S^-1 x (S diagonal, units of each state): chosen once
 # by minimizing the test's worst value for the default settings (a Nelder-Mead search
 # over log S); any fixed S gives a valid test, this one a sharp one
-CERTIFICATE_SCALE = (1.0, 0.0956, 2.36, 1.85, 1.05)
+CERTIFICATE_SCALE = (1.0, 0.0807, 2.31, 1.69, 1.06)
 
 
 def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
@@ -65,8 +65,8 @@ def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
     m, iz, l1, l2 = vehicle.mass, vehicle.yaw_inertia, vehicle.l1, vehicle.l2
     beta_1 = vehicle.c_f * (1.0 / m + l1 * d_v / iz)
     beta_2 = vehicle.c_r * (1.0 / m - l2 * d_v / iz)
-    w_n, zeta = settings.natural_frequency, settings.damping_ratio
-    k_i, k_p, k_d = settings.integral_gain, w_n * w_n, 2.0 * zeta * w_n
+    k_p, k_d = (float(k) for k in loop_gains(settings, v_x))
+    k_i = settings.integral_gain
     y_v = np.array([1.0, d_v, 0.0, 0.0, 0.0])
     y_v_rate = np.array([0.0, v_x, 1.0, d_v, 0.0])
     f_v = -np.array([0.0, 0.0, beta_1 + beta_2, beta_1 * l1 - beta_2 * l2, 0.0]) / v_x

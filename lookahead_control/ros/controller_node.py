@@ -32,8 +32,10 @@ from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.node_main import now_ns, run_node, Throttle
 from lookahead_control.ros.node_params import (check_choices, CONTROLLER_SPECS, declare,
-                                               EXECUTOR_SPEC, safety_params, SAFETY_SPECS, Spec,
-                                               values, vehicle_and_controller, VEHICLE_SPECS)
+                                               EXECUTOR_SPEC, lane_keeping_params,
+                                               LANE_KEEPING_SPECS, safety_params, SAFETY_SPECS,
+                                               Spec, values, vehicle_and_controller,
+                                               VEHICLE_SPECS)
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
@@ -63,7 +65,8 @@ NODE_SPECS = (
     Spec('diagnostics_rate_hz', 1.0, '/diagnostics rate [Hz]', 0.1, 100.0),
     EXECUTOR_SPEC,
 )
-ALL_SPECS = VEHICLE_SPECS + CONTROLLER_SPECS + SAFETY_SPECS + NODE_SPECS
+ALL_SPECS = (VEHICLE_SPECS + CONTROLLER_SPECS + SAFETY_SPECS + NODE_SPECS
+             + LANE_KEEPING_SPECS)
 DEBUG_FIELDS = ('d_v', 'd_v_rate', 'y_v', 'y_v_rate', 'y_ref', 'error', 'error_rate', 'f_v',
                 'beta_1')
 
@@ -95,7 +98,8 @@ class ControllerNode(LifecycleNode):
         params = values(self, ALL_SPECS)
         vehicle, controller = vehicle_and_controller(params)
         self.core = SteeringController(vehicle, controller, params['acceleration_source'],
-                                       params['use_curvature_preview'], safety_params(params))
+                                       params['use_curvature_preview'], safety_params(params),
+                                       lane_keeping_params(params))
         self.counters = {'saturated': 0, 'rate_limited': 0, 'low_speed': 0,
                          'd_v_clamped': 0, 'stale_commands': 0}
         self._reported: dict[str, int] = {}
@@ -125,6 +129,7 @@ class ControllerNode(LifecycleNode):
             check_choices(ALL_SPECS, merged)
             vehicle_and_controller(merged)
             safety_params(merged)
+            lane_keeping_params(merged)
         except (ParameterError, ValueError) as err:
             return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
@@ -145,7 +150,8 @@ class ControllerNode(LifecycleNode):
         params = values(self, ALL_SPECS)
         vehicle, controller = vehicle_and_controller(params)
         self.core.configure(vehicle, controller, params['acceleration_source'],
-                            params['use_curvature_preview'], safety_params(params))
+                            params['use_curvature_preview'], safety_params(params),
+                            lane_keeping_params(params))
         self._dirty = False
         self.get_logger().info(f'parameters applied: schedule={controller.schedule}, '
                                f'w_n={controller.natural_frequency:g}, '

@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping, NamedTuple, Sequence
 
+from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
                                            VehicleParams)
 from lookahead_control.core.safety import SafetyParams
@@ -65,11 +66,43 @@ CONTROLLER_SPECS = (
     Spec('controller.max_look_ahead', 60.0, 'upper clamp of the scheduled d_v [m]',
          0.01, 200.0),
     Spec('controller.reference', 'lane_tangent',
-         'regulate y_v to 0 (lane_tangent) or to the lane offset y_o (arc_approx, '
-         'arc_exact)', choices=REFERENCE_MODES),
+         'regulate y_v to 0 (lane_tangent), to the lane offset y_o (arc_approx, '
+         'arc_exact), or keep the CG on the lane (cg_compensated: the lane_keeping.* '
+         'law, docs/lane_keeping.md)', choices=REFERENCE_MODES),
     Spec('controller.min_speed', 1.0, 'the law divides by v_x; floor of v_x [m/s]',
          0.01, 20.0),
 )
+
+# the CG-compensated law (controller.reference: cg_compensated); defaults: LaneKeepingParams
+LANE_KEEPING_SPECS = tuple(
+    Spec(f'lane_keeping.{name}', getattr(LaneKeepingParams(), name), text, low, high)
+    for name, text, low, high in (
+        ('natural_frequency', 'w_n of the y_v loop at and above frequency_speed [rad/s]',
+         0.01, 100.0),
+        ('damping_ratio', 'zeta of the y_v loop [-]', 0.01, 10.0),
+        ('frequency_speed', 'below this speed w_n falls with the speed [m/s]', 0.01, 100.0),
+        ('low_speed_frequency', 'lowest w_n of the y_v loop [rad/s]', 0.01, 100.0),
+        ('reference_preview', 'the reference uses the curvature this long ahead [s]',
+         0.0, 3.0),
+        ('feedforward_preview', 'the drift term uses the curvature this long ahead: '
+         'actuator lag + delay [s]', 0.0, 1.0),
+        ('integral_gain', 'gain of the CG-error integral, 0: off [1/s]', 0.0, 5.0),
+        ('integral_limit', 'clamp of the integral shift of the reference [m]', 0.0, 5.0),
+        ('integral_min_speed', 'integral and estimate frozen below this speed [m/s]',
+         0.0, 50.0),
+        ('steering_limit', 'integral and estimate frozen at this |command| [rad]',
+         0.01, 1.5),
+        ('max_gap', 'a longer step between lateral errors restarts the law [s]', 0.01, 10.0),
+        ('compliance_time_constant', 'forgetting time of the rear-compliance estimate, '
+         '0: off [s]', 0.0, 100.0),
+        ('compliance_filter', 'filter of the signals of the estimate [s]', 0.01, 10.0),
+        ('compliance_prior', 'below this lateral acceleration the compliance of the model '
+         'holds [m/s^2]', 0.01, 20.0),
+        ('compliance_range', 'the estimate stays within 1/k and k times the model value [-]',
+         1.0, 100.0),
+        ('rate_feedforward', 'add the curvature-rate term of the inverse zero dynamics '
+         '(better on linear tyres, worse on the nonlinear plant)', 0.0, 1.0),
+    ))
 
 SAFETY_SPECS = tuple(
     Spec(f'safety.{name}', default, text, low, high) for name, default, text, low, high in (
@@ -200,3 +233,13 @@ def safety_params(params: Mapping[str, Any]) -> SafetyParams:
     :return: the limits.
     """
     return build(SafetyParams, params, 'safety')
+
+
+def lane_keeping_params(params: Mapping[str, Any]) -> LaneKeepingParams:
+    """
+    Build the CG-compensated law's settings from flat ROS parameter values.
+
+    :param params: name -> value.
+    :return: the settings.
+    """
+    return build(LaneKeepingParams, params, 'lane_keeping')
