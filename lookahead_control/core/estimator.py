@@ -93,7 +93,8 @@ class ComplianceEstimator:
         f_slip, f_turn, f_w = (old + f * (new - old) for old, new in
                                zip(self.filtered, (slip, turn, w)))
         self.filtered = (f_slip, f_turn, f_w)
-        phi = f_turn + (w - f_w) / self.filter_time
+        # the backward difference of the filtered w: (w - F w) / (T_f - dt) exactly
+        phi = f_turn + (w - f_w) / max(self.filter_time - dt, 1e-3)
         zero = 0.0 * slip
         g = xp.where(active, min(dt / self.time_constant, 1.0) + zero, zero)
         self.moment = self.moment + g * (f_slip * phi - self.moment)
