@@ -312,3 +312,14 @@ def test_controller_paper_modes_have_no_lane_law():
     expected = steering_law(state(y_cg=0.1, v_x=30.0, rho=-1 / 400), VEHICLE,
                             ControllerParams())
     assert command.law.steering == expected.steering
+
+
+def test_stability_tool_verdicts(capsys, tmp_path):
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    assert stability_main(['--a-max', '2.5', '--samples', '55',
+                           '--json', str(tmp_path / 's.json')]) == 0
+    out = capsys.readouterr().out
+    assert 'certificate HOLDS; robust check HOLDS' in out
+    assert stability_main(['--samples', '55']) == 1      # the paper's 3.5 m/s^2
+    assert 'certificate DOES NOT HOLD' in capsys.readouterr().out
+    assert (tmp_path / 's.json').stat().st_size > 100
