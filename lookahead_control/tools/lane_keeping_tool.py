@@ -41,9 +41,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--a-max', type=float, default=3.5)
     p.add_argument('--samples', type=int, default=271)
     p.add_argument('--natural-frequency', type=float, default=None,
-                   help='w_n of the y_v loop (default: the law\'s)')
+                   help='w_n of the y_v loop (default: that of the law)')
     p.add_argument('--integral-gain', type=float, default=None,
-                   help='k_i of the CG-error integral (default: the law\'s)')
+                   help='k_i of the CG-error integral (default: that of the law)')
     args = p.parse_args(argv)
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
