@@ -27,7 +27,7 @@ delay, noise seed and (through the law) gains, one run per element.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import Any, Callable, Iterator, Sequence
 
@@ -37,9 +37,11 @@ from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 import numpy as np
 import numpy.typing as npt
+from sim_plant.commonroad_plant import COMMONROAD_MODELS, CommonRoadPlant
+from sim_plant.road import RoadBatch
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import check_seed, noise_table, NoiseParams
-from sim_plant.speed_profile import speed_at
+from sim_plant.speed_profile import profile_speed, ramps_speed
 from sim_plant.vehicle_model import derivatives, PlantParams, rk4_step, stack, State
 
 
@@ -116,8 +118,7 @@ def measure(x: State, t: float, scenario: Scenario, initial_speed: Real,
     :param acceleration: ramp acceleration(s) [m/s^2].
     :return: the controller's inputs.
     """
-    v_x, a_x = speed_at(t, initial_speed, acceleration, scenario.speed.start,
-                        scenario.speed.duration)
+    v_x, a_x = profile_speed(scenario.speed, t, initial_speed, acceleration)
     rho, rho_slope = scenario.road.curvature(x[0])
     return LateralState(x[1], x[2], x[3], x[4], v_x, a_x, rho, v_x * rho_slope)
 
@@ -139,8 +140,7 @@ def plant_derivatives(scenario: Scenario, vehicle: Any, plant: Any,
     :return: the right-hand side.
     """
     def rhs(t: float, state: State) -> State:
-        v_x, a_x = speed_at(t, initial_speed, acceleration, scenario.speed.start,
-                            scenario.speed.duration)
+        v_x, a_x = profile_speed(scenario.speed, t, initial_speed, acceleration)
         rho, _ = scenario.road.curvature(state[0])
         rates = derivatives(state, command, v_x, a_x, rho, vehicle, plant)
         if disturbance is None:
@@ -179,6 +179,7 @@ def linear_plant_stepper(scenario: Scenario, vehicle: VehicleParams, plant: Plan
     mass, inertia = vehicle.mass, vehicle.yaw_inertia
     start, duration = scenario.speed.start, scenario.speed.duration
     constant = acceleration == 0.0          # initial + 0.0 * ramp == initial
+    ramps = scenario.speed.ramps
     exact = plant.kinematics == 'exact'
     curvature = scenario.road.curvature_function()
     sin, cos = math.sin, math.cos
@@ -187,6 +188,8 @@ def linear_plant_stepper(scenario: Scenario, vehicle: VehicleParams, plant: Plan
               u: float) -> tuple[float, float, float, float, float]:
         v_x = initial_speed if constant else (
             initial_speed + acceleration * min(max(t - start, 0.0), duration))
+        if ramps:
+            v_x = float(ramps_speed(t, v_x, 0.0, ramps)[0])
         rho = curvature(s)
         f_front = c_f * (u - (v_y + l1 * r) / v_x)
         f_rear = neg_c_r * (v_y - l2 * r) / v_x
@@ -262,6 +265,8 @@ def road_preview(scenario: Scenario, s: Real, distances: Array) -> Preview:
         rho, _ = scenario.road.curvature(s[None, ...] + distances.reshape(
             (-1,) + (1,) * s.ndim))
         return Preview(distances, np.asarray(rho, dtype=float))
+    if not hasattr(scenario.road, 'curvature_function'):
+        raise ParameterError('one run needs one road')
     curvature = scenario.road.curvature_function()
     return Preview(distances, np.array([curvature(s + float(d)) for d in distances]))
 
@@ -355,6 +360,8 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
     """
     plant = plant or PlantParams()
     law = _as_law(controller, vehicle)
+    if initial_speed is not None and np.ndim(initial_speed) == 0:
+        scenario = scenario.at_speed(float(initial_speed))     # its road for its speed
     ratio, n_steps = check_steps(dt, control_period, scenario.duration)
     seeds = None if isinstance(seed, (int, np.integer)) else np.asarray(seed)
     plants = None if isinstance(plant, PlantParams) else list(plant)
@@ -377,6 +384,13 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
         raise ParameterError('initial_speed must be positive in every run')
     v0, y0 = fill(v0), fill(y0)
     accel = fill(scenario.speed.acceleration)
+    base = scenario
+    if batch and initial_speed is not None and scenario.layout is not None:
+        speeds = np.broadcast_to(np.asarray(v0), shape).ravel()
+        if len(shape) != 1:
+            raise ParameterError('a batch over speeds must be one-dimensional')
+        scenario = replace(scenario, road=RoadBatch(  # type: ignore[arg-type]
+            [scenario.at_speed(float(v)).road for v in speeds]))
     plant_model: Any = plant if plants is None else stack(plants)
     body = stack(vehicles) if vehicles is not None else (plant_vehicle or vehicle)
     lag = delay_steps(delay, dt)
@@ -399,9 +413,22 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
     init = scenario.initial
     x: State = (fill(0.0), y0, fill(init.relative_yaw), fill(init.lateral_velocity),
                 fill(init.yaw_rate), fill(0.0))
+    group = None
+    if plant_model.model in COMMONROAD_MODELS:
+        if control_period == 0.0 or disturbance is not None or plant_vehicle is not None:
+            raise ParameterError(f'the {plant_model.model} plant needs control_period > 0 '
+                                 'and takes no disturbance or plant_vehicle (its '
+                                 'parameters are the CommonRoad set, plant.vehicle_id)')
+        group = CommonRoadGroup(base, plants or [plant_model], v0, y0, shape)
+        x = group.contract()
+
+    def measure_truth(state: State, t: float) -> LateralState:
+        if group is None:
+            return measure(state, t, scenario, v0, accel)
+        return group.measure(state, t, scenario, accel)
 
     def observe(state: State, t: float, k: int) -> LateralState:
-        truth = measure(state, t, scenario, v0, accel)
+        truth = measure_truth(state, t)
         if noise_rows is None:
             return truth
         n = noise_rows[k]
@@ -431,13 +458,18 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
                        0.0 if k == 0 else ratio * dt)
         commands.append(out.steering)
         wheel = _applied(commands, k * ratio, lag, ratio, fill) if linear else x[5]
-        truth = inputs if noise_rows is None else measure(x, t, scenario, v0, accel)
+        truth = inputs if noise_rows is None else measure_truth(x, t)
         rows.append([x[0], x[1], x[2], x[3], x[4], wheel, truth.v_x, truth.a_x,
                      truth.rho, out.steering, out.d_v, out.y_v, out.y_ref, out.error,
                      out.error_rate])
         if k == n_steps:
             break
-        if control_period == 0.0:
+        if group is not None:
+            for j in range(ratio):
+                group.advance(t + j * dt, dt, _applied(commands, k * ratio + j, lag, ratio,
+                                                       fill))
+            x = group.contract()
+        elif control_period == 0.0:
             x = advance(continuous_rhs, x, t, dt, ratio, plant_model, out.steering)
         elif isinstance(lag, int) and lag == 0:
             x = advance(plant_rhs(out.steering), x, t, dt, ratio, plant_model, out.steering)
@@ -472,3 +504,65 @@ def _applied(commands: list[Real], step: int, lag: Any, ratio: int,
     table = np.stack([np.broadcast_to(c, sources.shape) for c in commands[first:]])
     picked = np.take_along_axis(table, np.clip(sources - first, 0, None)[None, ...], 0)[0]
     return np.where(sources >= 0, picked, 0.0)
+
+
+class CommonRoadGroup:
+    """The CommonRoad plants of a run or batch, seen as the runner's state arrays."""
+
+    def __init__(self, scenario: Scenario, plants: Sequence[Any], speeds: Real,
+                 errors: Real, shape: tuple[int, ...]) -> None:
+        """
+        Place one plant per run.
+
+        :param scenario: the scenario (each run's road is laid out for its speed).
+        :param plants: plant options, one, or one per run.
+        :param speeds: initial speeds [m/s] (float or batch array).
+        :param errors: initial lateral errors [m].
+        :param shape: the batch shape (``()`` for one run).
+        """
+        self.shape = shape
+        n = int(np.prod(shape)) if shape else 1
+        v = np.broadcast_to(np.asarray(speeds, dtype=float), shape).ravel()
+        y = np.broadcast_to(np.asarray(errors, dtype=float), shape).ravel()
+        options = list(plants) if len(plants) == n else [plants[0]] * n
+        self.plants = [CommonRoadPlant(scenario.at_speed(float(v[i])), options[i],
+                                       float(v[i]), float(y[i])) for i in range(n)]
+        self.v_x: Real = 0.0
+        self.rho: Real = 0.0
+
+    def _pack(self, values: list[float]) -> Real:
+        return np.array(values).reshape(self.shape) if self.shape else values[0]
+
+    def contract(self) -> State:
+        """Return the contract state ``(s, y_cg, eps_r, v_y, r, steering)``."""
+        rows = [p.contract() for p in self.plants]
+        self.v_x = self._pack([r[1] for r in rows])
+        self.rho = self._pack([r[2] for r in rows])
+        return tuple(self._pack([r[0][i] for r in rows]) for i in range(6))
+
+    def measure(self, x: State, t: float, scenario: Scenario, accel: Real) -> LateralState:
+        """
+        Return the law's inputs: the plant's own speed, the profile's acceleration.
+
+        :param x: the contract state.
+        :param t: time [s].
+        :param scenario: the scenario (speed profile, road slope).
+        :param accel: first-ramp acceleration(s).
+        :return: the inputs.
+        """
+        _, a_x = profile_speed(scenario.speed, t, self.v_x, accel)
+        _, slope = scenario.road.curvature(x[0])
+        return LateralState(x[1], x[2], x[3], x[4], self.v_x, a_x, self.rho,
+                            self.v_x * slope)
+
+    def advance(self, t: float, dt: float, command: Real) -> None:
+        """
+        Integrate every plant one step with its command.
+
+        :param t: time [s].
+        :param dt: step [s].
+        :param command: the applied command(s) [rad].
+        """
+        commands = np.broadcast_to(np.asarray(command, dtype=float), self.shape).ravel()
+        for plant, u in zip(self.plants, commands):
+            plant.advance(t, dt, float(u))

@@ -128,3 +128,49 @@ class Road:
         i = max(bisect.bisect_right(self._starts, s) - 1, 0)
         seg_slope = self._slope_list[i]
         return self._rho0_list[i] + seg_slope * (s - self._starts[i]), seg_slope
+
+
+class RoadBatch:
+    """
+    One road per run of a batch (each laid out for its run's speed).
+
+    ``curvature(s)`` takes arc lengths whose last axis is the batch (shape ``(..., N)``)
+    and evaluates run n's road on ``s[..., n]`` with the operations of
+    :meth:`Road.curvature`, so each run gets the values its own road gives.
+    """
+
+    def __init__(self, roads: Sequence[Road]) -> None:
+        """
+        Stack the roads.
+
+        :param roads: one road per run.
+        """
+        if not roads:
+            raise ParameterError('a road batch needs at least one road')
+        self.roads = tuple(roads)
+        width = max(len(r.segments) for r in roads)
+        n = len(roads)
+        self._starts = np.full((n, width), np.inf)
+        self._rho0 = np.zeros((n, width))
+        self._slope = np.zeros((n, width))
+        for i, road in enumerate(roads):
+            m = len(road.segments)
+            self._starts[i, :m] = road._starts_np
+            self._rho0[i, :m] = road._rho0
+            self._slope[i, :m] = road._slope
+        self.length = np.array([r.length for r in roads])
+        self._end_rho = np.array([r._end_rho for r in roads])
+
+    def curvature(self, s: Real) -> tuple[Real, Real]:
+        """
+        Return ``(rho, d rho / ds)`` of each run's road at its arc length.
+
+        :param s: arc lengths, last axis the batch [m].
+        :return: curvature [1/m] and slope [1/m^2], shaped like ``s``.
+        """
+        s = np.asarray(s, dtype=float)
+        idx = np.clip(np.sum(s[..., None] >= self._starts, axis=-1) - 1, 0, None)
+        rows = np.arange(self.length.size)
+        rho = self._rho0[rows, idx] + self._slope[rows, idx] * (s - self._starts[rows, idx])
+        past = s >= self.length
+        return np.where(past, self._end_rho, rho), np.where(past, 0.0, self._slope[rows, idx])

@@ -29,17 +29,31 @@ Scenario files (``config/scenarios/*.yaml``) are plain YAML::
         - {type: clothoid, length: 50.0, curvature_start: 0.0, curvature_end: 0.01}
 
 A segment's length is given either in metres (``length``) or as the ``time`` it takes
-at the initial speed, so "2 s of straight road" means the same at every speed.
+at the initial speed, so "2 s of straight road" means the same at every speed;
+``min_length`` [m] puts a floor under a ``time`` length. A curvature can be given as the
+``lateral_acceleration`` [m/s^2, + left] it takes at the initial speed (``rho = a_y /
+v^2``; on clothoids ``lateral_acceleration_start`` / ``_end``). A ``lane_change`` entry
+(``offset`` [m, + left], ``time`` or ``length``) is four clothoids, curvature 0 -> k ->
+0 -> -k -> 0, with k solved so the lane moves sideways by exactly ``offset``.
+
+The speed may have several phases (``speed: {initial: 10, phases: [{start, duration,
+acceleration}, ...]}``, instead of one ``acceleration``/``start``/``duration``), and
+``fixed: true`` marks a profile that is part of the scenario (no speed override).
+
+Every speed-dependent entry is laid out for the run's own speed: the road is kept as a
+recipe (:meth:`Scenario.at_speed`) and a batch over speeds gives each run its road.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+import math
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping, Optional
 
 from lookahead_control.core.config import ConfigError, read_yaml
 from lookahead_control.core.params import check_range, ParameterError
+import numpy as np
 from sim_plant.road import Road, Segment
 from sim_plant.speed_profile import SpeedProfile
 
@@ -78,6 +92,8 @@ class Scenario:
     :param road: the lane centreline.
     :param speed: the prescribed speed profile.
     :param initial: the initial lateral state.
+    :param layout: ``speed -> road`` laid out for that initial speed (None: the road
+        does not depend on speed).
     """
 
     name: str
@@ -85,9 +101,30 @@ class Scenario:
     road: Road
     speed: SpeedProfile
     initial: InitialState = field(default_factory=InitialState)
+    layout: Optional[Callable[[float], Road]] = field(
+        default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         check_range('scenario.duration', self.duration, 0.0, 1.0e5, low_open=True, unit='s')
+
+    def at_speed(self, speed: float) -> 'Scenario':
+        """
+        Return the scenario at initial speed ``speed``, its road laid out for it.
+
+        :param speed: initial speed [m/s].
+        :return: the scenario.
+        :raises ParameterError: the scenario's speed profile is fixed, or the speed is
+            out of range.
+        """
+        if speed == self.speed.initial:
+            return self
+        if self.speed.fixed:
+            raise ParameterError(f'scenario {self.name!r} has its own speed profile '
+                                 f'(speed.fixed); a speed override ({speed!r} m/s) is '
+                                 'not allowed')
+        profile = replace(self.speed, initial=speed)
+        road = self.layout(speed) if self.layout is not None else self.road
+        return replace(self, road=road, speed=profile)
 
 
 def paper_scenario(speed: float, duration: float = 10.0) -> Scenario:
@@ -98,38 +135,143 @@ def paper_scenario(speed: float, duration: float = 10.0) -> Scenario:
     :param duration: simulated time [s].
     :return: the scenario.
     """
-    straight = Segment('straight', 2.0 * speed)
-    curve = Segment('arc', speed * duration + 100.0, -1.0 / 400.0, -1.0 / 400.0)
-    return Scenario(f'paper_r400_v{speed:g}', duration, Road([straight, curve]),
-                    SpeedProfile(speed))
+    def road(v: float) -> Road:
+        straight = Segment('straight', 2.0 * v)
+        curve = Segment('arc', v * duration + 100.0, -1.0 / 400.0, -1.0 / 400.0)
+        return Road([straight, curve])
+    return Scenario(f'paper_r400_v{speed:g}', duration, road(speed), SpeedProfile(speed),
+                    layout=road)
 
 
-def _segment(entry: Any, index: int, initial_speed: float) -> Segment:
+SEGMENT_KEYS = ('type', 'length', 'time', 'min_length', 'curvature', 'curvature_start',
+                'curvature_end', 'lateral_acceleration', 'lateral_acceleration_start',
+                'lateral_acceleration_end', 'offset')
+
+
+def _curvature(entry: Mapping[str, Any], index: int, key: str, speed: float) -> float:
+    """Return the curvature ``key`` of a road entry, or the one of its lateral acceleration."""
+    accel_key = key.replace('curvature', 'lateral_acceleration')
+    if key in entry and accel_key in entry:
+        raise ParameterError(f'road[{index}]: give {key} or {accel_key}, not both')
+    if accel_key in entry:
+        accel = check_range(f'road[{index}].{accel_key}', entry[accel_key], -15.0, 15.0,
+                            unit='m/s^2')
+        return accel / (speed * speed)
+    return check_range(f'road[{index}].{key}', entry.get(key, 0.0), -1.0, 1.0, unit='1/m')
+
+
+def lane_change_curvature(offset: float, length: float) -> float:
+    """
+    Return the peak curvature k of a four-clothoid lane change (0, k, 0, -k, 0).
+
+    Solved (bisection on the exact heading integral) so the centreline ends ``offset``
+    to the side and parallel to where it started; to first order ``k = 8 offset /
+    length^2``.
+
+    :param offset: lateral offset [m, + left].
+    :param length: total length of the four clothoids [m].
+    :return: k [1/m].
+    """
+    if offset == 0.0:
+        return 0.0
+    a = 0.25 * length
+    # heading over the first half (two clothoids), sampled finely; the second half
+    # mirrors it, so the offset is 2 * integral of sin(heading) over the first half
+    u = (np.arange(4000) + 0.5) / 4000.0 * 2.0 * a
+
+    def side(k: float) -> float:
+        heading = np.where(u < a, 0.5 * k * u * u / a,
+                           k * a - 0.5 * k * (2.0 * a - u) ** 2 / a)
+        return 2.0 * float(np.sum(np.sin(heading))) * (2.0 * a / u.size)
+    target = abs(offset)
+    low, high = 0.0, min(1.0, 0.5 * math.pi / a)      # heading stays below pi/2
+    if side(high) < target:
+        raise ParameterError(f'lane change of {offset!r} m over {length!r} m is not '
+                             'possible (too short)')
+    for _ in range(80):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if side(mid) < target else (low, mid)
+    return math.copysign(0.5 * (low + high), offset)
+
+
+def _segments(entry: Any, index: int, speed: float) -> list[Segment]:
     if not isinstance(entry, Mapping):
         raise ParameterError(f'road[{index}] must be a mapping, got {entry!r}')
-    known = {'type', 'length', 'time', 'curvature', 'curvature_start', 'curvature_end'}
-    unknown = set(entry) - known
+    unknown = set(entry) - set(SEGMENT_KEYS)
     if unknown:
         raise ParameterError(f'road[{index}]: unknown keys {sorted(unknown)}; known: '
-                             f'{sorted(known)}')
+                             f'{sorted(SEGMENT_KEYS)}')
     kind = entry.get('type')
     if ('length' in entry) == ('time' in entry):
         raise ParameterError(f'road[{index}]: give exactly one of length (m) or time (s)')
     if 'length' in entry:
         length = check_range(f'road[{index}].length', entry['length'], 0.0, 1.0e7,
                              low_open=True, unit='m')
+        if 'min_length' in entry:
+            raise ParameterError(f'road[{index}]: min_length goes with time, not length')
     else:
-        length = initial_speed * check_range(f'road[{index}].time', entry['time'], 0.0,
-                                             1.0e5, low_open=True, unit='s')
+        length = speed * check_range(f'road[{index}].time', entry['time'], 0.0,
+                                     1.0e5, low_open=True, unit='s')
+        if 'min_length' in entry:
+            length = max(length, check_range(f'road[{index}].min_length',
+                                             entry['min_length'], 0.0, 1.0e7, unit='m'))
+    if kind == 'lane_change':
+        if 'offset' not in entry:
+            raise ParameterError(f'road[{index}]: a lane_change needs offset (m, + left)')
+        offset = check_range(f'road[{index}].offset', entry['offset'], -20.0, 20.0,
+                             unit='m')
+        k = lane_change_curvature(offset, length)
+        q = 0.25 * length
+        return [Segment('clothoid', q, 0.0, k), Segment('clothoid', q, k, 0.0),
+                Segment('clothoid', q, 0.0, -k), Segment('clothoid', q, -k, 0.0)]
     if kind == 'arc':
-        rho = entry.get('curvature')
-        if rho is None:
-            raise ParameterError(f'road[{index}]: an arc needs curvature (1/m, + left)')
-        return Segment('arc', length, float(rho), float(rho))
+        if 'curvature' not in entry and 'lateral_acceleration' not in entry:
+            raise ParameterError(f'road[{index}]: an arc needs curvature (1/m, + left) or '
+                                 'lateral_acceleration (m/s^2, + left)')
+        rho = _curvature(entry, index, 'curvature', speed)
+        return [Segment('arc', length, rho, rho)]
     if kind == 'clothoid':
-        return Segment('clothoid', length, float(entry.get('curvature_start', 0.0)),
-                       float(entry.get('curvature_end', 0.0)))
-    return Segment(str(kind), length)
+        return [Segment('clothoid', length,
+                        _curvature(entry, index, 'curvature_start', speed),
+                        _curvature(entry, index, 'curvature_end', speed))]
+    if kind == 'straight':
+        extra = set(entry) - {'type', 'length', 'time', 'min_length'}
+        if extra:
+            raise ParameterError(f'road[{index}]: a straight has no {sorted(extra)}')
+    return [Segment(str(kind), length)]
+
+
+def road_at(entries: list[Any], speed: float) -> Road:
+    """
+    Return the road of a scenario file's ``road`` entries laid out for ``speed``.
+
+    :param entries: the entries.
+    :param speed: initial speed [m/s].
+    :return: the road.
+    """
+    return Road([seg for i, e in enumerate(entries) for seg in _segments(e, i, speed)])
+
+
+def _speed_profile(body: Mapping[str, Any]) -> SpeedProfile:
+    spec = body.get('speed', {})
+    if not isinstance(spec, Mapping):
+        raise ParameterError(f'speed must be a mapping, got {spec!r}')
+    spec = dict(spec)
+    phases = spec.pop('phases', None)
+    if phases is None:
+        return SpeedProfile(**spec)
+    if set(spec) & {'acceleration', 'start', 'duration'}:
+        raise ParameterError('speed: give phases or acceleration/start/duration, not both')
+    if not isinstance(phases, list) or not phases or not all(
+            isinstance(p, Mapping) and set(p) == {'start', 'duration', 'acceleration'}
+            for p in phases):
+        raise ParameterError('speed.phases must be a non-empty list of mappings with '
+                             f'start, duration, acceleration; got {phases!r}')
+    ramps = [(float(p['start']), float(p['duration']), float(p['acceleration']))
+             for p in phases]
+    first = ramps[0]
+    return SpeedProfile(spec.pop('initial'), first[2], first[0], first[1],
+                        tuple(ramps[1:]), **spec)
 
 
 def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
@@ -144,14 +286,27 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
         body = document['scenario']
         if not isinstance(body, Mapping):
             raise ParameterError('scenario must be a mapping')
-        speed = SpeedProfile(**dict(body.get('speed', {})))
+        unknown = set(body) - {'name', 'duration', 'speed', 'initial', 'road'}
+        if unknown:
+            raise ParameterError(f'unknown keys {sorted(unknown)}; known: duration, '
+                                 'initial, name, road, speed')
+        speed = _speed_profile(body)
         initial = InitialState(**dict(body.get('initial', {})))
         road_entries = body.get('road')
         if not isinstance(road_entries, list) or not road_entries:
             raise ParameterError('road must be a non-empty list of segments')
-        road = Road([_segment(e, i, speed.initial) for i, e in enumerate(road_entries)])
+        road = road_at(road_entries, speed.initial)
+        entries = list(road_entries)
+
+        def layout(v: float) -> Road:
+            try:
+                return road_at(entries, v)
+            except ParameterError as err:
+                raise ConfigError(f'{source} at {v:g} m/s: {err}') from err
         return Scenario(str(body.get('name', Path(source).stem)),
-                        float(body.get('duration', 10.0)), road, speed, initial)
+                        check_range('scenario.duration', body.get('duration', 10.0), 0.0,
+                                    1.0e5, low_open=True, unit='s'),
+                        road, speed, initial, layout)
     except (KeyError, TypeError) as err:
         raise ConfigError(f'{source}: not a scenario ({err}); expected a mapping '
                           "'scenario:' with name, duration, speed, initial, road") from err
@@ -167,15 +322,13 @@ def load_scenario(path: Path | str, speed: float | None = None) -> Scenario:
     :param speed: if given, the initial speed [m/s] (segment times scale with it).
     :return: the scenario.
     """
-    document = read_yaml(path)
-    if speed is not None:
-        if not isinstance(document, Mapping) or not isinstance(
-                document.get('scenario'), Mapping):
-            raise ConfigError(f'{path}: expected a mapping with a scenario key')
-        body = dict(document['scenario'])
-        body['speed'] = {**dict(body.get('speed', {})), 'initial': speed}
-        document = {'scenario': body}
-    return scenario_from_dict(document, str(path))
+    scenario = scenario_from_dict(read_yaml(path), str(path))
+    if speed is None:
+        return scenario
+    try:
+        return scenario.at_speed(speed)
+    except ParameterError as err:
+        raise ConfigError(f'{path}: {err}') from err
 
 
 def with_initial(scenario: Scenario, initial: InitialState) -> Scenario:

@@ -42,7 +42,7 @@ import numpy as np
 
 State = tuple[Real, ...]
 GRAVITY = 9.80665
-PLANT_MODELS = ('linear', 'nonlinear')
+PLANT_MODELS = ('linear', 'nonlinear', 'commonroad_st', 'commonroad_mb')
 KINEMATICS = ('exact', 'small_angle')
 STATE_NAMES = ('s', 'y_cg', 'eps_r', 'v_y', 'r', 'steering')
 
@@ -52,12 +52,15 @@ class PlantParams:
     """
     Plant options beyond the single-track parameters.
 
-    :param model: ``linear`` (the paper's eq. 1) or ``nonlinear`` (Fiala tyres, actuator).
+    :param model: ``linear`` (the paper's eq. 1), ``nonlinear`` (Fiala tyres, actuator),
+        ``commonroad_st`` or ``commonroad_mb`` (:mod:`sim_plant.commonroad_plant`).
     :param kinematics: ``exact`` Frenet kinematics or the ``small_angle`` design model.
     :param friction: tyre-road friction coefficient mu (nonlinear model) [-].
     :param steering_time_constant: actuator lag (nonlinear model) [s].
     :param max_steering_angle: actuator angle limit (nonlinear model) [rad].
     :param max_steering_rate: actuator rate limit (nonlinear model) [rad/s].
+    :param vehicle_id: CommonRoad parameter set (1 Ford Escort, 2 BMW 320i, 3 VW
+        Vanagon) of the CommonRoad models.
     """
 
     model: str = 'linear'
@@ -66,6 +69,7 @@ class PlantParams:
     steering_time_constant: float = 0.05
     max_steering_angle: float = 0.6
     max_steering_rate: float = 0.8
+    vehicle_id: int = 2
 
     def __post_init__(self) -> None:
         check_choice('plant.model', self.model, PLANT_MODELS)
@@ -77,6 +81,9 @@ class PlantParams:
                     low_open=True, unit='rad')
         check_range('plant.max_steering_rate', self.max_steering_rate, 0.0, 20.0,
                     low_open=True, unit='rad/s')
+        if self.vehicle_id not in (1, 2, 3, 4) or isinstance(self.vehicle_id, bool):
+            raise ParameterError(f'plant.vehicle_id = {self.vehicle_id!r} is not allowed; '
+                                 'choose one of 1, 2, 3 (CommonRoad parameter sets)')
 
 
 class Stacked:

@@ -15,6 +15,7 @@
 """Bags: record a real closed loop, read it two ways, recover, replay, analyze."""
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 import shutil
@@ -254,7 +255,7 @@ def test_recover_and_analyze_fail_in_one_line(tmp_path):
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
 
 
-def _synthetic_bag(path):
+def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steering=True):
     """20 m/s, y_cg = 0.1 sin(t) measured at the CG, eps_r = 0, 2 ms latency."""
     store = typestore()
 
@@ -269,7 +270,9 @@ def _synthetic_bag(path):
     for topic, msgtype in types.items():
         writer.add_topic(topic, msgtype, qos)
     start = 1_000_000_000_000
-    for k in range(2000):                     # 20 s at 100 Hz: whole periods of sin
+    for k in range(steps):                    # 20 s at 100 Hz: whole periods of sin
+        if k in skip:
+            continue
         stamp = k * 10_000_000
         t = stamp * 1e-9
         recv = start + stamp
@@ -278,8 +281,9 @@ def _synthetic_bag(path):
             conv.to_velocity(stamp, 'b', 20.0, 0.0, 0.0)))
         writer.write('/lateral_error', recv + 1, serialize_message(
             conv.to_lateral_error(stamp, 'b', 0.0, 0.1 * math.sin(2 * math.pi * t / 10))))
-        writer.write('/steering', recv + 2_000_001, serialize_message(
-            conv.to_steering(stamp, 0.01 * math.cos(2 * math.pi * t / 10), 0.0)))
+        if steering:
+            writer.write('/steering', recv + answer_delay_ns, serialize_message(
+                conv.to_steering(stamp, 0.01 * math.cos(2 * math.pi * t / 10), 0.0)))
     writer.close()
 
 
@@ -288,21 +292,92 @@ def test_analyze_gives_the_known_numbers_of_a_synthetic_bag(tmp_path):
     run = load_run(tmp_path / 'syn')
     series = run_series(run)
     row = bag_row(run, series)
-    assert row['peak_cg'] == pytest.approx(0.1, rel=1e-9)
-    assert row['rms_cg'] == pytest.approx(0.1 / math.sqrt(2), rel=1e-9)
-    assert row['peak_bumper'] == pytest.approx(0.1, rel=1e-9)       # eps_r = 0
-    assert row['peak_steering'] == pytest.approx(0.01, rel=1e-9)
+    assert row['peak_cg_error_m'] == pytest.approx(0.1, rel=1e-9)
+    assert row['rms_cg_error_m'] == pytest.approx(0.1 / math.sqrt(2), rel=1e-9)
+    assert row['peak_look_down_error_m'] == pytest.approx(0.1, rel=1e-9)       # eps_r = 0
+    assert row['peak_steering_cmd_rad'] == pytest.approx(0.01, rel=1e-9)
     # d/dt of 0.01 cos(2 pi t / 10): peak 0.01 * 2 pi / 10, sampled at 100 Hz
-    assert row['peak_steering_rate'] == pytest.approx(0.002 * math.pi, rel=1e-3)
+    rate = row['peak_steering_cmd_rate_rad_per_s']
+    assert rate == pytest.approx(0.002 * math.pi, rel=1e-3)
     assert row['latency_p50_ms'] == pytest.approx(2.0, abs=1e-6)
     assert row['latency_p99_ms'] == pytest.approx(2.0, abs=1e-6)
     assert row['steps'] == 2000 and row['unanswered'] == 0 and row['dropped'] == -1
-    assert row['d_v_final'] == pytest.approx(10.61, abs=0.01)      # eq. 26 at 20 m/s
+    assert row['d_v_final_m'] == pytest.approx(10.61, abs=0.01)      # eq. 26 at 20 m/s
+    # what the bag does not say is named, not silently assumed (issue 12 items 9, 10)
+    assert math.isnan(row['peak_steering_rad'])
+    assert 'steering: the plant does not report its wheel angle' in row['notes']
+    assert 'assumed: the bag has no /controller parameters' in row['notes']
+    assert 'no curvature step' in row['notes'] and math.isnan(row['yaw_damping_ratio'])
+    assert row['max_gap_s'] == 0.0 and 'gaps' not in row['notes']
+    assert (row['bag'], row['scenario'], row['plant'], row['mode']) == (
+        'syn', 'n/a', 'n/a', 'n/a')
     out = _tool('lookahead_control.tools.analyze_tool', tmp_path / 'syn', '--out',
                 tmp_path / 'report')
     assert out.returncode == 0, out.stderr
     assert {'report.md', 'metrics.csv', 'metrics.json', 'overlay.png',
             'look_ahead_vs_speed.png'} <= {p.name for p in (tmp_path / 'report').iterdir()}
+
+
+def test_a_three_message_bag_gives_no_metrics_but_says_why(tmp_path):
+    # issue 12 item 9: a 3-message bag gave a full metrics row
+    _synthetic_bag(tmp_path / 'tiny', steps=3)
+    run = load_run(tmp_path / 'tiny')
+    row = bag_row(run, run_series(run))
+    assert row['steps'] == 3
+    for name in ('peak_cg_error_m', 'rms_regulated_error_m', 'peak_steering_cmd_rad',
+                 'yaw_overshoot', 'yaw_damping_ratio', 'latency_p50_ms', 'latency_p99_ms'):
+        assert math.isnan(row[name]), name
+    assert '3 steps over 0.02 s, too few' in row['notes']
+    assert 'latency: 3 answered steps, too few' in row['notes']
+
+
+def test_a_gap_in_every_input_is_named(tmp_path):
+    # issue 12 item 9: a 0.5 s gap in every input went unmentioned
+    _synthetic_bag(tmp_path / 'gappy', skip=range(500, 550))
+    run = load_run(tmp_path / 'gappy')
+    row = bag_row(run, run_series(run))
+    assert row['max_gap_s'] == pytest.approx(0.51, abs=1e-9)
+    for role in ('lateral_error', 'yaw', 'velocity', 'steering'):
+        assert f'{role} 0.51 s at t = 4.99 s' in row['notes']
+
+
+def test_answers_recorded_before_their_question_give_no_latency(tmp_path):
+    # issue 12 item 9: a recovered bag gave a negative latency_p50_ms
+    _synthetic_bag(tmp_path / 'early', steps=300, answer_delay_ns=-3_000_000)
+    run = load_run(tmp_path / 'early')
+    row = bag_row(run, run_series(run))
+    assert math.isnan(row['latency_p50_ms']) and math.isnan(row['latency_p99_ms'])
+    assert '300 of 300 answers were recorded before their lateral error' in row['notes']
+
+
+def test_analyze_refuses_unknown_topic_roles_and_names(tmp_path):
+    # issue 12 item 4: analyze --topic bogus=/x was accepted and ignored
+    _synthetic_bag(tmp_path / 'syn', steps=300)
+    for option, words in (('bogus=/x', "unknown role 'bogus'"),
+                          ('lateral_error=lane', 'must be absolute')):
+        out = _tool('lookahead_control.tools.analyze_tool', tmp_path / 'syn', '--no-plots',
+                    '--out', tmp_path / 'out', '--topic', option)
+        assert out.returncode == 2 and words in out.stderr, out.stderr
+        assert len(out.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / 'out').exists()
+
+
+def test_analyze_rows_and_legends_tell_runs_apart(loop_bag, tmp_path):
+    # issue 12 items 10, 11: two bags both "paper 37"; columns without units
+    from lookahead_control.analysis.bag_analysis import run_label
+    from lookahead_control.tools.analyze_tool import COLUMNS
+    run = load_run(loop_bag)
+    row = bag_row(run, run_series(run))
+    assert (row['bag'], row['scenario'], row['plant'], row['mode'], row['rate_hz'],
+            row['schedule']) == ('bag', 'paper_r400', 'linear', 'lockstep', 100.0, 'paper')
+    assert run_label(row) == 'bag (paper_r400, linear, lockstep 100 Hz, paper)'
+    # the plant reports its wheel angle: both command and wheel angle are columns
+    assert row['peak_steering_rad'] == pytest.approx(row['peak_steering_cmd_rad'])
+    units = ('_m', '_rad', '_s', '_ms', '_mps', '_hz', '_rad_per_s', '_ratio', 'overshoot')
+    counts = ('bag', 'scenario', 'plant', 'mode', 'schedule', 'steps', 'unanswered',
+              'dropped')
+    for column in COLUMNS:
+        assert column in counts or column.endswith(units), column
 
 
 def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
@@ -398,3 +473,30 @@ def test_direct_cdr_decoding_equals_the_general_deserializer():
         assert cdr.named_values(cdr_bytes(named)) == (stamp, conv.from_named_values(
             general(named)))
         assert cdr.steering(cdr_bytes(named)) == conv.from_steering(general(named))
+
+
+def test_replay_offline_json_is_strict_json_when_nothing_compares(tmp_path):
+    # issue 12 item 12: replay --offline --json wrote NaN (invalid JSON)
+    _synthetic_bag(tmp_path / 'quiet', steps=200, steering=False)
+    out = _tool('lookahead_control.bags.replay_node', tmp_path / 'quiet', '--offline',
+                '--json', tmp_path / 'report.json')
+    assert out.returncode == 0, out.stderr
+
+    def refuse(name):
+        raise ValueError(f'not JSON: {name}')
+
+    report = json.loads((tmp_path / 'report.json').read_text(), parse_constant=refuse)
+    assert report['compared'] == 0 and report['max_diff_rad'] is None
+
+
+def test_the_default_bag_name_has_the_speed_of_the_run():
+    # issue 12 item 12: the default bag name said speed 0 for a 37 m/s run
+    from lookahead_control.core.config import source_config_dir
+    from lookahead_control.ros.closed_loop import default_bag
+    scenarios = source_config_dir() / 'scenarios'
+    assert default_bag(scenarios / 'paper_r400.yaml', 'paper', 0.0).name.startswith(
+        'paper_r400_paper_37_')
+    assert default_bag(scenarios / 'paper_r400.yaml', 'fixed', 20.0).name.startswith(
+        'paper_r400_fixed_20_')
+    assert default_bag(scenarios / 's_curve_accel.yaml', 'paper', 0.0).name.startswith(
+        's_curve_accel_paper_15_')

@@ -217,4 +217,4 @@ def test_paper_scenario_shows_the_paper_effect():
     m_sched = run_metrics(sched.time, sched.channels, VEHICLE.d_s)
     assert m_fixed['yaw_overshoot'] > 0.3
     assert m_sched['yaw_overshoot'] < 0.1
-    assert m_sched['peak_cg'] > m_fixed['peak_cg']
+    assert m_sched['peak_cg_error_m'] > m_fixed['peak_cg_error_m']

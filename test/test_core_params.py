@@ -72,8 +72,6 @@ def test_bad_vehicle_parameters_are_rejected_by_name(field, value):
     ({'schedule': 'magic'}, 'controller.schedule'),
     ({'reference': 'centre'}, 'controller.reference'),
     ({'min_speed': 0.0}, 'controller.min_speed'),
-    ({'schedule': 'fixed', 'fixed_look_ahead': 80.0, 'max_look_ahead': 60.0},
-     'controller.fixed_look_ahead'),
 ])
 def test_bad_controller_parameters_are_rejected_by_name(kwargs, name):
     with pytest.raises(ParameterError, match=name.replace('.', r'\.')):

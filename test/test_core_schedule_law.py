@@ -14,6 +14,7 @@
 
 """Schedules, control law and zero dynamics against independent expectations."""
 
+from dataclasses import replace
 import math
 
 from lookahead_control.core.control_law import arc_offset, LateralState, steering_law
@@ -64,8 +65,7 @@ def test_schedule_rate_is_derivative_along_speed(mode):
 
 
 def test_fixed_schedule_and_clamp():
-    d_v, rate = look_ahead(37.0, 3.0, VEHICLE, ControllerParams(schedule='fixed',
-                                                                fixed_look_ahead=1.96))
+    d_v, rate = look_ahead(37.0, 3.0, VEHICLE, ControllerParams(schedule='fixed'))
     assert (d_v, rate) == (1.96, 0.0)
     d_v, rate = look_ahead(37.0, 3.0, VEHICLE, ControllerParams(max_look_ahead=30.0))
     assert (d_v, rate) == (30.0, 0.0)
@@ -81,17 +81,17 @@ def test_schedule_vectorizes():
 
 def test_left_lateral_error_steers_right():
     for mode in ('paper', 'fixed'):
-        out = steering_law(LateralState(0.5, 0.0, 0.0, 0.0, 25.0), VEHICLE,
+        out = steering_law(LateralState(0.5, 0.0, 0.0, 0.0, 25.0, 0.0, 0.0, 0.0), VEHICLE,
                            ControllerParams(schedule=mode))
         assert out.steering < 0.0   # REP-103: positive delta steers left
-        out = steering_law(LateralState(-0.5, 0.0, 0.0, 0.0, 25.0), VEHICLE,
+        out = steering_law(LateralState(-0.5, 0.0, 0.0, 0.0, 25.0, 0.0, 0.0, 0.0), VEHICLE,
                            ControllerParams(schedule=mode))
         assert out.steering > 0.0
 
 
 def test_straight_road_zero_error_commands_zero():
     for mode in ('paper', 'exact', 'fixed'):
-        out = steering_law(LateralState(0.0, 0.0, 0.0, 0.0, 30.0, 1.0), VEHICLE,
+        out = steering_law(LateralState(0.0, 0.0, 0.0, 0.0, 30.0, 1.0, 0.0, 0.0), VEHICLE,
                            ControllerParams(schedule=mode))
         assert out.steering == 0.0
         assert out.error == 0.0
@@ -108,7 +108,7 @@ def test_arc_offset_exact_and_approx():
 
 
 def _closed_loop_rhs(x, v, ctl, rho=0.0, a=0.0):
-    state = LateralState(x[1], x[2], x[3], x[4], v, a, rho)
+    state = LateralState(x[1], x[2], x[3], x[4], v, a, rho, 0.0)
     out = steering_law(state, VEHICLE, ctl)
     return derivatives(tuple(x), out.steering, v, a, rho, VEHICLE, SMALL_ANGLE), out
 
@@ -138,7 +138,8 @@ def test_zero_dynamics_roots_are_closed_loop_eigenvalues(speed, mode):
 def test_f_v_matches_numerical_second_derivative(mode):
     # Arbitrary steering, accelerating vehicle on an arc. The law takes d^2 d_v/dt^2 as
     # 0 (as the paper does); for eq. 26 it is 8 eta a_x^2, added here as a known term.
-    ctl = ControllerParams(schedule=mode, fixed_look_ahead=6.0)
+    ctl = ControllerParams(schedule=mode)
+    vehicle = replace(VEHICLE, d_s=6.0)   # the fixed schedule looks 6 m ahead
     rho, h = 1.0 / 150.0, 1e-3
     d2d = 8.0 * VEHICLE.eta * 1.5 ** 2 if mode == 'paper' else 0.0
     x = (0.0, 0.3, 0.02, 0.1, 0.05, 0.0)
@@ -156,8 +157,8 @@ def test_f_v_matches_numerical_second_derivative(mode):
     ts, ys, outs = [], [], []
     for k in range(400):
         t = k * h
-        out = steering_law(LateralState(x[1], x[2], x[3], x[4], speed(t), 1.5, rho),
-                           VEHICLE, ctl)
+        out = steering_law(LateralState(x[1], x[2], x[3], x[4], speed(t), 1.5, rho, 0.0),
+                           vehicle, ctl)
         ts.append(t)
         ys.append(out.y_v)
         outs.append(out.f_v + out.beta_1 * steer(t) + d2d * x[2])
@@ -172,3 +173,30 @@ def test_steady_relative_yaw_formula():
     eta = 1485.0 * 1.1 / (80000.0 * 2.68)
     assert steady_relative_yaw(VEHICLE, 30.0, -1 / 400) == pytest.approx(
         (eta * 900.0 - 1.58) * (-1 / 400))
+
+
+def test_fixed_schedule_uses_the_vehicles_d_s():
+    # issue 12 item 13: one source of d_s; 'fixed' used a controller default of 1.96 m
+    vehicle = replace(VEHICLE, d_s=2.5)
+    d_v, rate = look_ahead(20.0, 1.0, vehicle, ControllerParams(schedule='fixed'))
+    assert (d_v, rate) == (2.5, 0.0)
+    assert not hasattr(ControllerParams(), 'fixed_look_ahead')
+    with pytest.raises(TypeError):
+        ControllerParams(schedule='fixed', fixed_look_ahead=2.5)   # type: ignore[call-arg]
+    # eq. 26 and eq. 24 are floored at the same d_s (raw eq. 26 at 5 m/s: -1.35 m)
+    for mode in ('paper', 'exact'):
+        d_v, rate = look_ahead(5.0, 1.0, vehicle, ControllerParams(schedule=mode))
+        assert (d_v, rate) == (2.5, 0.0)
+    # a d_s above the clamp is clamped like the other schedules
+    clamped = ControllerParams(schedule='fixed', max_look_ahead=2.0)
+    d_v, _ = look_ahead(20.0, 0.0, vehicle, clamped)
+    assert d_v == 2.0
+
+
+def test_lateral_state_has_no_silent_physical_defaults():
+    # issue 12 item 13: a caller who forgets the curvature must not lose the feedforward
+    with pytest.raises(TypeError):
+        LateralState(0.0, 0.0, 0.0, 0.0, 25.0)   # type: ignore[call-arg]
+    with pytest.raises(TypeError):
+        LateralState(0.0, 0.0, 0.0, 0.0, 25.0, 0.0, 0.01)   # type: ignore[call-arg]
+    assert LateralState._field_defaults == {}

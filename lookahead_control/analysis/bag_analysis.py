@@ -19,26 +19,35 @@ No ROS here. A step is a lateral-error stamp. Errors come from the simulator's g
 truth where the bag has it, else from the measurements (``y_cg = y_s - d eps_r``); the
 look-ahead distance and reference from the controller's debug topic, else from the
 controller re-run on the bag's inputs; latency is the receive time of the steering
-minus that of the lateral error it answers.
+minus that of the lateral error it answers, both as the recorder saw them.
+
+Nothing is silently assumed: parameters a bag does not carry are the defaults, and the
+row's ``notes`` say so; gaps in an input, answers recorded before their question (the
+recorder's receive order, which is no latency) and too short runs are named there, and a
+metric that does not apply is NaN.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, Optional
+from typing import Any, Mapping, Optional
 
 from lookahead_control.analysis.metrics import run_metrics
 from lookahead_control.bags.run_data import rerun_law, RunData, Samples
 from lookahead_control.core.control_law import cg_error_from
-from lookahead_control.core.params import VehicleParams
+from lookahead_control.core.params import ControllerParams, VehicleParams
 import numpy as np
 import numpy.typing as npt
 import yaml
 
 Array = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
-SERIES = ('y_cg', 'eps_r', 'rho', 'v_x', 'd_v', 'y_ref', 'error', 'steering_cmd')
+SERIES = ('y_cg', 'eps_r', 'rho', 'v_x', 'd_v', 'y_ref', 'error', 'steering_cmd', 'steering')
+GAP_FACTOR = 5.0
+GAP_MIN = 0.05
+MIN_LATENCY_SAMPLES = 10
+MIN_P99_SAMPLES = 100
 LAW_CHANNELS = ('d_v', 'y_ref', 'error')
 
 
@@ -48,7 +57,8 @@ class RunSeries:
     One value per control step.
 
     :param time: step stamps from the first [s].
-    :param channels: the arrays named in :data:`SERIES`.
+    :param channels: the arrays named in :data:`SERIES` (``steering``, the wheel angle
+        the plant reports, is NaN where the bag has no ground truth).
     :param latency: steering receive minus lateral-error receive, per answered step [s].
     :param unanswered: steps without a recorded steering command.
     """
@@ -148,15 +158,17 @@ def run_series(run: RunData) -> RunSeries:
                                       channels[name])
     steering_at = _exact(run.steering.stamp_ns, kept)
     channels['steering_cmd'] = _take(run.steering.values.get('angle'), steering_at)
+    channels['steering'] = truth('steering', math.nan)
     # latency: from the first arrival of a lateral error to its answer's
     first_stamps, first = np.unique(lateral.stamp_ns, return_index=True)
     received = lateral.recv_ns[first[np.searchsorted(first_stamps, kept)]]
     answered = steering_at >= 0
     latency = ((run.steering.recv_ns[steering_at[answered]] - received[answered]) * 1e-9
                ).astype(float)
-    return RunSeries((kept - kept[0]) * 1e-9,
-                     {name: _forward_fill(channels[name]) for name in SERIES}, latency,
-                     int((~answered).sum()))
+    filled = {name: (_forward_fill(channels[name])
+                     if not np.isnan(channels[name]).all() else channels[name])
+              for name in SERIES}
+    return RunSeries((kept - kept[0]) * 1e-9, filled, latency, int((~answered).sum()))
 
 
 def recorder_drops(run: RunData) -> Optional[int]:
@@ -168,6 +180,85 @@ def recorder_drops(run: RunData) -> Optional[int]:
     return int(sum((entry or {}).get('dropped') or 0 for entry in report.values()))
 
 
+def input_gaps(run: RunData) -> dict[str, tuple[float, float]]:
+    """
+    Return the largest gap between stamps of each input and of the steering.
+
+    A gap is a stamp step longer than :data:`GAP_FACTOR` times the topic's median step
+    and than :data:`GAP_MIN`.
+
+    :param run: the run.
+    :return: topic role -> ``(largest gap [s], its start from the first lateral stamp
+        [s])``, only roles with a gap.
+    """
+    lateral = run.inputs.get('lateral_error', Samples.empty())
+    origin = int(lateral.stamp_ns.min()) if len(lateral) else 0
+    out = {}
+    for role, samples in (*run.inputs.items(), ('steering', run.steering)):
+        stamps = np.unique(samples.stamp_ns)
+        if stamps.size < 3:
+            continue
+        steps = np.diff(stamps) * 1e-9
+        limit = max(GAP_FACTOR * float(np.median(steps)), GAP_MIN)
+        worst = int(np.argmax(steps))
+        if steps[worst] > limit:
+            out[role] = (float(steps[worst]), (int(stamps[worst]) - origin) * 1e-9)
+    return out
+
+
+def run_labels(run: RunData) -> dict[str, Any]:
+    """
+    Return what tells runs apart: bag, scenario, plant, mode, rate, schedule.
+
+    :param run: the run.
+    :return: ``bag, scenario, plant, mode, rate_hz, schedule`` ('n/a' where the bag
+        does not say).
+    """
+    scenario = 'n/a'
+    text = run.description.get('lookahead_control/scenario')
+    if text:
+        try:
+            loaded = yaml.safe_load(text) or {}
+            scenario = str((loaded.get('scenario') or {}).get('name', 'n/a'))
+        except (yaml.YAMLError, AttributeError):
+            scenario = 'n/a'
+    plant, ctl = run.plant_params, run.controller_params
+    rate = plant.get('rate_hz', ctl.get('rate_hz'))
+    return {
+        'bag': run.bag.name,
+        'scenario': scenario,
+        'plant': str(plant.get('plant.model', 'n/a')),
+        'mode': str(plant.get('mode', 'n/a')),
+        'rate_hz': float(rate) if rate is not None else math.nan,
+        'schedule': str(ctl.get('controller.schedule', 'n/a')),
+    }
+
+
+def run_label(row: Mapping[str, Any]) -> str:
+    """
+    Return a legend label naming a row's bag, scenario, plant, mode and rate.
+
+    :param row: a row of :func:`bag_row`.
+    :return: e.g. ``fixed_37 (paper_r400, linear, lockstep 100 Hz, fixed)``.
+    """
+    rate = f' {row["rate_hz"]:g} Hz' if math.isfinite(row['rate_hz']) else ''
+    return (f'{row["bag"]} ({row["scenario"]}, {row["plant"]}, {row["mode"]}{rate}, '
+            f'{row["schedule"]})')
+
+
+def _assumptions(run: RunData) -> list[str]:
+    """Return what the analysis assumes because the bag does not record it."""
+    params = run.controller_params
+    if not params:
+        return ['assumed: the bag has no /controller parameters; the default vehicle '
+                f'(d_s = {VehicleParams().d_s:g} m) and controller (schedule '
+                f'{ControllerParams().schedule}) are used for d_s and any law re-run']
+    missing = [name for name in ('vehicle.d_s', 'controller.schedule')
+               if name not in params]
+    return ([f'assumed: defaults for {", ".join(missing)} (not in the bag)']
+            if missing else [])
+
+
 def bag_row(run: RunData, series: RunSeries,
             label: Optional[str] = None) -> dict[str, Any]:
     """
@@ -175,24 +266,55 @@ def bag_row(run: RunData, series: RunSeries,
 
     :param run: the run.
     :param series: its series.
-    :param label: the row label (default: the schedule the controller ran).
-    :return: errors at the CG, bumper and look-ahead point, yaw step response,
-        steering peaks, latency p50/p99, counts.
+    :param label: the row's ``run`` label (default: the bag's name).
+    :return: labels (:func:`run_labels`), errors at the CG, look-down and look-ahead
+        point, relative-yaw step response, steering command and wheel angle, latency
+        p50/p99, counts, the largest input gap, and ``notes``: assumptions and why a
+        metric is empty.
     """
     params = run.controller_params
     d_s = float(params.get('vehicle.d_s', VehicleParams().d_s))
-    row: dict[str, Any] = {
-        'run': label or str(params.get('controller.schedule', run.bag.name)),
-        'speed_mps': round(float(series.channels['v_x'][0]), 3),
-    }
-    row.update(run_metrics(series.time, series.channels, d_s))
+    row: dict[str, Any] = {'run': label or run.bag.name, **run_labels(run),
+                           'speed_mps': round(float(series.channels['v_x'][0]), 3)}
+    metrics = run_metrics(series.time, series.channels, d_s)
+    notes = _assumptions(run)
+    measured = metrics.pop('notes')
+    if measured:
+        notes.append(measured)
+    row.update(metrics)
     lat = series.latency
-    row['latency_p50_ms'] = float(np.percentile(lat, 50) * 1e3) if lat.size else math.nan
-    row['latency_p99_ms'] = float(np.percentile(lat, 99) * 1e3) if lat.size else math.nan
+    row['latency_p50_ms'] = row['latency_p99_ms'] = math.nan
+    early = int((lat < 0.0).sum())
+    if lat.size < MIN_LATENCY_SAMPLES:
+        notes.append(f'latency: {lat.size} answered steps, too few (needs '
+                     f'{MIN_LATENCY_SAMPLES})')
+    elif np.percentile(lat, 50) <= 0.0:
+        notes.append(f'latency: {early} of {lat.size} answers were recorded before '
+                     "their lateral error (the recorder's receive order, e.g. a recovered "
+                     'or overloaded recording): its receive times do not measure latency')
+    else:
+        row['latency_p50_ms'] = float(np.percentile(lat, 50) * 1e3)
+        if lat.size >= MIN_P99_SAMPLES:
+            row['latency_p99_ms'] = float(np.percentile(lat, 99) * 1e3)
+        else:
+            notes.append(f'latency_p99: {lat.size} answered steps, too few (needs '
+                         f'{MIN_P99_SAMPLES})')
+        if early:
+            notes.append(f'latency: {early} of {lat.size} answers were recorded before '
+                         'their lateral error (the recorder receives them in its own '
+                         'order): latency is as the recorder saw it')
     row['steps'] = int(series.time.size)
     row['unanswered'] = series.unanswered
     drops = recorder_drops(run)
     row['dropped'] = -1 if drops is None else drops
+    if drops is None:
+        notes.append('dropped: the recorder did not count lost messages (-1)')
+    gaps = input_gaps(run)
+    row['max_gap_s'] = max((g for g, _ in gaps.values()), default=0.0)
+    if gaps:
+        notes.append('gaps: ' + ', '.join(f'{role} {gap:.3g} s at t = {start:.3g} s'
+                                          for role, (gap, start) in gaps.items()))
+    row['notes'] = '; '.join(notes)
     return row
 
 

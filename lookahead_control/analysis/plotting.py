@@ -111,31 +111,55 @@ def plot_roots(rows: Sequence[Mapping[str, Any]], path: Path) -> Path:
     return _save(fig, path)
 
 
+def line_styles(count: int) -> list[dict[str, Any]]:
+    """
+    Return distinguishable colour and dash pairs for ``count`` lines.
+
+    Up to 10 lines get the 10 colours of matplotlib's ``tab10``; beyond that the colours
+    repeat with another dash pattern, so no two lines look alike.
+
+    :param count: how many lines.
+    :return: matplotlib line keyword arguments per line.
+    """
+    dashes = ('-', '--', ':', '-.')
+    colours = [f'C{i}' for i in range(10)]
+    return [{'color': colours[i % 10], 'linestyle': dashes[(i // 10) % len(dashes)]}
+            for i in range(count)]
+
+
 def plot_runs(runs: Sequence[Mapping[str, Any]], path: Path, title: str) -> Path:
     """
-    Plot tracking error, relative yaw and steering against time, one line per run.
+    Plot errors, relative yaw and steering against time, one colour per run.
+
+    The steering panel shows the command (solid) and, where the plant reports it, the
+    wheel angle (dotted, same colour). Labels use the names of ``metrics.QUANTITIES``.
 
     :param runs: mappings with ``label``, ``time`` and the channels ``error``,
-        ``y_cg``, ``eps_r``, ``steering_cmd``.
+        ``y_cg``, ``eps_r``, ``steering_cmd`` and optionally ``steering``.
     :param path: the PNG file.
     :param title: the figure title.
     :return: the path written.
     """
+    from lookahead_control.analysis.metrics import axis_label
     plt = _pyplot()
-    fig, axes = plt.subplots(4, 1, figsize=(7, 10), sharex=True)
-    panels = (('error', 'look-ahead error y_v - y_ref [m]'),
-              ('y_cg', 'CG lateral error y_cg [m]'),
-              ('eps_r', 'relative yaw eps_r [rad]'),
-              ('steering_cmd', 'steering angle delta [rad]'))
-    for run in runs:
+    fig, axes = plt.subplots(4, 1, figsize=(8, 11), sharex=True)
+    panels = (('error', axis_label('regulated_error')),
+              ('y_cg', axis_label('cg_error')),
+              ('eps_r', axis_label('relative_yaw')),
+              ('steering_cmd', 'steering delta_cmd (solid),\nwheel angle delta (dotted) '
+               '[rad]'))
+    for run, style in zip(runs, line_styles(len(runs))):
         time: npt.NDArray[np.float64] = run['time']
         for ax, (key, _) in zip(axes, panels):
-            ax.plot(time, run[key], label=run['label'])
+            ax.plot(time, run[key], label=run['label'], lw=1.2, **style)
+        wheel = run.get('steering')
+        if wheel is not None and not np.isnan(wheel).all():
+            axes[3].plot(time, wheel, color=style['color'], linestyle=':', lw=1.5)
     for ax, (_, label) in zip(axes, panels):
-        ax.set_ylabel(label, fontsize=8)
+        ax.set_ylabel(label, fontsize=7)
         ax.grid(True, alpha=0.3)
     axes[0].set_title(title)
     # a fixed place: 'best' searches the lines' points, seconds on hour-long runs
-    axes[0].legend(fontsize=7, loc='upper right')
+    axes[0].legend(fontsize=6, loc='upper right')
     axes[-1].set_xlabel('time [s]')
     return _save(fig, path)

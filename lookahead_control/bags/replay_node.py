@@ -26,7 +26,6 @@ vs re-computed steering; ``--check TOL`` exits 1 above the tolerance.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 import sys
@@ -36,7 +35,7 @@ from typing import Any, Optional, Sequence
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader
 from lookahead_control.bags.run_data import load_run, rerun
-from lookahead_control.core.cli import assignments, run_tool, ToolError
+from lookahead_control.core.cli import assignments, run_tool, ToolError, write_json
 from lookahead_control.ros import conversions as conv
 import rclpy
 from rclpy.node import Node
@@ -66,7 +65,7 @@ def offline(args: argparse.Namespace) -> int:
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=2))
+        write_json(Path(args.json), report)
     if args.check is not None:
         if result.compared == 0:
             print('replay: check failed: no command to compare', file=sys.stderr)

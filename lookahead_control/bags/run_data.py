@@ -146,6 +146,7 @@ class RunData:
     :param counts: messages per topic in the bag.
     :param description: the bag's ``lookahead_control/*`` run description.
     :param controller_params: the recorded parameters of ``/controller``.
+    :param plant_params: the recorded parameters of ``/sim_plant`` (empty: none).
     """
 
     bag: Path
@@ -156,6 +157,7 @@ class RunData:
     counts: dict[str, int] = field(default_factory=dict)
     description: dict[str, str] = field(default_factory=dict)
     controller_params: dict[str, Any] = field(default_factory=dict)
+    plant_params: dict[str, Any] = field(default_factory=dict)
 
 
 def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
@@ -199,6 +201,7 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
                   counts={t: c for t, (_, c) in available.items()},
                   description=run_description(Path(bag)))
     run.controller_params = node_parameters(Path(bag), '/controller')
+    run.plant_params = node_parameters(Path(bag), '/sim_plant')
     return run
 
 

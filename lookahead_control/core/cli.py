@@ -131,9 +131,13 @@ def markdown_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str] | N
     :return: the table text.
     """
     cols = list(columns or (rows[0].keys() if rows else []))
-    lines = ['| ' + ' | '.join(cols) + ' |', '|' + '---|' * len(cols)]
+
+    def cell(text: str) -> str:
+        return text.replace('|', '\\|')        # a | inside a cell would split it
+
+    lines = ['| ' + ' | '.join(cell(c) for c in cols) + ' |', '|' + '---|' * len(cols)]
     for row in rows:
-        lines.append('| ' + ' | '.join(fmt(row[c], digits) for c in cols) + ' |')
+        lines.append('| ' + ' | '.join(cell(fmt(row[c], digits)) for c in cols) + ' |')
     return '\n'.join(lines)
 
 
@@ -152,6 +156,8 @@ def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
 
 
 def _jsonable(value: Any) -> Any:
+    if hasattr(value, 'tolist') and not isinstance(value, (str, bytes)):
+        value = value.tolist()          # numpy scalars and arrays
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, complex):
@@ -165,10 +171,11 @@ def _jsonable(value: Any) -> Any:
 
 def write_json(path: Path, data: Any) -> None:
     """
-    Write data as JSON (NaN as null, complex as [re, im]).
+    Write data as strict JSON (NaN and infinities as null, complex as [re, im]).
 
     :param path: the file.
     :param data: rows or a mapping.
     """
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(_jsonable(data), indent=2) + '\n', encoding='utf-8')
+    path.write_text(json.dumps(_jsonable(data), indent=2, allow_nan=False) + '\n',
+                    encoding='utf-8')

@@ -36,16 +36,22 @@ from lookahead_control.core.schedule import look_ahead
 
 class LateralState(NamedTuple):
     """
-    What the law needs to know about the vehicle and the road (REP-103 signs).
+    What the law needs to know about the vehicle and the road (REP-103 signs, SI units).
 
-    :param y_cg: lateral error of the CG from the lane centre, + left [m].
+    Every field is required: there is no physical default, so a caller who has no curvature
+    or acceleration says so by passing 0 explicitly. Floats or numpy arrays of one shape.
+
+    :param y_cg: lateral offset of the CG from the lane centre line, measured along the
+        road normal, + when the CG is left of the centre line [m].
     :param eps_r: relative yaw, vehicle yaw minus road tangent yaw, + CCW [rad].
-    :param v_y: body lateral velocity [m/s].
-    :param r: yaw rate [rad/s].
-    :param v_x: longitudinal speed [m/s].
-    :param a_x: longitudinal acceleration [m/s^2].
-    :param rho: road curvature at the vehicle, + left turn [1/m].
-    :param rho_rate: d rho / dt (0 on arcs; from curvature preview on clothoids) [1/(m s)].
+    :param v_y: body-frame lateral velocity of the CG, + left [m/s].
+    :param r: yaw rate, + CCW [rad/s].
+    :param v_x: body-frame longitudinal speed of the CG [m/s].
+    :param a_x: dv_x/dt, the time derivative of v_x [m/s^2]; not an accelerometer
+        reading (which is dv_x/dt - v_y r).
+    :param rho: curvature of the lane centre line at the vehicle, + for a left turn [1/m].
+    :param rho_rate: d rho / dt along the vehicle's travel, v_x d rho/ds (0 on arcs and
+        straights) [1/(m s)].
     """
 
     y_cg: Real
@@ -53,9 +59,9 @@ class LateralState(NamedTuple):
     v_y: Real
     r: Real
     v_x: Real
-    a_x: Real = 0.0
-    rho: Real = 0.0
-    rho_rate: Real = 0.0
+    a_x: Real
+    rho: Real
+    rho_rate: Real
 
 
 class LawOutput(NamedTuple):

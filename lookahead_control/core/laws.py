@@ -214,7 +214,7 @@ class GainBatch:
     :class:`ControllerParams` of a batch: per-run arrays where the runs differ.
 
     Duck-typed for :func:`~lookahead_control.core.control_law.steering_law`: ``k_p``,
-    ``k_d``, ``fixed_look_ahead``, ``min_speed`` are arrays of shape ``(N,)``; the modes
+    ``k_d``, ``min_speed`` are arrays of shape ``(N,)``; the modes
     (``schedule``, ``reference``) and ``max_look_ahead`` must be the same in every run.
     """
 
@@ -239,7 +239,6 @@ class GainBatch:
         self.controllers = tuple(controllers)
         self.k_p = np.array([c.k_p for c in controllers])
         self.k_d = np.array([c.k_d for c in controllers])
-        self.fixed_look_ahead = np.array([c.fixed_look_ahead for c in controllers])
         self.min_speed = np.array([c.min_speed for c in controllers])
         self.natural_frequency = np.array([c.natural_frequency for c in controllers])
         self.damping_ratio = np.array([c.damping_ratio for c in controllers])

@@ -153,8 +153,9 @@ class ControllerParams:
 
     :param natural_frequency: w_n of the look-ahead error loop [rad/s].
     :param damping_ratio: zeta of the look-ahead error loop [-].
-    :param schedule: d_v schedule: ``paper`` (eq. 26), ``exact`` (eq. 24) or ``fixed``.
-    :param fixed_look_ahead: d_v used by the ``fixed`` schedule [m].
+    :param schedule: d_v schedule: ``paper`` (eq. 26), ``exact`` (eq. 24) or ``fixed``
+        (d_v = the vehicle's ``d_s``, the look-down controller; ``VehicleParams.d_s`` is
+        the one source of d_s).
     :param max_look_ahead: upper clamp of the scheduled d_v [m].
     :param reference: what ``y_v`` is regulated to: ``lane_tangent`` (0, the paper's
         simulations), ``arc_approx`` (y_o of eq. 4), ``arc_exact`` (y_o of eq. 3) or
@@ -165,7 +166,6 @@ class ControllerParams:
     natural_frequency: float = 3.0
     damping_ratio: float = 1.0
     schedule: str = 'paper'
-    fixed_look_ahead: float = 1.96
     max_look_ahead: float = 60.0
     reference: str = 'lane_tangent'
     min_speed: float = 1.0
@@ -176,19 +176,12 @@ class ControllerParams:
         check_range('controller.damping_ratio', self.damping_ratio, 0.0, 10.0,
                     low_open=True)
         check_choice('controller.schedule', self.schedule, SCHEDULE_MODES)
-        check_range('controller.fixed_look_ahead', self.fixed_look_ahead, 0.0, 200.0,
-                    unit='m')
         check_range('controller.max_look_ahead', self.max_look_ahead, 0.0, 200.0,
                     low_open=True, unit='m')
         check_choice('controller.reference', self.reference, REFERENCE_MODES)
         check_range('controller.min_speed', self.min_speed, 0.0, 20.0, low_open=True,
                     unit='m/s')
-        if self.schedule == 'fixed' and self.fixed_look_ahead > self.max_look_ahead:
-            raise ParameterError(
-                f'controller.fixed_look_ahead = {self.fixed_look_ahead!r} m exceeds '
-                f'controller.max_look_ahead = {self.max_look_ahead!r} m; it must not')
-        for name in ('natural_frequency', 'damping_ratio', 'fixed_look_ahead',
-                     'max_look_ahead', 'min_speed'):
+        for name in ('natural_frequency', 'damping_ratio', 'max_look_ahead', 'min_speed'):
             object.__setattr__(self, name, float(getattr(self, name)))
 
     @cached_property

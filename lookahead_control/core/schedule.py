@@ -15,14 +15,14 @@
 """
 The look-ahead distance d_v scheduled on speed (paper eq. 21-26).
 
-Each schedule returns ``(d_v, dd_v/dt)`` for a speed ``v_x`` and a longitudinal
-acceleration ``a_x``; both work on floats and on numpy arrays.
+Each schedule returns ``(d_v, dd_v/dt)`` for a speed ``v_x`` [m/s] and ``a_x = dv_x/dt``
+[m/s^2]; both work on floats and on numpy arrays.
 
 - ``paper``: ``d_v = max(d_s, 4 eta v_x^2 - l_2)`` (eq. 26).
 - ``exact``: the positive root of ``(l_2 + d_v)^2 = 4 v_x^2 (I_z + m l_1 d_v) /
   (C_r (l_1 + l_2))`` (eq. 22-24), which puts both zero-dynamics roots on one real
   value; floored at ``d_s`` like eq. 26.
-- ``fixed``: a constant ``d_v`` (the look-down controller with ``d_v = d_s``).
+- ``fixed``: ``d_v = d_s``, the vehicle's sensor distance (the look-down controller).
 
 Scheduled values are clamped to ``max_look_ahead``; where a bound binds, dd_v/dt is 0.
 """
@@ -40,7 +40,7 @@ def paper_look_ahead(v_x: Real, a_x: Real, vehicle: VehicleParams,
     Return the eq. 26 look-ahead distance and its time derivative.
 
     :param v_x: longitudinal speed [m/s].
-    :param a_x: longitudinal acceleration [m/s^2].
+    :param a_x: dv_x/dt, the rate of change of v_x [m/s^2].
     :param vehicle: vehicle parameters (eta, l_2, d_s).
     :param d_max: upper clamp [m].
     :return: ``(d_v [m], dd_v/dt [m/s])``.
@@ -66,7 +66,7 @@ def exact_look_ahead(v_x: Real, a_x: Real, vehicle: VehicleParams,
     ``d = (k q - 2 l_2 + sqrt(k^2 q^2 + 4 k (I_z - q l_2))) / 2``.
 
     :param v_x: longitudinal speed [m/s].
-    :param a_x: longitudinal acceleration [m/s^2].
+    :param a_x: dv_x/dt, the rate of change of v_x [m/s^2].
     :param vehicle: vehicle parameters.
     :param d_max: upper clamp [m].
     :return: ``(d_v [m], dd_v/dt [m/s])``.
@@ -90,13 +90,13 @@ def look_ahead(v_x: Real, a_x: Real, vehicle: VehicleParams,
     Return ``(d_v, dd_v/dt)`` of the schedule the controller parameters select.
 
     :param v_x: longitudinal speed [m/s].
-    :param a_x: longitudinal acceleration [m/s^2].
+    :param a_x: dv_x/dt, the rate of change of v_x [m/s^2].
     :param vehicle: vehicle parameters.
-    :param controller: controller parameters (schedule mode, fixed d_v, clamp).
+    :param controller: controller parameters (schedule mode, clamp).
     :return: ``(d_v [m], dd_v/dt [m/s])``.
     """
     if controller.schedule == 'paper':
         return paper_look_ahead(v_x, a_x, vehicle, controller.max_look_ahead)
     if controller.schedule == 'exact':
         return exact_look_ahead(v_x, a_x, vehicle, controller.max_look_ahead)
-    return controller.fixed_look_ahead + 0.0 * v_x, 0.0 * v_x
+    return min(vehicle.d_s, controller.max_look_ahead) + 0.0 * v_x, 0.0 * v_x

@@ -166,6 +166,20 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     return 0
 
 
+def default_bag(scenario: Path, schedule: str, speed: float) -> Path:
+    """
+    Return ``bags/<scenario>_<schedule>_<speed>_<time>``, with the speed the run has.
+
+    :param scenario: the scenario file.
+    :param schedule: the d_v schedule.
+    :param speed: the ``--speed`` option (0: the scenario's own initial speed) [m/s].
+    :return: the bag directory.
+    """
+    speed = speed or load_scenario(scenario).speed.initial
+    return Path('bags') / (f'{scenario.stem}_{schedule}_{speed:g}_'
+                           f'{datetime.datetime.now():%Y%m%d_%H%M%S}')
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """
     Parse arguments and run one closed loop.
@@ -189,9 +203,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--no-record', action='store_true', help='do not record a bag')
     args = p.parse_args(argv)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    bag = None if args.no_record else (args.bag or Path('bags') / (
-        f'{args.scenario.stem}_{args.schedule}_{args.speed:g}_'
-        f'{datetime.datetime.now():%Y%m%d_%H%M%S}'))
+    bag = None if args.no_record else (args.bag or default_bag(args.scenario, args.schedule,
+                                                               args.speed))
     if bag is not None:
         if bag.exists():
             raise ToolError(f'{bag}: exists already; choose another --bag')

@@ -20,16 +20,37 @@ import argparse
 from pathlib import Path
 from typing import Any, Sequence
 
-from lookahead_control.analysis.bag_analysis import bag_row, run_series, RunSeries, speed_points
+from lookahead_control.analysis.bag_analysis import (bag_row, run_label, run_series, RunSeries,
+                                                     speed_points)
+from lookahead_control.analysis.metrics import METRIC_COLUMNS, metrics_legend, notes_list
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid
-from lookahead_control.bags.run_data import load_run, RunData
-from lookahead_control.core.cli import assignments, markdown_table, run_tool, write_csv, write_json
+from lookahead_control.bags.run_data import load_run, RunData, TOPICS
+from lookahead_control.core.cli import (assignments, markdown_table, run_tool, ToolError,
+                                        write_csv, write_json)
 from lookahead_control.core.params import VehicleParams
 
-COLUMNS = ('run', 'speed_mps', 'd_v_final', 'peak_cg', 'rms_cg', 'peak_bumper',
-           'rms_bumper', 'peak_look_ahead', 'rms_look_ahead', 'yaw_overshoot',
-           'yaw_damping', 'yaw_settling', 'peak_steering', 'peak_steering_rate',
-           'latency_p50_ms', 'latency_p99_ms', 'steps', 'unanswered', 'dropped')
+LABEL_COLUMNS = ('bag', 'scenario', 'plant', 'mode', 'rate_hz', 'schedule', 'speed_mps')
+COLUMNS = (*LABEL_COLUMNS, 'd_v_final_m', *METRIC_COLUMNS, 'latency_p50_ms',
+           'latency_p99_ms', 'steps', 'unanswered', 'dropped', 'max_gap_s')
+
+
+def topic_overrides(items: Sequence[str]) -> dict[str, str]:
+    """
+    Parse ``--topic ROLE=TOPIC`` options, refusing unknown roles and bad topic names.
+
+    :param items: the option's values.
+    :return: role -> topic.
+    :raises ToolError: an unknown role or a topic name that is not absolute.
+    """
+    out = assignments(items, '--topic')
+    for role, topic in out.items():
+        if role not in TOPICS:
+            raise ToolError(f'--topic {role}={topic}: unknown role {role!r}; roles: '
+                            f'{", ".join(TOPICS)}')
+        if not topic.startswith('/') or len(topic) < 2 or any(c.isspace() for c in topic):
+            raise ToolError(f'--topic {role}={topic!r}: a topic name must be absolute '
+                            '(start with /) and have no spaces, e.g. /lane/offset')
+    return out
 
 
 def analyze(bags: Sequence[Path], topics: dict[str, str] | None = None
@@ -61,31 +82,32 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
     :return: the report's path.
     """
     out.mkdir(parents=True, exist_ok=True)
-    rows = [{k: row[k] for k in COLUMNS} for _, _, row in results]
+    rows = [{k: row[k] for k in (*COLUMNS, 'notes')} for _, _, row in results]
     write_csv(out / 'metrics.csv', rows)
     write_json(out / 'metrics.json', rows)
     text = [f'# {title}', '',
-            'One row per bag. Errors [m]: `cg` at the centre of gravity, `bumper` at d_s, '
-            '`look_ahead` at the look-ahead point (from the lane centre). Relative yaw '
-            'step response after the curve starts; steering [rad, rad/s]; latency: '
-            'steering receive time minus lateral-error receive time; `dropped`: messages '
-            'the recorder counted as lost (-1: not counted).', '',
-            markdown_table(rows, digits=3), '',
+            'One row per bag: its name, scenario, plant (`n/a`: the bag has no simulator '
+            'parameters, e.g. a real vehicle), mode and rate of the simulator, d_v '
+            'schedule. ' + metrics_legend() + ' Latency [ms]: steering receive time minus '
+            'lateral-error receive time, as the recorder saw them; `dropped`: messages '
+            'the recorder counted as lost (-1: not counted); `max_gap_s`: the longest '
+            'gap between stamps of any input or of the steering (0: none).', '',
+            markdown_table(rows, COLUMNS, digits=3), '',
+            *notes_list(rows, ('bag',)),
             'Bags: ' + ', '.join(f'`{run.bag}`' for run, _, _ in results), '']
     if plots:
         from lookahead_control.analysis.plotting import plot_measured_look_ahead, plot_runs
         groups: dict[str, list[dict[str, Any]]] = {}
         for run, series, row in results:
-            groups.setdefault(row['run'], []).append(
-                {'label': f'{row["speed_mps"]:g} m/s', 'time': series.time,
-                 **series.channels})
+            groups.setdefault(row['schedule'], []).append(
+                {'label': run_label(row), 'time': series.time, **series.channels})
         for label, runs in groups.items():
             png = plot_runs(runs, out / f'fig_{label}.png',
-                            f'{label} d_v: recorded runs, one line per speed')
+                            f'd_v schedule {label}: one line per bag')
             text.append(f'![{label}]({png.name})')
-        overlay = [{'label': f'{row["run"]} {row["speed_mps"]:g} m/s', 'time': s.time,
-                    **s.channels} for _, s, row in results]
-        png = plot_runs(overlay, out / 'overlay.png', 'all runs')
+        overlay = [{'label': run_label(row), 'time': s.time, **s.channels}
+                   for _, s, row in results]
+        png = plot_runs(overlay, out / 'overlay.png', 'all bags')
         text.append(f'![overlay]({png.name})')
         top = max(float(s.channels['v_x'].max()) for _, s, _ in results)
         curve = schedule_table(VehicleParams(), speed_grid(1.0, max(top, 40.0), 0.5))
@@ -110,12 +132,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--out', type=Path, default=Path('bags') / 'analysis',
                    help='folder for report.md, metrics.csv/json and PNGs')
     p.add_argument('--topic', action='append', default=[], metavar='ROLE=TOPIC',
-                   help='contract topic name in the bags, e.g. lateral_error=/lane/offset')
-    p.add_argument('--no-plots', action='store_true')
+                   help='contract topic name in the bags, e.g. lateral_error=/lane/offset; '
+                   f'ROLE is one of {", ".join(TOPICS)}')
+    p.add_argument('--no-plots', action='store_true', help='write no PNG plots')
     args = p.parse_args(argv)
-    results = analyze(args.bags, assignments(args.topic, '--topic'))
+    results = analyze(args.bags, topic_overrides(args.topic))
     report = write_outputs(results, args.out, plots=not args.no_plots)
-    print(markdown_table([{k: row[k] for k in COLUMNS} for _, _, row in results], digits=3))
+    rows = [{k: row[k] for k in (*COLUMNS, 'notes')} for _, _, row in results]
+    print(markdown_table(rows, COLUMNS, digits=3))
+    print('\n'.join(notes_list(rows, ('bag',))))
     print(f'wrote {report}')
     return 0
 

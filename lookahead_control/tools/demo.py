@@ -95,7 +95,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f.write('\n## ROS runs vs the offline core runner\n\n'
                 'Largest |steering difference| per run [rad] (curvature crosses DDS as '
                 'float32):\n\n' + markdown_table(
-                    [{'run': r['run'], 'speed_mps': r['speed_mps'],
+                    [{'bag': r['bag'], 'speed_mps': r['speed_mps'],
                       'vs_offline_rad': r['vs_offline_rad']} for r in rows], digits=3)
                 + '\n')
     print(markdown_table(rows, digits=3))

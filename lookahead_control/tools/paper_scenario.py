@@ -25,7 +25,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Sequence
 
-from lookahead_control.analysis.metrics import run_metrics
+from lookahead_control.analysis.metrics import (METRIC_COLUMNS, metrics_legend, notes_list,
+                                                run_metrics)
 from lookahead_control.analysis.paper_tables import PAPER_FIG5_LEGEND, PAPER_SPEEDS
 from lookahead_control.core.cli import markdown_table, parser, run_tool, write_csv, write_json
 from lookahead_control.core.config import load_controller, load_vehicle
@@ -34,10 +35,7 @@ from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import paper_scenario
 from sim_plant.vehicle_model import PlantParams
 
-TABLE_COLUMNS = ('controller', 'speed_mps', 'd_v_final', 'peak_cg', 'rms_cg', 'peak_bumper',
-                 'rms_bumper', 'peak_look_ahead', 'rms_look_ahead', 'peak_regulated',
-                 'rms_regulated', 'yaw_overshoot', 'yaw_damping', 'yaw_settling',
-                 'peak_steering', 'peak_steering_rate')
+TABLE_COLUMNS = ('controller', 'speed_mps', 'd_v_final_m', *METRIC_COLUMNS)
 
 
 def reproduce(vehicle: VehicleParams, controller: ControllerParams,
@@ -58,8 +56,7 @@ def reproduce(vehicle: VehicleParams, controller: ControllerParams,
     :return: ``(controller label, result)`` pairs.
     """
     scheduled = controller.schedule if controller.schedule != 'fixed' else 'paper'
-    designs = (('fixed', replace(controller, schedule='fixed',
-                                 fixed_look_ahead=vehicle.d_s)),
+    designs = (('fixed', replace(controller, schedule='fixed')),
                (scheduled, replace(controller, schedule=scheduled)))
     runs = []
     for label, ctl in designs:
@@ -81,7 +78,7 @@ def metrics_rows(runs: Sequence[tuple[str, SimResult]]) -> list[dict[str, Any]]:
         row: dict[str, Any] = {'controller': label,
                                'speed_mps': result.scenario.speed.initial}
         row.update(run_metrics(result.time, result.channels, result.vehicle.d_s))
-        rows.append({k: row[k] for k in TABLE_COLUMNS})
+        rows.append({k: row[k] for k in (*TABLE_COLUMNS, 'notes')})
     return rows
 
 
@@ -109,12 +106,9 @@ def write_report(runs: Sequence[tuple[str, SimResult]], rows: Sequence[dict[str,
         f'w_n = {runs[0][1].controller.natural_frequency:g} rad/s, '
         f'zeta = {runs[0][1].controller.damping_ratio:g}, reference '
         f'{runs[0][1].controller.reference}.', '',
-        'Errors: `cg` at the centre of gravity, `bumper` at d_s (look-down sensor), '
-        '`look_ahead` the look-ahead point from the lane centre (y_v - y_o), '
-        '`regulated` what the law drives to zero (y_v - y_ref). Units: m, rad, rad/s, s. '
-        'yaw_damping is the second-order equivalent of the relative-yaw overshoot '
-        '(- = no overshoot).', '',
-        markdown_table(rows), '',
+        metrics_legend(), '',
+        markdown_table(rows, TABLE_COLUMNS), '',
+        *notes_list(rows, ('controller', 'speed_mps')),
         f"The paper's Fig. 5 legend gives d_v = {legend}; eq. 26 with Table 1 gives "
         'the d_v_final column. This package follows eq. 26.', '']
     if plots:
@@ -149,7 +143,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     runs = reproduce(load_vehicle(args.vehicle), load_controller(args.controller),
                      PlantParams(model=args.plant), args.speeds, args.duration)
     rows = metrics_rows(runs)
-    print(markdown_table(rows, digits=3))
+    print(markdown_table(rows, TABLE_COLUMNS, digits=3))
+    print('\n'.join(notes_list(rows, ('controller', 'speed_mps'))))
     report = write_report(runs, rows, args.out, plots=not args.no_plots)
     print(f'wrote {report}')
     return 0

@@ -1,0 +1,141 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The sweep tool: results, resume, a killed Dask worker, bad options (small batches)."""
+
+from dataclasses import replace
+import os
+from pathlib import Path
+
+from lookahead_control.core.cli import run_tool, ToolError
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.tools import sweep as sw
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from sim_plant.closed_loop_sim import run
+from sim_plant.scenario import load_scenario
+from sim_plant.sensors import NoiseParams
+from sim_plant.vehicle_model import PlantParams
+
+SPEC = sw.SweepSpec(runs=3, scenarios=('s1_paper_step',), speeds=(25.0, 37.0), batch=2,
+                    duration=1.2, dt=0.002)
+VEHICLE = VehicleParams()
+CONTROLLER = ControllerParams()
+
+
+def _same(a, b):
+    """Return whether two result tables hold the same values (NaN equal to NaN)."""
+    da, db = a.to_pydict(), b.to_pydict()
+    return list(da) == list(db) and all(
+        np.array_equal(np.asarray(da[k]), np.asarray(db[k]),
+                       equal_nan=np.asarray(da[k]).dtype.kind == 'f') for k in da)
+
+
+def _sweep(out, spec=SPEC, **kwargs):
+    return sw.sweep(spec, out, vehicle=VEHICLE, controller=CONTROLLER, plots=False,
+                    **{'workers': 0, **kwargs})
+
+
+def test_rows_hold_every_parameter_and_metric_and_equal_single_runs(tmp_path):
+    table, count = _sweep(tmp_path / 'a')
+    assert count == 4 and table.num_rows == 6          # 2 laws x 3 conditions
+    for name in sw.PARAMETER_COLUMNS + ('peak_cg_error_m', 'yaw_overshoot',
+                                        'peak_steering_rad', 'rms_steering_noise_rad',
+                                        'failed'):
+        assert name in table.column_names, name
+    row = {k: v[0] for k, v in table.to_pydict().items()}
+    assert row['law'] == 'paper' and row['run_id'] == 0
+    scenario = replace(load_scenario(sw.scenario_path('s1_paper_step')), duration=1.2)
+    body = VehicleParams(mass=VEHICLE.mass * (1 + row['mass']),
+                         yaw_inertia=VEHICLE.yaw_inertia * (1 + row['mass']),
+                         c_f=VEHICLE.c_f * (1 + row['cornering']),
+                         c_r=VEHICLE.c_r * (1 + row['cornering']))
+    single = run(scenario, VEHICLE, CONTROLLER, PlantParams(model='nonlinear',
+                                                            friction=row['friction']),
+                 dt=0.002, initial_speed=row['speed'], plant_vehicle=body,
+                 delay=row['delay'], noise=NoiseParams(), seed=row['seed'])
+    peak = np.max(np.abs(single['y_cg']))
+    assert row['peak_cg_error_m'] == pytest.approx(peak, rel=1e-9)
+    assert 0.0 <= row['delay'] <= 0.05 and round(row['delay'] / 0.002, 9) % 1 == 0
+    # the same conditions for every law (common random numbers)
+    data = table.to_pydict()
+    for name in ('speed', 'cornering', 'mass', 'friction', 'delay', 'seed'):
+        assert data[name][:3] == data[name][3:]
+    text = (tmp_path / 'a' / 'summary.md').read_text()
+    assert '| paper | all | 3 |' in text and 'paper_fixed' in text
+
+
+def test_grid_enumerates_every_combination():
+    spec = replace(SPEC, mode='grid', levels=2, speeds=(20.0,))
+    conds = sw.conditions(spec)
+    assert len(conds) == 2 ** 4
+    assert {c['friction'] for c in conds} == {0.5, 1.0}
+    assert {c['delay'] for c in conds} == {0.0, 0.05}
+
+
+def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path):
+    partial, count = _sweep(tmp_path / 'r', max_tasks=1)
+    assert partial is None and count == 1
+    parts = sorted((tmp_path / 'r' / 'parts').glob('*.parquet'))
+    assert len(parts) == 1
+    stamp = parts[0].stat().st_mtime_ns
+    (tmp_path / 'r' / 'parts' / '.half-written.parquet.1.tmp').write_bytes(b'PAR1 junk')
+    table, count = _sweep(tmp_path / 'r')
+    assert count == 3 and parts[0].stat().st_mtime_ns == stamp     # not redone
+    assert not list((tmp_path / 'r' / 'parts').glob('.*.tmp'))
+    fresh, _ = _sweep(tmp_path / 'f')
+    assert _same(table, fresh)
+    with pytest.raises(ToolError, match='options differ: runs'):
+        _sweep(tmp_path / 'r', replace(SPEC, runs=4))
+
+
+def crash_once(task, data, vehicle, controller):
+    """Kill the worker process the first time the first task runs."""
+    marker = Path(os.environ['SWEEP_TEST_MARKER'])
+    if task['task'].endswith('-00000') and task['law'] == 'paper' and not marker.exists():
+        marker.write_text('crashed')
+        os._exit(1)
+    return sw.run_task(task, data, vehicle, controller)
+
+
+def test_a_killed_dask_worker_loses_no_result(tmp_path, monkeypatch):
+    marker = tmp_path / 'marker'
+    monkeypatch.setenv('SWEEP_TEST_MARKER', str(marker))
+    table, count = _sweep(tmp_path / 'd', workers=2, runner=crash_once)
+    assert marker.exists()                      # a worker did die mid-task
+    reference, _ = _sweep(tmp_path / 'ref')
+    assert _same(table, reference)
+    assert _same(pq.read_table(tmp_path / 'd' / 'results.parquet'), reference)
+
+
+@pytest.mark.parametrize('args, expected', [
+    (['--laws', 'paper,nope'], 'known laws are'),
+    (['--delay', '0.05:0.0'], 'LOW <= HIGH'),
+    (['--friction', 'a:b'], 'expected LOW:HIGH'),
+    (['--scenarios', 's9_none'], "no scenario 's9_none'"),
+    (['--speeds', '20,x'], 'expected numbers'),
+    (['--cornering=-0.95:0.3'], 'out of range'),
+])
+def test_bad_options_give_one_line(tmp_path, capsys, args, expected):
+    code = run_tool(sw.main, ['--out', str(tmp_path / 'x'), '--workers', '0'] + args)
+    err = capsys.readouterr().err
+    assert code == 2 and expected in err and err.count('\n') == 1
+
+
+def test_output_folder_that_is_not_a_sweep_is_refused(tmp_path):
+    (tmp_path / 'o').mkdir()
+    (tmp_path / 'o' / 'notes.txt').write_text('mine')
+    with pytest.raises(ToolError, match='not a sweep folder'):
+        _sweep(tmp_path / 'o')
