@@ -9,7 +9,7 @@ EXES_DIR := $(VENV)/lib/lookahead_control
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export PYTHONDONTWRITEBYTECODE := 1
 
-.PHONY: all venv demo test lint fuzz bench clean
+.PHONY: all venv demo test lint fuzz bench compare clean
 
 all: test
 
@@ -38,6 +38,10 @@ fuzz: $(STAMP)
 # Benchmarks (not part of `make test`): bench/results/*.json and a table; about 20 min.
 bench: $(STAMP)
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( $$$$ % 100 + 1 ))} $(PY) -m bench.run $(BENCH_ARGS)
+
+# League table of every law (docs/baselines.md): bags/compare/league.{md,csv,png}; < 10 min.
+compare: $(STAMP)
+	$(VENV)/bin/compare --out bags/compare $(COMPARE_ARGS)
 
 lint: $(STAMP)
 	$(PY) -m pytest -m lint

@@ -35,6 +35,7 @@ EXECUTABLES = {
     'replay': 'lookahead_control.bags.replay_node:entry',
     'analyze': 'lookahead_control.tools.analyze_tool:entry',
     'demo': 'lookahead_control.tools.demo:entry',
+    'compare': 'lookahead_control.tools.compare:entry',
     'sweep': 'lookahead_control.tools.sweep:entry',
 }
 

@@ -257,9 +257,9 @@ def test_discrete_radius_against_continuous_eigenvalues():
 MS = 1_000_000
 
 
-def _core(reference='cg_compensated'):
-    return SteeringController(VEHICLE, ControllerParams(reference=reference), 'zero', True,
-                              SafetyParams())
+def _core(law='cg_compensated'):
+    return SteeringController(VEHICLE, ControllerParams(), 'zero', True, SafetyParams(),
+                              law)
 
 
 def _feed(core, stamp, y, rho=-1 / 400):
@@ -284,8 +284,9 @@ def test_controller_runs_the_stateful_law_and_resets_it():
     core = _core()
     for k in range(100):
         command = _feed(core, (1000 + 10 * k) * MS, 0.1)
-    law = core._lane_law
-    assert law is not None and law.integral == pytest.approx(0.3 * 0.1 * 0.99)
+    law = core.law
+    assert isinstance(law, CgCompensatedLaw)
+    assert law.integral == pytest.approx(0.3 * 0.1 * 0.99)
     assert command.law.y_ref == pytest.approx(
         look_ahead(30.0, 0.0, VEHICLE, CONTROLLER)[0]
         * steady_relative_yaw(VEHICLE, 30.0, -1 / 400) - law.integral)
@@ -305,9 +306,8 @@ def test_controller_runs_the_stateful_law_and_resets_it():
     assert law.integral == 0.0
 
 
-def test_controller_paper_modes_have_no_lane_law():
-    core = _core('lane_tangent')
-    assert core._lane_law is None
+def test_controller_paper_law_unchanged():
+    core = _core('paper')
     command = _feed(core, 1000 * MS, 0.1)
     expected = steering_law(state(y_cg=0.1, v_x=30.0, rho=-1 / 400), VEHICLE,
                             ControllerParams())

@@ -15,7 +15,7 @@
 
 """The controller node with reference cg_compensated: parameters, law, resets (no DDS)."""
 
-from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.ros import conversions as conv
 import pytest
 import rclpy
@@ -43,24 +43,25 @@ def _feed(node, stamp, y=0.1, v_x=30.0, rho=-0.0025):
 def test_node_selects_the_lane_keeping_law_by_parameter(context):
     from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('controller.reference', value='cg_compensated'),
+        Parameter('law', value='cg_compensated'),
         Parameter('lane_keeping.integral_gain', value=0.5)])
     try:
         node.trigger_configure()
         node.trigger_activate()
-        assert node.core._lane_law is not None
-        assert node.core._lane_law.settings == LaneKeepingParams(integral_gain=0.5)
+        law = node.core.law
+        assert isinstance(law, CgCompensatedLaw)
+        assert law.settings == LaneKeepingParams(integral_gain=0.5)
         for k in range(11):
             _feed(node, (1000 + 10 * k) * MS)
-        assert node.core._lane_law.integral == pytest.approx(0.5 * 0.1 * 0.1)
+        assert law.integral == pytest.approx(0.5 * 0.1 * 0.1)
         refused = node.set_parameters([Parameter('lane_keeping.low_speed_frequency',
                                                  value=50.0)])[0]
         assert not refused.successful and 'low_speed_frequency' in refused.reason
         refused = node.set_parameters([Parameter('lane_keeping.max_gap', value=0.0)])[0]
         assert not refused.successful
-        ok = node.set_parameters([Parameter('controller.reference', value='lane_tangent')])[0]
+        ok = node.set_parameters([Parameter('law', value='paper')])[0]
         assert ok.successful
         _feed(node, 1200 * MS)             # applied between two control steps
-        assert node.core._lane_law is None and node.core.last.law.y_ref == 0.0
+        assert node.core.law_name == 'paper' and node.core.last.law.y_ref == 0.0
     finally:
         node.destroy_node()

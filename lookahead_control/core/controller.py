@@ -25,15 +25,45 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Optional
 
-from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput, steering_law
+from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, BaselineParams
+from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
 from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
                                            SafetyParams, stale_target)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
+import numpy as np
 
 ACCELERATION_SOURCES = ('imu', 'differentiate', 'zero')
+LAW_NAMES = ('paper',) + BASELINE_NAMES + ('cg_compensated',)
+PREVIEW_HORIZON = 100.0     # [m] how far the curvature slope is extended for the baselines
+
+
+def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
+              baselines: BaselineParams,
+              lane_keeping: Optional[LaneKeepingParams] = None) -> Law:
+    """
+    Return the steering law called ``name``.
+
+    :param name: ``paper`` (the look-ahead law, eq. 15 with its schedule) or a baseline
+        (``pure_pursuit``, ``stanley``, ``lqr``).
+    :param vehicle: the controller's vehicle model.
+    :param controller: the paper law's parameters.
+    :param baselines: the baselines' parameters.
+    :param lane_keeping: the ``cg_compensated`` law's settings (defaults if None;
+        docs/lane_keeping.md).
+    :return: the law.
+    """
+    check_choice('law', name, LAW_NAMES)
+    if name == 'paper':
+        return PaperLaw(vehicle, controller)
+    if name == 'cg_compensated':
+        return CgCompensatedLaw(vehicle, controller, lane_keeping)
+    return baseline_law(name, vehicle, baselines)
+
+
 # per input: the attribute holding its latest sample, and the method storing a new one
 _LATEST = {'lateral_error': 'lateral', 'yaw': 'yaw', 'velocity': 'velocity',
            'road_curvature': 'curvature'}
@@ -71,7 +101,8 @@ class SteeringController:
 
     def __init__(self, vehicle: VehicleParams, controller: ControllerParams,
                  acceleration_source: str = 'imu', use_preview: bool = False,
-                 safety: Optional[SafetyParams] = None,
+                 safety: Optional[SafetyParams] = None, law: str = 'paper',
+                 baselines: Optional[BaselineParams] = None,
                  lane_keeping: Optional[LaneKeepingParams] = None) -> None:
         """
         Create the controller state.
@@ -85,9 +116,16 @@ class SteeringController:
             curvature preview; if false, only the curvature at the CG is used and its
             changes act as a disturbance (as in the paper).
         :param safety: input and output limits (default limits if None).
-        :param lane_keeping: settings of the ``cg_compensated`` reference's law (defaults
-            if None).
+        :param law: the steering law, one of :data:`LAW_NAMES`.
+        :param baselines: the baseline laws' parameters (defaults if None).
+        :param lane_keeping: the ``cg_compensated`` law's settings (defaults if None).
         """
+        self.law_name = ''
+        self.baselines = baselines or BaselineParams()
+        self.lane_keeping = lane_keeping or LaneKeepingParams()
+        self.law: Law = PaperLaw(vehicle, controller)
+        self._law_stamp: Optional[int] = None
+        self._select_law(law, vehicle, controller, self.baselines)
         self.safety = safety or SafetyParams()
         self.rejected: dict[str, int] = {}
         self.last_rejection = ''
@@ -114,61 +152,62 @@ class SteeringController:
         # older step, or following a watchdog command, or after a time jump, holds)
         self._rate_angle: Optional[float] = None
         self._rate_time: Optional[int] = None
-        # lane keeping (reference cg_compensated): a law with state, reset with the inputs
-        self._lane_settings = lane_keeping or LaneKeepingParams()
-        self._lane_law: Optional[CgCompensatedLaw] = None
-        self._lane_stamp: Optional[int] = None
-        self._make_lane_law()
 
     def configure(self, vehicle: VehicleParams, controller: ControllerParams,
                   acceleration_source: str, use_preview: bool,
-                  safety: Optional[SafetyParams] = None,
+                  safety: Optional[SafetyParams] = None, law: Optional[str] = None,
+                  baselines: Optional[BaselineParams] = None,
                   lane_keeping: Optional[LaneKeepingParams] = None) -> None:
         """
         Replace the parameters (between two control steps).
+
+        A new law starts from its reset state; its first command moves from the last one
+        sent within the rate limit, like any other.
 
         :param vehicle: vehicle parameters.
         :param controller: controller parameters.
         :param acceleration_source: see the constructor.
         :param use_preview: see the constructor.
         :param safety: see the constructor (None: keep).
+        :param law: see the constructor (None: keep).
+        :param baselines: see the constructor (None: keep).
         :param lane_keeping: see the constructor (None: keep).
         """
+        self.lane_keeping = lane_keeping or self.lane_keeping
+        self._select_law(law or self.law_name, vehicle, controller,
+                         baselines or self.baselines)
         self.safety = safety or self.safety
         self.use_preview = use_preview
         self.vehicle = vehicle
         self.params = controller
         self.acceleration_source = check_choice('acceleration_source', acceleration_source,
                                                 ACCELERATION_SOURCES)
-        self._lane_settings = lane_keeping or self._lane_settings
-        self._make_lane_law()
 
-    def _make_lane_law(self) -> None:
-        """(Re)create the lane-keeping law when the reference selects it (fresh state)."""
-        self._lane_stamp = None
-        self._lane_law = (CgCompensatedLaw(self.vehicle, self.params, self._lane_settings)
-                          if self.params.reference == 'cg_compensated' else None)
+    def _select_law(self, name: str, vehicle: VehicleParams, controller: ControllerParams,
+                    baselines: BaselineParams) -> None:
+        """Build the law (raises ParameterError first: the old law stays on error)."""
+        law = build_law(name, vehicle, controller, baselines, self.lane_keeping)
+        law.reset()
+        self.law, self.law_name, self.baselines = law, name, baselines
+        self._law_stamp = None
 
-    def _evaluate(self, state: LateralState, stamp_ns: int) -> LawOutput:
+    def preview(self) -> Preview:
         """
-        Return the law's output: the paper's law, or the lane-keeping law with its state.
+        Return the curvature ahead as the laws get it (empty before any curvature).
 
-        :param state: the law's inputs.
-        :param stamp_ns: the lateral error's stamp: the lane-keeping law's clock [ns].
-        :return: the output.
+        The curvature at the CG held ahead; with ``use_preview`` its slope extended over
+        :data:`PREVIEW_HORIZON`, within the believable curvature.
+
+        :return: the preview.
         """
-        if self._lane_law is None:
-            return steering_law(state, self.vehicle, self.params)
-        dt = 0.0 if self._lane_stamp is None else (stamp_ns - self._lane_stamp) * 1e-9
-        self._lane_stamp = stamp_ns
-        # the node holds the curvature at the CG and its slope: the law extrapolates
-        return self._lane_law.step(state, None, dt)
-
-    def _reset_lane_law(self) -> None:
-        """Restart the lane-keeping law's integral and estimate (time jump, stale)."""
-        if self._lane_law is not None:
-            self._lane_law.reset()
-        self._lane_stamp = None
+        if self.curvature is None:
+            return Preview(np.zeros(0), np.zeros(0))
+        rho = self.curvature.rho
+        if not self.use_preview:
+            return Preview(np.zeros(1), np.array([rho]))
+        cap = self.safety.max_curvature
+        ahead = min(cap, max(-cap, rho + self.curvature.slope * PREVIEW_HORIZON))
+        return Preview(np.array([0.0, PREVIEW_HORIZON]), np.array([rho, ahead]))
 
     # -- checked input ------------------------------------------------------------
 
@@ -187,7 +226,8 @@ class SteeringController:
         self._received.clear()
         self._stale_since = None
         self._hold_value = None
-        self._reset_lane_law()
+        self.law.reset()
+        self._law_stamp = None
 
     def accept(self, name: str, sample: Any, now_ns: Optional[int] = None) -> Optional[str]:
         """
@@ -259,7 +299,8 @@ class SteeringController:
         if self._stale_since is None:
             self._stale_since = now_ns
             self._held = sent
-            self._reset_lane_law()
+            self.law.reset()            # a law with state restarts after stale inputs
+            self._law_stamp = None
         held = self._held if self._held is not None else sent
         wanted = stale_target(held, (now_ns - self._stale_since) * 1e-9, self.safety)
         v_x = self.velocity.v_x if self.velocity else 0.0
@@ -387,7 +428,10 @@ class SteeringController:
         state = self.state()
         if state is None or self.lateral is None:
             return None
-        law = self._evaluate(state, self.lateral.stamp_ns)
+        stamp = self.lateral.stamp_ns
+        dt = 0.0 if self._law_stamp is None else max(0, stamp - self._law_stamp) * 1e-9
+        self._law_stamp = stamp
+        law = self.law.step(state, self.preview(), dt)
         self._stale_since = None
         v_x = float(state.v_x)
         weight = low_speed_weight(v_x, self.safety)

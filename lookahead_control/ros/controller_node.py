@@ -27,15 +27,16 @@ from typing import Any, Callable, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
-from lookahead_control.core.controller import ACCELERATION_SOURCES, Command, SteeringController
+from lookahead_control.core.controller import (ACCELERATION_SOURCES, Command, LAW_NAMES,
+                                               SteeringController)
 from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.node_main import now_ns, run_node, Throttle
-from lookahead_control.ros.node_params import (check_choices, CONTROLLER_SPECS, declare,
-                                               EXECUTOR_SPEC, lane_keeping_params,
-                                               LANE_KEEPING_SPECS, safety_params, SAFETY_SPECS,
-                                               Spec, values, vehicle_and_controller,
-                                               VEHICLE_SPECS)
+from lookahead_control.ros.node_params import (baseline_params, BASELINE_SPECS, check_choices,
+                                               CONTROLLER_SPECS, declare, EXECUTOR_SPEC,
+                                               lane_keeping_params, LANE_KEEPING_SPECS,
+                                               LAW_SPEC, safety_params, SAFETY_SPECS, Spec,
+                                               values, vehicle_and_controller, VEHICLE_SPECS)
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
@@ -65,8 +66,8 @@ NODE_SPECS = (
     Spec('diagnostics_rate_hz', 1.0, '/diagnostics rate [Hz]', 0.1, 100.0),
     EXECUTOR_SPEC,
 )
-ALL_SPECS = (VEHICLE_SPECS + CONTROLLER_SPECS + SAFETY_SPECS + NODE_SPECS
-             + LANE_KEEPING_SPECS)
+ALL_SPECS = (VEHICLE_SPECS + (LAW_SPEC,) + CONTROLLER_SPECS + BASELINE_SPECS + SAFETY_SPECS
+             + NODE_SPECS + LANE_KEEPING_SPECS)
 DEBUG_FIELDS = ('d_v', 'd_v_rate', 'y_v', 'y_v_rate', 'y_ref', 'error', 'error_rate', 'f_v',
                 'beta_1')
 
@@ -99,6 +100,7 @@ class ControllerNode(LifecycleNode):
         vehicle, controller = vehicle_and_controller(params)
         self.core = SteeringController(vehicle, controller, params['acceleration_source'],
                                        params['use_curvature_preview'], safety_params(params),
+                                       params['law'], baseline_params(params),
                                        lane_keeping_params(params))
         self.counters = {'saturated': 0, 'rate_limited': 0, 'low_speed': 0,
                          'd_v_clamped': 0, 'stale_commands': 0}
@@ -129,6 +131,7 @@ class ControllerNode(LifecycleNode):
             check_choices(ALL_SPECS, merged)
             vehicle_and_controller(merged)
             safety_params(merged)
+            baseline_params(merged)
             lane_keeping_params(merged)
         except (ParameterError, ValueError) as err:
             return SetParametersResult(successful=False, reason=str(err))
@@ -151,9 +154,11 @@ class ControllerNode(LifecycleNode):
         vehicle, controller = vehicle_and_controller(params)
         self.core.configure(vehicle, controller, params['acceleration_source'],
                             params['use_curvature_preview'], safety_params(params),
+                            params['law'], baseline_params(params),
                             lane_keeping_params(params))
         self._dirty = False
-        self.get_logger().info(f'parameters applied: schedule={controller.schedule}, '
+        self.get_logger().info(f'parameters applied: law={params["law"]}, '
+                               f'schedule={controller.schedule}, '
                                f'w_n={controller.natural_frequency:g}, '
                                f'zeta={controller.damping_ratio:g}')
 
@@ -191,7 +196,7 @@ class ControllerNode(LifecycleNode):
                                              self.on_diagnostics,
                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f'configured: mode={self.param("mode")}, schedule='
+            f'configured: mode={self.param("mode")}, law={self.core.law_name}, schedule='
             f'{self.core.params.schedule}, inputs {self.param("qos_reliability")}')
         return TransitionCallbackReturn.SUCCESS
 
@@ -361,12 +366,14 @@ class ControllerNode(LifecycleNode):
         law = command.law
         if law is None:
             return
-        self.counters['d_v_clamped'] += int(float(law.d_v) >= self.core.params.max_look_ahead)
+        if self.core.law_name == 'paper':
+            self.counters['d_v_clamped'] += int(float(law.d_v) >= self.core.params.max_look_ahead)
         if self._debug_pub.get_subscription_count() == 0:
             return                  # nobody listens: do not build the debug message
         mode = self.core.params.schedule
         debug = [(name, float(getattr(law, name))) for name in DEBUG_FIELDS]
         debug.append((f'schedule:{mode}', float(SCHEDULE_MODES.index(mode))))
+        debug.append((f'law:{self.core.law_name}', float(LAW_NAMES.index(self.core.law_name))))
         self._debug_pub.publish(conv.to_named_values(command.stamp_ns, debug))
 
     def diagnostics(self) -> DiagnosticStatus:

@@ -24,6 +24,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping, NamedTuple, Sequence
 
+from lookahead_control.core.baselines import (BaselineParams, LATERAL_RATE_MODES, LqrParams,
+                                              PurePursuitParams, StanleyParams)
+from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import (ControllerParams, REFERENCE_MODES, SCHEDULE_MODES,
                                            VehicleParams)
@@ -67,13 +70,19 @@ CONTROLLER_SPECS = (
          0.01, 200.0),
     Spec('controller.reference', 'lane_tangent',
          'regulate y_v to 0 (lane_tangent), to the lane offset y_o (arc_approx, '
-         'arc_exact), or keep the CG on the lane (cg_compensated: the lane_keeping.* '
-         'law, docs/lane_keeping.md)', choices=REFERENCE_MODES),
+         'arc_exact) or to d_v eps_ss (cg_compensated: the CG on the lane, without the '
+         'preview, estimate and integral of law cg_compensated)', choices=REFERENCE_MODES),
     Spec('controller.min_speed', 1.0, 'the law divides by v_x; floor of v_x [m/s]',
          0.01, 20.0),
 )
 
-# the CG-compensated law (controller.reference: cg_compensated); defaults: LaneKeepingParams
+LAW_SPEC = Spec('law', 'paper', 'steering law: paper (the look-ahead law, eq. 15 with the '
+                'controller.* schedule), cg_compensated (the look-ahead law keeping the CG '
+                'on the lane, lane_keeping.* below) or a baseline with its own parameters '
+                'below; switchable while active (the rate limit applies to the change)',
+                choices=LAW_NAMES)
+
+# the CG-compensated law (law: cg_compensated); defaults: LaneKeepingParams
 LANE_KEEPING_SPECS = tuple(
     Spec(f'lane_keeping.{name}', getattr(LaneKeepingParams(), name), text, low, high)
     for name, text, low, high in (
@@ -103,6 +112,33 @@ LANE_KEEPING_SPECS = tuple(
         ('rate_feedforward', 'add the curvature-rate term of the inverse zero dynamics '
          '(better on linear tyres, worse on the nonlinear plant)', 0.0, 1.0),
     ))
+
+BASELINE_SPECS = (
+    Spec('pure_pursuit.velocity_ratio', 1.4, 'look-ahead per speed (Autoware '
+         'ld_velocity_ratio) [s]', 0.0, 10.0),
+    Spec('pure_pursuit.lateral_error_ratio', 3.6, 'look-ahead per |rear-axle error| past '
+         'the threshold (ld_lateral_error_ratio) [-]', 0.0, 100.0),
+    Spec('pure_pursuit.lateral_error_threshold', 0.5, 'long_ld_lateral_error_threshold [m]',
+         0.0, 100.0),
+    Spec('pure_pursuit.curvature_ratio', 120.0, 'look-ahead taken off per |curvature| '
+         '(ld_curvature_ratio) [m^2]', 0.0, 1.0e4),
+    Spec('pure_pursuit.min_look_ahead', 4.35, 'min_lookahead_distance [m]', 0.01, 200.0),
+    Spec('pure_pursuit.max_look_ahead', 60.0, 'max_lookahead_distance [m]', 0.01, 200.0),
+    Spec('stanley.gain', 1.5, 'k of atan(k e / (k_soft + v)) [1/s]', 0.001, 100.0),
+    Spec('stanley.softening', 1.0, 'k_soft [m/s]', 0.001, 100.0),
+    Spec('stanley.yaw_rate_gain', 0.1, 'k_d,yaw on r - r_traj [s]', 0.0, 10.0),
+    Spec('stanley.steady_yaw_gain', 1.0, 'k_ag on the steady-state yaw term [-]', 0.0, 5.0),
+    Spec('lqr.q_lateral', 0.3, 'Q weight of the lateral error [1/m^2]', 0.0, 1.0e6),
+    Spec('lqr.q_lateral_rate', 0.0, 'Q weight of its rate [s^2/m^2]', 0.0, 1.0e6),
+    Spec('lqr.q_heading', 1.0, 'Q weight of the relative yaw [1/rad^2]', 0.0, 1.0e6),
+    Spec('lqr.q_heading_rate', 0.0, 'Q weight of its rate [s^2/rad^2]', 0.0, 1.0e6),
+    Spec('lqr.r', 1.0, 'R weight of the steering angle [1/rad^2]', 1.0e-6, 1.0e6),
+    Spec('lqr.period', 0.01, 'sampling period the gains are designed for [s]', 0.001, 1.0),
+    Spec('lqr.lateral_rate', 'kinematic', "e1' measured as v_y cos e2 + v_x sin e2 "
+         "(kinematic) or Apollo's v_x sin e2, which ignores v_y (apollo)",
+         choices=LATERAL_RATE_MODES),
+    Spec('lqr.feedforward', True, "Apollo's curvature feedforward"),
+)
 
 SAFETY_SPECS = tuple(
     Spec(f'safety.{name}', default, text, low, high) for name, default, text, low, high in (
@@ -223,6 +259,18 @@ def vehicle_and_controller(params: Mapping[str, Any]) -> tuple[VehicleParams,
     """
     return build(VehicleParams, params, 'vehicle'), build(ControllerParams, params,
                                                           'controller')
+
+
+def baseline_params(params: Mapping[str, Any]) -> BaselineParams:
+    """
+    Build the baseline laws' parameters from flat ROS parameter values.
+
+    :param params: name -> value.
+    :return: the parameters (raises ParameterError).
+    """
+    return BaselineParams(build(PurePursuitParams, params, 'pure_pursuit'),
+                          build(StanleyParams, params, 'stanley'),
+                          build(LqrParams, params, 'lqr'))
 
 
 def safety_params(params: Mapping[str, Any]) -> SafetyParams:

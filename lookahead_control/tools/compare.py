@@ -1,0 +1,625 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Executable ``compare``: every law x scenarios S0-S5 x plants x speeds, one league table.
+
+Each law gets the same inputs (the contract's measurements through the same sensors and
+noise, the same curvature preview), the same actuator, plant and safety-free offline
+loop (``sim_plant.closed_loop_sim.run``, vectorized over speeds). Writes ``league.md``
+(summary and goal rows), ``league.csv`` (one row per run) and ``league.png`` into
+``--out``; ``--tune`` runs the baselines' tuning grids instead (``docs/baselines.md``).
+A law added later is one entry of :data:`LAWS`.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+import math
+from pathlib import Path
+import time
+from typing import Any, Callable, Iterable, Mapping, Optional, Sequence
+
+from lookahead_control.analysis.metrics import step_metrics
+from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrParams,
+                                              PurePursuitParams, StanleyParams)
+from lookahead_control.core.cli import markdown_table, parser, run_tool, write_csv
+from lookahead_control.core.control_law import arc_offset
+from lookahead_control.core.lane_keeping import CgCompensatedLaw
+from lookahead_control.core.laws import Law, PaperLaw
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.schedule import paper_look_ahead
+import numpy as np
+import numpy.typing as npt
+from sim_plant.closed_loop_sim import run, SimResult
+from sim_plant.scenario import load_scenario, Scenario
+from sim_plant.sensors import NoiseParams
+from sim_plant.vehicle_model import PlantParams
+
+Array = npt.NDArray[np.float64]
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO_DIR = ROOT / 'config' / 'scenarios'
+SCENARIOS = ('s0_straight', 's1_paper_step', 's2_curve_entry', 's3_s_bend',
+             's4_lane_change', 's5_envelope')
+SPEEDS = (10.0, 20.0, 30.0, 37.0)
+PREVIEW_DISTANCE = 100.0        # [m] every law sees the curvature this far ahead
+DELAY = 0.02                    # [s] transport delay of the "nonlinear + delay + noise" plant
+NOISE_SEED = 1                  # seeds are NOISE_SEED + run index: runs repeat exactly
+FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last second
+
+
+LawFactory = Callable[[VehicleParams], Law]
+LAWS: dict[str, LawFactory] = {
+    'paper_fixed': lambda v: PaperLaw(v, ControllerParams(schedule='fixed')),
+    'paper_eq26': lambda v: PaperLaw(v, ControllerParams()),
+    'pure_pursuit': lambda v: baseline_law('pure_pursuit', v, BaselineParams()),
+    'stanley': lambda v: baseline_law('stanley', v, BaselineParams()),
+    'lqr': lambda v: baseline_law('lqr', v, BaselineParams()),
+    'cg_compensated': lambda v: CgCompensatedLaw(v, ControllerParams()),
+}
+
+
+@dataclass(frozen=True)
+class PlantCase:
+    """
+    One plant of the league.
+
+    :param name: its column name.
+    :param plant: the plant options.
+    :param delay: transport delay control -> wheel [s].
+    :param noisy: the default sensor noise (``sim_plant.sensors.NoiseParams()``) is on.
+    :param vehicle_id: a CommonRoad parameter set: the laws then use its single-track
+        mapping (``sim_plant.commonroad_plant.controller_vehicle``) as their model.
+    """
+
+    name: str
+    plant: PlantParams
+    delay: float = 0.0
+    noisy: bool = False
+    vehicle_id: Optional[int] = None
+
+    def law_vehicle(self, vehicle: VehicleParams) -> VehicleParams:
+        """
+        Return the vehicle model the laws are given on this plant.
+
+        :param vehicle: the league's vehicle (the plant's, for the package's plants).
+        :return: that vehicle, or the CommonRoad set's single-track mapping.
+        """
+        if self.vehicle_id is None:
+            return vehicle
+        from sim_plant.commonroad_plant import controller_vehicle
+        return controller_vehicle(self.vehicle_id)
+
+
+NONLINEAR = PlantParams(model='nonlinear')
+PLANTS = (PlantCase('linear', PlantParams()), PlantCase('nonlinear', NONLINEAR),
+          PlantCase('nonlinear_delay_noise', NONLINEAR, DELAY, True),
+          PlantCase('commonroad_mb', PlantParams(model='commonroad_mb', vehicle_id=2),
+                    vehicle_id=2))
+GOAL_PLANT = 'nonlinear_delay_noise'
+
+
+# -- goals (issue 14: one tuning, nonlinear plant + 20 ms delay + default noise) -----------
+
+@dataclass(frozen=True)
+class Goal:
+    """
+    One goal row: a metric bound on some scenarios, speeds and plant.
+
+    :param name: short name.
+    :param metric: the row field it bounds.
+    :param bound: the largest allowed value.
+    :param scenarios: where it applies.
+    :param speeds: at which speeds (empty: all).
+    :param plant: on which plant.
+    """
+
+    name: str
+    metric: str
+    bound: float
+    scenarios: tuple[str, ...]
+    speeds: tuple[float, ...] = ()
+    plant: str = GOAL_PLANT
+
+    def applies(self, row: Mapping[str, Any]) -> bool:
+        """
+        Return whether the goal applies to a run.
+
+        :param row: the run's row.
+        :return: scenario, plant and speed match.
+        """
+        return (row['scenario'] in self.scenarios and row['plant'] == self.plant
+                and (not self.speeds or row['speed_mps'] in self.speeds))
+
+
+GOALS = (
+    Goal('S2 peak <= 3 cm at 37', 'peak_cg_error_m', 0.03, ('s2_curve_entry',), (37.0,)),
+    Goal('S1 peak <= 6 cm at 37', 'peak_cg_error_m', 0.06, ('s1_paper_step',), (37.0,)),
+    Goal('S3 peak <= 6 cm at 37', 'peak_cg_error_m', 0.06, ('s3_s_bend',), (37.0,)),
+    Goal('S4 peak <= 6 cm at 37', 'peak_cg_error_m', 0.06, ('s4_lane_change',), (37.0,)),
+    Goal('steady on an arc <= 1 cm', 'steady_cg_error_m', 0.01,
+         ('s1_paper_step', 's2_curve_entry')),
+    Goal('yaw overshoot <= 10 %', 'yaw_overshoot', 0.10,
+         ('s1_paper_step', 's2_curve_entry', 's3_s_bend'), (30.0, 37.0)),
+    Goal('S0 yaw rebound <= 50 %', 'yaw_rebound', 0.50, ('s0_straight',)),
+    Goal('S0 noise <= 5 mrad rms at 37', 'steering_noise_rms_rad', 0.005, ('s0_straight',),
+         (37.0,)),
+    Goal('CommonRoad S2 <= 5 cm at 30-37', 'peak_cg_error_m', 0.05, ('s2_curve_entry',),
+         (30.0, 37.0), 'commonroad_mb'),
+)
+
+
+# -- metrics -------------------------------------------------------------------------------
+
+def _peak_rate(x: Array, period: float) -> float:
+    return float(np.max(np.abs(np.diff(x)))) / period if x.size > 1 else 0.0
+
+
+def curve_window(time: Array, rho: Array) -> Optional[tuple[float, float]]:
+    """
+    Return ``(start, end)`` of the first curve: curvature leaves 0, until it changes sign.
+
+    :param time: sample times [s].
+    :param rho: road curvature at the CG [1/m].
+    :return: the window, None on a straight road.
+    """
+    curved = np.nonzero(np.abs(rho) > 1e-9)[0]
+    if curved.size == 0:
+        return None
+    first = int(curved[0])
+    flipped = np.nonzero(np.sign(rho[first:]) == -np.sign(rho[first]))[0]
+    end = float(time[first + int(flipped[0])]) if flipped.size else float(time[-1])
+    return float(time[first]), end
+
+
+def yaw_rebound(eps_r: Array) -> float:
+    """
+    Return the relative yaw's rebound after an initial disturbance (S0).
+
+    The largest excursion to the opposite side of the initial relative yaw, over it:
+    ``max(-sign(eps_0) eps_r) / |eps_0|`` (0 for a monotonic return).
+
+    :param eps_r: relative yaw from the disturbance on [rad].
+    :return: the rebound [-] (NaN without an initial disturbance).
+    """
+    initial = float(eps_r[0])
+    if initial == 0.0:
+        return math.nan
+    return max(0.0, float(np.max(-math.copysign(1.0, initial) * eps_r))) / abs(initial)
+
+
+def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
+            clean_command: Optional[Array]) -> dict[str, Any]:
+    """
+    Return the metrics of one run of a batch.
+
+    :param result: the batch.
+    :param index: the run's column (None: a single run).
+    :param vehicle: the controller's vehicle model (eq. 26's d_v for the look-ahead point).
+    :param clean_command: the same run's command without sensor noise (noise metric).
+    :return: the metrics.
+    """
+    def channel(name: str) -> Array:
+        values = result[name]
+        return values if index is None else values[:, index]
+
+    t = result.time
+    period = float(t[1] - t[0])
+    y, eps, rate, rho = channel('y_cg'), channel('eps_r'), channel('r'), channel('rho')
+    v_x = channel('v_x')
+    d_v, _ = paper_look_ahead(v_x, 0.0 * v_x, vehicle)
+    lane_error = y + d_v * np.sin(eps) - arc_offset(rho, d_v, eps, True)
+    wheel, command = channel('steering'), channel('steering_cmd')
+    row: dict[str, Any] = {
+        'peak_cg_error_m': float(np.max(np.abs(y))),
+        'steady_cg_error_m': abs(float(np.mean(y[t >= t[-1] - FINAL_WINDOW]))),
+        'peak_look_ahead_lane_error_m': float(np.max(np.abs(lane_error))),
+        'yaw_overshoot': math.nan, 'yaw_rate_overshoot': math.nan,
+        'yaw_rebound': math.nan,
+        'peak_wheel_angle_rad': float(np.max(np.abs(wheel))),
+        'peak_wheel_rate_rad_per_s': _peak_rate(wheel, period),
+        'peak_command_rad': float(np.max(np.abs(command))),
+        'peak_command_rate_rad_per_s': _peak_rate(command, period),
+        'steering_noise_rms_rad': (math.nan if clean_command is None else float(
+            np.sqrt(np.mean(np.square(command - clean_command))))),
+        'diverged': bool(not np.all(np.isfinite(y)) or np.max(np.abs(y)) > 5.0),
+    }
+    window = curve_window(t, rho)
+    notes = []
+    if window is None:
+        row['yaw_rebound'] = yaw_rebound(eps)
+    else:
+        for name, signal in (('yaw_overshoot', eps), ('yaw_rate_overshoot', rate)):
+            step = step_metrics(t, signal, window[0], FINAL_WINDOW, window[1])
+            row[name] = step.overshoot
+            if step.note:
+                notes.append(f'{name}: {step.note}')
+    row['notes'] = '; '.join(notes)
+    return row
+
+
+def goal_verdicts(row: Mapping[str, Any]) -> tuple[list[str], list[str]]:
+    """
+    Return the goals that apply to a run and those of them it misses.
+
+    A NaN metric (not measurable) counts as missed.
+
+    :param row: the run's row.
+    :return: ``(applicable, missed)`` goal names.
+    """
+    applicable, missed = [], []
+    for goal in GOALS:
+        if goal.applies(row):
+            applicable.append(goal.name)
+            value = row[goal.metric]
+            if not (value <= goal.bound) or row['diverged']:
+                missed.append(goal.name)
+    return applicable, missed
+
+
+# -- the runs ------------------------------------------------------------------------------
+
+def load_scenarios(names: Iterable[str]) -> dict[str, Scenario]:
+    """
+    Load scenarios by name from ``config/scenarios``.
+
+    :param names: file names without ``.yaml``.
+    :return: name -> scenario.
+    """
+    return {name: load_scenario(SCENARIO_DIR / f'{name}.yaml') for name in names}
+
+
+def scenario_speeds(scenario: Scenario, speeds: Sequence[float]) -> list[float]:
+    """
+    Return the speeds a scenario runs at (its own profile only, when it is fixed).
+
+    :param scenario: the scenario.
+    :param speeds: the league's speeds.
+    :return: the speeds.
+    """
+    return [scenario.speed.initial] if getattr(scenario.speed, 'fixed', False) else list(
+        speeds)
+
+
+def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], VehicleParams,
+                         float]) -> list[dict[str, Any]]:
+    """
+    Run one law on one scenario: every plant, every speed (vectorized per plant).
+
+    :param task: ``(law, scenario name, speeds, plants, vehicle, dt)`` (names, not
+        objects: a task crosses to a worker process).
+    :return: one row per run.
+    """
+    law_name, scenario_name, speeds, plants, league_vehicle, dt = task
+    scenario = load_scenarios([scenario_name])[scenario_name]
+    v0 = np.asarray(speeds, dtype=float)
+    seeds = [NOISE_SEED + i for i in range(v0.size)]
+    rows = []
+    for case in plants:
+        vehicle = case.law_vehicle(league_vehicle)
+        law = LAWS[law_name](vehicle)
+        common: dict[str, Any] = {'initial_speed': v0, 'dt': dt,
+                                  'preview_distance': PREVIEW_DISTANCE,
+                                  'delay': np.full(v0.shape, case.delay)}
+        result = run(scenario, vehicle, law, case.plant, **common)
+        clean = None
+        if case.noisy:
+            clean = result['steering_cmd']
+            result = run(scenario, vehicle, law, case.plant, noise=NoiseParams(), seed=seeds,
+                         **common)
+        for i, speed in enumerate(v0):
+            row: dict[str, Any] = {'law': law_name, 'scenario': scenario_name,
+                                   'plant': case.name, 'speed_mps': float(speed)}
+            row.update(run_row(result, i, vehicle, None if clean is None else clean[:, i]))
+            applicable, missed = goal_verdicts(row)
+            row['goals'] = ', '.join(applicable)
+            row['goals_missed'] = ', '.join(missed)
+            rows.append(row)
+    return rows
+
+
+def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float],
+           plants: Sequence[PlantCase], vehicle: VehicleParams, dt: float = 0.001,
+           workers: int = 1) -> list[dict[str, Any]]:
+    """
+    Run the league: every law on every scenario, plant and speed.
+
+    :param laws: law names (keys of :data:`LAWS`).
+    :param scenarios: scenario names (files in ``config/scenarios``).
+    :param speeds: speeds [m/s].
+    :param plants: the plants.
+    :param vehicle: the vehicle (controller model and plant).
+    :param dt: plant step [s].
+    :param workers: processes (1: in this process).
+    :return: one row per run, in a fixed order (law, scenario, plant, speed).
+    """
+    loaded = load_scenarios(scenarios)
+    tasks = [(law, name, scenario_speeds(loaded[name], speeds), tuple(plants), vehicle, dt)
+             for law in laws for name in scenarios]
+    if workers <= 1:
+        results = [run_case(task) for task in tasks]
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            results = list(pool.map(run_case, tasks))
+    return [row for rows in results for row in rows]
+
+
+# -- reports -------------------------------------------------------------------------------
+
+def _worst(rows: Iterable[Mapping[str, Any]], metric: str) -> float:
+    values = [float(r[metric]) for r in rows if not math.isnan(float(r[metric]))]
+    return max(values) if values else math.nan
+
+
+def summary(rows: Sequence[Mapping[str, Any]], laws: Sequence[str]) -> list[dict[str, Any]]:
+    """
+    Return one league row per law on the goal plant (worst cases) and its goal count.
+
+    :param rows: the runs.
+    :param laws: the laws, in order.
+    :return: the league rows.
+    """
+    table = []
+    for law in laws:
+        mine = [r for r in rows if r['law'] == law]
+        goal = [r for r in mine if r['plant'] == GOAL_PLANT]
+        at37 = [r for r in goal if r['speed_mps'] == 37.0]
+        applicable = sum(len(r['goals'].split(', ')) for r in mine if r['goals'])
+        missed = sum(len(r['goals_missed'].split(', ')) for r in mine if r['goals_missed'])
+        entry: dict[str, Any] = {'law': law}
+        for name in ('s1_paper_step', 's2_curve_entry', 's3_s_bend', 's4_lane_change'):
+            entry[f'{name[:2].upper()} peak cg 37 [cm]'] = 100.0 * _worst(
+                [r for r in at37 if r['scenario'] == name], 'peak_cg_error_m')
+        entry['S5 peak cg [cm]'] = 100.0 * _worst(
+            [r for r in goal if r['scenario'] == 's5_envelope'], 'peak_cg_error_m')
+        entry['steady arc [cm]'] = 100.0 * _worst(
+            [r for r in goal if r['scenario'] in ('s1_paper_step', 's2_curve_entry')],
+            'steady_cg_error_m')
+        entry['yaw overshoot 30-37 [%]'] = 100.0 * _worst(
+            [r for r in goal if r['speed_mps'] >= 30.0 and r['scenario'] in
+             ('s1_paper_step', 's2_curve_entry', 's3_s_bend')], 'yaw_overshoot')
+        entry['S0 rebound 37 [%]'] = 100.0 * _worst(
+            [r for r in at37 if r['scenario'] == 's0_straight'], 'yaw_rebound')
+        entry['S0 noise 37 [mrad]'] = 1000.0 * _worst(
+            [r for r in at37 if r['scenario'] == 's0_straight'], 'steering_noise_rms_rad')
+        entry['peak wheel rate [rad/s]'] = _worst(goal, 'peak_wheel_rate_rad_per_s')
+        entry['diverged runs'] = sum(bool(r['diverged']) for r in mine)
+        entry['goals met'] = f'{applicable - missed}/{applicable}'
+        table.append(entry)
+    return table
+
+
+def per_scenario(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], plant: str,
+                 speed: float) -> list[dict[str, Any]]:
+    """
+    Return the peak CG error [cm] of each law on each scenario for one plant and speed.
+
+    :param rows: the runs.
+    :param laws: the laws.
+    :param plant: the plant.
+    :param speed: the speed [m/s] (S5 runs its own profile and is listed anyway).
+    :return: one row per law.
+    """
+    table = []
+    for law in laws:
+        entry: dict[str, Any] = {'law': law}
+        for r in rows:
+            if r['law'] == law and r['plant'] == plant and (
+                    r['speed_mps'] == speed or r['scenario'] == 's5_envelope'):
+                entry[r['scenario'][:2].upper()] = 100.0 * float(r['peak_cg_error_m'])
+        table.append(entry)
+    return table
+
+
+def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Path) -> Path:
+    """
+    Plot peak CG error per scenario at 37 m/s, S0 noise and rebound, on the goal plant.
+
+    :param rows: the runs.
+    :param laws: the laws.
+    :param path: the PNG to write.
+    :return: the path.
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    scen = [s for s in SCENARIOS if any(r['scenario'] == s for r in rows)]
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), gridspec_kw={'width_ratios': [3, 1, 1]})
+    width = 0.8 / max(len(laws), 1)
+    for j, law in enumerate(laws):
+        mine = [r for r in rows if r['law'] == law and r['plant'] == GOAL_PLANT]
+        peaks = [100.0 * _worst([r for r in mine if r['scenario'] == s and (
+            r['speed_mps'] == 37.0 or s == 's5_envelope')], 'peak_cg_error_m') for s in scen]
+        axes[0].bar(np.arange(len(scen)) + j * width, peaks, width, label=law)
+        s0 = [r for r in mine if r['scenario'] == 's0_straight' and r['speed_mps'] == 37.0]
+        axes[1].bar(j, 1000.0 * _worst(s0, 'steering_noise_rms_rad'))
+        axes[2].bar(j, 100.0 * _worst(s0, 'yaw_rebound'))
+    axes[0].set_xticks(np.arange(len(scen)) + 0.4 - width / 2)
+    axes[0].set_xticklabels([s[:2].upper() for s in scen])
+    axes[0].set_yscale('log')
+    axes[0].set_ylabel('peak CG lateral error y_cg [cm] (log)')
+    axes[0].set_title('37 m/s (S5: 10-37-10 m/s), nonlinear + 20 ms + noise')
+    axes[0].legend(fontsize=8)
+    for ax, label in ((axes[1], 'S0 steering noise rms [mrad]'),
+                      (axes[2], 'S0 yaw rebound [%]')):
+        ax.set_xticks(range(len(laws)))
+        ax.set_xticklabels(laws, rotation=60, ha='right', fontsize=8)
+        ax.set_title(label, fontsize=9)
+    axes[1].axhline(5.0, color='k', lw=0.8, ls='--')
+    axes[2].axhline(50.0, color='k', lw=0.8, ls='--')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Path,
+                 plot: bool = True) -> Path:
+    """
+    Write league.csv (every run), league.md (summary, goals, per scenario), league.png.
+
+    :param rows: the runs.
+    :param laws: the laws.
+    :param out: the output folder.
+    :param plot: also write the PNG.
+    :return: the markdown file.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(out / 'league.csv', rows)
+    plants = list(dict.fromkeys(r['plant'] for r in rows))
+    text = [
+        '# League table: every law x S0-S5 x plants x speeds', '',
+        'Same inputs (the contract through the same sensors; noise seeds per run), '
+        f'curvature preview {PREVIEW_DISTANCE:g} m, the same plant and actuator for every '
+        f'law. Goal plant: `{GOAL_PLANT}` (Fiala tyres, 50 ms actuator lag, 0.8 rad/s, '
+        f'{1000 * DELAY:g} ms transport delay, default sensor noise). Worst case over the '
+        'runs of each column; goals as in issue 14 (a NaN metric counts as missed). '
+        'Definitions: docs/baselines.md.', '',
+        markdown_table(summary(rows, laws), digits=3), '']
+    for plant in plants:
+        text += [f'## Peak CG error [cm] at 37 m/s, plant `{plant}` (S5: its profile)', '',
+                 markdown_table(per_scenario(rows, laws, plant, 37.0), digits=3), '']
+    missed = [r for r in rows if r['goals_missed']]
+    text += ['## Goals missed', '',
+             markdown_table([{k: r[k] for k in ('law', 'scenario', 'speed_mps',
+                                                'goals_missed')} for r in missed])
+             if missed else 'none', '']
+    if plot:
+        png = write_plot(rows, laws, out / 'league.png')
+        text.append(f'![league]({png.name})')
+    path = out / 'league.md'
+    path.write_text('\n'.join(text) + '\n', encoding='utf-8')
+    return path
+
+
+# -- tuning (the same procedure for every baseline) ----------------------------------------
+
+TUNING_GRIDS: dict[str, list[Any]] = {
+    'pure_pursuit': [PurePursuitParams(velocity_ratio=a, min_look_ahead=b)
+                     for a in (0.6, 0.8, 1.0, 1.4, 2.0) for b in (4.35, 10.0)],
+    'stanley': [StanleyParams(gain=a, yaw_rate_gain=b)
+                for a in (0.5, 1.0, 1.5, 2.5, 4.0, 6.0) for b in (0.0, 0.05, 0.1, 0.2)],
+    'lqr': [LqrParams(q_lateral=a, q_heading=b)
+            for a in (0.003, 0.01, 0.03, 0.1, 0.3) for b in (0.01, 0.03, 0.1, 0.3, 1.0)],
+}
+TUNING_NOISE_LIMIT = 0.005      # [rad] rms on S0 at 37 m/s, the noise goal
+
+
+def tune_point(task: tuple[str, Any, VehicleParams, float]) -> dict[str, Any]:
+    """
+    Score one parameter set: worst peak CG error on S1 and S2, S0 noise at 37 m/s.
+
+    :param task: ``(law, params, vehicle, dt)``.
+    :return: the scores and parameters.
+    """
+    name, params, vehicle, dt = task
+    scenarios = load_scenarios(('s0_straight', 's1_paper_step', 's2_curve_entry'))
+    law = baseline_law(name, vehicle, replace(BaselineParams(), **{name: params}))
+    case = next(p for p in PLANTS if p.name == GOAL_PLANT)
+    v0 = np.asarray(SPEEDS)
+    peak = 0.0
+    for scenario in ('s1_paper_step', 's2_curve_entry'):
+        result = run(scenarios[scenario], vehicle, law, case.plant, initial_speed=v0,
+                     dt=dt, preview_distance=PREVIEW_DISTANCE, delay=case.delay,
+                     noise=NoiseParams(), seed=[NOISE_SEED + i for i in range(v0.size)])
+        y = result['y_cg']
+        peak = max(peak, float(np.max(np.abs(y))) if np.all(np.isfinite(y)) else math.inf)
+    s0 = scenarios['s0_straight']
+    common: dict[str, Any] = {'initial_speed': 37.0, 'dt': dt,
+                              'preview_distance': PREVIEW_DISTANCE,
+                              'delay': case.delay}
+    clean = run(s0, vehicle, law, case.plant, **common)['steering_cmd']
+    noisy = run(s0, vehicle, law, case.plant, noise=NoiseParams(), seed=NOISE_SEED,
+                **common)['steering_cmd']
+    noise = float(np.sqrt(np.mean(np.square(noisy - clean))))
+    fields = {k: v for k, v in vars(params).items() if k in GRID_FIELDS[name]}
+    return {'law': name, **fields, 'worst_peak_cg_s1_s2_m': peak,
+            'noise_s0_37_rad': noise, 'feasible': noise <= TUNING_NOISE_LIMIT}
+
+
+GRID_FIELDS = {'pure_pursuit': ('velocity_ratio', 'min_look_ahead'),
+               'stanley': ('gain', 'yaw_rate_gain'), 'lqr': ('q_lateral', 'q_heading')}
+
+
+def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int
+         ) -> list[dict[str, Any]]:
+    """
+    Score each baseline's grid; the best is the feasible point with the least peak error.
+
+    :param laws: baseline names.
+    :param vehicle: the vehicle.
+    :param dt: plant step [s].
+    :param workers: processes.
+    :return: one row per grid point, the chosen ones marked ``best``.
+    """
+    tasks = [(name, params, vehicle, dt) for name in laws for params in TUNING_GRIDS[name]]
+    with ProcessPoolExecutor(max_workers=max(workers, 1)) as pool:
+        rows = list(pool.map(tune_point, tasks))
+    for name in laws:
+        feasible = [r for r in rows if r['law'] == name and r['feasible']]
+        mine = feasible or [r for r in rows if r['law'] == name]
+        best = min(mine, key=lambda r: (r['worst_peak_cg_s1_s2_m'], r['noise_s0_37_rad']))
+        for r in rows:
+            if r['law'] == name:
+                r['best'] = r is best
+    return rows
+
+
+# -- command line --------------------------------------------------------------------------
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """
+    Run the league (or the tuning grids) and write the tables.
+
+    :param argv: command-line arguments.
+    :return: exit code.
+    """
+    p = parser('league table: every law x scenarios S0-S5 x plants x speeds')
+    p.add_argument('--laws', nargs='+', default=list(LAWS), choices=list(LAWS))
+    p.add_argument('--scenarios', nargs='+', default=list(SCENARIOS), choices=SCENARIOS)
+    p.add_argument('--plants', nargs='+', default=[c.name for c in PLANTS],
+                   choices=[c.name for c in PLANTS])
+    p.add_argument('--speeds', type=float, nargs='+', default=list(SPEEDS))
+    p.add_argument('--dt', type=float, default=0.001, help='plant step [s]')
+    p.add_argument('--workers', type=int, default=2, help='processes')
+    p.add_argument('--out', type=Path, default=Path('bags') / 'compare',
+                   help='folder for league.md, league.csv, league.png')
+    p.add_argument('--no-plots', action='store_true')
+    p.add_argument('--tune', action='store_true',
+                   help="score the baselines' tuning grids instead (writes tuning.csv)")
+    args = p.parse_args(argv)
+    from lookahead_control.core.config import load_vehicle
+    vehicle = load_vehicle(args.vehicle)
+    start = time.monotonic()
+    if args.tune:
+        names = [n for n in args.laws if n in TUNING_GRIDS] or list(TUNING_GRIDS)
+        rows = tune(names, vehicle, args.dt, args.workers)
+        args.out.mkdir(parents=True, exist_ok=True)
+        write_csv(args.out / 'tuning.csv', rows)
+        print(markdown_table([r for r in rows if r['best']], digits=4))
+        print(f'wrote {args.out / "tuning.csv"} in {time.monotonic() - start:.0f} s')
+        return 0
+    plants = [c for c in PLANTS if c.name in args.plants]
+    rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
+                  args.workers)
+    report = write_report(rows, args.laws, args.out, plot=not args.no_plots)
+    print(markdown_table(summary(rows, args.laws), digits=3))
+    print(f'wrote {report} ({len(rows)} runs in {time.monotonic() - start:.0f} s)')
+    return 0
+
+
+def entry() -> int:
+    """Entry point of ``compare``."""
+    return run_tool(main)

@@ -1,0 +1,94 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The ``compare`` tool: its metrics by hand, goal rows, a small league run twice."""
+
+import math
+
+from lookahead_control.core.params import VehicleParams
+from lookahead_control.tools import compare
+import numpy as np
+import pytest
+
+VEHICLE = VehicleParams()
+
+
+def test_yaw_rebound_by_hand():
+    # starts at 0.01, swings to -0.0041 on the other side: rebound 41 %
+    eps = np.array([0.01, 0.005, 0.0, -0.003, -0.0041, -0.002, 0.0005, 0.0])
+    assert compare.yaw_rebound(eps) == pytest.approx(0.41)
+    assert compare.yaw_rebound(-eps) == pytest.approx(0.41)
+    assert compare.yaw_rebound(np.array([0.01, 0.004, 0.001, 0.0])) == 0.0
+    assert math.isnan(compare.yaw_rebound(np.zeros(4)))
+
+
+def test_curve_window_from_curvature():
+    t = np.arange(10.0)
+    rho = np.array([0, 0, -1, -2, -2, 1, 1, 0, 0, 0]) * 1e-3
+    assert compare.curve_window(t, rho) == (2.0, 5.0)
+    assert compare.curve_window(t, np.where(t > 3, 1e-3, 0.0)) == (4.0, 9.0)
+    assert compare.curve_window(t, np.zeros(10)) is None
+
+
+def _row(**fields):
+    row = {'law': 'x', 'scenario': 's1_paper_step', 'plant': compare.GOAL_PLANT,
+           'speed_mps': 37.0, 'peak_cg_error_m': 0.05, 'steady_cg_error_m': 0.005,
+           'yaw_overshoot': 0.05, 'yaw_rebound': math.nan,
+           'steering_noise_rms_rad': math.nan, 'diverged': False}
+    row.update(fields)
+    return row
+
+
+def test_goal_rows_apply_where_issue_14_puts_them():
+    applicable, missed = compare.goal_verdicts(_row())
+    assert applicable == ['S1 peak <= 6 cm at 37', 'steady on an arc <= 1 cm',
+                          'yaw overshoot <= 10 %']
+    assert missed == []
+    _, missed = compare.goal_verdicts(_row(peak_cg_error_m=0.061, yaw_overshoot=math.nan))
+    assert missed == ['S1 peak <= 6 cm at 37', 'yaw overshoot <= 10 %']   # NaN: missed
+    applicable, _ = compare.goal_verdicts(_row(speed_mps=20.0))
+    assert applicable == ['steady on an arc <= 1 cm']
+    assert compare.goal_verdicts(_row(plant='linear')) == ([], [])
+    s0 = _row(scenario='s0_straight', yaw_rebound=0.6, steering_noise_rms_rad=0.004)
+    assert compare.goal_verdicts(s0) == (['S0 yaw rebound <= 50 %',
+                                          'S0 noise <= 5 mrad rms at 37'],
+                                         ['S0 yaw rebound <= 50 %'])
+    _, missed = compare.goal_verdicts(_row(diverged=True))
+    assert len(missed) == 3
+
+
+def test_every_law_builds_and_is_a_law():
+    from lookahead_control.core.laws import Law
+    for name, factory in compare.LAWS.items():
+        assert isinstance(factory(VEHICLE), Law), name
+
+
+def test_small_league_is_deterministic_and_complete(tmp_path):
+    kwargs = {'laws': ['paper_eq26', 'lqr'], 'scenarios': ['s0_straight', 's1_paper_step'],
+              'speeds': [37.0], 'plants': [compare.PLANTS[0], compare.PLANTS[2]],
+              'vehicle': VEHICLE, 'dt': 0.002}
+    first = compare.league(workers=1, **kwargs)
+    second = compare.league(workers=2, **kwargs)
+    assert len(first) == 2 * 2 * 2
+    assert [str(r) for r in first] == [str(r) for r in second]     # NaN == NaN as text
+    for r in first:
+        assert r['peak_cg_error_m'] >= r['steady_cg_error_m'] >= 0.0
+        noisy = r['plant'] == compare.GOAL_PLANT
+        assert math.isnan(r['steering_noise_rms_rad']) != noisy
+        assert math.isnan(r['yaw_rebound']) != (r['scenario'] == 's0_straight')
+    report = compare.write_report(first, kwargs['laws'], tmp_path, plot=True)
+    text = report.read_text()
+    assert '| paper_eq26 |' in text and '| lqr |' in text
+    assert (tmp_path / 'league.csv').read_text().count('\n') == len(first) + 1
+    assert (tmp_path / 'league.png').stat().st_size > 0
