@@ -25,6 +25,7 @@ EXECUTABLES = {
     'schedule': 'lookahead_control.tools.analysis_tools:schedule',
     'zero_dynamics': 'lookahead_control.tools.analysis_tools:zero_dynamics_tool',
     'certificate': 'lookahead_control.tools.analysis_tools:certificate_tool',
+    'lane_keeping_stability': 'lookahead_control.tools.lane_keeping_tool:stability_tool',
     'paper_scenario': 'lookahead_control.tools.paper_scenario:entry',
     'controller': 'lookahead_control.ros.controller_node:entry',
     'sim_plant': 'sim_plant.sim_plant_node:entry',

@@ -67,6 +67,7 @@ CASES = {
                  (['--vehicle', '{missing}'], 'missing.yaml')],
     'zero_dynamics': [(['--vehicle', '{malformed}'], 'malformed.yaml')],
     'certificate': [(['--vehicle', '{missing}'], 'missing.yaml')],
+    'lane_keeping_stability': [(['--vehicle', '{missing}'], 'missing.yaml')],
     'paper_scenario': [(['--controller', '{malformed}', '--no-plots'], 'malformed.yaml'),
                        (['--no-plots', '--out', '{plain}/out'], 'plain.txt')],
     'controller': [(['--ros-args', '--params-file', '{malformed}'], 'malformed.yaml'),

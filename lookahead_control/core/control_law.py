@@ -73,7 +73,7 @@ class LawOutput(NamedTuple):
     :param d_v_rate: its time derivative [m/s].
     :param y_v: look-ahead output y_cg + d_v eps_r [m].
     :param y_v_rate: its time derivative (eq. 9) [m/s].
-    :param y_ref: the reference y_v is regulated to (0 or y_o) [m].
+    :param y_ref: the reference y_v is regulated to (0, y_o or d_v eps_ss) [m].
     :param error: regulated error e = y_v - y_ref [m].
     :param error_rate: its time derivative [m/s].
     :param f_v: drift term of y_v'' [m/s^2].
@@ -179,6 +179,14 @@ def steering_law(state: LateralState, vehicle: VehicleParams,
     if controller.reference == 'lane_tangent':
         y_ref: Real = 0.0 * y_v
         y_ref_rate: Real = 0.0 * y_v
+    elif controller.reference == 'cg_compensated':
+        # y_ref = d_v eps_ss, eps_ss = (eta v_x^2 - l_2) rho: the CG's equilibrium on an
+        # arc is the lane (docs/lane_keeping.md; the stateful law adds preview, the
+        # compliance estimate and the integral: core/lane_keeping.py)
+        gain = vehicle.eta * v_x * v_x - vehicle.l2
+        y_ref = d_v * gain * rho
+        y_ref_rate = (d_v_rate * gain * rho + d_v * (2.0 * vehicle.eta * v_x * state.a_x * rho
+                                                     + gain * state.rho_rate))
     else:
         y_ref = arc_offset(rho, d_v, eps_r, controller.reference == 'arc_exact')
         # d/dt of rho d_v^2 / 2, the same for both forms to first order in eps_r

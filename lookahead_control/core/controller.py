@@ -27,6 +27,7 @@ from typing import Any, Optional
 
 from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, BaselineParams
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
 from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
@@ -36,12 +37,13 @@ from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample,
 import numpy as np
 
 ACCELERATION_SOURCES = ('imu', 'differentiate', 'zero')
-LAW_NAMES = ('paper',) + BASELINE_NAMES
+LAW_NAMES = ('paper',) + BASELINE_NAMES + ('cg_compensated',)
 PREVIEW_HORIZON = 100.0     # [m] how far the curvature slope is extended for the baselines
 
 
 def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
-              baselines: BaselineParams) -> Law:
+              baselines: BaselineParams,
+              lane_keeping: Optional[LaneKeepingParams] = None) -> Law:
     """
     Return the steering law called ``name``.
 
@@ -50,11 +52,15 @@ def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
     :param vehicle: the controller's vehicle model.
     :param controller: the paper law's parameters.
     :param baselines: the baselines' parameters.
+    :param lane_keeping: the ``cg_compensated`` law's settings (defaults if None;
+        docs/lane_keeping.md).
     :return: the law.
     """
     check_choice('law', name, LAW_NAMES)
     if name == 'paper':
         return PaperLaw(vehicle, controller)
+    if name == 'cg_compensated':
+        return CgCompensatedLaw(vehicle, controller, lane_keeping)
     return baseline_law(name, vehicle, baselines)
 
 
@@ -154,7 +160,8 @@ class SteeringController:
     def __init__(self, vehicle: VehicleParams, controller: ControllerParams,
                  acceleration_source: str = 'imu', use_preview: bool = False,
                  safety: Optional[SafetyParams] = None, law: str = 'paper',
-                 baselines: Optional[BaselineParams] = None) -> None:
+                 baselines: Optional[BaselineParams] = None,
+                 lane_keeping: Optional[LaneKeepingParams] = None) -> None:
         """
         Create the controller state.
 
@@ -169,9 +176,11 @@ class SteeringController:
         :param safety: input and output limits (default limits if None).
         :param law: the steering law, one of :data:`LAW_NAMES`.
         :param baselines: the baseline laws' parameters (defaults if None).
+        :param lane_keeping: the ``cg_compensated`` law's settings (defaults if None).
         """
         self.law_name = ''
         self.baselines = baselines or BaselineParams()
+        self.lane_keeping = lane_keeping or LaneKeepingParams()
         self.law: Law = PaperLaw(vehicle, controller)
         self._law_stamp: Optional[int] = None
         self._select_law(law, vehicle, controller, self.baselines)
@@ -211,7 +220,8 @@ class SteeringController:
     def configure(self, vehicle: VehicleParams, controller: ControllerParams,
                   acceleration_source: str, use_preview: bool,
                   safety: Optional[SafetyParams] = None, law: Optional[str] = None,
-                  baselines: Optional[BaselineParams] = None) -> None:
+                  baselines: Optional[BaselineParams] = None,
+                  lane_keeping: Optional[LaneKeepingParams] = None) -> None:
         """
         Replace the parameters (between two control steps).
 
@@ -225,7 +235,9 @@ class SteeringController:
         :param safety: see the constructor (None: keep).
         :param law: see the constructor (None: keep).
         :param baselines: see the constructor (None: keep).
+        :param lane_keeping: see the constructor (None: keep).
         """
+        self.lane_keeping = lane_keeping or self.lane_keeping
         self._select_law(law or self.law_name, vehicle, controller,
                          baselines or self.baselines)
         self.safety = safety or self.safety
@@ -238,7 +250,7 @@ class SteeringController:
     def _select_law(self, name: str, vehicle: VehicleParams, controller: ControllerParams,
                     baselines: BaselineParams) -> None:
         """Build the law (raises ParameterError first: the old law stays on error)."""
-        law = build_law(name, vehicle, controller, baselines)
+        law = build_law(name, vehicle, controller, baselines, self.lane_keeping)
         law.reset()
         self.law, self.law_name, self.baselines = law, name, baselines
         self._law_stamp = None
@@ -417,6 +429,8 @@ class SteeringController:
         if self._stale_since is None:
             self._stale_since, self._stale_ns = now_ns, 0
             self._held = sent
+            self.law.reset()            # a law with state restarts after stale inputs
+            self._law_stamp = None
         # time stale, on the node's clock, counted forwards only (a clock going back
         # neither restarts the hold nor reverses the ramp)
         self._stale_ns += max(0, now_ns - self._stale_since)

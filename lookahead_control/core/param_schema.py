@@ -31,6 +31,7 @@ from typing import Any, Iterable, Mapping, NamedTuple, Sequence
 
 from lookahead_control.core.baselines import LATERAL_RATE_MODES
 from lookahead_control.core.controller import LAW_NAMES
+from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import ParameterError, REFERENCE_MODES, SCHEDULE_MODES
 
 
@@ -67,16 +68,49 @@ CONTROLLER_SPECS = (
     Spec('controller.max_look_ahead', 60.0, 'upper clamp of the scheduled d_v [m]',
          0.01, 200.0),
     Spec('controller.reference', 'lane_tangent',
-         'regulate y_v to 0 (lane_tangent) or to the lane offset y_o (arc_approx, '
-         'arc_exact)', choices=REFERENCE_MODES),
+         'regulate y_v to 0 (lane_tangent), to the lane offset y_o (arc_approx, '
+         'arc_exact) or to d_v eps_ss (cg_compensated: the CG on the lane, without the '
+         'preview, estimate and integral of law cg_compensated)', choices=REFERENCE_MODES),
     Spec('controller.min_speed', 1.0, 'the law divides by v_x; floor of v_x [m/s]',
          0.01, 20.0),
 )
 
 LAW_SPEC = Spec('law', 'paper', 'steering law: paper (the look-ahead law, eq. 15 with the '
-                'controller.* schedule) or a baseline with its own parameters below; '
-                'switchable while active (the rate limit applies to the change)',
+                'controller.* schedule), cg_compensated (the look-ahead law keeping the CG '
+                'on the lane, lane_keeping.* below) or a baseline with its own parameters '
+                'below; switchable while active (the rate limit applies to the change)',
                 choices=LAW_NAMES)
+
+# the CG-compensated law (law: cg_compensated); defaults: LaneKeepingParams
+LANE_KEEPING_SPECS = tuple(
+    Spec(f'lane_keeping.{name}', getattr(LaneKeepingParams(), name), text, low, high)
+    for name, text, low, high in (
+        ('natural_frequency', 'w_n of the y_v loop at and above frequency_speed [rad/s]',
+         0.01, 100.0),
+        ('damping_ratio', 'zeta of the y_v loop [-]', 0.01, 10.0),
+        ('frequency_speed', 'below this speed w_n falls with the speed [m/s]', 0.01, 100.0),
+        ('low_speed_frequency', 'lowest w_n of the y_v loop [rad/s]', 0.01, 100.0),
+        ('reference_preview', 'the reference uses the curvature this long ahead [s]',
+         0.0, 3.0),
+        ('feedforward_preview', 'the drift term uses the curvature this long ahead: '
+         'actuator lag + delay [s]', 0.0, 1.0),
+        ('integral_gain', 'gain of the CG-error integral, 0: off [1/s]', 0.0, 5.0),
+        ('integral_limit', 'clamp of the integral shift of the reference [m]', 0.0, 5.0),
+        ('integral_min_speed', 'integral and estimate frozen below this speed [m/s]',
+         0.0, 50.0),
+        ('steering_limit', 'integral and estimate frozen at this |command| [rad]',
+         0.01, 1.5),
+        ('max_gap', 'a longer step between lateral errors restarts the law [s]', 0.01, 10.0),
+        ('compliance_time_constant', 'forgetting time of the rear-compliance estimate, '
+         '0: off [s]', 0.0, 100.0),
+        ('compliance_filter', 'filter of the signals of the estimate [s]', 0.01, 10.0),
+        ('compliance_prior', 'below this lateral acceleration the compliance of the model '
+         'holds [m/s^2]', 0.01, 20.0),
+        ('compliance_range', 'the estimate stays within 1/k and k times the model value [-]',
+         1.0, 100.0),
+        ('rate_feedforward', 'add the curvature-rate term of the inverse zero dynamics '
+         '(better on linear tyres, worse on the nonlinear plant)', 0.0, 1.0),
+    ))
 
 BASELINE_SPECS = (
     Spec('pure_pursuit.velocity_ratio', 0.3, 'look-ahead per speed (Autoware '

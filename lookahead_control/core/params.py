@@ -28,7 +28,7 @@ import math
 from typing import Iterable
 
 SCHEDULE_MODES = ('paper', 'exact', 'fixed')
-REFERENCE_MODES = ('lane_tangent', 'arc_approx', 'arc_exact')
+REFERENCE_MODES = ('lane_tangent', 'arc_approx', 'arc_exact', 'cg_compensated')
 
 
 class ParameterError(ValueError):
@@ -159,7 +159,8 @@ class ControllerParams:
         the one source of d_s).
     :param max_look_ahead: upper clamp of the scheduled d_v [m].
     :param reference: what ``y_v`` is regulated to: ``lane_tangent`` (0, the paper's
-        simulations), ``arc_approx`` (y_o of eq. 4) or ``arc_exact`` (y_o of eq. 3).
+        simulations), ``arc_approx`` (y_o of eq. 4), ``arc_exact`` (y_o of eq. 3) or
+        ``cg_compensated`` (``d_v eps_ss``: the CG on the lane, docs/lane_keeping.md).
     :param min_speed: the law divides by v_x; below this speed it uses this speed [m/s].
     """
 

@@ -38,6 +38,7 @@ from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.node_main import now_ns, run_node, Throttle
 from lookahead_control.ros.node_params import (baseline_params, BASELINE_SPECS, check_choices,
                                                CONTROLLER_SPECS, declare, EXECUTOR_SPEC,
+                                               lane_keeping_params, LANE_KEEPING_SPECS,
                                                LAW_SPEC, safety_params, SAFETY_SPECS, Spec,
                                                values, vehicle_and_controller, VEHICLE_SPECS)
 from rcl_interfaces.msg import SetParametersResult
@@ -72,7 +73,7 @@ NODE_SPECS = (
     EXECUTOR_SPEC,
 )
 ALL_SPECS = (VEHICLE_SPECS + (LAW_SPEC,) + CONTROLLER_SPECS + BASELINE_SPECS + SAFETY_SPECS
-             + NODE_SPECS)
+             + NODE_SPECS + LANE_KEEPING_SPECS)
 # parameters on_configure reads (subscriptions, timers, clock): refused while configured
 # (deactivate, clean up, set, configure again); and those read only at start-up
 READ_ONLY_CONFIGURED = ('mode', 'rate_hz', 'qos_reliability', 'watchdog_rate_hz',
@@ -112,7 +113,8 @@ class ControllerNode(LifecycleNode):
         vehicle, controller = vehicle_and_controller(params)
         self.core = SteeringController(vehicle, controller, params['acceleration_source'],
                                        params['use_curvature_preview'], safety_params(params),
-                                       params['law'], baseline_params(params))
+                                       params['law'], baseline_params(params),
+                                       lane_keeping_params(params))
         self.counters = {'saturated': 0, 'rate_limited': 0, 'low_speed': 0,
                          'd_v_clamped': 0, 'stale_commands': 0}
         self._reported: dict[str, int] = {}
@@ -154,6 +156,7 @@ class ControllerNode(LifecycleNode):
             vehicle_and_controller(merged)
             safety_params(merged)
             baseline_params(merged)
+            lane_keeping_params(merged)
         except (ParameterError, ValueError) as err:
             return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
@@ -176,7 +179,8 @@ class ControllerNode(LifecycleNode):
         vehicle, controller = vehicle_and_controller(params)
         self.core.configure(vehicle, controller, params['acceleration_source'],
                             params['use_curvature_preview'], safety_params(params),
-                            params['law'], baseline_params(params))
+                            params['law'], baseline_params(params),
+                            lane_keeping_params(params))
         self.get_logger().info(f'parameters applied: law={params["law"]}, '
                                f'schedule={controller.schedule}, '
                                f'w_n={controller.natural_frequency:g}, '

@@ -30,8 +30,10 @@ from typing import Any, Mapping, Sequence
 from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
                                               StanleyParams)
 # the schema (names, types, defaults, ranges) is the core's, shared with the offline tools
-from lookahead_control.core.param_schema import (BASELINE_SPECS, CONTROLLER_SPECS, LAW_SPEC,
-                                                 SAFETY_SPECS, Spec, VEHICLE_SPECS)
+from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.param_schema import (BASELINE_SPECS, CONTROLLER_SPECS,
+                                                 LANE_KEEPING_SPECS, LAW_SPEC, SAFETY_SPECS,
+                                                 Spec, VEHICLE_SPECS)
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.safety import SafetyParams
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -40,8 +42,8 @@ from rclpy.parameter import Parameter
 
 __all__ = ['baseline_params', 'BASELINE_SPECS', 'build', 'check_choices',
            'CONTROLLER_SPECS', 'declare', 'descriptor', 'EXECUTOR_SPEC', 'EXECUTORS',
-           'LAW_SPEC', 'SAFETY_SPECS', 'safety_params', 'Spec', 'values',
-           'VEHICLE_SPECS', 'vehicle_and_controller']
+           'lane_keeping_params', 'LANE_KEEPING_SPECS', 'LAW_SPEC', 'SAFETY_SPECS',
+           'safety_params', 'Spec', 'values', 'VEHICLE_SPECS', 'vehicle_and_controller']
 
 EXECUTORS = ('events', 'single_threaded')
 EXECUTOR_SPEC = Spec('executor', 'events', 'rclpy executor: events '
@@ -159,3 +161,13 @@ def safety_params(params: Mapping[str, Any]) -> SafetyParams:
     :return: the limits.
     """
     return build(SafetyParams, params, 'safety')
+
+
+def lane_keeping_params(params: Mapping[str, Any]) -> LaneKeepingParams:
+    """
+    Build the CG-compensated law's settings from flat ROS parameter values.
+
+    :param params: name -> value.
+    :return: the settings.
+    """
+    return build(LaneKeepingParams, params, 'lane_keeping')

@@ -37,6 +37,7 @@ from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrP
                                               PurePursuitParams, StanleyParams)
 from lookahead_control.core.cli import markdown_table, parser, run_tool, write_csv
 from lookahead_control.core.control_law import arc_offset
+from lookahead_control.core.lane_keeping import CgCompensatedLaw
 from lookahead_control.core.laws import Law, PaperLaw
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.schedule import paper_look_ahead
@@ -68,6 +69,7 @@ LAWS: dict[str, LawFactory] = {
     'pure_pursuit': lambda v: baseline_law('pure_pursuit', v, BaselineParams()),
     'stanley': lambda v: baseline_law('stanley', v, BaselineParams()),
     'lqr': lambda v: baseline_law('lqr', v, BaselineParams()),
+    'cg_compensated': lambda v: CgCompensatedLaw(v, ControllerParams()),
 }
 
 

@@ -35,7 +35,7 @@ failure rate, worst case and percentiles) and ``plots/*.png``.
 from __future__ import annotations
 
 import argparse
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 import itertools
 import json
 import math
@@ -48,6 +48,7 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 from lookahead_control.analysis.metrics import rms, run_metrics
 from lookahead_control.core.cli import markdown_table, run_tool, ToolError, write_csv
 from lookahead_control.core.config import load_controller, load_vehicle, source_config_dir
+from lookahead_control.core.lane_keeping import CgCompensatedLaw
 from lookahead_control.core.laws import Law, PaperLaw
 from lookahead_control.core.params import ControllerParams, VehicleParams
 import numpy as np
@@ -75,9 +76,15 @@ def paper_fixed_law(vehicle: VehicleParams, controller: ControllerParams) -> Law
 # name -> factory(controller's vehicle model, paper-law parameters); a new law registers
 # here (one law object serves a whole batch: see core/laws.py). The names are those of the
 # compare tool's league.
+def cg_compensated_law(vehicle: VehicleParams, controller: ControllerParams) -> Law:
+    """Return the CG-compensated look-ahead law (docs/lane_keeping.md), default settings."""
+    return CgCompensatedLaw(vehicle, replace(controller, reference='lane_tangent'))
+
+
 LAWS: dict[str, Callable[[VehicleParams, ControllerParams], Law]] = {
     'paper_eq26': paper_law,
     'paper_fixed': paper_fixed_law,
+    'cg_compensated': cg_compensated_law,
 }
 
 

@@ -1,0 +1,121 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Online estimate of the rear axle's compliance from measured v_y and r (no tyre model).
+
+The rear slip angle ``alpha_r = (l_2 r - v_y) / v_x`` and the rear force
+``F_yr = (m l_1 a_y - I_z r') / (l_1 + l_2)`` of the single-track model give
+``alpha_r = c phi`` with ``phi = F_yr (l_1 + l_2) / (m l_1) = v_x r + v_y' - I_z r' /
+(m l_1)`` (a lateral acceleration) and ``c`` the rear compliance: ``eta = m l_1 / (C_r
+(l_1 + l_2))`` for the model's linear tyres, the secant compliance at the present load
+for any other tyre. ``c`` is estimated by regularized least squares with exponential
+forgetting ``T``:
+
+- the regression's signals pass ``F = 1 / (T_f s + 1)``; the derivatives of ``v_y`` and
+  ``r`` are taken through it (``s F``), so no raw derivative of a noisy signal is used;
+- ``c = (N + p^2 eta) / (D + p^2)`` with ``N' = (F alpha_r F phi - N) / T`` and
+  ``D' = ((F phi)^2 - D) / T``: the model's ``eta`` holds until the lateral
+  acceleration exceeds ``p``; clipped to ``[eta / k, eta k]``.
+
+A two-parameter form ``c(a) = theta_1 + theta_2 |a|`` (tyre softening with load,
+predicting the compliance of the curve ahead) was tried and measured worse under sensor
+noise: on a single curve the two are not separable (``docs/lane_keeping.md``).
+Everything works on floats and on numpy arrays (a batch).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional
+
+from lookahead_control.core import numeric as xp
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import VehicleParams
+
+
+class ComplianceEstimator:
+    """Rear-compliance estimate (rear slip per lateral acceleration) from v_y and r."""
+
+    def __init__(self, vehicle: VehicleParams, time_constant: float, filter_time: float,
+                 prior: float, ratio: float) -> None:
+        """
+        Create the estimator.
+
+        :param vehicle: the design vehicle (eta, l_2, m, l_1, I_z).
+        :param time_constant: forgetting time ``T`` [s] (> 0).
+        :param filter_time: ``T_f`` of the signal filter [s] (> 0).
+        :param prior: ``p``: lateral acceleration below which ``eta`` holds [m/s^2].
+        :param ratio: ``k``: the estimate stays in ``[eta / k, eta k]``.
+        """
+        self.vehicle = vehicle
+        self.time_constant = time_constant
+        self.filter_time = filter_time
+        self.prior = prior
+        self.ratio = ratio
+        self.filtered: Optional[tuple[Real, Real, Real]] = None
+        self.moment: Real = 0.0          # N [rad m/s^2]
+        self.energy: Real = 0.0          # D [m^2/s^4]
+
+    def reset(self) -> None:
+        """Forget everything learned (back to the model's ``eta``)."""
+        self.filtered = None
+        self.moment = 0.0
+        self.energy = 0.0
+
+    def update(self, state: LateralState, dt: float, active: Any) -> None:
+        """
+        Take one measurement.
+
+        :param state: the measured state (``v_y``, ``r``, ``v_x``).
+        :param dt: time since the previous update [s] (0: the filters only start).
+        :param active: where false (per run), nothing is learned from this sample.
+        """
+        veh = self.vehicle
+        v_x = xp.maximum(state.v_x, 1.0)
+        slip = (veh.l2 * state.r - state.v_y) / v_x
+        turn = v_x * state.r
+        w = state.v_y - veh.yaw_inertia / (veh.mass * veh.l1) * state.r
+        if self.filtered is None:
+            self.filtered = (slip, turn, w)
+        f = min(dt / self.filter_time, 1.0)
+        f_slip, f_turn, f_w = (old + f * (new - old) for old, new in
+                               zip(self.filtered, (slip, turn, w)))
+        self.filtered = (f_slip, f_turn, f_w)
+        # the backward difference of the filtered w: (w - F w) / (T_f - dt) exactly
+        phi = f_turn + (w - f_w) / max(self.filter_time - dt, 1e-3)
+        zero = 0.0 * slip
+        g = xp.where(active, min(dt / self.time_constant, 1.0) + zero, zero)
+        self.moment = self.moment + g * (f_slip * phi - self.moment)
+        self.energy = self.energy + g * (phi * phi - self.energy)
+
+    def forget(self, where: Any) -> None:
+        """
+        Reset the runs of a batch where ``where`` holds (after a non-finite input).
+
+        :param where: boolean array over the batch.
+        """
+        if self.filtered is not None:
+            self.filtered = (xp.where(where, 0.0, self.filtered[0]),
+                             xp.where(where, 0.0, self.filtered[1]),
+                             xp.where(where, 0.0, self.filtered[2]))
+        self.moment = xp.where(where, 0.0, self.moment)
+        self.energy = xp.where(where, 0.0, self.energy)
+
+    def compliance(self) -> Real:
+        """Return the estimate ``c`` [s^2/m] (``eta`` before anything is learned)."""
+        eta = self.vehicle.eta
+        prior = self.prior * self.prior
+        estimate = (self.moment + prior * eta) / (self.energy + prior)
+        return xp.clip(estimate, eta / self.ratio, eta * self.ratio)

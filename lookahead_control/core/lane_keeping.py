@@ -1,0 +1,398 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The CG-compensated look-ahead law: the paper's yaw damping, the CG on the lane.
+
+The paper's law regulates ``y_v = y_cg + d_v eps_r`` to 0, which parks the CG at
+``-d_v eps_ss`` on an arc. This law keeps eq. 26's long ``d_v`` and the linearizing
+structure (eq. 15) but regulates ``y_v`` to ::
+
+    y_ref = d_v eps_ss(v_x, rho_p) - I,   eps_ss(v_x, rho) = (eta v_x^2 - l_2) rho
+
+- ``eps_ss`` is the steady relative yaw of the single-track model with the CG on the
+  lane (``docs/model.md``): ``y_ref`` is an exogenous signal, so the zero dynamics (and
+  eq. 26's damping) are unchanged and the CG's equilibrium on an arc moves to 0.
+- ``rho_p`` is the curvature ``v_x T_ref`` ahead (curvature preview): the reference
+  moves before the curve arrives, as the yaw needs about one zero-dynamics time
+  constant to follow.
+- The road terms of the drift ``f_v`` use the curvature ``v_x T_ff`` ahead, ``T_ff`` the
+  actuator lag plus the transport delay: the steering reaches the tyres when the road
+  has arrived there.
+- ``I`` is the integral of the CG error, ``I' = k_i y_cg``: it removes what the model
+  gets wrong (cornering stiffness, tyre saturation, road bank) without knowing the tyre
+  model. It is clamped to ``integral_limit`` and frozen while the steering command is
+  at ``steering_limit`` or the speed is below ``integral_min_speed`` (anti-windup), and
+  reset when time jumps (a step of ``dt <= 0`` or ``> max_gap``) or an input is not
+  finite.
+
+Every step works on floats (one vehicle) and on numpy arrays (a batch of runs).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+import math
+from typing import Any, Optional
+
+from lookahead_control.core import numeric as xp
+from lookahead_control.core.control_law import drift_term, LateralState, LawOutput
+from lookahead_control.core.estimator import ComplianceEstimator
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import (check_range, ControllerParams, ParameterError,
+                                           VehicleParams)
+from lookahead_control.core.schedule import look_ahead
+import numpy as np
+
+
+@dataclass(frozen=True)
+class LaneKeepingParams:
+    """
+    Settings of the CG-compensated law (its gains replace the paper modes' gains).
+
+    :param natural_frequency: w_n of the y_v loop at and above ``frequency_speed``
+        [rad/s] (``k_p = w_n^2``).
+    :param damping_ratio: zeta of the y_v loop (``k_d = 2 zeta w_n``).
+    :param frequency_speed: below this speed w_n falls in proportion to the speed [m/s].
+    :param low_speed_frequency: ... but not below this [rad/s]: at low speed ``beta_1`` is
+        small and a high w_n would put the lateral-error noise on the steering.
+    :param reference_preview: ``T_ref``: the reference uses the curvature
+        ``v_x T_ref`` ahead [s].
+    :param feedforward_preview: ``T_ff``: the drift term uses the curvature ``v_x T_ff``
+        ahead; about the actuator lag plus the transport delay [s].
+    :param integral_gain: ``k_i`` of the CG-error integral [1/s]; 0 switches it off.
+    :param integral_limit: clamp of the integral's shift of the reference [m].
+    :param integral_min_speed: below this speed the integral is frozen [m/s].
+    :param steering_limit: the integral is frozen while ``|delta|`` reaches this [rad].
+    :param max_gap: a step longer than this (or not positive) is a time jump: the
+        integral restarts at 0 [s].
+    :param compliance_time_constant: forgetting time of the rear-compliance estimate
+        [s]; 0 keeps the model's compliance ``eta``.
+    :param compliance_filter: time constant of the filter applied to the regression's
+        signals (the derivatives it needs are taken through it) [s].
+    :param compliance_prior: weight of the model's compliance in the estimate, as a
+        lateral acceleration [m/s^2]: below it the estimate stays near ``eta``.
+    :param compliance_range: the estimate stays within ``eta / r`` and ``eta r`` [-].
+    :param rate_feedforward: add the curvature-rate term that makes the CG stay on the
+        lane on a clothoid (first-order inverse of the zero dynamics).
+    """
+
+    natural_frequency: float = 7.0
+    damping_ratio: float = 1.0
+    frequency_speed: float = 30.0
+    low_speed_frequency: float = 3.0
+    reference_preview: float = 0.0
+    feedforward_preview: float = 0.07
+    integral_gain: float = 0.3
+    integral_limit: float = 0.5
+    integral_min_speed: float = 5.0
+    steering_limit: float = 0.5
+    max_gap: float = 0.25
+    compliance_time_constant: float = 0.5
+    compliance_filter: float = 0.3
+    compliance_prior: float = 0.5
+    compliance_range: float = 3.0
+    rate_feedforward: bool = False
+
+    def __post_init__(self) -> None:
+        check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,
+                    low_open=True, unit='rad/s')
+        check_range('lane_keeping.damping_ratio', self.damping_ratio, 0.0, 10.0,
+                    low_open=True)
+        check_range('lane_keeping.frequency_speed', self.frequency_speed, 0.0, 100.0,
+                    low_open=True, unit='m/s')
+        check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0,
+                    self.natural_frequency, low_open=True, unit='rad/s')
+        check_range('lane_keeping.reference_preview', self.reference_preview, 0.0, 3.0,
+                    unit='s')
+        check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
+                    unit='s')
+        check_range('lane_keeping.integral_gain', self.integral_gain, 0.0, 5.0, unit='1/s')
+        check_range('lane_keeping.integral_limit', self.integral_limit, 0.0, 5.0, unit='m')
+        check_range('lane_keeping.integral_min_speed', self.integral_min_speed, 0.0, 50.0,
+                    unit='m/s')
+        check_range('lane_keeping.steering_limit', self.steering_limit, 0.0, 1.5,
+                    low_open=True, unit='rad')
+        check_range('lane_keeping.max_gap', self.max_gap, 0.0, 10.0, low_open=True,
+                    unit='s')
+        check_range('lane_keeping.compliance_time_constant', self.compliance_time_constant,
+                    0.0, 100.0, unit='s')
+        check_range('lane_keeping.compliance_filter', self.compliance_filter, 0.0, 10.0,
+                    low_open=True, unit='s')
+        check_range('lane_keeping.compliance_prior', self.compliance_prior, 0.0, 20.0,
+                    low_open=True, unit='m/s^2')
+        check_range('lane_keeping.compliance_range', self.compliance_range, 1.0, 100.0)
+        if not isinstance(self.rate_feedforward, bool):
+            raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
+                                 'must be true or false')
+        for item in fields(self):
+            if item.name == 'rate_feedforward':
+                continue
+            object.__setattr__(self, item.name, float(getattr(self, item.name)))
+
+
+def loop_gains(settings: LaneKeepingParams, v_x: Real) -> tuple[Real, Real]:
+    """
+    Return ``(k_p, k_d)`` of the y_v loop at a speed (w_n scheduled on speed).
+
+    ``w_n = clip(natural_frequency v_x / frequency_speed, low_speed_frequency,
+    natural_frequency)``, ``k_p = w_n^2``, ``k_d = 2 zeta w_n``.
+
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :return: the two gains [1/s^2], [1/s].
+    """
+    w_n = xp.clip(settings.natural_frequency * v_x / settings.frequency_speed,
+                  settings.low_speed_frequency, settings.natural_frequency)
+    return w_n * w_n, 2.0 * settings.damping_ratio * w_n
+
+
+def steady_relative_yaw(vehicle: VehicleParams, v_x: Real, rho: Real,
+                        compliance: Optional[Real] = None) -> Real:
+    """
+    Return ``eps_ss = (eta v_x^2 - l_2) rho``, the relative yaw with the CG on an arc.
+
+    ``eta v_x^2 rho`` is the rear slip angle at the lateral acceleration ``v_x^2 rho``;
+    ``compliance`` replaces ``eta`` (rear slip per lateral acceleration) by an estimate.
+
+    :param vehicle: vehicle parameters (eta, l_2).
+    :param v_x: speed [m/s].
+    :param rho: curvature [1/m].
+    :param compliance: rear slip per lateral acceleration [s^2/m] (None: eta).
+    :return: eps_ss [rad] (-22.1 mrad at 37 m/s on R = 400 m right, Table 1).
+    """
+    eta = vehicle.eta if compliance is None else compliance
+    return (eta * v_x * v_x - vehicle.l2) * rho
+
+
+def preview_curvature(distances: Any, curvatures: Any, ahead: Real, rho: Real,
+                      rho_slope: Real) -> tuple[Real, Real]:
+    """
+    Return the curvature ``ahead`` metres ahead and its slope along the road.
+
+    Linear interpolation in the polygon ``(distances, curvatures)`` (distances ahead of
+    the CG, increasing; ``curvatures`` of shape ``(K,)`` or ``(K, N)`` for a batch),
+    held constant beyond its ends. Without a usable polygon (empty, not increasing, or a
+    non-finite value) the curvature at the CG is extrapolated along its slope.
+
+    :param distances: preview distances [m].
+    :param curvatures: curvatures there [1/m].
+    :param ahead: the distance wanted [m] (float or array per run).
+    :param rho: curvature at the CG, the fallback [1/m].
+    :param rho_slope: its slope d rho / ds, the fallback [1/m^2].
+    :return: ``(rho_ahead [1/m], d rho / ds there [1/m^2])``.
+    """
+    fallback = (rho + rho_slope * ahead, rho_slope + 0.0 * ahead)
+    if distances is None or curvatures is None:
+        return fallback
+    d = np.asarray(distances, dtype=float)
+    k = np.asarray(curvatures, dtype=float)
+    if (d.ndim != 1 or d.size == 0 or k.shape[:1] != d.shape or not np.all(np.isfinite(d))
+            or not np.all(np.isfinite(k)) or np.any(np.diff(d) <= 0.0)):
+        return fallback
+    if d.size == 1:
+        value = k[0] + 0.0 * np.asarray(ahead)
+        return _like(value, ahead, rho), _like(0.0 * value, ahead, rho)
+    slopes = np.diff(k, axis=0) / np.diff(d).reshape((-1,) + (1,) * (k.ndim - 1))
+    a = np.clip(np.asarray(ahead, dtype=float), d[0], d[-1])
+    i = np.clip(np.searchsorted(d, a, side='right') - 1, 0, d.size - 2)
+    inside = (np.asarray(ahead) >= d[0]) & (np.asarray(ahead) < d[-1])
+    if k.ndim == 1:
+        value = k[i] + slopes[i] * (a - d[i])
+        slope = np.where(inside, slopes[i], 0.0)
+    else:
+        cols = np.arange(k.shape[1])
+        value = k[i, cols] + slopes[i, cols] * (a - d[i])
+        slope = np.where(inside, slopes[i, cols], 0.0)
+    return _like(value, ahead, rho), _like(slope, ahead, rho)
+
+
+def _like(value: Any, *others: Any) -> Real:
+    """Return a float when every input was one, else an array."""
+    if any(isinstance(o, np.ndarray) for o in others) or np.ndim(value) > 0:
+        return np.asarray(value, dtype=float)
+    return float(value)
+
+
+def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
+                       controller: ControllerParams, rho_ref: Real, rho_ref_rate: Real,
+                       rho_ff: Real, rho_ff_rate: Real, offset: Real = 0.0,
+                       offset_rate: Real = 0.0,
+                       compliance: Optional[Real] = None,
+                       rate_feedforward: bool = False,
+                       gains: Optional[tuple[Real, Real]] = None) -> LawOutput:
+    """
+    Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
+
+    ``y_ref = d_v eps_ss(v_x, rho_ref) - offset``; the drift term's road terms use
+    ``rho_ff``; ``y_v`` and its rate use the curvature at the CG (``state.rho``), the
+    kinematics.
+
+    :param state: vehicle and road state.
+    :param vehicle: vehicle parameters.
+    :param controller: gains and d_v schedule.
+    :param rho_ref: curvature for the reference [1/m].
+    :param rho_ref_rate: its time derivative [1/(m s)].
+    :param rho_ff: curvature for the drift term [1/m].
+    :param rho_ff_rate: its time derivative [1/(m s)].
+    :param offset: shift of the reference (the integral) [m].
+    :param offset_rate: its time derivative [m/s].
+    :param compliance: rear slip per lateral acceleration in ``eps_ss`` [s^2/m]
+        (None: the model's eta).
+    :param rate_feedforward: add the curvature-rate term of the zero dynamics' inverse
+        to the reference's relative yaw.
+    :param gains: ``(k_p, k_d)`` (None: the controller's).
+    :return: the steering angle and the intermediate values.
+    """
+    eta = vehicle.eta if compliance is None else compliance
+    v_x = xp.maximum(state.v_x, controller.min_speed)
+    d_v, d_v_rate = look_ahead(v_x, state.a_x, vehicle, controller)
+    eps_r, rho = state.eps_r, state.rho
+    y_v = state.y_cg + d_v * eps_r
+    y_v_rate = state.v_y + v_x * eps_r + d_v * (state.r - v_x * rho) + d_v_rate * eps_r
+    gain = eta * v_x * v_x - vehicle.l2
+    eps_ss = gain * rho_ref
+    if rate_feedforward:
+        # first-order inverse of the zero dynamics (docs/lane_keeping.md): with the CG
+        # held on the lane, eps_r = eps_ss + (eta d_v v_x - v_x / alpha - g l_2 / v_x) rho'
+        #   = -(v_x I_z eta / (m l_1) + g l_2 / v_x) rho'
+        lead = -(v_x * vehicle.yaw_inertia * eta / (vehicle.mass * vehicle.l1)
+                 + gain * vehicle.l2 / v_x)
+        eps_ss = eps_ss + lead * rho_ref_rate
+    eps_ss_rate = 2.0 * eta * v_x * state.a_x * rho_ref + gain * rho_ref_rate
+    y_ref = d_v * eps_ss - offset
+    y_ref_rate = d_v_rate * eps_ss + d_v * eps_ss_rate - offset_rate
+    f_v, beta_1 = drift_term(state._replace(rho=rho_ff, rho_rate=rho_ff_rate), vehicle,
+                             d_v, d_v_rate, v_x)
+    error = y_v - y_ref
+    error_rate = y_v_rate - y_ref_rate
+    k_p, k_d = gains if gains is not None else (controller.k_p, controller.k_d)
+    steering = (-f_v - k_p * error - k_d * error_rate) / beta_1
+    return LawOutput(steering, d_v, d_v_rate, y_v, y_v_rate, y_ref, error, error_rate,
+                     f_v, beta_1)
+
+
+class CgCompensatedLaw:
+    """
+    The CG-compensated look-ahead law: preview, compliance estimate, CG-error integral.
+
+    ``step`` follows the ``Law`` protocol of the offline runner and the node: ``reset()``
+    and ``step(state, preview, dt) -> LawOutput``; ``preview`` has ``distances`` [m]
+    and ``curvatures`` [1/m] (or is None). State fields may be arrays (a batch).
+
+    The rear compliance (rear slip angle per lateral acceleration, the model's ``eta``)
+    is estimated by regularized least squares with forgetting. The single-track model
+    gives the rear slip ``alpha_r = (l_2 r - v_y) / v_x`` from the rear force
+    ``F_yr = (m l_1 a_y - I_z r') / (l_1 + l_2)`` as ``alpha_r = c phi`` with the
+    regressor ``phi = v_x r + v_y' - I_z r' / (m l_1)``; both sides pass the same
+    first-order filter ``F = 1 / (T_f s + 1)`` (the derivatives as ``s F``), and ::
+
+        c = (N + p^2 eta) / (D + p^2),  N' = (F alpha_r F phi - N) / T,
+        D' = ((F phi)^2 - D) / T
+
+    It is ``c = eta`` on a straight road (``D`` is small against ``p^2``) and the rear
+    tyres' secant compliance in a curve, whatever the tyre model: ``eps_ss = c v_x^2 rho
+    - l_2 rho`` is then the relative yaw that puts the CG on the lane.
+    """
+
+    name = 'cg_compensated'
+
+    def __init__(self, vehicle: VehicleParams, controller: ControllerParams,
+                 settings: Optional[LaneKeepingParams] = None) -> None:
+        """
+        Create the law.
+
+        :param vehicle: vehicle parameters of the design model.
+        :param controller: d_v schedule (keep ``paper``: eq. 26), clamp and min speed;
+            its gains are replaced by the settings' ones.
+        :param settings: gains, preview, compliance and integral settings (defaults if
+            None).
+        """
+        if controller.reference not in ('lane_tangent', 'cg_compensated'):
+            raise ParameterError(
+                f'controller.reference = {controller.reference!r}: the CG-compensated law '
+                'builds its own reference; use cg_compensated or lane_tangent')
+        self.vehicle = vehicle
+        self.settings = settings or LaneKeepingParams()
+        self.controller = replace(controller,
+                                  natural_frequency=self.settings.natural_frequency,
+                                  damping_ratio=self.settings.damping_ratio)
+        self.integral: Real = 0.0
+        self.last_steering: Real = 0.0
+        st = self.settings
+        self.estimator = ComplianceEstimator(
+            vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
+            st.compliance_prior, st.compliance_range)
+        self.resets = 0
+
+    def reset(self) -> None:
+        """Forget the integral, the estimate and the last command (time jump, stale)."""
+        self.integral = 0.0
+        self.last_steering = 0.0
+        self.estimator.reset()
+        self.resets += 1
+
+    def compliance(self) -> Real:
+        """Return the rear-compliance estimate [s^2/m] (eta before anything is learned)."""
+        return self.estimator.compliance()
+
+    def step(self, state: LateralState, preview: Any, dt: float) -> LawOutput:
+        """
+        Advance the integral and the estimate by ``dt`` and return the law's output.
+
+        :param state: vehicle and road state (the curvature slope is ``rho_rate / v_x``).
+        :param preview: curvature ahead (``distances``, ``curvatures``), or None.
+        :param dt: time since the previous step [s]; ``<= 0`` or ``> max_gap`` resets.
+        :return: the steering angle and the intermediate values (``y_ref`` includes the
+            integral's shift).
+        """
+        s = self.settings
+        if not (math.isfinite(dt) and 0.0 < dt <= s.max_gap):
+            self.reset()
+            dt = 0.0
+        v_x = xp.maximum(state.v_x, self.controller.min_speed)
+        slope = state.rho_rate / v_x
+        distances = getattr(preview, 'distances', None)
+        curvatures = getattr(preview, 'curvatures', None)
+        rho_ref, slope_ref = preview_curvature(distances, curvatures,
+                                               v_x * s.reference_preview, state.rho, slope)
+        rho_ff, slope_ff = preview_curvature(distances, curvatures,
+                                             v_x * s.feedforward_preview, state.rho, slope)
+        # learning and integrating only above the speed floor and off the steering limit
+        active = ((state.v_x >= s.integral_min_speed)
+                  & (xp.absolute(self.last_steering) < s.steering_limit))
+        zero = 0.0 * state.y_cg
+        if s.compliance_time_constant > 0.0:
+            self.estimator.update(state, dt, active)
+        rate = xp.where(active, s.integral_gain * state.y_cg, zero)
+        integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
+        out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
+                                 v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,
+                                 self.compliance(), s.rate_feedforward,
+                                 loop_gains(s, v_x))
+        finite = _finite(out.steering)
+        if isinstance(finite, np.ndarray):
+            self.integral = np.where(finite, integral, 0.0)
+            self.last_steering = np.where(finite, out.steering, 0.0)
+            self.estimator.forget(~finite)
+        elif not finite:
+            self.integral, self.last_steering = 0.0, 0.0
+            self.estimator.reset()
+        else:
+            self.integral, self.last_steering = integral, out.steering
+        return out
+
+
+def _finite(x: Real) -> Any:
+    return np.isfinite(x) if isinstance(x, np.ndarray) else math.isfinite(x)

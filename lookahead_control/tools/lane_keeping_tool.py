@@ -1,0 +1,81 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""Executable ``lane_keeping_stability``: the CG-compensated law's stability checks."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+from lookahead_control.core.cli import markdown_table, parser, run_tool, write_json
+from lookahead_control.core.config import load_vehicle
+from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.lane_keeping_stability import certificate, robust_check
+from lookahead_control.core.params import ControllerParams
+
+
+def stability_main(argv: Sequence[str] | None = None) -> int:
+    """
+    Print the varying-speed certificate and the robust check of the lane-keeping loop.
+
+    :param argv: command-line arguments.
+    :return: exit code (1 if either check fails).
+    """
+    p = parser('stability of the CG-compensated law (docs/lane_keeping.md): the Section 4 '
+               'test on the closed loop with the integral, and the sampled loop over '
+               'plant mismatch, actuator lag and delay')
+    p.add_argument('--v-min', type=float, default=10.0)
+    p.add_argument('--v-max', type=float, default=37.0)
+    p.add_argument('--a-max', type=float, default=3.5)
+    p.add_argument('--samples', type=int, default=271)
+    p.add_argument('--natural-frequency', type=float, default=None,
+                   help='w_n of the y_v loop (default: that of the law)')
+    p.add_argument('--integral-gain', type=float, default=None,
+                   help='k_i of the CG-error integral (default: that of the law)')
+    args = p.parse_args(argv)
+    overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
+                                   ('integral_gain', args.integral_gain)) if v is not None}
+    settings = LaneKeepingParams(**overrides)
+    vehicle, controller = load_vehicle(args.vehicle), ControllerParams()
+    cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
+                       args.samples)
+    robust = robust_check(vehicle, controller, settings)
+    certified = args.a_max / cert.max_norm if cert.max_norm > 0.0 else float('inf')
+    rows = [
+        {'check': 'max Re eig A(v) over speed', 'value': cert.max_real_eig,
+         'passes if': '< 0', 'holds': cert.max_real_eig < 0.0},
+        {'check': 'a_max max norm(dP/dv)', 'value': cert.max_norm, 'passes if': '< 1',
+         'holds': cert.max_norm < 1.0},
+        {'check': 'largest certified |a_x| [m/s^2]', 'value': certified,
+         'passes if': f'>= {args.a_max:g}', 'holds': certified >= args.a_max},
+        {'check': f'max spectral radius, {robust.cases} mismatch cases', 'value':
+         robust.max_radius, 'passes if': '< 1', 'holds': robust.holds},
+    ]
+    print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
+          f'{cert.a_max:g} m/s^2; worst norm at {cert.max_norm_speed:.2f} m/s; worst '
+          f'mismatch case {robust.worst}')
+    print(markdown_table(rows))
+    verdict = cert.holds and robust.holds
+    print(f'certificate {"HOLDS" if cert.holds else "DOES NOT HOLD"}; robust check '
+          f'{"HOLDS" if robust.holds else "DOES NOT HOLD"}')
+    if args.json:
+        write_json(args.json, {'certificate': cert._asdict(), 'robust': robust._asdict(),
+                               'rows': rows})
+    return 0 if verdict else 1
+
+
+def stability_tool() -> int:
+    """Entry point of ``lane_keeping_stability``."""
+    return run_tool(stability_main)

@@ -1,0 +1,325 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""The CG-compensated look-ahead law and its stability checks."""
+
+import math
+
+from lookahead_control.core import lane_keeping_stability as stability
+from lookahead_control.core.control_law import LateralState, steering_law
+from lookahead_control.core.controller import SteeringController
+from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingParams,
+                                                 loop_gains, preview_curvature,
+                                                 steady_relative_yaw)
+from lookahead_control.core.laws import Preview
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.safety import SafetyParams
+from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample,
+                                            VelocitySample, YawSample)
+from lookahead_control.core.schedule import look_ahead
+from lookahead_control.core.zero_dynamics import system_matrix
+import numpy as np
+import pytest
+from sim_plant.closed_loop_sim import run
+from sim_plant.scenario import paper_scenario
+from sim_plant.vehicle_model import PlantParams
+
+VEHICLE = VehicleParams()
+CONTROLLER = ControllerParams()
+EMPTY = Preview(np.zeros(0), np.zeros(0))
+
+
+def state(y_cg=0.0, eps_r=0.0, v_y=0.0, r=0.0, v_x=37.0, a_x=0.0, rho=0.0, rho_rate=0.0):
+    return LateralState(y_cg, eps_r, v_y, r, v_x, a_x, rho, rho_rate)
+
+
+def test_loop_gains_scheduled_on_speed():
+    settings = LaneKeepingParams()
+    assert loop_gains(settings, 37.0) == pytest.approx((49.0, 14.0))
+    assert loop_gains(settings, 15.0) == pytest.approx((3.5 ** 2, 7.0))
+    assert loop_gains(settings, 5.0) == pytest.approx((9.0, 6.0))
+    assert loop_gains(settings, np.array([5.0, 37.0]))[0] == pytest.approx([9.0, 49.0])
+
+
+def test_steady_relative_yaw_matches_model_md():
+    # model.md: -22.1 mrad at 37 m/s on a right curve of R = 400 m; 0 at 14.4 m/s
+    assert steady_relative_yaw(VEHICLE, 37.0, -1 / 400) == pytest.approx(-0.0221, abs=5e-5)
+    assert steady_relative_yaw(VEHICLE, math.sqrt(VEHICLE.l2 / VEHICLE.eta),
+                               0.01) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_zero_dynamics_untouched_by_the_reference():
+    # without integral, the closed loop's eigenvalues are the y_v loop's double root at
+    # -w_n and the zero dynamics of the paper's law (zero_dynamics.py, independent)
+    settings = LaneKeepingParams(integral_gain=0.0)
+    for v in (12.0, 20.0, 37.0):
+        a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, v)
+        d_v = look_ahead(v, 0.0, VEHICLE, CONTROLLER)[0]
+        w_n = math.sqrt(loop_gains(settings, v)[0])           # 3 at 12 m/s, 7 at 37
+        expected = np.concatenate([[-w_n] * 2, [0.0],
+                                   np.linalg.eigvals(system_matrix(VEHICLE, v, d_v))])
+        got = np.linalg.eigvals(a)
+        for root in expected:
+            assert np.min(np.abs(got - root)) < 1e-4 * max(1.0, abs(root))
+
+
+@pytest.mark.parametrize('speed', [20.0, 37.0])
+def test_cg_settles_on_the_lane_of_the_design_plant(speed):
+    # linear plant, no estimator, no integral: the CG equilibrium is exactly 0 (model.md);
+    # the paper's law parks it at -d_v eps_ss (0.89 m outside at 37 m/s)
+    settings = LaneKeepingParams(integral_gain=0.0, compliance_time_constant=0.0)
+    scenario = paper_scenario(speed, duration=14.0)
+    result = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER, settings))
+    assert abs(result['y_cg'][-1]) < 1e-3
+    paper = run(scenario, VEHICLE, CONTROLLER)
+    d_v = look_ahead(speed, 0.0, VEHICLE, CONTROLLER)[0]
+    offset = -d_v * steady_relative_yaw(VEHICLE, speed, -1 / 400)
+    assert paper['y_cg'][-1] == pytest.approx(offset, rel=0.02)
+
+
+def test_nonlinear_plant_delay_steady_error_centimetre():
+    # Fiala tyres (eps_ss 3.8 mrad off the model at 0.35 g), 50 ms actuator, 20 ms delay:
+    # the estimate and the integral bring the CG to the lane (paper law: 1.08 m)
+    scenario = paper_scenario(37.0, duration=14.0)
+    result = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER),
+                 PlantParams(model='nonlinear'), delay=0.02)
+    assert abs(result['y_cg'][-1]) < 0.01
+    assert np.max(np.abs(result['y_cg'])) < 0.10
+
+
+def test_preview_interpolation_hand_values():
+    d = np.array([0.0, 10.0, 20.0])
+    k = np.array([0.0, 0.01, 0.01])
+    assert preview_curvature(d, k, 5.0, 0.0, 0.0) == pytest.approx((0.005, 0.001))
+    assert preview_curvature(d, k, 15.0, 0.0, 0.0) == pytest.approx((0.01, 0.0))
+    assert preview_curvature(d, k, 50.0, 0.0, 0.0) == pytest.approx((0.01, 0.0))
+    batch = np.stack([k, -k], axis=1)
+    rho, slope = preview_curvature(d, batch, np.array([5.0, 5.0]), np.zeros(2), np.zeros(2))
+    assert rho == pytest.approx([0.005, -0.005]) and slope == pytest.approx([0.001, -0.001])
+
+
+@pytest.mark.parametrize('polygon', [
+    (np.zeros(0), np.zeros(0)),                                 # empty
+    (np.array([0.0, 10.0]), np.array([0.0, math.nan])),       # NaN curvature
+    (np.array([0.0, math.inf]), np.array([0.0, 0.01])),       # non-finite distance
+    (np.array([10.0, 0.0]), np.array([0.0, 0.01])),           # not increasing
+    (None, None),
+])
+def test_unusable_preview_falls_back_to_the_cg_curvature(polygon):
+    assert preview_curvature(*polygon, 5.0, 0.002, 1e-4) == pytest.approx((0.0025, 1e-4))
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    out = law.step(state(rho=0.002, rho_rate=37.0 * 1e-4), Preview(*polygon)
+                   if polygon[0] is not None else None, 0.01)
+    assert math.isfinite(out.steering)
+
+
+def test_integral_resets_on_time_jumps_and_bad_input():
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    for _ in range(100):
+        law.step(state(y_cg=0.2), EMPTY, 0.01)
+    assert law.integral == pytest.approx(0.3 * 0.2 * 1.0)
+    for dt in (-0.01, 0.0, 5.0, math.nan):
+        law.step(state(y_cg=0.2), EMPTY, 0.01)
+        assert law.integral != 0.0
+        law.step(state(y_cg=0.2), EMPTY, dt)
+        assert law.integral == 0.0 and law.estimator.energy == 0.0
+    law.step(state(y_cg=0.2), EMPTY, 0.01)
+    out = law.step(state(y_cg=math.nan), EMPTY, 0.01)
+    assert math.isnan(out.steering)            # the safety layer refuses it; not kept
+    assert law.integral == 0.0 and law.estimator.moment == 0.0
+    assert law.last_steering == 0.0
+    fresh = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    fresh.step(state(y_cg=0.1), EMPTY, 0.0)
+    assert law.step(state(y_cg=0.1), EMPTY, 0.0).steering == fresh.step(
+        state(y_cg=0.1), EMPTY, 0.0).steering
+
+
+def test_integral_anti_windup():
+    settings = LaneKeepingParams(integral_limit=0.2)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
+    for _ in range(2000):                                      # 20 s at 1 m: clamped
+        law.step(state(y_cg=1.0), EMPTY, 0.01)
+    assert law.integral == pytest.approx(0.2)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    law.step(state(y_cg=-30.0), EMPTY, 0.01)                  # saturating command
+    assert abs(law.last_steering) >= law.settings.steering_limit
+    frozen = law.integral
+    for _ in range(100):
+        law.step(state(y_cg=-30.0), EMPTY, 0.01)
+    assert law.integral == frozen
+
+
+def test_speed_from_37_to_3_freezes_learning_and_stays_finite():
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    for v in np.linspace(37.0, 3.0, 500):
+        out = law.step(state(y_cg=0.05, r=0.01, v_y=0.01, v_x=float(v), rho=-1 / 400),
+                       EMPTY, 0.01)
+        assert math.isfinite(out.steering)
+    held = law.integral
+    law.step(state(y_cg=0.05, v_x=3.0), EMPTY, 0.01)
+    assert law.integral == held
+    eta = VEHICLE.eta
+    assert eta / 3.0 <= law.compliance() <= 3.0 * eta
+
+
+def test_compliance_estimate_recovers_a_softer_rear_axle():
+    # steady cornering of a plant with C_r 30 % lower: alpha_r = (l_2 r - v_y) / v_x
+    soft = 0.7 * VEHICLE.c_r
+    v, a_y = 30.0, 3.0
+    r = a_y / v
+    alpha = VEHICLE.mass * VEHICLE.l1 / (soft * VEHICLE.wheelbase) * a_y
+    v_y = VEHICLE.l2 * r - v * alpha
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    for _ in range(1000):
+        law.step(state(v_y=v_y, r=r, v_x=v, rho=r / v), EMPTY, 0.01)
+    prior = law.settings.compliance_prior ** 2
+    truth = VEHICLE.eta / 0.7
+    expected = (a_y * a_y * truth + prior * VEHICLE.eta) / (a_y * a_y + prior)
+    assert law.compliance() == pytest.approx(expected, rel=1e-3)
+
+
+def test_batch_equals_single_runs():
+    speeds = np.array([12.0, 25.0, 37.0])
+    errors = np.array([0.1, -0.2, 0.05])
+    batch = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    singles = [CgCompensatedLaw(VEHICLE, CONTROLLER) for _ in speeds]
+    d = np.array([0.0, 20.0, 40.0])
+    k = np.array([0.0, -0.0025, -0.0025])
+    for _ in range(50):
+        out = batch.step(state(y_cg=errors, v_x=speeds, r=0.01 + 0 * speeds),
+                         Preview(d, np.repeat(k[:, None], 3, axis=1)), 0.01)
+        for i, law in enumerate(singles):
+            one = law.step(state(y_cg=float(errors[i]), v_x=float(speeds[i]), r=0.01),
+                           Preview(d, k), 0.01)
+            assert out.steering[i] == pytest.approx(one.steering, rel=1e-12, abs=1e-15)
+
+
+def test_paper_reference_modes_unchanged():
+    s = state(y_cg=0.1, eps_r=0.01, rho=-1 / 400)
+    with pytest.raises(ParameterError, match='cg_compensated or lane_tangent'):
+        CgCompensatedLaw(VEHICLE, ControllerParams(reference='arc_approx'))
+    assert steering_law(s, VEHICLE, CONTROLLER).steering == pytest.approx(
+        steering_law(s, VEHICLE, ControllerParams()).steering)
+
+
+def test_settings_validate():
+    with pytest.raises(ParameterError, match='integral_gain'):
+        LaneKeepingParams(integral_gain=-1.0)
+    with pytest.raises(ParameterError, match='max_gap'):
+        LaneKeepingParams(max_gap=0.0)
+
+
+def test_certificate_holds_to_2_5_m_s2_not_to_3_5():
+    # the paper's test on the full closed loop: A(v) Hurwitz on 10-37 m/s everywhere;
+    # the Lyapunov rate bound certifies |a_x| <= 2.5 m/s^2, not the paper's 3.5
+    settings = LaneKeepingParams()
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, a_max=2.5, samples=136)
+    assert cert.max_real_eig < -0.3 and cert.holds
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, a_max=3.5, samples=136)
+    assert not cert.holds and cert.max_norm == pytest.approx(1.30, abs=0.03)
+
+
+def test_robust_over_the_sweep_ranges():
+    result = stability.robust_check(VEHICLE, CONTROLLER, LaneKeepingParams())
+    assert result.holds and result.cases == 486
+    # a plant ten times stiffer than the model is outside: the check sees it diverge
+    stiff = VehicleParams(c_f=10 * VEHICLE.c_f, c_r=10 * VEHICLE.c_r)
+    assert stability.discrete_radius(VEHICLE, CONTROLLER, LaneKeepingParams(), 37.0,
+                                     plant=stiff) > 1.0
+
+
+def test_discrete_radius_against_continuous_eigenvalues():
+    # no lag, no delay, a short period: radius = exp(period * max real eigenvalue)
+    settings = LaneKeepingParams()
+    a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, 30.0)
+    expected = math.exp(1e-4 * float(np.max(np.linalg.eigvals(a).real)))
+    radius = stability.discrete_radius(VEHICLE, CONTROLLER, settings, 30.0, period=1e-4,
+                                       lag=0.0, delay_steps=0)
+    assert radius == pytest.approx(expected, abs=1e-6)
+    assert stability.expm(np.array([[0.0, 1.0], [-1.0, 0.0]]) * math.pi) == pytest.approx(
+        -np.eye(2), abs=1e-9)
+
+
+# -- the controller core (the node's state machine) with reference cg_compensated --------
+
+MS = 1_000_000
+
+
+def _core(law='cg_compensated'):
+    return SteeringController(VEHICLE, ControllerParams(), 'zero', True, SafetyParams(),
+                              law)
+
+
+def _feed(core, stamp, y, rho=-1 / 400):
+    for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
+                         ('velocity', VelocitySample(stamp, 30.0, 0.0)),
+                         ('road_curvature', CurvatureSample(stamp, rho, 0.0)),
+                         ('lateral_error', LateralErrorSample(stamp, 0.0, y))):
+        assert core.accept(name, sample, stamp) is None
+    return core.compute()
+
+
+def test_stateless_cg_compensated_reference():
+    # y_ref = d_v eps_ss: on the arc with y_cg = eps_r = 0 the error is -d_v eps_ss
+    s = state(v_x=30.0, rho=-1 / 400)
+    out = steering_law(s, VEHICLE, ControllerParams(reference='cg_compensated'))
+    d_v = look_ahead(30.0, 0.0, VEHICLE, CONTROLLER)[0]
+    assert out.y_ref == pytest.approx(d_v * steady_relative_yaw(VEHICLE, 30.0, -1 / 400))
+    assert out.error == pytest.approx(-out.y_ref)
+
+
+def test_controller_runs_the_stateful_law_and_resets_it():
+    core = _core()
+    for k in range(100):
+        command = _feed(core, (1000 + 10 * k) * MS, 0.1)
+    law = core.law
+    assert isinstance(law, CgCompensatedLaw)
+    assert law.integral == pytest.approx(0.3 * 0.1 * 0.99)
+    assert command.law.y_ref == pytest.approx(
+        look_ahead(30.0, 0.0, VEHICLE, CONTROLLER)[0]
+        * steady_relative_yaw(VEHICLE, 30.0, -1 / 400) - law.integral)
+    # stale inputs: the watchdog's command restarts the law
+    assert core.safe_command(3000 * MS) is not None
+    assert law.integral == 0.0
+    _feed(core, 3010 * MS, 0.1)
+    _feed(core, 3020 * MS, 0.1)
+    assert law.integral == pytest.approx(0.3 * 0.1 * 0.01)
+    # a time jump (replay restart) resets the inputs and the law
+    _feed(core, 0, 0.1)
+    assert core.time_jumps == 1 and law.integral == 0.0
+    # a step longer than max_gap (a lost stretch of messages) restarts it too
+    _feed(core, 10 * MS, 0.1)
+    assert law.integral > 0.0
+    _feed(core, 600 * MS, 0.1)
+    assert law.integral == 0.0
+
+
+def test_controller_paper_law_unchanged():
+    core = _core('paper')
+    command = _feed(core, 1000 * MS, 0.1)
+    expected = steering_law(state(y_cg=0.1, v_x=30.0, rho=-1 / 400), VEHICLE,
+                            ControllerParams())
+    assert command.law.steering == expected.steering
+
+
+def test_stability_tool_verdicts(capsys, tmp_path):
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    assert stability_main(['--a-max', '2.5', '--samples', '55',
+                           '--json', str(tmp_path / 's.json')]) == 0
+    out = capsys.readouterr().out
+    assert 'certificate HOLDS; robust check HOLDS' in out
+    assert stability_main(['--samples', '55']) == 1      # the paper's 3.5 m/s^2
+    assert 'certificate DOES NOT HOLD' in capsys.readouterr().out
+    assert (tmp_path / 's.json').stat().st_size > 100

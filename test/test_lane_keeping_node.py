@@ -1,0 +1,67 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""The controller node with reference cg_compensated: parameters, law, resets (no DDS)."""
+
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.ros import conversions as conv
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+
+MS = 1_000_000
+
+
+@pytest.fixture
+def context():
+    ctx = Context()
+    rclpy.init(context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+def _feed(node, stamp, y=0.1, v_x=30.0, rho=-0.0025):
+    node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
+    node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, 0.0, 0.0))
+    node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
+    node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 0.0, y))
+
+
+def test_node_selects_the_lane_keeping_law_by_parameter(context):
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('law', value='cg_compensated'),
+        Parameter('lane_keeping.integral_gain', value=0.5)])
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        law = node.core.law
+        assert isinstance(law, CgCompensatedLaw)
+        assert law.settings == LaneKeepingParams(integral_gain=0.5)
+        for k in range(11):
+            _feed(node, (1000 + 10 * k) * MS)
+        assert law.integral == pytest.approx(0.5 * 0.1 * 0.1)
+        refused = node.set_parameters([Parameter('lane_keeping.low_speed_frequency',
+                                                 value=50.0)])[0]
+        assert not refused.successful and 'low_speed_frequency' in refused.reason
+        refused = node.set_parameters([Parameter('lane_keeping.max_gap', value=0.0)])[0]
+        assert not refused.successful
+        ok = node.set_parameters([Parameter('law', value='paper')])[0]
+        assert ok.successful
+        _feed(node, 1200 * MS)             # applied between two control steps
+        assert node.core.law_name == 'paper' and node.core.last.law.y_ref == 0.0
+    finally:
+        node.destroy_node()
