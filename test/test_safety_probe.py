@@ -1,0 +1,140 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Safety probe: the node's promises of docs/safety.md attacked at the callbacks.
+
+Each test is a regression test for one finding; the node runs on a fake clock (sim
+time, set by the test) in a private context, callbacks called directly.
+"""
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from lookahead_control.ros import conversions as conv
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+from rclpy.time import Time
+
+S = 1_000_000_000           # one second [ns]
+MS = 1_000_000              # one millisecond [ns]
+
+
+@pytest.fixture
+def context():
+    ctx = Context()
+    rclpy.init(context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+def _controller(context, *overrides):
+    """Create, configure and activate a controller on a fake clock (sim time)."""
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), *overrides])
+    node.trigger_configure()
+    node.trigger_activate()
+    return node
+
+
+def _at(node, now_ns):
+    """Set the node's clock."""
+    node.get_clock().set_ros_time_override(Time(nanoseconds=now_ns))
+
+
+def _send(node, stamp, y=0.5, eps=0.01, v_x=25.0):
+    """Deliver one measurement of each required input, stamped ``stamp``."""
+    node.on_yaw(conv.to_yaw(stamp, 'base_link', eps, 0.02, 0.0))
+    node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, 0.1, 0.02))
+    node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 1.96, y))
+
+
+def _spy(node):
+    """Record every published command as ``(node clock, stamp, angle, rate, status)``."""
+    sent = []
+    publish = node._steering_pub.publish
+
+    def spy(msg):
+        stamp, angle = conv.from_steering(msg)
+        sent.append((node.get_clock().now().nanoseconds, stamp, angle,
+                     msg.velocity[0] if msg.velocity else None, node.core.last.status))
+        publish(msg)
+    node._steering_pub.publish = spy
+    return sent
+
+
+def _drive(node, start, end, step=10 * MS):
+    """Drive with fresh inputs from ``start`` to ``end`` (the clock reads the stamps)."""
+    t = start
+    while t <= end:
+        _at(node, t)
+        _send(node, t)
+        t += step
+    return t - step
+
+
+@pytest.mark.parametrize('back_s', [0.5, 2.0])
+def test_timer_mode_uses_no_input_received_before_the_clock_went_back(context, back_s):
+    # the node's clock goes back (sim reset; 0.5 s: under the 1 s jump threshold) and
+    # the sensors stop with it. Promise (docs/safety.md, stale inputs): the law uses
+    # only inputs received within input_timeout on the node's clock; else the safe
+    # behaviour and ERROR naming the inputs. Here no input arrives for 0.6 s of node
+    # clock, yet the inputs were received "in the future" of the clock.
+    node = _controller(context, Parameter('mode', value='timer'))
+    try:
+        last = _drive(node, 100 * S, 101 * S)
+        sent = _spy(node)
+        back = last - int(back_s * S)
+        for k in range(61):             # 0.6 s of 100 Hz timer ticks, no input at all
+            _at(node, back + k * 10 * MS)
+            node.on_timer()
+            node.on_watchdog()
+        late = [(now - back) * 1e-9 for now, _, _, _, status in sent
+                if now - back > 200 * MS and status != 'stale']
+        assert late == [], f'{len(late)} law answers from inputs not received for up to ' \
+            f'{max(late):.2f} s of node clock'
+        assert node.diagnostics().level == DiagnosticStatus.ERROR
+    finally:
+        node.destroy_node()
+
+
+def test_inputs_refused_after_a_time_jump_give_error_and_the_safe_ramp(context):
+    # the node's clock goes back 5 s (sim reset) while the sensors go on stamping on
+    # the old time line: every message is refused (5 s ahead of the clock). Promise:
+    # inputs refused over and over -> hold, then ramp to safe_angle, ERROR naming them.
+    node = _controller(context)
+    try:
+        last = 0
+        for k in range(50):             # steer to a clearly non-zero angle
+            last = 100 * S + k * 10 * MS
+            _at(node, last)
+            _send(node, last, y=1.0)
+        held = node.core.last.steering
+        assert abs(held) > 0.01
+        sent = _spy(node)
+        back = last - 5 * S
+        for k in range(1, 201):         # 2 s: sensors 5 s ahead, watchdog at 20 Hz
+            now = back + k * 10 * MS
+            _at(node, now)
+            _send(node, last + k * 10 * MS, y=1.0)
+            if k % 5 == 0:
+                node.on_watchdog()
+        status = node.diagnostics()
+        assert status.level == DiagnosticStatus.ERROR, status.message
+        assert 'lateral_error' in status.message
+        assert sent, 'no safe command after 2 s of refused inputs'
+        assert sent[-1][2] == pytest.approx(0.0, abs=1e-9)     # ramped to safe_angle
+    finally:
+        node.destroy_node()
