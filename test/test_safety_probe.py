@@ -138,3 +138,68 @@ def test_inputs_refused_after_a_time_jump_give_error_and_the_safe_ramp(context):
         assert sent[-1][2] == pytest.approx(0.0, abs=1e-9)     # ramped to safe_angle
     finally:
         node.destroy_node()
+
+
+@pytest.mark.process
+def test_over_dds_a_sim_reset_with_sensors_left_behind_is_an_error(probe):
+    # A real controller process on sim time. /clock runs from 100 s with the inputs at
+    # 100 Hz; then /clock goes back 5 s (simulator reset) while the sensors go on
+    # stamping on the old time line, so every input is refused (5 s ahead). Promise:
+    # inputs refused over and over -> /diagnostics ERROR naming them, and the safe
+    # behaviour (hold, then ramp to safe_angle). The probe counts in sim time only.
+    import subprocess
+    import sys
+    from conftest import spin_until
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+    node, executor = probe
+    pubs = {
+        'clock': node.create_publisher(Clock, '/clock', 10),
+        'lat': node.create_publisher(type(conv.to_lateral_error(0, '', 0, 0)),
+                                     '/lateral_error', 10),
+        'yaw': node.create_publisher(type(conv.to_yaw(0, '', 0, 0, 0)), '/yaw', 10),
+        'vel': node.create_publisher(type(conv.to_velocity(0, '', 0, 0, 0)), '/velocity',
+                                     10),
+    }
+    answers, statuses = [], []
+    node.create_subscription(JointState, '/steering',
+                             lambda m: answers.append(conv.from_steering(m)), 100)
+    node.create_subscription(DiagnosticArray, '/diagnostics',
+                             lambda m: statuses.extend(m.status), 100)
+    controller = subprocess.Popen([sys.executable, '-m',
+                                   'lookahead_control.ros.controller_node', '--ros-args',
+                                   '-p', 'use_sim_time:=true'])
+
+    def tick(clock_ns, stamp_ns):
+        pubs['clock'].publish(Clock(clock=Time(nanoseconds=clock_ns).to_msg()))
+        spin_until(executor, lambda: False, 0.005)
+        pubs['yaw'].publish(conv.to_yaw(stamp_ns, 'base_link', 0.0, 0.0, 0.0))
+        pubs['vel'].publish(conv.to_velocity(stamp_ns, 'base_link', 20.0, 0.0, 0.0))
+        pubs['lat'].publish(conv.to_lateral_error(stamp_ns, 'base_link', 0.0, 1.0))
+        spin_until(executor, lambda: False, 0.01)
+
+    try:
+        assert spin_until(executor, lambda: node.count_subscribers('/lateral_error') > 0
+                          and node.count_subscribers('/clock') > 0
+                          and node.count_publishers('/steering') > 0, 30)
+        t = 100 * S
+        for _ in range(100):                    # 1 s of sim time, normal control
+            t += 10 * MS
+            tick(t, t)
+        assert spin_until(executor, lambda: len(answers) >= 20, 10)
+        assert abs(answers[-1][1]) > 0.01
+        clock = t - 5 * S
+        for _ in range(200):                    # 2 s of sim time after the reset
+            clock, t = clock + 10 * MS, t + 10 * MS
+            tick(clock, t)
+        spin_until(executor, lambda: any(
+            s.level == DiagnosticStatus.ERROR for s in statuses), 5)
+        errors = [s.message for s in statuses if s.level == DiagnosticStatus.ERROR]
+        assert errors, 'no ERROR after 2 s of refused inputs; /diagnostics said: ' + \
+            ' | '.join(sorted({s.message[:120] for s in statuses}))
+        assert 'lateral_error' in errors[-1]
+        assert answers[-1][1] == pytest.approx(0.0, abs=1e-9)     # ramped to safe_angle
+    finally:
+        controller.terminate()
+        assert controller.wait(30) == 0
