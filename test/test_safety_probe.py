@@ -140,6 +140,51 @@ def test_inputs_refused_after_a_time_jump_give_error_and_the_safe_ramp(context):
         node.destroy_node()
 
 
+
+def test_dead_inputs_are_an_error_within_input_timeout_after_the_clock_went_back(context):
+    # event mode: the node's clock goes back 0.5 s (under the 1 s jump threshold) and
+    # every input dies. Promise: /diagnostics ERROR at once when an input is older than
+    # input_timeout (0.2 s) on the node's clock; the watchdog judges at 20 Hz, so by
+    # 0.25 s at the latest. The inputs were received 0.5 s "in the future".
+    node = _controller(context)
+    try:
+        last = _drive(node, 100 * S, 101 * S)
+        back = last - 500 * MS
+        levels = []
+        for k in range(1, 61):          # 0.6 s, watchdog at 20 Hz
+            _at(node, back + k * 10 * MS)
+            if k % 5 == 0:
+                node.on_watchdog()
+                levels.append((k * 10, node.diagnostics().level))
+        late = [ms for ms, level in levels if ms >= 250 and level != DiagnosticStatus.ERROR]
+        assert late == [], f'no ERROR at {late} ms after the inputs died'
+    finally:
+        node.destroy_node()
+
+
+def test_low_speed_after_a_time_jump_holds_the_last_command(context):
+    # docs/safety.md: below low_speed the command blends to holding the last command
+    # given above it. After a time jump (sim reset, replay restart) the node resets its
+    # inputs; the actuator is still at the last angle, and at 1 m/s it must hold there,
+    # not be steered to 0 (the reset forgets the angle to hold).
+    node = _controller(context)
+    try:
+        for k in range(100):            # steer at 25 m/s to a clearly non-zero angle
+            t = 100 * S + k * 10 * MS
+            _at(node, t)
+            _send(node, t, y=1.0)
+        held = node.core.last.steering
+        assert abs(held) > 0.01
+        for k in range(60):             # the clock restarts at 50 s; 1 m/s, 0.6 s
+            t = 50 * S + k * 10 * MS
+            _at(node, t)
+            _send(node, t, y=1.0, v_x=1.0)
+        assert node.core.time_jumps == 1
+        assert node.core.last.steering == pytest.approx(held, abs=1e-9)
+    finally:
+        node.destroy_node()
+
+
 @pytest.mark.process
 def test_over_dds_a_sim_reset_with_sensors_left_behind_is_an_error(probe):
     # A real controller process on sim time. /clock runs from 100 s with the inputs at
