@@ -185,6 +185,31 @@ def test_low_speed_after_a_time_jump_holds_the_last_command(context):
         node.destroy_node()
 
 
+
+def test_every_advertised_parameter_bound_is_accepted_or_refused_for_another(context):
+    # a ParameterDescriptor's range is the contract `ros2 param describe` shows. A value
+    # inside it must be accepted, or refused only because of another parameter (named
+    # in the one-line reason); never refused by a hidden, different range.
+    from lookahead_control.ros.controller_node import ALL_SPECS, READ_ONLY_CONFIGURED
+    node = _controller(context)
+    try:
+        wrong = []
+        for spec in ALL_SPECS:
+            if spec.low is None or spec.name in READ_ONLY_CONFIGURED:
+                continue
+            for bound in (spec.low, spec.high):
+                value = type(spec.default)(bound)
+                result = node.set_parameters([Parameter(spec.name, value=value)])[0]
+                others = [o.name for o in ALL_SPECS if o.name != spec.name
+                          and o.name.split('.')[-1] in result.reason]
+                if not result.successful and not others:
+                    wrong.append(f'{spec.name} = {value}: {result.reason}')
+                node.set_parameters([Parameter(spec.name, value=spec.default)])
+        assert wrong == [], '; '.join(wrong)
+    finally:
+        node.destroy_node()
+
+
 @pytest.mark.process
 def test_over_dds_a_sim_reset_with_sensors_left_behind_is_an_error(probe):
     # A real controller process on sim time. /clock runs from 100 s with the inputs at
