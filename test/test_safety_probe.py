@@ -140,7 +140,6 @@ def test_inputs_refused_after_a_time_jump_give_error_and_the_safe_ramp(context):
         node.destroy_node()
 
 
-
 def test_dead_inputs_are_an_error_within_input_timeout_after_the_clock_went_back(context):
     # event mode: the node's clock goes back 0.5 s (under the 1 s jump threshold) and
     # every input dies. Promise: /diagnostics ERROR at once when an input is older than
@@ -183,7 +182,6 @@ def test_low_speed_after_a_time_jump_holds_the_last_command(context):
         assert node.core.last.steering == pytest.approx(held, abs=1e-9)
     finally:
         node.destroy_node()
-
 
 
 def test_every_advertised_parameter_bound_is_accepted_or_refused_for_another(context):
