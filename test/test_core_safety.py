@@ -15,8 +15,8 @@
 """The output limits' reference: the last angle sent and the newest stamp sent."""
 
 from lookahead_control.core.controller import SteeringController
-from lookahead_control.core.params import ControllerParams, VehicleParams
-from lookahead_control.core.safety import check_stamp, SafetyParams
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.safety import check_stamp, SafetyParams, stale_target
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
 import pytest
@@ -201,3 +201,66 @@ def _step_at(core, now, stamp, y):
                          ('lateral_error', LateralErrorSample(stamp, 1.96, y))):
         assert core.accept(name, sample, now) is None
     return core.compute(now)
+
+
+def test_inputs_received_after_the_clock_reading_are_stale():
+    # the node's clock goes back 0.5 s (under the 1 s jump threshold) with no new
+    # input: the inputs were received "in the future", their age is negative
+    core, now = _core(), 1000_000 * MS
+    _live(core, now)
+    assert core.stale(now) == []
+    back = now - 500 * MS
+    assert core.stale(back) == ['lateral_error', 'yaw', 'velocity']
+    assert core.compute(back).status == 'stale'
+    assert core.stale(back + 200 * MS) == ['lateral_error', 'yaw', 'velocity']
+    # nothing received since: still stale once the clock is past the reception again
+    assert core.stale(now + 10 * MS) == ['lateral_error', 'yaw', 'velocity']
+    # received again: fresh
+    _live(core, now + 20 * MS)
+    assert core.stale(now + 20 * MS) == []
+
+
+def test_inputs_refused_after_a_time_jump_go_stale_and_ramp():
+    core, now = _core(), 1000_000 * MS
+    start = _step_at(core, now, now, 3.0).steering
+    assert start < -0.03
+    # the clock goes back 5 s; the sensors stay on the old time line: all refused
+    back = now - 5_000 * MS
+    _, refused = _live(core, back, stamp=now + 10 * MS)
+    assert core.time_jumps == 1 and all(refused)
+    assert core.stale(back + 200 * MS) == []            # within input_timeout of the jump
+    stale = core.stale(back + 210 * MS)
+    assert stale == ['lateral_error', 'yaw', 'velocity']
+    assert 'lateral_error never received (last refused: lateral_error: stamp' in \
+        core.describe_stale(stale)
+    # hold for hold_time (0.5 s), then ramp to 0 at 0.1 rad/s
+    ramp = [core.safe_command(back + k * 100 * MS).steering for k in range(3, 10)]
+    assert ramp[:4] == [start] * 4
+    assert ramp[-1] - ramp[-2] == pytest.approx(0.1 * 0.1, abs=1e-15)
+
+
+def test_low_speed_after_a_time_jump_holds_the_last_angle_sent():
+    core, now = _core(), 1000_000 * MS
+    start = _step_at(core, now, now, 3.0).steering
+    assert start < -0.03
+    back = now - 5_000 * MS
+    for k in range(5):          # 1 m/s: below low_speed - low_speed_blend (2 m/s)
+        answer, _ = _live(core, back + k * 10 * MS, y=-3.0, v_x=1.0)
+        assert answer.status == 'low_speed' and answer.steering == start
+    assert core.time_jumps == 1
+
+
+def test_hold_time_and_max_future_may_be_zero_and_errors_name_the_parameter():
+    params = SafetyParams(hold_time=0.0, max_future=0.0, max_steering_rate=0.1)
+    # hold_time 0: the ramp starts at once
+    assert stale_target(0.3, 0.0, params) == 0.3
+    assert stale_target(0.3, 0.5, params) == pytest.approx(0.25, abs=1e-15)
+    # max_future 0: a stamp at the clock is used, one nanosecond ahead is refused
+    assert check_stamp('yaw', 10 * MS, None, 10 * MS, params) is None
+    assert 'ahead of the node clock' in check_stamp('yaw', 10 * MS + 1, None, 10 * MS,
+                                                    params)
+    for name in ('input_timeout', 'max_steering_rate', 'hold_time', 'max_future'):
+        with pytest.raises(ParameterError, match=f'^safety.{name} = '):
+            SafetyParams(**{name: -1.0})
+    with pytest.raises(ParameterError, match=r'^safety.input_timeout = 0.0 .*\(0, '):
+        SafetyParams(input_timeout=0.0)

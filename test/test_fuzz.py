@@ -166,7 +166,7 @@ class Invariants:
             for name in ('lateral_error', 'yaw', 'velocity'):
                 sample = getattr(core, {'lateral_error': 'lateral'}.get(name, name))
                 arrived = self.arrivals.get((name, sample.stamp_ns))
-                assert arrived is not None and now - arrived <= timeout, (name, now)
+                assert arrived is not None and 0 <= now - arrived <= timeout, (name, now, arrived)
                 assert now - sample.stamp_ns <= timeout, (name, now, sample.stamp_ns)
                 assert sample.stamp_ns >= self.used.get(name, -1), name
                 self.used[name] = sample.stamp_ns

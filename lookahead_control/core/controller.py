@@ -192,6 +192,10 @@ class SteeringController:
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
+        # received after a later clock reading (the clock went back): stale until the
+        # input is received again; the same for the start of the wait for the others
+        self._voided: set[str] = set()
+        self._first_voided = False
         self._last_now: Optional[int] = None
         self._held: Optional[float] = None
         self._stale_since: Optional[int] = None
@@ -279,8 +283,9 @@ class SteeringController:
         """
         Forget the inputs and the last command (time jumped: replay restart, sim reset).
 
-        The last angle sent stays the rate limit's reference (the actuator is still
-        there); the first command after the reset holds it, the next ones move from it.
+        The last angle sent stays the rate limit's reference and the angle held at low
+        speed (the actuator is still there); the first command after the reset holds
+        it, the next ones move from it.
         """
         self.lateral = self.yaw = self.velocity = self.curvature = None
         self._previous_velocity = None
@@ -289,9 +294,12 @@ class SteeringController:
         self._rate_now = self._rate_steady = self._rate_time = None
         self._received.clear()
         self._first_received = None
+        self._voided.clear()
+        self._first_voided = False
         self._last_now = None
         self._stale_since = None
-        self._hold_value = None
+        if self._rate_angle is not None:
+            self._hold_value = self._rate_angle
         self.law.reset()
         self._law_stamp = None
 
@@ -319,7 +327,11 @@ class SteeringController:
         if jumped:
             self.time_jumps += 1
             self.reset()
+            # the inputs' timeout runs from the jump: inputs refused from now on go stale
+            self._first_received = now_ns
             current = None
+        if now_ns is not None:
+            self._last_now = now_ns     # the node's clock, whether the sample is used or not
         # a clock reading 0 is not running yet (sim time before the first /clock): the
         # stamps cannot be judged against it
         clock = now_ns if now_ns is not None and now_ns > 0 else None
@@ -330,11 +342,10 @@ class SteeringController:
             self.count_rejection(reason)
             return reason
         received = 0 if now_ns is None else now_ns
-        if now_ns is not None:
-            self._last_now = now_ns
         if clock is not None:
             self.timing.note_age(name, (clock - sample.stamp_ns) * 1e-9)
         self._received[name] = received
+        self._voided.discard(name)
         if self._first_received is None:
             self._first_received = received
         getattr(self, _UPDATE[name])(sample)
@@ -354,21 +365,32 @@ class SteeringController:
             self.refusals[name] = reason
 
     def _fresh(self, name: str, now_ns: int) -> bool:
-        """Return whether an input's last sample is fresh at ``now_ns``."""
+        """
+        Return whether an input's last sample is fresh at ``now_ns``.
+
+        Fresh: received within ``input_timeout`` before ``now`` on the node's clock and
+        stamped no more than ``input_timeout`` ago. A sample received after ``now``
+        came before the clock went back: it stays stale until the input is received
+        again (also once the clock is past its reception time again).
+        """
         received = self._received.get(name)
         sample = getattr(self, _LATEST[name])
+        if received is not None and received > now_ns:
+            self._voided.add(name)
         timeout = self.safety.input_timeout * 1e9
-        return (received is not None and sample is not None
+        return (received is not None and sample is not None and name not in self._voided
                 and now_ns - received <= timeout and now_ns - sample.stamp_ns <= timeout)
 
     def stale(self, now_ns: Optional[int]) -> list[str]:
         """
         Return the required inputs that are stale at ``now_ns``.
 
-        Stale: received (on the node's clock) or stamped more than ``input_timeout``
-        ago, or never received although another input came in more than
-        ``input_timeout`` ago. An input refused over and over, or whose stamps stopped
-        advancing (refused as repeated), therefore goes stale too. ``road_curvature`` is
+        Stale: received (on the node's clock) more than ``input_timeout`` ago or before
+        the clock went back, stamped more than ``input_timeout`` ago, or never received
+        although another input came in (or the time jumped) more than ``input_timeout``
+        ago or before the clock went back. An input refused over and over, or whose
+        stamps stopped advancing (refused as repeated), therefore goes stale too, also
+        after a time jump. ``road_curvature`` is
         optional: see :meth:`curvature_lost`.
 
         :param now_ns: the node's clock [ns] (None: not running, nothing is stale).
@@ -377,9 +399,12 @@ class SteeringController:
         if now_ns is None or self._first_received is None:
             return []
         timeout = self.safety.input_timeout * 1e9
+        if self._first_received > now_ns:
+            self._first_voided = True
+        waited = self._first_voided or now_ns - self._first_received > timeout
         return [name for name in REQUIRED_INPUTS
                 if (name in self._received and not self._fresh(name, now_ns))
-                or (name not in self._received and now_ns - self._first_received > timeout)]
+                or (name not in self._received and waited)]
 
     def curvature_lost(self, now_ns: Optional[int]) -> bool:
         """

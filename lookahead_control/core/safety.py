@@ -40,6 +40,8 @@ from typing import Any, Optional
 from lookahead_control.core.params import check_finite, check_range, ParameterError
 
 INPUT_NAMES = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
+# limits that may be 0: no hold (ramp at once), no stamp ahead of the node's clock
+ZERO_ALLOWED = ('hold_time', 'max_future')
 
 
 @dataclass(frozen=True)
@@ -55,9 +57,11 @@ class SafetyParams:
     :param max_acceleration: largest believable |a_x| [m/s^2].
     :param max_curvature: largest believable |road curvature| [1/m].
     :param max_sensor_distance: largest believable measurement distance ahead [m].
-    :param max_future: a stamp this far ahead of the node's clock is refused [s].
+    :param max_future: a stamp further ahead of the node's clock is refused [s] (0:
+        any stamp ahead of it).
     :param input_timeout: an input older than this is stale [s].
-    :param hold_time: on stale inputs, hold the command this long, then ramp [s].
+    :param hold_time: on stale inputs, hold the command this long, then ramp [s] (0:
+        ramp at once).
     :param safe_angle: where the ramp goes [rad].
     :param max_steering_angle: actuator angle limit [rad].
     :param max_steering_rate: actuator rate limit [rad/s].
@@ -91,9 +95,11 @@ class SafetyParams:
     def __post_init__(self) -> None:
         """Check every limit is finite and positive, and the safe angle within limits."""
         for name, value in vars(self).items():
-            check_finite(name, value)
-            if name != 'safe_angle':
-                check_range(name, value, 1e-9, 1e6)
+            check_finite(f'safety.{name}', value)
+            if name in ZERO_ALLOWED:
+                check_range(f'safety.{name}', value, 0.0, 1e6)
+            elif name != 'safe_angle':
+                check_range(f'safety.{name}', value, 0.0, 1e6, low_open=True)
         if abs(self.safe_angle) > self.max_steering_angle:
             raise ParameterError(f'safety.safe_angle = {self.safe_angle:g} rad: must be '
                                  f'within +-max_steering_angle ({self.max_steering_angle:g})')
