@@ -34,6 +34,9 @@ def context():
 
 
 def _feed(node, stamp, y=0.1, v_x=30.0, rho=-0.0025):
+    from rclpy.time import Time
+    # a fake sim clock that reads the measurements' time (stamps are judged against it)
+    node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
     node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
     node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, 0.0, 0.0))
     node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
@@ -43,7 +46,7 @@ def _feed(node, stamp, y=0.1, v_x=30.0, rho=-0.0025):
 def test_node_selects_the_lane_keeping_law_by_parameter(context):
     from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('law', value='cg_compensated'),
+        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated'),
         Parameter('lane_keeping.integral_gain', value=0.5)])
     try:
         node.trigger_configure()

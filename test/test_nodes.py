@@ -544,7 +544,7 @@ def _effect(node, name):
     prefix, _, field = name.partition('.')
     holders = {'vehicle': core.vehicle, 'controller': core.params, 'safety': core.safety,
                'pure_pursuit': core.baselines.pure_pursuit, 'stanley': core.baselines.stanley,
-               'lqr': core.baselines.lqr}
+               'lqr': core.baselines.lqr, 'lane_keeping': core.lane_keeping}
     if prefix in holders and field:
         return getattr(holders[prefix], field)
     return {'law': lambda: core.law_name,
