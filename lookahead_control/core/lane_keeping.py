@@ -112,8 +112,13 @@ class LaneKeepingParams:
                     low_open=True)
         check_range('lane_keeping.frequency_speed', self.frequency_speed, 0.0, 100.0,
                     low_open=True, unit='m/s')
-        check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0,
-                    self.natural_frequency, low_open=True, unit='rad/s')
+        check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0, 100.0,
+                    low_open=True, unit='rad/s')
+        if self.low_speed_frequency > self.natural_frequency:
+            raise ParameterError(
+                f'lane_keeping.low_speed_frequency = {self.low_speed_frequency!r} rad/s is '
+                'above lane_keeping.natural_frequency = '
+                f'{self.natural_frequency!r} rad/s; it must not exceed it')
         check_range('lane_keeping.reference_preview', self.reference_preview, 0.0, 3.0,
                     unit='s')
         check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
