@@ -119,7 +119,7 @@ SIM_SPECS = (
     EXECUTOR_SPEC,
 )
 # longest wait at exit for subscribers to acknowledge the last samples [s]
-ACK_TIMEOUT = 30.0
+ACK_TIMEOUT = 10.0
 ALL_SPECS = VEHICLE_SPECS + PLANT_SPECS + SIM_SPECS
 GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_cmd',
                 'v_x', 'a_x', 'rho', 'command_time')
@@ -399,11 +399,14 @@ class SimPlantNode(Node):
         A reliable writer destroyed right after its last publish drops the samples its
         readers have not yet acknowledged: a recorder slowed down by a loaded machine
         then misses the end of the run (its ground truth). The wait ends as soon as all
-        are acknowledged; ``ACK_TIMEOUT`` only bounds it for a subscriber that died.
+        are acknowledged; ``ACK_TIMEOUT`` (for all publishers together) only bounds it
+        for a subscriber that died without the middleware noticing yet.
         """
+        end = time.monotonic() + ACK_TIMEOUT
         for pub in list(self.publishers):
-            if pub.get_subscription_count() > 0:
-                pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
+            left = end - time.monotonic()
+            if left > 0 and pub.get_subscription_count() > 0:
+                pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
         super().destroy_node()
 
     # -- steering -------------------------------------------------------------------
