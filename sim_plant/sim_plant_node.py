@@ -44,6 +44,7 @@ from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, Sp
 from lookahead_control.ros.vehicle_conversions import to_odometry, to_path
 from nav_msgs.msg import Odometry, Path as PathMsg
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -117,6 +118,8 @@ SIM_SPECS = (
          '(0.1 s for record and rosbag2)', 0.0, 10.0),
     EXECUTOR_SPEC,
 )
+# longest wait at exit for subscribers to acknowledge the last samples [s]
+ACK_TIMEOUT = 10.0
 ALL_SPECS = VEHICLE_SPECS + PLANT_SPECS + SIM_SPECS
 GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_cmd',
                 'v_x', 'a_x', 'rho', 'command_time')
@@ -388,6 +391,23 @@ class SimPlantNode(Node):
                 f'({self.k / max(wall, 1e-9):.0f} steps/s)')
             self.done.set_result(True)
         return True
+
+    def destroy_node(self) -> None:
+        """
+        Wait until every subscriber acknowledged what was published, then destroy.
+
+        A reliable writer destroyed right after its last publish drops the samples its
+        readers have not yet acknowledged: a recorder slowed down by a loaded machine
+        then misses the end of the run (its ground truth). The wait ends as soon as all
+        are acknowledged; ``ACK_TIMEOUT`` (for all publishers together) only bounds it
+        for a subscriber that died without the middleware noticing yet.
+        """
+        end = time.monotonic() + ACK_TIMEOUT
+        for pub in list(self.publishers):
+            left = end - time.monotonic()
+            if left > 0 and pub.get_subscription_count() > 0:
+                pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+        super().destroy_node()
 
     # -- steering -------------------------------------------------------------------
 

@@ -24,6 +24,7 @@ import subprocess
 import sys
 import time
 
+from conftest import spin_until
 from lookahead_control.analysis.bag_analysis import bag_row, run_series
 from lookahead_control.bags.rosbag_io import (bag_topics, BagError, BagWriter, node_parameters,
                                               PARAMETERS_KEY, qos_from_ints, recover,
@@ -235,6 +236,28 @@ def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
     assert 400 - 0.2 * 200 - 1 <= result.messages <= 400
     values = load_floats(bag)
     assert values == list(range(len(values)))
+
+
+def test_stopping_writes_what_the_subscriptions_hold_but_callbacks_did_not_take(probe,
+                                                                                tmp_path):
+    # a recorder behind its subscriptions (a loaded machine): 50 messages received by
+    # the middleware, none taken by a callback yet, when it is stopped
+    from lookahead_control.bags.recorder_node import RecorderNode
+    from rclpy.duration import Duration
+    from std_msgs.msg import Float64
+    node, executor = probe
+    bag = tmp_path / 'bag'
+    talker = node.create_publisher(Float64, '/talk', 100)
+    recorder = RecorderNode(BagWriter(bag), ['/talk'], describe=(), context=node.context)
+    try:
+        recorder.discover()         # its poll, without an executor taking its messages
+        assert spin_until(executor, lambda: talker.get_subscription_count() > 0, 60)
+        for i in range(50):
+            talker.publish(Float64(data=float(i)))
+        assert talker.wait_for_all_acked(Duration(seconds=60))
+    finally:
+        recorder.destroy_node()
+    assert load_floats(bag) == list(range(50))
 
 
 def load_floats(bag):

@@ -41,6 +41,7 @@ from lookahead_control.core.config import source_config_dir
 from lookahead_control.ros.node_main import now_ns, run_node
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -257,9 +258,38 @@ class RecorderNode(Node):
                           'published': None if dropped is None else stats.last_seq}
         return out
 
+    def drain(self) -> int:
+        """
+        Write the messages received by the middleware but not yet taken.
+
+        On a loaded machine the recorder's callbacks run behind its subscriptions: when
+        it is stopped, the end of the run (the last steps' ground truth, or all of it)
+        is still queued in its readers, and finalizing the bag without taking it loses it.
+
+        :return: how many messages were written.
+        """
+        written = 0
+        for topic, sub in list(self._subs.items()):
+            if sub is None:
+                continue
+            while True:
+                try:
+                    with sub.handle:
+                        taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                except InvalidHandle:
+                    taken = None
+                if taken is None:
+                    break
+                data, info = taken
+                self.on_message(topic, data, info)
+                written += 1
+        return written
+
     def destroy_node(self) -> None:
         """Finalize the bag (also on SIGINT / SIGTERM) and report."""
         if not self.bag.closed:
+            if self.bag.error is None:
+                self.drain()
             report = self.report()
             try:
                 self.bag.describe(RECORDER_KEY, yaml.safe_dump(report))
