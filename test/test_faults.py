@@ -86,6 +86,14 @@ CASES = {
     'analyze': [(['{junk_bag}', '--no-plots'], 'junk_bag'),
                 (['{garbage_bag}', '--no-plots'], 'garbage_bag')],
     'demo': [(['--out', '{plain}/demo'], 'plain.txt')],
+    'compare': [(['--vehicle', '{malformed}'], 'malformed.yaml'),
+                (['--laws', 'paper_eq26', '--scenarios', 's1_paper_step', '--plants', 'linear',
+                  '--speeds', '37', '--workers', '1', '--no-plots', '--out', '{plain}/out'],
+                 'plain.txt')],
+    'sweep': [(['--out', 'run', '--vehicle', '{malformed}'], 'malformed.yaml'),
+              (['--out', 'run', '--controller', '{missing}'], 'missing.yaml'),
+              (['--out', 'run', '--scenarios', '{malformed}'], 'malformed.yaml'),
+              (['--out', '{plain}/run', '--workers', '0', '--no-progress'], 'plain.txt')],
 }
 
 
