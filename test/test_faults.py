@@ -648,6 +648,19 @@ def test_ctrl_c_in_the_first_second_is_one_line_not_a_traceback(exe, tmp_path):
         assert 'Traceback' not in err and '[FATAL]' not in err, (k, err)
 
 
+def test_an_interrupt_python_cannot_raise_is_silent_in_an_executable():
+    # as in a child Ctrl-C reaches between fork and exec, in threading's after-fork hook
+    code = ('import sys\nsys.argv[0] = {!r}\nimport lookahead_control\n'
+            'class A:\n    def __del__(self):\n        raise {}\nA()\nprint("went on")\n')
+    for argv0, error, silent in (('-m', 'KeyboardInterrupt', True),
+                                 ('script.py', 'KeyboardInterrupt', False),
+                                 ('-m', 'RuntimeError("x")', False)):
+        out = subprocess.run([sys.executable, '-c', code.format(argv0, error)],
+                             capture_output=True, text=True, timeout=60)
+        assert out.stdout == 'went on\n', out.stderr
+        assert (out.stderr == '') is silent, (argv0, error, out.stderr)
+
+
 def test_ctrl_c_of_a_realtime_closed_loop_has_no_fatal_callback_error(tmp_path):
     proc = subprocess.Popen([str(EXES / 'closed_loop'), '--mode', 'realtime', '--bag',
                              str(tmp_path / 'run')], cwd=tmp_path, text=True,
