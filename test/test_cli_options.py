@@ -23,6 +23,7 @@ without the option), a bad value must be refused in one line naming the option, 
 any process or file is made.
 """
 
+import hashlib
 import json
 import math
 import os
@@ -284,6 +285,14 @@ def _closed_loop():
         line = out.stderr.strip().splitlines()[-1]
         assert 'within --timeout 0.5 s' in line and '(sim_plant 0' not in line, line
 
+    def via_bridge(c):
+        bag = c.tmp / 'cl_bridge'
+        _ok(run('closed_loop', '--scenario', c.scenario, '--via-bridge', '--bag', bag,
+                cwd=c.tmp))
+        assert node_parameters(bag, '/sim_plant')['output'] == 'vehicle'
+        sim, _ = recorded(c)
+        assert sim['output'] != 'vehicle', sim['output']
+
     def no_record(c):
         folder = c.folder('cl_norecord')
         out = run('closed_loop', '--scenario', c.scenario, '--no-record', cwd=folder)
@@ -305,22 +314,123 @@ def _closed_loop():
         '--timeout': (NON_NUMBERS + ('0', '-1'), timeout),
         '--bag': ((), check(lambda s, ctl, c: None)),
         '--no-record': ((), no_record),
+        '--via-bridge': ((), via_bridge),
     }
 
 
 def _demo():
-    def effect(c):
-        folder = c.tmp / 'demo_out'
+    def demo(c, *args):
+        folder = c.tmp / ('demo_out' + ''.join(args).replace('-', '_'))
         if not folder.exists():
-            out = run('demo', '--out', folder, '--speeds', '15', '--schedules', 'fixed',
-                      cwd=c.tmp)
-            assert out.returncode == 0, out.stderr
-        assert sorted(p.name for p in folder.iterdir() if p.is_dir()) == ['fixed_15']
+            _ok(run('demo', '--out', folder, '--speeds', '15', '--schedules', 'fixed', *args,
+                    cwd=c.tmp))
         assert (folder / 'report.md').exists()
+        return sorted(p.name for p in folder.iterdir() if p.is_dir())
+
+    def effect(c):
+        # the requested runs, and the run through path_bridge (paper d_v, 37 m/s)
+        assert demo(c) == ['bridge_paper_37', 'fixed_15']
+        assert 'Through path_bridge' in (c.tmp / 'demo_out' / 'report.md').read_text()
+
+    def no_bridge(c):
+        assert demo(c, '--no-bridge') == ['fixed_15']
+        report = (c.tmp / 'demo_out__no_bridge' / 'report.md').read_text()
+        assert 'Through path_bridge' not in report
     return {
         '--out': ((), effect),
         '--speeds': (NON_NUMBERS + ('-5', '0', '200'), effect),
         '--schedules': (('bogus',), effect),
+        '--no-bridge': ((), no_bridge),
+    }
+
+
+def _lane_keeping():
+    exe, base = 'lane_keeping_stability', ('--samples', '21')
+
+    def output(c, *args):
+        out = run(exe, *base, *args, cwd=c.folder(exe))
+        assert out.returncode in (0, 1), out.stderr      # 1: a check does not hold
+        return out.stdout
+
+    def changes(*args):
+        def effect(c):
+            assert output(c, *args) != output(c)
+        return effect
+
+    def json_effect(c):
+        path = c.folder(exe) / 'lk.json'
+        out = run(exe, *base, '--json', path, cwd=c.folder(exe))
+        assert out.returncode in (0, 1), out.stderr
+        assert json.loads(path.read_text())['certificate']['v_max'] == 37.0
+    return {
+        '--vehicle': ((), lambda c: changes('--vehicle', str(c.vehicle))(c)),
+        '--json': ((), json_effect),
+        '--v-min': (NON_NUMBERS + ('0', '-5', '1e300'), changes('--v-min', '20')),
+        '--v-max': (NON_NUMBERS + ('0', '1e300', '5'), changes('--v-max', '30')),
+        '--a-max': (NON_NUMBERS + ('-1', '1e300'), changes('--a-max', '12')),
+        '--samples': (NON_NUMBERS + ('0', '1', '-3', '2.5'), changes('--samples', '11')),
+        '--natural-frequency': (NON_NUMBERS + ('0', '-1', '1e3'),
+                                changes('--natural-frequency', '5')),
+        '--integral-gain': (NON_NUMBERS + ('-1', '1e3'), changes('--integral-gain', '0')),
+    }
+
+
+# one law, one scenario, one plant, one speed: about 3 s
+COMPARE_BASE = ('--laws', 'paper_eq26', '--scenarios', 's1_paper_step', '--plants', 'linear',
+                '--speeds', '37', '--workers', '1', '--no-plots')
+
+
+def _compare():
+    def runs(c, *args):
+        """Return the runs compare wrote to --json, and its output folder."""
+        name = 'cmp_' + hashlib.sha1(repr(args).encode()).hexdigest()[:12]
+        folder = c.folder(name)
+        if not (folder / 'runs.json').exists():
+            _ok(run('compare', *COMPARE_BASE, *args, '--out', folder / 'out', '--json',
+                    folder / 'runs.json', cwd=folder))
+        return json.loads((folder / 'runs.json').read_text())['runs'], folder
+
+    def differs(*args):
+        def effect(c):
+            assert runs(c, *args)[0] != runs(c)[0]
+        return effect
+
+    def workers(c):
+        # processes change the speed, never the numbers
+        assert runs(c, '--workers', '2')[0] == runs(c)[0]
+
+    def out(c):
+        assert (runs(c)[1] / 'out' / 'league.md').exists()
+
+    def no_plots(c):
+        folder = c.folder('cmp_plots')
+        base = [a for a in COMPARE_BASE if a != '--no-plots']
+        _ok(run('compare', *base, '--out', folder, cwd=folder))
+        assert (folder / 'league.png').read_bytes()[:4] == b'\x89PNG'
+        assert not list((runs(c)[1] / 'out').glob('*.png'))
+
+    def json_file(c):
+        table, _ = runs(c)
+        assert [(r['law'], r['speed_mps']) for r in table] == [('paper_eq26', 37.0)], table
+
+    def tune(c):
+        folder = c.folder('cmp_tune')
+        _ok(run('compare', '--tune', '--laws', 'pure_pursuit', '--workers', '2', '--out',
+                folder, cwd=folder))
+        text = (folder / 'tuning.csv').read_text()
+        assert text.count('pure_pursuit') == 6 and 'best' in text.splitlines()[0]
+    return {
+        '--vehicle': ((), lambda c: differs('--vehicle', str(c.vehicle))(c)),
+        '--json': ((), json_file),
+        '--laws': (('bogus',), differs('--laws', 'stanley')),
+        '--scenarios': (('bogus',), differs('--scenarios', 's2_curve_entry')),
+        '--plants': (('bogus',), differs('--plants', 'nonlinear')),
+        '--speeds': (NON_NUMBERS + ('-5', '0', '200'), differs('--speeds', '30')),
+        '--dt': (NON_NUMBERS + ('0', '-1', '1'), differs('--dt', '0.002')),
+        '--workers': (NON_NUMBERS + ('0', '-1', '2.5'), workers),
+        '--out': ((), out),
+        '--no-plots': ((), no_plots),
+        '--tune': ((), tune),
     }
 
 
@@ -486,6 +596,90 @@ def _analyze():
     }
 
 
+# one law, one scenario, one speed, two conditions, no Dask: one task of about 6 s
+SWEEP_BASE = ('--runs', '2', '--scenarios', 's1_paper_step', '--speeds', '37', '--laws',
+              'paper_eq26', '--workers', '0', '--duration', '2', '--no-plots',
+              '--no-progress')
+
+
+def _sweep():
+    def sweep(c, *args, base=SWEEP_BASE):
+        """Return the run's output (without its timing line) and its folder."""
+        name = 'sw_' + hashlib.sha1(repr((args, base)).encode()).hexdigest()[:12]
+        folder = c.folder(name)
+        if not (folder / 'stdout.txt').exists():
+            out = _ok(run('sweep', *base, *args, '--out', folder / 'out', cwd=folder))
+            (folder / 'stdout.txt').write_text(out.stdout)
+            (folder / 'stderr.txt').write_text(out.stderr)
+        table = (folder / 'stdout.txt').read_text().strip().rsplit('\n', 1)[0]
+        return table, folder
+
+    def differs(*args):
+        def effect(c):
+            assert sweep(c, *args)[0] != sweep(c)[0]
+        return effect
+
+    def same(*args):
+        def effect(c):
+            assert sweep(c, *args)[0] == sweep(c)[0]
+        return effect
+
+    def out(c):
+        folder = sweep(c)[1] / 'out'
+        assert (folder / 'summary.md').exists() and (folder / 'results.parquet').exists()
+
+    def levels(c):
+        grid = ('--mode', 'grid', '--cornering', '0', '--mass', '0', '--friction', '1')
+        table, _ = sweep(c, *grid, '--levels', '3')
+        assert '| 3 |' in table and table != sweep(c, *grid, '--levels', '2')[0]
+
+    def no_plots(c):
+        base = [a for a in SWEEP_BASE if a != '--no-plots']
+        folder = sweep(c, base=base)[1] / 'out'
+        assert list(folder.glob('plots/*.png'))
+        assert not list((sweep(c)[1] / 'out').glob('**/*.png'))
+
+    def no_progress(c):
+        base = [a for a in SWEEP_BASE if a != '--no-progress']
+        assert 'task' in (sweep(c, base=base)[1] / 'stderr.txt').read_text()
+        assert (sweep(c)[1] / 'stderr.txt').read_text() == ''
+
+    def scheduler(c):
+        from dask.distributed import LocalCluster
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                          dashboard_address=None) as cluster:
+            base = [a for a in SWEEP_BASE if a not in ('--workers', '0')]
+            table, _ = sweep(c, '--scheduler', cluster.scheduler_address, base=base)
+        assert table == sweep(c)[0]
+    ranges = ('abc', 'nan', '1:0', '9')
+    return {
+        '--vehicle': ((), lambda c: differs('--vehicle', str(c.vehicle))(c)),
+        '--controller': ((), lambda c: differs('--controller', str(c.controller))(c)),
+        '--out': ((), out),
+        '--mode': (('bogus',), differs('--mode', 'grid', '--levels', '2')),
+        '--runs': (NON_NUMBERS + ('0', '-1', '2.5'), differs('--runs', '3')),
+        '--levels': (NON_NUMBERS + ('0', '-1', '2.5'), levels),
+        '--seed': (NON_NUMBERS + ('-1', '2.5'), differs('--seed', '1')),
+        '--scenarios': (('bogus',), differs('--scenarios', 's2_curve_entry')),
+        '--speeds': (NON_NUMBERS + ('-5', '0', '200'), differs('--speeds', '30')),
+        '--laws': (('bogus',), differs('--laws', 'paper_fixed')),
+        '--plant': (('bogus',), differs('--plant', 'linear')),
+        '--cornering': (ranges, differs('--cornering', '0.5')),
+        '--mass': (ranges, differs('--mass', '0.5')),
+        '--friction': (ranges + ('0',), differs('--friction', '0.3')),
+        '--delay': (ranges, differs('--delay', '0.2')),
+        '--no-noise': ((), differs('--no-noise')),
+        '--batch': (NON_NUMBERS + ('0', '-1', '2.5'), same('--batch', '1')),
+        '--dt': (NON_NUMBERS + ('0', '-1', '1'), differs('--dt', '0.01')),
+        '--duration': (NON_NUMBERS + ('-1', '1e9'), differs('--duration', '3')),
+        '--max-error': (NON_NUMBERS + ('0', '-1', '1e3'), differs('--max-error', '0.001')),
+        '--workers': (NON_NUMBERS + ('-1', '2.5'), same('--workers', '1')),
+        '--scheduler': ((), scheduler),
+        '--no-plots': ((), no_plots),
+        '--no-progress': ((), no_progress),
+    }
+
+
 CASES = {
     'schedule': _table_tool('schedule', ()),
     'zero_dynamics': _table_tool('zero_dynamics', ()),
@@ -497,11 +691,16 @@ CASES = {
     'recover': {},
     'replay': _replay(),
     'analyze': _analyze(),
+    'lane_keeping_stability': _lane_keeping(),
+    'compare': _compare(),
     'controller': {},
+    'path_bridge': {},
+    'sweep': _sweep(),
     'sim_plant': {},
 }
 # a positional argument the option's refusal needs (the tool checks options after it)
-POSITIONAL = {'replay': lambda c: [str(c.bag)], 'analyze': lambda c: [str(c.bag)]}
+POSITIONAL = {'replay': lambda c: [str(c.bag)], 'analyze': lambda c: [str(c.bag)],
+              'sweep': lambda c: ['--out', str(c.tmp / 'sweep_refused')]}
 
 
 @pytest.mark.parametrize('exe', sorted(entry_points()))
@@ -531,6 +730,7 @@ def test_option_bad_values_are_refused_in_one_line(exe, option, ctx):
         assert option in lines[0] or short in lines[0] or value in lines[0], lines
         assert 'Traceback' not in out.stderr
     assert sorted(folder.iterdir()) == before, f'{exe} {option}: wrote files'
+    assert not (ctx.tmp / 'sweep_refused').exists(), f'{exe} {option}: wrote its --out'
 
 
 @pytest.mark.parametrize('exe,option', ALL)

@@ -86,6 +86,14 @@ CASES = {
     'analyze': [(['{junk_bag}', '--no-plots'], 'junk_bag'),
                 (['{garbage_bag}', '--no-plots'], 'garbage_bag')],
     'demo': [(['--out', '{plain}/demo'], 'plain.txt')],
+    'compare': [(['--vehicle', '{malformed}'], 'malformed.yaml'),
+                (['--laws', 'paper_eq26', '--scenarios', 's1_paper_step', '--plants', 'linear',
+                  '--speeds', '37', '--workers', '1', '--no-plots', '--out', '{plain}/out'],
+                 'plain.txt')],
+    'sweep': [(['--out', 'run', '--vehicle', '{malformed}'], 'malformed.yaml'),
+              (['--out', 'run', '--controller', '{missing}'], 'missing.yaml'),
+              (['--out', 'run', '--scenarios', '{malformed}'], 'malformed.yaml'),
+              (['--out', '{plain}/run', '--workers', '0', '--no-progress'], 'plain.txt')],
 }
 
 
@@ -638,6 +646,19 @@ def test_ctrl_c_in_the_first_second_is_one_line_not_a_traceback(exe, tmp_path):
                       if not line.startswith('import time:'))
         assert not any(frame in err for frame in repo_frames), (k, err)
         assert 'Traceback' not in err and '[FATAL]' not in err, (k, err)
+
+
+def test_an_interrupt_python_cannot_raise_is_silent_in_an_executable():
+    # as in a child Ctrl-C reaches between fork and exec, in threading's after-fork hook
+    code = ('import sys\nsys.argv[0] = {!r}\nimport lookahead_control\n'
+            'class A:\n    def __del__(self):\n        raise {}\nA()\nprint("went on")\n')
+    for argv0, error, silent in (('-m', 'KeyboardInterrupt', True),
+                                 ('script.py', 'KeyboardInterrupt', False),
+                                 ('-m', 'RuntimeError("x")', False)):
+        out = subprocess.run([sys.executable, '-c', code.format(argv0, error)],
+                             capture_output=True, text=True, timeout=60)
+        assert out.stdout == 'went on\n', out.stderr
+        assert (out.stderr == '') is silent, (argv0, error, out.stderr)
 
 
 def test_ctrl_c_of_a_realtime_closed_loop_has_no_fatal_callback_error(tmp_path):

@@ -27,6 +27,7 @@ import os
 import signal
 import sys
 from types import FrameType, TracebackType
+from typing import Any
 
 PACKAGE_NAME = 'lookahead_control'
 _installed = False
@@ -111,6 +112,25 @@ class _Hook:
         self.previous(kind, value, trace)       # type: ignore[operator]
 
 
+class _UnraisableHook:
+    """
+    The unraisablehook: an executable's interrupt that Python cannot raise is silent.
+
+    A Ctrl-C to the process group can land in a child between ``fork`` and ``exec``,
+    while Python runs its after-fork hooks (``subprocess`` with ``preexec_fn``); Python
+    then prints ``Exception ignored in ... Traceback`` and the child goes on to start its
+    node. The parent has the same Ctrl-C and prints the one line.
+    """
+
+    def __init__(self, previous: object) -> None:
+        self.previous = previous
+
+    def __call__(self, unraisable: Any) -> None:
+        if _interrupted(unraisable.exc_value) is not None and running_as_executable():
+            return
+        self.previous(unraisable)               # type: ignore[operator]
+
+
 def _on_signal(signum: int, frame: FrameType | None) -> None:
     """Remember the signal, then raise as Python does for SIGINT (Terminated for SIGTERM)."""
     received.append(signum)
@@ -128,6 +148,14 @@ def _handle(signum: int, default: object) -> None:
         pass
 
 
+def _install_hooks() -> None:
+    """Install the excepthook and the unraisablehook (once)."""
+    if not isinstance(sys.excepthook, _Hook):
+        sys.excepthook = _Hook(sys.excepthook)
+    if not isinstance(sys.unraisablehook, _UnraisableHook):
+        sys.unraisablehook = _UnraisableHook(sys.unraisablehook)
+
+
 def install() -> None:
     """
     Make an interrupt of a tool one line, and SIGTERM act like SIGINT.
@@ -142,8 +170,7 @@ def install() -> None:
     if _installed:
         return
     _installed = True
-    if not isinstance(sys.excepthook, _Hook):
-        sys.excepthook = _Hook(sys.excepthook)
+    _install_hooks()
     _handle(signal.SIGTERM, signal.SIG_DFL)
     _handle(signal.SIGINT, signal.default_int_handler)
 
@@ -158,8 +185,7 @@ def install_if_executable() -> None:
     :func:`install` (a tool) or ``run_node`` (a node): a node told to stop while its
     Python is still starting just ends, silently.
     """
-    if not isinstance(sys.excepthook, _Hook):
-        sys.excepthook = _Hook(sys.excepthook)
+    _install_hooks()
     if running_as_executable():
         _handle(signal.SIGINT, signal.default_int_handler)
 

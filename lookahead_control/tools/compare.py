@@ -35,7 +35,8 @@ from typing import Any, Callable, Iterable, Mapping, Optional, Sequence
 from lookahead_control.analysis.metrics import step_metrics
 from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrParams,
                                               PurePursuitParams, StanleyParams)
-from lookahead_control.core.cli import markdown_table, parser, run_tool, write_csv
+from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, write_csv,
+                                        write_json)
 from lookahead_control.core.control_law import arc_offset
 from lookahead_control.core.lane_keeping import CgCompensatedLaw
 from lookahead_control.core.laws import Law, PaperLaw
@@ -59,6 +60,7 @@ DELAY = 0.02                    # [s] transport delay of the "nonlinear + delay 
 NOISE_SEED = 1                  # seeds: speed_seed(speed): a run repeats in any subset
 FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last second
 NOISE_SCENARIO = 's0_straight'  # steering noise: command with noise minus without, here
+MAX_SPEED = 90.0                # [m/s] the scenarios' limit
 DT = 0.005                      # [s] plant step (CommonRoad's multi-body model: 0.002)
 
 
@@ -479,18 +481,22 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
     scen = [s for s in SCENARIOS if any(r['scenario'] == s for r in rows)]
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), gridspec_kw={'width_ratios': [3, 1, 1]})
     width = 0.8 / max(len(laws), 1)
+    plotted = False
     for j, law in enumerate(laws):
         mine = [r for r in rows if r['law'] == law and r['plant'] == GOAL_PLANT]
         peaks = [100.0 * _worst([r for r in mine if r['scenario'] == s and (
             r['speed_mps'] == 37.0 or s == 's5_envelope')], 'peak_cg_error_m') for s in scen]
         axes[0].bar(np.arange(len(scen)) + j * width, peaks, width, label=law)
+        plotted = plotted or any(p > 0.0 for p in peaks)       # NaN: no such run
         s0 = [r for r in mine if r['scenario'] == 's0_straight' and r['speed_mps'] == 37.0]
         axes[1].bar(j, 1000.0 * _worst(s0, 'steering_noise_rms_rad'))
         axes[2].bar(j, 100.0 * _worst(s0, 'yaw_rebound'))
     axes[0].set_xticks(np.arange(len(scen)) + 0.4 - width / 2)
     axes[0].set_xticklabels([s[:2].upper() for s in scen])
-    axes[0].set_yscale('log')
-    axes[0].set_ylabel('peak CG lateral error y_cg [cm] (log)')
+    if plotted:             # log of nothing: matplotlib refuses (a league without the plant)
+        axes[0].set_yscale('log')
+    axes[0].set_ylabel('peak CG lateral error y_cg [cm] (log)' if plotted else
+                       f'no {GOAL_PLANT} run at 37 m/s in this league')
     axes[0].set_title('37 m/s (S5: 10-37-10 m/s), nonlinear + 20 ms + noise')
     axes[0].legend(fontsize=8)
     for ax, label in ((axes[1], 'S0 steering noise rms [mrad]'),
@@ -632,14 +638,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     :param argv: command-line arguments.
     :return: exit code.
     """
-    p = parser('league table: every law x scenarios S0-S5 x plants x speeds')
+    p = parser('league table: every law x scenarios S0-S5 x plants x speeds', plot=False)
     p.add_argument('--laws', nargs='+', default=list(LAWS), choices=list(LAWS))
     p.add_argument('--scenarios', nargs='+', default=list(SCENARIOS), choices=SCENARIOS)
     p.add_argument('--plants', nargs='+', default=[c.name for c in PLANTS],
                    choices=[c.name for c in PLANTS])
-    p.add_argument('--speeds', type=float, nargs='+', default=list(SPEEDS))
-    p.add_argument('--dt', type=float, default=DT, help='plant step [s] (CommonRoad: 0.002)')
-    p.add_argument('--workers', type=int, default=2, help='processes')
+    p.add_argument('--speeds', type=number(0.0, MAX_SPEED, low_open=True, unit='m/s'),
+                   nargs='+', default=list(SPEEDS), metavar='M/S')
+    p.add_argument('--dt', type=number(1.0e-4, 0.05, unit='s'), default=DT,
+                   help='plant step [s] (CommonRoad: 0.002)')
+    p.add_argument('--workers', type=number(1, 256, integer=True), default=2,
+                   help='processes')
     p.add_argument('--out', type=Path, default=Path('bags') / 'compare',
                    help='folder for league.md, league.csv, league.png')
     p.add_argument('--no-plots', action='store_true')
@@ -655,13 +664,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(markdown_table(rows, digits=4))
         args.out.mkdir(parents=True, exist_ok=True)
         write_csv(args.out / 'tuning.csv', rows)
+        if args.json:
+            write_json(args.json, rows)
         print(f'wrote {args.out / "tuning.csv"} in {time.monotonic() - start:.0f} s')
         return 0
     plants = [c for c in PLANTS if c.name in args.plants]
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
                   args.workers)
     report = write_report(rows, args.laws, args.out, plot=not args.no_plots)
-    print(markdown_table(summary(rows, args.laws), digits=3))
+    table = summary(rows, args.laws)
+    print(markdown_table(table, digits=3))
+    if args.json:
+        write_json(args.json, {'summary': table, 'runs': rows})
     print(f'wrote {report} ({len(rows)} runs in {time.monotonic() - start:.0f} s)')
     return 0
 

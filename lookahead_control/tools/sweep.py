@@ -34,7 +34,6 @@ failure rate, worst case and percentiles) and ``plots/*.png``.
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import asdict, dataclass, fields, replace
 import itertools
 import json
@@ -46,7 +45,8 @@ import time
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from lookahead_control.analysis.metrics import rms, run_metrics
-from lookahead_control.core.cli import markdown_table, run_tool, ToolError, write_csv
+from lookahead_control.core.cli import (ArgumentParser, markdown_table, number, run_tool,
+                                        ToolError, write_csv)
 from lookahead_control.core.config import load_controller, load_vehicle, source_config_dir
 from lookahead_control.core.lane_keeping import CgCompensatedLaw
 from lookahead_control.core.laws import Law, PaperLaw
@@ -685,7 +685,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     :param argv: command-line arguments.
     :return: exit code.
     """
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         description='Monte Carlo / grid robustness sweep of steering laws (Dask)')
     d = SweepSpec()
     p.add_argument('--vehicle', type=Path, default=None,
@@ -699,7 +699,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--runs', type=int, default=d.runs, help='Monte Carlo: conditions per '
                    'scenario')
     p.add_argument('--levels', type=int, default=d.levels, help='grid: values per range')
-    p.add_argument('--seed', type=int, default=d.seed)
+    p.add_argument('--seed', type=number(0, 2**32 - 1, integer=True), default=d.seed)
     p.add_argument('--scenarios', type=_names, default=d.scenarios,
                    help='comma-separated names in config/scenarios or YAML paths')
     p.add_argument('--speeds', type=_speeds, default=d.speeds, help='m/s, comma-separated')
@@ -720,7 +720,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help="simulated time [s] (0: each scenario's)")
     p.add_argument('--max-error', type=float, default=d.max_error,
                    help='peak CG error [m] above which a run fails')
-    p.add_argument('--workers', type=int, default=2, help='local Dask workers (0: none)')
+    p.add_argument('--workers', type=number(0, 256, integer=True), default=2,
+                   help='local Dask workers (0: none)')
     p.add_argument('--scheduler', default=None, metavar='ADDRESS',
                    help='an existing Dask scheduler (tcp://host:8786)')
     p.add_argument('--no-plots', action='store_true')
