@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import argparse
 from typing import Sequence
 
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid, zero_dynamics_table
@@ -114,6 +115,37 @@ def zero_dynamics_main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
+def add_envelope(p: argparse.ArgumentParser, samples: int, samples_help: str) -> None:
+    """
+    Add the speed/acceleration envelope options of the stability tools.
+
+    :param p: the parser.
+    :param samples: the default of ``--samples``.
+    :param samples_help: its help text.
+    """
+    speed = number(0.0, MAX_SPEED, low_open=True, unit='m/s')
+    p.add_argument('--v-min', type=speed, default=10.0, metavar='M/S',
+                   help='lowest speed of the envelope [m/s] (default 10)')
+    p.add_argument('--v-max', type=speed, default=37.0, metavar='M/S',
+                   help='highest speed of the envelope [m/s] (default 37)')
+    p.add_argument('--a-max', type=number(0.0, 20.0, unit='m/s^2'), default=3.5,
+                   metavar='M/S^2',
+                   help='largest |longitudinal acceleration| [m/s^2] (default 3.5)')
+    p.add_argument('--samples', type=number(2, 1_000_000, integer=True), default=samples,
+                   metavar='N', help=samples_help)
+
+
+def check_envelope(args: argparse.Namespace) -> None:
+    """
+    Refuse an envelope whose highest speed is not above its lowest.
+
+    :param args: the parsed options of :func:`add_envelope`.
+    """
+    if not args.v_max > args.v_min:
+        raise ToolError(f'--v-max {args.v_max:g} m/s must be above --v-min '
+                        f'{args.v_min:g} m/s')
+
+
 def certificate_main(argv: Sequence[str] | None = None) -> int:
     """
     Print the Section 4 stability certificate for a vehicle and envelope.
@@ -123,21 +155,10 @@ def certificate_main(argv: Sequence[str] | None = None) -> int:
     """
     p = parser('Section 4 stability certificate of the zero dynamics under varying '
                'speed (Bauer-Fike and Gershgorin)', plot=False)
-    speed = number(0.0, MAX_SPEED, low_open=True, unit='m/s')
-    p.add_argument('--v-min', type=speed, default=10.0, metavar='M/S',
-                   help='lowest speed of the envelope [m/s] (default 10)')
-    p.add_argument('--v-max', type=speed, default=37.0, metavar='M/S',
-                   help='highest speed of the envelope [m/s] (default 37)')
-    p.add_argument('--a-max', type=number(0.0, 20.0, unit='m/s^2'), default=3.5,
-                   metavar='M/S^2',
-                   help='largest |longitudinal acceleration| [m/s^2] (default 3.5)')
-    p.add_argument('--samples', type=number(2, 1_000_000, integer=True), default=2701,
-                   metavar='N', help='speeds checked, evenly spaced from --v-min to '
-                   '--v-max, both included [-] (default 2701: every 0.01 m/s)')
+    add_envelope(p, 2701, 'speeds checked, evenly spaced from --v-min to --v-max, both '
+                 'included [-] (default 2701: every 0.01 m/s)')
     args = p.parse_args(argv)
-    if not args.v_max > args.v_min:
-        raise ToolError(f'--v-max {args.v_max:g} m/s must be above --v-min '
-                        f'{args.v_min:g} m/s')
+    check_envelope(args)
     cert = certificate(load_vehicle(args.vehicle), args.v_min, args.v_max, args.a_max,
                        args.samples)
     rows = [

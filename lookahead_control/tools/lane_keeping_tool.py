@@ -19,14 +19,12 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
-                                        write_json)
+from lookahead_control.core.cli import markdown_table, number, parser, run_tool, write_json
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import certificate, robust_check
 from lookahead_control.core.params import ControllerParams
-
-MAX_SPEED = 150.0      # m/s, as certificate
+from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 
 
 def stability_main(argv: Sequence[str] | None = None) -> int:
@@ -39,25 +37,14 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     p = parser('stability of the CG-compensated law (docs/lane_keeping.md): the Section 4 '
                'test on the closed loop with the integral, and the sampled loop over '
                'plant mismatch, actuator lag and delay', plot=False)
-    speed = number(0.0, MAX_SPEED, low_open=True, unit='m/s')
-    p.add_argument('--v-min', type=speed, default=10.0, metavar='M/S',
-                   help='lowest speed of the envelope [m/s] (default 10)')
-    p.add_argument('--v-max', type=speed, default=37.0, metavar='M/S',
-                   help='highest speed of the envelope [m/s] (default 37)')
-    p.add_argument('--a-max', type=number(0.0, 20.0, unit='m/s^2'), default=3.5,
-                   metavar='M/S^2',
-                   help='largest |longitudinal acceleration| [m/s^2] (default 3.5)')
-    p.add_argument('--samples', type=number(2, 1_000_000, integer=True), default=271,
-                   metavar='N', help='speeds checked from --v-min to --v-max (default 271)')
+    add_envelope(p, 271, 'speeds checked from --v-min to --v-max (default 271)')
     p.add_argument('--natural-frequency', type=number(0.0, 100.0, low_open=True,
                                                       unit='rad/s'), default=None,
                    help='w_n of the y_v loop (default: that of the law)')
     p.add_argument('--integral-gain', type=number(0.0, 5.0, unit='1/s'), default=None,
                    help='k_i of the CG-error integral (default: that of the law)')
     args = p.parse_args(argv)
-    if not args.v_max > args.v_min:
-        raise ToolError(f'--v-max {args.v_max:g} m/s must be above --v-min '
-                        f'{args.v_min:g} m/s')
+    check_envelope(args)
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
     settings = LaneKeepingParams(**overrides)
