@@ -302,3 +302,26 @@ def test_the_law_as_arrays_equals_the_controller_rerun(source, order):
             for name in ('d_v', 'd_v_rate', 'y_ref', 'error', 'error_rate', 'steering'):
                 assert float(getattr(law, name)[i]) == pytest.approx(
                     getattr(command.law, name), rel=1e-12, abs=1e-15), (stamp, name)
+
+
+def test_curvature_preview_points_survive_the_bag_and_the_checks(tmp_path):
+    # the preview polygon is kept per sample (a tuple of points): repeated stamps with
+    # other points are conflicts, equal ones are not; the analysis handled only floats
+    # and crashed on the path_bridge run of the demo (isnan of an object column)
+    from lookahead_control.analysis.bag_analysis import conflicting_stamps
+    from lookahead_control.bags.run_data import input_stream
+    from lookahead_control.core.samples import curvature_from_points
+    points = ((0.0, 0.0), (10.0, -2e-3))
+    other = ((0.0, 0.0), (10.0, -3e-3))
+    samples = [curvature_from_points(s, p) for s, p in
+               ((10, points), (10, points), (20, points), (20, other))]
+    ahead = np.empty(4, dtype=object)
+    ahead[:] = [s.ahead for s in samples]
+    run = RunData(bag=None, inputs={'road_curvature': Samples(
+        np.arange(4, dtype=np.int64), np.array([s.stamp_ns for s in samples]),
+        np.arange(4, dtype=np.int64),
+        {'rho': np.array([s.rho for s in samples]),
+         'slope': np.array([s.slope for s in samples]), 'ahead': ahead})})
+    assert conflicting_stamps(run) == {'road_curvature': 1}
+    fed = [sample for _, role, sample in input_stream(run)]
+    assert fed == samples and fed[3].ahead == other

@@ -59,6 +59,52 @@ def loop_bag(tmp_path_factory):
     return bag
 
 
+@pytest.fixture(scope='module')
+def law_bag(tmp_path_factory):
+    """Record the CG-compensated law on a curve entry (S2, 4 s, 30 m/s), lockstep."""
+    tmp = tmp_path_factory.mktemp('law')
+    source = ROOT / 'config' / 'scenarios' / 's2_curve_entry.yaml'
+    scenario = tmp / 's2_short.yaml'
+    scenario.write_text(source.read_text().replace('duration: 12.0', 'duration: 4.0'))
+    bag = tmp / 'bag'
+    assert run_loop(LoopConfig(scenario, speed=30.0, bag=bag, law='cg_compensated')) == 0
+    return scenario, bag
+
+
+def test_a_stateful_law_is_recorded_re_run_and_agrees_with_the_offline_runner(law_bag):
+    # the lead's demo: the node gave the laws only the curvature at the CG, so a ROS run
+    # of cg_compensated was not the law of compare (0.094 rad apart), and the offline
+    # re-run ignored the recorded law (it re-ran the paper law)
+    from lookahead_control.core.controller import build_law
+    from lookahead_control.core.baselines import BaselineParams
+    from lookahead_control.core.params import ControllerParams, VehicleParams
+    from sim_plant.closed_loop_sim import run
+    from sim_plant.scenario import load_scenario
+    scenario, bag = law_bag
+    recorded = load_run(bag)
+    assert recorded.controller_params['law'] == 'cg_compensated'
+    result = rerun(recorded)
+    assert result.compared == 400 and result.max_diff == 0.0
+    series = run_series(recorded)
+    # without the debug topic the analysis re-runs the recorded law step by step
+    again = run_series(dataclasses.replace(recorded, debug=Samples.empty()))
+    for name in ('d_v', 'y_ref', 'error'):
+        np.testing.assert_allclose(again.channels[name], series.channels[name],
+                                   rtol=1e-12, atol=1e-15)
+    assert np.abs(series.channels['y_ref']).max() > 0.1       # the reference moved
+    # the ROS loop and the offline runner (same law, same polygon preview) agree; the
+    # polygon crosses DDS as float32
+    vehicle, controller = VehicleParams(), ControllerParams()
+    offline = run(load_scenario(scenario, 30.0), vehicle,
+                  build_law('cg_compensated', vehicle, controller, BaselineParams()))
+    index = np.round(series.time / 0.01).astype(int)
+    gap = np.abs(offline['steering_cmd'][index] - series.channels['steering_cmd'])
+    assert np.abs(series.channels['steering_cmd']).max() > 0.01
+    assert gap.max() < 1e-6, gap.max()
+    row = bag_row(recorded, series)
+    assert (row['law'], row['schedule']) == ('cg_compensated', 'paper')
+
+
 def test_bag_reads_with_rosbags_and_mcap_and_counts_match(loop_bag):
     meta = yaml.safe_load((loop_bag / 'metadata.yaml').read_text())
     info = meta['rosbag2_bagfile_information']
@@ -424,7 +470,7 @@ def test_analyze_rows_and_legends_tell_runs_apart(loop_bag, tmp_path):
     # the plant reports its wheel angle: both command and wheel angle are columns
     assert row['peak_steering_rad'] == pytest.approx(row['peak_steering_cmd_rad'])
     units = ('_m', '_rad', '_s', '_ms', '_mps', '_hz', '_rad_per_s', '_ratio', 'overshoot')
-    counts = ('bag', 'scenario', 'plant', 'mode', 'schedule', 'steps', 'unanswered',
+    counts = ('bag', 'scenario', 'plant', 'mode', 'law', 'schedule', 'steps', 'unanswered',
               'dropped')
     for column in COLUMNS:
         assert column in counts or column.endswith(units), column

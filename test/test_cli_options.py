@@ -266,8 +266,9 @@ def _closed_loop():
         bag = c.tmp / 'cl_all'
         if not bag.exists():
             out = run('closed_loop', '--scenario', c.scenario, '--speed', '15',
-                      '--schedule', 'fixed', '--mode', 'realtime', '--plant', 'nonlinear',
-                      '--rate', '50', '--timeout', '120', '--bag', bag, cwd=c.tmp)
+                      '--schedule', 'fixed', '--law', 'cg_compensated', '--mode', 'realtime',
+                      '--plant', 'nonlinear', '--rate', '50', '--timeout', '120', '--bag', bag,
+                      cwd=c.tmp)
             assert out.returncode == 0, out.stderr
             assert f'recorded {bag}' in out.stdout
         return node_parameters(bag, '/sim_plant'), node_parameters(bag, '/controller')
@@ -305,6 +306,8 @@ def _closed_loop():
                     check(lambda s, ctl, c: s['speed'] == 15.0 or pytest.fail())),
         '--schedule': (('bogus',), check(lambda s, ctl, c: ctl['controller.schedule']
                                          == 'fixed' or pytest.fail())),
+        '--law': (('bogus', 'PAPER'), check(lambda s, ctl, c: ctl['law'] == 'cg_compensated'
+                                            or pytest.fail(ctl['law']))),
         '--mode': (('fast',), check(lambda s, ctl, c: s['mode'] == 'realtime'
                                     or pytest.fail())),
         '--plant': (('bicycle',), check(lambda s, ctl, c: s['plant.model'] == 'nonlinear'
@@ -322,8 +325,9 @@ def _demo():
     def demo(c, *args):
         folder = c.tmp / ('demo_out' + ''.join(args).replace('-', '_'))
         if not folder.exists():
-            _ok(run('demo', '--out', folder, '--speeds', '15', '--schedules', 'fixed', *args,
-                    cwd=c.tmp))
+            # --laws alone: no other law (each is one more closed loop)
+            _ok(run('demo', '--out', folder, '--speeds', '15', '--schedules', 'fixed',
+                    *(args or ('--laws',)), cwd=c.tmp))
         assert (folder / 'report.md').exists()
         return sorted(p.name for p in folder.iterdir() if p.is_dir())
 
@@ -333,14 +337,26 @@ def _demo():
         assert 'Through path_bridge' in (c.tmp / 'demo_out' / 'report.md').read_text()
 
     def no_bridge(c):
-        assert demo(c, '--no-bridge') == ['fixed_15']
-        report = (c.tmp / 'demo_out__no_bridge' / 'report.md').read_text()
+        assert demo(c, '--no-bridge', '--laws') == ['fixed_15']
+        report = (c.tmp / 'demo_out__no_bridge__laws' / 'report.md').read_text()
         assert 'Through path_bridge' not in report
+
+    def laws(c):
+        # the default: the CG-compensated law beside the paper law's schedules
+        assert demo(c, '--no-bridge') == ['cg_compensated_15', 'fixed_15']
+        report = (c.tmp / 'demo_out__no_bridge' / 'report.md').read_text()
+        row = next(line for line in report.splitlines()
+                   if line.startswith('| cg_compensated_15 |'))
+        assert '| cg_compensated | paper |' in row, row
+        assert 'fig_cg_compensated.png' in report
+        # the ROS run and the offline runner with the same law agree
+        assert demo(c, '--no-bridge', '--laws', 'stanley') == ['fixed_15', 'stanley_15']
     return {
         '--out': ((), effect),
         '--speeds': (NON_NUMBERS + ('-5', '0', '200'), effect),
         '--schedules': (('bogus',), effect),
         '--no-bridge': ((), no_bridge),
+        '--laws': (('bogus', 'paper'), laws),
     }
 
 

@@ -323,3 +323,52 @@ def test_stability_tool_verdicts(capsys, tmp_path):
     assert stability_main(['--samples', '55']) == 1      # the paper's 3.5 m/s^2
     assert 'certificate DOES NOT HOLD' in capsys.readouterr().out
     assert (tmp_path / 's.json').stat().st_size > 100
+
+
+# -- the node's laws get the road_curvature polygon, as the offline runner gives it ----
+
+CURVE_AHEAD = ((0.0, 0.0), (1.0, -1 / 400), (10.0, -1 / 400), (50.0, -1 / 400))
+
+
+@pytest.mark.parametrize('law', ['cg_compensated', 'stanley', 'pure_pursuit'])
+def test_controller_gives_the_laws_the_polygon_ahead(law):
+    # the lead's demo: a ROS run of cg_compensated differed from the offline runner by
+    # 0.094 rad where the curve came into the preview: the node handed the laws only the
+    # curvature at the CG (the polygon was reduced to curvature and slope on receipt)
+    from lookahead_control.core.baselines import baseline_law, BaselineParams
+    from lookahead_control.core.laws import preview_from_points
+    from lookahead_control.core.samples import curvature_from_points
+    core = _core(law)
+    stamp = 1000 * MS
+    sample = curvature_from_points(stamp, list(reversed(CURVE_AHEAD)))
+    assert sample.ahead == CURVE_AHEAD and sample.rho == 0.0
+    for name, s in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
+                    ('velocity', VelocitySample(stamp, 30.0, 0.0)),
+                    ('road_curvature', sample),
+                    ('lateral_error', LateralErrorSample(stamp, 0.0, 0.0))):
+        assert core.accept(name, s, stamp) is None
+    preview = core.preview(stamp)
+    np.testing.assert_array_equal(preview.distances, [0.0, 1.0, 10.0, 50.0])
+    command = core.compute(stamp)
+    fresh = (CgCompensatedLaw(VEHICLE, ControllerParams()) if law == 'cg_compensated'
+             else baseline_law(law, VEHICLE, BaselineParams()))
+    expected = fresh.step(state(v_x=30.0), preview_from_points(CURVE_AHEAD), 0.0)
+    assert command.law.steering == expected.steering
+    # the curve 1 m ahead already steers (the curvature at the CG is still 0)
+    assert command.law.steering < -1e-3
+
+
+def test_a_lost_curvature_gives_no_preview_and_a_bad_point_is_refused():
+    core = _core()
+    stamp = 1000 * MS
+    from lookahead_control.core.samples import curvature_from_points
+    assert core.accept('road_curvature', curvature_from_points(stamp, CURVE_AHEAD),
+                       stamp) is None
+    assert core.preview(stamp).distances.size == 4
+    later = stamp + int(2 * SafetyParams().input_timeout * 1e9)
+    assert core.curvature_lost(later) and core.preview(later).distances.size == 0
+    # a point far ahead that is not finite, or beyond the believable curvature: refused
+    for bad, why in (((60.0, math.nan),), 'not finite'), (((60.0, 0.5),), '> 0.2'):
+        reason = core.accept('road_curvature',
+                             curvature_from_points(later, CURVE_AHEAD + bad), later)
+        assert reason is not None and why in reason and 'point 4' in reason, reason

@@ -284,6 +284,9 @@ def conflicting_stamps(run: RunData) -> dict[str, int]:
         names = (STATE_FIELDS if role == 'ground_truth' else samples.values)
         for name in names:
             v = samples.values.get(name, np.full(len(samples), np.nan))[order]
+            if v.dtype == object:       # the curvature preview's points: tuples
+                differ |= np.array([a != b for a, b in zip(v[1:], v[:-1])], dtype=bool)
+                continue
             differ |= ~((v[1:] == v[:-1]) | (np.isnan(v[1:]) & np.isnan(v[:-1])))
         count = np.unique(stamps[1:][same & differ]).size
         if count:
@@ -293,11 +296,11 @@ def conflicting_stamps(run: RunData) -> dict[str, int]:
 
 def run_labels(run: RunData) -> dict[str, Any]:
     """
-    Return what tells runs apart: bag, scenario, plant, mode, rate, schedule.
+    Return what tells runs apart: bag, scenario, plant, mode, rate, law, schedule.
 
     :param run: the run.
-    :return: ``bag, scenario, plant, mode, rate_hz, schedule`` ('n/a' where the bag
-        does not say).
+    :return: ``bag, scenario, plant, mode, rate_hz, law, schedule`` ('n/a' where the bag
+        does not say; ``law`` is ``paper`` for a bag from before the parameter existed).
     """
     scenario = 'n/a'
     text = run.description.get('lookahead_control/scenario')
@@ -315,20 +318,32 @@ def run_labels(run: RunData) -> dict[str, Any]:
         'plant': str(plant.get('plant.model', 'n/a')),
         'mode': str(plant.get('mode', 'n/a')),
         'rate_hz': float(rate) if rate is not None else math.nan,
+        'law': str(ctl.get('law', 'paper' if ctl else 'n/a')),
         'schedule': str(ctl.get('controller.schedule', 'n/a')),
     }
 
 
 def run_label(row: Mapping[str, Any]) -> str:
     """
-    Return a legend label naming a row's bag, scenario, plant, mode and rate.
+    Return a legend label naming a row's bag, scenario, plant, mode, rate and law.
 
     :param row: a row of :func:`bag_row`.
     :return: e.g. ``fixed_37 (paper_r400, linear, lockstep 100 Hz, fixed)``.
     """
     rate = f' {row["rate_hz"]:g} Hz' if math.isfinite(row['rate_hz']) else ''
     return (f'{row["bag"]} ({row["scenario"]}, {row["plant"]}, {row["mode"]}{rate}, '
-            f'{row["schedule"]})')
+            f'{law_label(row)})')
+
+
+def law_label(row: Mapping[str, Any]) -> str:
+    """
+    Return the steering law of a row: the d_v schedule for the paper's law, else the law.
+
+    :param row: a row of :func:`bag_row`.
+    :return: e.g. ``fixed``, ``paper`` (eq. 26) or ``cg_compensated``.
+    """
+    law = row.get('law', 'paper')
+    return str(row['schedule']) if law in ('paper', 'n/a') else str(law)
 
 
 def _assumptions(run: RunData) -> list[str]:

@@ -35,10 +35,13 @@ from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
 from lookahead_control.bags.rosbag_io import (bag_topics, node_parameters, run_description,
                                               typestore)
+from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
+                                              StanleyParams)
 from lookahead_control.core.config import ConfigError, dataclass_from_params
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput, steering_law
 from lookahead_control.core.controller import Command, SteeringController
-from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.safety import SafetyParams
 from lookahead_control.ros import conversions as conv
 import numpy as np
@@ -101,6 +104,15 @@ class Samples:
                 for stamp, row in zip(self.stamp_ns.tolist(), rows)}
 
 
+def _column(values: list[Any]) -> Any:
+    """Return a field's values as an array: floats, or objects (the preview's points)."""
+    if any(isinstance(v, tuple) for v in values):
+        column = np.empty(len(values), dtype=object)
+        column[:] = [v if isinstance(v, tuple) else () for v in values]
+        return column
+    return np.array(values, dtype=float)
+
+
 class _Pieces:
     """Columns of one role gathered batch by batch (and message by message)."""
 
@@ -119,7 +131,7 @@ class _Pieces:
             rows = [row for *_, row in self.single]
             heads = np.array([head for *head, _ in self.single], dtype=np.int64)
             self.pieces.append((heads[:, 0], heads[:, 1], heads[:, 2],
-                                {n: np.array([r.get(n, math.nan) for r in rows], dtype=float)
+                                {n: _column([r.get(n, math.nan) for r in rows])
                                  for n in {name for row in rows for name in row}}))
             self.single = []
         if not self.pieces:
@@ -253,8 +265,11 @@ NOT_MODELED = frozenset({
     'safety.input_timeout', 'safety.hold_time', 'safety.safe_angle', 'safety.max_future',
     'watchdog_rate_hz', 'mode', 'rate_hz', 'sync_timeout', 'qos_reliability', 'frame_id',
     'autostart', 'diagnostics_rate_hz', 'executor', 'use_sim_time'})
-# node parameters it models besides the vehicle.*, controller.* and safety.* sets
-MODELED = ('acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps')
+# node parameters it models besides the parameter sets of LAW_SETS
+MODELED = ('law', 'acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps')
+# the parameter sets (namespaces) the re-run builds the controller and every law from
+LAW_SETS = ('vehicle', 'controller', 'safety', 'lane_keeping', 'pure_pursuit', 'stanley',
+            'lqr')
 
 
 def controller_from_params(params: Mapping[str, Any],
@@ -276,17 +291,27 @@ def controller_from_params(params: Mapping[str, Any],
             raise ConfigError(f'override {name!r}: the offline re-run does not model it (no '
                               'node clock: no watchdog, hold or timer); replay the bag '
                               'over DDS to a controller node instead')
-        if name not in MODELED and head not in ('vehicle', 'controller', 'safety'):
+        if name not in MODELED and head not in LAW_SETS:
             raise ConfigError(f'override {name!r}: not a controller parameter the offline '
-                              're-run uses (vehicle.*, controller.*, safety.*, '
+                              're-run uses ('
+                              f'{", ".join(s + ".*" for s in LAW_SETS)}, '
                               f'{", ".join(MODELED)})')
-    vehicle = dataclass_from_params(VehicleParams, merged, 'vehicle', 'bag parameters')
-    controller = dataclass_from_params(ControllerParams, merged, 'controller',
-                                       'bag parameters')
-    safety = dataclass_from_params(SafetyParams, merged, 'safety', 'bag parameters')
-    core = SteeringController(vehicle, controller,
-                              str(merged.get('acceleration_source', 'imu')),
-                              bool(merged.get('use_curvature_preview', False)), safety)
+    source = 'bag parameters'
+    vehicle = dataclass_from_params(VehicleParams, merged, 'vehicle', source)
+    controller = dataclass_from_params(ControllerParams, merged, 'controller', source)
+    safety = dataclass_from_params(SafetyParams, merged, 'safety', source)
+    baselines = BaselineParams(
+        dataclass_from_params(PurePursuitParams, merged, 'pure_pursuit', source),
+        dataclass_from_params(StanleyParams, merged, 'stanley', source),
+        dataclass_from_params(LqrParams, merged, 'lqr', source))
+    lane_keeping = dataclass_from_params(LaneKeepingParams, merged, 'lane_keeping', source)
+    try:
+        core = SteeringController(vehicle, controller,
+                                  str(merged.get('acceleration_source', 'imu')),
+                                  bool(merged.get('use_curvature_preview', False)), safety,
+                                  str(merged.get('law', 'paper')), baselines, lane_keeping)
+    except ParameterError as exc:
+        raise ConfigError(f'{source}: {exc}') from exc
     return core, bool(merged.get('wait_for_matching_stamps', False))
 
 
@@ -319,7 +344,11 @@ def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
     events: list[tuple[int, int, str, Any]] = []
     for role, samples in run.inputs.items():
         fields = SAMPLES[role]._fields[1:]
-        columns = [samples.values[name].tolist() for name in fields]
+        columns = [samples.values[name].tolist() if name in samples.values
+                   else [()] * len(samples) for name in fields]
+        if 'ahead' in fields:           # the preview's points: a tuple per sample
+            at = fields.index('ahead')
+            columns[at] = [v if isinstance(v, tuple) else () for v in columns[at]]
         events += [(recv, order, role, SAMPLES[role](stamp, *row)) for recv, order, stamp, *row
                    in zip(samples.recv_ns.tolist(), samples.order.tolist(),
                           samples.stamp_ns.tolist(), *columns)]
@@ -394,6 +423,9 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     """
     core, matched = controller_from_params(run.controller_params, overrides)
     order = _resolve_order(order, matched)
+    if core.law_name != 'paper':
+        # a law with a state (integral, estimate) or its own structure: step by step
+        return _stepped_law(rerun(run, overrides, order))
     roles = [role for role in INPUTS if len(run.inputs.get(role, Samples.empty()))]
     if not {'lateral_error', 'yaw', 'velocity'} <= set(roles):
         none = np.zeros(0)
@@ -447,6 +479,21 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
         rho_rate=(v_x * column('road_curvature', 'slope') if core.use_preview
                   else np.zeros(at.size)))
     return lateral.stamp_ns[index[at]], steering_law(state, core.vehicle, core.params)
+
+
+def _stepped_law(result: Rerun) -> tuple[IntArray, LawOutput]:
+    """
+    Return the law's outputs of a step-by-step re-run as :func:`rerun_law` does.
+
+    :param result: the re-run.
+    :return: the stamps of the commands the law answered (increasing) and its outputs.
+    """
+    answered = sorted((stamp, c.law) for stamp, c in result.commands.items()
+                      if c.law is not None)
+    stamps = np.array([stamp for stamp, _ in answered], dtype=np.int64)
+    columns = [np.array([float(getattr(law, name)) for _, law in answered])
+               for name in LawOutput._fields]
+    return stamps, LawOutput(*columns)
 
 
 def _differentiated(velocity: Samples, fed: IntArray) -> Array:

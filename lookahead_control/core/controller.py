@@ -259,23 +259,32 @@ class SteeringController:
         self.law, self.law_name, self.baselines = law, name, baselines
         self._law_stamp = None
 
-    def preview(self) -> Preview:
+    def preview(self, now_ns: Optional[int] = None) -> Preview:
         """
         Return the curvature ahead as the laws get it (empty before any curvature).
 
-        The curvature at the CG held ahead; with ``use_preview`` its slope extended over
-        :data:`PREVIEW_HORIZON`, within the believable curvature.
+        The ``road_curvature`` polygon's points when it has two or more (distances ahead
+        of the CG at the polygon's stamp, as the offline runner gives them to the laws).
+        A polygon of one point: that curvature held ahead; with ``use_preview`` its slope
+        extended over :data:`PREVIEW_HORIZON`, within the believable curvature. A lost
+        curvature (:meth:`curvature_lost`) gives no preview: the laws then hold the
+        curvature of the state (0).
 
+        :param now_ns: the node's clock [ns] (None: the latest curvature is used).
         :return: the preview.
         """
-        if self.curvature is None:
+        if self.curvature is None or self.curvature_lost(now_ns):
             return Preview(np.zeros(0), np.zeros(0))
+        ahead = self.curvature.ahead
+        if len(ahead) >= 2:
+            return Preview(np.array([p[0] for p in ahead], dtype=float),
+                           np.array([p[1] for p in ahead], dtype=float))
         rho = self.curvature.rho
         if not self.use_preview:
             return Preview(np.zeros(1), np.array([rho]))
         cap = self.safety.max_curvature
-        ahead = min(cap, max(-cap, rho + self.curvature.slope * PREVIEW_HORIZON))
-        return Preview(np.array([0.0, PREVIEW_HORIZON]), np.array([rho, ahead]))
+        ahead_rho = min(cap, max(-cap, rho + self.curvature.slope * PREVIEW_HORIZON))
+        return Preview(np.array([0.0, PREVIEW_HORIZON]), np.array([rho, ahead_rho]))
 
     # -- checked input ------------------------------------------------------------
 
@@ -610,7 +619,7 @@ class SteeringController:
         stamp = self.lateral.stamp_ns
         dt = 0.0 if self._law_stamp is None else max(0, stamp - self._law_stamp) * 1e-9
         self._law_stamp = stamp
-        law = self.law.step(state, self.preview(), dt)
+        law = self.law.step(state, self.preview(now_ns), dt)
         self._stale_since = None
         if now_ns is not None and now_ns > 0:
             self.timing.note_latency((now_ns - self.lateral.stamp_ns) * 1e-9)

@@ -143,6 +143,20 @@ def check_sample(name: str, sample: Any, params: SafetyParams) -> Optional[str]:
             return f'{name}: |{field}| = {abs(value):.4g} > {limit:g}'
     if name == 'lateral_error' and sample.distance < 0.0:
         return f'{name}: distance = {sample.distance:g} m behind the CG'
+    if name == 'road_curvature':
+        return _check_ahead(sample.ahead, params)
+    return None
+
+
+def _check_ahead(points: Any, params: SafetyParams) -> Optional[str]:
+    """Return why the preview points of a curvature sample cannot be used, or None."""
+    limit = params.max_curvature
+    for i, (distance, rho) in enumerate(points):
+        if not _finite(distance, rho):
+            return f'road_curvature: point {i} = ({distance}, {rho}) is not finite'
+        if abs(rho) > limit:
+            return (f'road_curvature: |curvature| of point {i} = {abs(rho):.4g} > '
+                    f'{limit:g}')
     return None
 
 

@@ -54,11 +54,18 @@ class VelocitySample(NamedTuple):
 
 
 class CurvatureSample(NamedTuple):
-    """Curvature at the CG [1/m] and its slope along the road [1/m^2]."""
+    """
+    Curvature at the CG [1/m], its slope along the road [1/m^2], and the points ahead.
+
+    ``ahead`` holds the polygon's ``(distance ahead [m], curvature [1/m])`` points sorted
+    by distance, repeated distances dropped (the first kept): the curvature preview the
+    laws get (empty: none was sent).
+    """
 
     stamp_ns: int
     rho: float
     slope: float
+    ahead: tuple[tuple[float, float], ...] = ()
 
 
 def yaw_to_quaternion(yaw: float) -> tuple[float, float, float, float]:
@@ -99,15 +106,16 @@ def curvature_from_points(stamp: int, polygon: Sequence[tuple[float, float]]
     for p in sorted(polygon):
         if not points or p[0] > points[-1][0]:     # drop repeated distances
             points.append(p)
+    ahead = tuple(points)
     if not points:
-        return CurvatureSample(stamp, 0.0, 0.0)
+        return CurvatureSample(stamp, 0.0, 0.0, ahead)
     if points[-1][0] <= 0.0:
-        return CurvatureSample(stamp, points[-1][1], 0.0)
+        return CurvatureSample(stamp, points[-1][1], 0.0, ahead)
     i = 0
     while i + 2 < len(points) and points[i + 1][0] <= 0.0:
         i += 1
     if len(points) == 1:
-        return CurvatureSample(stamp, points[0][1], 0.0)
+        return CurvatureSample(stamp, points[0][1], 0.0, ahead)
     (x0, k0), (x1, k1) = points[i], points[i + 1]
     slope = (k1 - k0) / (x1 - x0)
-    return CurvatureSample(stamp, k0 + slope * max(0.0 - x0, 0.0), slope)
+    return CurvatureSample(stamp, k0 + slope * max(0.0 - x0, 0.0), slope, ahead)

@@ -38,6 +38,7 @@ from typing import Optional, Sequence
 
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
+from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.interrupts import deferred
 from lookahead_control.core.params import SCHEDULE_MODES
 from sim_plant.scenario import load_scenario
@@ -63,6 +64,8 @@ class LoopConfig:
     :param bag: record the run into this bag directory (None: do not record).
     :param via_bridge: sim_plant publishes odometry and a path; path_bridge converts.
     :param extra_bridge_args: more ROS arguments for the bridge.
+    :param law: the controller's steering law (``law`` parameter; ``schedule`` is the
+        paper law's d_v schedule).
     """
 
     scenario: Path
@@ -77,6 +80,7 @@ class LoopConfig:
     bag: Optional[Path] = None
     via_bridge: bool = False
     extra_bridge_args: list[str] = field(default_factory=list)
+    law: str = 'paper'
 
 
 def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
@@ -96,7 +100,7 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
            *(['-p', 'output:=vehicle'] if cfg.via_bridge else []), *cfg.extra_sim_args]
     controller = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
                   *common, '--params-file', str(config / 'controller.yaml'),
-                  '-p', f'controller.schedule:={cfg.schedule}',
+                  '-p', f'controller.schedule:={cfg.schedule}', '-p', f'law:={cfg.law}',
                   '-p', f'wait_for_matching_stamps:={str(cfg.mode == "lockstep").lower()}',
                   '-p', 'use_sim_time:=true', *cfg.extra_controller_args]
     return sim, controller
@@ -273,7 +277,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--speed', type=number(0.0, MAX_SPEED, unit='m/s'), default=0.0,
                    metavar='M/S', help="initial speed [m/s] (default 0: the scenario's)")
     p.add_argument('--schedule', choices=SCHEDULE_MODES, default='paper',
-                   help='d_v schedule of the controller (default paper, eq. 26)')
+                   help='d_v schedule of the paper law (default paper, eq. 26)')
+    p.add_argument('--law', choices=LAW_NAMES, default='paper',
+                   help="steering law of the controller (default paper: the paper's law "
+                   'with --schedule; cg_compensated: docs/lane_keeping.md; the baselines: '
+                   'docs/baselines.md)')
     p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep',
                    help='lockstep: the simulator waits for each answer; realtime: wall '
                    'clock (default lockstep)')
@@ -286,7 +294,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                    'start-up included [s] (default 300)')
     p.add_argument('--bag', type=Path, default=None,
                    help='bag directory, must not exist (default: '
-                   'bags/<scenario>_<schedule>_<speed>_<time>)')
+                   'bags/<scenario>_<schedule or law>_<speed>_<time>)')
     p.add_argument('--no-record', action='store_true', help='do not record a bag')
     p.add_argument('--via-bridge', action='store_true',
                    help='sim_plant publishes odometry and the road as a path; path_bridge '
@@ -299,7 +307,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ToolError(f'{args.scenario}: no such scenario file')
     scenario = load_scenario(args.scenario, args.speed or None)    # one line, no process
     bag = None if args.no_record else (args.bag or default_bag(
-        args.scenario, args.schedule, float(scenario.speed.initial),
+        args.scenario, args.schedule if args.law == 'paper' else args.law,
+        float(scenario.speed.initial),
         'bridge_' if args.via_bridge else ''))
     if bag is not None:
         if bag.exists():
@@ -309,7 +318,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         bag.rmdir()
     code = run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
                                args.plant, args.rate, args.timeout, bag=bag,
-                               via_bridge=args.via_bridge))
+                               via_bridge=args.via_bridge, law=args.law))
     if bag is not None and code == 0:
         print(f'closed_loop: recorded {bag}')
     return code

@@ -20,8 +20,8 @@ import argparse
 from pathlib import Path
 from typing import Any, Sequence
 
-from lookahead_control.analysis.bag_analysis import (bag_row, run_label, run_series, RunSeries,
-                                                     speed_points)
+from lookahead_control.analysis.bag_analysis import (bag_row, law_label, run_label, run_series,
+                                                     RunSeries, speed_points)
 from lookahead_control.analysis.metrics import METRIC_COLUMNS, metrics_legend, notes_list
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid
 from lookahead_control.bags.run_data import load_run, RunData, TOPICS
@@ -30,7 +30,11 @@ from lookahead_control.core.cli import (assignments, markdown_table, run_tool, T
 from lookahead_control.core.config import dataclass_from_params
 from lookahead_control.core.params import VehicleParams
 
-LABEL_COLUMNS = ('bag', 'scenario', 'plant', 'mode', 'rate_hz', 'schedule', 'speed_mps')
+# plot titles of the laws (the paper's law by its d_v schedule)
+LAW_TITLES = {'fixed': 'fixed d_v', 'paper': 'd_v of eq. 26', 'exact': 'd_v of eq. 24',
+              'cg_compensated': 'CG-compensated law'}
+LABEL_COLUMNS = ('bag', 'scenario', 'plant', 'mode', 'rate_hz', 'law', 'schedule',
+                 'speed_mps')
 COLUMNS = (*LABEL_COLUMNS, 'd_v_final_m', *METRIC_COLUMNS, 'latency_p50_ms',
            'latency_p99_ms', 'steps', 'unanswered', 'dropped', 'max_gap_s')
 
@@ -106,12 +110,13 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
     write_json(out / 'metrics.json', rows)
     text = [f'# {title}', '',
             'One row per bag: its name, scenario, plant (`n/a`: the bag has no simulator '
-            'parameters, e.g. a real vehicle), mode and rate of the simulator, d_v '
-            'schedule. ' + metrics_legend() + ' Latency [ms]: steering receive time minus '
-            'lateral-error receive time, as the recorder saw them; `dropped`: messages '
-            'the recorder counted as lost (-1: not counted); `max_gap_s`: the longest '
-            'gap between stamps, or between receive times (not in lockstep), of any '
-            'input or of the steering (0: none).', '',
+            'parameters, e.g. a real vehicle), mode and rate of the simulator, steering '
+            'law and d_v schedule (used by the `paper` law). ' + metrics_legend()
+            + ' Latency [ms]: steering receive time minus lateral-error receive time, as '
+            'the recorder saw them; `dropped`: messages the recorder counted as lost '
+            '(-1: not counted); `max_gap_s`: the longest gap between stamps, or between '
+            'receive times (not in lockstep), of any input or of the steering (0: none).',
+            '',
             markdown_table(rows, COLUMNS, digits=3), '',
             *notes_list(rows, ('bag',)),
             'Bags: ' + ', '.join(f'`{run.bag}`' for run, _, _ in results), '']
@@ -119,11 +124,11 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
         from lookahead_control.analysis.plotting import plot_measured_look_ahead, plot_runs
         groups: dict[str, list[dict[str, Any]]] = {}
         for run, series, row in results:
-            groups.setdefault(row['schedule'], []).append(
+            groups.setdefault(law_label(row), []).append(
                 {'label': run_label(row), 'time': series.time, **series.channels})
         for label, runs in groups.items():
             png = plot_runs(runs, out / f'fig_{label}.png',
-                            f'd_v schedule {label}: one line per bag')
+                            f'{LAW_TITLES.get(label, "law " + label)}: one line per bag')
             text.append(f'![{label}]({png.name})')
         overlay = [{'label': run_label(row), 'time': s.time, **s.channels}
                    for _, s, row in results]

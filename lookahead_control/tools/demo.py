@@ -15,11 +15,13 @@
 """
 ``demo``: the paper scenario through the ROS system, recorded, then analysed.
 
-For fixed d_v = d_s and the eq. 26 schedule at each speed: sim_plant, controller and
-the recorder as three processes in lockstep, one bag per run; then ``analyze`` writes
-``report.md`` with the table and plots, plus the largest difference between each ROS
-run's steering and the offline core runner's. One more run goes through path_bridge
-(sim_plant publishing odometry and the road as a path, as a vehicle stack would).
+For fixed d_v = d_s, the eq. 26 schedule and the CG-compensated law side by side at each
+speed: sim_plant, controller and the recorder as three processes in lockstep, one bag per
+run; then ``analyze`` writes ``report.md`` with the table and plots, plus the largest
+difference between each ROS run's steering and the offline core runner's (which has no
+output limits: where the node's rate or angle limit cuts a command, the two part). One
+more run goes through path_bridge (sim_plant publishing odometry and the road as a path,
+as a vehicle stack would).
 """
 
 from __future__ import annotations
@@ -30,8 +32,10 @@ import sys
 from typing import Sequence
 
 from lookahead_control.analysis.paper_tables import PAPER_SPEEDS
+from lookahead_control.core.baselines import BaselineParams
 from lookahead_control.core.cli import ArgumentParser, markdown_table, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
+from lookahead_control.core.controller import build_law, LAW_NAMES
 from lookahead_control.core.params import ControllerParams, SCHEDULE_MODES, VehicleParams
 from lookahead_control.ros.closed_loop import LoopConfig, run_loop
 from lookahead_control.tools.analyze_tool import analyze, COLUMNS, write_outputs
@@ -44,19 +48,23 @@ MAX_SPEED = 90.0               # m/s, the scenarios' limit
 
 
 def offline_difference(scenario: Path, speed: float, schedule: str,
-                       stamps_s: np.ndarray, steering: np.ndarray) -> float:
+                       stamps_s: np.ndarray, steering: np.ndarray,
+                       law: str = 'paper') -> float:
     """
     Return max |ROS steering - offline runner steering| at the recorded steps [rad].
 
     :param scenario: the scenario file.
     :param speed: the run's speed [m/s].
-    :param schedule: the d_v schedule.
+    :param schedule: the d_v schedule (of the paper law).
     :param stamps_s: step times of the recording [s].
     :param steering: the recorded steering at those steps [rad] (NaN: unanswered).
+    :param law: the steering law (the node's ``law`` parameter, default settings).
     :return: the largest difference over the answered steps.
     """
-    result = run(load_scenario(scenario, speed), VehicleParams(),
-                 ControllerParams(schedule=schedule))
+    vehicle, controller = VehicleParams(), ControllerParams(schedule=schedule)
+    result = run(load_scenario(scenario, speed), vehicle,
+                 controller if law == 'paper' else build_law(law, vehicle, controller,
+                                                             BaselineParams()))
     index = np.clip(np.round(stamps_s / (result.time[1] - result.time[0])).astype(int), 0,
                     result.time.size - 1)
     answered = ~np.isnan(steering)
@@ -157,6 +165,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                    choices=SCHEDULE_MODES, metavar='SCHEDULE',
                    help=f'd_v schedules to run, of {", ".join(SCHEDULE_MODES)} '
                    '(default: fixed paper)')
+    p.add_argument('--laws', nargs='*', default=['cg_compensated'],
+                   choices=[name for name in LAW_NAMES if name != 'paper'], metavar='LAW',
+                   help="other steering laws to run beside the paper law's schedules, of "
+                   f'{", ".join(n for n in LAW_NAMES if n != "paper")} (default: '
+                   'cg_compensated; none: give --laws alone)')
     p.add_argument('--no-bridge', action='store_true',
                    help='skip the run through path_bridge (paper d_v at 37 m/s, odometry '
                    'and the road as a path, as a vehicle stack would send them)')
@@ -165,30 +178,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     for speed in args.speeds:                   # a bad scenario: one line, no processes
         load_scenario(scenario, speed)
     prepare_out(args.out)
-    bags = []
+    # (bag label, law, d_v schedule): the paper law per schedule, then the other laws
+    variants = ([(schedule, 'paper', schedule) for schedule in dict.fromkeys(args.schedules)]
+                + [(law, law, 'paper') for law in dict.fromkeys(args.laws)])
+    bags: list[tuple[Path, str, str, float]] = []
     try:
-        for schedule in dict.fromkeys(args.schedules):
+        for label, law, schedule in variants:
             for speed in dict.fromkeys(args.speeds):
-                bag = args.out / f'{schedule}_{speed:g}'
-                print(f'demo: {schedule} d_v at {speed:g} m/s -> {bag}', flush=True)
+                bag = args.out / f'{label}_{speed:g}'
+                what = f'{schedule} d_v' if law == 'paper' else f'law {law}'
+                print(f'demo: {what} at {speed:g} m/s -> {bag}', flush=True)
                 if run_loop(LoopConfig(scenario, speed=speed, schedule=schedule,
-                                       bag=bag)) != 0:
-                    raise ToolError(f'the closed loop {schedule} at {speed:g} m/s failed')
-                bags.append(bag)
+                                       bag=bag, law=law)) != 0:
+                    raise ToolError(f'the closed loop {what} at {speed:g} m/s failed')
+                bags.append((bag, law, schedule, speed))
     finally:
         record_written(args.out)
-    results = analyze(bags)
-    for (run_data, series, row), bag in zip(results, bags):
-        schedule, speed = bag.name.split('_')
+    results = analyze([bag for bag, _, _, _ in bags])
+    for (run_data, series, row), (bag, law, schedule, speed) in zip(results, bags):
         row['vs_offline_rad'] = offline_difference(
-            scenario, float(speed), schedule, series.time, series.channels['steering_cmd'])
+            scenario, speed, schedule, series.time, series.channels['steering_cmd'], law)
     report = write_outputs(results, args.out, title='Demo: the paper scenario through '
                            'sim_plant + controller + recorder (lockstep, DDS)')
     rows = [{k: row[k] for k in (*COLUMNS, 'vs_offline_rad')} for _, _, row in results]
     with report.open('a', encoding='utf-8') as f:
         f.write('\n## ROS runs vs the offline core runner\n\n'
-                'Largest |steering difference| per run [rad] (curvature crosses DDS as '
-                'float32):\n\n' + markdown_table(
+                'Largest |steering difference| per run [rad]. The curvature crosses DDS as '
+                "float32; the offline runner has no output limits, so where the node's rate "
+                'or angle limit cuts a command (the CG-compensated law asks for a steering '
+                'step at the curvature step of this scenario at 30-37 m/s) the two runs part '
+                'from there on:\n\n' + markdown_table(
                     [{'bag': r['bag'], 'speed_mps': r['speed_mps'],
                       'vs_offline_rad': r['vs_offline_rad']} for r in rows], digits=3)
                 + '\n')
