@@ -35,6 +35,7 @@ from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.closed_loop import LoopConfig, run_loop
 import numpy as np
 import pytest
+from rclpy.task import Future
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -304,6 +305,46 @@ def test_stopping_writes_what_the_subscriptions_hold_but_callbacks_did_not_take(
     finally:
         recorder.destroy_node()
     assert load_floats(bag) == list(range(50))
+
+
+def test_parameters_are_asked_only_of_a_matched_service_and_asked_again(probe, tmp_path):
+    # a loaded machine (the suite at load 11): a bag of a closed loop had no /controller
+    # parameters, so its re-run used the default law. The recorder asked the moment the
+    # node's name showed in the graph; a request sent before the service is matched is
+    # lost, and it never asked again
+    from lookahead_control.bags.recorder_node import RecorderNode
+    node, executor = probe
+    recorder = RecorderNode(BagWriter(tmp_path / 'bag'), ['/none'], describe=('/target',),
+                            context=node.context)
+
+    class Client:
+        def __init__(self):
+            self.ready, self.calls, self.futures = False, 0, []
+
+        def service_is_ready(self):
+            return self.ready
+
+        def call_async(self, request):
+            self.calls += 1
+            future = Future()
+            self.futures.append(future)
+            return future
+
+    try:
+        lister, getter = Client(), Client()
+        recorder._param_clients['/target'] = (lister, getter)
+        recorder.get_node_names_and_namespaces = lambda: [('target', '/')]
+        recorder.discover()
+        assert lister.calls == 0                # not matched yet: nothing sent, nothing lost
+        lister.ready = getter.ready = True
+        recorder.discover()
+        recorder.discover()
+        assert lister.calls == 1                # one request on its way
+        lister.futures[0].set_result(None)      # it failed (no executor: answered at once)
+        recorder.discover()                     # asked again
+        assert lister.calls == 2
+    finally:
+        recorder.destroy_node()
 
 
 def load_floats(bag):

@@ -147,7 +147,9 @@ class RecorderNode(Node):
         self.stats: dict[str, TopicStats] = {}
         self._subs: dict[str, Any] = {}
         self.parameters: dict[str, dict[str, Any]] = {}
-        self._asked: set[str] = set()
+        self._asked: set[str] = set()           # seen in the graph
+        self._pending: set[str] = set()         # a request on its way
+        self._param_clients: dict[str, tuple[Any, Any]] = {}
         self.to_describe = list(describe)
         self.create_timer(0.1, self.discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f'recording to {bag.path}')
@@ -203,24 +205,47 @@ class RecorderNode(Node):
     # -- run description ------------------------------------------------------------
 
     def _describe_new_nodes(self) -> None:
+        """
+        Ask each described node for its parameters once its services are matched.
+
+        A request sent before the service is discovered can be lost (the node's name
+        shows in the graph before its services do; under load by seconds): the clients
+        are made once and asked only when ready, and a failed request is asked again at
+        the next poll.
+        """
         present = {(ns.rstrip('/') + '/' + name) for name, ns in
                    self.get_node_names_and_namespaces()}
         for target in self.to_describe:
-            if target in present and target not in self._asked:
-                self._asked.add(target)
-                client = self.create_client(ListParameters, f'{target}/list_parameters')
-                future = client.call_async(ListParameters.Request(depth=0))
-                future.add_done_callback(lambda f, t=target: self._got_names(t, f))
+            if target not in present or target in self.parameters or target in self._pending:
+                continue
+            self._asked.add(target)
+            if target not in self._param_clients:
+                self._param_clients[target] = (
+                    self.create_client(ListParameters, f'{target}/list_parameters'),
+                    self.create_client(GetParameters, f'{target}/get_parameters'))
+            lister, getter = self._param_clients[target]
+            if not (lister.service_is_ready() and getter.service_is_ready()):
+                continue
+            self._pending.add(target)
+            future = lister.call_async(ListParameters.Request(depth=0))
+            future.add_done_callback(lambda f, t=target: self._got_names(t, f))
 
     def _got_names(self, target: str, future: Future) -> None:
-        names = list(future.result().result.names)
-        client = self.create_client(GetParameters, f'{target}/get_parameters')
+        response = future.result()
+        if response is None:
+            self._pending.discard(target)       # ask again at the next poll
+            return
+        names = list(response.result.names)
         request = GetParameters.Request(names=names)
-        client.call_async(request).add_done_callback(
+        self._param_clients[target][1].call_async(request).add_done_callback(
             lambda f: self._got_values(target, names, f))
 
     def _got_values(self, target: str, names: list[str], future: Future) -> None:
-        values = [parameter_value_to_python(v) for v in future.result().values]
+        response = future.result()
+        self._pending.discard(target)
+        if response is None:
+            return                              # ask again at the next poll
+        values = [parameter_value_to_python(v) for v in response.values]
         self.parameters[target] = dict(sorted(zip(names, values)))
         text = yaml.safe_dump({node: {'ros__parameters': params}
                                for node, params in self.parameters.items()})
