@@ -172,7 +172,8 @@ class SteeringController:
             ``zero``.
         :param use_preview: feed ``d rho / dt = v_x d rho / ds`` forward from the
             curvature preview; if false, only the curvature at the CG is used and its
-            changes act as a disturbance (as in the paper).
+            changes act as a disturbance (as in the paper). Law ``cg_compensated``
+            always gets the preview (:meth:`preview`).
         :param safety: input and output limits (default limits if None).
         :param law: the steering law, one of :data:`LAW_NAMES`.
         :param baselines: the baseline laws' parameters (defaults if None).
@@ -259,19 +260,24 @@ class SteeringController:
         self.law, self.law_name, self.baselines = law, name, baselines
         self._law_stamp = None
 
-    def preview(self) -> Preview:
+    def preview(self, now_ns: Optional[int] = None) -> Preview:
         """
         Return the curvature ahead as the laws get it (empty before any curvature).
 
-        The curvature at the CG held ahead; with ``use_preview`` its slope extended over
-        :data:`PREVIEW_HORIZON`, within the believable curvature.
+        The curvature at the CG held ahead; with ``use_preview`` (always for
+        ``cg_compensated``, whose ``lane_keeping.*_preview`` say how far it looks) its
+        slope extended over :data:`PREVIEW_HORIZON`, within the believable curvature. A
+        lost curvature is 0 ahead too, as at the CG (:meth:`curvature_lost`).
 
+        :param now_ns: the node's clock [ns] (None: use the latest curvature, if any).
         :return: the preview.
         """
         if self.curvature is None:
             return Preview(np.zeros(0), np.zeros(0))
+        if self.curvature_lost(now_ns):
+            return Preview(np.zeros(1), np.zeros(1))
         rho = self.curvature.rho
-        if not self.use_preview:
+        if not (self.use_preview or self.law_name == 'cg_compensated'):
             return Preview(np.zeros(1), np.array([rho]))
         cap = self.safety.max_curvature
         ahead = min(cap, max(-cap, rho + self.curvature.slope * PREVIEW_HORIZON))
@@ -610,7 +616,7 @@ class SteeringController:
         stamp = self.lateral.stamp_ns
         dt = 0.0 if self._law_stamp is None else max(0, stamp - self._law_stamp) * 1e-9
         self._law_stamp = stamp
-        law = self.law.step(state, self.preview(), dt)
+        law = self.law.step(state, self.preview(now_ns), dt)
         self._stale_since = None
         if now_ns is not None and now_ns > 0:
             self.timing.note_latency((now_ns - self.lateral.stamp_ns) * 1e-9)

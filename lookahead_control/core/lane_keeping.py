@@ -34,8 +34,8 @@ structure (eq. 15) but regulates ``y_v`` to ::
   gets wrong (cornering stiffness, tyre saturation, road bank) without knowing the tyre
   model. It is clamped to ``integral_limit`` and frozen while the steering command is
   at ``steering_limit`` or the speed is below ``integral_min_speed`` (anti-windup), and
-  reset when time jumps (a step of ``dt <= 0`` or ``> max_gap``) or an input is not
-  finite.
+  reset when time jumps (a step of ``dt < 0`` or ``> max_gap``) or an input is not
+  finite; ``dt = 0`` (the same measurement evaluated again) advances nothing.
 
 Every step works on floats (one vehicle) and on numpy arrays (a batch of runs).
 """
@@ -75,7 +75,7 @@ class LaneKeepingParams:
     :param integral_limit: clamp of the integral's shift of the reference [m].
     :param integral_min_speed: below this speed the integral is frozen [m/s].
     :param steering_limit: the integral is frozen while ``|delta|`` reaches this [rad].
-    :param max_gap: a step longer than this (or not positive) is a time jump: the
+    :param max_gap: a step longer than this (or negative) is a time jump: the
         integral restarts at 0 [s].
     :param compliance_time_constant: forgetting time of the rear-compliance estimate
         [s]; 0 keeps the model's compliance ``eta``.
@@ -358,12 +358,15 @@ class CgCompensatedLaw:
 
         :param state: vehicle and road state (the curvature slope is ``rho_rate / v_x``).
         :param preview: curvature ahead (``distances``, ``curvatures``), or None.
-        :param dt: time since the previous step [s]; ``<= 0`` or ``> max_gap`` resets.
+        :param dt: time since the previous step [s]; ``< 0``, not finite or ``> max_gap``
+            resets; 0 (the same measurement again) advances nothing.
         :return: the steering angle and the intermediate values (``y_ref`` includes the
             integral's shift).
         """
         s = self.settings
-        if not (math.isfinite(dt) and 0.0 < dt <= s.max_gap):
+        # dt = 0: the same instant again (a timer faster than the measurements): nothing
+        # advances, nothing restarts
+        if not (math.isfinite(dt) and 0.0 <= dt <= s.max_gap):
             self.reset()
             dt = 0.0
         v_x = xp.maximum(state.v_x, self.controller.min_speed)
