@@ -184,6 +184,7 @@ class SteeringController:
         self.lane_keeping = lane_keeping or LaneKeepingParams()
         self.law: Law = PaperLaw(vehicle, controller)
         self._law_stamp: Optional[int] = None
+        self._law_key: Optional[tuple[Any, ...]] = None
         self._select_law(law, vehicle, controller, self.baselines)
         self.safety = safety or SafetyParams()
         self.rejected: dict[str, int] = {}
@@ -254,11 +255,22 @@ class SteeringController:
 
     def _select_law(self, name: str, vehicle: VehicleParams, controller: ControllerParams,
                     baselines: BaselineParams) -> None:
-        """Build the law (raises ParameterError first: the old law stays on error)."""
+        """
+        Build the law (raises ParameterError first: the old law stays on error).
+
+        The same law with the same parameters is kept with its state: a change of
+        another parameter (a limit, a diagnostics threshold) does not restart an
+        integral or an estimate.
+        """
+        key = (name, vehicle, controller, baselines, self.lane_keeping)
+        if key == self._law_key:
+            self.baselines = baselines
+            return
         law = build_law(name, vehicle, controller, baselines, self.lane_keeping)
         law.reset()
         self.law, self.law_name, self.baselines = law, name, baselines
         self._law_stamp = None
+        self._law_key = key
 
     def preview(self, now_ns: Optional[int] = None) -> Preview:
         """
