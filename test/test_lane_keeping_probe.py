@@ -328,3 +328,34 @@ def test_a_bad_input_in_a_batch_run_restarts_it_as_one_run_restarts():
             assert b.steering[0] == a.steering, k
         assert b.steering[1] == c.steering, k
     assert batch.compliance()[0] == one.compliance()
+
+
+def test_params_file_has_every_lane_keeping_parameter_at_its_default():
+    # docs/lane_keeping.md sends the user to the lane_keeping.* parameters; the
+    # shipped params file had none of them (and did not list cg_compensated as a law)
+    import yaml
+    from lookahead_control.core.param_schema import LANE_KEEPING_SPECS
+    from pathlib import Path
+    document = yaml.safe_load((Path(__file__).resolve().parents[1] / 'config'
+                               / 'controller.yaml').read_text())['/**']['ros__parameters']
+    for spec in LANE_KEEPING_SPECS:
+        group, name = spec.name.split('.')
+        assert document[group][name] == spec.default, spec.name
+        assert type(document[group][name]) is type(spec.default), spec.name
+
+
+def test_timer_mode_node_integrates_between_measurements(context):
+    # the node in timer mode at 100 Hz with a 50 Hz lateral error (old code: the
+    # integral restarted at every tick that saw no new measurement: 0 after 2 s)
+    node = _node(context, Parameter('mode', value='timer'))
+    try:
+        stamp = 100 * S
+        for _ in range(100):
+            stamp += 20 * MS
+            _send(node, stamp)
+            node.on_timer()
+            node.get_clock().set_ros_time_override(Time(nanoseconds=stamp + 10 * MS))
+            node.on_timer()
+        assert node.core.law.integral == pytest.approx(0.3 * 0.3 * 99 * 0.02)
+    finally:
+        node.destroy_node()
