@@ -299,8 +299,11 @@ def test_controller_runs_the_stateful_law_and_resets_it():
     # a time jump (replay restart) resets the inputs and the law
     _feed(core, 0, 0.1)
     assert core.time_jumps == 1 and law.integral == 0.0
-    # a step longer than max_gap (a lost stretch of messages) restarts it too
+    # a step longer than max_gap (a lost stretch of messages) restarts it too (the
+    # first command after the jump holds the last angle: a cut command, so the
+    # integral waits one step, docs/lane_keeping.md)
     _feed(core, 10 * MS, 0.1)
+    _feed(core, 20 * MS, 0.1)
     assert law.integral > 0.0
     _feed(core, 600 * MS, 0.1)
     assert law.integral == 0.0

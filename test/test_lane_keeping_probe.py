@@ -359,3 +359,25 @@ def test_timer_mode_node_integrates_between_measurements(context):
         assert node.core.law.integral == pytest.approx(0.3 * 0.3 * 99 * 0.02)
     finally:
         node.destroy_node()
+
+
+def test_integral_is_frozen_while_the_safety_layer_cuts_the_command():
+    # at 37 m/s the node's angle limit is atan(30 m/s^2 L / v^2) = 0.059 rad, far below
+    # lane_keeping.steering_limit (0.5 rad): old code integrated on while the command
+    # was cut (1.5 m off for 1 s: 0.45 m of the 0.5 m clamp, wound up)
+    def run(y):
+        core = _core()
+        for k in range(100):
+            stamp = (1000 + 10 * k) * MS
+            for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
+                                 ('velocity', VelocitySample(stamp, 37.0, 0.0)),
+                                 ('lateral_error', LateralErrorSample(stamp, 0.0, y))):
+                assert core.accept(name, sample, stamp) is None
+            command = core.compute(stamp)
+        return core, command
+    core, command = run(3.0)
+    assert command.saturated and abs(float(command.law.steering)) > 0.1
+    assert core.law.integral == 0.0
+    core, command = run(0.3)                  # within the limits: integrates as before
+    assert not command.saturated
+    assert core.law.integral == pytest.approx(0.3 * 0.3 * 0.99)

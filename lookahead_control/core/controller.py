@@ -641,4 +641,7 @@ class SteeringController:
         wanted = weight * raw + (1.0 - weight) * hold
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
+        note_limited = getattr(self.law, 'note_limited', None)
+        if note_limited is not None:        # anti-windup of a law with an integral
+            note_limited(self.last.saturated or self.last.rate_limited)
         return self.last

@@ -335,6 +335,7 @@ class CgCompensatedLaw:
                                   damping_ratio=self.settings.damping_ratio)
         self.integral: Real = 0.0
         self.last_steering: Real = 0.0
+        self.cut = False        # the last command sent was cut outside the law
         st = self.settings
         self.estimator = ComplianceEstimator(
             vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
@@ -345,8 +346,21 @@ class CgCompensatedLaw:
         """Forget the integral, the estimate and the last command (time jump, stale)."""
         self.integral = 0.0
         self.last_steering = 0.0
+        self.cut = False
         self.estimator.reset()
         self.resets += 1
+
+    def note_limited(self, cut: bool) -> None:
+        """
+        Say whether the command sent was cut outside the law (anti-windup).
+
+        The node's safety layer cuts the command at its speed-dependent angle limit
+        (0.059 rad at 37 m/s) and its rate limit, far below ``steering_limit``: while it
+        does, the integral and the estimate are frozen at the next step.
+
+        :param cut: the angle or rate limit changed the last command.
+        """
+        self.cut = bool(cut)
 
     def compliance(self) -> Real:
         """Return the rear-compliance estimate [s^2/m] (eta before anything is learned)."""
@@ -379,7 +393,7 @@ class CgCompensatedLaw:
                                              v_x * s.feedforward_preview, state.rho, slope)
         # learning and integrating only above the speed floor and off the steering limit
         active = ((state.v_x >= s.integral_min_speed)
-                  & (xp.absolute(self.last_steering) < s.steering_limit))
+                  & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut))
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
             self.estimator.update(state, dt, active)
