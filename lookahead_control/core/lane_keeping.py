@@ -397,7 +397,9 @@ class CgCompensatedLaw:
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
             self.estimator.update(state, dt, active)
-        rate = xp.where(active, s.integral_gain * state.y_cg, zero)
+        rate = xp.where(active & ((xp.absolute(self.integral) < s.integral_limit)
+                                  | (self.integral * state.y_cg < 0.0)),   # held at the clamp
+                        s.integral_gain * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
                                  v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,
