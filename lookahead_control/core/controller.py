@@ -172,7 +172,8 @@ class SteeringController:
             ``zero``.
         :param use_preview: feed ``d rho / dt = v_x d rho / ds`` forward from the
             curvature preview; if false, only the curvature at the CG is used and its
-            changes act as a disturbance (as in the paper).
+            changes act as a disturbance (as in the paper). Law ``cg_compensated``
+            always gets the preview (:meth:`preview`).
         :param safety: input and output limits (default limits if None).
         :param law: the steering law, one of :data:`LAW_NAMES`.
         :param baselines: the baseline laws' parameters (defaults if None).
@@ -183,6 +184,7 @@ class SteeringController:
         self.lane_keeping = lane_keeping or LaneKeepingParams()
         self.law: Law = PaperLaw(vehicle, controller)
         self._law_stamp: Optional[int] = None
+        self._law_key: Optional[tuple[Any, ...]] = None
         self._select_law(law, vehicle, controller, self.baselines)
         self.safety = safety or SafetyParams()
         self.rejected: dict[str, int] = {}
@@ -253,11 +255,22 @@ class SteeringController:
 
     def _select_law(self, name: str, vehicle: VehicleParams, controller: ControllerParams,
                     baselines: BaselineParams) -> None:
-        """Build the law (raises ParameterError first: the old law stays on error)."""
+        """
+        Build the law (raises ParameterError first: the old law stays on error).
+
+        The same law with the same parameters is kept with its state: a change of
+        another parameter (a limit, a diagnostics threshold) does not restart an
+        integral or an estimate.
+        """
+        key = (name, vehicle, controller, baselines, self.lane_keeping)
+        if key == self._law_key:
+            self.baselines = baselines
+            return
         law = build_law(name, vehicle, controller, baselines, self.lane_keeping)
         law.reset()
         self.law, self.law_name, self.baselines = law, name, baselines
         self._law_stamp = None
+        self._law_key = key
 
     def preview(self, now_ns: Optional[int] = None) -> Preview:
         """
@@ -265,22 +278,24 @@ class SteeringController:
 
         The ``road_curvature`` polygon's points when it has two or more (distances ahead
         of the CG at the polygon's stamp, as the offline runner gives them to the laws).
-        A polygon of one point: that curvature held ahead; with ``use_preview`` its slope
-        extended over :data:`PREVIEW_HORIZON`, within the believable curvature. A lost
-        curvature (:meth:`curvature_lost`) gives no preview: the laws then hold the
-        curvature of the state (0).
+        A polygon of one point: that curvature held ahead; with ``use_preview`` (always
+        for ``cg_compensated``) its slope extended over :data:`PREVIEW_HORIZON`, within
+        the believable curvature. A lost curvature (:meth:`curvature_lost`) is 0 ahead
+        too, as at the CG.
 
         :param now_ns: the node's clock [ns] (None: the latest curvature is used).
         :return: the preview.
         """
-        if self.curvature is None or self.curvature_lost(now_ns):
+        if self.curvature is None:
             return Preview(np.zeros(0), np.zeros(0))
+        if self.curvature_lost(now_ns):
+            return Preview(np.zeros(1), np.zeros(1))
         ahead = self.curvature.ahead
         if len(ahead) >= 2:
             return Preview(np.array([p[0] for p in ahead], dtype=float),
                            np.array([p[1] for p in ahead], dtype=float))
         rho = self.curvature.rho
-        if not self.use_preview:
+        if not (self.use_preview or self.law_name == 'cg_compensated'):
             return Preview(np.zeros(1), np.array([rho]))
         cap = self.safety.max_curvature
         ahead_rho = min(cap, max(-cap, rho + self.curvature.slope * PREVIEW_HORIZON))
@@ -632,4 +647,7 @@ class SteeringController:
         wanted = weight * raw + (1.0 - weight) * hold
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
+        note_limited = getattr(self.law, 'note_limited', None)
+        if note_limited is not None:        # anti-windup of a law with an integral
+            note_limited(self.last.saturated or self.last.rate_limited)
         return self.last

@@ -37,12 +37,14 @@ Everything works on floats and on numpy arrays (a batch).
 
 from __future__ import annotations
 
+import math
 from typing import Any, Optional
 
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import VehicleParams
+import numpy as np
 
 
 class ComplianceEstimator:
@@ -89,6 +91,12 @@ class ComplianceEstimator:
         w = state.v_y - veh.yaw_inertia / (veh.mass * veh.l1) * state.r
         if self.filtered is None:
             self.filtered = (slip, turn, w)
+        elif isinstance(self.filtered[0], np.ndarray):
+            # runs of a batch forgotten after a bad input (NaN) start again here, as
+            # one run does after reset()
+            self.filtered = (np.where(np.isnan(self.filtered[0]), slip, self.filtered[0]),
+                             np.where(np.isnan(self.filtered[1]), turn, self.filtered[1]),
+                             np.where(np.isnan(self.filtered[2]), w, self.filtered[2]))
         f = min(dt / self.filter_time, 1.0)
         f_slip, f_turn, f_w = (old + f * (new - old) for old, new in
                                zip(self.filtered, (slip, turn, w)))
@@ -107,9 +115,10 @@ class ComplianceEstimator:
         :param where: boolean array over the batch.
         """
         if self.filtered is not None:
-            self.filtered = (xp.where(where, 0.0, self.filtered[0]),
-                             xp.where(where, 0.0, self.filtered[1]),
-                             xp.where(where, 0.0, self.filtered[2]))
+            # NaN: the filters restart at the run's next sample (update)
+            self.filtered = (xp.where(where, math.nan, self.filtered[0]),
+                             xp.where(where, math.nan, self.filtered[1]),
+                             xp.where(where, math.nan, self.filtered[2]))
         self.moment = xp.where(where, 0.0, self.moment)
         self.energy = xp.where(where, 0.0, self.energy)
 

@@ -34,8 +34,8 @@ structure (eq. 15) but regulates ``y_v`` to ::
   gets wrong (cornering stiffness, tyre saturation, road bank) without knowing the tyre
   model. It is clamped to ``integral_limit`` and frozen while the steering command is
   at ``steering_limit`` or the speed is below ``integral_min_speed`` (anti-windup), and
-  reset when time jumps (a step of ``dt <= 0`` or ``> max_gap``) or an input is not
-  finite.
+  reset when time jumps (a step of ``dt < 0`` or ``> max_gap``) or an input is not
+  finite; ``dt = 0`` (the same measurement evaluated again) advances nothing.
 
 Every step works on floats (one vehicle) and on numpy arrays (a batch of runs).
 """
@@ -75,7 +75,7 @@ class LaneKeepingParams:
     :param integral_limit: clamp of the integral's shift of the reference [m].
     :param integral_min_speed: below this speed the integral is frozen [m/s].
     :param steering_limit: the integral is frozen while ``|delta|`` reaches this [rad].
-    :param max_gap: a step longer than this (or not positive) is a time jump: the
+    :param max_gap: a step longer than this (or negative) is a time jump: the
         integral restarts at 0 [s].
     :param compliance_time_constant: forgetting time of the rear-compliance estimate
         [s]; 0 keeps the model's compliance ``eta``.
@@ -335,6 +335,7 @@ class CgCompensatedLaw:
                                   damping_ratio=self.settings.damping_ratio)
         self.integral: Real = 0.0
         self.last_steering: Real = 0.0
+        self.cut = False        # the last command sent was cut outside the law
         st = self.settings
         self.estimator = ComplianceEstimator(
             vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
@@ -345,8 +346,21 @@ class CgCompensatedLaw:
         """Forget the integral, the estimate and the last command (time jump, stale)."""
         self.integral = 0.0
         self.last_steering = 0.0
+        self.cut = False
         self.estimator.reset()
         self.resets += 1
+
+    def note_limited(self, cut: bool) -> None:
+        """
+        Say whether the command sent was cut outside the law (anti-windup).
+
+        The node's safety layer cuts the command at its speed-dependent angle limit
+        (0.059 rad at 37 m/s) and its rate limit, far below ``steering_limit``: while it
+        does, the integral and the estimate are frozen at the next step.
+
+        :param cut: the angle or rate limit changed the last command.
+        """
+        self.cut = bool(cut)
 
     def compliance(self) -> Real:
         """Return the rear-compliance estimate [s^2/m] (eta before anything is learned)."""
@@ -358,12 +372,15 @@ class CgCompensatedLaw:
 
         :param state: vehicle and road state (the curvature slope is ``rho_rate / v_x``).
         :param preview: curvature ahead (``distances``, ``curvatures``), or None.
-        :param dt: time since the previous step [s]; ``<= 0`` or ``> max_gap`` resets.
+        :param dt: time since the previous step [s]; ``< 0``, not finite or ``> max_gap``
+            resets; 0 (the same measurement again) advances nothing.
         :return: the steering angle and the intermediate values (``y_ref`` includes the
             integral's shift).
         """
         s = self.settings
-        if not (math.isfinite(dt) and 0.0 < dt <= s.max_gap):
+        # dt = 0: the same instant again (a timer faster than the measurements): nothing
+        # advances, nothing restarts
+        if not (math.isfinite(dt) and 0.0 <= dt <= s.max_gap):
             self.reset()
             dt = 0.0
         v_x = xp.maximum(state.v_x, self.controller.min_speed)
@@ -376,11 +393,13 @@ class CgCompensatedLaw:
                                              v_x * s.feedforward_preview, state.rho, slope)
         # learning and integrating only above the speed floor and off the steering limit
         active = ((state.v_x >= s.integral_min_speed)
-                  & (xp.absolute(self.last_steering) < s.steering_limit))
+                  & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut))
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
             self.estimator.update(state, dt, active)
-        rate = xp.where(active, s.integral_gain * state.y_cg, zero)
+        rate = xp.where(active & ((xp.absolute(self.integral) < s.integral_limit)
+                                  | (self.integral * state.y_cg < 0.0)),   # held at the clamp
+                        s.integral_gain * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
                                  v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,

@@ -31,6 +31,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.controller import (ACCELERATION_SOURCES, Command, LAW_NAMES,
                                                SteeringController)
+from lookahead_control.core.lane_keeping import CgCompensatedLaw
 from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
 from lookahead_control.core.safety import check_points
 from lookahead_control.core.samples import curvature_from_points
@@ -153,10 +154,13 @@ class ControllerNode(LifecycleNode):
         try:
             merged = values(self, ALL_SPECS, params)
             check_choices(ALL_SPECS, merged)
-            vehicle_and_controller(merged)
+            vehicle, controller = vehicle_and_controller(merged)
             safety_params(merged)
             baseline_params(merged)
-            lane_keeping_params(merged)
+            lane_keeping = lane_keeping_params(merged)
+            if merged['law'] == 'cg_compensated':
+                # its own checks across parameters (controller.reference)
+                CgCompensatedLaw(vehicle, controller, lane_keeping)
         except (ParameterError, ValueError) as err:
             return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
