@@ -318,6 +318,7 @@ def test_parameters_are_asked_only_of_a_matched_service_and_asked_again(probe, t
                             context=node.context)
 
     class Client:
+
         def __init__(self):
             self.ready, self.calls, self.futures = False, 0, []
 
