@@ -86,6 +86,10 @@ class LaneKeepingParams:
     :param compliance_range: the estimate stays within ``eta / r`` and ``eta r`` [-].
     :param rate_feedforward: add the curvature-rate term that makes the CG stay on the
         lane on a clothoid (first-order inverse of the zero dynamics).
+    :param design_friction: friction of the design tyre for the load-dependent rear
+        compliance ``c(a) = c_hat s(|a| / (mu g))`` (brush shape, evaluated at the
+        reference curvature's lateral acceleration; the estimate learns ``c_hat``);
+        0: a constant compliance [-].
     """
 
     natural_frequency: float = 7.0
@@ -104,6 +108,7 @@ class LaneKeepingParams:
     compliance_prior: float = 0.5
     compliance_range: float = 3.0
     rate_feedforward: bool = False
+    design_friction: float = 1.0
 
     def __post_init__(self) -> None:
         check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,
@@ -138,6 +143,7 @@ class LaneKeepingParams:
         check_range('lane_keeping.compliance_prior', self.compliance_prior, 0.0, 20.0,
                     low_open=True, unit='m/s^2')
         check_range('lane_keeping.compliance_range', self.compliance_range, 1.0, 100.0)
+        check_range('lane_keeping.design_friction', self.design_friction, 0.0, 2.0)
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
@@ -236,6 +242,7 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        offset_rate: Real = 0.0,
                        compliance: Optional[Real] = None,
                        rate_feedforward: bool = False,
+                       tangent_compliance: Optional[Real] = None,
                        gains: Optional[tuple[Real, Real]] = None) -> LawOutput:
     """
     Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
@@ -257,10 +264,13 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         (None: the model's eta).
     :param rate_feedforward: add the curvature-rate term of the zero dynamics' inverse
         to the reference's relative yaw.
+    :param tangent_compliance: ``d alpha_r / d a`` at the reference's lateral
+        acceleration, for the reference's rate [s^2/m] (None: ``compliance``).
     :param gains: ``(k_p, k_d)`` (None: the controller's).
     :return: the steering angle and the intermediate values.
     """
     eta = vehicle.eta if compliance is None else compliance
+    tangent = eta if tangent_compliance is None else tangent_compliance
     v_x = xp.maximum(state.v_x, controller.min_speed)
     d_v, d_v_rate = look_ahead(v_x, state.a_x, vehicle, controller)
     eps_r, rho = state.eps_r, state.rho
@@ -275,7 +285,9 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         lead = -(v_x * vehicle.yaw_inertia * eta / (vehicle.mass * vehicle.l1)
                  + gain * vehicle.l2 / v_x)
         eps_ss = eps_ss + lead * rho_ref_rate
-    eps_ss_rate = 2.0 * eta * v_x * state.a_x * rho_ref + gain * rho_ref_rate
+    # d/dt (alpha_r(v_x^2 rho) - l_2 rho), alpha_r' = tangent (v_x^2 rho)'
+    eps_ss_rate = (tangent * (2.0 * v_x * state.a_x * rho_ref + v_x * v_x * rho_ref_rate)
+                   - vehicle.l2 * rho_ref_rate)
     y_ref = d_v * eps_ss - offset
     y_ref_rate = d_v_rate * eps_ss + d_v * eps_ss_rate - offset_rate
     f_v, beta_1 = drift_term(state._replace(rho=rho_ff, rho_rate=rho_ff_rate), vehicle,
@@ -338,7 +350,7 @@ class CgCompensatedLaw:
         st = self.settings
         self.estimator = ComplianceEstimator(
             vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
-            st.compliance_prior, st.compliance_range)
+            st.compliance_prior, st.compliance_range, st.design_friction)
         self.resets = 0
 
     def reset(self) -> None:
@@ -349,7 +361,13 @@ class CgCompensatedLaw:
         self.resets += 1
 
     def compliance(self) -> Real:
-        """Return the rear-compliance estimate [s^2/m] (eta before anything is learned)."""
+        """
+        Return the rear-compliance estimate [s^2/m] (eta before anything is learned).
+
+        With ``design_friction > 0`` it is the scale (the compliance at zero load).
+
+        :return: the estimate.
+        """
         return self.estimator.compliance()
 
     def step(self, state: LateralState, preview: Any, dt: float) -> LawOutput:
@@ -382,10 +400,10 @@ class CgCompensatedLaw:
             self.estimator.update(state, dt, active)
         rate = xp.where(active, s.integral_gain * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
+        secant, tangent = self.estimator.at(v_x * v_x * rho_ref)
         out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
                                  v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,
-                                 self.compliance(), s.rate_feedforward,
-                                 loop_gains(s, v_x))
+                                 secant, s.rate_feedforward, tangent, loop_gains(s, v_x))
         finite = _finite(out.steering)
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)

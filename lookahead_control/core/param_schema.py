@@ -110,6 +110,8 @@ LANE_KEEPING_SPECS = tuple(
          1.0, 100.0),
         ('rate_feedforward', 'add the curvature-rate term of the inverse zero dynamics '
          '(better on linear tyres, worse on the nonlinear plant)', 0.0, 1.0),
+        ('design_friction', 'friction of the design tyre for the load-dependent rear '
+         'compliance (brush shape); 0: constant compliance [-]', 0.0, 2.0),
     ))
 
 BASELINE_SPECS = (
