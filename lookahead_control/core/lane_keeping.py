@@ -243,6 +243,7 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        compliance: Optional[Real] = None,
                        rate_feedforward: bool = False,
                        tangent_compliance: Optional[Real] = None,
+
                        gains: Optional[tuple[Real, Real]] = None) -> LawOutput:
     """
     Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
@@ -403,7 +404,8 @@ class CgCompensatedLaw:
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref)
         out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
                                  v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,
-                                 secant, s.rate_feedforward, tangent, loop_gains(s, v_x))
+                                 compliance=secant, rate_feedforward=s.rate_feedforward,
+                                 tangent_compliance=tangent, gains=loop_gains(s, v_x))
         finite = _finite(out.steering)
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)
