@@ -351,3 +351,27 @@ def test_reference_rate_uses_the_tangent_compliance():
     assert out.y_ref == pytest.approx(d_v * (secant * 900.0 - VEHICLE.l2) * (-1 / 400))
     rate = out.y_v_rate - out.error_rate
     assert rate == pytest.approx(d_v * (tangent * 900.0 - VEHICLE.l2) * -1e-4)
+
+
+def test_rate_feedforward_sees_at_most_the_jerk_limit():
+    # a curvature step of 1/400 within one 5 m preview segment at 37 m/s: rate
+    # 37 * 0.0025 / 5 = 0.0185 1/(m s), lateral jerk 25 m/s^3; the feedforward's lead
+    # -(v I_z eta / (m l_1) + (eta v^2 - l_2) l_2 / v) multiplies at most 10 / 37^2
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(design_friction=0.0,
+                                                                  compliance_time_constant=0.0,
+                                                                  integral_gain=0.0))
+    step = Preview(np.array([0.0, 5.0, 100.0]), np.array([0.0, -0.0025, -0.0025]))
+    out = law.step(state(), step, 0.01)
+    v, eta = 37.0, VEHICLE.eta
+    lead = -(v * VEHICLE.yaw_inertia * eta / (VEHICLE.mass * VEHICLE.l1)
+             + (eta * v * v - VEHICLE.l2) * VEHICLE.l2 / v)
+    d_v = look_ahead(v, 0.0, VEHICLE, CONTROLLER)[0]
+    assert out.y_ref == pytest.approx(d_v * lead * (-10.0 / v ** 2))
+    # the reference's rate keeps the full step rate (measured: clipping it too costs S1)
+    rate = out.y_v_rate - out.error_rate
+    assert rate == pytest.approx(d_v * (eta * v * v - VEHICLE.l2) * (-0.0185), rel=1e-9)
+    # without the clip the lead sees all of it
+    free = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(
+        design_friction=0.0, compliance_time_constant=0.0, integral_gain=0.0,
+        max_lateral_jerk=0.0))
+    assert free.step(state(), step, 0.01).y_ref == pytest.approx(d_v * lead * -0.0185)

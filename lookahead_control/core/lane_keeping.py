@@ -90,6 +90,9 @@ class LaneKeepingParams:
         compliance ``c(a) = c_hat s(|a| / (mu g))`` (brush shape, evaluated at the
         reference curvature's lateral acceleration; the estimate learns ``c_hat``);
         0: a constant compliance [-].
+    :param max_lateral_jerk: the rate feedforward uses the curvature rate clipped to
+        this lateral jerk ``v_x^2 rho'`` (a curvature step in the map would be an
+        impulse); 0: no clip [m/s^3].
     """
 
     natural_frequency: float = 7.0
@@ -107,8 +110,9 @@ class LaneKeepingParams:
     compliance_filter: float = 0.3
     compliance_prior: float = 0.5
     compliance_range: float = 3.0
-    rate_feedforward: bool = False
+    rate_feedforward: bool = True
     design_friction: float = 1.0
+    max_lateral_jerk: float = 10.0
 
     def __post_init__(self) -> None:
         check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,
@@ -144,6 +148,8 @@ class LaneKeepingParams:
                     low_open=True, unit='m/s^2')
         check_range('lane_keeping.compliance_range', self.compliance_range, 1.0, 100.0)
         check_range('lane_keeping.design_friction', self.design_friction, 0.0, 2.0)
+        check_range('lane_keeping.max_lateral_jerk', self.max_lateral_jerk, 0.0, 1000.0,
+                    unit='m/s^3')
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
@@ -243,6 +249,7 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        compliance: Optional[Real] = None,
                        rate_feedforward: bool = False,
                        tangent_compliance: Optional[Real] = None,
+                       lead_rate: Optional[Real] = None,
 
                        gains: Optional[tuple[Real, Real]] = None) -> LawOutput:
     """
@@ -267,6 +274,8 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         to the reference's relative yaw.
     :param tangent_compliance: ``d alpha_r / d a`` at the reference's lateral
         acceleration, for the reference's rate [s^2/m] (None: ``compliance``).
+    :param lead_rate: the curvature rate the rate feedforward uses [1/(m s)] (None:
+        ``rho_ref_rate``).
     :param gains: ``(k_p, k_d)`` (None: the controller's).
     :return: the steering angle and the intermediate values.
     """
@@ -285,7 +294,7 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         #   = -(v_x I_z eta / (m l_1) + g l_2 / v_x) rho'
         lead = -(v_x * vehicle.yaw_inertia * eta / (vehicle.mass * vehicle.l1)
                  + gain * vehicle.l2 / v_x)
-        eps_ss = eps_ss + lead * rho_ref_rate
+        eps_ss = eps_ss + lead * (rho_ref_rate if lead_rate is None else lead_rate)
     # d/dt (alpha_r(v_x^2 rho) - l_2 rho), alpha_r' = tangent (v_x^2 rho)'
     eps_ss_rate = (tangent * (2.0 * v_x * state.a_x * rho_ref + v_x * v_x * rho_ref_rate)
                    - vehicle.l2 * rho_ref_rate)
@@ -393,6 +402,12 @@ class CgCompensatedLaw:
                                                v_x * s.reference_preview, state.rho, slope)
         rho_ff, slope_ff = preview_curvature(distances, curvatures,
                                              v_x * s.feedforward_preview, state.rho, slope)
+        lead_rate = None
+        if s.max_lateral_jerk > 0.0:
+            # a curvature step in the map is an impulse of curvature rate no steering can
+            # follow: the rate feedforward sees at most this lateral jerk
+            most = s.max_lateral_jerk / (v_x * v_x)
+            lead_rate = xp.clip(v_x * slope_ref, -most, most)
         # learning and integrating only above the speed floor and off the steering limit
         active = ((state.v_x >= s.integral_min_speed)
                   & (xp.absolute(self.last_steering) < s.steering_limit))
@@ -405,7 +420,8 @@ class CgCompensatedLaw:
         out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
                                  v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,
                                  compliance=secant, rate_feedforward=s.rate_feedforward,
-                                 tangent_compliance=tangent, gains=loop_gains(s, v_x))
+                                 tangent_compliance=tangent, gains=loop_gains(s, v_x),
+                                 lead_rate=lead_rate)
         finite = _finite(out.steering)
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)
