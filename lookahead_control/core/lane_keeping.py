@@ -30,6 +30,13 @@ structure (eq. 15) but regulates ``y_v`` to ::
 - The road terms of the drift ``f_v`` use the curvature ``v_x T_ff`` ahead, ``T_ff`` the
   actuator lag plus the transport delay: the steering reaches the tyres when the road
   has arrived there.
+- ``eta`` in ``eps_ss`` is the rear compliance ``c(a) = c_hat s(|a| / (mu_d g))``:
+  the brush tyre's load-dependent secant compliance (``estimator.brush_shape``) at the
+  reference curve's lateral acceleration ``a = v_x^2 rho_p``, the scale ``c_hat``
+  estimated online; the reference's rate uses the tangent compliance.
+- With ``rate_feedforward`` the zero dynamics' first-order inverse adds
+  ``-(v_x I_z c / (m l_1) + (c v_x^2 - l_2) l_2 / v_x) rho'`` to ``eps_ss``, its
+  curvature rate clipped to the lateral jerk ``max_lateral_jerk``.
 - ``I`` is the integral of the CG error, ``I' = k_i y_cg``: it removes what the model
   gets wrong (cornering stiffness, tyre saturation, road bank) without knowing the tyre
   model. It is clamped to ``integral_limit`` and frozen while the steering command is
