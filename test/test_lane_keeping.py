@@ -20,6 +20,7 @@ import math
 from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.control_law import LateralState, steering_law
 from lookahead_control.core.controller import SteeringController
+from lookahead_control.core.estimator import brush_shape, GRAVITY
 from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingParams,
                                                  loop_gains, preview_curvature,
                                                  steady_relative_yaw)
@@ -78,8 +79,10 @@ def test_zero_dynamics_untouched_by_the_reference():
 @pytest.mark.parametrize('speed', [20.0, 37.0])
 def test_cg_settles_on_the_lane_of_the_design_plant(speed):
     # linear plant, no estimator, no integral: the CG equilibrium is exactly 0 (model.md);
-    # the paper's law parks it at -d_v eps_ss (0.89 m outside at 37 m/s)
-    settings = LaneKeepingParams(integral_gain=0.0, compliance_time_constant=0.0)
+    # the paper's law parks it at -d_v eps_ss (0.89 m outside at 37 m/s); linear tyres:
+    # a constant compliance (design_friction 0)
+    settings = LaneKeepingParams(integral_gain=0.0, compliance_time_constant=0.0,
+                                 design_friction=0.0)
     scenario = paper_scenario(speed, duration=14.0)
     result = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER, settings))
     assert abs(result['y_cg'][-1]) < 1e-3
@@ -186,6 +189,15 @@ def test_compliance_estimate_recovers_a_softer_rear_axle():
         law.step(state(v_y=v_y, r=r, v_x=v, rho=r / v), EMPTY, 0.01)
     prior = law.settings.compliance_prior ** 2
     truth = VEHICLE.eta / 0.7
+    # the regressor is shaped (brush, design friction 1): phi = a_y s(a_y / g); the
+    # scale fits alpha_r = c_hat phi: (alpha phi + p^2 eta) / (phi^2 + p^2)
+    phi = a_y * brush_shape(a_y / GRAVITY)[0]
+    expected = (truth * a_y * phi + prior * VEHICLE.eta) / (phi * phi + prior)
+    assert law.compliance() == pytest.approx(expected, rel=1e-3)
+    # a linear-tyre design (design_friction 0): the secant compliance itself
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(design_friction=0.0))
+    for _ in range(1000):
+        law.step(state(v_y=v_y, r=r, v_x=v, rho=r / v), EMPTY, 0.01)
     expected = (a_y * a_y * truth + prior * VEHICLE.eta) / (a_y * a_y + prior)
     assert law.compliance() == pytest.approx(expected, rel=1e-3)
 
@@ -287,9 +299,11 @@ def test_controller_runs_the_stateful_law_and_resets_it():
     law = core.law
     assert isinstance(law, CgCompensatedLaw)
     assert law.integral == pytest.approx(0.3 * 0.1 * 0.99)
+    # the brush-shaped compliance at the arc's 2.25 m/s^2 (no slip measured: scale eta)
+    secant = VEHICLE.eta * brush_shape(2.25 / GRAVITY)[0]
     assert command.law.y_ref == pytest.approx(
         look_ahead(30.0, 0.0, VEHICLE, CONTROLLER)[0]
-        * steady_relative_yaw(VEHICLE, 30.0, -1 / 400) - law.integral)
+        * steady_relative_yaw(VEHICLE, 30.0, -1 / 400, secant) - law.integral)
     # stale inputs: the watchdog's command restarts the law
     assert core.safe_command(3000 * MS) is not None
     assert law.integral == 0.0
@@ -326,6 +340,63 @@ def test_stability_tool_verdicts(capsys, tmp_path):
     assert stability_main(['--samples', '55']) == 1      # the paper's 3.5 m/s^2
     assert 'certificate DOES NOT HOLD' in capsys.readouterr().out
     assert (tmp_path / 's.json').stat().st_size > 100
+
+
+def test_reference_rate_uses_the_tangent_compliance():
+    # y_ref = d_v (alpha_r(v^2 rho) - l_2 rho): on a clothoid at constant speed its rate
+    # is d_v (c_t v^2 - l_2) rho' with the tangent c_t, not the secant c (by hand)
+    from lookahead_control.core.lane_keeping import cg_compensated_law
+    s = state(v_x=30.0, rho=-1 / 400)
+    d_v = look_ahead(30.0, 0.0, VEHICLE, CONTROLLER)[0]
+    secant, tangent = 1.2 * VEHICLE.eta, 1.5 * VEHICLE.eta
+    out = cg_compensated_law(s, VEHICLE, CONTROLLER, -1 / 400, -1e-4, -1 / 400, 0.0,
+                             compliance=secant, tangent_compliance=tangent)
+    assert out.y_ref == pytest.approx(d_v * (secant * 900.0 - VEHICLE.l2) * (-1 / 400))
+    rate = out.y_v_rate - out.error_rate
+    assert rate == pytest.approx(d_v * (tangent * 900.0 - VEHICLE.l2) * -1e-4)
+
+
+def test_rate_feedforward_sees_at_most_the_jerk_limit():
+    # a curvature step of 1/400 within one 5 m preview segment at 37 m/s: rate
+    # 37 * 0.0025 / 5 = 0.0185 1/(m s), lateral jerk 25 m/s^3; the feedforward's lead
+    # -(v I_z eta / (m l_1) + (eta v^2 - l_2) l_2 / v) multiplies at most 10 / 37^2
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(design_friction=0.0,
+                                                                  compliance_time_constant=0.0,
+                                                                  integral_gain=0.0))
+    step = Preview(np.array([0.0, 5.0, 100.0]), np.array([0.0, -0.0025, -0.0025]))
+    out = law.step(state(), step, 0.01)
+    v, eta = 37.0, VEHICLE.eta
+    lead = -(v * VEHICLE.yaw_inertia * eta / (VEHICLE.mass * VEHICLE.l1)
+             + (eta * v * v - VEHICLE.l2) * VEHICLE.l2 / v)
+    d_v = look_ahead(v, 0.0, VEHICLE, CONTROLLER)[0]
+    assert out.y_ref == pytest.approx(d_v * lead * (-10.0 / v ** 2))
+    # the reference's rate keeps the full step rate (measured: clipping it too costs S1)
+    rate = out.y_v_rate - out.error_rate
+    assert rate == pytest.approx(d_v * (eta * v * v - VEHICLE.l2) * (-0.0185), rel=1e-9)
+    # without the clip the lead sees all of it
+    free = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(
+        design_friction=0.0, compliance_time_constant=0.0, integral_gain=0.0,
+        max_lateral_jerk=0.0))
+    assert free.step(state(), step, 0.01).y_ref == pytest.approx(d_v * lead * -0.0185)
+
+
+def test_curve_entry_on_the_fiala_plant_at_37_mps():
+    # the issue's S2 (clothoid into R = 400 m) at 37 m/s on the nonlinear (Fiala) plant
+    # with its 50 ms actuator, ideal sensors: the brush compliance and the rate
+    # feedforward keep the CG within 3 cm (2.3 cm measured; the constant compliance
+    # without rate feedforward: 4.5 cm); the CG ends on the lane
+    from lookahead_control.tools.compare import load_scenarios
+    scenario = load_scenarios(['s2_curve_entry'])['s2_curve_entry']
+    result = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER),
+                 PlantParams(model='nonlinear'), initial_speed=37.0, dt=0.005,
+                 preview_distance=100.0)
+    assert np.max(np.abs(result['y_cg'])) < 0.03
+    assert abs(result['y_cg'][-1]) < 0.005
+    old = LaneKeepingParams(design_friction=0.0, rate_feedforward=False)
+    before = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER, old),
+                 PlantParams(model='nonlinear'), initial_speed=37.0, dt=0.005,
+                 preview_distance=100.0)
+    assert np.max(np.abs(before['y_cg'])) > 0.04
 
 
 # -- the node's laws get the road_curvature polygon, as the offline runner gives it ----

@@ -29,9 +29,14 @@ forgetting ``T``:
   ``D' = ((F phi)^2 - D) / T``: the model's ``eta`` holds until the lateral
   acceleration exceeds ``p``; clipped to ``[eta / k, eta k]``.
 
-A two-parameter form ``c(a) = theta_1 + theta_2 |a|`` (tyre softening with load,
-predicting the compliance of the curve ahead) was tried and measured worse under sensor
-noise: on a single curve the two are not separable (``docs/lane_keeping.md``).
+Load-dependent compliance (``friction > 0``): a brush tyre's secant compliance grows
+with its load, ``c(a) = c_hat s(|a| / (mu g))`` with the design friction ``mu`` and
+:func:`brush_shape` ``s``. The estimator then learns only the scale ``c_hat`` (the
+regressor is ``s(|phi| / (mu g)) phi``; ``c_hat = eta`` for the nominal tyre), and the
+law evaluates ``c`` at the lateral acceleration of the curve ahead: the compliance of a
+curve is known before the tyres are loaded. A two-parameter form ``c(a) = theta_1 +
+theta_2 |a|`` was tried instead and measured worse under sensor noise: on a single curve
+the two are not separable (``docs/lane_keeping.md``).
 Everything works on floats and on numpy arrays (a batch).
 """
 
@@ -46,12 +51,41 @@ from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import VehicleParams
 import numpy as np
 
+GRAVITY = 9.80665
+#: highest load ratio ``|a| / (mu g)`` the shape is evaluated at (beyond it the tyre
+#: saturates; the shape is 1.79, its slope 4.6)
+MAX_LOAD = 0.9
+
+
+def brush_shape(load: Real) -> tuple[Real, Real]:
+    """
+    Return the secant and tangent compliance of a brush (Fiala) axle over the linear one.
+
+    The Fiala axle force is ``F / F_max = 1 - (1 - u)^3`` with ``u = C tan(alpha) /
+    (3 F_max)``; in steady cornering the axle's load ratio is ``n = F / F_max = |a| /
+    (mu g)``, so ``tan(alpha) = 3 F_max (1 - (1 - n)^(1/3)) / C`` and the slip per
+    lateral acceleration over the linear tyre's ``F_max / (C mu g n)`` is ::
+
+        secant s(n) = 3 (1 - (1 - n)^(1/3)) / n,   tangent d(n s) / dn = (1 - n)^(-2/3)
+
+    both 1 at ``n = 0``; ``n`` is clipped to ``[0, MAX_LOAD]``.
+
+    :param load: load ratio ``|a_y| / (mu g)`` [-] (float or array).
+    :return: ``(secant, tangent)`` factors [-].
+    """
+    n = xp.clip(xp.absolute(load), 0.0, MAX_LOAD)
+    root = (1.0 - n) ** (1.0 / 3.0)
+    small = n < 1e-6
+    secant = xp.where(small, 1.0 + n / 3.0,
+                      3.0 * (1.0 - root) / xp.where(small, 1.0, n))
+    return secant, 1.0 / (root * root)
+
 
 class ComplianceEstimator:
     """Rear-compliance estimate (rear slip per lateral acceleration) from v_y and r."""
 
     def __init__(self, vehicle: VehicleParams, time_constant: float, filter_time: float,
-                 prior: float, ratio: float) -> None:
+                 prior: float, ratio: float, friction: float = 0.0) -> None:
         """
         Create the estimator.
 
@@ -60,12 +94,15 @@ class ComplianceEstimator:
         :param filter_time: ``T_f`` of the signal filter [s] (> 0).
         :param prior: ``p``: lateral acceleration below which ``eta`` holds [m/s^2].
         :param ratio: ``k``: the estimate stays in ``[eta / k, eta k]``.
+        :param friction: design friction ``mu`` of the load-dependent shape; 0: constant
+            compliance (the estimate is the secant compliance itself).
         """
         self.vehicle = vehicle
         self.time_constant = time_constant
         self.filter_time = filter_time
         self.prior = prior
         self.ratio = ratio
+        self.friction = friction
         self.filtered: Optional[tuple[Real, Real, Real]] = None
         self.moment: Real = 0.0          # N [rad m/s^2]
         self.energy: Real = 0.0          # D [m^2/s^4]
@@ -103,6 +140,8 @@ class ComplianceEstimator:
         self.filtered = (f_slip, f_turn, f_w)
         # the backward difference of the filtered w: (w - F w) / (T_f - dt) exactly
         phi = f_turn + (w - f_w) / max(self.filter_time - dt, 1e-3)
+        if self.friction > 0.0:
+            phi = phi * brush_shape(phi / (self.friction * GRAVITY))[0]
         zero = 0.0 * slip
         g = xp.where(active, min(dt / self.time_constant, 1.0) + zero, zero)
         self.moment = self.moment + g * (f_slip * phi - self.moment)
@@ -123,8 +162,34 @@ class ComplianceEstimator:
         self.energy = xp.where(where, 0.0, self.energy)
 
     def compliance(self) -> Real:
-        """Return the estimate ``c`` [s^2/m] (``eta`` before anything is learned)."""
+        """
+        Return the estimate [s^2/m] (``eta`` before anything is learned).
+
+        With the load-dependent shape it is the scale ``c_hat`` (the compliance at zero
+        load); :meth:`at` gives the compliance at a lateral acceleration.
+
+        :return: the estimate, clipped to ``[eta / k, eta k]``.
+        """
         eta = self.vehicle.eta
         prior = self.prior * self.prior
         estimate = (self.moment + prior * eta) / (self.energy + prior)
         return xp.clip(estimate, eta / self.ratio, eta * self.ratio)
+
+    def at(self, accel: Real) -> tuple[Real, Real]:
+        """
+        Return the secant and tangent compliance at a lateral acceleration [s^2/m].
+
+        Secant: rear slip per lateral acceleration; tangent: its derivative d alpha / d a.
+        Both are the estimate itself without the load-dependent shape; with it, both
+        stay within ``[eta / k, eta k]``.
+
+        :param accel: lateral acceleration (of the curve ahead) [m/s^2].
+        :return: ``(secant, tangent)``.
+        """
+        scale = self.compliance()
+        if self.friction <= 0.0:
+            return scale, scale
+        secant, tangent = brush_shape(accel / (self.friction * GRAVITY))
+        eta = self.vehicle.eta
+        low, high = eta / self.ratio, eta * self.ratio
+        return xp.clip(scale * secant, low, high), xp.clip(scale * tangent, low, high)

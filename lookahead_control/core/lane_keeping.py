@@ -30,6 +30,13 @@ structure (eq. 15) but regulates ``y_v`` to ::
 - The road terms of the drift ``f_v`` use the curvature ``v_x T_ff`` ahead, ``T_ff`` the
   actuator lag plus the transport delay: the steering reaches the tyres when the road
   has arrived there.
+- ``eta`` in ``eps_ss`` is the rear compliance ``c(a) = c_hat s(|a| / (mu_d g))``:
+  the brush tyre's load-dependent secant compliance (``estimator.brush_shape``) at the
+  reference curve's lateral acceleration ``a = v_x^2 rho_p``, the scale ``c_hat``
+  estimated online; the reference's rate uses the tangent compliance.
+- With ``rate_feedforward`` the zero dynamics' first-order inverse adds
+  ``-(v_x I_z c / (m l_1) + (c v_x^2 - l_2) l_2 / v_x) rho'`` to ``eps_ss``, its
+  curvature rate clipped to the lateral jerk ``max_lateral_jerk``.
 - ``I`` is the integral of the CG error, ``I' = k_i y_cg``: it removes what the model
   gets wrong (cornering stiffness, tyre saturation, road bank) without knowing the tyre
   model. It is clamped to ``integral_limit`` and frozen while the steering command is
@@ -86,6 +93,13 @@ class LaneKeepingParams:
     :param compliance_range: the estimate stays within ``eta / r`` and ``eta r`` [-].
     :param rate_feedforward: add the curvature-rate term that makes the CG stay on the
         lane on a clothoid (first-order inverse of the zero dynamics).
+    :param design_friction: friction of the design tyre for the load-dependent rear
+        compliance ``c(a) = c_hat s(|a| / (mu g))`` (brush shape, evaluated at the
+        reference curvature's lateral acceleration; the estimate learns ``c_hat``);
+        0: a constant compliance [-].
+    :param max_lateral_jerk: the rate feedforward uses the curvature rate clipped to
+        this lateral jerk ``v_x^2 rho'`` (a curvature step in the map would be an
+        impulse); 0: no clip [m/s^3].
     """
 
     natural_frequency: float = 7.0
@@ -103,7 +117,9 @@ class LaneKeepingParams:
     compliance_filter: float = 0.3
     compliance_prior: float = 0.5
     compliance_range: float = 3.0
-    rate_feedforward: bool = False
+    rate_feedforward: bool = True
+    design_friction: float = 1.0
+    max_lateral_jerk: float = 10.0
 
     def __post_init__(self) -> None:
         check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,
@@ -138,6 +154,9 @@ class LaneKeepingParams:
         check_range('lane_keeping.compliance_prior', self.compliance_prior, 0.0, 20.0,
                     low_open=True, unit='m/s^2')
         check_range('lane_keeping.compliance_range', self.compliance_range, 1.0, 100.0)
+        check_range('lane_keeping.design_friction', self.design_friction, 0.0, 2.0)
+        check_range('lane_keeping.max_lateral_jerk', self.max_lateral_jerk, 0.0, 1000.0,
+                    unit='m/s^3')
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
@@ -236,6 +255,9 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        offset_rate: Real = 0.0,
                        compliance: Optional[Real] = None,
                        rate_feedforward: bool = False,
+                       tangent_compliance: Optional[Real] = None,
+                       lead_rate: Optional[Real] = None,
+
                        gains: Optional[tuple[Real, Real]] = None) -> LawOutput:
     """
     Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
@@ -257,10 +279,15 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         (None: the model's eta).
     :param rate_feedforward: add the curvature-rate term of the zero dynamics' inverse
         to the reference's relative yaw.
+    :param tangent_compliance: ``d alpha_r / d a`` at the reference's lateral
+        acceleration, for the reference's rate [s^2/m] (None: ``compliance``).
+    :param lead_rate: the curvature rate the rate feedforward uses [1/(m s)] (None:
+        ``rho_ref_rate``).
     :param gains: ``(k_p, k_d)`` (None: the controller's).
     :return: the steering angle and the intermediate values.
     """
     eta = vehicle.eta if compliance is None else compliance
+    tangent = eta if tangent_compliance is None else tangent_compliance
     v_x = xp.maximum(state.v_x, controller.min_speed)
     d_v, d_v_rate = look_ahead(v_x, state.a_x, vehicle, controller)
     eps_r, rho = state.eps_r, state.rho
@@ -274,8 +301,10 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         #   = -(v_x I_z eta / (m l_1) + g l_2 / v_x) rho'
         lead = -(v_x * vehicle.yaw_inertia * eta / (vehicle.mass * vehicle.l1)
                  + gain * vehicle.l2 / v_x)
-        eps_ss = eps_ss + lead * rho_ref_rate
-    eps_ss_rate = 2.0 * eta * v_x * state.a_x * rho_ref + gain * rho_ref_rate
+        eps_ss = eps_ss + lead * (rho_ref_rate if lead_rate is None else lead_rate)
+    # d/dt (alpha_r(v_x^2 rho) - l_2 rho), alpha_r' = tangent (v_x^2 rho)'
+    eps_ss_rate = (tangent * (2.0 * v_x * state.a_x * rho_ref + v_x * v_x * rho_ref_rate)
+                   - vehicle.l2 * rho_ref_rate)
     y_ref = d_v * eps_ss - offset
     y_ref_rate = d_v_rate * eps_ss + d_v * eps_ss_rate - offset_rate
     f_v, beta_1 = drift_term(state._replace(rho=rho_ff, rho_rate=rho_ff_rate), vehicle,
@@ -339,7 +368,7 @@ class CgCompensatedLaw:
         st = self.settings
         self.estimator = ComplianceEstimator(
             vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
-            st.compliance_prior, st.compliance_range)
+            st.compliance_prior, st.compliance_range, st.design_friction)
         self.resets = 0
 
     def reset(self) -> None:
@@ -363,7 +392,13 @@ class CgCompensatedLaw:
         self.cut = bool(cut)
 
     def compliance(self) -> Real:
-        """Return the rear-compliance estimate [s^2/m] (eta before anything is learned)."""
+        """
+        Return the rear-compliance estimate [s^2/m] (eta before anything is learned).
+
+        With ``design_friction > 0`` it is the scale (the compliance at zero load).
+
+        :return: the estimate.
+        """
         return self.estimator.compliance()
 
     def step(self, state: LateralState, preview: Any, dt: float) -> LawOutput:
@@ -391,6 +426,12 @@ class CgCompensatedLaw:
                                                v_x * s.reference_preview, state.rho, slope)
         rho_ff, slope_ff = preview_curvature(distances, curvatures,
                                              v_x * s.feedforward_preview, state.rho, slope)
+        lead_rate = None
+        if s.max_lateral_jerk > 0.0:
+            # a curvature step in the map is an impulse of curvature rate no steering can
+            # follow: the rate feedforward sees at most this lateral jerk
+            most = s.max_lateral_jerk / (v_x * v_x)
+            lead_rate = xp.clip(v_x * slope_ref, -most, most)
         # learning and integrating only above the speed floor and off the steering limit
         active = ((state.v_x >= s.integral_min_speed)
                   & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut))
@@ -401,10 +442,12 @@ class CgCompensatedLaw:
                                   | (self.integral * state.y_cg < 0.0)),   # held at the clamp
                         s.integral_gain * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
+        secant, tangent = self.estimator.at(v_x * v_x * rho_ref)
         out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
                                  v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,
-                                 self.compliance(), s.rate_feedforward,
-                                 loop_gains(s, v_x))
+                                 compliance=secant, rate_feedforward=s.rate_feedforward,
+                                 tangent_compliance=tangent, gains=loop_gains(s, v_x),
+                                 lead_rate=lead_rate)
         finite = _finite(out.steering)
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)

@@ -19,7 +19,12 @@ The homogeneous closed loop (straight road, ``rho = 0``) of the linear single-tr
 and the law with its CG-error integral has the state ``x = [y_cg, eps_r, v_y, r, I]``
 and ``x' = A(v_x) x``. The reference ``d_v eps_ss(v_x, rho)`` is an exogenous signal
 (it multiplies ``rho``), and the compliance estimate only scales it and is clipped, so
-neither enters ``A``: they are bounded inputs to a stable system.
+neither enters ``A``: they are bounded inputs to a stable system. The same holds for the
+load-dependent compliance (the brush shape of the reference curve's lateral
+acceleration, clipped with the estimate) and the rate feedforward (it multiplies the
+road's curvature rate, clipped to ``max_lateral_jerk``). The estimate's own dynamics
+(the filtered regression) are not in ``A``: they act on the loop only through these
+clipped, curvature-multiplied gains.
 
 - :func:`certificate` is the paper's Section 4 test on ``A(v_x)`` in scaled
   coordinates ``z = S^-1 x``: ``P(v_x)`` solves ``A_z^T P + P A_z = -I``;

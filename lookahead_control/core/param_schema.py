@@ -109,7 +109,12 @@ LANE_KEEPING_SPECS = tuple(
         ('compliance_range', 'the estimate stays within 1/k and k times the model value [-]',
          1.0, 100.0),
         ('rate_feedforward', 'add the curvature-rate term of the inverse zero dynamics '
-         '(better on linear tyres, worse on the nonlinear plant)', 0.0, 1.0),
+         'to the reference', 0.0, 1.0),
+        ('design_friction', 'friction of the design tyre for the load-dependent rear '
+         'compliance (brush shape); 0: constant compliance [-]', 0.0, 2.0),
+        ('max_lateral_jerk', 'the rate feedforward sees at most this lateral jerk '
+         '(a curvature step in the map is not followed as an impulse); 0: no limit '
+         '[m/s^3]', 0.0, 1000.0),
     ))
 
 BASELINE_SPECS = (
