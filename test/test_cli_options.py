@@ -243,6 +243,16 @@ def _paper():
                       cwd=folder)
         assert refused.returncode == 2 and '--no-plots' in refused.stderr
 
+    def overwrite(c):
+        folder = c.folder('paper_overwrite')
+        (folder / 'report.md').write_text('my report\n')
+        refused = run('paper_scenario', *PAPER_BASE, '--out', folder, '--no-plots')
+        assert refused.returncode == 2 and '--overwrite' in refused.stderr
+        assert (folder / 'report.md').read_text() == 'my report\n'
+        _ok(run('paper_scenario', *PAPER_BASE, '--out', folder, '--no-plots',
+                '--overwrite'))
+        assert (folder / 'report.md').read_text().startswith('# Paper scenario')
+
     def differs(*args):
         def effect(c):
             assert table(c, *args) != table(c)
@@ -250,6 +260,7 @@ def _paper():
     return {
         '--vehicle': ((), lambda c: differs('--vehicle', str(c.vehicle))(c)),
         '--controller': ((), lambda c: differs('--controller', str(c.controller))(c)),
+        '--overwrite': ((), overwrite),
         '--plant': (('bicycle',), differs('--plant', 'nonlinear')),
         '--speeds': (NON_NUMBERS + ('-5', '0', '200'), differs('--speeds', '30')),
         '--duration': (NON_NUMBERS + ('0', '-1', '1e9'), differs('--duration', '4')),
@@ -413,6 +424,22 @@ def _compare():
         table, _ = runs(c)
         assert [(r['law'], r['speed_mps']) for r in table] == [('paper_eq26', 37.0)], table
 
+    def overwrite(c):
+        folder = c.folder('cmp_overwrite')
+        (folder / 'league.md').write_text('a league compare did not write\n')
+        refused = run('compare', *COMPARE_BASE, '--out', folder, cwd=folder)
+        assert refused.returncode == 2 and '--overwrite' in refused.stderr
+        assert (folder / 'league.md').read_text() == 'a league compare did not write\n'
+        _ok(run('compare', *COMPARE_BASE, '--out', folder, '--overwrite', cwd=folder))
+        assert (folder / 'league.md').read_text().startswith('# League table')
+
+    def no_progress(c):
+        folder = c.folder('cmp_progress')
+        shown = _ok(run('compare', *COMPARE_BASE, '--out', folder / 'a', cwd=folder))
+        quiet = _ok(run('compare', *COMPARE_BASE, '--out', folder / 'b', '--no-progress',
+                        cwd=folder))
+        assert 'compare: 100%' in shown.stderr and quiet.stderr == ''
+
     def tune(c):
         folder = c.folder('cmp_tune')
         _ok(run('compare', '--tune', '--laws', 'pure_pursuit', '--workers', '2', '--out',
@@ -431,6 +458,8 @@ def _compare():
         '--out': ((), out),
         '--no-plots': ((), no_plots),
         '--tune': ((), tune),
+        '--overwrite': ((), overwrite),
+        '--no-progress': ((), no_progress),
     }
 
 
@@ -585,6 +614,16 @@ def _analyze():
         _ok(run('analyze', c.bag, '--out', folder, '--no-plots'))
         assert not list(folder.glob('*.png'))
 
+    def overwrite(c):
+        folder = c.folder('an_overwrite')
+        (folder / 'metrics.csv').write_text('my metrics\n')
+        refused = run('analyze', c.bag, '--out', folder, '--no-plots')
+        assert refused.returncode == 2 and '--overwrite' in refused.stderr
+        assert (folder / 'metrics.csv').read_text() == 'my metrics\n'
+        _ok(run('analyze', c.bag, '--out', folder, '--no-plots', '--overwrite'))
+        assert (folder / 'metrics.csv').read_text() != 'my metrics\n'
+        _ok(run('analyze', c.bag, '--out', folder, '--no-plots'))    # its own, now
+
     def topic(c):
         out = run('analyze', c.bag, '--out', c.tmp / 'an_topic', '--topic',
                   'lateral_error=/nope')
@@ -593,6 +632,7 @@ def _analyze():
         '--out': ((), out_folder),
         '--no-plots': ((), no_plots),
         '--topic': (('bogus=/x', 'novalue'), topic),
+        '--overwrite': ((), overwrite),
     }
 
 

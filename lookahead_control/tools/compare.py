@@ -25,7 +25,7 @@ A law added later is one entry of :data:`LAWS`.
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import as_completed, ProcessPoolExecutor
 from dataclasses import dataclass, replace
 import math
 from pathlib import Path
@@ -35,8 +35,8 @@ from typing import Any, Callable, Iterable, Mapping, Optional, Sequence
 from lookahead_control.analysis.metrics import step_metrics
 from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrParams,
                                               PurePursuitParams, StanleyParams)
-from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, write_csv,
-                                        write_json)
+from lookahead_control.core.cli import (claim_output, markdown_table, number, parser,
+                                        record_output, run_tool, write_csv, write_json)
 from lookahead_control.core.control_law import arc_offset
 from lookahead_control.core.lane_keeping import CgCompensatedLaw
 from lookahead_control.core.laws import Law, PaperLaw
@@ -371,7 +371,8 @@ def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], Vehicle
 
 def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float],
            plants: Sequence[PlantCase], vehicle: VehicleParams, dt: float = DT,
-           workers: int = 1, duration: Optional[float] = None) -> list[dict[str, Any]]:
+           workers: int = 1, duration: Optional[float] = None,
+           progress: bool = False) -> list[dict[str, Any]]:
     """
     Run the league: every law on every scenario, plant and speed.
 
@@ -383,19 +384,37 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     :param dt: plant step [s].
     :param workers: processes (1: in this process).
     :param duration: cut every scenario to this duration [s] (None: their own; tests).
+    :param progress: show a progress bar on stderr (one step per law and scenario).
     :return: one row per run, in a fixed order (law, scenario, plant, speed).
     """
     loaded = load_scenarios(scenarios)
     tasks = [(law, name, scenario_speeds(loaded[name], speeds), tuple(plants), vehicle, dt,
               duration) for law in laws for name in scenarios]
-    if workers <= 1:
-        results = [run_case(task) for task in tasks]
-    else:
-        # the longest tasks first (S5 runs 30 s at one speed); rows in the tasks' order
-        order = sorted(range(len(tasks)), key=lambda i: tasks[i][1] != 's5_envelope')
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {i: pool.submit(run_case, tasks[i]) for i in order}
-            results = [futures[i].result() for i in range(len(tasks))]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(tasks), desc='compare', unit='case', mininterval=0.5)
+    try:
+        if workers <= 1:
+            results = []
+            for task in tasks:
+                results.append(run_case(task))
+                if bar is not None:
+                    bar.update(1)
+        else:
+            # the longest tasks first (S5 runs 30 s at one speed); rows in the tasks' order
+            order = sorted(range(len(tasks)), key=lambda i: tasks[i][1] != 's5_envelope')
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                futures = {pool.submit(run_case, tasks[i]): i for i in order}
+                done: dict[int, list[dict[str, Any]]] = {}
+                for future in as_completed(futures):
+                    done[futures[future]] = future.result()
+                    if bar is not None:
+                        bar.update(1)
+            results = [done[i] for i in range(len(tasks))]
+    finally:
+        if bar is not None:
+            bar.close()
     return [row for rows in results for row in rows]
 
 
@@ -650,13 +669,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--workers', type=number(1, 256, integer=True), default=2,
                    help='processes')
     p.add_argument('--out', type=Path, default=Path('bags') / 'compare',
-                   help='folder for league.md, league.csv, league.png')
+                   help='folder for league.md, league.csv, league.png (new, empty or '
+                   'written by compare; see --overwrite)')
+    p.add_argument('--overwrite', action='store_true',
+                   help='write into a non-empty --out folder compare did not write, '
+                   'replacing files of its names there (nothing else is touched)')
     p.add_argument('--no-plots', action='store_true')
+    p.add_argument('--no-progress', action='store_true',
+                   help='no progress bar (it goes to stderr, one step per law and scenario)')
     p.add_argument('--tune', action='store_true',
                    help="score the baselines' tuning grids instead (writes tuning.csv)")
     args = p.parse_args(argv)
     from lookahead_control.core.config import load_vehicle
     vehicle = load_vehicle(args.vehicle)
+    previous = claim_output(args.out, 'compare', args.overwrite)   # before any run
     start = time.monotonic()
     if args.tune:
         names = [n for n in args.laws if n in TUNING_GRIDS] or list(TUNING_GRIDS)
@@ -664,14 +690,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(markdown_table(rows, digits=4))
         args.out.mkdir(parents=True, exist_ok=True)
         write_csv(args.out / 'tuning.csv', rows)
+        record_output(args.out, 'compare', [args.out / 'tuning.csv'], previous)
         if args.json:
             write_json(args.json, rows)
         print(f'wrote {args.out / "tuning.csv"} in {time.monotonic() - start:.0f} s')
         return 0
     plants = [c for c in PLANTS if c.name in args.plants]
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
-                  args.workers)
+                  args.workers, progress=not args.no_progress)
     report = write_report(rows, args.laws, args.out, plot=not args.no_plots)
+    record_output(args.out, 'compare', [args.out / name for name in (
+        'league.csv', 'league.md', *(() if args.no_plots else ('league.png',)))], previous)
     table = summary(rows, args.laws)
     print(markdown_table(table, digits=3))
     if args.json:
