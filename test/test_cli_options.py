@@ -23,6 +23,7 @@ without the option), a bad value must be refused in one line naming the option, 
 any process or file is made.
 """
 
+from concurrent.futures import ThreadPoolExecutor
 import hashlib
 import json
 import math
@@ -66,8 +67,11 @@ def run(exe, *args, cwd=ROOT, timeout=300, env=None):
 def test_help_prints_usage_and_starts_nothing(exe, tmp_path):
     # an invalid domain: a node started despite --help would fail to be created
     env = {**ENV, 'ROS_DOMAIN_ID': '99999'}
-    for flag in ('--help', '-h'):
-        out = run(exe, flag, cwd=tmp_path, timeout=60, env=env)
+    flags = ('--help', '-h')
+    with ThreadPoolExecutor(max_workers=2) as pool:     # two independent processes
+        outs = list(pool.map(lambda flag: run(exe, flag, cwd=tmp_path, timeout=60,
+                                              env=env), flags))
+    for flag, out in zip(flags, outs):
         assert out.returncode == 0, (exe, flag, out.stderr)
         assert out.stdout.startswith('usage: ') and exe in out.stdout.splitlines()[0]
         assert out.stderr == '', (exe, out.stderr)
@@ -443,7 +447,7 @@ def _compare():
     def tune(c):
         folder = c.folder('cmp_tune')
         _ok(run('compare', '--tune', '--laws', 'pure_pursuit', '--workers', '2', '--out',
-                folder, cwd=folder))
+                folder, '--duration', '4', cwd=folder))     # the S1 step comes at 2 s
         text = (folder / 'tuning.csv').read_text()
         assert text.count('pure_pursuit') == 6 and 'best' in text.splitlines()[0]
     return {
@@ -460,6 +464,7 @@ def _compare():
         '--tune': ((), tune),
         '--overwrite': ((), overwrite),
         '--no-progress': ((), no_progress),
+        '--duration': (NON_NUMBERS + ('0', '-1', '1e9'), differs('--duration', '3')),
     }
 
 
@@ -758,11 +763,14 @@ def test_option_bad_values_are_refused_in_one_line(exe, option, ctx):
     bad, _ = CASES[exe][option]
     folder = ctx.folder(f'bad_{exe}')
     before = sorted(folder.iterdir())
-    for value in bad:
-        lead = POSITIONAL[exe](ctx) if exe in POSITIONAL else []
-        extra = ['--offline'] if exe == 'replay' and option in (
-            '--param', '--topic', '--order') else []
-        out = run(exe, *lead, *extra, option, value, cwd=folder, timeout=60)
+    lead = POSITIONAL[exe](ctx) if exe in POSITIONAL else []
+    extra = ['--offline'] if exe == 'replay' and option in (
+        '--param', '--topic', '--order') else []
+    # two refusals at a time (independent processes; the suite otherwise uses one core)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        outs = list(pool.map(lambda value: run(exe, *lead, *extra, option, value,
+                                               cwd=folder, timeout=60), bad))
+    for value, out in zip(bad, outs):
         assert out.returncode == 2, (option, value, out.stdout, out.stderr)
         lines = out.stderr.strip().splitlines()
         assert len(lines) == 1, (option, value, out.stderr)

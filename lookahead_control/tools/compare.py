@@ -61,6 +61,7 @@ NOISE_SEED = 1                  # seeds: speed_seed(speed): a run repeats in any
 FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last second
 NOISE_SCENARIO = 's0_straight'  # steering noise: command with noise minus without, here
 MAX_SPEED = 90.0                # [m/s] the scenarios' limit
+MAX_DURATION = 600.0            # [s] of simulated time per run (--duration)
 DT = 0.005                      # [s] plant step (CommonRoad's multi-body model: 0.002)
 
 
@@ -532,7 +533,7 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
 
 
 def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Path,
-                 plot: bool = True) -> Path:
+                 plot: bool = True, duration: Optional[float] = None) -> Path:
     """
     Write league.csv (every run), league.md (summary, goals, per scenario), league.png.
 
@@ -540,6 +541,7 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
     :param laws: the laws.
     :param out: the output folder.
     :param plot: also write the PNG.
+    :param duration: the runs were cut to this duration [s] (said in the table's head).
     :return: the markdown file.
     """
     out.mkdir(parents=True, exist_ok=True)
@@ -553,6 +555,9 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         f'{1000 * DELAY:g} ms transport delay, default sensor noise). Worst case over the '
         'runs of each column; goals as in issue 14 (a NaN metric counts as missed). '
         'Definitions: docs/baselines.md.', '',
+        *([] if duration is None else [
+            f'**Every scenario cut to {duration:g} s of simulated time (`--duration`): a '
+            "quick look, not the league; the goal rows assume the scenarios' own.**", '']),
         markdown_table(summary(rows, laws), digits=3), '']
     for plant in plants:
         text += [f'## Peak CG error [cm] at 37 m/s, plant `{plant}` (S5: its profile)', '',
@@ -586,15 +591,19 @@ TUNING_SPEEDS = (30.0, 37.0)    # where the laws differ (10-20 m/s: all within 3
 TUNING_DT = 0.005               # [s] plant step of the tuning runs
 
 
-def tune_point(task: tuple[str, Any, VehicleParams, float]) -> dict[str, Any]:
+def tune_point(task: tuple[str, Any, VehicleParams, float, Optional[float]]
+               ) -> dict[str, Any]:
     """
     Score one parameter set: worst peak CG error on S1 and S2, S0 noise at 37 m/s.
 
-    :param task: ``(law, params, vehicle, dt)``.
+    :param task: ``(law, params, vehicle, dt, duration)`` (duration None: the
+        scenarios' own).
     :return: the scores and parameters.
     """
-    name, params, vehicle, dt = task
+    name, params, vehicle, dt, duration = task
     scenarios = load_scenarios(('s0_straight', 's1_paper_step', 's2_curve_entry'))
+    if duration is not None:
+        scenarios = {k: replace(v, duration=duration) for k, v in scenarios.items()}
     law = baseline_law(name, vehicle, replace(BaselineParams(), **{name: params}))
     case = next(p for p in PLANTS if p.name == GOAL_PLANT)
     v0 = np.asarray(TUNING_SPEEDS)
@@ -624,8 +633,8 @@ GRID_FIELDS = {'pure_pursuit': ('velocity_ratio', 'curvature_ratio'),
 ALL_GRID_FIELDS = tuple(f for fields in GRID_FIELDS.values() for f in fields)
 
 
-def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int
-         ) -> list[dict[str, Any]]:
+def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int,
+         duration: Optional[float] = None) -> list[dict[str, Any]]:
     """
     Score each baseline's grid; the best is the feasible point with the least peak error.
 
@@ -633,9 +642,11 @@ def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int
     :param vehicle: the vehicle.
     :param dt: plant step [s].
     :param workers: processes.
+    :param duration: cut every scenario to this duration [s] (None: their own).
     :return: one row per grid point, the chosen ones marked ``best``.
     """
-    tasks = [(name, params, vehicle, dt) for name in laws for params in TUNING_GRIDS[name]]
+    tasks = [(name, params, vehicle, dt, duration) for name in laws
+             for params in TUNING_GRIDS[name]]
     with ProcessPoolExecutor(max_workers=max(workers, 1)) as pool:
         rows = list(pool.map(tune_point, tasks))
     for name in laws:
@@ -668,6 +679,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='plant step [s] (CommonRoad: 0.002)')
     p.add_argument('--workers', type=number(1, 256, integer=True), default=2,
                    help='processes')
+    p.add_argument('--duration', type=number(0.0, MAX_DURATION, low_open=True, unit='s'),
+                   default=None, metavar='S',
+                   help='cut every scenario to S seconds of simulated time (a quick look; '
+                   "default: each scenario's own, which the goal rows assume)")
     p.add_argument('--out', type=Path, default=Path('bags') / 'compare',
                    help='folder for league.md, league.csv, league.png (new, empty or '
                    'written by compare; see --overwrite)')
@@ -686,7 +701,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     start = time.monotonic()
     if args.tune:
         names = [n for n in args.laws if n in TUNING_GRIDS] or list(TUNING_GRIDS)
-        rows = tune(names, vehicle, TUNING_DT, args.workers)
+        rows = tune(names, vehicle, TUNING_DT, args.workers, args.duration)
         print(markdown_table(rows, digits=4))
         args.out.mkdir(parents=True, exist_ok=True)
         write_csv(args.out / 'tuning.csv', rows)
@@ -697,8 +712,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     plants = [c for c in PLANTS if c.name in args.plants]
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
-                  args.workers, progress=not args.no_progress)
-    report = write_report(rows, args.laws, args.out, plot=not args.no_plots)
+                  args.workers, args.duration, progress=not args.no_progress)
+    report = write_report(rows, args.laws, args.out, plot=not args.no_plots,
+                          duration=args.duration)
     record_output(args.out, 'compare', [args.out / name for name in (
         'league.csv', 'league.md', *(() if args.no_plots else ('league.png',)))], previous)
     table = summary(rows, args.laws)
