@@ -130,3 +130,6 @@ def test_an_existing_league_it_did_not_write_is_refused_before_any_run(tmp_path,
     assert 'compare: 100%' in err and '1/1' in err          # the progress bar
     assert run_tool(compare.main, ['--out', str(mine / 'league.md'), *TINY]) == 2
     assert 'is a file' in capsys.readouterr().err
+    # a folder it cannot make: one line before any run (not after the league)
+    assert run_tool(compare.main, ['--out', str(mine / 'league.md' / 'x'), *TINY]) == 2
+    assert 'cannot create it' in capsys.readouterr().err

@@ -273,9 +273,9 @@ def claim_output(out: Path, tool: str, overwrite: bool = False) -> frozenset[str
     """
     Check that ``tool`` may write into ``out`` before it runs; never delete anything.
 
-    A missing or empty folder, or one that ``tool`` wrote (its manifest is there), is
-    fine. Any other non-empty folder is refused unless ``overwrite``: then files of the
-    tool's names are replaced and nothing else is touched.
+    A missing or empty folder (created here), or one that ``tool`` wrote (its manifest is
+    there), is fine. Any other non-empty folder is refused unless ``overwrite``: then
+    files of the tool's names are replaced and nothing else is touched.
 
     :param out: the ``--out`` folder.
     :param tool: the tool's name (the manifest's and the message's).
@@ -294,6 +294,10 @@ def claim_output(out: Path, tool: str, overwrite: bool = False) -> frozenset[str
                         f'{", ".join(entries[:3])}{" ..." if len(entries) > 3 else ""}); '
                         'give a new or empty folder, or --overwrite to replace files of '
                         f"{tool}'s names there")
+    try:
+        out.mkdir(parents=True, exist_ok=True)      # unwritable: one line, before any run
+    except OSError as err:
+        raise ToolError(f'--out {out}: cannot create it ({err.strerror})') from err
     return frozenset()
 
 
