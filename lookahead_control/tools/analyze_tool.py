@@ -171,9 +171,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                    f'ROLE is one of {", ".join(TOPICS)}')
     p.add_argument('--no-plots', action='store_true', help='write no PNG plots')
     args = p.parse_args(argv)
-    topics = topic_overrides(args.topic)
+    results = analyze(args.bags, topic_overrides(args.topic))     # a bad bag: said first
     previous = claim_output(args.out, 'analyze', args.overwrite)
-    results = analyze(args.bags, topics)
     written: list[Path] = []
     report = write_outputs(results, args.out, plots=not args.no_plots, written=written)
     record_output(args.out, 'analyze', written, previous)
