@@ -410,6 +410,10 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
             raise ToolError(f'{manifest}: unreadable ({err}); remove it or use another '
                             '--out') from err
         differ = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+        if differ and not {'vehicle', 'controller'} <= set(old):
+            raise ToolError(f'{out} holds a sweep that did not record its vehicle and '
+                            'controller (an older version): it cannot be resumed safely; '
+                            'use another --out')
         if differ:
             raise ToolError(f'{out} holds another sweep (options differ: '
                             f'{", ".join(differ)}); use another --out or the same options')
