@@ -66,3 +66,20 @@ def probe():
     yield node, executor
     node.destroy_node()
     rclpy.try_shutdown(context=ctx)
+
+
+def feed(node, stamp, y=0.5, d=1.96, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-0.0025):
+    """
+    Deliver one set of contract inputs stamped ``stamp`` [ns] to a controller node.
+
+    A node on sim time gets its clock set to the stamp first (a fake clock that reads the
+    measurements' time); the lateral error goes last, as it triggers the command.
+    """
+    from lookahead_control.ros import conversions as conv
+    if node.get_clock().ros_time_is_active:
+        from rclpy.time import Time
+        node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
+    node.on_yaw(conv.to_yaw(stamp, 'base_link', eps, r, 0.0 - v_y * r))
+    node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, v_y, r))
+    node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
+    node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', d, y))

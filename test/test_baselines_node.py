@@ -16,6 +16,7 @@
 
 import math
 
+from conftest import feed
 from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, BaselineParams
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.controller import LAW_NAMES, SteeringController
@@ -109,16 +110,6 @@ def context():
     rclpy.try_shutdown(context=ctx)
 
 
-def _feed(node, stamp, y=0.5, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-0.0025):
-    from rclpy.time import Time
-    # a fake sim clock that reads the measurements' time (stamps are judged against it)
-    node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
-    node.on_yaw(conv.to_yaw(stamp, 'base_link', eps, r, 0.0 - v_y * r))
-    node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, v_y, r))
-    node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
-    node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 1.96, y))
-
-
 def test_node_switches_law_while_active_through_the_rate_limiter(context):
     from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
@@ -128,7 +119,7 @@ def test_node_switches_law_while_active_through_the_rate_limiter(context):
         node.trigger_configure()
         node.trigger_activate()
         for k in range(1, 200):
-            _feed(node, k * 10 * MS)
+            feed(node, k * 10 * MS)
         assert node.core.law_name == 'stanley'
         before = node.core.last.steering
         refused = node.set_parameters([Parameter('law', value='mpc')])[0]
@@ -140,7 +131,7 @@ def test_node_switches_law_while_active_through_the_rate_limiter(context):
         refused = node.set_parameters([Parameter('stanley.gain', value=-1.0)])[0]
         assert not refused.successful
         assert node.set_parameters([Parameter('law', value='lqr')])[0].successful
-        _feed(node, 200 * 10 * MS)
+        feed(node, 200 * 10 * MS)
         assert node.core.law_name == 'lqr'
         assert abs(node.core.last.steering - before) <= 0.5 * 0.01 + 1e-12
         # bad data under the new law: refused by the same safety layer, never used

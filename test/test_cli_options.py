@@ -23,6 +23,7 @@ without the option), a bad value must be refused in one line naming the option, 
 any process or file is made.
 """
 
+from concurrent.futures import ThreadPoolExecutor
 import hashlib
 import json
 import math
@@ -66,8 +67,11 @@ def run(exe, *args, cwd=ROOT, timeout=300, env=None):
 def test_help_prints_usage_and_starts_nothing(exe, tmp_path):
     # an invalid domain: a node started despite --help would fail to be created
     env = {**ENV, 'ROS_DOMAIN_ID': '99999'}
-    for flag in ('--help', '-h'):
-        out = run(exe, flag, cwd=tmp_path, timeout=60, env=env)
+    flags = ('--help', '-h')
+    with ThreadPoolExecutor(max_workers=2) as pool:     # two independent processes
+        outs = list(pool.map(lambda flag: run(exe, flag, cwd=tmp_path, timeout=60,
+                                              env=env), flags))
+    for flag, out in zip(flags, outs):
         assert out.returncode == 0, (exe, flag, out.stderr)
         assert out.stdout.startswith('usage: ') and exe in out.stdout.splitlines()[0]
         assert out.stderr == '', (exe, out.stderr)
@@ -243,6 +247,16 @@ def _paper():
                       cwd=folder)
         assert refused.returncode == 2 and '--no-plots' in refused.stderr
 
+    def overwrite(c):
+        folder = c.folder('paper_overwrite')
+        (folder / 'report.md').write_text('my report\n')
+        refused = run('paper_scenario', *PAPER_BASE, '--out', folder, '--no-plots')
+        assert refused.returncode == 2 and '--overwrite' in refused.stderr
+        assert (folder / 'report.md').read_text() == 'my report\n'
+        _ok(run('paper_scenario', *PAPER_BASE, '--out', folder, '--no-plots',
+                '--overwrite'))
+        assert (folder / 'report.md').read_text().startswith('# Paper scenario')
+
     def differs(*args):
         def effect(c):
             assert table(c, *args) != table(c)
@@ -250,6 +264,7 @@ def _paper():
     return {
         '--vehicle': ((), lambda c: differs('--vehicle', str(c.vehicle))(c)),
         '--controller': ((), lambda c: differs('--controller', str(c.controller))(c)),
+        '--overwrite': ((), overwrite),
         '--plant': (('bicycle',), differs('--plant', 'nonlinear')),
         '--speeds': (NON_NUMBERS + ('-5', '0', '200'), differs('--speeds', '30')),
         '--duration': (NON_NUMBERS + ('0', '-1', '1e9'), differs('--duration', '4')),
@@ -429,10 +444,26 @@ def _compare():
         table, _ = runs(c)
         assert [(r['law'], r['speed_mps']) for r in table] == [('paper_eq26', 37.0)], table
 
+    def overwrite(c):
+        folder = c.folder('cmp_overwrite')
+        (folder / 'league.md').write_text('a league compare did not write\n')
+        refused = run('compare', *COMPARE_BASE, '--out', folder, cwd=folder)
+        assert refused.returncode == 2 and '--overwrite' in refused.stderr
+        assert (folder / 'league.md').read_text() == 'a league compare did not write\n'
+        _ok(run('compare', *COMPARE_BASE, '--out', folder, '--overwrite', cwd=folder))
+        assert (folder / 'league.md').read_text().startswith('# League table')
+
+    def no_progress(c):
+        folder = c.folder('cmp_progress')
+        shown = _ok(run('compare', *COMPARE_BASE, '--out', folder / 'a', cwd=folder))
+        quiet = _ok(run('compare', *COMPARE_BASE, '--out', folder / 'b', '--no-progress',
+                        cwd=folder))
+        assert 'compare: 100%' in shown.stderr and quiet.stderr == ''
+
     def tune(c):
         folder = c.folder('cmp_tune')
         _ok(run('compare', '--tune', '--laws', 'pure_pursuit', '--workers', '2', '--out',
-                folder, cwd=folder))
+                folder, '--duration', '4', cwd=folder))     # the S1 step comes at 2 s
         text = (folder / 'tuning.csv').read_text()
         assert text.count('pure_pursuit') == 6 and 'best' in text.splitlines()[0]
     return {
@@ -447,6 +478,9 @@ def _compare():
         '--out': ((), out),
         '--no-plots': ((), no_plots),
         '--tune': ((), tune),
+        '--overwrite': ((), overwrite),
+        '--no-progress': ((), no_progress),
+        '--duration': (NON_NUMBERS + ('0', '-1', '1e9'), differs('--duration', '3')),
     }
 
 
@@ -601,6 +635,16 @@ def _analyze():
         _ok(run('analyze', c.bag, '--out', folder, '--no-plots'))
         assert not list(folder.glob('*.png'))
 
+    def overwrite(c):
+        folder = c.folder('an_overwrite')
+        (folder / 'metrics.csv').write_text('my metrics\n')
+        refused = run('analyze', c.bag, '--out', folder, '--no-plots')
+        assert refused.returncode == 2 and '--overwrite' in refused.stderr
+        assert (folder / 'metrics.csv').read_text() == 'my metrics\n'
+        _ok(run('analyze', c.bag, '--out', folder, '--no-plots', '--overwrite'))
+        assert (folder / 'metrics.csv').read_text() != 'my metrics\n'
+        _ok(run('analyze', c.bag, '--out', folder, '--no-plots'))    # its own, now
+
     def topic(c):
         out = run('analyze', c.bag, '--out', c.tmp / 'an_topic', '--topic',
                   'lateral_error=/nope')
@@ -609,6 +653,7 @@ def _analyze():
         '--out': ((), out_folder),
         '--no-plots': ((), no_plots),
         '--topic': (('bogus=/x', 'novalue'), topic),
+        '--overwrite': ((), overwrite),
     }
 
 
@@ -734,11 +779,14 @@ def test_option_bad_values_are_refused_in_one_line(exe, option, ctx):
     bad, _ = CASES[exe][option]
     folder = ctx.folder(f'bad_{exe}')
     before = sorted(folder.iterdir())
-    for value in bad:
-        lead = POSITIONAL[exe](ctx) if exe in POSITIONAL else []
-        extra = ['--offline'] if exe == 'replay' and option in (
-            '--param', '--topic', '--order') else []
-        out = run(exe, *lead, *extra, option, value, cwd=folder, timeout=60)
+    lead = POSITIONAL[exe](ctx) if exe in POSITIONAL else []
+    extra = ['--offline'] if exe == 'replay' and option in (
+        '--param', '--topic', '--order') else []
+    # two refusals at a time (independent processes; the suite otherwise uses one core)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        outs = list(pool.map(lambda value: run(exe, *lead, *extra, option, value,
+                                               cwd=folder, timeout=60), bad))
+    for value, out in zip(bad, outs):
         assert out.returncode == 2, (option, value, out.stdout, out.stderr)
         lines = out.stderr.strip().splitlines()
         assert len(lines) == 1, (option, value, out.stderr)

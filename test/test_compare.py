@@ -95,3 +95,41 @@ def test_small_league_is_deterministic_and_complete(tmp_path):
     assert '| paper_eq26 |' in text and '| lqr |' in text
     assert (tmp_path / 'league.csv').read_text().count('\n') == len(first) + 1
     assert (tmp_path / 'league.png').stat().st_size > 0
+
+
+TINY = ['--laws', 'paper_eq26', '--scenarios', 's0_straight', '--speeds', '10',
+        '--plants', 'linear', '--workers', '1', '--no-plots']
+
+
+def test_an_existing_league_it_did_not_write_is_refused_before_any_run(tmp_path, capsys):
+    from lookahead_control.core.cli import run_tool
+    out = tmp_path / 'league'
+    out.mkdir()
+    (out / 'league.md').write_text('the full league of another run\n')
+    (out / 'league.csv').write_text('law\nmine\n')
+    code = run_tool(compare.main, ['--out', str(out), *TINY])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count('\n') == 1, err
+    assert str(out) in err and 'league.csv' in err and '--overwrite' in err
+    assert (out / 'league.md').read_text() == 'the full league of another run\n'
+    assert sorted(p.name for p in out.iterdir()) == ['league.csv', 'league.md']
+    # --tune writes there too: refused alike
+    assert run_tool(compare.main, ['--out', str(out), '--tune', '--laws', 'lqr']) == 2
+    capsys.readouterr()
+    # --overwrite replaces files of its names and touches nothing else
+    (out / 'notes.txt').write_text('keep')
+    assert run_tool(compare.main, ['--out', str(out), '--overwrite', *TINY]) == 0
+    assert (out / 'league.md').read_text().startswith('# League table')
+    assert (out / 'notes.txt').read_text() == 'keep'
+    # a folder compare wrote is rewritten without the option, run after run
+    mine = tmp_path / 'mine'
+    for _ in range(2):
+        assert run_tool(compare.main, ['--out', str(mine), *TINY]) == 0
+    assert (mine / 'league.csv').read_text().count('\n') == 2
+    err = capsys.readouterr().err
+    assert 'compare: 100%' in err and '1/1' in err          # the progress bar
+    assert run_tool(compare.main, ['--out', str(mine / 'league.md'), *TINY]) == 2
+    assert 'is a file' in capsys.readouterr().err
+    # a folder it cannot make: one line before any run (not after the league)
+    assert run_tool(compare.main, ['--out', str(mine / 'league.md' / 'x'), *TINY]) == 2
+    assert 'cannot create it' in capsys.readouterr().err

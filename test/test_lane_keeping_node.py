@@ -15,8 +15,8 @@
 
 """The controller node with reference cg_compensated: parameters, law, resets (no DDS)."""
 
+from conftest import feed
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
-from lookahead_control.ros import conversions as conv
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -34,13 +34,8 @@ def context():
 
 
 def _feed(node, stamp, y=0.1, v_x=30.0, rho=-0.0025):
-    from rclpy.time import Time
-    # a fake sim clock that reads the measurements' time (stamps are judged against it)
-    node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
-    node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
-    node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, 0.0, 0.0))
-    node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
-    node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 0.0, y))
+    # straight and level apart from the lateral error (no yaw, no v_y, d = 0)
+    feed(node, stamp, y=y, d=0.0, eps=0.0, r=0.0, v_x=v_x, v_y=0.0, rho=rho)
 
 
 def test_node_selects_the_lane_keeping_law_by_parameter(context):

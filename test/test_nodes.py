@@ -16,6 +16,7 @@
 
 import math
 
+from conftest import feed
 from lookahead_control.core.control_law import LateralState, steering_law
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.ros import conversions as conv
@@ -81,21 +82,12 @@ def _at(node, now_ns):
     node.get_clock().set_ros_time_override(Time(nanoseconds=now_ns))
 
 
-def _feed(node, stamp, y=0.5, d=1.96, eps=0.01, r=0.02, v_x=25.0, v_y=0.1, rho=-0.0025):
-    if node.get_clock().ros_time_is_active:
-        _at(node, stamp)            # the fake clock reads the measurements' time
-    node.on_yaw(conv.to_yaw(stamp, 'base_link', eps, r, 0.0 - v_y * r))
-    node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, v_y, r))
-    node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, rho), (5.0, rho)]))
-    node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', d, y))
-
-
 def test_controller_node_answers_each_lateral_error(context):
     node = _controller(context)
     try:
         node.trigger_configure()
         node.trigger_activate()
-        _feed(node, 10_000_000)
+        feed(node, 10_000_000)
         command = node.core.last
         assert command is not None and command.stamp_ns == 10_000_000
         # the same numbers straight into the law: y_cg = 0.5 - 1.96 * 0.01; the
@@ -113,12 +105,12 @@ def test_inactive_controller_publishes_nothing(context):
     node = _controller(context)
     try:
         node.trigger_configure()
-        _feed(node, 1)
+        feed(node, 1)
         assert node.published == 0
         node.trigger_activate()
-        _feed(node, 2)
+        feed(node, 2)
         node.trigger_deactivate()
-        _feed(node, 3)
+        feed(node, 3)
         assert node.published == 1
     finally:
         node.destroy_node()
@@ -141,7 +133,7 @@ def test_matching_stamps_hold_the_answer_until_inputs_catch_up(context):
     try:
         node.trigger_configure()
         node.trigger_activate()
-        _feed(node, 100)
+        feed(node, 100)
         assert node.published == 1
         _at(node, 200)
         node.on_lateral_error(conv.to_lateral_error(200, 'base_link', 1.96, 0.4))
@@ -168,11 +160,11 @@ def test_parameter_changes_applied_or_refused(context):
         refused = node.set_parameters([Parameter('vehicle.mass', value=float('nan'))])[0]
         assert not refused.successful
         assert node.core.params.schedule == 'paper'
-        _feed(node, 1)
+        feed(node, 1)
         paper = node.core.last.law.d_v
         ok = node.set_parameters([Parameter('controller.schedule', value='fixed')])[0]
         assert ok.successful
-        _feed(node, 2)
+        feed(node, 2)
         assert node.core.params.schedule == 'fixed'
         assert node.core.last.law.d_v == 1.96 != paper
     finally:
@@ -257,7 +249,7 @@ def test_bad_inputs_are_refused_counted_and_never_used(context):
     try:
         node.trigger_configure()
         node.trigger_activate()
-        _feed(node, 10_000_000)
+        feed(node, 10_000_000)
         good = node.core.last
         _at(node, 20_000_000)
         node.on_yaw(conv.to_yaw(20_000_000, 'base_link', float('nan'), 0.0, 0.0))
@@ -283,7 +275,7 @@ def test_stale_inputs_hold_then_ramp_and_resume_without_a_jump(context):
         node.trigger_configure()
         node.trigger_activate()
         now = 1_000_000_000_000
-        _feed(node, now)
+        feed(node, now)
         start = core.last.steering
         assert start < -0.01
         # 0.3 s without inputs (timeout 0.2 s): hold for 0.5 s, then ramp at 0.1 rad/s
@@ -300,7 +292,7 @@ def test_stale_inputs_hold_then_ramp_and_resume_without_a_jump(context):
         assert node.diagnostics().level == DiagnosticStatus.ERROR
         # inputs return: the rate limit carries the command back, no jump
         t = now + int(2.2e9)
-        _feed(node, t)
+        feed(node, t)
         assert abs(core.last.steering - angles[-1]) <= 0.1 * 0.2 + 1e-12
     finally:
         node.destroy_node()

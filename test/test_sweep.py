@@ -15,6 +15,7 @@
 """The sweep tool: results, resume, a killed Dask worker, bad options (small batches)."""
 
 from dataclasses import replace
+import json
 import os
 from pathlib import Path
 
@@ -161,3 +162,27 @@ def test_a_failing_task_stops_the_sweep_and_keeps_finished_parts(tmp_path):
     assert len(list((tmp_path / 'e' / 'parts').glob('*.parquet'))) == 2
     table, count = _sweep(tmp_path / 'e')
     assert count == 2 and table.num_rows == 6
+
+
+def test_a_resume_with_another_vehicle_or_controller_is_refused(reference, tmp_path):
+    # the models are not options of the spec: before, the old parts were kept and the
+    # results silently mixed two vehicles (or were those of the old one)
+    folder, table = reference
+    before = sorted(p.name for p in (folder / 'parts').iterdir())
+    with pytest.raises(ToolError, match='options differ: controller'):
+        sw.sweep(SPEC, folder, vehicle=VEHICLE,
+                 controller=ControllerParams(natural_frequency=2.0), workers=0, plots=False)
+    with pytest.raises(ToolError, match='options differ: vehicle'):
+        sw.sweep(SPEC, folder, vehicle=replace(VEHICLE, mass=1600.0),
+                 controller=CONTROLLER, workers=0, plots=False)
+    assert sorted(p.name for p in (folder / 'parts').iterdir()) == before
+    again, count = _sweep(folder)                 # the same models: resumed, nothing to do
+    assert count == 0 and _same(again, table)
+    # a folder of the version that did not record them: refused, not guessed
+    manifest = json.loads((folder / 'sweep.json').read_text())
+    old = tmp_path / 'old'
+    (old / 'parts').mkdir(parents=True)
+    (old / 'sweep.json').write_text(json.dumps(
+        {k: v for k, v in manifest.items() if k not in ('vehicle', 'controller')}))
+    with pytest.raises(ToolError, match='did not record its vehicle and controller'):
+        _sweep(old)

@@ -254,3 +254,67 @@ def write_json(path: Path, data: Any) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(_jsonable(data), indent=2, allow_nan=False) + '\n',
                     encoding='utf-8')
+
+
+# -- output folders a tool may rewrite -----------------------------------------------------
+
+def output_manifest(out: Path, tool: str) -> Path:
+    """
+    Return the file in which ``tool`` lists what it wrote into ``out``.
+
+    :param out: the output folder.
+    :param tool: the tool's name.
+    :return: ``out/.<tool>_written``.
+    """
+    return out / f'.{tool}_written'
+
+
+def claim_output(out: Path, tool: str, overwrite: bool = False) -> frozenset[str]:
+    """
+    Check that ``tool`` may write into ``out`` before it runs; never delete anything.
+
+    A missing or empty folder (created here), or one that ``tool`` wrote (its manifest is
+    there), is fine. Any other non-empty folder is refused unless ``overwrite``: then
+    files of the tool's names are replaced and nothing else is touched.
+
+    :param out: the ``--out`` folder.
+    :param tool: the tool's name (the manifest's and the message's).
+    :param overwrite: the user allowed writing into a folder ``tool`` did not make.
+    :return: the names the tool's previous runs wrote there (empty if none).
+    :raises ToolError: ``out`` is a file, or a non-empty folder ``tool`` did not write.
+    """
+    if out.exists() and not out.is_dir():
+        raise ToolError(f'--out {out}: is a file, not a folder')
+    manifest = output_manifest(out, tool)
+    if manifest.is_file():
+        return frozenset(manifest.read_text(encoding='utf-8').split('\n')) - {''}
+    entries = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
+    if entries and not overwrite:
+        raise ToolError(f'--out {out}: not empty and not written by {tool} (holds '
+                        f'{", ".join(entries[:3])}{" ..." if len(entries) > 3 else ""}); '
+                        'give a new or empty folder, or --overwrite to replace files of '
+                        f"{tool}'s names there")
+    try:
+        out.mkdir(parents=True, exist_ok=True)      # unwritable: one line, before any run
+    except OSError as err:
+        raise ToolError(f'--out {out}: cannot create it ({err.strerror})') from err
+    return frozenset()
+
+
+def record_output(out: Path, tool: str, written: Sequence[Path],
+                  previous: frozenset[str] = frozenset()) -> None:
+    """
+    List what ``tool`` wrote into ``out`` (its previous runs' files stay listed).
+
+    Nothing is deleted: a file an earlier run wrote and this one did not stays, listed.
+
+    :param out: the output folder.
+    :param tool: the tool's name.
+    :param written: the files this run wrote (those outside ``out`` are ignored).
+    :param previous: :func:`claim_output`'s answer (the previous runs' files).
+    """
+    mine = {p.name for p in written if p.parent.resolve() == out.resolve()}
+    manifest = output_manifest(out, tool)
+    tmp = manifest.with_name(manifest.name + '.tmp')
+    tmp.write_text('\n'.join(sorted(mine | previous)) + '\n', encoding='utf-8')
+    os.replace(tmp, manifest)

@@ -25,8 +25,9 @@ from lookahead_control.analysis.bag_analysis import (bag_row, law_label, run_lab
 from lookahead_control.analysis.metrics import METRIC_COLUMNS, metrics_legend, notes_list
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid
 from lookahead_control.bags.run_data import load_run, RunData, TOPICS
-from lookahead_control.core.cli import (assignments, markdown_table, run_tool, ToolError,
-                                        write_csv, write_json)
+from lookahead_control.core.cli import (assignments, claim_output, markdown_table,
+                                        record_output, run_tool, ToolError, write_csv,
+                                        write_json)
 from lookahead_control.core.config import dataclass_from_params
 from lookahead_control.core.params import VehicleParams
 
@@ -94,7 +95,8 @@ def curve_vehicle(runs: Sequence[RunData]) -> tuple[VehicleParams, str]:
 
 
 def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
-                  out: Path, plots: bool = True, title: str = 'Recorded runs') -> Path:
+                  out: Path, plots: bool = True, title: str = 'Recorded runs',
+                  written: list[Path] | None = None) -> Path:
     """
     Write ``report.md``, ``metrics.csv``, ``metrics.json`` and the PNG plots.
 
@@ -102,8 +104,10 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
     :param out: the folder.
     :param plots: also write the plots.
     :param title: the report's heading.
+    :param written: if given, every file written is appended to it.
     :return: the report's path.
     """
+    files = [out / 'metrics.csv', out / 'metrics.json']
     out.mkdir(parents=True, exist_ok=True)
     rows = [{k: row[k] for k in (*COLUMNS, 'notes')} for _, _, row in results]
     write_csv(out / 'metrics.csv', rows)
@@ -129,10 +133,12 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
         for label, runs in groups.items():
             png = plot_runs(runs, out / f'fig_{label}.png',
                             f'{LAW_TITLES.get(label, "law " + label)}: one line per bag')
+            files.append(png)
             text.append(f'![{label}]({png.name})')
         overlay = [{'label': run_label(row), 'time': s.time, **s.channels}
                    for _, s, row in results]
         png = plot_runs(overlay, out / 'overlay.png', 'all bags')
+        files.append(png)
         text.append(f'![overlay]({png.name})')
         top = max(float(s.channels['v_x'].max()) for _, s, _ in results)
         vehicle, said = curve_vehicle([run for run, _, _ in results])
@@ -140,9 +146,12 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
         curve = schedule_table(vehicle, speed_grid(1.0, max(top, 40.0), 0.5))
         png = plot_measured_look_ahead(curve, speed_points([s for _, s, _ in results]),
                                        out / 'look_ahead_vs_speed.png')
+        files.append(png)
         text.append(f'![d_v vs speed]({png.name})')
     report = out / 'report.md'
     report.write_text('\n'.join(text) + '\n', encoding='utf-8')
+    if written is not None:
+        written.extend([*files, report])
     return report
 
 
@@ -157,14 +166,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 'from rosbag2 MCAP bags with the contract topics')
     p.add_argument('bags', type=Path, nargs='+')
     p.add_argument('--out', type=Path, default=Path('bags') / 'analysis',
-                   help='folder for report.md, metrics.csv/json and PNGs')
+                   help='folder for report.md, metrics.csv/json and PNGs (new, empty or '
+                   'written by analyze; see --overwrite)')
+    p.add_argument('--overwrite', action='store_true',
+                   help='write into a non-empty --out folder analyze did not write, '
+                   'replacing files of its names there (nothing else is touched)')
     p.add_argument('--topic', action='append', default=[], metavar='ROLE=TOPIC',
                    help='contract topic name in the bags, e.g. lateral_error=/lane/offset; '
                    f'ROLE is one of {", ".join(TOPICS)}')
     p.add_argument('--no-plots', action='store_true', help='write no PNG plots')
     args = p.parse_args(argv)
-    results = analyze(args.bags, topic_overrides(args.topic))
-    report = write_outputs(results, args.out, plots=not args.no_plots)
+    results = analyze(args.bags, topic_overrides(args.topic))     # a bad bag: said first
+    previous = claim_output(args.out, 'analyze', args.overwrite)
+    written: list[Path] = []
+    report = write_outputs(results, args.out, plots=not args.no_plots, written=written)
+    record_output(args.out, 'analyze', written, previous)
     rows = [{k: row[k] for k in (*COLUMNS, 'notes')} for _, _, row in results]
     print(markdown_table(rows, COLUMNS, digits=3))
     print('\n'.join(notes_list(rows, ('bag',))))

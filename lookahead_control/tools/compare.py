@@ -25,7 +25,7 @@ A law added later is one entry of :data:`LAWS`.
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import as_completed, ProcessPoolExecutor
 from dataclasses import dataclass, replace
 import math
 from pathlib import Path
@@ -35,8 +35,8 @@ from typing import Any, Callable, Iterable, Mapping, Optional, Sequence
 from lookahead_control.analysis.metrics import step_metrics
 from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrParams,
                                               PurePursuitParams, StanleyParams)
-from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, write_csv,
-                                        write_json)
+from lookahead_control.core.cli import (claim_output, markdown_table, number, parser,
+                                        record_output, run_tool, write_csv, write_json)
 from lookahead_control.core.control_law import arc_offset
 from lookahead_control.core.lane_keeping import CgCompensatedLaw
 from lookahead_control.core.laws import Law, PaperLaw
@@ -61,6 +61,7 @@ NOISE_SEED = 1                  # seeds: speed_seed(speed): a run repeats in any
 FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last second
 NOISE_SCENARIO = 's0_straight'  # steering noise: command with noise minus without, here
 MAX_SPEED = 90.0                # [m/s] the scenarios' limit
+MAX_DURATION = 600.0            # [s] of simulated time per run (--duration)
 DT = 0.005                      # [s] plant step (CommonRoad's multi-body model: 0.002)
 
 
@@ -371,7 +372,8 @@ def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], Vehicle
 
 def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float],
            plants: Sequence[PlantCase], vehicle: VehicleParams, dt: float = DT,
-           workers: int = 1, duration: Optional[float] = None) -> list[dict[str, Any]]:
+           workers: int = 1, duration: Optional[float] = None,
+           progress: bool = False) -> list[dict[str, Any]]:
     """
     Run the league: every law on every scenario, plant and speed.
 
@@ -383,19 +385,37 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     :param dt: plant step [s].
     :param workers: processes (1: in this process).
     :param duration: cut every scenario to this duration [s] (None: their own; tests).
+    :param progress: show a progress bar on stderr (one step per law and scenario).
     :return: one row per run, in a fixed order (law, scenario, plant, speed).
     """
     loaded = load_scenarios(scenarios)
     tasks = [(law, name, scenario_speeds(loaded[name], speeds), tuple(plants), vehicle, dt,
               duration) for law in laws for name in scenarios]
-    if workers <= 1:
-        results = [run_case(task) for task in tasks]
-    else:
-        # the longest tasks first (S5 runs 30 s at one speed); rows in the tasks' order
-        order = sorted(range(len(tasks)), key=lambda i: tasks[i][1] != 's5_envelope')
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {i: pool.submit(run_case, tasks[i]) for i in order}
-            results = [futures[i].result() for i in range(len(tasks))]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(tasks), desc='compare', unit='case', mininterval=0.5)
+    try:
+        if workers <= 1:
+            results = []
+            for task in tasks:
+                results.append(run_case(task))
+                if bar is not None:
+                    bar.update(1)
+        else:
+            # the longest tasks first (S5 runs 30 s at one speed); rows in the tasks' order
+            order = sorted(range(len(tasks)), key=lambda i: tasks[i][1] != 's5_envelope')
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                futures = {pool.submit(run_case, tasks[i]): i for i in order}
+                done: dict[int, list[dict[str, Any]]] = {}
+                for future in as_completed(futures):
+                    done[futures[future]] = future.result()
+                    if bar is not None:
+                        bar.update(1)
+            results = [done[i] for i in range(len(tasks))]
+    finally:
+        if bar is not None:
+            bar.close()
     return [row for rows in results for row in rows]
 
 
@@ -513,7 +533,7 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
 
 
 def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Path,
-                 plot: bool = True) -> Path:
+                 plot: bool = True, duration: Optional[float] = None) -> Path:
     """
     Write league.csv (every run), league.md (summary, goals, per scenario), league.png.
 
@@ -521,6 +541,7 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
     :param laws: the laws.
     :param out: the output folder.
     :param plot: also write the PNG.
+    :param duration: the runs were cut to this duration [s] (said in the table's head).
     :return: the markdown file.
     """
     out.mkdir(parents=True, exist_ok=True)
@@ -534,6 +555,9 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         f'{1000 * DELAY:g} ms transport delay, default sensor noise). Worst case over the '
         'runs of each column; goals as in issue 14 (a NaN metric counts as missed). '
         'Definitions: docs/baselines.md.', '',
+        *([] if duration is None else [
+            f'**Every scenario cut to {duration:g} s of simulated time (`--duration`): a '
+            "quick look, not the league; the goal rows assume the scenarios' own.**", '']),
         markdown_table(summary(rows, laws), digits=3), '']
     for plant in plants:
         text += [f'## Peak CG error [cm] at 37 m/s, plant `{plant}` (S5: its profile)', '',
@@ -567,15 +591,19 @@ TUNING_SPEEDS = (30.0, 37.0)    # where the laws differ (10-20 m/s: all within 3
 TUNING_DT = 0.005               # [s] plant step of the tuning runs
 
 
-def tune_point(task: tuple[str, Any, VehicleParams, float]) -> dict[str, Any]:
+def tune_point(task: tuple[str, Any, VehicleParams, float, Optional[float]]
+               ) -> dict[str, Any]:
     """
     Score one parameter set: worst peak CG error on S1 and S2, S0 noise at 37 m/s.
 
-    :param task: ``(law, params, vehicle, dt)``.
+    :param task: ``(law, params, vehicle, dt, duration)`` (duration None: the
+        scenarios' own).
     :return: the scores and parameters.
     """
-    name, params, vehicle, dt = task
+    name, params, vehicle, dt, duration = task
     scenarios = load_scenarios(('s0_straight', 's1_paper_step', 's2_curve_entry'))
+    if duration is not None:
+        scenarios = {k: replace(v, duration=duration) for k, v in scenarios.items()}
     law = baseline_law(name, vehicle, replace(BaselineParams(), **{name: params}))
     case = next(p for p in PLANTS if p.name == GOAL_PLANT)
     v0 = np.asarray(TUNING_SPEEDS)
@@ -605,8 +633,8 @@ GRID_FIELDS = {'pure_pursuit': ('velocity_ratio', 'curvature_ratio'),
 ALL_GRID_FIELDS = tuple(f for fields in GRID_FIELDS.values() for f in fields)
 
 
-def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int
-         ) -> list[dict[str, Any]]:
+def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int,
+         duration: Optional[float] = None) -> list[dict[str, Any]]:
     """
     Score each baseline's grid; the best is the feasible point with the least peak error.
 
@@ -614,9 +642,11 @@ def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int
     :param vehicle: the vehicle.
     :param dt: plant step [s].
     :param workers: processes.
+    :param duration: cut every scenario to this duration [s] (None: their own).
     :return: one row per grid point, the chosen ones marked ``best``.
     """
-    tasks = [(name, params, vehicle, dt) for name in laws for params in TUNING_GRIDS[name]]
+    tasks = [(name, params, vehicle, dt, duration) for name in laws
+             for params in TUNING_GRIDS[name]]
     with ProcessPoolExecutor(max_workers=max(workers, 1)) as pool:
         rows = list(pool.map(tune_point, tasks))
     for name in laws:
@@ -649,29 +679,44 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='plant step [s] (CommonRoad: 0.002)')
     p.add_argument('--workers', type=number(1, 256, integer=True), default=2,
                    help='processes')
+    p.add_argument('--duration', type=number(0.0, MAX_DURATION, low_open=True, unit='s'),
+                   default=None, metavar='S',
+                   help='cut every scenario to S seconds of simulated time (a quick look; '
+                   "default: each scenario's own, which the goal rows assume)")
     p.add_argument('--out', type=Path, default=Path('bags') / 'compare',
-                   help='folder for league.md, league.csv, league.png')
+                   help='folder for league.md, league.csv, league.png (new, empty or '
+                   'written by compare; see --overwrite)')
+    p.add_argument('--overwrite', action='store_true',
+                   help='write into a non-empty --out folder compare did not write, '
+                   'replacing files of its names there (nothing else is touched)')
     p.add_argument('--no-plots', action='store_true')
+    p.add_argument('--no-progress', action='store_true',
+                   help='no progress bar (it goes to stderr, one step per law and scenario)')
     p.add_argument('--tune', action='store_true',
                    help="score the baselines' tuning grids instead (writes tuning.csv)")
     args = p.parse_args(argv)
     from lookahead_control.core.config import load_vehicle
     vehicle = load_vehicle(args.vehicle)
+    previous = claim_output(args.out, 'compare', args.overwrite)   # before any run
     start = time.monotonic()
     if args.tune:
         names = [n for n in args.laws if n in TUNING_GRIDS] or list(TUNING_GRIDS)
-        rows = tune(names, vehicle, TUNING_DT, args.workers)
+        rows = tune(names, vehicle, TUNING_DT, args.workers, args.duration)
         print(markdown_table(rows, digits=4))
         args.out.mkdir(parents=True, exist_ok=True)
         write_csv(args.out / 'tuning.csv', rows)
+        record_output(args.out, 'compare', [args.out / 'tuning.csv'], previous)
         if args.json:
             write_json(args.json, rows)
         print(f'wrote {args.out / "tuning.csv"} in {time.monotonic() - start:.0f} s')
         return 0
     plants = [c for c in PLANTS if c.name in args.plants]
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
-                  args.workers)
-    report = write_report(rows, args.laws, args.out, plot=not args.no_plots)
+                  args.workers, args.duration, progress=not args.no_progress)
+    report = write_report(rows, args.laws, args.out, plot=not args.no_plots,
+                          duration=args.duration)
+    record_output(args.out, 'compare', [args.out / name for name in (
+        'league.csv', 'league.md', *(() if args.no_plots else ('league.png',)))], previous)
     table = summary(rows, args.laws)
     print(markdown_table(table, digits=3))
     if args.json:

@@ -152,6 +152,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    f'{DEFAULT_OUT} when neither --plot nor --json is given)')
     p.add_argument('--no-plots', action='store_true',
                    help='write no PNG into the --out folder')
+    p.add_argument('--overwrite', action='store_true',
+                   help='replace report files in an --out folder paper_scenario did not '
+                   'write (nothing else there is touched)')
     args = p.parse_args(argv)
     out = args.out
     if out is None and args.plot is None and args.json is None:
@@ -159,7 +162,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.no_plots and out is None:
         raise ToolError('--no-plots: no report folder is written (give --out)')
     if out is not None:
-        check_out(out)              # before the runs: nothing of the user's is replaced
+        check_out(out, args.overwrite)  # before the runs: nothing of the user's is replaced
     runs = reproduce(load_vehicle(args.vehicle), load_controller(args.controller),
                      PlantParams(model=args.plant), args.speeds, args.duration)
     rows = metrics_rows(runs)
@@ -182,22 +185,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-def check_out(out: Path) -> None:
+def check_out(out: Path, overwrite: bool = False) -> None:
     """
     Refuse an output folder holding files of the report's names that this tool did not write.
 
     :param out: the ``--out`` folder.
+    :param overwrite: the user allowed replacing them.
     :raises ToolError: ``out`` is a file, or would lose a file it did not write.
     """
     if out.exists() and not out.is_dir():
         raise ToolError(f'--out {out}: is a file, not a folder')
-    if not out.is_dir() or (out / MARKER).is_file():
+    if not out.is_dir() or (out / MARKER).is_file() or overwrite:
         return
     taken = sorted(p.name for p in out.iterdir() if p.name in REPORT_FILES
                    or (p.name.startswith('fig_') and p.suffix == '.png'))
     if taken:
         raise ToolError(f'--out {out}: holds {", ".join(taken)}, not written by '
-                        'paper_scenario; give a new or empty folder')
+                        'paper_scenario; give a new or empty folder, or --overwrite to '
+                        'replace them')
 
 
 def entry() -> int:

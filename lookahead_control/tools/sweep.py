@@ -24,8 +24,8 @@ of the offline runner. Tasks go to a ``dask.distributed`` cluster: a local one b
 default (``--workers``), an existing one with ``--scheduler ADDRESS``, or none
 (``--workers 0``: this process).
 
-Output folder: ``sweep.json`` (the sweep's options), ``parts/<task>.parquet`` (each
-finished task's rows, written atomically by this process as the task finishes: a killed
+Output folder: ``sweep.json`` (the sweep's options and models), ``parts/<task>.parquet``
+(each finished task's rows, written atomically by this process as the task finishes: a killed
 worker loses only its unfinished task, which Dask reruns; a killed sweep is resumed by
 running it again with the same options and output folder), ``results.parquet`` (one
 row per run: every parameter and metric), ``summary.md`` / ``summary.csv`` (per law:
@@ -372,23 +372,48 @@ def write_parquet(columns: Mapping[str, Sequence[Any]], path: Path) -> None:
     os.replace(tmp, path)
 
 
-def prepare(out: Path, spec: SweepSpec) -> None:
+def manifest_data(spec: SweepSpec, vehicle: VehicleParams,
+                  controller: ControllerParams) -> dict[str, Any]:
+    """
+    Return what ``sweep.json`` holds: the options and the models every run used.
+
+    :param spec: the sweep.
+    :param vehicle: the controller's vehicle model (the plants are it, scaled).
+    :param controller: the paper law's parameters.
+    :return: JSON data (as read back from the file).
+    """
+    data = {**spec.to_json(), 'vehicle': asdict(vehicle), 'controller': asdict(controller)}
+    return dict(json.loads(json.dumps(data)))
+
+
+def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
+            controller: ControllerParams | None = None) -> None:
     """
     Create the sweep folder, or check that it holds the same sweep (resume).
 
+    The same sweep: the same options and the same vehicle and controller models (a
+    resumed sweep must not mix runs of two models).
+
     :param out: the folder.
     :param spec: the sweep.
+    :param vehicle: the controller's vehicle model (default: config/vehicle.yaml).
+    :param controller: the paper law's parameters (default: config/controller.yaml).
     :raises ToolError: it holds another sweep.
     """
     manifest = out / 'sweep.json'
+    new = manifest_data(spec, vehicle or load_vehicle(None),
+                        controller or load_controller(None))
     if manifest.exists():
         try:
             old = json.loads(manifest.read_text(encoding='utf-8'))
         except (OSError, ValueError) as err:
             raise ToolError(f'{manifest}: unreadable ({err}); remove it or use another '
                             '--out') from err
-        new = spec.to_json()
         differ = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+        if differ and not {'vehicle', 'controller'} <= set(old):
+            raise ToolError(f'{out} holds a sweep that did not record its vehicle and '
+                            'controller (an older version): it cannot be resumed safely; '
+                            'use another --out')
         if differ:
             raise ToolError(f'{out} holds another sweep (options differ: '
                             f'{", ".join(differ)}); use another --out or the same options')
@@ -399,7 +424,7 @@ def prepare(out: Path, spec: SweepSpec) -> None:
         stale.unlink()
     if not manifest.exists():
         tmp = manifest.with_name('.sweep.json.tmp')
-        tmp.write_text(json.dumps(spec.to_json(), indent=2) + '\n', encoding='utf-8')
+        tmp.write_text(json.dumps(new, indent=2) + '\n', encoding='utf-8')
         os.replace(tmp, manifest)
 
 
@@ -646,7 +671,7 @@ def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
     vehicle = vehicle or load_vehicle(None)
     controller = controller or load_controller(None)
     all_tasks = tasks(spec)
-    prepare(out, spec)
+    prepare(out, spec, vehicle, controller)
     todo = pending(out, all_tasks)
     if max_tasks is not None:
         todo = todo[:max_tasks]
