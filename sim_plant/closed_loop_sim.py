@@ -65,6 +65,10 @@ class SimResult:
     :param plant: the plant options (a :class:`~sim_plant.vehicle_model.Stacked` batch
         when the runs' options differ).
     :param law: the law that was run.
+    :param diverged_at: per run, the start [s] of the plant step in which the run
+        diverged (its plant failed or its state became non-finite), NaN for a run that
+        did not; every channel of a diverged run is NaN after that time (float for one
+        run, array of the batch's shape).
     """
 
     time: Array
@@ -74,6 +78,7 @@ class SimResult:
     controller: Any
     plant: Any
     law: Any = None
+    diverged_at: Any = math.nan
 
     def __getitem__(self, name: str) -> Array:
         """
@@ -450,6 +455,7 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
     commands: list[Real] = []
     rows: list[list[Any]] = []
     linear = plant_model.model == 'linear'
+    lost = fill(math.nan)       # per run: the step in which its state became non-finite
     t = 0.0
     for k in _progress(n_steps + 1, progress):
         t = k * ratio * dt
@@ -469,19 +475,53 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
                 group.advance(t + j * dt, dt, _applied(commands, k * ratio + j, lag, ratio,
                                                        fill))
             x = group.contract()
-        elif control_period == 0.0:
-            x = advance(continuous_rhs, x, t, dt, ratio, plant_model, out.steering)
-        elif isinstance(lag, int) and lag == 0:
-            x = advance(plant_rhs(out.steering), x, t, dt, ratio, plant_model, out.steering)
-        else:
-            for j in range(ratio):
-                applied = _applied(commands, k * ratio + j, lag, ratio, fill)
-                x = advance(plant_rhs(applied), x, t + j * dt, dt, 1, plant_model, applied)
+            continue
+        before = x
+        with np.errstate(over='ignore', invalid='ignore'):   # a diverging run: below
+            if control_period == 0.0:
+                x = advance(continuous_rhs, x, t, dt, ratio, plant_model, out.steering)
+            elif isinstance(lag, int) and lag == 0:
+                x = advance(plant_rhs(out.steering), x, t, dt, ratio, plant_model,
+                            out.steering)
+            else:
+                for j in range(ratio):
+                    applied = _applied(commands, k * ratio + j, lag, ratio, fill)
+                    x = advance(plant_rhs(applied), x, t + j * dt, dt, 1, plant_model,
+                                applied)
+        x, lost = _hold_diverged(before, x, lost, t)
+    if group is not None:
+        lost = group.diverged_at()
     time = np.arange(len(rows), dtype=float) * (ratio * dt)
     columns = list(zip(*rows))
     channels = {name: np.asarray(col, dtype=float) for name, col in zip(CHANNELS, columns)}
+    if np.any(np.isfinite(lost)):
+        after = time.reshape((-1,) + (1,) * np.ndim(lost)) > np.asarray(lost)
+        channels = {name: np.where(after, math.nan, values)
+                    for name, values in channels.items()}
     return SimResult(time, channels, scenario, vehicle, getattr(law, 'controller', None),
-                     plant_model, law)
+                     plant_model, law, lost)
+
+
+def _hold_diverged(before: State, after: State, lost: Real, t: float) -> tuple[State, Real]:
+    """
+    Hold each run whose state became non-finite at its last finite state.
+
+    Element-wise: the other runs of a batch go on bit-identical. The held run's law
+    still sees finite inputs; its channels are NaN after ``lost`` (see :func:`run`).
+
+    :param before: the state at ``t``.
+    :param after: the state one control step later.
+    :param lost: per run, when it diverged (NaN: it has not).
+    :param t: the time of ``before`` [s].
+    :return: the state to go on from and the updated ``lost``.
+    """
+    finite = np.logical_and.reduce([np.isfinite(c) for c in after])
+    if np.all(finite):
+        return after, lost
+    held = tuple(np.where(finite, a, b) for a, b in zip(after, before))
+    if np.ndim(lost) == 0:
+        return tuple(float(c) for c in held), (t if math.isnan(float(lost)) else lost)
+    return held, np.where(np.isnan(lost) & ~finite, t, lost)
 
 
 def _applied(commands: list[Real], step: int, lag: Any, ratio: int,
@@ -565,4 +605,13 @@ class CommonRoadGroup:
         """
         commands = np.broadcast_to(np.asarray(command, dtype=float), self.shape).ravel()
         for plant, u in zip(self.plants, commands):
-            plant.advance(t, dt, float(u))
+            plant.advance(t, dt, float(u))      # a diverged plant stays where it failed
+
+    def diverged_at(self) -> Real:
+        """
+        Return, per run, the start of the step in which its model failed (NaN: none).
+
+        :return: the times [s] (float for one run, array of the batch's shape).
+        """
+        return self._pack([math.nan if p.diverged_at is None else p.diverged_at
+                           for p in self.plants])

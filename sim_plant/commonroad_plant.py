@@ -142,6 +142,8 @@ class CommonRoadPlant:
             self.state = core
             self._f = vehicle_dynamics_st
         self.s = 0.0
+        self.diverged_at: float | None = None     # [s] the step the model failed in
+        self.failure = ''                         # what failed, one line
 
     def body_velocity(self, x: list[float]) -> tuple[float, float]:
         """
@@ -158,7 +160,8 @@ class CommonRoadPlant:
         """
         Return the contract state, the plant's speed and the curvature at the CG.
 
-        :return: ``((s, y_cg, eps_r, v_y, r, steering), v_x, rho)``.
+        :return: ``((s, y_cg, eps_r, v_y, r, steering), v_x, rho)`` (once the run has
+            diverged: of its last finite state).
         """
         x = self.state
         lane = self.line.frenet(x[0], x[1], x[4], self.s)
@@ -177,18 +180,34 @@ class CommonRoadPlant:
         v_x, _ = self.body_velocity(x)
         return [rate, float(a_ref) + SPEED_GAIN * (float(v_ref) - v_x)]
 
-    def advance(self, t: float, dt: float, command: float) -> None:
+    def advance(self, t: float, dt: float, command: float) -> bool:
         """
         Integrate one RK4 step of ``dt`` from ``t`` with a held steering command.
+
+        A failure inside the model (``ZeroDivisionError`` when a wheel's longitudinal
+        speed is clamped to exactly 0 while the car moves, ``OverflowError``,
+        ``ValueError``, ``FloatingPointError``) or a non-finite state means the run
+        **diverged**: the state stays at its last finite value, :attr:`diverged_at`
+        holds ``t`` and every later call does nothing.
 
         :param t: time [s].
         :param dt: step [s].
         :param command: the commanded wheel angle [rad].
+        :return: the run is still going (False once it has diverged).
         """
+        if self.diverged_at is not None:
+            return False
         f, p = self._f, self.p
         # the inputs are evaluated once per step (a zero-order hold at dt), as the
         # CommonRoad examples do
-        u = self._inputs(t, self.state, command)
-        self.state = _rk4(lambda z: [float(v) for v in f(z, u, p)], self.state, dt)
-        if not all(math.isfinite(v) for v in self.state):
-            raise ParameterError(f'the {self.plant.model} plant diverged at t = {t:g} s')
+        try:
+            u = self._inputs(t, self.state, command)
+            state = _rk4(lambda z: [float(v) for v in f(z, u, p)], self.state, dt)
+        except (ZeroDivisionError, OverflowError, ValueError, FloatingPointError) as err:
+            self.diverged_at, self.failure = t, f'{type(err).__name__}: {err}'
+            return False
+        if not all(math.isfinite(v) for v in state):
+            self.diverged_at, self.failure = t, 'a non-finite state'
+            return False
+        self.state = state
+        return True

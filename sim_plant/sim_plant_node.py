@@ -35,7 +35,7 @@ from typing import Any, Optional
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.config import source_config_dir
-from lookahead_control.core.params import VehicleParams
+from lookahead_control.core.params import ParameterError, VehicleParams
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.controller_node import qos
 from lookahead_control.ros.node_main import run_node, Throttle
@@ -359,6 +359,10 @@ class SimPlantNode(Node):
         if self.commonroad is not None:
             for j in range(self.substeps):
                 self.commonroad.advance(t + j * dt, dt, self.applied(j))
+            model = self.commonroad.plants[0]
+            if model.diverged_at is not None:       # as before: the node stops, one line
+                raise ParameterError(f'the {self.plant.model} plant diverged at t = '
+                                     f'{model.diverged_at:g} s ({model.failure})')
             self.x = self.commonroad.contract()
         elif self.lag == 0 and self.stepper is not None:
             self.x = self.stepper(self.x, t, dt, self.substeps, self.command)

@@ -133,3 +133,78 @@ def test_an_existing_league_it_did_not_write_is_refused_before_any_run(tmp_path,
     # a folder it cannot make: one line before any run (not after the league)
     assert run_tool(compare.main, ['--out', str(mine / 'league.md' / 'x'), *TINY]) == 2
     assert 'cannot create it' in capsys.readouterr().err
+
+
+class _Swerve:
+    """Open loop: 0.3 rad at 0.5 Hz above 25 m/s (spins the multi-body car), else 0.01."""
+
+    def reset(self):
+        self.t = None
+
+    def step(self, state, preview, dt):
+        from lookahead_control.core.laws import output
+        self.t = 0.0 if self.t is None else self.t + dt
+        amplitude = np.where(np.asarray(state.v_x) > 25.0, 0.3, 0.01)
+        return output(amplitude * math.sin(math.pi * self.t) + 0.0 * state.y_cg)
+
+
+class _Broken:
+    """Raises on its first step (a bug in a law)."""
+
+    def reset(self):
+        pass
+
+    def step(self, state, preview, dt):
+        raise RuntimeError('boom\nsecond line')
+
+
+def test_a_diverged_run_is_a_row_and_the_league_goes_on(monkeypatch, tmp_path):
+    monkeypatch.setitem(compare.LAWS, 'swerve', lambda v: _Swerve())
+    mb = next(p for p in compare.PLANTS if p.name == 'commonroad_mb')
+    rows = compare.league(['swerve'], ['s2_curve_entry'], [10.0, 37.0], [mb], VEHICLE,
+                          duration=2.5)
+    slow, fast = rows
+    assert fast['notes'].startswith('diverged at t = ') and 1.0 < fast['diverged_at_s'] < 2.5
+    assert all(math.isnan(fast[m]) for m in compare.METRICS) and fast['off_road']
+    assert fast['goals'] == fast['goals_missed'] == 'CommonRoad S2 <= 5 cm at 30-37'
+    assert math.isnan(slow['diverged_at_s']) and slow['peak_cg_error_m'] < 1.0
+    entry = compare.summary(rows, ['swerve'])[0]
+    assert entry['diverged runs'] == 1 and entry['failed runs'] == 0
+    text = compare.write_report(rows, ['swerve'], tmp_path, plot=False).read_text()
+    assert '| swerve | s2_curve_entry | commonroad_mb | 37 | diverged at t = ' in text
+
+
+def test_every_goal_is_missed_by_a_run_without_metrics():
+    row = compare.finish_row('x', 's1_paper_step', compare.GOAL_PLANT, 37.0,
+                             compare.empty_row('diverged at t = 1.000 s'))
+    assert row['goals'] == row['goals_missed'] == ('S1 peak <= 6 cm at 37, steady on an arc '
+                                                   '<= 1 cm, yaw overshoot <= 10 %')
+
+
+@pytest.mark.parametrize('workers', [1, 2])
+def test_a_failing_task_keeps_the_other_rows_and_exits_1(monkeypatch, tmp_path, capsys,
+                                                         workers):
+    monkeypatch.setitem(compare.LAWS, 'broken', lambda v: _Broken())
+    monkeypatch.setattr(compare, 'PLANTS', compare.PLANTS[:2])
+    code = compare.main(['--laws', 'paper_eq26', 'broken', '--scenarios', 's0_straight',
+                         '--speeds', '37', '--out', str(tmp_path), '--no-plots',
+                         '--workers', str(workers), '--dt', '0.01', '--no-progress'])
+    assert code == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ['compare: error: 2 run(s) failed (rows in league.md); first: broken / '
+                   's0_straight / linear / 37 m/s: RuntimeError: boom second line']
+    csv = (tmp_path / 'league.csv').read_text().splitlines()
+    assert len(csv) == 1 + 4
+    assert sum('failed: RuntimeError: boom second line' in line for line in csv) == 2
+    assert sum(line.startswith('paper_eq26,') and 'failed' not in line for line in csv) == 2
+
+
+def test_one_task_per_plant_gives_the_rows_of_one_task_per_scenario():
+    plants = (compare.PLANTS[0], compare.PLANTS[2])
+    task = ('lqr', 's0_straight', [20.0, 37.0], plants, VEHICLE, 0.005, 2.0)
+    together = compare.run_case(task)
+    apart = [r for case in plants for r in compare.run_case(task[:3] + ((case,),) + task[4:])]
+    assert [str(r) for r in together] == [str(r) for r in apart]
+    mb = compare.PLANTS[3]
+    assert compare.task_cost(mb, 4, 10.0, 0.005) > compare.task_cost(plants[1], 4, 30.0,
+                                                                     0.005)

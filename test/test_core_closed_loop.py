@@ -218,3 +218,38 @@ def test_paper_scenario_shows_the_paper_effect():
     assert m_fixed['yaw_overshoot'] > 0.3
     assert m_sched['yaw_overshoot'] < 0.1
     assert m_sched['peak_cg_error_m'] > m_fixed['peak_cg_error_m']
+
+
+class _Absurd:
+    """Positive feedback with gain 1e4 above 25 m/s: the linear plant overflows."""
+
+    def reset(self):
+        pass
+
+    def step(self, state, preview, dt):
+        from lookahead_control.core.laws import output
+        gain = np.where(np.asarray(state.v_x) > 25.0, 1.0e4, 0.0)
+        return output(gain * (state.y_cg + state.eps_r))
+
+
+def test_a_run_whose_linear_plant_overflows_diverges_alone_without_warnings():
+    import warnings
+    straight = Scenario('straight', 3.0, Road([Segment('straight', 2000.0)]),
+                        SpeedProfile(20.0), InitialState(relative_yaw=0.01))
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')          # no overflow warnings escape the runner
+        batch = run(straight, VEHICLE, _Absurd(), dt=0.005,
+                    initial_speed=np.array([10.0, 37.0]))
+        slow = run(straight, VEHICLE, _Absurd(), dt=0.005, initial_speed=10.0)
+        fast = run(straight, VEHICLE, _Absurd(), dt=0.005, initial_speed=37.0)
+        # saturating tyres keep the nonlinear plant finite: far off the road, no divergence
+        tyres = run(straight, VEHICLE, _Absurd(), PlantParams(model='nonlinear'), dt=0.005,
+                    initial_speed=37.0)
+    assert math.isnan(batch.diverged_at[0]) and math.isnan(slow.diverged_at)
+    assert 1.0 < fast.diverged_at < 3.0 and batch.diverged_at[1] == fast.diverged_at
+    assert math.isnan(tyres.diverged_at) and np.max(np.abs(tyres['y_cg'])) > 5.0
+    for name in batch.channels:
+        assert np.array_equal(batch[name][:, 0], slow[name]), name
+        assert np.array_equal(batch[name][:, 1], fast[name], equal_nan=True), name
+        ok = fast.time <= fast.diverged_at
+        assert np.all(np.isfinite(fast[name][ok])) and np.all(np.isnan(fast[name][~ok]))

@@ -235,3 +235,51 @@ def test_commonroad_plants_close_the_loop_and_refuse_set_4():
             PlantParams(model='commonroad_st', vehicle_id=4))
     with pytest.raises(ParameterError, match='vehicle_id'):
         PlantParams(vehicle_id=7)
+
+
+class _Swerve:
+    """Open loop: 0.3 rad at 0.5 Hz above 25 m/s (spins the multi-body car), else 0.01."""
+
+    def reset(self):
+        self.t = None
+
+    def step(self, state, preview, dt):
+        self.t = 0.0 if self.t is None else self.t + dt
+        amplitude = np.where(np.asarray(state.v_x) > 25.0, 0.3, 0.01)
+        return output(amplitude * math.sin(math.pi * self.t) + 0.0 * state.y_cg)
+
+
+def test_a_diverging_multibody_run_stops_alone_and_the_batch_goes_on():
+    # at 37 m/s the swerve spins the car: a rear wheel's speed is clamped to 0 while the
+    # car moves and the model divides by it (the crash of `make compare`, issue 13)
+    straight = Scenario('straight', 2.5, Road([Segment('straight', 2000.0)]),
+                        SpeedProfile(20.0))
+    vehicle = controller_vehicle(2)
+    mb = PlantParams(model='commonroad_mb', vehicle_id=2)
+    batch = run(straight, vehicle, _Swerve(), mb, dt=0.002,
+                initial_speed=np.array([10.0, 37.0]))
+    slow = run(straight, vehicle, _Swerve(), mb, dt=0.002, initial_speed=10.0)
+    fast = run(straight, vehicle, _Swerve(), mb, dt=0.002, initial_speed=37.0)
+    assert math.isnan(slow.diverged_at) and math.isnan(batch.diverged_at[0])
+    assert 1.0 < fast.diverged_at < 2.5 and batch.diverged_at[1] == fast.diverged_at
+    for name, values in batch.channels.items():
+        assert_array_equal(values[:, 0], slow[name])       # bit-identical, all finite
+        assert np.all(np.isfinite(slow[name])), name
+        assert_array_equal(values[:, 1], fast[name])       # NaN == NaN here
+        ok = fast.time <= fast.diverged_at
+        assert np.all(np.isfinite(fast[name][ok])) and np.all(np.isnan(fast[name][~ok]))
+
+
+def test_a_plant_that_fails_holds_its_last_state_and_says_why():
+    straight = Scenario('straight', 2.5, Road([Segment('straight', 2000.0)]),
+                        SpeedProfile(37.0))
+    plant = CommonRoadPlant(straight, PlantParams(model='commonroad_mb', vehicle_id=2),
+                            37.0, 0.0)
+    steps = [plant.advance(0.002 * k, 0.002, 0.3 * math.sin(math.pi * 0.002 * k))
+             for k in range(1250)]
+    assert plant.diverged_at is not None and not steps[-1] and steps[0]
+    assert steps.index(False) == round(plant.diverged_at / 0.002)
+    assert plant.failure == 'ZeroDivisionError: float division by zero'
+    frozen = list(plant.state)
+    assert not plant.advance(3.0, 0.002, 0.0) and plant.state == frozen
+    assert all(math.isfinite(v) for v in plant.contract()[0])

@@ -27,15 +27,17 @@ from __future__ import annotations
 
 from concurrent.futures import as_completed, ProcessPoolExecutor
 from dataclasses import dataclass, replace
+from functools import partial
 import math
 from pathlib import Path
+import sys
 import time
 from typing import Any, Callable, Iterable, Mapping, Optional, Sequence
 
 from lookahead_control.analysis.metrics import step_metrics
 from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrParams,
                                               PurePursuitParams, StanleyParams)
-from lookahead_control.core.cli import (claim_output, markdown_table, number, parser,
+from lookahead_control.core.cli import (claim_output, markdown_table, number, one_line, parser,
                                         record_output, run_tool, write_csv, write_json)
 from lookahead_control.core.control_law import arc_offset
 from lookahead_control.core.lane_keeping import CgCompensatedLaw
@@ -222,10 +224,40 @@ def yaw_rebound(eps_r: Array) -> float:
     return max(0.0, float(np.max(-math.copysign(1.0, initial) * eps_r))) / abs(initial)
 
 
+METRICS = ('peak_cg_error_m', 'steady_cg_error_m', 'peak_look_ahead_lane_error_m',
+           'yaw_overshoot', 'yaw_rate_overshoot', 'yaw_rebound', 'peak_wheel_angle_rad',
+           'peak_wheel_rate_rad_per_s', 'peak_command_rad', 'peak_command_rate_rad_per_s',
+           'steering_noise_rms_rad')
+FAILED = 'failed: '          # a row's notes start so when its run raised (not a result)
+
+
+def empty_row(note: str) -> dict[str, Any]:
+    """
+    Return the row of a run that has no metrics: it diverged, or it failed.
+
+    Every metric is NaN (so it misses every goal that applies to it), ``off_road`` is
+    true.
+
+    :param note: why, e.g. ``diverged at t = 3.2 s`` or ``failed: <one line>``.
+    :return: the metrics part of the row.
+    """
+    row: dict[str, Any] = {name: math.nan for name in METRICS}
+    row.update({'off_road': True, 'diverged_at_s': math.nan, 'notes': note})
+    return row
+
+
+def _diverged_at(result: SimResult, index: Optional[int]) -> float:
+    lost = result.diverged_at
+    return float(lost if index is None else np.asarray(lost)[index])
+
+
 def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
             clean_command: Optional[Array]) -> dict[str, Any]:
     """
     Return the metrics of one run of a batch.
+
+    A run that diverged (``result.diverged_at``: its plant failed or its state became
+    non-finite) has no metrics: :func:`empty_row` with ``diverged at t = ... s``.
 
     :param result: the batch.
     :param index: the run's column (None: a single run).
@@ -237,6 +269,11 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
         values = result[name]
         return values if index is None else values[:, index]
 
+    lost = _diverged_at(result, index)
+    if math.isfinite(lost):
+        empty = empty_row(f'diverged at t = {lost:.3f} s')
+        empty['diverged_at_s'] = lost
+        return empty
     t = result.time
     period = float(t[1] - t[0])
     y, eps, rate, rho = channel('y_cg'), channel('eps_r'), channel('r'), channel('rho')
@@ -257,6 +294,7 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
         'steering_noise_rms_rad': (math.nan if clean_command is None else float(
             np.sqrt(np.mean(np.square(command - clean_command))))),
         'off_road': bool(not np.all(np.isfinite(y)) or np.max(np.abs(y)) > 5.0),
+        'diverged_at_s': math.nan,
     }
     window = curve_window(t, rho)
     notes = []
@@ -270,6 +308,8 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
             row[name] = step.overshoot
             if step.note:
                 notes.append(f'{name}: {step.note}')
+    if clean_command is not None and not np.all(np.isfinite(clean_command)):
+        notes.append('the noise-free twin diverged: no steering noise')
     row['notes'] = '; '.join(notes)
     return row
 
@@ -347,27 +387,54 @@ def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], Vehicle
     seeds = [speed_seed(float(v)) for v in v0]
     rows = []
     for case in plants:
-        vehicle = case.law_vehicle(league_vehicle)
-        law = LAWS[law_name](vehicle)
-        common: dict[str, Any] = {'initial_speed': v0, 'dt': case.dt or dt,
-                                  'preview_distance': PREVIEW_DISTANCE, 'delay': case.delay}
-        clean = None
-        if case.noisy:
-            if scenario_name == NOISE_SCENARIO:     # the noise-free twin of each run
-                clean = run(scenario, vehicle, law, case.plant, **common)['steering_cmd']
-            result = run(scenario, vehicle, law, case.plant, noise=NoiseParams(), seed=seeds,
-                         **common)
-        else:
-            result = run(scenario, vehicle, law, case.plant, **common)
-        for i, speed in enumerate(v0):
-            row: dict[str, Any] = {'law': law_name, 'scenario': scenario_name,
-                                   'plant': case.name, 'speed_mps': float(speed)}
-            row.update(run_row(result, i, vehicle, None if clean is None else clean[:, i]))
-            applicable, missed = goal_verdicts(row)
-            row['goals'] = ', '.join(applicable)
-            row['goals_missed'] = ', '.join(missed)
-            rows.append(row)
+        try:
+            metrics = _plant_runs(law_name, scenario_name, scenario, v0, seeds, case,
+                                  league_vehicle, dt)
+        except Exception as err:        # one plant's failure loses no other row
+            metrics = [empty_row(FAILED + one_line(f'{type(err).__name__}: {err}'))] * v0.size
+        rows += [finish_row(law_name, scenario_name, case.name, float(speed), m)
+                 for speed, m in zip(v0, metrics)]
     return rows
+
+
+def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario, v0: Array,
+                seeds: list[int], case: PlantCase, league_vehicle: VehicleParams,
+                dt: float) -> list[dict[str, Any]]:
+    vehicle = case.law_vehicle(league_vehicle)
+    law = LAWS[law_name](vehicle)
+    common: dict[str, Any] = {'initial_speed': v0, 'dt': case.dt or dt,
+                              'preview_distance': PREVIEW_DISTANCE, 'delay': case.delay}
+    clean = None
+    if case.noisy:
+        if scenario_name == NOISE_SCENARIO:     # the noise-free twin of each run
+            clean = run(scenario, vehicle, law, case.plant, **common)['steering_cmd']
+        result = run(scenario, vehicle, law, case.plant, noise=NoiseParams(), seed=seeds,
+                     **common)
+    else:
+        result = run(scenario, vehicle, law, case.plant, **common)
+    return [run_row(result, i, vehicle, None if clean is None else clean[:, i])
+            for i in range(v0.size)]
+
+
+def finish_row(law: str, scenario: str, plant: str, speed: float,
+               metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """
+    Return a run's full row: its keys, metrics and goal verdicts.
+
+    :param law: the law.
+    :param scenario: the scenario.
+    :param plant: the plant's name.
+    :param speed: the initial speed [m/s].
+    :param metrics: the run's metrics (:func:`run_row` or :func:`empty_row`).
+    :return: the row.
+    """
+    row: dict[str, Any] = {'law': law, 'scenario': scenario, 'plant': plant,
+                           'speed_mps': speed}
+    row.update(metrics)
+    applicable, missed = goal_verdicts(row)
+    row['goals'] = ', '.join(applicable)
+    row['goals_missed'] = ', '.join(missed)
+    return row
 
 
 def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float],
@@ -389,8 +456,11 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     :return: one row per run, in a fixed order (law, scenario, plant, speed).
     """
     loaded = load_scenarios(scenarios)
-    tasks = [(law, name, scenario_speeds(loaded[name], speeds), tuple(plants), vehicle, dt,
-              duration) for law in laws for name in scenarios]
+    # one task per law, scenario and plant (each plant's runs are independent: the same
+    # rows as one task per law and scenario), so that the pool can balance the costly
+    # multi-body runs
+    tasks = [(law, name, scenario_speeds(loaded[name], speeds), (case,), vehicle, dt,
+              duration) for law in laws for name in scenarios for case in plants]
     bar = None
     if progress:
         from tqdm import tqdm
@@ -399,17 +469,21 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
         if workers <= 1:
             results = []
             for task in tasks:
-                results.append(run_case(task))
+                results.append(_guarded(partial(run_case, task), task))
                 if bar is not None:
                     bar.update(1)
         else:
-            # the longest tasks first (S5 runs 30 s at one speed); rows in the tasks' order
-            order = sorted(range(len(tasks)), key=lambda i: tasks[i][1] != 's5_envelope')
+            # the costliest tasks first (longest processing time first); rows in tasks'
+            # order
+            cost = [task_cost(t[3][0], len(t[2]), t[6] or loaded[t[1]].duration, dt)
+                    for t in tasks]
+            order = sorted(range(len(tasks)), key=lambda i: -cost[i])
             with ProcessPoolExecutor(max_workers=workers) as pool:
                 futures = {pool.submit(run_case, tasks[i]): i for i in order}
                 done: dict[int, list[dict[str, Any]]] = {}
                 for future in as_completed(futures):
-                    done[futures[future]] = future.result()
+                    i = futures[future]
+                    done[i] = _guarded(future.result, tasks[i])
                     if bar is not None:
                         bar.update(1)
             results = [done[i] for i in range(len(tasks))]
@@ -417,6 +491,50 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
         if bar is not None:
             bar.close()
     return [row for rows in results for row in rows]
+
+
+RUN_STEP_COST = 0.35     # a CommonRoad multi-body run's step / a package plant's batch step
+
+
+def task_cost(case: PlantCase, runs: int, duration: float, dt: float) -> float:
+    """
+    Return a task's rough relative cost, to start the costliest first.
+
+    A package plant steps its whole batch vectorized, at about the cost of one run
+    (0.56-0.87 ms of CPU per step with 4 runs, measured); the CommonRoad models step one
+    run after the other in pure Python (the multi-body model: 0.27 ms per run step, at
+    2 ms steps instead of 5).
+
+    :param case: the plant.
+    :param runs: the number of speeds.
+    :param duration: the simulated time [s].
+    :param dt: the league's plant step [s].
+    :return: the cost (arbitrary units).
+    """
+    steps = duration / (case.dt or dt)
+    if case.plant.model.startswith('commonroad'):
+        return steps * runs * RUN_STEP_COST
+    return steps
+
+
+def _guarded(runner: Callable[[], list[dict[str, Any]]], task: Any) -> list[dict[str, Any]]:
+    """
+    Return a task's rows, or one ``failed: ...`` row per run when the task raised.
+
+    (run_case already keeps one plant's failure to that plant's rows; this catches the
+    rest: a scenario that does not load, a worker process that died.)
+
+    :param runner: runs the task (or fetches its result from the pool).
+    :param task: the task (see :func:`run_case`).
+    :return: its rows.
+    """
+    law, scenario, speeds, plants = task[:4]
+    try:
+        return runner()
+    except Exception as err:            # one task's failure loses no other row
+        note = FAILED + one_line(f'{type(err).__name__}: {err}')
+        return [finish_row(law, scenario, case.name, float(v), empty_row(note))
+                for case in plants for v in speeds]
 
 
 # -- reports -------------------------------------------------------------------------------
@@ -459,6 +577,8 @@ def summary(rows: Sequence[Mapping[str, Any]], laws: Sequence[str]) -> list[dict
             [r for r in at37 if r['scenario'] == 's0_straight'], 'steering_noise_rms_rad')
         entry['peak wheel rate [rad/s]'] = _worst(goal, 'peak_wheel_rate_rad_per_s')
         entry['runs off the road'] = sum(bool(r['off_road']) for r in mine)
+        entry['diverged runs'] = sum(math.isfinite(float(r['diverged_at_s'])) for r in mine)
+        entry['failed runs'] = sum(str(r['notes']).startswith(FAILED) for r in mine)
         entry['goals met'] = f'{applicable - missed}/{applicable}'
         table.append(entry)
     return table
@@ -562,6 +682,17 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
     for plant in plants:
         text += [f'## Peak CG error [cm] at 37 m/s, plant `{plant}` (S5: its profile)', '',
                  markdown_table(per_scenario(rows, laws, plant, 37.0), digits=3), '']
+    broken = [r for r in rows if math.isfinite(float(r['diverged_at_s']))
+              or str(r['notes']).startswith(FAILED)]
+    text += ['## Runs that diverged or failed', '',
+             'A run **diverged** when its plant model failed (e.g. the CommonRoad '
+             "multi-body model's wheel-slip division by zero once a wheel stops while the car "
+             'moves) or its state became non-finite: it has no metrics and misses every goal '
+             'that applies to it. A **failed** run raised an error in the tool (a bug, not '
+             'a result): `compare` exits 1 after writing this report.', '',
+             markdown_table([{k: r[k] for k in ('law', 'scenario', 'plant', 'speed_mps',
+                                                'notes')} for r in broken])
+             if broken else 'none', '']
     missed = [r for r in rows if r['goals_missed']]
     text += ['## Goals missed', '',
              markdown_table([{k: r[k] for k in ('law', 'scenario', 'speed_mps',
@@ -722,6 +853,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         write_json(args.json, {'summary': table, 'runs': rows})
     print(f'wrote {report} ({len(rows)} runs in {time.monotonic() - start:.0f} s)')
+    failed = [r for r in rows if str(r['notes']).startswith(FAILED)]
+    if failed:
+        first = failed[0]
+        print(f'compare: error: {len(failed)} run(s) failed (rows in {report.name}); first: '
+              f"{first['law']} / {first['scenario']} / {first['plant']} / "
+              f"{first['speed_mps']:g} m/s: {first['notes'][len(FAILED):]}", file=sys.stderr)
+        return 1
     return 0
 
 
