@@ -389,6 +389,15 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     order = _resolve_order(order, matched)
     inputs = input_stream(run)
     feed = _stamp_order(inputs) if order == 'stamp' else inputs
+    lateral = run.inputs.get('lateral_error')
+    if lateral is not None and len(lateral) and len(run.steering):
+        # a recorder that subscribed late: the answer to an input it missed is the rate
+        # limit's reference of the first command it can compare
+        before = np.nonzero(run.steering.stamp_ns < lateral.stamp_ns.min())[0]
+        if before.size:
+            last = before[np.argmax(run.steering.stamp_ns[before])]
+            core.seed_output(float(run.steering.values['angle'][last]),
+                             int(run.steering.stamp_ns[last]))
     commands: dict[int, Command] = {}
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,

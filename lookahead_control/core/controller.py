@@ -327,6 +327,20 @@ class SteeringController:
         self.law.reset()
         self._law_stamp = None
 
+    def seed_output(self, angle: float, stamp_ns: int) -> None:
+        """
+        Take a command sent before the first input this core sees (a re-run of a bag).
+
+        A recorder that subscribed late misses the first inputs but may hold the answer
+        to one of them: the next command then moves from that angle within the rate
+        limit, as the node's did, instead of starting free.
+
+        :param angle: the angle sent [rad].
+        :param stamp_ns: its stamp [ns].
+        """
+        self._rate_angle = float(angle)
+        self._rate_time = int(stamp_ns)
+
     def accept(self, name: str, sample: Any, now_ns: Optional[int] = None) -> Optional[str]:
         """
         Check a sample and store it; a refused one is counted and never used.
