@@ -481,11 +481,23 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
             with ProcessPoolExecutor(max_workers=workers) as pool:
                 futures = {pool.submit(run_case, tasks[i]): i for i in order}
                 done: dict[int, list[dict[str, Any]]] = {}
-                for future in as_completed(futures):
-                    i = futures[future]
-                    done[i] = _guarded(future.result, tasks[i])
-                    if bar is not None:
-                        bar.update(1)
+                try:
+                    for future in as_completed(futures):
+                        i = futures[future]
+                        done[i] = _guarded(future.result, tasks[i])
+                        if bar is not None:
+                            bar.update(1)
+                except BaseException:
+                    # Ctrl-C or SIGTERM: the pool's exit would run every task not yet
+                    # started (the whole league) and then throw the rows away. Drop them
+                    # and stop the workers (they only compute: nothing on disk to finish;
+                    # SIGKILL, as a worker forked from this process turns SIGTERM into
+                    # an exception of its task and takes the next one)
+                    workers_running = list((getattr(pool, '_processes', None) or {}).values())
+                    pool.shutdown(wait=False, cancel_futures=True)   # forgets its workers
+                    for process in workers_running:
+                        process.kill()
+                    raise
             results = [done[i] for i in range(len(tasks))]
     finally:
         if bar is not None:
