@@ -15,6 +15,9 @@
 """The ``compare`` tool: its metrics by hand, goal rows, a small league run twice."""
 
 import math
+import os
+from pathlib import Path
+import time
 
 from lookahead_control.core.params import VehicleParams
 from lookahead_control.tools import compare
@@ -208,3 +211,54 @@ def test_one_task_per_plant_gives_the_rows_of_one_task_per_scenario():
     mb = compare.PLANTS[3]
     assert compare.task_cost(mb, 4, 10.0, 0.005) > compare.task_cost(plants[1], 4, 30.0,
                                                                      0.005)
+
+
+def _task_waiting_for_go(task):
+    marks = Path(os.environ['PROBE7_MARKS'])
+    name = f'{task[1]}_{task[3][0].name}'
+    (marks / f'started_{name}').write_text(str(os.getpid()))
+    try:
+        os.close(os.open(marks / 'first', os.O_CREAT | os.O_EXCL))   # the first returns
+    except FileExistsError:
+        deadline = time.monotonic() + 30.0
+        while not (marks / 'go').exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        (marks / f'ended_{name}').touch()
+    return []
+
+
+def test_an_interrupted_league_with_workers_stops_its_tasks(monkeypatch, tmp_path):
+    # probe7: SIGTERM (or Ctrl-C) of compare --workers 2: the pool's exit ran every
+    # task not yet started, the whole league (24 of 24 here), and let the running ones
+    # end, before the tool stopped (and wrote nothing). Only the first task can end
+    # before the interrupt (the others wait for a 'go' that never comes), so the counts
+    # do not depend on speed.
+    marks = tmp_path / 'marks'
+    marks.mkdir()
+    monkeypatch.setenv('PROBE7_MARKS', str(marks))
+    monkeypatch.setattr(compare, 'run_case', _task_waiting_for_go)
+
+    def interrupted(runner, task):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(compare, '_guarded', interrupted)
+    scenarios = ['s0_straight', 's1_paper_step', 's2_curve_entry', 's3_s_bend',
+                 's4_lane_change', 's5_envelope']
+    with pytest.raises(KeyboardInterrupt):
+        compare.league(['stanley'], scenarios, [37.0], compare.PLANTS, VEHICLE, workers=2)
+    started = len(list(marks.glob('started_*')))
+    assert started <= 1 + 2, started      # the first and the two the workers held
+    pids = {int(p.read_text()) for p in marks.glob('started_*')}
+    deadline = time.monotonic() + 10.0          # the workers were killed, not left to run
+    while any(_alive(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not [pid for pid in pids if _alive(pid)]
+    assert not list(marks.glob('ended_*'))
+
+
+def _alive(pid):
+    try:
+        status = Path(f'/proc/{pid}/status').read_text()
+    except FileNotFoundError:
+        return False
+    return '\nState:\tZ' not in status        # a zombie is dead, not yet reaped

@@ -446,3 +446,40 @@ def test_a_lost_curvature_gives_no_preview_and_a_bad_point_is_refused():
         reason = core.accept('road_curvature',
                              curvature_from_points(later, CURVE_AHEAD + bad), later)
         assert reason is not None and why in reason and 'point 4' in reason, reason
+
+
+@pytest.mark.parametrize('polygon, why', [
+    ([(0.0, 0.001), (math.nan, 0.1), (50.0, 0.002)], 'point 1 = (nan, 0.1) is not finite'),
+    ([(0.0, 0.001), (50.0, 0.002), (math.nan, 0.1)], 'point 2 = (nan, 0.1) is not finite'),
+    ([(0.0, 0.001), (10.0, 0.001), (10.0, math.nan)], 'point 2 = (10.0, nan) is not finite'),
+    ([(0.0, 0.001), (10.0, 0.001), (60.0, 5.0), (60.0, 0.001)], 'point 2 = 5 > 0.2'),
+    ([(0.0, 0.001), (10.0, 0.001), (60.0, 0.001), (60.0, -5.0)], 'point 2 = 5 > 0.2'),
+])
+def test_no_point_of_the_polygon_is_dropped_unchecked(polygon, why):
+    # probe7: a point with a NaN distance, or one at a repeated distance, was dropped
+    # by the conversion before the safety check saw it: the message was accepted (a
+    # curvature of 5 1/m or a NaN let through), though every point is to be checked
+    from lookahead_control.core.samples import curvature_from_points
+    core = _core()
+    stamp = 1000 * MS
+    reason = core.accept('road_curvature', curvature_from_points(stamp, polygon), stamp)
+    assert reason is not None and why in reason, reason
+
+
+def test_points_at_one_distance_keep_the_sharpest_mirror_symmetric():
+    # probe7: of points at one distance the tuple sort kept the smallest curvature (the
+    # one most to the right), whatever the message order: a polygon and its mirror image
+    # gave samples that were not mirror images
+    from lookahead_control.core.laws import preview_from_points
+    from lookahead_control.core.samples import curvature_from_points
+    for polygon in ([(0.0, 0.001), (10.0, 0.002), (10.0, -0.003), (20.0, 0.0)],
+                    [(0.0, 0.001), (10.0, 0.003), (10.0, -0.002), (20.0, 0.0)],
+                    [(0.0, 0.001), (10.0, 0.002), (10.0, -0.002), (20.0, 0.0)]):
+        mirror = [(x, -k) for x, k in polygon]
+        a, b = curvature_from_points(0, polygon), curvature_from_points(0, mirror)
+        assert b.ahead == tuple((x, -k) for x, k in a.ahead)
+        assert (b.rho, b.slope) == (-a.rho, -a.slope)
+        kept = a.ahead[1][1]
+        assert abs(kept) == 0.003 or kept == polygon[1][1]      # sharpest, else first
+        np.testing.assert_array_equal(preview_from_points(polygon).curvatures,
+                                      [k for _, k in a.ahead])

@@ -491,6 +491,18 @@ def test_issue11_a_long_polygon_is_refused_before_its_points_are_decoded(
     assert 'road_curvature lost' in drive.node.diagnostics().message
 
 
+def test_probe7_the_node_refuses_a_polygon_whose_bad_point_the_conversion_dropped(drive):
+    # probe7: a point with a NaN distance, or a second point at one distance, was
+    # dropped by the conversion before the check: the node accepted the message
+    drive.tick(steps=30)
+    for points, why in (
+            ([(0.0, 0.001), (math.nan, 0.1), (50.0, 0.001)], 'point 1 = (nan, '),
+            ([(0.0, 0.001), (10.0, 0.001), (60.0, 0.001), (60.0, 3.0)], 'point 2 = 3 > ')):
+        drive.node.on_curvature(conv.to_curvature(drive.now + 1 * MS, 'base_link', points))
+        assert why in drive.node.core.last_rejection, drive.node.core.last_rejection
+        drive.tick(steps=1)
+
+
 def test_issue11_a_backlog_is_never_answered_late(drive):
     # messages that wait in a queue for longer than input_timeout are refused when
     # they are finally read, and no answer to them goes out

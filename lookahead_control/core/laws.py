@@ -53,6 +53,7 @@ from typing import Any, NamedTuple, Protocol, runtime_checkable, Sequence
 from lookahead_control.core.control_law import LateralState, LawOutput, steering_law
 from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.samples import one_per_distance
 import numpy as np
 import numpy.typing as npt
 
@@ -106,20 +107,20 @@ def preview_from_points(points: Sequence[tuple[float, float]]) -> Preview:
     """
     Return the preview of ``(distance ahead, curvature)`` points (the polygon's x, y).
 
-    Points are sorted by distance; repeated distances keep the first. Points behind the
+    Points are sorted by distance, one per distance (as
+    :func:`lookahead_control.core.samples.one_per_distance`). Points behind the
     CG (negative distance) are kept: :meth:`Preview.at` interpolates across 0.
 
     :param points: the points.
     :return: the preview (one run).
     :raises ParameterError: a distance or curvature is not finite.
     """
-    kept: list[tuple[float, float]] = []
-    for dist, rho in sorted((float(a), float(b)) for a, b in points):
+    given = [(float(a), float(b)) for a, b in points]
+    for dist, rho in given:
         if not (np.isfinite(dist) and np.isfinite(rho)):
             raise ParameterError(f'preview point ({dist!r}, {rho!r}) is not finite; '
                                  'finite distance [m] and curvature [1/m] required')
-        if not kept or dist > kept[-1][0]:
-            kept.append((dist, rho))
+    kept = one_per_distance(given)
     return Preview(np.array([p[0] for p in kept], dtype=float),
                    np.array([p[1] for p in kept], dtype=float))
 

@@ -58,8 +58,10 @@ class CurvatureSample(NamedTuple):
     Curvature at the CG [1/m], its slope along the road [1/m^2], and the points ahead.
 
     ``ahead`` holds the polygon's ``(distance ahead [m], curvature [1/m])`` points sorted
-    by distance, repeated distances dropped (the first kept): the curvature preview the
-    laws get (empty: none was sent).
+    by distance, one per distance (of points at the same distance the one of largest
+    |curvature|, the first of equal ones): the curvature preview the laws get (empty: none
+    was sent). If a point is not finite, ``ahead`` holds every point as sent, in the
+    message's order, so that the safety check refuses the message and names the point.
     """
 
     stamp_ns: int
@@ -91,6 +93,28 @@ def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
+def one_per_distance(polygon: Sequence[tuple[float, float]]
+                     ) -> list[tuple[float, float]]:
+    """
+    Return finite (distance, curvature) points sorted by distance, one per distance.
+
+    Of points at the same distance the one of largest |curvature| is kept (the first of
+    equal ones): the sharper curve, mirror-symmetric, and a check of the kept points'
+    |curvature| bounds every point's.
+
+    :param polygon: the points (finite).
+    :return: the points.
+    """
+    points: list[tuple[float, float]] = []
+    for p in sorted(polygon, key=lambda q: q[0]):      # stable: message order for ties
+        if points and p[0] == points[-1][0]:
+            if abs(p[1]) > abs(points[-1][1]):
+                points[-1] = p
+        else:
+            points.append(p)
+    return points
+
+
 def curvature_from_points(stamp: int, polygon: Sequence[tuple[float, float]]
                           ) -> CurvatureSample:
     """
@@ -102,10 +126,12 @@ def curvature_from_points(stamp: int, polygon: Sequence[tuple[float, float]]
     :param polygon: the points.
     :return: the sample.
     """
-    points: list[tuple[float, float]] = []
-    for p in sorted(polygon):
-        if not points or p[0] > points[-1][0]:     # drop repeated distances
-            points.append(p)
+    raw = [(x, k) for x, k in polygon]
+    for x, k in raw:
+        if not (math.isfinite(x) and math.isfinite(k)):    # no point dropped unchecked
+            finite = [(a, b) for a, b in raw if math.isfinite(a) and math.isfinite(b)]
+            return curvature_from_points(stamp, finite)._replace(ahead=tuple(raw))
+    points = one_per_distance(raw)
     ahead = tuple(points)
     if not points:
         return CurvatureSample(stamp, 0.0, 0.0, ahead)

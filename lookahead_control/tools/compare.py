@@ -26,13 +26,14 @@ A law added later is one entry of :data:`LAWS`.
 from __future__ import annotations
 
 from concurrent.futures import as_completed, ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from functools import partial
 import math
 from pathlib import Path
 import sys
 import time
-from typing import Any, Callable, Iterable, Mapping, Optional, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Optional, Sequence
 
 from lookahead_control.analysis.metrics import step_metrics
 from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrParams,
@@ -478,7 +479,7 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
             cost = [task_cost(t[3][0], len(t[2]), t[6] or loaded[t[1]].duration, dt)
                     for t in tasks]
             order = sorted(range(len(tasks)), key=lambda i: -cost[i])
-            with ProcessPoolExecutor(max_workers=workers) as pool:
+            with stoppable_pool(workers) as pool:
                 futures = {pool.submit(run_case, tasks[i]): i for i in order}
                 done: dict[int, list[dict[str, Any]]] = {}
                 for future in as_completed(futures):
@@ -491,6 +492,32 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
         if bar is not None:
             bar.close()
     return [row for rows in results for row in rows]
+
+
+@contextmanager
+def stoppable_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """
+    Give a process pool that an interrupt stops at once.
+
+    On Ctrl-C or SIGTERM the pool's own exit would run every task not yet started (the
+    whole league) and then throw the rows away. Here the tasks not started are dropped
+    and the workers killed: they only compute, nothing on disk to finish (SIGKILL: a
+    worker forked from this process turns SIGTERM into its task's exception and takes
+    the next one).
+
+    :param workers: processes.
+    :return: the pool (a context manager's).
+    """
+    pool = ProcessPoolExecutor(max_workers=workers)
+    try:
+        yield pool
+    except BaseException:
+        running = list((getattr(pool, '_processes', None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)      # forgets its workers
+        for process in running:
+            process.kill()
+        raise
+    pool.shutdown()
 
 
 RUN_STEP_COST = 0.35     # a CommonRoad multi-body run's step / a package plant's batch step
@@ -778,7 +805,7 @@ def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int,
     """
     tasks = [(name, params, vehicle, dt, duration) for name in laws
              for params in TUNING_GRIDS[name]]
-    with ProcessPoolExecutor(max_workers=max(workers, 1)) as pool:
+    with stoppable_pool(max(workers, 1)) as pool:
         rows = list(pool.map(tune_point, tasks))
     for name in laws:
         feasible = [r for r in rows if r['law'] == name and r['feasible']]
