@@ -52,6 +52,17 @@ def spin_until(executor, condition, timeout):
 
 
 @pytest.fixture
+def context():
+    """Yield a private rclpy Context for nodes made in a test (callbacks called directly)."""
+    import rclpy
+    from rclpy.context import Context
+    ctx = Context()
+    rclpy.init(context=ctx)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+@pytest.fixture
 def probe():
     """Yield a node in a private context and its executor: ``(node, executor)``."""
     import rclpy

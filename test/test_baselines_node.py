@@ -28,8 +28,6 @@ from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample,
 from lookahead_control.ros import conversions as conv
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 
 VEHICLE = VehicleParams()
@@ -100,14 +98,6 @@ def test_edge_inputs_give_a_finite_limited_command(name, inputs):
         command = _give(core, k * 10 * MS, **inputs)
         assert math.isfinite(command.steering)
         assert abs(command.steering) <= core.safety.max_steering_angle
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def test_node_switches_law_while_active_through_the_rate_limiter(context):

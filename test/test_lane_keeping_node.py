@@ -18,19 +18,9 @@
 from conftest import feed
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 
 MS = 1_000_000
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _feed(node, stamp, y=0.1, v_x=30.0, rho=-0.0025):

@@ -37,8 +37,6 @@ from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample,
 from lookahead_control.ros import conversions as conv
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 
@@ -217,14 +215,6 @@ def test_float_and_one_element_batch_agree_bit_for_bit():
 # -- the node (private context, fake sim clock, callbacks called directly) ---------------
 
 S = 1_000_000_000
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _node(context, *overrides):

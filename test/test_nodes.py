@@ -22,8 +22,6 @@ from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.ros import conversions as conv
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 
 
@@ -59,14 +57,6 @@ def test_curvature_preview_interpolates_at_the_cg():
 def test_steering_without_the_joint_is_refused():
     msg = conv.to_named_values(0, [('rear_steer', 0.1), ('x', 0.0)])
     assert conv.from_steering(msg) is None
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _controller(context, *overrides, sim=True):

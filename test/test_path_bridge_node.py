@@ -22,8 +22,6 @@ from lookahead_control.ros import conversions as conv
 from lookahead_control.ros import vehicle_conversions as vconv
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 from sim_plant.road import Road, Segment
 
@@ -33,14 +31,6 @@ ROOT_SCENARIO = Path(__file__).resolve().parent.parent / 'config' / 'scenarios' 
 # the fit's bias on the R = 100 m arc at 1 m spacing, h = 5 m (test_core_path_geometry):
 # lateral 3 h^4 / (280 R^3) = 6.7e-6 m, curvature 3 h^2 / (14 R^3) = 5.4e-6 1/m
 TOL = 1e-5
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 @pytest.fixture

@@ -24,21 +24,11 @@ import re
 from diagnostic_msgs.msg import DiagnosticStatus
 from lookahead_control.ros import conversions as conv
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 
 S = 1_000_000_000           # one second [ns]
 MS = 1_000_000              # one millisecond [ns]
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _controller(context, *overrides):

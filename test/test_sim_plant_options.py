@@ -22,8 +22,6 @@ from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.ros import conversions as conv
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 from sim_plant.closed_loop_sim import run
 from sim_plant.scenario import load_scenario
@@ -33,14 +31,6 @@ from sim_plant.vehicle_model import PlantParams
 SCENARIO = Path(__file__).resolve().parent.parent / 'config' / 'scenarios' / 'paper_r400.yaml'
 VEHICLE = VehicleParams()
 CONTROLLER = ControllerParams()
-
-
-@pytest.fixture
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _drive(context, steps, **params):
