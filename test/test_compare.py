@@ -216,7 +216,9 @@ def test_one_task_per_plant_gives_the_rows_of_one_task_per_scenario():
 def _task_waiting_for_go(task):
     marks = Path(os.environ['PROBE7_MARKS'])
     name = f'{task[1]}_{task[3][0].name}'
-    (marks / f'started_{name}').write_text(str(os.getpid()))
+    # written whole or not at all: a worker killed mid-write leaves no empty mark
+    (marks / f'.tmp_{name}').write_text(str(os.getpid()))
+    os.replace(marks / f'.tmp_{name}', marks / f'started_{name}')
     try:
         os.close(os.open(marks / 'first', os.O_CREAT | os.O_EXCL))   # the first returns
     except FileExistsError:

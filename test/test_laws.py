@@ -82,8 +82,10 @@ def test_output_fills_zeros_of_the_batch_shape():
 
 def test_preview_interpolates_and_holds_the_ends():
     p = preview_from_points([(10.0, 0.01), (0.0, 0.0), (5.0, 0.0), (5.0, 9.0)])
-    assert_array_equal(p.distances, [0.0, 5.0, 10.0])       # sorted, first 5.0 kept
-    assert p.at(7.5) == pytest.approx(0.005)
+    # sorted; of the points at 5.0 the sharpest is kept (as the node keeps it, so the
+    # safety check bounds every point it uses: docs/safety.md)
+    assert_array_equal(p.distances, [0.0, 5.0, 10.0])
+    assert p.at(7.5) == pytest.approx(4.505)
     assert p.at(-3.0) == 0.0 and p.at(50.0) == 0.01
     batch = Preview(np.array([0.0, 10.0]), np.array([[0.0, 0.01], [0.01, 0.03]]))
     np.testing.assert_allclose(batch.at(np.array([5.0, 5.0])), [0.005, 0.02], rtol=1e-15)
