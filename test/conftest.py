@@ -51,6 +51,22 @@ def spin_until(executor, condition, timeout):
     return condition()
 
 
+class Swerve:
+    """Open loop: 0.3 rad at 0.5 Hz above 25 m/s (spins the multi-body car), else 0.01."""
+
+    def reset(self):
+        self.t = None
+
+    def step(self, state, preview, dt):
+        import math
+
+        from lookahead_control.core.laws import output
+        import numpy as np
+        self.t = 0.0 if self.t is None else self.t + dt
+        amplitude = np.where(np.asarray(state.v_x) > 25.0, 0.3, 0.01)
+        return output(amplitude * math.sin(math.pi * self.t) + 0.0 * state.y_cg)
+
+
 @pytest.fixture
 def context():
     """Yield a private rclpy Context for nodes made in a test (callbacks called directly)."""

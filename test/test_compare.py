@@ -19,6 +19,7 @@ import os
 from pathlib import Path
 import time
 
+from conftest import Swerve
 from lookahead_control.core.params import VehicleParams
 from lookahead_control.tools import compare
 import numpy as np
@@ -138,19 +139,6 @@ def test_an_existing_league_it_did_not_write_is_refused_before_any_run(tmp_path,
     assert 'cannot create it' in capsys.readouterr().err
 
 
-class _Swerve:
-    """Open loop: 0.3 rad at 0.5 Hz above 25 m/s (spins the multi-body car), else 0.01."""
-
-    def reset(self):
-        self.t = None
-
-    def step(self, state, preview, dt):
-        from lookahead_control.core.laws import output
-        self.t = 0.0 if self.t is None else self.t + dt
-        amplitude = np.where(np.asarray(state.v_x) > 25.0, 0.3, 0.01)
-        return output(amplitude * math.sin(math.pi * self.t) + 0.0 * state.y_cg)
-
-
 class _Broken:
     """Raises on its first step (a bug in a law)."""
 
@@ -162,7 +150,7 @@ class _Broken:
 
 
 def test_a_diverged_run_is_a_row_and_the_league_goes_on(monkeypatch, tmp_path):
-    monkeypatch.setitem(compare.LAWS, 'swerve', lambda v: _Swerve())
+    monkeypatch.setitem(compare.LAWS, 'swerve', lambda v: Swerve())
     mb = next(p for p in compare.PLANTS if p.name == 'commonroad_mb')
     rows = compare.league(['swerve'], ['s2_curve_entry'], [10.0, 37.0], [mb], VEHICLE,
                           duration=2.5)

@@ -18,6 +18,7 @@ from dataclasses import replace
 import math
 from pathlib import Path
 
+from conftest import Swerve
 from lookahead_control.core.config import ConfigError
 from lookahead_control.core.laws import output
 from lookahead_control.core.params import ControllerParams, ParameterError
@@ -237,18 +238,6 @@ def test_commonroad_plants_close_the_loop_and_refuse_set_4():
         PlantParams(vehicle_id=7)
 
 
-class _Swerve:
-    """Open loop: 0.3 rad at 0.5 Hz above 25 m/s (spins the multi-body car), else 0.01."""
-
-    def reset(self):
-        self.t = None
-
-    def step(self, state, preview, dt):
-        self.t = 0.0 if self.t is None else self.t + dt
-        amplitude = np.where(np.asarray(state.v_x) > 25.0, 0.3, 0.01)
-        return output(amplitude * math.sin(math.pi * self.t) + 0.0 * state.y_cg)
-
-
 def test_a_diverging_multibody_run_stops_alone_and_the_batch_goes_on():
     # at 37 m/s the swerve spins the car: a rear wheel's speed is clamped to 0 while the
     # car moves and the model divides by it (the crash of `make compare`, issue 13)
@@ -256,10 +245,10 @@ def test_a_diverging_multibody_run_stops_alone_and_the_batch_goes_on():
                         SpeedProfile(20.0))
     vehicle = controller_vehicle(2)
     mb = PlantParams(model='commonroad_mb', vehicle_id=2)
-    batch = run(straight, vehicle, _Swerve(), mb, dt=0.002,
+    batch = run(straight, vehicle, Swerve(), mb, dt=0.002,
                 initial_speed=np.array([10.0, 37.0]))
-    slow = run(straight, vehicle, _Swerve(), mb, dt=0.002, initial_speed=10.0)
-    fast = run(straight, vehicle, _Swerve(), mb, dt=0.002, initial_speed=37.0)
+    slow = run(straight, vehicle, Swerve(), mb, dt=0.002, initial_speed=10.0)
+    fast = run(straight, vehicle, Swerve(), mb, dt=0.002, initial_speed=37.0)
     assert math.isnan(slow.diverged_at) and math.isnan(batch.diverged_at[0])
     assert 1.0 < fast.diverged_at < 2.5 and batch.diverged_at[1] == fast.diverged_at
     for name, values in batch.channels.items():
