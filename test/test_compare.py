@@ -252,3 +252,16 @@ def _alive(pid):
     except FileNotFoundError:
         return False
     return '\nState:\tZ' not in status        # a zombie is dead, not yet reaped
+
+
+def test_the_yaw_overshoot_is_measured_on_the_noisy_goal_plant():
+    # the goal plant's noise made the relative yaw wander beyond the 2 % settling band, so
+    # every overshoot there was NaN (counted missed); the noise-free twin now measures the
+    # noise's effect, and the overshoot is the noisy run's (the noise can only raise it)
+    rows = compare.league(laws=['cg_compensated'], scenarios=['s1_paper_step'],
+                          speeds=[37.0], plants=[compare.PLANTS[2], compare.PLANTS[1]],
+                          vehicle=VEHICLE, workers=1)
+    noisy, clean = sorted(rows, key=lambda r: r['plant'] != compare.GOAL_PLANT)
+    assert 'noise effect' in noisy['notes']
+    assert clean['yaw_overshoot'] <= noisy['yaw_overshoot'] < 0.10
+    assert math.isnan(noisy['steering_noise_rms_rad'])      # S0 only

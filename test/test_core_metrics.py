@@ -203,3 +203,48 @@ def test_plot_lines_are_distinguishable():
     from lookahead_control.analysis.plotting import line_styles
     styles = line_styles(25)
     assert len({(s['color'], s['linestyle']) for s in styles}) == 25
+
+
+def _wander(seed, size, rms):
+    # a slow random wander (the noise's effect through a closed loop is low-pass): white
+    # noise through a 1 s moving average, scaled to the given RMS
+    white = np.random.default_rng(seed).normal(0.0, 1.0, size + 100)
+    slow = np.convolve(white, np.ones(100) / 100.0, mode='valid')[:size]
+    return slow * rms / float(np.sqrt(np.mean(slow ** 2)))
+
+
+def test_a_noisy_step_with_its_noise_free_twin_has_an_overshoot():
+    # zeta 0.6 (9.5 % overshoot, settled after about 2.3 s of 20) plus a slow wander of
+    # 2 % of the step: the 2 % band of the excursion is not held to the end, so without
+    # the twin nothing is measured; with it the overshoot is the twin's within 3 x 2 %
+    clean = _second_order_step(0.6)
+    noisy = clean + _wander(5, clean.size, 0.02)
+    alone = step_metrics(TIME, noisy, 0.0)
+    assert math.isnan(alone.overshoot) and 'not settled' in alone.note
+    m = step_metrics(TIME, noisy, 0.0, noise_free=clean)
+    exact = math.exp(-math.pi * 0.6 / math.sqrt(1.0 - 0.36))
+    assert exact - 0.06 <= m.overshoot <= exact + 0.06
+    assert 'noise effect' in m.note and math.isfinite(m.settling_time)
+    # the twin itself (no noise) is measured as without it
+    assert step_metrics(TIME, clean, 0.0, noise_free=clean).overshoot == pytest.approx(
+        step_metrics(TIME, clean, 0.0).overshoot, abs=1e-12)
+
+
+def test_the_twin_does_not_make_an_unsettled_response_settled():
+    # zeta 0.05 over 20 s (envelope still 5 % at the end) plus a small wander
+    clean = _second_order_step(0.05)
+    noisy = clean + _wander(6, clean.size, 0.002)
+    m = step_metrics(TIME, noisy, 0.0, noise_free=clean)
+    assert math.isnan(m.overshoot) and 'not settled within the band' in m.note
+
+
+def test_noise_larger_than_the_goal_leaves_the_overshoot_unmeasured():
+    # a wander of 4 % rms: 3 x 4 % is over a tenth of the step, the overshoot would be
+    # the noise's
+    clean = _second_order_step(0.6)
+    noisy = clean + _wander(7, clean.size, 0.04)
+    m = step_metrics(TIME, noisy, 0.0, noise_free=clean)
+    assert math.isnan(m.overshoot) and 'would measure the noise' in m.note
+    bad = clean.copy()
+    bad[500] = math.nan
+    assert math.isnan(step_metrics(TIME, noisy, 0.0, noise_free=bad).overshoot)

@@ -43,6 +43,9 @@ SETTLING_BAND = 0.02
 MIN_DURATION = 1.0
 STEP_HOLD = 2.0
 MIN_STEP_FRACTION = 0.25
+#: an overshoot is measured under noise only while 3 x the noise's effect is below this
+#: fraction of the step (the overshoot's uncertainty stays below the 10 % goal)
+MAX_NOISE_FRACTION = 0.1
 FIT_TOLERANCE = 0.1
 FIT_SAMPLES = 1000
 
@@ -265,8 +268,8 @@ def decay_damping(deviation: Array, noise: float = 0.0,
 
 
 def step_metrics(time: Array, x: Array, step_time: float,
-                 final_window: float = 1.0, end_time: Optional[float] = None
-                 ) -> StepMetrics:
+                 final_window: float = 1.0, end_time: Optional[float] = None,
+                 noise_free: Optional[Array] = None) -> StepMetrics:
     """
     Return overshoot, damping ratio and settling time of a step response.
 
@@ -275,11 +278,21 @@ def step_metrics(time: Array, x: Array, step_time: float,
     not a step); the damping ratio comes from the decay between successive extrema and
     the settling band from the excursion, so neither divides by the final value.
 
+    With ``noise_free``, the same run without sensor noise (a simulation's twin), the
+    noise's effect on the response is measured, not guessed: ``n = RMS(x - noise_free)``
+    over the response. The settling band is then ``max(2% of the excursion, 3 n)`` (noise
+    alone does not make a settled response unsettled; a response that has not settled
+    beyond the noise still is not), and the overshoot is measured on the noisy signal
+    itself, so the noise can only raise it. Where ``3 n`` exceeds
+    :data:`MAX_NOISE_FRACTION` of the step's size the overshoot would be the noise's:
+    NaN with a note.
+
     :param time: sample times [s].
     :param x: the signal.
     :param step_time: when the step happened [s].
     :param final_window: the final value is the mean over this last stretch [s].
     :param end_time: end of the response (the next step), default: the last sample [s].
+    :param noise_free: ``x`` of the same run without sensor noise, at the same times.
     :return: the step metrics; NaN with a note where they do not apply.
     """
     end = float(time[-1]) if end_time is None else end_time
@@ -288,6 +301,8 @@ def step_metrics(time: Array, x: Array, step_time: float,
     if not window.any():
         return _nan_step(math.nan, math.nan, 'no samples after the step')
     t, y = time[window], x[window]
+    noise_effect = (0.0 if noise_free is None
+                    else float(np.sqrt(np.mean(np.square(y - noise_free[window])))))
     initial = float(x[before][-1]) if before.any() else float(y[0])
     if t[-1] - t[0] < 2.0 * final_window:
         return _nan_step(initial, math.nan, f'{t[-1] - t[0]:.3g} s after the step: too '
@@ -301,9 +316,16 @@ def step_metrics(time: Array, x: Array, step_time: float,
     if excursion == 0.0:
         return StepMetrics(initial, final, 0.0, 0.0, math.nan, 0.0,
                            'no response: damping undefined')
-    band = SETTLING_BAND * excursion
+    band = max(SETTLING_BAND * excursion, 3.0 * noise_effect)
+    if not math.isfinite(band):
+        return _nan_step(initial, final, 'the response or its noise-free twin is not '
+                         'finite', excursion)
+    notes = []
+    if band > SETTLING_BAND * excursion:
+        notes.append(f'settling band 3 x the noise effect {noise_effect:.3g} (measured '
+                     'against the noise-free run)')
     last = int(np.nonzero(magnitude > band)[0][-1])
-    if t[last] >= t[-1] - final_window:
+    if t[last] >= t[-1] - final_window and noise_free is None:
         # white noise from third differences (std sqrt(20) sigma), in which a smooth
         # response, settled or not, hardly shows
         settled = y[t[1:] >= t[-1] - final_window]
@@ -315,10 +337,18 @@ def step_metrics(time: Array, x: Array, step_time: float,
                              'damping not measured', excursion)
         return _nan_step(initial, final, 'not settled within 2% of the excursion before '
                          f'the end of the response ({end - step_time:.3g} s)', excursion)
+    if t[last] >= t[-1] - final_window:
+        return _nan_step(initial, final, 'not settled within the band (2% of the excursion, '
+                         f'or 3 x the noise effect {noise_effect:.3g}) before the end of the '
+                         f'response ({end - step_time:.3g} s)', excursion)
     settling = float(t[min(last + 1, t.size - 1)] - step_time)
-    notes = []
     size = abs(final - initial)
-    if size < MIN_STEP_FRACTION * excursion:
+    if 3.0 * noise_effect > MAX_NOISE_FRACTION * size:
+        overshoot = math.nan
+        notes.append(f'overshoot: 3 x the noise effect ({3.0 * noise_effect:.3g}) is over '
+                     f'{MAX_NOISE_FRACTION:g} of the step ({size:.3g}): it would measure '
+                     'the noise, not the response')
+    elif size < MIN_STEP_FRACTION * excursion:
         overshoot = math.nan
         notes.append(f'overshoot: the step ({size:.3g}) is under {MIN_STEP_FRACTION:g} of '
                      f'the excursion ({excursion:.3g}): a pulse, not a step')

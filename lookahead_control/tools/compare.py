@@ -253,7 +253,8 @@ def _diverged_at(result: SimResult, index: Optional[int]) -> float:
 
 
 def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
-            clean_command: Optional[Array]) -> dict[str, Any]:
+            clean_command: Optional[Array],
+            clean: Optional[Mapping[str, Array]] = None) -> dict[str, Any]:
     """
     Return the metrics of one run of a batch.
 
@@ -264,6 +265,8 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
     :param index: the run's column (None: a single run).
     :param vehicle: the controller's vehicle model (eq. 26's d_v for the look-ahead point).
     :param clean_command: the same run's command without sensor noise (noise metric).
+    :param clean: the same run without sensor noise, ``eps_r`` and ``r`` (the overshoots'
+        settling band under noise: :func:`step_metrics`).
     :return: the metrics.
     """
     def channel(name: str) -> Array:
@@ -305,7 +308,8 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
         notes.append('no curve entry to a constant curvature: no overshoot')
     else:
         for name, signal in (('yaw_overshoot', eps), ('yaw_rate_overshoot', rate)):
-            step = step_metrics(t, signal, window[0], FINAL_WINDOW, window[1])
+            twin = None if clean is None else clean[name]
+            step = step_metrics(t, signal, window[0], FINAL_WINDOW, window[1], twin)
             row[name] = step.overshoot
             if step.note:
                 notes.append(f'{name}: {step.note}')
@@ -405,15 +409,18 @@ def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario, v0: Array
     law = LAWS[law_name](vehicle)
     common: dict[str, Any] = {'initial_speed': v0, 'dt': case.dt or dt,
                               'preview_distance': PREVIEW_DISTANCE, 'delay': case.delay}
-    clean = None
-    if case.noisy:
-        if scenario_name == NOISE_SCENARIO:     # the noise-free twin of each run
-            clean = run(scenario, vehicle, law, case.plant, **common)['steering_cmd']
-        result = run(scenario, vehicle, law, case.plant, noise=NoiseParams(), seed=seeds,
-                     **common)
-    else:
+    if not case.noisy:
         result = run(scenario, vehicle, law, case.plant, **common)
-    return [run_row(result, i, vehicle, None if clean is None else clean[:, i])
+        return [run_row(result, i, vehicle, None) for i in range(v0.size)]
+    # the noise-free twin of each run: the steering noise (S0) and the noise's effect on
+    # the yaw responses
+    twin = run(scenario, vehicle, law, case.plant, **common)
+    result = run(scenario, vehicle, law, case.plant, noise=NoiseParams(), seed=seeds,
+                 **common)
+    return [run_row(result, i, vehicle,
+                    twin['steering_cmd'][:, i] if scenario_name == NOISE_SCENARIO else None,
+                    {'yaw_overshoot': twin['eps_r'][:, i],
+                     'yaw_rate_overshoot': twin['r'][:, i]})
             for i in range(v0.size)]
 
 
