@@ -398,3 +398,30 @@ def test_an_integral_at_its_clamp_feeds_no_rate_forward():
     assert law.integral == held and out.y_ref == -held
     law.step(LateralState(-1.0, 0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0), None, 0.01)
     assert law.integral == pytest.approx(held - 0.3 * 0.01)        # back inside: moves
+
+
+def test_slow_lateral_errors_restart_the_law_and_diagnostics_say_so(context):
+    # a lateral error at 2 Hz (0.5 s apart, max_gap 0.25 s) restarted the law at every
+    # message, silently: /diagnostics said ok while the integral never acted
+    from diagnostic_msgs.msg import DiagnosticStatus
+    node = _node(context)
+    try:
+        stamp = 100 * S
+        for _ in range(50):             # 100 Hz: no restart
+            stamp += 10 * MS
+            _send(node, stamp)
+        node.diagnostics()
+        assert node.core.law_restarts == 0 and node.core.law.integral > 0.0
+        for _ in range(5):              # 2 Hz
+            stamp += 500 * MS
+            _send(node, stamp)
+        status = node.diagnostics()
+        assert node.core.law_restarts == 5 and node.core.law.integral == 0.0
+        assert status.level == DiagnosticStatus.WARN
+        assert 'law restarts: 5' in status.message and 'max_gap 0.25 s' in status.message
+        assert {v.key: v.value for v in status.values}['law_restarts'] == '5'
+        stamp += 10 * MS
+        _send(node, stamp)
+        assert 'law restarts' not in node.diagnostics().message     # since the last report
+    finally:
+        node.destroy_node()

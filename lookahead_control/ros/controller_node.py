@@ -516,13 +516,14 @@ class ControllerNode(LifecycleNode):
 
         ERROR on stale inputs (named, with why their last message was refused); WARN on
         a lost curvature, refused messages, saturation, low-speed hand-over, clamped
-        d_v, time jumps since the last report, or an input age or answer latency above
+        d_v, time jumps or law restarts since the last report, or an input age or answer
+        latency above
         ``safety.latency_warn``; else OK.
 
         :return: the status with its reasons and counters.
         """
         counts = {**self.counters, 'rejected': sum(self.core.rejected.values()),
-                  'time_jumps': self.core.time_jumps}
+                  'time_jumps': self.core.time_jumps, 'law_restarts': self.core.law_restarts}
         new = {k: v - self._reported.get(k, 0) for k, v in counts.items()}
         self._reported = counts
         ages, latency = self.core.timing.take()
@@ -538,12 +539,16 @@ class ControllerNode(LifecycleNode):
             level = max(level, DiagnosticStatus.WARN)
             reasons.append('road_curvature lost: no curvature feed-forward')
         for key in ('rejected', 'saturated', 'rate_limited', 'low_speed', 'd_v_clamped',
-                    'time_jumps'):
+                    'time_jumps', 'law_restarts'):
             if new[key] > 0:
                 level = max(level, DiagnosticStatus.WARN)
                 text = f'{key.replace("_", " ")}: {new[key]}'
                 if key == 'rejected':
                     text += f' (last: {self.core.last_rejection})'
+                elif key == 'law_restarts':
+                    text += (' (lateral errors further apart than lane_keeping.max_gap '
+                             f'{self.core.lane_keeping.max_gap:g} s: integral and estimate '
+                             'start again)')
                 reasons.append(text)
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
