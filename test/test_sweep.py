@@ -186,3 +186,28 @@ def test_a_resume_with_another_vehicle_or_controller_is_refused(reference, tmp_p
         {k: v for k, v in manifest.items() if k not in ('vehicle', 'controller')}))
     with pytest.raises(ToolError, match='did not record its vehicle and controller'):
         _sweep(old)
+
+
+def test_the_printed_summary_gives_the_worst_case_of_each_scenario(tmp_path, capsys):
+    # before, only the row over all scenarios was printed: the worst case per scenario
+    # (issue 14's S1 / S2 / S3 figures) was only in summary.md
+    code = run_tool(sw.main, ['--out', str(tmp_path / 'p'), '--workers', '0', '--mode',
+                              'grid', '--levels', '2', '--cornering=-0.3:0.3', '--mass', '0:0',
+                              '--friction', '1:1', '--delay', '0:0', '--speeds', '37',
+                              '--scenarios', 's1_paper_step,s2_curve_entry', '--duration',
+                              '2.6', '--dt', '0.002', '--laws', 'cg_compensated',
+                              '--no-plots', '--no-progress'])
+    out = capsys.readouterr().out
+    assert code == 0
+    data = pq.read_table(tmp_path / 'p' / 'results.parquet').to_pydict()
+    lines = {line.split('|')[2].strip(): line.split('|') for line in out.splitlines()
+             if line.startswith('| cg_compensated')}
+    assert set(lines) == {'all', 's1_paper_step', 's2_curve_entry'}
+    for scenario in ('s1_paper_step', 's2_curve_entry'):
+        peaks = [p for p, s in zip(data['peak_cg_error_m'], data['scenario']) if s == scenario]
+        worst = int(np.argmax(peaks))
+        cornering = [c for c, s in zip(data['cornering'], data['scenario']) if s == scenario]
+        assert len(peaks) == 2
+        assert float(lines[scenario][7]) == pytest.approx(max(peaks), rel=5e-3)
+        assert f'C x{1 + cornering[worst]:.2f}' in lines[scenario][8]
+    assert float(lines['all'][7]) == pytest.approx(max(data['peak_cg_error_m']), rel=5e-3)
