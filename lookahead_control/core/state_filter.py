@@ -400,7 +400,7 @@ class KalmanStateFilter:
             self.decay_cache = (dt, math.exp(-dt / lag) if lag > 0.0 else 0.0,
                                 math.exp(-0.5 * dt / lag) if lag > 0.0 else 0.0)
         decay, half = self.decay_cache[1], self.decay_cache[2]
-        start = self.wheel
+        start = self.wheel if s.actuator_lag > 0.0 else applied
         wheel = (start, applied + (start - applied) * half, applied + (start - applied) * decay)
         rho_mid = 0.5 * (self.rho + rho)
         curvature = (self.rho, rho_mid, rho)
