@@ -348,3 +348,32 @@ def test_bad_settings_are_refused_in_one_line(field, value):
 def test_all_process_noises_zero_is_refused():
     with pytest.raises(ParameterError, match='filter_force_noise'):
         StateFilterParams(force_noise=0.0, force_drift=0.0, kinematic_noise=0.0)
+
+
+def test_node_runs_the_filter_by_default_and_switches_it(context):
+    from lookahead_control.ros.controller_node import ControllerNode
+    from rclpy.parameter import Parameter
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated')])
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        law = node.core.law
+        assert isinstance(law.state_filter, KalmanStateFilter)
+        assert law.state_filter.settings == StateFilterParams()
+        refused = node.set_parameters([Parameter('lane_keeping.state_filter', value='ekf')])[0]
+        assert not refused.successful and 'state_filter' in refused.reason
+        refused = node.set_parameters([Parameter('lane_keeping.filter_yaw_noise',
+                                                 value=0.0)])[0]
+        assert not refused.successful
+        ok = node.set_parameters([Parameter('lane_keeping.filter_force_noise',
+                                            value=250.0)])[0]
+        assert ok.successful
+        node.core.compute(1)                # parameters take effect at a step
+        assert node.core.law.state_filter.settings.force_noise == 250.0
+        ok = node.set_parameters([Parameter('lane_keeping.state_filter', value='none')])[0]
+        assert ok.successful
+        node.core.compute(2)
+        assert node.core.law.state_filter is None
+    finally:
+        node.destroy_node()

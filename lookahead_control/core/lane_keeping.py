@@ -127,7 +127,7 @@ class LaneKeepingParams:
     rate_feedforward: bool = True
     design_friction: float = 1.0
     max_lateral_jerk: float = 10.0
-    state_filter: str = 'none'
+    state_filter: str = 'kalman'
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
     filter_delay: float = 0.02
@@ -136,7 +136,7 @@ class LaneKeepingParams:
     filter_yaw_noise: float = 0.002
     filter_lateral_velocity_noise: float = 0.02
     filter_yaw_rate_noise: float = 0.002
-    filter_force_noise: float = 300.0
+    filter_force_noise: float = 100.0
     filter_force_drift: float = 2000.0
     filter_kinematic_noise: float = 0.01
 

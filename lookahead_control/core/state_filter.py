@@ -94,7 +94,7 @@ class StateFilterParams:
     yaw_noise: float = 0.002
     lateral_velocity_noise: float = 0.02
     yaw_rate_noise: float = 0.002
-    force_noise: float = 300.0
+    force_noise: float = 100.0
     force_drift: float = 2000.0
     kinematic_noise: float = 0.01
 
@@ -323,12 +323,12 @@ class KalmanStateFilter:
         self.restarts = 0
 
     def reset(self) -> None:
-        """Restart from the next measurement (the actuator holds the last command)."""
-        last = self.history[-1][1] if self.history else self.held
-        self.held = _select(np.isfinite(last), last, 0.0)
-        self.wheel = self.held
-        self.history = []
-        self.time = 0.0
+        """
+        Restart from the next measurement.
+
+        The actuator model and the commands still on their way to it are kept: they are
+        the car's, not the estimate's (a run of a batch restarts the same way).
+        """
         self.x = None
         self.restarts += 1
 
@@ -340,7 +340,6 @@ class KalmanStateFilter:
         """
         if self.x is not None:
             self.x = [np.where(where, math.nan, v) for v in self.x]
-        self.wheel = np.where(where & ~np.isfinite(self.wheel), 0.0, self.wheel)
 
     def command(self, steering: Real) -> None:
         """
@@ -441,10 +440,10 @@ class KalmanStateFilter:
         good = (np.isfinite(state.y_cg) & np.isfinite(state.eps_r) & np.isfinite(state.v_y)
                 & np.isfinite(state.r) & np.isfinite(state.v_x) & np.isfinite(state.rho))
         fast = good & (state.v_x >= self.settings.min_speed)
-        if self.x is None:
-            self.x = [_select(fast, mv, math.nan) for mv in measured]
+        if self.x is None:              # (re)start: every run from its next measurement
+            self.x = [math.nan + 0.0 * mv for mv in measured]
             self.rho = state.rho
-            return self._out(state, measured, fast)
+        fresh = np.isnan(self.x[0])
         if dt > 0.0:
             v_x = _select(fast, state.v_x, self.settings.min_speed)
             prior = self._predict(self.x, dt, v_x, state.rho)
@@ -459,10 +458,11 @@ class KalmanStateFilter:
                          for i in range(6)]
             self.time += dt
             self.rho = _select(good, state.rho, self.rho)
-            # restarted runs (NaN marks) start from this measurement
-            fresh = np.isnan(self.x[0])
-            self.x = [_select(fast & ~fresh, p, _select(fast, mv, math.nan))
-                      for p, mv in zip(posterior, measured)]
+        else:                           # the same instant again: nothing advances
+            posterior = self.x
+        # restarted runs (NaN marks) start from this measurement
+        self.x = [_select(fast & ~fresh, p, _select(fast, mv, math.nan))
+                  for p, mv in zip(posterior, measured)]
         return self._out(state, measured, fast)
 
     def _out(self, state: LateralState, measured: list[Real], fast: Any) -> LateralState:
