@@ -377,3 +377,29 @@ def test_node_runs_the_filter_by_default_and_switches_it(context):
         assert node.core.law.state_filter is None
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize('v_x', [3.0, 10.0, 37.0, 60.0])
+@pytest.mark.parametrize('dt', [1e-4, 0.005, 0.02, 0.021, 0.24, 5.0])
+def test_frozen_inconsistent_input_at_any_step_stays_bounded(v_x, dt):
+    # a frozen sensor (constant y, eps_r, v_y and r = 0.02 rad/s on a straight road:
+    # no car does that) at any step length. Old code: at 37 m/s a step of 0.24 s
+    # diverged (1e41 m), and at 3.5 m/s one RK4 step over 0.24 s amplified by 184.
+    kf = KalmanStateFilter(VEHICLE)
+    steps = 4000 if dt < 0.005 else max(int(20.0 / dt), 5)
+    for k in range(steps):
+        out = kf.step(measured(0.1, 0.01, 0.05, 0.02, v_x), 0.0 if k == 0 else dt)
+        kf.command(0.02)
+        assert abs(out.y_cg) < 0.35 and abs(out.eps_r) < 0.03 and abs(out.v_y) < 0.06
+
+
+def test_a_step_longer_than_two_periods_restarts_from_the_measurement():
+    kf = KalmanStateFilter(VEHICLE)
+    for k in range(50):
+        kf.step(measured(0.1, 0.01, 0.0, 0.0, 30.0), 0.0 if k == 0 else PERIOD)
+        kf.command(0.01)
+    out = kf.step(measured(0.4, 0.02, 0.1, 0.01, 30.0), 2.0 * PERIOD + 1e-6)
+    assert (out.y_cg, out.eps_r, out.v_y, out.r) == (0.4, 0.02, 0.1, 0.01)
+    assert kf.long_steps == 1
+    out = kf.step(measured(0.4, 0.02, 0.1, 0.01, 30.0), 2.0 * PERIOD)    # not longer
+    assert out.y_cg != 0.4 and kf.long_steps == 1

@@ -61,6 +61,8 @@ import numpy.typing as npt
 
 FILTER_MODES = ('none', 'kalman')
 STATES = ('y_cg', 'eps_r', 'v_y', 'r', 'front_force', 'rear_force')
+#: a step longer than this many design periods restarts the filter (see ``step``)
+LONG_STEP = 2.0
 #: speed grid of the gain table [m/s] (above its end the last gain is used)
 SPEED_STEP = 1.0
 TOP_SPEED = 80.0
@@ -312,7 +314,12 @@ class KalmanStateFilter:
         self.vehicle = vehicle
         self.settings = settings or StateFilterParams()
         self.speeds, self.gains = gain_table(vehicle, self.settings)
-        self.decay_cache: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+        self.steps_cache: tuple[float, int, float, float, float] = (
+            math.nan, 1, 0.0, 0.0, 0.0)
+        veh, low = vehicle, self.settings.min_speed
+        fastest = max((veh.c_f + veh.c_r) / (veh.mass * low),
+                      (veh.c_f * veh.l1 ** 2 + veh.c_r * veh.l2 ** 2) / (veh.yaw_inertia * low))
+        self.max_substep = min(self.settings.period, 1.0 / fastest)
         self.innovation: tuple[Real, ...] = ()
         self.x: Optional[list[Real]] = None
         self.wheel: Real = 0.0          # the actuator's angle the model assumes [rad]
@@ -321,6 +328,7 @@ class KalmanStateFilter:
         self.time = 0.0
         self.rho: Real = 0.0
         self.restarts = 0
+        self.long_steps = 0
 
     def reset(self) -> None:
         """
@@ -389,20 +397,24 @@ class KalmanStateFilter:
                  for col in range(4)] for row in range(6)]
 
     def _predict(self, x: list[Real], dt: float, v_x: Real, rho: Real) -> list[Real]:
-        """Integrate the model over ``dt`` (RK4), the wheel angle exact between samples."""
+        """
+        Integrate the model over ``dt`` (RK4 substeps), the wheel angle exact in between.
+
+        A substep is at most the design period and at most ``1 / lambda`` of the fastest
+        tyre mode at ``min_speed`` (RK4 is unstable beyond ``2.8 / lambda``): a long step
+        (lost messages, a slow sensor) at low speed is integrated, not amplified. The
+        count depends only on ``dt`` and the settings: the same for every run of a batch.
+        """
         veh, s = self.vehicle, self.settings
         m, iz, l1, l2, cf, cr = (veh.mass, veh.yaw_inertia, veh.l1, veh.l2, veh.c_f,
                                  veh.c_r)
-        applied = self._applied(self.time + 0.5 * dt - s.delay)
-        if self.decay_cache[0] != dt:
+        if self.steps_cache[0] != dt:
+            count = max(1, math.ceil(dt / self.max_substep - 1e-9))
+            h = dt / count
             lag = s.actuator_lag
-            self.decay_cache = (dt, math.exp(-dt / lag) if lag > 0.0 else 0.0,
-                                math.exp(-0.5 * dt / lag) if lag > 0.0 else 0.0)
-        decay, half = self.decay_cache[1], self.decay_cache[2]
-        start = self.wheel if s.actuator_lag > 0.0 else applied
-        wheel = (start, applied + (start - applied) * half, applied + (start - applied) * decay)
-        rho_mid = 0.5 * (self.rho + rho)
-        curvature = (self.rho, rho_mid, rho)
+            self.steps_cache = (dt, count, h, math.exp(-h / lag) if lag > 0.0 else 0.0,
+                                math.exp(-0.5 * h / lag) if lag > 0.0 else 0.0)
+        _, count, h, decay, half = self.steps_cache
         a_vv = -(cf + cr) / (m * v_x)
         a_vr = -(cf * l1 - cr * l2) / (m * v_x) - v_x
         a_rv = -(cf * l1 - cr * l2) / (iz * v_x)
@@ -410,22 +422,31 @@ class KalmanStateFilter:
         y, e, v, r, f_f, f_r = x
         v_force = (f_f + f_r) / m
         r_force = (l1 * f_f - l2 * f_r) / iz
+        rho_start = self.rho
+        for j in range(count):
+            applied = self._applied(self.time + (j + 0.5) * h - s.delay)
+            start = self.wheel if s.actuator_lag > 0.0 else applied
+            wheel = (start, applied + (start - applied) * half,
+                     applied + (start - applied) * decay)
+            curvature = (rho_start + (rho - rho_start) * (j / count),
+                         rho_start + (rho - rho_start) * ((j + 0.5) / count),
+                         rho_start + (rho - rho_start) * ((j + 1.0) / count))
 
-        def rates(e: Real, v: Real, r: Real, k: int) -> tuple[Real, Real, Real, Real]:
-            return (v + v_x * e, r - v_x * curvature[k],
-                    a_vv * v + a_vr * r + cf / m * wheel[k] + v_force,
-                    a_rv * v + a_rr * r + cf * l1 / iz * wheel[k] + r_force)
+            def rates(e: Real, v: Real, r: Real, k: int) -> tuple[Real, Real, Real, Real]:
+                return (v + v_x * e, r - v_x * curvature[k],
+                        a_vv * v + a_vr * r + cf / m * wheel[k] + v_force,
+                        a_rv * v + a_rr * r + cf * l1 / iz * wheel[k] + r_force)
 
-        h = 0.5 * dt
-        k1 = rates(e, v, r, 0)
-        k2 = rates(e + h * k1[1], v + h * k1[2], r + h * k1[3], 1)
-        k3 = rates(e + h * k2[1], v + h * k2[2], r + h * k2[3], 1)
-        k4 = rates(e + dt * k3[1], v + dt * k3[2], r + dt * k3[3], 2)
-        w = dt / 6.0
-        out = [old + w * (a + 2.0 * b + 2.0 * c + d)
-               for old, a, b, c, d in zip((y, e, v, r), k1, k2, k3, k4)]
-        self.wheel = wheel[2]
-        return out + [f_f, f_r]
+            mid = 0.5 * h
+            k1 = rates(e, v, r, 0)
+            k2 = rates(e + mid * k1[1], v + mid * k1[2], r + mid * k1[3], 1)
+            k3 = rates(e + mid * k2[1], v + mid * k2[2], r + mid * k2[3], 1)
+            k4 = rates(e + h * k3[1], v + h * k3[2], r + h * k3[3], 2)
+            w = h / 6.0
+            y, e, v, r = (old + w * (p + 2.0 * q + 2.0 * u + z)
+                          for old, p, q, u, z in zip((y, e, v, r), k1, k2, k3, k4))
+            self.wheel = wheel[2]
+        return [y, e, v, r, f_f, f_r]
 
     def step(self, state: LateralState, dt: float) -> LateralState:
         """
@@ -444,6 +465,11 @@ class KalmanStateFilter:
             self.x = [math.nan + 0.0 * mv for mv in measured]
             self.rho = state.rho
         fresh = np.isnan(self.x[0])
+        if dt > LONG_STEP * self.settings.period:
+            # the steady gain holds near its design period only: after a longer step
+            # (lost messages, a slower sensor) the filter restarts from the measurement
+            fresh = fresh | True
+            self.long_steps += 1
         if dt > 0.0:
             v_x = _select(fast, state.v_x, self.settings.min_speed)
             prior = self._predict(self.x, dt, v_x, state.rho)
