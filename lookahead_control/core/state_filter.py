@@ -41,8 +41,9 @@ Safety: a non-finite measurement passes through (the law refuses it) and the fil
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
 finite, ``> max_gap``, decided by the law) restarts it; ``dt = 0`` advances nothing and
 returns the last estimate; a step longer than ``LONG_STEP`` design periods restarts it
-from that measurement (the steady gain holds near its period only); below ``min_speed`` the model's ``1 / v_x`` terms are not
-trusted: the measurements pass through and the filter restarts from them.
+from that measurement (the steady gain holds near its period only); below
+``min_speed`` the model's ``1 / v_x`` terms are not trusted: the measurements pass
+through and the filter restarts from them.
 Everything works on floats and on numpy arrays (a batch), element by element the same
 operations, so a run of a batch equals the single run bit for bit.
 """
