@@ -129,7 +129,7 @@ def test_unusable_preview_falls_back_to_the_cg_curvature(polygon):
 
 
 def test_integral_resets_on_time_jumps_and_bad_input():
-    law = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(state_filter='none'))
     for _ in range(100):
         law.step(state(y_cg=0.2), EMPTY, 0.01)
     assert law.integral == pytest.approx(0.3 * 0.2 * 1.0)
@@ -270,8 +270,9 @@ MS = 1_000_000
 
 
 def _core(law='cg_compensated'):
+    # the law on its raw inputs (state_filter: none): the integral checked to the digit
     return SteeringController(VEHICLE, ControllerParams(), 'zero', True, SafetyParams(),
-                              law)
+                              law, lane_keeping=LaneKeepingParams(state_filter='none'))
 
 
 def _feed(core, stamp, y, rho=-1 / 400):

@@ -32,13 +32,15 @@ def test_node_selects_the_lane_keeping_law_by_parameter(context):
     from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated'),
-        Parameter('lane_keeping.integral_gain', value=0.5)])
+        Parameter('lane_keeping.integral_gain', value=0.5),
+        Parameter('lane_keeping.state_filter', value='none')])
     try:
         node.trigger_configure()
         node.trigger_activate()
         law = node.core.law
         assert isinstance(law, CgCompensatedLaw)
-        assert law.settings == LaneKeepingParams(integral_gain=0.5)
+        assert law.settings == LaneKeepingParams(integral_gain=0.5, state_filter='none')
+        assert law.state_filter is None
         for k in range(11):
             _feed(node, (1000 + 10 * k) * MS)
         assert law.integral == pytest.approx(0.5 * 0.1 * 0.1)

@@ -43,10 +43,13 @@ from rclpy.time import Time
 VEHICLE = VehicleParams()
 MS = 1_000_000
 GRAVITY = 9.81
-NO_LEARNING = LaneKeepingParams(integral_gain=0.0, compliance_time_constant=0.0)
+# the law on its raw inputs: these tests check its integral and restarts to the digit
+RAW = LaneKeepingParams(state_filter='none')
+NO_LEARNING = LaneKeepingParams(integral_gain=0.0, compliance_time_constant=0.0,
+                                state_filter='none')
 
 
-def _core(law='cg_compensated', use_preview=False, lane_keeping=None):
+def _core(law='cg_compensated', use_preview=False, lane_keeping=RAW):
     return SteeringController(VEHICLE, ControllerParams(), 'zero', use_preview,
                               SafetyParams(), law, lane_keeping=lane_keeping)
 
@@ -79,7 +82,7 @@ def test_timer_faster_than_the_measurements_does_not_restart_the_law():
 
 
 def test_same_instant_again_advances_nothing():
-    law = CgCompensatedLaw(VEHICLE, ControllerParams())
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), RAW)
     s = LateralState(0.2, 0.01, 0.3, 0.02, 30.0, 0.0, -0.005, 0.0)
     for _ in range(50):
         law.step(s, None, 0.01)
@@ -176,7 +179,7 @@ def test_compliance_estimate_on_a_fiala_steady_turn_matches_the_hand_value():
     v_y = VEHICLE.l2 * r - v * alpha_r
     eps = -v_y / v
     assert (eps - steady_relative_yaw(VEHICLE, v, rho)) * 1e3 == pytest.approx(-3.8, abs=0.01)
-    law = CgCompensatedLaw(VEHICLE, ControllerParams())
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), RAW)
     turn = LateralState(0.0, eps, v_y, r, v, 0.0, rho, 0.0)
     for k in range(1000):
         out = law.step(turn, None, 0.0 if k == 0 else 0.01)
@@ -221,7 +224,7 @@ def _node(context, *overrides):
     from lookahead_control.ros.controller_node import ControllerNode
     node = ControllerNode(context=context, parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated'),
-        *overrides])
+        Parameter('lane_keeping.state_filter', value='none'), *overrides])
     node.trigger_configure()
     node.trigger_activate()
     return node
@@ -383,13 +386,15 @@ def test_an_integral_at_its_clamp_feeds_no_rate_forward():
     # (-4.14 against -3.82 mrad at 10 cm, 37 m/s) than with integral_gain 0
     s = LateralState(0.1, 0.0, 0.0, 0.0, 37.0, 0.0, 0.0, 0.0)
     outputs = []
-    for settings in (LaneKeepingParams(integral_gain=0.0), LaneKeepingParams(integral_limit=0.0)):
+    for settings in (LaneKeepingParams(integral_gain=0.0, state_filter='none'),
+                     LaneKeepingParams(integral_limit=0.0, state_filter='none')):
         law = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
         for k in range(5):
             out = law.step(s, None, 0.0 if k == 0 else 0.01)
         outputs.append(out)
     assert outputs[1].steering == outputs[0].steering
-    law = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams(integral_limit=0.2))
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(),
+                           LaneKeepingParams(integral_limit=0.2, state_filter='none'))
     for _ in range(2000):
         law.step(LateralState(1.0, 0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0), None, 0.01)
     held = law.integral

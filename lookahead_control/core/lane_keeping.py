@@ -60,6 +60,8 @@ from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import (check_range, ControllerParams, ParameterError,
                                            VehicleParams)
 from lookahead_control.core.schedule import look_ahead
+from lookahead_control.core.state_filter import (FILTER_MODES, KalmanStateFilter,
+                                                 StateFilterParams)
 import numpy as np
 
 
@@ -100,6 +102,11 @@ class LaneKeepingParams:
     :param max_lateral_jerk: the rate feedforward uses the curvature rate clipped to
         this lateral jerk ``v_x^2 rho'`` (a curvature step in the map would be an
         impulse); 0: no clip [m/s^3].
+    :param state_filter: ``kalman``: the law sees the Kalman filter's estimate of
+        ``y_cg, eps_r, v_y, r`` (``core/state_filter.py``); ``none``: the measurements.
+    :param filter_min_speed: ... (and the ``filter_*`` below): the filter's settings,
+        :class:`~lookahead_control.core.state_filter.StateFilterParams` without the
+        ``filter_`` prefix.
     """
 
     natural_frequency: float = 7.0
@@ -120,6 +127,18 @@ class LaneKeepingParams:
     rate_feedforward: bool = True
     design_friction: float = 1.0
     max_lateral_jerk: float = 10.0
+    state_filter: str = 'kalman'
+    filter_min_speed: float = 3.0
+    filter_actuator_lag: float = 0.05
+    filter_delay: float = 0.02
+    filter_period: float = 0.01
+    filter_lateral_noise: float = 0.03
+    filter_yaw_noise: float = 0.002
+    filter_lateral_velocity_noise: float = 0.02
+    filter_yaw_rate_noise: float = 0.002
+    filter_force_noise: float = 100.0
+    filter_force_drift: float = 2000.0
+    filter_kinematic_noise: float = 0.01
 
     def __post_init__(self) -> None:
         check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,
@@ -160,10 +179,24 @@ class LaneKeepingParams:
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
+        if self.state_filter not in FILTER_MODES:
+            raise ParameterError(f'lane_keeping.state_filter = {self.state_filter!r} is not '
+                                 f'allowed; choose one of {", ".join(FILTER_MODES)}')
         for item in fields(self):
-            if item.name == 'rate_feedforward':
+            if item.name in ('rate_feedforward', 'state_filter'):
                 continue
             object.__setattr__(self, item.name, float(getattr(self, item.name)))
+        self.filter_settings()
+
+    def filter_settings(self) -> StateFilterParams:
+        """
+        Return the state filter's settings (the ``filter_*`` fields), validated.
+
+        :return: the settings.
+        """
+        return StateFilterParams(**{item.name[len('filter_'):]: getattr(self, item.name)
+                                    for item in fields(self)
+                                    if item.name.startswith('filter_')})
 
 
 def loop_gains(settings: LaneKeepingParams, v_x: Real) -> tuple[Real, Real]:
@@ -369,6 +402,8 @@ class CgCompensatedLaw:
         self.estimator = ComplianceEstimator(
             vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
             st.compliance_prior, st.compliance_range, st.design_friction)
+        self.state_filter = (KalmanStateFilter(vehicle, st.filter_settings())
+                             if st.state_filter == 'kalman' else None)
         self.resets = 0
 
     def reset(self) -> None:
@@ -377,6 +412,8 @@ class CgCompensatedLaw:
         self.last_steering = 0.0
         self.cut = False
         self.estimator.reset()
+        if self.state_filter is not None:
+            self.state_filter.reset()
         self.resets += 1
 
     def note_limited(self, cut: bool) -> None:
@@ -418,6 +455,8 @@ class CgCompensatedLaw:
         if not (math.isfinite(dt) and 0.0 <= dt <= s.max_gap):
             self.reset()
             dt = 0.0
+        if self.state_filter is not None:
+            state = self.state_filter.step(state, dt)
         v_x = xp.maximum(state.v_x, self.controller.min_speed)
         slope = state.rho_rate / v_x
         distances = getattr(preview, 'distances', None)
@@ -449,13 +488,19 @@ class CgCompensatedLaw:
                                  tangent_compliance=tangent, gains=loop_gains(s, v_x),
                                  lead_rate=lead_rate)
         finite = _finite(out.steering)
+        if self.state_filter is not None:
+            self.state_filter.command(out.steering)
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)
             self.last_steering = np.where(finite, out.steering, 0.0)
             self.estimator.forget(~finite)
+            if self.state_filter is not None:
+                self.state_filter.forget(~finite)
         elif not finite:
             self.integral, self.last_steering = 0.0, 0.0
             self.estimator.reset()
+            if self.state_filter is not None:
+                self.state_filter.reset()
         else:
             self.integral, self.last_steering = integral, out.steering
         return out

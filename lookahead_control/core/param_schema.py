@@ -33,6 +33,7 @@ from lookahead_control.core.baselines import LATERAL_RATE_MODES
 from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import ParameterError, REFERENCE_MODES, SCHEDULE_MODES
+from lookahead_control.core.state_filter import FILTER_MODES
 
 
 class Spec(NamedTuple):
@@ -115,6 +116,28 @@ LANE_KEEPING_SPECS = tuple(
         ('max_lateral_jerk', 'the rate feedforward sees at most this lateral jerk '
          '(a curvature step in the map is not followed as an impulse); 0: no limit '
          '[m/s^3]', 0.0, 1000.0),
+    )) + (
+    Spec('lane_keeping.state_filter', LaneKeepingParams().state_filter,
+         'kalman: the law uses the estimate of y_cg, eps_r, v_y, r of the Kalman filter '
+         '(docs/lane_keeping.md, State filter); none: the measurements',
+         choices=FILTER_MODES),
+) + tuple(
+    Spec(f'lane_keeping.filter_{name}', getattr(LaneKeepingParams(), f'filter_{name}'),
+         'state filter: ' + text, low, high)
+    for name, text, low, high in (
+        ('min_speed', 'below this speed the measurements pass through [m/s]', 0.5, 50.0),
+        ('actuator_lag', 'time constant of the steering actuator it models [s]', 0.0, 2.0),
+        ('delay', 'command-to-actuator transport delay it models [s]', 0.0, 1.0),
+        ('period', 'sampling period its steady-state gain is designed for [s]', 1e-4, 0.5),
+        ('lateral_noise', 'standard deviation of the lateral error at the sensor [m]',
+         1e-5, 5.0),
+        ('yaw_noise', 'standard deviation of the relative yaw [rad]', 1e-6, 0.5),
+        ('lateral_velocity_noise', 'standard deviation of v_y [m/s]', 1e-5, 5.0),
+        ('yaw_rate_noise', 'standard deviation of the yaw rate [rad/s]', 1e-6, 0.5),
+        ('force_noise', 'white noise on each axle force [N sqrt(s)]', 0.0, 1e6),
+        ('force_drift', 'random walk of the axle-force disturbances [N/sqrt(s)]',
+         0.0, 1e7),
+        ('kinematic_noise', 'white noise on the rate of y_cg [m/sqrt(s)]', 0.0, 10.0),
     ))
 
 BASELINE_SPECS = (

@@ -1,0 +1,510 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A Kalman filter for the lateral states on the single-track model (``docs/lane_keeping.md``).
+
+States ``x = [y_cg, eps_r, v_y, r, F_f, F_r]``: the CG's lateral error, the relative
+yaw, the lateral velocity, the yaw rate and two axle-force disturbances [N] (random
+walks: what the linear tyres get wrong, a Fiala tyre's load softening, a bank). ::
+
+    y_cg' = v_y + v_x eps_r                  eps_r' = r - v_x rho
+    m v_y' = F_yf + F_yr + F_f - m v_x r     I_z r' = l_1 (F_yf + F_f) - l_2 (F_yr + F_r)
+    F_yf = C_f (delta - (v_y + l_1 r) / v_x)        F_yr = -C_r (v_y - l_2 r) / v_x
+
+Known inputs: the road curvature ``rho`` at the CG and the wheel angle ``delta``, the
+law's own commands through the transport delay and the first-order actuator lag
+(deterministic, not estimated). Measured: what the controller's inputs measure, the
+lateral error at the sensor ``y_cg + d_s eps_r``, ``eps_r``, ``v_y`` and ``r``, with
+white noise of the configured standard deviations (the simulator's defaults).
+
+Gain: the steady-state gain of the sampled filter at the design period, from the
+discrete algebraic Riccati equation (structure-preserving doubling), on a grid of speeds
+and interpolated at the measured speed. The noise covariances are constant and the model
+is time-invariant at a speed, so the time-varying gain converges to it within a few
+tenths of a second; the steady gain needs no covariance per run of a batch and costs one
+interpolation per step. The prediction integrates the model over the actual step (RK4)
+at the measured speed.
+
+Safety: a non-finite measurement passes through (the law refuses it) and the filter
+restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
+finite, ``> max_gap``, decided by the law) restarts it; ``dt = 0`` advances nothing and
+returns the last estimate; a step longer than ``LONG_STEP`` design periods restarts it
+from that measurement (the steady gain holds near its period only); below
+``min_speed`` the model's ``1 / v_x`` terms are not trusted: the measurements pass
+through and the filter restarts from them.
+Everything works on floats and on numpy arrays (a batch), element by element the same
+operations, so a run of a batch equals the single run bit for bit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+import functools
+import math
+from typing import Any, Optional
+
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.numeric import Real
+from lookahead_control.core.params import check_range, ParameterError, VehicleParams
+import numpy as np
+import numpy.typing as npt
+
+FILTER_MODES = ('none', 'kalman')
+STATES = ('y_cg', 'eps_r', 'v_y', 'r', 'front_force', 'rear_force')
+#: a step longer than this many design periods restarts the filter (see ``step``)
+LONG_STEP = 2.0
+#: speed grid of the gain table [m/s] (above its end the last gain is used)
+SPEED_STEP = 1.0
+TOP_SPEED = 80.0
+Matrix = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class StateFilterParams:
+    """
+    Settings of the Kalman filter (``lane_keeping.filter_*`` in the node).
+
+    :param min_speed: below this speed the measurements pass through [m/s].
+    :param actuator_lag: time constant of the steering actuator the model assumes [s].
+    :param delay: transport delay from command to actuator the model assumes [s].
+    :param period: design sampling period of the steady-state gain [s].
+    :param lateral_noise: standard deviation of the lateral error at the sensor [m].
+    :param yaw_noise: of the relative yaw [rad].
+    :param lateral_velocity_noise: of the lateral velocity [m/s].
+    :param yaw_rate_noise: of the yaw rate [rad/s].
+    :param force_noise: white noise on each axle force, spectral density [N sqrt(s)].
+    :param force_drift: random walk of the axle-force disturbances [N / sqrt(s)].
+    :param kinematic_noise: white noise on ``y_cg'`` [m / sqrt(s)] (and on ``eps_r'``,
+        divided by 10 m): the small-angle kinematics' error.
+    """
+
+    min_speed: float = 3.0
+    actuator_lag: float = 0.05
+    delay: float = 0.02
+    period: float = 0.01
+    lateral_noise: float = 0.03
+    yaw_noise: float = 0.002
+    lateral_velocity_noise: float = 0.02
+    yaw_rate_noise: float = 0.002
+    force_noise: float = 100.0
+    force_drift: float = 2000.0
+    kinematic_noise: float = 0.01
+
+    def __post_init__(self) -> None:
+        limits = {'min_speed': (0.5, 50.0, 'm/s'), 'actuator_lag': (0.0, 2.0, 's'),
+                  'delay': (0.0, 1.0, 's'), 'period': (1e-4, 0.5, 's'),
+                  'lateral_noise': (1e-5, 5.0, 'm'), 'yaw_noise': (1e-6, 0.5, 'rad'),
+                  'lateral_velocity_noise': (1e-5, 5.0, 'm/s'),
+                  'yaw_rate_noise': (1e-6, 0.5, 'rad/s'),
+                  'force_noise': (0.0, 1e6, 'N sqrt(s)'),
+                  'force_drift': (0.0, 1e7, 'N/sqrt(s)'),
+                  'kinematic_noise': (0.0, 10.0, 'm/sqrt(s)')}
+        for item in fields(self):
+            low, high, unit = limits[item.name]
+            object.__setattr__(self, item.name, check_range(
+                f'lane_keeping.filter_{item.name}', getattr(self, item.name), low, high,
+                unit=unit))
+        if self.force_noise == 0.0 and self.force_drift == 0.0 and self.kinematic_noise == 0.0:
+            raise ParameterError('lane_keeping.filter_force_noise, filter_force_drift and '
+                                 'filter_kinematic_noise are all 0: the filter would trust '
+                                 'its model forever; at least one must be positive')
+
+
+def continuous_model(vehicle: VehicleParams, v_x: float) -> tuple[Matrix, Matrix, Matrix]:
+    """
+    Return ``(A, B, G)`` of ``x' = A x + B [delta, rho] + G w`` at a speed.
+
+    ``w = [kinematic, front force, rear force, front drift, rear drift]`` (unit white
+    noises before scaling).
+
+    :param vehicle: the design vehicle.
+    :param v_x: speed [m/s] (> 0).
+    :return: ``A`` (6x6), ``B`` (6x2), ``G`` (6x5).
+    """
+    m, iz, l1, l2 = vehicle.mass, vehicle.yaw_inertia, vehicle.l1, vehicle.l2
+    cf, cr = vehicle.c_f, vehicle.c_r
+    a = np.zeros((6, 6))
+    a[0, 1], a[0, 2] = v_x, 1.0
+    a[1, 3] = 1.0
+    a[2, 2] = -(cf + cr) / (m * v_x)
+    a[2, 3] = -(cf * l1 - cr * l2) / (m * v_x) - v_x
+    a[2, 4], a[2, 5] = 1.0 / m, 1.0 / m
+    a[3, 2] = -(cf * l1 - cr * l2) / (iz * v_x)
+    a[3, 3] = -(cf * l1 * l1 + cr * l2 * l2) / (iz * v_x)
+    a[3, 4], a[3, 5] = l1 / iz, -l2 / iz
+    b = np.zeros((6, 2))
+    b[2, 0], b[3, 0] = cf / m, cf * l1 / iz
+    b[1, 1] = -v_x
+    g = np.zeros((6, 5))
+    g[0, 0], g[1, 0] = 1.0, 0.1
+    g[2, 1], g[3, 1] = 1.0 / m, l1 / iz
+    g[2, 2], g[3, 2] = 1.0 / m, -l2 / iz
+    g[4, 3], g[5, 4] = 1.0, 1.0
+    return a, b, g
+
+
+def measurement_matrix(vehicle: VehicleParams) -> Matrix:
+    """
+    Return ``H`` of ``z = H x + n``, ``z = [y_cg + d_s eps_r, eps_r, v_y, r]``.
+
+    :param vehicle: the vehicle (``d_s``).
+    :return: ``H`` (4x6).
+    """
+    h = np.zeros((4, 6))
+    h[0, 0], h[0, 1] = 1.0, vehicle.d_s
+    h[1, 1], h[2, 2], h[3, 3] = 1.0, 1.0, 1.0
+    return h
+
+
+def expm(a: Matrix) -> Matrix:
+    """
+    Return the matrix exponential (scaling and squaring, Taylor series of order 18).
+
+    The matrix is scaled to a norm of at most 1/2, where the series' remainder is below
+    ``2^-18 / 18! < 1e-21`` relative, and squared back.
+
+    :param a: a square matrix.
+    :return: ``exp(a)``.
+    """
+    norm = float(np.max(np.sum(np.abs(a), axis=1))) if a.size else 0.0
+    squarings = max(0, int(math.ceil(math.log2(norm / 0.5)))) if norm > 0.5 else 0
+    scaled = a / float(2 ** squarings)
+    term = np.eye(a.shape[0])
+    total = term.copy()
+    for k in range(1, 19):
+        term = term @ scaled / k
+        total = total + term
+    for _ in range(squarings):
+        total = total @ total
+    return total
+
+
+def discrete_model(vehicle: VehicleParams, settings: StateFilterParams,
+                   v_x: float) -> tuple[Matrix, Matrix, Matrix, Matrix]:
+    """
+    Return ``(Phi, Q, H, R)`` of the filter sampled at ``settings.period``.
+
+    ``Phi = expm(A h)``; ``Q`` by Van Loan's method from ``G diag(q^2) G^T``; ``R`` the
+    measurement noise's covariance.
+
+    :param vehicle: the design vehicle.
+    :param settings: the filter's settings.
+    :param v_x: speed [m/s].
+    :return: the four matrices.
+    """
+    a, _, g = continuous_model(vehicle, v_x)
+    s = settings
+    q = np.diag(np.array([s.kinematic_noise, s.force_noise, s.force_noise, s.force_drift,
+                          s.force_drift]) ** 2)
+    qc = g @ q @ g.T
+    n, h = a.shape[0], s.period
+    block = np.zeros((2 * n, 2 * n))
+    block[:n, :n], block[:n, n:], block[n:, n:] = -a, qc, a.T
+    van_loan = expm(block * h)
+    phi = van_loan[n:, n:].T
+    qd = phi @ van_loan[:n, n:]
+    qd = 0.5 * (qd + qd.T)
+    r = np.diag(np.array([s.lateral_noise, s.yaw_noise, s.lateral_velocity_noise,
+                          s.yaw_rate_noise]) ** 2)
+    return phi, qd, measurement_matrix(vehicle), r
+
+
+def riccati_doubling(phi: Matrix, h: Matrix, q: Matrix, r: Matrix,
+                     iterations: int = 60) -> Matrix:
+    """
+    Return the prior covariance ``P`` of the steady-state filter (doubling algorithm).
+
+    Solves ``P = Phi P Phi^T - Phi P H^T (H P H^T + R)^-1 H P Phi^T + Q`` by the
+    structure-preserving doubling algorithm (quadratic convergence).
+
+    :param phi: transition matrix.
+    :param h: measurement matrix.
+    :param q: process noise covariance.
+    :param r: measurement noise covariance.
+    :param iterations: most doubling steps.
+    :return: ``P``.
+    """
+    a = phi.T
+    g = h.T @ np.linalg.solve(r, h)
+    x = q.copy()
+    eye = np.eye(a.shape[0])
+    for _ in range(iterations):
+        w = eye + g @ x
+        a_w = a @ np.linalg.inv(w)
+        x_next = x + a.T @ x @ np.linalg.solve(w, a)
+        g = g + a_w @ g @ a.T
+        a = a_w @ a
+        x_next = 0.5 * (x_next + x_next.T)
+        done = np.max(np.abs(x_next - x)) <= 1e-14 * max(np.max(np.abs(x_next)), 1e-300)
+        x = x_next
+        if done:
+            break
+    return x
+
+
+def steady_gain(vehicle: VehicleParams, settings: StateFilterParams, v_x: float) -> Matrix:
+    """
+    Return the steady-state Kalman gain ``K`` (6x4) at a speed.
+
+    The update is ``x = x_prior + K (z - H x_prior)``, ``K = P H^T (H P H^T + R)^-1``.
+
+    :param vehicle: the design vehicle.
+    :param settings: the filter's settings.
+    :param v_x: speed [m/s].
+    :return: ``K``.
+    """
+    phi, q, h, r = discrete_model(vehicle, settings, v_x)
+    p = riccati_doubling(phi, h, q, r)
+    gain: Matrix = np.asarray(np.linalg.solve(h @ p @ h.T + r, h @ p).T, dtype=float)
+    return gain
+
+
+@functools.lru_cache(maxsize=32)
+def gain_table(vehicle: VehicleParams, settings: StateFilterParams) -> tuple[Matrix, Matrix]:
+    """
+    Return the speed grid and the steady-state gains there, ``(speeds, gains)``.
+
+    :param vehicle: the design vehicle.
+    :param settings: the filter's settings.
+    :return: speeds (n,) [m/s] and gains (n, 6, 4).
+    """
+    count = int(math.ceil((TOP_SPEED - settings.min_speed) / SPEED_STEP)) + 1
+    speeds: Matrix = settings.min_speed + SPEED_STEP * np.arange(count, dtype=float)
+    gains = np.stack([steady_gain(vehicle, settings, float(v)) for v in speeds])
+    speeds.setflags(write=False)
+    gains.setflags(write=False)
+    return speeds, gains
+
+
+def _select(mask: Any, a: Real, b: Real) -> Real:
+    """Return ``a`` where ``mask`` holds, else ``b`` (floats stay floats)."""
+    if isinstance(mask, np.ndarray) or isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.where(mask, a, b)
+    return a if mask else b
+
+
+class KalmanStateFilter:
+    """
+    The steady-state Kalman filter of the lateral states, one step per measurement.
+
+    ``step(state, dt)`` returns the state with ``y_cg``, ``eps_r``, ``v_y``, ``r``
+    replaced by their estimates; ``command(u)`` records the steering command the law
+    sent (the model's input after ``delay`` and the actuator lag); ``reset()`` and
+    ``forget(mask)`` restart it (all runs / some runs of a batch).
+    """
+
+    def __init__(self, vehicle: VehicleParams,
+                 settings: Optional[StateFilterParams] = None) -> None:
+        """
+        Create the filter (its gain table is computed once per vehicle and settings).
+
+        :param vehicle: the design vehicle (the law's).
+        :param settings: the filter's settings (defaults if None).
+        """
+        self.vehicle = vehicle
+        self.settings = settings or StateFilterParams()
+        self.speeds, self.gains = gain_table(vehicle, self.settings)
+        self.steps_cache: tuple[float, int, float, float, float] = (
+            math.nan, 1, 0.0, 0.0, 0.0)
+        veh, low = vehicle, self.settings.min_speed
+        fastest = max((veh.c_f + veh.c_r) / (veh.mass * low),
+                      (veh.c_f * veh.l1 ** 2 + veh.c_r * veh.l2 ** 2) / (veh.yaw_inertia * low))
+        self.max_substep = min(self.settings.period, 1.0 / fastest)
+        self.innovation: tuple[Real, ...] = ()
+        self.x: Optional[list[Real]] = None
+        self.wheel: Real = 0.0          # the actuator's angle the model assumes [rad]
+        self.held: Real = 0.0           # the command in effect before the history
+        self.history: list[tuple[float, Real]] = []
+        self.time = 0.0
+        self.rho: Real = 0.0
+        self.restarts = 0
+        self.long_steps = 0
+
+    def reset(self) -> None:
+        """
+        Restart from the next measurement.
+
+        The actuator model and the commands still on their way to it are kept: they are
+        the car's, not the estimate's (a run of a batch restarts the same way).
+        """
+        self.x = None
+        self.restarts += 1
+
+    def forget(self, where: Any) -> None:
+        """
+        Restart the runs of a batch where ``where`` holds (a non-finite input).
+
+        :param where: boolean array over the batch.
+        """
+        if self.x is not None:
+            self.x = [np.where(where, math.nan, v) for v in self.x]
+
+    def command(self, steering: Real) -> None:
+        """
+        Record the command sent at the present step (the model's input after the delay).
+
+        A non-finite command (refused downstream) leaves the actuator where it was.
+
+        :param steering: the steering command [rad].
+        """
+        last = self.history[-1][1] if self.history else self.held
+        self.history.append((self.time, _select(np.isfinite(steering), steering, last)))
+
+    def _applied(self, when: float) -> Real:
+        """Return the command in effect at the actuator's input at time ``when``."""
+        value = self.held
+        keep = 0
+        for i, (issued, command) in enumerate(self.history):
+            if issued <= when:
+                value, keep = command, i
+            else:
+                break
+        if keep > 0:                    # older commands are no longer needed
+            self.held = self.history[keep - 1][1]
+            del self.history[:keep]
+        return value
+
+    def _measured(self, state: LateralState) -> list[Real]:
+        """Return the state as measured: ``y_cg, eps_r, v_y, r`` and no disturbance."""
+        zero = 0.0 * state.y_cg
+        return [state.y_cg, state.eps_r, state.v_y, state.r, zero, zero]
+
+    def _gain(self, v_x: Real) -> list[list[Real]]:
+        """Return ``K`` at the speed, interpolated in the table (element by element)."""
+        speeds, gains = self.speeds, self.gains
+        top = speeds.size - 1
+        u = (v_x - speeds[0]) / SPEED_STEP
+        if isinstance(u, np.ndarray):
+            u = np.clip(u, 0.0, float(top))
+            i = np.minimum(np.floor(u).astype(int), top - 1)
+            w = u - i
+            return [[gains[i, row, col] + w * (gains[i + 1, row, col] - gains[i, row, col])
+                     for col in range(4)] for row in range(6)]
+        u = min(max(float(u), 0.0), float(top))
+        j = min(int(math.floor(u)), top - 1)
+        f = u - j
+        return [[float(gains[j, row, col] + f * (gains[j + 1, row, col] - gains[j, row, col]))
+                 for col in range(4)] for row in range(6)]
+
+    def _predict(self, x: list[Real], dt: float, v_x: Real, rho: Real) -> list[Real]:
+        """
+        Integrate the model over ``dt`` (RK4 substeps), the wheel angle exact in between.
+
+        A substep is at most the design period and at most ``1 / lambda`` of the fastest
+        tyre mode at ``min_speed`` (RK4 is unstable beyond ``2.8 / lambda``): a long step
+        (lost messages, a slow sensor) at low speed is integrated, not amplified. The
+        count depends only on ``dt`` and the settings: the same for every run of a batch.
+        """
+        veh, s = self.vehicle, self.settings
+        m, iz, l1, l2, cf, cr = (veh.mass, veh.yaw_inertia, veh.l1, veh.l2, veh.c_f,
+                                 veh.c_r)
+        if self.steps_cache[0] != dt:
+            count = max(1, math.ceil(dt / self.max_substep - 1e-9))
+            h = dt / count
+            lag = s.actuator_lag
+            self.steps_cache = (dt, count, h, math.exp(-h / lag) if lag > 0.0 else 0.0,
+                                math.exp(-0.5 * h / lag) if lag > 0.0 else 0.0)
+        _, count, h, decay, half = self.steps_cache
+        a_vv = -(cf + cr) / (m * v_x)
+        a_vr = -(cf * l1 - cr * l2) / (m * v_x) - v_x
+        a_rv = -(cf * l1 - cr * l2) / (iz * v_x)
+        a_rr = -(cf * l1 * l1 + cr * l2 * l2) / (iz * v_x)
+        y, e, v, r, f_f, f_r = x
+        v_force = (f_f + f_r) / m
+        r_force = (l1 * f_f - l2 * f_r) / iz
+        rho_start = self.rho
+        for j in range(count):
+            applied = self._applied(self.time + (j + 0.5) * h - s.delay)
+            start = self.wheel if s.actuator_lag > 0.0 else applied
+            wheel = (start, applied + (start - applied) * half,
+                     applied + (start - applied) * decay)
+            curvature = (rho_start + (rho - rho_start) * (j / count),
+                         rho_start + (rho - rho_start) * ((j + 0.5) / count),
+                         rho_start + (rho - rho_start) * ((j + 1.0) / count))
+
+            def rates(e: Real, v: Real, r: Real, k: int) -> tuple[Real, Real, Real, Real]:
+                return (v + v_x * e, r - v_x * curvature[k],
+                        a_vv * v + a_vr * r + cf / m * wheel[k] + v_force,
+                        a_rv * v + a_rr * r + cf * l1 / iz * wheel[k] + r_force)
+
+            mid = 0.5 * h
+            k1 = rates(e, v, r, 0)
+            k2 = rates(e + mid * k1[1], v + mid * k1[2], r + mid * k1[3], 1)
+            k3 = rates(e + mid * k2[1], v + mid * k2[2], r + mid * k2[3], 1)
+            k4 = rates(e + h * k3[1], v + h * k3[2], r + h * k3[3], 2)
+            w = h / 6.0
+            y, e, v, r = (old + w * (p + 2.0 * q + 2.0 * u + z)
+                          for old, p, q, u, z in zip((y, e, v, r), k1, k2, k3, k4))
+            self.wheel = wheel[2]
+        return [y, e, v, r, f_f, f_r]
+
+    def step(self, state: LateralState, dt: float) -> LateralState:
+        """
+        Take one measurement and return the estimated state.
+
+        :param state: the measured state (``y_cg`` from the sensor's error and ``eps_r``).
+        :param dt: time since the previous measurement [s]; the caller restarts the
+            filter on a time jump; 0 returns the last estimate.
+        :return: ``state`` with ``y_cg``, ``eps_r``, ``v_y``, ``r`` estimated.
+        """
+        measured = self._measured(state)
+        good = (np.isfinite(state.y_cg) & np.isfinite(state.eps_r) & np.isfinite(state.v_y)
+                & np.isfinite(state.r) & np.isfinite(state.v_x) & np.isfinite(state.rho))
+        fast = good & (state.v_x >= self.settings.min_speed)
+        if self.x is None:              # (re)start: every run from its next measurement
+            self.x = [math.nan + 0.0 * mv for mv in measured]
+            self.rho = state.rho
+        fresh = np.isnan(self.x[0])
+        if dt > LONG_STEP * self.settings.period:
+            # the steady gain holds near its design period only: after a longer step
+            # (lost messages, a slower sensor) the filter restarts from the measurement
+            fresh = fresh | True
+            self.long_steps += 1
+        if dt > 0.0:
+            v_x = _select(fast, state.v_x, self.settings.min_speed)
+            prior = self._predict(self.x, dt, v_x, state.rho)
+            gain = self._gain(v_x)
+            y, e, v, r = measured[:4]
+            innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
+                          e - prior[1], v - prior[2], r - prior[3])
+            self.innovation = innovation
+            posterior = [prior[i] + (gain[i][0] * innovation[0] + gain[i][1] * innovation[1]
+                                     + gain[i][2] * innovation[2]
+                                     + gain[i][3] * innovation[3])
+                         for i in range(6)]
+            self.time += dt
+            self.rho = _select(good, state.rho, self.rho)
+        else:                           # the same instant again: nothing advances
+            posterior = self.x
+        # restarted runs (NaN marks) start from this measurement
+        self.x = [_select(fast & ~fresh, p, _select(fast, mv, math.nan))
+                  for p, mv in zip(posterior, measured)]
+        return self._out(state, measured, fast)
+
+    def _out(self, state: LateralState, measured: list[Real], fast: Any) -> LateralState:
+        """Return the estimate where the filter runs, the measurement elsewhere."""
+        assert self.x is not None
+        x = [_select(fast, est, mv) for est, mv in zip(self.x, measured)]
+        return state._replace(y_cg=x[0], eps_r=x[1], v_y=x[2], r=x[3])
+
+    def disturbance(self) -> tuple[Real, Real]:
+        """
+        Return the estimated axle-force disturbances ``(front, rear)`` [N].
+
+        :return: the two forces (NaN where the filter restarts).
+        """
+        if self.x is None:
+            return math.nan, math.nan
+        return self.x[4], self.x[5]
