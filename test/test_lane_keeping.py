@@ -302,6 +302,45 @@ def test_certificate_holds_to_3_5_m_s2():
     assert not cert.holds and cert.max_norm == pytest.approx(4.75, abs=0.03)
 
 
+def test_certificate_with_an_error_in_the_law_s_acceleration():
+    # the law's a_x (IMU, grade, differentiated speed) off the true v' by up to
+    # a_error: the vertices (+-a_max, a +- a_error); 0 gives the exact test's value
+    settings = LaneKeepingParams()
+    exact = stability.certificate(VEHICLE, CONTROLLER, settings, samples=55)
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0)
+    assert cert.holds and exact.max_norm < cert.max_norm == pytest.approx(0.944, abs=0.005)
+    # by hand at one speed: the largest eigenvalue of Q^-1 (a P_v + a_hat M) over a
+    # dense set of (a, a_hat) is the vertices' (the matrix is affine in both)
+    weight = stability.lyapunov_weight()
+    _, p_v, n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, 90.0 / 7.0, 1.0,
+                                        weight)
+    inverse = np.linalg.inv(np.linalg.cholesky(weight))
+    top = max(float(np.max(np.linalg.eigvalsh(
+        inverse @ (a * p_v + a_hat * (n - p_v)) @ inverse.T)))
+        for a in np.linspace(-3.5, 3.5, 15) for a_hat in a + np.linspace(-1.0, 1.0, 9))
+    assert top == pytest.approx(cert.max_norm, abs=1e-9)
+    # acceleration_source zero (a_hat = 0, inside a_error = a_max): not certified
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=55,
+                                     a_error=3.5).holds
+    with pytest.raises(ValueError, match='a_error'):
+        stability.certificate(VEHICLE, CONTROLLER, settings, a_error=float('nan'))
+
+
+def test_certificate_edge_settings():
+    # w_n constant (low = natural frequency): its two kinks are one; no integral: a zero
+    # eigenvalue, so no P > 0: the value is infinite, not a pass
+    flat = LaneKeepingParams(natural_frequency=3.0)
+    assert stability.schedule_kinks(VEHICLE, CONTROLLER, flat, 10.0, 37.0) == pytest.approx(
+        [math.sqrt((VEHICLE.d_s + VEHICLE.l2) / (4.0 * VEHICLE.eta)), 30.0])
+    cert = stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(integral_gain=0.0),
+                                 samples=11)
+    assert cert.max_real_eig == 0.0 and cert.max_norm == math.inf and not cert.holds
+    # an envelope between two kinks
+    cert = stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(), 36.99, 37.0,
+                                 samples=3)
+    assert cert.kinks == () and cert.holds and cert.speeds == 3
+
+
 def test_certificate_between_grid_points():
     # the bound from 28 speeds covers every value on a grid 100 times denser
     settings = LaneKeepingParams()

@@ -194,7 +194,10 @@ def schedule_kinks(vehicle: VehicleParams, controller: ControllerParams,
                 mid = 0.5 * (lo + hi)
                 lo, hi = (mid, hi) if free(mid) == side else (lo, mid)
             kinks.append(0.5 * (lo + hi))
-    return sorted(k for k in kinks if v_min < k < v_max)
+    inside = sorted(k for k in kinks if v_min < k < v_max)
+    # one kink where two coincide (low_speed_frequency = natural_frequency: both at
+    # frequency_speed)
+    return [k for i, k in enumerate(inside) if i == 0 or k - inside[i - 1] > 1e-9]
 
 
 class Certificate(NamedTuple):
@@ -204,12 +207,15 @@ class Certificate(NamedTuple):
     :param v_min: lower speed [m/s].
     :param v_max: upper speed [m/s].
     :param a_max: acceleration bound [m/s^2].
+    :param a_error: bound on the law's acceleration error [m/s^2].
     :param max_real_eig: max over speed of the largest real part of ``A_0``'s eigenvalues.
     :param max_norm: max over the grid (and both one-sided derivatives) of
-        ``a_max max |eig(Q^-1 N)|``; the test's value, ``V'`` < 0 if below 1.
+        ``a_max max |eig(Q^-1 N)|`` (with ``a_error``: the largest eigenvalue of
+        ``Q^-1 (a P_v + a_hat M)`` over the vertices); the test's value, ``V' < 0`` if
+        below 1.
     :param max_norm_speed: where it occurs [m/s].
     :param between: the value bounded between grid points (``max_norm`` plus
-        ``a_max L h / 2``).
+        ``L h / 2``, ``L`` the largest difference quotient of the vertex matrices).
     :param kinks: the speeds where ``A`` has a kink (grid points, both sides checked).
     :param speeds: how many speeds were checked (the grid and the kinks).
     :param holds: every ``A_0`` is Hurwitz and ``between < 1``.
@@ -218,6 +224,7 @@ class Certificate(NamedTuple):
     v_min: float
     v_max: float
     a_max: float
+    a_error: float
     max_real_eig: float
     max_norm: float
     max_norm_speed: float
@@ -282,13 +289,20 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
 def certificate(vehicle: VehicleParams, controller: ControllerParams,
                 settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
                 a_max: float = 3.5, samples: int = 271,
-                q: Optional[tuple[tuple[float, ...], ...]] = None) -> Certificate:
+                q: Optional[tuple[tuple[float, ...], ...]] = None,
+                a_error: float = 0.0) -> Certificate:
     """
     Evaluate the Section 4 test, with ``A``'s dependence on ``a_x``, on the closed loop.
 
     The grid is ``samples`` speeds from ``v_min`` to ``v_max`` and the kinks of the
     schedules; at each speed the left and the right derivative of ``P`` are used
     (the same number away from the kinks); a one-sided step never crosses a kink.
+
+    The law's ``a_x`` (``a_hat``, from the IMU or a differentiated speed) may differ from
+    the true ``v'`` by up to ``a_error``: ``V' = x^T (-Q + a P_v + a_hat M) x`` with
+    ``M = A_1^T P + P A_1``, affine in ``(a, a_hat)``, so its vertices
+    ``a = +-a_max``, ``a_hat = a +- a_error`` suffice. ``a_error >= a_max`` covers the
+    node's ``acceleration_source: zero`` (``a_hat = 0``).
 
     :param vehicle: the design vehicle.
     :param controller: gains and schedule.
@@ -298,6 +312,7 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     :param a_max: acceleration bound [m/s^2].
     :param samples: number of speeds of the uniform grid (>= 2).
     :param q: the Lyapunov equation's right-hand side (None: :data:`CERTIFICATE_Q`).
+    :param a_error: bound on the law's acceleration error [m/s^2].
     :return: the worst cases and whether the test holds.
     """
     if not 0.0 < v_min < v_max:
@@ -305,6 +320,8 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
                          '0 < v_min < v_max')
     if not a_max >= 0.0:
         raise ValueError(f'a_max = {a_max!r} m/s^2 must be >= 0')
+    if not 0.0 <= a_error < float('inf'):
+        raise ValueError(f'a_error = {a_error!r} m/s^2 must be >= 0 and finite')
     if samples < 2:
         raise ValueError(f'samples = {samples!r} must be >= 2')
     weight = lyapunov_weight(q)
@@ -317,7 +334,7 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     speeds = np.unique(np.concatenate([uniform[~near], kinks]))
     breaks = np.array([v_min] + kinks + [v_max])
     worst_eig, worst, worst_speed, lipschitz = -np.inf, -np.inf, v_min, 0.0
-    previous: Optional[tuple[float, Matrix]] = None
+    previous: Optional[tuple[float, npt.NDArray[np.float64]]] = None
     for v in (float(s) for s in speeds):
         eig = float(np.max(np.linalg.eigvals(
             closed_loop_matrix(vehicle, controller, settings, v)).real))
@@ -329,10 +346,14 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
                     breaks[breaks > v].min() - v if side > 0 and v < v_max else 0.0)
             if room <= 0.0:
                 continue
-            n = lyapunov_rate(vehicle, controller, settings, v, side, weight,
-                              min(_STEP, room / 2.0))[2]
-            scaled = inverse @ n @ inverse.T
-            value = a_max * float(np.max(np.abs(np.linalg.eigvalsh(scaled))))
+            _, p_v, n = lyapunov_rate(vehicle, controller, settings, v, side, weight,
+                                      min(_STEP, room / 2.0))
+            # a P_v + a_hat M = a N + (a_hat - a) M in Q's coordinates, at the vertices
+            rate = inverse @ n @ inverse.T
+            drift = inverse @ (n - p_v) @ inverse.T
+            scaled = np.array([a * rate + e * drift for a in (-a_max, a_max)
+                               for e in (-a_error, a_error)])
+            value = float(np.max(np.linalg.eigvalsh(scaled)))
             if value > worst:
                 worst, worst_speed = value, v
             # the difference quotient within one smooth piece (left side: the piece
@@ -344,9 +365,11 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
             if side > 0:
                 previous = (v, scaled)
     spacing = float(np.max(np.diff(speeds)))
-    between = worst + a_max * lipschitz * spacing / 2.0
+    between = worst + lipschitz * spacing / 2.0
+    if worst_eig >= 0.0:     # no P(v) > 0 from the Lyapunov equation: no test value
+        worst = between = float('inf')
     holds = worst_eig < 0.0 and between < 1.0
-    return Certificate(v_min, v_max, a_max, worst_eig, worst, worst_speed, between,
+    return Certificate(v_min, v_max, a_max, a_error, worst_eig, worst, worst_speed, between,
                        tuple(kinks), int(speeds.size), holds)
 
 
