@@ -358,9 +358,11 @@ def test_certificate_between_grid_points():
     assert worst == pytest.approx(coarse.max_norm, abs=0.01)
 
 
-def _worst_case_run(weight, a_max=3.5, seconds=12.0, dt=0.002, seed=3, start=None):
+def _worst_case_run(weight, a_max=3.5, seconds=12.0, dt=0.002, seed=3, start=None,
+                    a_error=0.0):
     # the adversary: at every step the acceleration (+-a_max, speed kept in 10-37 m/s)
-    # that makes V = x^T P(v) x largest at the step's end; RK4 on x' = A(v, a) x
+    # and the law's a_x (a +- a_error) that make V = x^T P(v) x largest at the step's
+    # end; RK4 on x' = A(v, a_hat) x, v' = a
     settings = LaneKeepingParams()
     rng = np.random.default_rng(seed)
     x = rng.normal(size=5) * np.array([0.5, 0.02, 0.3, 0.05, 0.2])
@@ -372,10 +374,10 @@ def _worst_case_run(weight, a_max=3.5, seconds=12.0, dt=0.002, seed=3, start=Non
         a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, speed)
         return float(state_ @ solve_continuous_lyapunov(a.T, -weight) @ state_)
 
-    def step(speed, acc, state_):
+    def step(speed, acc, state_, law_acc):
         def f(t, z):
             return stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings,
-                                                speed + acc * t, a_x=acc) @ z
+                                                speed + acc * t, a_x=law_acc) @ z
         k1 = f(0.0, state_)
         k2 = f(dt / 2, state_ + dt / 2 * k1)
         k3 = f(dt / 2, state_ + dt / 2 * k2)
@@ -386,10 +388,12 @@ def _worst_case_run(weight, a_max=3.5, seconds=12.0, dt=0.002, seed=3, start=Non
     switches = 0
     last = 0.0
     for _ in range(int(seconds / dt)):
-        options = [acc for acc in (a_max, -a_max) if 10.0 <= v + acc * dt <= 37.0]
-        runs = [(lyap(v + acc * dt, step(v, acc, x)), acc) for acc in options]
-        value, acc = max(runs)
-        x, v = step(v, acc, x), v + acc * dt
+        options = [(acc, acc + err) for acc in (a_max, -a_max)
+                   for err in {a_error, -a_error} if 10.0 <= v + acc * dt <= 37.0]
+        runs = [(lyap(v + acc * dt, step(v, acc, x, law)), acc, law)
+                for acc, law in options]
+        value, acc, law = max(runs)
+        x, v = step(v, acc, x, law), v + acc * dt
         switches += acc != last
         last = acc
         values.append(value)
@@ -409,6 +413,13 @@ def test_lyapunov_function_decreases_under_the_worst_speed_profile():
     x = vec[:, int(np.argmax(np.abs(eig)))]
     values, _ = _worst_case_run(np.eye(5), seconds=0.2, start=(36.0, x))
     assert values[1] > values[0]
+
+
+def test_lyapunov_function_decreases_with_an_acceleration_error():
+    # the law's a_x off by up to 1 m/s^2 (certified): V still decreases at every step
+    values, _ = _worst_case_run(stability.lyapunov_weight(), seconds=5.0, a_error=1.0,
+                                seed=5)
+    assert np.all(np.diff(values) < 0.0)
 
 
 def test_robust_over_the_sweep_ranges():
