@@ -291,6 +291,10 @@ def test_certificate_holds_to_3_5_m_s2():
     assert cert.max_norm == pytest.approx(0.730, abs=0.005)
     assert cert.max_norm_speed == pytest.approx(90.0 / 7.0)
     assert cert.max_norm < cert.between < 0.8 and cert.speeds == 138
+    assert cert.weight == 'sharp'
+    robust = stability.certificate(VEHICLE, CONTROLLER, settings, samples=136,
+                                   q=stability.CERTIFICATE_Q_ROBUST)
+    assert robust.holds and robust.max_norm == pytest.approx(0.924, abs=0.005)
     # the value is linear in a_max: it fails above 3.5 / 0.73 = 4.8 m/s^2
     assert not stability.certificate(VEHICLE, CONTROLLER, settings, a_max=4.8,
                                      samples=136).holds
@@ -306,9 +310,13 @@ def test_certificate_with_an_error_in_the_law_s_acceleration():
     # the law's a_x (IMU, grade, differentiated speed) off the true v' by up to
     # a_error: the vertices (+-a_max, a +- a_error); 0 gives the exact test's value
     settings = LaneKeepingParams()
-    exact = stability.certificate(VEHICLE, CONTROLLER, settings, samples=55)
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0)
+    sharp = stability.CERTIFICATE_Q
+    exact = stability.certificate(VEHICLE, CONTROLLER, settings, samples=55, q=sharp)
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0,
+                                 q=sharp)
     assert cert.holds and exact.max_norm < cert.max_norm == pytest.approx(0.944, abs=0.005)
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
+                                     a_error=1.2, q=sharp).holds
     # by hand at one speed: the largest eigenvalue of Q^-1 (a P_v + a_hat M) over a
     # dense set of (a, a_hat) is the vertices' (the matrix is affine in both)
     weight = stability.lyapunov_weight()
@@ -319,9 +327,13 @@ def test_certificate_with_an_error_in_the_law_s_acceleration():
         inverse @ (a * p_v + a_hat * (n - p_v)) @ inverse.T)))
         for a in np.linspace(-3.5, 3.5, 15) for a_hat in a + np.linspace(-1.0, 1.0, 9))
     assert top == pytest.approx(cert.max_norm, abs=1e-9)
-    # acceleration_source zero (a_hat = 0, inside a_error = a_max): not certified
+    # acceleration_source zero (a_hat = 0, inside a_error = a_max): not with the sharp
+    # Q, but with the robust one (the default tries both and takes the smaller bound)
     assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=55,
-                                     a_error=3.5).holds
+                                     a_error=3.5, q=sharp).holds
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=3.5)
+    assert cert.holds and cert.weight == 'robust'
+    assert cert.max_norm == pytest.approx(0.957, abs=0.005) and cert.between < 0.98
     with pytest.raises(ValueError, match='a_error'):
         stability.certificate(VEHICLE, CONTROLLER, settings, a_error=float('nan'))
 
@@ -344,7 +356,8 @@ def test_certificate_edge_settings():
 def test_certificate_between_grid_points():
     # the bound from 28 speeds covers every value on a grid 100 times denser
     settings = LaneKeepingParams()
-    coarse = stability.certificate(VEHICLE, CONTROLLER, settings, samples=28)
+    coarse = stability.certificate(VEHICLE, CONTROLLER, settings, samples=28,
+                                   q=stability.CERTIFICATE_Q)
     weight = stability.lyapunov_weight()
     inverse = np.linalg.inv(np.linalg.cholesky(weight))
     worst = 0.0
@@ -416,9 +429,13 @@ def test_lyapunov_function_decreases_under_the_worst_speed_profile():
 
 
 def test_lyapunov_function_decreases_with_an_acceleration_error():
-    # the law's a_x off by up to 1 m/s^2 (certified): V still decreases at every step
-    values, _ = _worst_case_run(stability.lyapunov_weight(), seconds=5.0, a_error=1.0,
+    # the law's a_x off by up to 1 m/s^2 (certified with the sharp Q), and by up to
+    # 3.5 m/s^2 (a_hat = 0 among them; the robust Q): V decreases at every step
+    values, _ = _worst_case_run(stability.lyapunov_weight(), seconds=4.0, a_error=1.0,
                                 seed=5)
+    assert np.all(np.diff(values) < 0.0)
+    robust = stability.lyapunov_weight(stability.CERTIFICATE_Q_ROBUST)
+    values, _ = _worst_case_run(robust, seconds=4.0, a_error=3.5, seed=6)
     assert np.all(np.diff(values) < 0.0)
 
 

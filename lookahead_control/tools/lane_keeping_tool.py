@@ -79,7 +79,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
              if cert.kinks else 'no kinks')
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
           f'{cert.a_max:g} m/s^2, error of the law a_x <= {cert.a_error:g} m/s^2; '
-          f'checked at {cert.speeds} speeds ({kinks}); worst value at '
+          f'checked at {cert.speeds} speeds ({kinks}) with Q {cert.weight}; worst value at '
           f'{cert.max_norm_speed:.2f} m/s; worst mismatch case {robust.worst}')
     print(markdown_table(rows))
     verdict = cert.holds and robust.holds
