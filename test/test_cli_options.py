@@ -440,6 +440,7 @@ def _lane_keeping():
         '--natural-frequency': (NON_NUMBERS + ('0', '-1', '1e3'),
                                 changes('--natural-frequency', '5')),
         '--integral-gain': (NON_NUMBERS + ('-1', '1e3'), changes('--integral-gain', '0')),
+        '--a-error': (NON_NUMBERS + ('-1', '1e300'), changes('--a-error', '1')),
     }
 
 

@@ -21,9 +21,9 @@ from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.control_law import LateralState, steering_law
 from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.estimator import brush_shape, GRAVITY
-from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingParams,
-                                                 loop_gains, preview_curvature,
-                                                 steady_relative_yaw)
+from lookahead_control.core.lane_keeping import (cg_compensated_law, CgCompensatedLaw,
+                                                 LaneKeepingParams, loop_gains,
+                                                 preview_curvature, steady_relative_yaw)
 from lookahead_control.core.laws import Preview
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.safety import SafetyParams
@@ -33,6 +33,7 @@ from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.zero_dynamics import system_matrix
 import numpy as np
 import pytest
+from scipy.linalg import solve_continuous_lyapunov
 from sim_plant.closed_loop_sim import run
 from sim_plant.scenario import paper_scenario
 from sim_plant.vehicle_model import PlantParams
@@ -233,14 +234,209 @@ def test_settings_validate():
         LaneKeepingParams(max_gap=0.0)
 
 
-def test_certificate_holds_to_2_5_m_s2_not_to_3_5():
-    # the paper's test on the full closed loop: A(v) Hurwitz on 10-37 m/s everywhere;
-    # the Lyapunov rate bound certifies |a_x| <= 2.5 m/s^2, not the paper's 3.5
+def test_feedback_gain_is_the_law_with_its_acceleration_terms():
+    # K(v, a) against the law itself on unit states (straight road, integral I as the
+    # offset -I with rate -k_i y_cg): the old K ignored a_x, which the law's d_v rate
+    # and drift terms use (A(v, a) = A_0 + a A_1)
     settings = LaneKeepingParams()
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, a_max=2.5, samples=136)
+    k_i = settings.integral_gain
+    for v, a in ((12.0, 3.5), (25.0, -3.5), (37.0, 2.0), (10.5, 3.5)):
+        gains = loop_gains(settings, v)
+        k = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v, a)
+        for i in range(5):
+            x = np.eye(5)[i]
+            s = state(y_cg=x[0], eps_r=x[1], v_y=x[2], r=x[3], v_x=v, a_x=a)
+            out = cg_compensated_law(s, VEHICLE, CONTROLLER, 0.0, 0.0, 0.0, 0.0,
+                                     offset=x[4], offset_rate=k_i * x[0], gains=gains)
+            assert k[i] == pytest.approx(out.steering, rel=1e-12, abs=1e-12)
+    a_0 = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, 20.0)
+    a_1 = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, 20.0, a_x=1.0)
+    assert np.max(np.abs(a_1 - a_0)) > 1.0      # the acceleration moves A a lot
+
+
+def test_schedule_kinks_by_hand():
+    # d_v leaves its floor where 4 eta v^2 - l_2 = d_s; w_n leaves 3 at 30 * 3 / 7, 7 at 30
+    floor = math.sqrt((VEHICLE.d_s + VEHICLE.l2) / (4.0 * VEHICLE.eta))
+    kinks = stability.schedule_kinks(VEHICLE, CONTROLLER, LaneKeepingParams(), 10.0, 37.0)
+    assert kinks == pytest.approx([floor, 90.0 / 7.0, 30.0], abs=1e-9)
+    assert floor == pytest.approx(10.78, abs=0.005)
+
+
+def test_certificate_lyapunov_against_scipy():
+    # P and dP/dv of the certificate against scipy's solver and a central difference of
+    # its solutions (away from kinks)
+    weight = stability.lyapunov_weight()
+    settings = LaneKeepingParams()
+    for v in (11.5, 20.0, 36.0):
+        p, p_v, n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, v, 1.0, weight)
+
+        def reference(speed):
+            a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, speed)
+            return solve_continuous_lyapunov(a.T, -weight)
+        assert p == pytest.approx(reference(v), rel=1e-9, abs=1e-9)
+        central = (reference(v + 1e-3) - reference(v - 1e-3)) / 2e-3
+        assert p_v == pytest.approx(central, rel=1e-5, abs=1e-6 * np.max(np.abs(p_v)))
+        left = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, v, -1.0, weight)
+        assert left[2] == pytest.approx(n, rel=1e-6, abs=1e-6 * np.max(np.abs(n)))
+    with pytest.raises(ValueError, match='positive definite'):
+        stability.lyapunov_weight(((1.0,) * 5,) * 5)
+
+
+def test_certificate_holds_to_3_5_m_s2():
+    # the Section 4 test with A's acceleration terms and the optimized Q: 0.730 at
+    # 3.5 m/s^2 on the grid, at the w_n kink; bounded between grid points
+    settings = LaneKeepingParams()
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=136)
     assert cert.max_real_eig < -0.3 and cert.holds
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, a_max=3.5, samples=136)
-    assert not cert.holds and cert.max_norm == pytest.approx(1.30, abs=0.03)
+    assert cert.max_norm == pytest.approx(0.730, abs=0.005)
+    assert cert.max_norm_speed == pytest.approx(90.0 / 7.0)
+    assert cert.max_norm < cert.between < 0.8 and cert.speeds == 138
+    assert cert.weight == 'sharp'
+    robust = stability.certificate(VEHICLE, CONTROLLER, settings, samples=136,
+                                   q=stability.CERTIFICATE_Q_ROBUST)
+    assert robust.holds and robust.max_norm == pytest.approx(0.924, abs=0.005)
+    # the value is linear in a_max: it fails above 3.5 / 0.73 = 4.8 m/s^2
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, a_max=4.8,
+                                     samples=136).holds
+    # the previous test's diagonal scaling S (Q = S^-2), with the acceleration terms the
+    # old test left out, certifies only 0.74 m/s^2
+    old = np.diag(1.0 / np.array((1.0, 0.0807, 2.31, 1.69, 1.06)) ** 2)
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=136,
+                                 q=tuple(map(tuple, old)))
+    assert not cert.holds and cert.max_norm == pytest.approx(4.75, abs=0.03)
+
+
+def test_certificate_with_an_error_in_the_law_s_acceleration():
+    # the law's a_x (IMU, grade, differentiated speed) off the true v' by up to
+    # a_error: the vertices (+-a_max, a +- a_error); 0 gives the exact test's value
+    settings = LaneKeepingParams()
+    sharp = stability.CERTIFICATE_Q
+    exact = stability.certificate(VEHICLE, CONTROLLER, settings, samples=55, q=sharp)
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0,
+                                 q=sharp)
+    assert cert.holds and exact.max_norm < cert.max_norm == pytest.approx(0.944, abs=0.005)
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
+                                     a_error=1.2, q=sharp).holds
+    # by hand at one speed: the largest eigenvalue of Q^-1 (a P_v + a_hat M) over a
+    # dense set of (a, a_hat) is the vertices' (the matrix is affine in both)
+    weight = stability.lyapunov_weight()
+    _, p_v, n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, 90.0 / 7.0, 1.0,
+                                        weight)
+    inverse = np.linalg.inv(np.linalg.cholesky(weight))
+    top = max(float(np.max(np.linalg.eigvalsh(
+        inverse @ (a * p_v + a_hat * (n - p_v)) @ inverse.T)))
+        for a in np.linspace(-3.5, 3.5, 15) for a_hat in a + np.linspace(-1.0, 1.0, 9))
+    assert top == pytest.approx(cert.max_norm, abs=1e-9)
+    # acceleration_source zero (a_hat = 0, inside a_error = a_max): not with the sharp
+    # Q, but with the robust one (the default tries both and takes the smaller bound)
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=55,
+                                     a_error=3.5, q=sharp).holds
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=3.5)
+    assert cert.holds and cert.weight == 'robust'
+    assert cert.max_norm == pytest.approx(0.957, abs=0.005) and cert.between < 0.98
+    with pytest.raises(ValueError, match='a_error'):
+        stability.certificate(VEHICLE, CONTROLLER, settings, a_error=float('nan'))
+
+
+def test_certificate_edge_settings():
+    # w_n constant (low = natural frequency): its two kinks are one; no integral: a zero
+    # eigenvalue, so no P > 0: the value is infinite, not a pass
+    flat = LaneKeepingParams(natural_frequency=3.0)
+    assert stability.schedule_kinks(VEHICLE, CONTROLLER, flat, 10.0, 37.0) == pytest.approx(
+        [math.sqrt((VEHICLE.d_s + VEHICLE.l2) / (4.0 * VEHICLE.eta)), 30.0])
+    cert = stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(integral_gain=0.0),
+                                 samples=11)
+    assert cert.max_real_eig == 0.0 and cert.max_norm == math.inf and not cert.holds
+    # an envelope between two kinks
+    cert = stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(), 36.99, 37.0,
+                                 samples=3)
+    assert cert.kinks == () and cert.holds and cert.speeds == 3
+
+
+def test_certificate_between_grid_points():
+    # the bound from 28 speeds covers every value on a grid 100 times denser
+    settings = LaneKeepingParams()
+    coarse = stability.certificate(VEHICLE, CONTROLLER, settings, samples=28,
+                                   q=stability.CERTIFICATE_Q)
+    weight = stability.lyapunov_weight()
+    inverse = np.linalg.inv(np.linalg.cholesky(weight))
+    worst = 0.0
+    for v in np.linspace(10.0, 37.0, 2701)[1:-1]:
+        for side in (-1.0, 1.0):
+            n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, float(v), side,
+                                        weight, 1e-5)[2]
+            worst = max(worst, 3.5 * float(np.max(np.abs(np.linalg.eigvalsh(
+                inverse @ n @ inverse.T)))))
+    assert worst <= coarse.between < 0.9
+    assert worst == pytest.approx(coarse.max_norm, abs=0.01)
+
+
+def _worst_case_run(weight, a_max=3.5, seconds=12.0, dt=0.002, seed=3, start=None,
+                    a_error=0.0):
+    # the adversary: at every step the acceleration (+-a_max, speed kept in 10-37 m/s)
+    # and the law's a_x (a +- a_error) that make V = x^T P(v) x largest at the step's
+    # end; RK4 on x' = A(v, a_hat) x, v' = a
+    settings = LaneKeepingParams()
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=5) * np.array([0.5, 0.02, 0.3, 0.05, 0.2])
+    v = 12.0
+    if start is not None:
+        v, x = start
+
+    def lyap(speed, state_):
+        a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, speed)
+        return float(state_ @ solve_continuous_lyapunov(a.T, -weight) @ state_)
+
+    def step(speed, acc, state_, law_acc):
+        def f(t, z):
+            return stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings,
+                                                speed + acc * t, a_x=law_acc) @ z
+        k1 = f(0.0, state_)
+        k2 = f(dt / 2, state_ + dt / 2 * k1)
+        k3 = f(dt / 2, state_ + dt / 2 * k2)
+        k4 = f(dt, state_ + dt * k3)
+        return state_ + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    values = [lyap(v, x)]
+    switches = 0
+    last = 0.0
+    for _ in range(int(seconds / dt)):
+        options = [(acc, acc + err) for acc in (a_max, -a_max)
+                   for err in {a_error, -a_error} if 10.0 <= v + acc * dt <= 37.0]
+        runs = [(lyap(v + acc * dt, step(v, acc, x, law)), acc, law)
+                for acc, law in options]
+        value, acc, law = max(runs)
+        x, v = step(v, acc, x, law), v + acc * dt
+        switches += acc != last
+        last = acc
+        values.append(value)
+    return np.array(values), switches
+
+
+def test_lyapunov_function_decreases_under_the_worst_speed_profile():
+    values, switches = _worst_case_run(stability.lyapunov_weight())
+    assert switches > 2                          # a bang-bang profile, not a ramp
+    assert np.all(np.diff(values) < 0.0)
+    assert values[-1] < 0.05 * values[0]
+    # the simulation can fail: with Q = I (value 116 at 3.5 m/s^2, at 37 m/s) V rises
+    # from the state where x^T N x is largest
+    n = stability.lyapunov_rate(VEHICLE, CONTROLLER, LaneKeepingParams(), 36.0, 1.0,
+                                np.eye(5))[2]
+    eig, vec = np.linalg.eigh(n)
+    x = vec[:, int(np.argmax(np.abs(eig)))]
+    values, _ = _worst_case_run(np.eye(5), seconds=0.2, start=(36.0, x))
+    assert values[1] > values[0]
+
+
+def test_lyapunov_function_decreases_with_an_acceleration_error():
+    # the law's a_x off by up to 1 m/s^2 (certified with the sharp Q), and by up to
+    # 3.5 m/s^2 (a_hat = 0 among them; the robust Q): V decreases at every step
+    values, _ = _worst_case_run(stability.lyapunov_weight(), seconds=4.0, a_error=1.0,
+                                seed=5)
+    assert np.all(np.diff(values) < 0.0)
+    robust = stability.lyapunov_weight(stability.CERTIFICATE_Q_ROBUST)
+    values, _ = _worst_case_run(robust, seconds=4.0, a_error=3.5, seed=6)
+    assert np.all(np.diff(values) < 0.0)
 
 
 def test_robust_over_the_sweep_ranges():
@@ -334,11 +530,12 @@ def test_controller_paper_law_unchanged():
 
 def test_stability_tool_verdicts(capsys, tmp_path):
     from lookahead_control.tools.lane_keeping_tool import stability_main
-    assert stability_main(['--a-max', '2.5', '--samples', '55',
-                           '--json', str(tmp_path / 's.json')]) == 0
+    # the paper's 3.5 m/s^2 holds (exit 0); 4.8 m/s^2 fails (exit 1)
+    assert stability_main(['--samples', '55', '--json', str(tmp_path / 's.json')]) == 0
     out = capsys.readouterr().out
     assert 'certificate HOLDS; robust check HOLDS' in out
-    assert stability_main(['--samples', '55']) == 1      # the paper's 3.5 m/s^2
+    assert '| largest certified \\|a_x\\| [m/s^2] | 4.4' in out    # 4.7 on 271 speeds
+    assert stability_main(['--samples', '55', '--a-max', '4.8']) == 1
     assert 'certificate DOES NOT HOLD' in capsys.readouterr().out
     assert (tmp_path / 's.json').stat().st_size > 100
 

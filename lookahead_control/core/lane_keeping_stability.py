@@ -17,7 +17,7 @@ Stability of the CG-compensated law's closed loop (the Section 4 argument, exten
 
 The homogeneous closed loop (straight road, ``rho = 0``) of the linear single-track plant
 and the law with its CG-error integral has the state ``x = [y_cg, eps_r, v_y, r, I]``
-and ``x' = A(v_x) x``. The reference ``d_v eps_ss(v_x, rho)`` is an exogenous signal
+and ``x' = A(v_x, a_x) x``. The reference ``d_v eps_ss(v_x, rho)`` is an exogenous signal
 (it multiplies ``rho``), and the compliance estimate only scales it and is clipped, so
 neither enters ``A``: they are bounded inputs to a stable system. The same holds for the
 load-dependent compliance (the brush shape of the reference curve's lateral
@@ -26,9 +26,34 @@ road's curvature rate, clipped to ``max_lateral_jerk``). The estimate's own dyna
 (the filtered regression) are not in ``A``: they act on the loop only through these
 clipped, curvature-multiplied gains.
 
-- :func:`certificate` is the paper's Section 4 test on ``A(v_x)`` in scaled
-  coordinates ``z = S^-1 x``: ``P(v_x)`` solves ``A_z^T P + P A_z = -I``;
-  ``V = z^T P z`` decreases while speed varies if ``a_max max_v ||dP/dv_x||_2 < 1``.
+``A`` depends on the acceleration: the law differentiates ``y_v = y_cg + d_v eps_r``
+with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
+``2 dd_v/dt r``; all are linear in ``a_x``, so ``A(v, a) = A_0(v) + a A_1(v)``.
+
+- :func:`certificate` is the paper's Section 4 argument on this loop. ``P(v)`` solves
+  ``A_0(v)^T P + P A_0(v) = -Q`` with a constant ``Q > 0`` (:data:`CERTIFICATE_WEIGHTS`);
+  ``A_0`` Hurwitz gives ``P(v) > 0``. Along any speed profile in ``[v_min, v_max]``
+  with ``|v'| <= a_max``, ``V = x^T P(v) x`` has
+  ``V' = x^T (A^T P + P A + a P_v) x = x^T (-Q + a N(v)) x`` with
+  ``N = A_1^T P + P A_1 + dP/dv`` (``dP/dv`` solves the differentiated Lyapunov
+  equation). ``-Q + a N`` is affine in ``a``, so it is negative definite for every
+  ``|a| <= a_max`` iff it is at ``a = +-a_max``, i.e. iff
+  ``a_max max |eig(Q^-1 N)| < 1`` (the generalized eigenvalues of ``(N, Q)``,
+  real because both are symmetric and ``Q > 0``). Then ``V' <= -(1 - value) x^T Q x``
+  and the loop is exponentially stable. With ``Q = I`` and ``A_1 = 0`` this is the
+  paper's test ``a_max ||dP/dv||_2 < 1``. Any fixed ``Q > 0`` gives a valid test, so
+  the loop is stable if the test holds for one of several: two were found by a
+  numerical search (Nelder-Mead over a Cholesky factor on a 55-speed grid), ``sharp``
+  for the exact ``a_x``, ``robust`` for an error up to 3.5 m/s^2 in the law's ``a_x``,
+  and are then only checked; the tool reports the one with the smaller value.
+- ``A`` is continuous in ``v`` but has kinks where the d_v schedule leaves its floor
+  ``d_s`` (10.78 m/s) and where ``w_n`` leaves its clamps (12.86 and 30 m/s); there
+  ``P`` is Lipschitz and ``V`` absolutely continuous, so ``V' < 0`` almost everywhere
+  suffices: the kinks are grid points and both one-sided derivatives are checked.
+- Between grid points the value is bounded by ``max_i value(v_i) + a_max L h / 2``
+  with ``L`` the largest difference quotient ``||Q^-1/2 (N_i+1 - N_i) Q^-1/2|| / h``
+  over the grid (a Lipschitz constant estimated on the grid, not an interval-arithmetic
+  bound; it adds 0.013 on the default 271-speed grid, 0.0013 on 2701).
 - :func:`discrete_radius` is the robustness check: the sampled loop (ZOH at the control
   period), a plant whose mass, inertia and cornering stiffnesses differ from the
   design's, a first-order steering actuator and a transport delay of whole periods;
@@ -49,32 +74,53 @@ import numpy.typing as npt
 
 Matrix = npt.NDArray[np.float64]
 STATE_NAMES = ('y_cg', 'eps_r', 'v_y', 'r', 'integral')
-# the certificate's coordinates z = S^-1 x (S diagonal, units of each state): chosen once
-# by minimizing the test's worst value for the default settings (a Nelder-Mead search
-# over log S); any fixed S gives a valid test, this one a sharp one
-CERTIFICATE_SCALE = (1.0, 0.0807, 2.31, 1.69, 1.06)
+# the right-hand side Q of the certificate's Lyapunov equation A_0^T P + P A_0 = -Q over
+# [y_cg, eps_r, v_y, r, I] (SI units): found once by minimizing the test's worst value
+# for the default settings (Nelder-Mead over a Cholesky factor, 55 speeds); any
+# symmetric Q > 0 gives a valid test, this one a sharp one (certifies 4.7 m/s^2)
+CERTIFICATE_Q = ((1.0153, -0.0462, -0.0142, 0.3261, 0.5993),
+                 (-0.0462, 116.48, 2.6385, -3.7838, 1.1082),
+                 (-0.0142, 2.6385, 0.13296, -0.18816, 0.055957),
+                 (0.3261, -3.7838, -0.18816, 8.3929, -0.21034),
+                 (0.5993, 1.1082, 0.055957, -0.21034, 0.80934))
+# the same search with the law's a_x off by up to 3.5 m/s^2 (vertices (+-3.5, a +- 3.5),
+# so also a_x = 0 in the law): certifies that case, the exact one to 3.8 m/s^2
+CERTIFICATE_Q_ROBUST = ((0.87895, 3.0544, -0.0025397, 0.57093, 0.60389),
+                        (3.0544, 122.64, 2.1232, 10.679, 1.2228),
+                        (-0.0025397, 2.1232, 0.16538, 0.23714, 0.045423),
+                        (0.57093, 10.679, 0.23714, 6.5571, 0.15149),
+                        (0.60389, 1.2228, 0.045423, 0.15149, 0.52951))
+CERTIFICATE_WEIGHTS = {'sharp': CERTIFICATE_Q, 'robust': CERTIFICATE_Q_ROBUST}
+# one-sided difference step of A in v [m/s] (second-order formula, error ~1e-8)
+_STEP = 1e-4
 
 
 def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
-                  settings: LaneKeepingParams, v_x: float) -> Matrix:
+                  settings: LaneKeepingParams, v_x: float, a_x: float = 0.0) -> Matrix:
     """
-    Return ``K`` with ``delta = K x`` on a straight road at constant speed.
+    Return ``K`` with ``delta = K x`` on a straight road.
+
+    The law's ``y_v' = v_y + v_x eps_r + d_v r + d_v' eps_r`` and its drift term
+    ``f_v = -(beta_1 (v_y + l_1 r) + beta_2 (v_y - l_2 r)) / v_x + a_x eps_r + 2 d_v' r``
+    (``d_v' = (dd_v/dv_x) a_x``); ``y_ref = -I``, ``y_ref' = -k_i y_cg``.
 
     :param vehicle: the design vehicle.
     :param controller: d_v schedule (its gains are not used: the settings' are).
     :param settings: the law's gains and integral gain.
     :param v_x: speed [m/s].
+    :param a_x: acceleration [m/s^2].
     :return: a row of 5 gains over ``[y_cg, eps_r, v_y, r, I]``.
     """
-    d_v = float(look_ahead(v_x, 0.0, vehicle, controller)[0])
+    d_v, d_v_rate = (float(x) for x in look_ahead(v_x, a_x, vehicle, controller))
     m, iz, l1, l2 = vehicle.mass, vehicle.yaw_inertia, vehicle.l1, vehicle.l2
     beta_1 = vehicle.c_f * (1.0 / m + l1 * d_v / iz)
     beta_2 = vehicle.c_r * (1.0 / m - l2 * d_v / iz)
     k_p, k_d = (float(k) for k in loop_gains(settings, v_x))
     k_i = settings.integral_gain
     y_v = np.array([1.0, d_v, 0.0, 0.0, 0.0])
-    y_v_rate = np.array([0.0, v_x, 1.0, d_v, 0.0])
-    f_v = -np.array([0.0, 0.0, beta_1 + beta_2, beta_1 * l1 - beta_2 * l2, 0.0]) / v_x
+    y_v_rate = np.array([0.0, v_x + d_v_rate, 1.0, d_v, 0.0])
+    f_v = (-np.array([0.0, 0.0, beta_1 + beta_2, beta_1 * l1 - beta_2 * l2, 0.0]) / v_x
+           + np.array([0.0, a_x, 0.0, 2.0 * d_v_rate, 0.0]))
     error = y_v + np.array([0.0, 0.0, 0.0, 0.0, 1.0])           # y_ref = -I
     error_rate = y_v_rate + np.array([k_i, 0.0, 0.0, 0.0, 0.0])  # y_ref' = -k_i y_cg
     return np.asarray((-f_v - k_p * error - k_d * error_rate) / beta_1)
@@ -102,27 +148,66 @@ def plant_matrices(plant: VehicleParams, v_x: float) -> tuple[Matrix, Matrix]:
 
 def closed_loop_matrix(vehicle: VehicleParams, controller: ControllerParams,
                        settings: LaneKeepingParams, v_x: float,
-                       plant: Optional[VehicleParams] = None) -> Matrix:
+                       plant: Optional[VehicleParams] = None, a_x: float = 0.0) -> Matrix:
     """
     Return the continuous closed-loop matrix over ``[y_cg, eps_r, v_y, r, I]``.
 
-    Without actuator and delay, on the design plant, its eigenvalues are the roots of
-    ``s^2 + k_d s + k_p`` (the y_v loop), the zero dynamics' two and the integral's.
+    Without actuator and delay, on the design plant, at ``a_x = 0``, its eigenvalues are
+    the roots of ``s^2 + k_d s + k_p`` (the y_v loop), the zero dynamics' two and the
+    integral's.
 
     :param vehicle: the design vehicle (the law's model).
     :param controller: gains and schedule.
     :param settings: integral gain.
     :param v_x: speed [m/s].
     :param plant: the plant's parameters (None: the design vehicle).
+    :param a_x: acceleration [m/s^2] (the law's d_v rate and drift terms use it).
     :return: the 5x5 matrix.
     """
     a_p, b_p = plant_matrices(plant or vehicle, v_x)
-    k = feedback_gain(vehicle, controller, settings, v_x)
+    k = feedback_gain(vehicle, controller, settings, v_x, a_x)
     a = np.zeros((5, 5))
     a[:4, :4] = a_p
     a[:4, :] += b_p @ k.reshape(1, 5)
     a[4, 0] = settings.integral_gain
     return a
+
+
+def schedule_kinks(vehicle: VehicleParams, controller: ControllerParams,
+                   settings: LaneKeepingParams, v_min: float, v_max: float) -> list[float]:
+    """
+    Return the speeds in ``(v_min, v_max)`` where ``A`` is not differentiable.
+
+    The w_n schedule's clamps (``low_speed_frequency`` and ``natural_frequency``) and the
+    d_v schedule's (its floor and clamp: where ``dd_v/dt`` at ``a_x = 1`` switches
+    between 0 and not, located by bisection to 1e-12 m/s).
+
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the w_n schedule.
+    :param v_min: lower speed [m/s].
+    :param v_max: upper speed [m/s].
+    :return: the sorted kink speeds [m/s].
+    """
+    kinks = [settings.frequency_speed * settings.low_speed_frequency
+             / settings.natural_frequency, settings.frequency_speed]
+
+    def free(v: float) -> bool:
+        return float(look_ahead(v, 1.0, vehicle, controller)[1]) != 0.0
+
+    grid = np.linspace(v_min, v_max, 1001)
+    for lo, hi in zip(grid[:-1], grid[1:]):
+        lo, hi = float(lo), float(hi)
+        if free(lo) != free(hi):
+            side = free(lo)
+            while hi - lo > 1e-12:
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if free(mid) == side else (lo, mid)
+            kinks.append(0.5 * (lo + hi))
+    inside = sorted(k for k in kinks if v_min < k < v_max)
+    # one kink where two coincide (low_speed_frequency = natural_frequency: both at
+    # frequency_speed)
+    return [k for i, k in enumerate(inside) if i == 0 or k - inside[i - 1] > 1e-9]
 
 
 class Certificate(NamedTuple):
@@ -132,31 +217,104 @@ class Certificate(NamedTuple):
     :param v_min: lower speed [m/s].
     :param v_max: upper speed [m/s].
     :param a_max: acceleration bound [m/s^2].
-    :param max_real_eig: max over speed of the largest real part of ``A``'s eigenvalues.
-    :param max_norm: max over speed of ``a_max ||dP/dv_x||_2``.
+    :param a_error: bound on the law's acceleration error [m/s^2].
+    :param max_real_eig: max over speed of the largest real part of ``A_0``'s eigenvalues.
+    :param max_norm: max over the grid (and both one-sided derivatives) of
+        ``a_max max |eig(Q^-1 N)|`` (with ``a_error``: the largest eigenvalue of
+        ``Q^-1 (a P_v + a_hat M)`` over the vertices); the test's value, ``V' < 0`` if
+        below 1.
     :param max_norm_speed: where it occurs [m/s].
-    :param holds: every ``A`` is Hurwitz and ``max_norm < 1``.
+    :param between: the value bounded between grid points (``max_norm`` plus
+        ``L h / 2``, ``L`` the largest difference quotient of the vertex matrices).
+    :param kinks: the speeds where ``A`` has a kink (grid points, both sides checked).
+    :param speeds: how many speeds were checked (the grid and the kinks).
+    :param weight: the ``Q`` used: a name of :data:`CERTIFICATE_WEIGHTS` or ``given``.
+    :param holds: every ``A_0`` is Hurwitz and ``between < 1``.
     """
 
     v_min: float
     v_max: float
     a_max: float
+    a_error: float
     max_real_eig: float
     max_norm: float
     max_norm_speed: float
+    between: float
+    kinks: tuple[float, ...]
+    speeds: int
+    weight: str
     holds: bool
 
 
-def certificate(vehicle: VehicleParams, controller: ControllerParams,
-                settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
-                a_max: float = 3.5, samples: int = 271,
-                scale: tuple[float, ...] = CERTIFICATE_SCALE) -> Certificate:
+def lyapunov_weight(q: Optional[tuple[tuple[float, ...], ...]] = None) -> Matrix:
     """
-    Evaluate the Section 4 test on the CG-compensated closed loop.
+    Return the certificate's ``Q`` as a checked symmetric positive definite matrix.
 
-    ``dP/dv_x`` solves ``A^T P_v + P_v A = -(A_v^T P + P A_v)`` with ``A_v`` from a
-    central difference of ``A`` (step 1e-4 m/s; ``A`` is smooth in ``v_x`` where the
-    schedule is not clamped, and a one-sided kink where it is).
+    :param q: 5 rows of 5 numbers (None: :data:`CERTIFICATE_Q`).
+    :return: the 5x5 matrix.
+    """
+    weight = np.asarray(CERTIFICATE_Q if q is None else q, dtype=float)
+    if (weight.shape != (5, 5) or not np.all(np.isfinite(weight))
+            or not np.allclose(weight, weight.T, rtol=0.0, atol=1e-12)
+            or float(np.min(np.linalg.eigvalsh(weight))) <= 0.0):
+        raise ValueError(f'Q = {q!r} must be a symmetric positive definite 5x5 matrix')
+    return weight
+
+
+def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
+                  settings: LaneKeepingParams, v_x: float, side: float,
+                  weight: Matrix, step: float = _STEP) -> tuple[Matrix, Matrix, Matrix]:
+    """
+    Return ``P``, ``dP/dv`` (one-sided) and ``N = A_1^T P + P A_1 + dP/dv`` at a speed.
+
+    ``dP/dv`` solves ``A_0^T P_v + P_v A_0 = -(A_0v^T P + P A_0v)`` with ``A_0v`` the
+    second-order one-sided difference ``+-(-3 A(v) + 4 A(v +- h) - A(v +- 2h)) / 2h``.
+    ``A_1 = A(v, 1) - A(v, 0)`` exactly (``A`` is affine in ``a_x``), taken as its limit
+    from the same side (it jumps where d_v leaves its floor).
+
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :param side: +1 for the right derivative, -1 for the left one.
+    :param weight: ``Q``.
+    :param step: the difference step ``h`` [m/s].
+    :return: ``(P, dP/dv, N)``.
+    """
+    def matrix(v: float, a: float = 0.0) -> Matrix:
+        return closed_loop_matrix(vehicle, controller, settings, v, a_x=a)
+
+    def slope(v: float) -> Matrix:
+        return matrix(v, 1.0) - matrix(v)
+
+    a_0 = matrix(v_x)
+    # A_1 jumps where d_v leaves its floor: its limit from this side (linear
+    # extrapolation from inside the piece, error ~h^2)
+    a_1 = 2.0 * slope(v_x + side * step) - slope(v_x + 2.0 * side * step)
+    a_v = side * (-3.0 * a_0 + 4.0 * matrix(v_x + side * step)
+                  - matrix(v_x + 2.0 * side * step)) / (2.0 * step)
+    p = lyapunov(a_0, weight)
+    p_v = lyapunov(a_0, a_v.T @ p + p @ a_v)
+    return p, p_v, a_1.T @ p + p @ a_1 + p_v
+
+
+def _certificate_for(vehicle: VehicleParams, controller: ControllerParams,
+                     settings: LaneKeepingParams, v_min: float, v_max: float,
+                     a_max: float, samples: int,
+                     q: Optional[tuple[tuple[float, ...], ...]], a_error: float,
+                     name: str = 'given') -> Certificate:
+    """
+    Evaluate the Section 4 test with one ``Q`` (see :func:`certificate`).
+
+    The grid is ``samples`` speeds from ``v_min`` to ``v_max`` and the kinks of the
+    schedules; at each speed the left and the right derivative of ``P`` are used
+    (the same number away from the kinks); a one-sided step never crosses a kink.
+
+    The law's ``a_x`` (``a_hat``, from the IMU or a differentiated speed) may differ from
+    the true ``v'`` by up to ``a_error``: ``V' = x^T (-Q + a P_v + a_hat M) x`` with
+    ``M = A_1^T P + P A_1``, affine in ``(a, a_hat)``, so its vertices
+    ``a = +-a_max``, ``a_hat = a +- a_error`` suffice. ``a_error >= a_max`` covers the
+    node's ``acceleration_source: zero`` (``a_hat = 0``).
 
     :param vehicle: the design vehicle.
     :param controller: gains and schedule.
@@ -164,8 +322,10 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     :param v_min: lower speed [m/s].
     :param v_max: upper speed [m/s].
     :param a_max: acceleration bound [m/s^2].
-    :param samples: number of speeds.
-    :param scale: the diagonal of S, one positive unit per state.
+    :param samples: number of speeds of the uniform grid (>= 2).
+    :param q: the Lyapunov equation's right-hand side (None: :data:`CERTIFICATE_Q`).
+    :param a_error: bound on the law's acceleration error [m/s^2].
+    :param name: the name of ``q`` for the result.
     :return: the worst cases and whether the test holds.
     """
     if not 0.0 < v_min < v_max:
@@ -173,29 +333,90 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
                          '0 < v_min < v_max')
     if not a_max >= 0.0:
         raise ValueError(f'a_max = {a_max!r} m/s^2 must be >= 0')
-    worst_eig, worst_norm, worst_speed = -np.inf, -np.inf, v_min
-    h = 1e-4
-    units = np.asarray(scale, dtype=float)
-    if units.shape != (5,) or not np.all(units > 0.0):
-        raise ValueError(f'scale = {scale!r} must be 5 positive numbers')
-
-    def matrix(v: float) -> Matrix:
-        a = closed_loop_matrix(vehicle, controller, settings, v)
-        return np.asarray(a * units[np.newaxis, :] / units[:, np.newaxis])
-
-    for v in np.linspace(v_min, v_max, samples):
-        a = matrix(float(v))
-        worst_eig = max(worst_eig, float(np.max(np.linalg.eigvals(a).real)))
+    if not 0.0 <= a_error < float('inf'):
+        raise ValueError(f'a_error = {a_error!r} m/s^2 must be >= 0 and finite')
+    if samples < 2:
+        raise ValueError(f'samples = {samples!r} must be >= 2')
+    weight = lyapunov_weight(q)
+    # Q^-1/2 in the Cholesky form: eig(Q^-1 N) = eig(C^-1 N C^-T), Q = C C^T
+    inverse = np.linalg.inv(np.linalg.cholesky(weight))
+    kinks = schedule_kinks(vehicle, controller, settings, v_min, v_max)
+    uniform = np.linspace(v_min, v_max, samples)
+    # a grid point within 1e-6 m/s of a kink is the kink (no one-sided step that short)
+    near = np.array([min((abs(u - k) for k in kinks), default=1.0) < 1e-6 for u in uniform])
+    speeds = np.unique(np.concatenate([uniform[~near], kinks]))
+    breaks = np.array([v_min] + kinks + [v_max])
+    worst_eig, worst, worst_speed, lipschitz = -np.inf, -np.inf, v_min, 0.0
+    previous: Optional[tuple[float, npt.NDArray[np.float64]]] = None
+    for v in (float(s) for s in speeds):
+        eig = float(np.max(np.linalg.eigvals(
+            closed_loop_matrix(vehicle, controller, settings, v)).real))
+        worst_eig = max(worst_eig, eig)
         if worst_eig >= 0.0:
             break
-        a_v = (matrix(float(v) + h) - matrix(float(v) - h)) / (2 * h)
-        p = lyapunov(a, np.eye(5))
-        p_v = lyapunov(a, a_v.T @ p + p @ a_v)
-        norm = a_max * float(np.max(np.abs(np.linalg.eigvalsh(0.5 * (p_v + p_v.T)))))
-        if norm > worst_norm:
-            worst_norm, worst_speed = norm, float(v)
-    holds = worst_eig < 0.0 and worst_norm < 1.0
-    return Certificate(v_min, v_max, a_max, worst_eig, worst_norm, worst_speed, holds)
+        for side in (-1.0, 1.0):
+            room = (v - breaks[breaks < v].max() if side < 0 and v > v_min else
+                    breaks[breaks > v].min() - v if side > 0 and v < v_max else 0.0)
+            if room <= 0.0:
+                continue
+            _, p_v, n = lyapunov_rate(vehicle, controller, settings, v, side, weight,
+                                      min(_STEP, room / 2.0))
+            # a P_v + a_hat M = a N + (a_hat - a) M in Q's coordinates, at the vertices
+            rate = inverse @ n @ inverse.T
+            drift = inverse @ (n - p_v) @ inverse.T
+            scaled = np.array([a * rate + e * drift for a in (-a_max, a_max)
+                               for e in (-a_error, a_error)])
+            value = float(np.max(np.linalg.eigvalsh(scaled)))
+            if value > worst:
+                worst, worst_speed = value, v
+            # the difference quotient within one smooth piece (left side: the piece
+            # that ends here, as the previous point's right side)
+            if side < 0 and previous is not None:
+                gap = v - previous[0]
+                jump = float(np.max(np.abs(np.linalg.eigvalsh(scaled - previous[1]))))
+                lipschitz = max(lipschitz, jump / gap)
+            if side > 0:
+                previous = (v, scaled)
+    spacing = float(np.max(np.diff(speeds)))
+    between = worst + lipschitz * spacing / 2.0
+    if worst_eig >= 0.0:     # no P(v) > 0 from the Lyapunov equation: no test value
+        worst = between = float('inf')
+    holds = worst_eig < 0.0 and between < 1.0
+    return Certificate(v_min, v_max, a_max, a_error, worst_eig, worst, worst_speed, between,
+                       tuple(kinks), int(speeds.size), name, holds)
+
+
+def certificate(vehicle: VehicleParams, controller: ControllerParams,
+                settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
+                a_max: float = 3.5, samples: int = 271,
+                q: Optional[tuple[tuple[float, ...], ...]] = None,
+                a_error: float = 0.0) -> Certificate:
+    """
+    Evaluate the Section 4 test, with ``A``'s dependence on ``a_x``, on the closed loop.
+
+    Each ``Q`` gives a sufficient condition: without ``q`` every one of
+    :data:`CERTIFICATE_WEIGHTS` is tried and the result with the smallest bound is
+    returned (the loop is stable if one holds).
+
+    :param vehicle: the design vehicle.
+    :param controller: gains and schedule.
+    :param settings: the law's settings.
+    :param v_min: lower speed [m/s].
+    :param v_max: upper speed [m/s].
+    :param a_max: acceleration bound [m/s^2].
+    :param samples: number of speeds of the uniform grid (>= 2).
+    :param q: one right-hand side to use (None: each of :data:`CERTIFICATE_WEIGHTS`).
+    :param a_error: bound on the error of the law's ``a_x`` [m/s^2].
+    :return: the worst cases and whether the test holds.
+    """
+    if q is not None:
+        return _certificate_for(vehicle, controller, settings, v_min, v_max, a_max,
+                                samples, q, a_error)
+    results = [_certificate_for(vehicle, controller, settings, v_min, v_max, a_max,
+                                samples, weight, a_error, name)
+               for name, weight in CERTIFICATE_WEIGHTS.items()]
+    return min(results, key=lambda c: (c.between, list(CERTIFICATE_WEIGHTS).index(
+        c.weight)))
 
 
 def expm(a: Matrix) -> Matrix:
