@@ -131,7 +131,6 @@ class LaneKeepingParams:
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
     filter_delay: float = 0.02
-    filter_period: float = 0.01
     filter_lateral_noise: float = 0.03
     filter_yaw_noise: float = 0.002
     filter_lateral_velocity_noise: float = 0.02
