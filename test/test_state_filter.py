@@ -221,15 +221,18 @@ def random_inputs(steps, seed):
     return rng.standard_normal((steps, 4)) * [0.05, 0.003, 0.03, 0.003]
 
 
-def test_float_equals_every_run_of_a_batch_bit_for_bit():
-    steps, speeds = 300, np.array([2.0, 12.0, 37.0])
+@pytest.mark.parametrize('period', [PERIOD, 0.04, 'jitter'])
+def test_float_equals_every_run_of_a_batch_bit_for_bit(period):
+    steps, speeds = 300, np.array([2.0, 12.0, 37.5])
+    periods = (np.random.default_rng(1).uniform(0.008, 0.03, steps) if period == 'jitter'
+               else np.full(steps, period))
     noise = [random_inputs(steps, s) for s in range(3)]
     singles = []
     for i, v_x in enumerate(speeds):
         kf = KalmanStateFilter(VEHICLE)
         out = []
         for k in range(steps):
-            dt = 0.0 if k in (0, 120) else PERIOD
+            dt = 0.0 if k in (0, 120) else float(periods[k])
             n = noise[i][k]
             e = kf.step(measured(*n, v_x=float(v_x), rho=0.002), dt)
             kf.command(float(0.02 * math.sin(0.1 * k)))
@@ -238,7 +241,7 @@ def test_float_equals_every_run_of_a_batch_bit_for_bit():
     kf = KalmanStateFilter(VEHICLE)
     batch = []
     for k in range(steps):
-        dt = 0.0 if k in (0, 120) else PERIOD
+        dt = 0.0 if k in (0, 120) else float(periods[k])
         n = np.stack([noise[i][k] for i in range(3)], axis=1)
         e = kf.step(measured(*n, v_x=speeds, rho=0.002 + 0 * speeds), dt)
         kf.command(0.02 * math.sin(0.1 * k) + 0 * speeds)
@@ -419,12 +422,13 @@ def test_node_runs_the_filter_by_default_and_switches_it(context):
         node.destroy_node()
 
 
-@pytest.mark.parametrize('v_x', [3.0, 10.0, 37.0, 60.0])
-@pytest.mark.parametrize('dt', [1e-4, 0.005, 0.02, 0.021, 0.24, 5.0])
+@pytest.mark.parametrize('v_x', [3.0, 3.5, 10.0, 37.0, 60.0])
+@pytest.mark.parametrize('dt', [1e-4, 0.005, 0.02, 0.021, 0.04, 0.24, 0.37, 0.5, 5.0])
 def test_frozen_inconsistent_input_at_any_step_stays_bounded(v_x, dt):
     # a frozen sensor (constant y, eps_r, v_y and r = 0.02 rad/s on a straight road:
-    # no car does that) at any step length. Old code: at 37 m/s a step of 0.24 s
-    # diverged (1e41 m), and at 3.5 m/s one RK4 step over 0.24 s amplified by 184.
+    # no car does that) at any step length, with the gain of that step's period (5 s:
+    # restarts). The first version (one gain of 0.01 s at every step): at 37 m/s a step of
+    # 0.24 s diverged (1e41 m), and at 3.5 m/s one RK4 step over 0.24 s amplified by 184.
     kf = KalmanStateFilter(VEHICLE)
     steps = 4000 if dt < 0.005 else max(int(20.0 / dt), 5)
     for k in range(steps):
