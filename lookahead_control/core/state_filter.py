@@ -31,10 +31,10 @@ white noise of the configured standard deviations (the simulator's defaults).
 
 Gain: for each step, the steady-state gain of the filter sampled at that step's period,
 from the discrete algebraic Riccati equation (structure-preserving doubling), on a grid
-of speeds and interpolated at the measured speed. The period is rounded to a log grid
-(``PERIOD_STEPS`` points a decade) and interpolated between the two around the step
-(within 0.09 %); the gains are solved when a (period, speed) point is first needed and
-kept (``CACHED_PERIODS`` periods). The noise covariances
+of speeds and interpolated at the measured speed. The gain is interpolated between the
+two periods of a log grid (``PERIOD_STEPS`` a decade) around the step (within 0.09 %);
+the gains are solved when a (period, speed) point is first needed and kept
+(``CACHED_PERIODS`` periods). The noise covariances
 are constant and the model is time-invariant at a speed, so the time-varying gain
 converges to the steady one within a few tenths of a second; the steady gain needs no
 covariance per run of a batch and costs one interpolation per step. The prediction
@@ -44,7 +44,7 @@ Safety: a non-finite measurement passes through (the law refuses it) and the fil
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
 finite, ``> max_gap``, decided by the law) restarts it; ``dt = 0`` advances nothing and
 returns the last estimate; a step longer than ``MAX_PERIOD`` restarts it from that
-measurement (0.5 s: a lateral error slower than 2 Hz is not filtered); below
+measurement (0.5 s; with the filter on, the law's ``max_gap`` may not exceed it); below
 ``min_speed`` the model's ``1 / v_x`` terms are not trusted: the measurements pass
 through and the filter restarts from them.
 Everything works on floats and on numpy arrays (a batch), element by element the same
