@@ -61,7 +61,7 @@ from lookahead_control.core.params import (check_range, ControllerParams, Parame
                                            VehicleParams)
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.state_filter import (FILTER_MODES, KalmanStateFilter,
-                                                 StateFilterParams)
+                                                 MAX_PERIOD, StateFilterParams)
 import numpy as np
 
 
@@ -131,7 +131,6 @@ class LaneKeepingParams:
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
     filter_delay: float = 0.02
-    filter_period: float = 0.01
     filter_lateral_noise: float = 0.03
     filter_yaw_noise: float = 0.002
     filter_lateral_velocity_noise: float = 0.02
@@ -182,6 +181,11 @@ class LaneKeepingParams:
         if self.state_filter not in FILTER_MODES:
             raise ParameterError(f'lane_keeping.state_filter = {self.state_filter!r} is not '
                                  f'allowed; choose one of {", ".join(FILTER_MODES)}')
+        if self.state_filter == 'kalman' and self.max_gap > MAX_PERIOD:
+            # the filter's gains end at MAX_PERIOD: a longer step would restart it unseen
+            raise ParameterError(f'lane_keeping.max_gap = {self.max_gap!r} s is above '
+                                 f'{MAX_PERIOD:g} s, the longest step the state filter runs; '
+                                 'lower it or set lane_keeping.state_filter: none')
         for item in fields(self):
             if item.name in ('rate_feedforward', 'state_filter'):
                 continue

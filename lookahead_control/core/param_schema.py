@@ -128,7 +128,6 @@ LANE_KEEPING_SPECS = tuple(
         ('min_speed', 'below this speed the measurements pass through [m/s]', 0.5, 50.0),
         ('actuator_lag', 'time constant of the steering actuator it models [s]', 0.0, 2.0),
         ('delay', 'command-to-actuator transport delay it models [s]', 0.0, 1.0),
-        ('period', 'sampling period its steady-state gain is designed for [s]', 1e-4, 0.5),
         ('lateral_noise', 'standard deviation of the lateral error at the sensor [m]',
          1e-5, 5.0),
         ('yaw_noise', 'standard deviation of the relative yaw [rad]', 1e-6, 0.5),

@@ -29,19 +29,22 @@ law's own commands through the transport delay and the first-order actuator lag
 lateral error at the sensor ``y_cg + d_s eps_r``, ``eps_r``, ``v_y`` and ``r``, with
 white noise of the configured standard deviations (the simulator's defaults).
 
-Gain: the steady-state gain of the sampled filter at the design period, from the
-discrete algebraic Riccati equation (structure-preserving doubling), on a grid of speeds
-and interpolated at the measured speed. The noise covariances are constant and the model
-is time-invariant at a speed, so the time-varying gain converges to it within a few
-tenths of a second; the steady gain needs no covariance per run of a batch and costs one
-interpolation per step. The prediction integrates the model over the actual step (RK4)
-at the measured speed.
+Gain: for each step, the steady-state gain of the filter sampled at that step's period,
+from the discrete algebraic Riccati equation (structure-preserving doubling), on a grid
+of speeds and interpolated at the measured speed. The gain is interpolated between the
+two periods of a log grid (``PERIOD_STEPS`` a decade) around the step (within 0.09 %);
+the gains are solved when a (period, speed) point is first needed and kept
+(``CACHED_PERIODS`` periods). The noise covariances
+are constant and the model is time-invariant at a speed, so the time-varying gain
+converges to the steady one within a few tenths of a second; the steady gain needs no
+covariance per run of a batch and costs one interpolation per step. The prediction
+integrates the model over the actual step (RK4) at the measured speed.
 
 Safety: a non-finite measurement passes through (the law refuses it) and the filter
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
 finite, ``> max_gap``, decided by the law) restarts it; ``dt = 0`` advances nothing and
-returns the last estimate; a step longer than ``LONG_STEP`` design periods restarts it
-from that measurement (the steady gain holds near its period only); below
+returns the last estimate; a step longer than ``MAX_PERIOD`` restarts it from that
+measurement (0.5 s; with the filter on, the law's ``max_gap`` may not exceed it); below
 ``min_speed`` the model's ``1 / v_x`` terms are not trusted: the measurements pass
 through and the filter restarts from them.
 Everything works on floats and on numpy arrays (a batch), element by element the same
@@ -50,6 +53,7 @@ operations, so a run of a batch equals the single run bit for bit.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, fields
 import functools
 import math
@@ -63,8 +67,18 @@ import numpy.typing as npt
 
 FILTER_MODES = ('none', 'kalman')
 STATES = ('y_cg', 'eps_r', 'v_y', 'r', 'front_force', 'rear_force')
-#: a step longer than this many design periods restarts the filter (see ``step``)
-LONG_STEP = 2.0
+#: the gain's grid periods: ``10^(k / PERIOD_STEPS)`` s (0.01 s is one), a step's gain
+#: interpolated between the two around its period, linearly in ``log(period)``: within
+#: 0.09 % of the steady gain at the exact period (of each column's largest entry, 3-80 m/s,
+#: 1e-4 to 0.5 s; the nearest grid period alone: 4 %)
+PERIOD_STEPS = 200
+#: steps of at most this length get their gain [s]; longer ones restart the filter (the
+#: Riccati equation is ill-conditioned beyond: at 3 m/s and 1 s, Phi's condition is 1e17)
+MAX_PERIOD = 0.5
+#: periods whose gains are kept (least recently used dropped)
+CACHED_PERIODS = 128
+#: longest RK4 substep of the prediction [s]
+MAX_SUBSTEP = 0.01
 #: speed grid of the gain table [m/s] (above its end the last gain is used)
 SPEED_STEP = 1.0
 TOP_SPEED = 80.0
@@ -79,7 +93,6 @@ class StateFilterParams:
     :param min_speed: below this speed the measurements pass through [m/s].
     :param actuator_lag: time constant of the steering actuator the model assumes [s].
     :param delay: transport delay from command to actuator the model assumes [s].
-    :param period: design sampling period of the steady-state gain [s].
     :param lateral_noise: standard deviation of the lateral error at the sensor [m].
     :param yaw_noise: of the relative yaw [rad].
     :param lateral_velocity_noise: of the lateral velocity [m/s].
@@ -93,7 +106,6 @@ class StateFilterParams:
     min_speed: float = 3.0
     actuator_lag: float = 0.05
     delay: float = 0.02
-    period: float = 0.01
     lateral_noise: float = 0.03
     yaw_noise: float = 0.002
     lateral_velocity_noise: float = 0.02
@@ -104,7 +116,7 @@ class StateFilterParams:
 
     def __post_init__(self) -> None:
         limits = {'min_speed': (0.5, 50.0, 'm/s'), 'actuator_lag': (0.0, 2.0, 's'),
-                  'delay': (0.0, 1.0, 's'), 'period': (1e-4, 0.5, 's'),
+                  'delay': (0.0, 1.0, 's'),
                   'lateral_noise': (1e-5, 5.0, 'm'), 'yaw_noise': (1e-6, 0.5, 'rad'),
                   'lateral_velocity_noise': (1e-5, 5.0, 'm/s'),
                   'yaw_rate_noise': (1e-6, 0.5, 'rad/s'),
@@ -191,10 +203,10 @@ def expm(a: Matrix) -> Matrix:
     return total
 
 
-def discrete_model(vehicle: VehicleParams, settings: StateFilterParams,
-                   v_x: float) -> tuple[Matrix, Matrix, Matrix, Matrix]:
+def discrete_model(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
+                   period: float) -> tuple[Matrix, Matrix, Matrix, Matrix]:
     """
-    Return ``(Phi, Q, H, R)`` of the filter sampled at ``settings.period``.
+    Return ``(Phi, Q, H, R)`` of the filter sampled at ``period``.
 
     ``Phi = expm(A h)``; ``Q`` by Van Loan's method from ``G diag(q^2) G^T``; ``R`` the
     measurement noise's covariance.
@@ -202,6 +214,7 @@ def discrete_model(vehicle: VehicleParams, settings: StateFilterParams,
     :param vehicle: the design vehicle.
     :param settings: the filter's settings.
     :param v_x: speed [m/s].
+    :param period: sampling period [s].
     :return: the four matrices.
     """
     a, _, g = continuous_model(vehicle, v_x)
@@ -209,7 +222,7 @@ def discrete_model(vehicle: VehicleParams, settings: StateFilterParams,
     q = np.diag(np.array([s.kinematic_noise, s.force_noise, s.force_noise, s.force_drift,
                           s.force_drift]) ** 2)
     qc = g @ q @ g.T
-    n, h = a.shape[0], s.period
+    n, h = a.shape[0], period
     block = np.zeros((2 * n, 2 * n))
     block[:n, :n], block[:n, n:], block[n:, n:] = -a, qc, a.T
     van_loan = expm(block * h)
@@ -254,38 +267,113 @@ def riccati_doubling(phi: Matrix, h: Matrix, q: Matrix, r: Matrix,
     return x
 
 
-def steady_gain(vehicle: VehicleParams, settings: StateFilterParams, v_x: float) -> Matrix:
+def steady_gain(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
+                period: float) -> Matrix:
     """
-    Return the steady-state Kalman gain ``K`` (6x4) at a speed.
+    Return the steady-state Kalman gain ``K`` (6x4) at a speed and a sampling period.
 
     The update is ``x = x_prior + K (z - H x_prior)``, ``K = P H^T (H P H^T + R)^-1``.
 
     :param vehicle: the design vehicle.
     :param settings: the filter's settings.
     :param v_x: speed [m/s].
+    :param period: sampling period [s].
     :return: ``K``.
     """
-    phi, q, h, r = discrete_model(vehicle, settings, v_x)
+    phi, q, h, r = discrete_model(vehicle, settings, v_x, period)
     p = riccati_doubling(phi, h, q, r)
     gain: Matrix = np.asarray(np.linalg.solve(h @ p @ h.T + r, h @ p).T, dtype=float)
     return gain
 
 
-@functools.lru_cache(maxsize=32)
-def gain_table(vehicle: VehicleParams, settings: StateFilterParams) -> tuple[Matrix, Matrix]:
+def period_bucket(dt: float) -> tuple[int, float]:
     """
-    Return the speed grid and the steady-state gains there, ``(speeds, gains)``.
+    Return the grid periods around ``dt``: ``(k, w)``, ``dt = 10^((k + w) / PERIOD_STEPS)``.
+
+    A period within ``1e-9`` of a grid point is that point (``w = 0``): the design period
+    0.01 s, however its nanoseconds round, takes the gain of 0.01 s alone.
+
+    :param dt: a step [s] (> 0).
+    :return: ``k`` and the weight ``0 <= w < 1`` of the grid period above.
+    """
+    u = math.log10(dt) * PERIOD_STEPS
+    bucket = math.floor(u)
+    weight = u - bucket
+    if weight > 1.0 - 1e-9:
+        return bucket + 1, 0.0
+    return bucket, (weight if weight >= 1e-9 else 0.0)
+
+
+def bucket_period(bucket: int) -> float:
+    """
+    Return the grid period of an index (``period_bucket``'s inverse).
+
+    :param bucket: ``k``.
+    :return: ``10^(k / PERIOD_STEPS)`` [s].
+    """
+    return float(10.0 ** (bucket / PERIOD_STEPS))
+
+
+class GainTable:
+    """
+    The steady-state gains on the speed grid, per grid period, solved when first needed.
+
+    A step's gain needs two speed points of two grid periods: a new period costs at most
+    four Riccati solutions (about 0.6 ms each), not a table. At most
+    ``CACHED_PERIODS`` periods are kept.
+    """
+
+    def __init__(self, vehicle: VehicleParams, settings: StateFilterParams) -> None:
+        """
+        Create the empty table.
+
+        :param vehicle: the design vehicle.
+        :param settings: the filter's settings.
+        """
+        self.vehicle, self.settings = vehicle, settings
+        count = int(math.ceil((TOP_SPEED - settings.min_speed) / SPEED_STEP)) + 1
+        self.speeds: Matrix = settings.min_speed + SPEED_STEP * np.arange(count, dtype=float)
+        self.periods: OrderedDict[int, tuple[Matrix, npt.NDArray[np.bool_]]] = OrderedDict()
+        #: Riccati equations solved so far
+        self.solved = 0
+
+    def gains(self, bucket: int, needed: Any) -> Matrix:
+        """
+        Return the gains of a grid period, with the needed speed points solved.
+
+        :param bucket: the grid period's index ``k`` (``period_bucket``).
+        :param needed: speed-grid indices (an int or an integer array).
+        :return: gains (n, 6, 4) (NaN at the points not solved yet).
+        """
+        entry = self.periods.get(bucket)
+        if entry is None:
+            entry = (np.full((self.speeds.size, 6, 4), math.nan),
+                     np.zeros(self.speeds.size, dtype=bool))
+            self.periods[bucket] = entry
+            while len(self.periods) > CACHED_PERIODS:
+                self.periods.popitem(last=False)
+        else:
+            self.periods.move_to_end(bucket)
+        gains, done = entry
+        missing = np.unique(np.asarray(needed))
+        for i in missing[~done[missing]]:
+            gains[i] = steady_gain(self.vehicle, self.settings, float(self.speeds[i]),
+                                   bucket_period(bucket))
+            done[i] = True
+            self.solved += 1
+        return gains
+
+
+@functools.lru_cache(maxsize=32)
+def gain_table(vehicle: VehicleParams, settings: StateFilterParams) -> GainTable:
+    """
+    Return the gain table of a vehicle and settings (one shared by all filters).
 
     :param vehicle: the design vehicle.
     :param settings: the filter's settings.
-    :return: speeds (n,) [m/s] and gains (n, 6, 4).
+    :return: the table.
     """
-    count = int(math.ceil((TOP_SPEED - settings.min_speed) / SPEED_STEP)) + 1
-    speeds: Matrix = settings.min_speed + SPEED_STEP * np.arange(count, dtype=float)
-    gains = np.stack([steady_gain(vehicle, settings, float(v)) for v in speeds])
-    speeds.setflags(write=False)
-    gains.setflags(write=False)
-    return speeds, gains
+    return GainTable(vehicle, settings)
 
 
 def _select(mask: Any, a: Real, b: Real) -> Real:
@@ -308,20 +396,20 @@ class KalmanStateFilter:
     def __init__(self, vehicle: VehicleParams,
                  settings: Optional[StateFilterParams] = None) -> None:
         """
-        Create the filter (its gain table is computed once per vehicle and settings).
+        Create the filter (its gains are solved when first needed, shared per settings).
 
         :param vehicle: the design vehicle (the law's).
         :param settings: the filter's settings (defaults if None).
         """
         self.vehicle = vehicle
         self.settings = settings or StateFilterParams()
-        self.speeds, self.gains = gain_table(vehicle, self.settings)
+        self.table = gain_table(vehicle, self.settings)
         self.steps_cache: tuple[float, int, float, float, float] = (
             math.nan, 1, 0.0, 0.0, 0.0)
         veh, low = vehicle, self.settings.min_speed
         fastest = max((veh.c_f + veh.c_r) / (veh.mass * low),
                       (veh.c_f * veh.l1 ** 2 + veh.c_r * veh.l2 ** 2) / (veh.yaw_inertia * low))
-        self.max_substep = min(self.settings.period, 1.0 / fastest)
+        self.max_substep = min(MAX_SUBSTEP, 1.0 / fastest)
         self.innovation: tuple[Real, ...] = ()
         self.x: Optional[list[Real]] = None
         self.wheel: Real = 0.0          # the actuator's angle the model assumes [rad]
@@ -330,6 +418,7 @@ class KalmanStateFilter:
         self.time = 0.0
         self.rho: Real = 0.0
         self.restarts = 0
+        #: steps longer than ``MAX_PERIOD`` (restarts from the measurement)
         self.long_steps = 0
 
     def reset(self) -> None:
@@ -381,28 +470,41 @@ class KalmanStateFilter:
         zero = 0.0 * state.y_cg
         return [state.y_cg, state.eps_r, state.v_y, state.r, zero, zero]
 
-    def _gain(self, v_x: Real) -> list[list[Real]]:
-        """Return ``K`` at the speed, interpolated in the table (element by element)."""
-        speeds, gains = self.speeds, self.gains
+    def _gain(self, v_x: Real, dt: float) -> list[list[Real]]:
+        """Return ``K`` at the speed and step, interpolated in speed (element by element)."""
+        speeds = self.table.speeds
+        bucket, between = period_bucket(dt)
         top = speeds.size - 1
         u = (v_x - speeds[0]) / SPEED_STEP
         if isinstance(u, np.ndarray):
             u = np.clip(u, 0.0, float(top))
             i = np.minimum(np.floor(u).astype(int), top - 1)
             w = u - i
+            gains = self._period_gains(bucket, between,
+                                       np.concatenate([i.ravel(), i.ravel() + 1]))
             return [[gains[i, row, col] + w * (gains[i + 1, row, col] - gains[i, row, col])
                      for col in range(4)] for row in range(6)]
         u = min(max(float(u), 0.0), float(top))
         j = min(int(math.floor(u)), top - 1)
         f = u - j
+        gains = self._period_gains(bucket, between, [j, j + 1])
         return [[float(gains[j, row, col] + f * (gains[j + 1, row, col] - gains[j, row, col]))
                  for col in range(4)] for row in range(6)]
+
+    def _period_gains(self, bucket: int, between: float, needed: Any) -> Matrix:
+        """Return the gains on the speed grid at the period ``(bucket, between)``."""
+        lower = self.table.gains(bucket, needed)
+        if between == 0.0:
+            return lower
+        upper = self.table.gains(bucket + 1, needed)
+        gains: Matrix = lower + between * (upper - lower)
+        return gains
 
     def _predict(self, x: list[Real], dt: float, v_x: Real, rho: Real) -> list[Real]:
         """
         Integrate the model over ``dt`` (RK4 substeps), the wheel angle exact in between.
 
-        A substep is at most the design period and at most ``1 / lambda`` of the fastest
+        A substep is at most ``MAX_SUBSTEP`` and at most ``1 / lambda`` of the fastest
         tyre mode at ``min_speed`` (RK4 is unstable beyond ``2.8 / lambda``): a long step
         (lost messages, a slow sensor) at low speed is integrated, not amplified. The
         count depends only on ``dt`` and the settings: the same for every run of a batch.
@@ -467,15 +569,14 @@ class KalmanStateFilter:
             self.x = [math.nan + 0.0 * mv for mv in measured]
             self.rho = state.rho
         fresh = np.isnan(self.x[0])
-        if dt > LONG_STEP * self.settings.period:
-            # the steady gain holds near its design period only: after a longer step
-            # (lost messages, a slower sensor) the filter restarts from the measurement
+        if dt > MAX_PERIOD:
+            # beyond the longest period with a well-conditioned gain
             fresh = fresh | True
             self.long_steps += 1
-        if dt > 0.0:
+        if MAX_PERIOD >= dt > 0.0:
             v_x = _select(fast, state.v_x, self.settings.min_speed)
             prior = self._predict(self.x, dt, v_x, state.rho)
-            gain = self._gain(v_x)
+            gain = self._gain(v_x, dt)
             y, e, v, r = measured[:4]
             innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
                           e - prior[1], v - prior[2], r - prior[3])
