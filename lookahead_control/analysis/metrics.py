@@ -324,7 +324,11 @@ def step_metrics(time: Array, x: Array, step_time: float,
     if band > SETTLING_BAND * excursion:
         notes.append(f'settling band 3 x the noise effect {noise_effect:.3g} (measured '
                      'against the noise-free run)')
-    last = int(np.nonzero(magnitude > band)[0][-1])
+    outside = np.nonzero(magnitude > band)[0]
+    if outside.size == 0:
+        return _nan_step(initial, final, f'the whole response is within 3 x the noise effect '
+                         f'({3.0 * noise_effect:.3g}): it would measure the noise', excursion)
+    last = int(outside[-1])
     if t[last] >= t[-1] - final_window and noise_free is None:
         # white noise from third differences (std sqrt(20) sigma), in which a smooth
         # response, settled or not, hardly shows
