@@ -252,8 +252,9 @@ def test_noise_larger_than_the_goal_leaves_the_overshoot_unmeasured():
 
 def test_a_response_drowned_in_noise_is_not_measured_and_does_not_raise():
     # the league crashed (IndexError, 16 'failed' rows) where 3 x the noise's effect
-    # exceeded the whole excursion: no sample lies outside the settling band
+    # exceeded the whole excursion: no sample lies outside the settling band (here the
+    # noise shifts the whole response: its effect is large, its own excursion small)
     clean = 0.01 * _second_order_step(0.6)
-    noisy = clean + _wander(8, clean.size, 0.05)
+    noisy = clean + 0.05 + _wander(8, clean.size, 0.0001)
     m = step_metrics(TIME, noisy, 0.0, noise_free=clean)
     assert math.isnan(m.overshoot) and 'would measure the noise' in m.note
