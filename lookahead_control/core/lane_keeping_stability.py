@@ -617,22 +617,10 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     :param delay_steps: transport delay in control periods.
     :return: the spectral radius.
     """
-    a_p, b_p = plant_matrices(plant or vehicle, v_x)
-    if lag > 0.0:          # actuator state: delta' = (u - delta) / lag
-        a_c = np.zeros((5, 5))
-        a_c[:4, :4] = a_p
-        a_c[:4, 4:5] = b_p
-        a_c[4, 4] = -1.0 / lag
-        b_c = np.zeros((5, 1))
-        b_c[4, 0] = 1.0 / lag
-    else:
-        a_c, b_c = a_p, b_p
+    # actuator state: delta' = (u - delta) / lag
+    a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
     n = a_c.shape[0]
-    block = np.zeros((n + 1, n + 1))
-    block[:n, :n] = a_c
-    block[:n, n:] = b_c
-    e = expm(block * period)
-    phi, gamma = e[:n, :n], e[:n, n:]
+    phi, gamma = _zoh(a_c, b_c, period)
     k = feedback_gain(vehicle, controller, settings, v_x)
     # state: plant (n), integral (1), commands in flight (delay_steps)
     size = n + 1 + delay_steps
