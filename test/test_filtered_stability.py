@@ -40,7 +40,7 @@ STIFF = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * 10.0, c_r=VEHICLE.c_r * 1
 
 
 def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
-              filter_settings=None, lag=0.05):
+              filter_settings=None, lag=0.05, period=PERIOD):
     """
     Run the linear sampled loop with the node's own ``KalmanStateFilter`` (RK4 inside).
 
@@ -49,7 +49,7 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
     """
     k = stability.feedback_gain(VEHICLE, CONTROLLER, SETTINGS, v_x)
     a_c, b_c = stability._actuated_plant(plant, v_x, lag)
-    phi, gamma = stability._zoh(a_c, b_c, PERIOD)
+    phi, gamma = stability._zoh(a_c, b_c, period)
     x = np.zeros(a_c.shape[0])
     x[:4] = (0.5, 0.02, -0.1, 0.03)
     kalman = KalmanStateFilter(filter_vehicle, filter_settings or SETTINGS.filter_settings())
@@ -58,11 +58,11 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
     trajectory = []
     for _ in range(steps):
         trajectory.append(x.copy())
-        est = kalman.step(LateralState(x[0], x[1], x[2], x[3], v_x, 0.0, 0.0, 0.0), PERIOD)
+        est = kalman.step(LateralState(x[0], x[1], x[2], x[3], v_x, 0.0, 0.0, 0.0), period)
         u = float(k[0] * est.y_cg + k[1] * est.eps_r + k[2] * est.v_y + k[3] * est.r
                   + k[4] * integral)
         kalman.command(u)
-        integral += PERIOD * SETTINGS.integral_gain * est.y_cg
+        integral += period * SETTINGS.integral_gain * est.y_cg
         sent.append(u)
         x = phi @ x + gamma[:, 0] * sent.pop(0)
     return np.array(trajectory)
@@ -141,13 +141,24 @@ def test_filtered_robust_check_holds_on_the_486_cases():
     assert math.isfinite(filtered.max_radius)
 
 
-def test_without_filter_lag_and_with_a_slow_period():
-    # the filter's wheel model off (lag 0) and a period of 30 ms (several substeps)
+def test_without_filter_lag():
+    # the filter's wheel model off (lag 0), the plant without actuator
     settings = StateFilterParams(actuator_lag=0.0)
     m = stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, 20.0, lag=0.0,
                                 delay_steps=2, filter_settings=settings)
     sim = _simulate(20.0, VEHICLE, 2, 300, filter_settings=settings, lag=0.0)
     mat = _matrix_run(m, 4, 300)
+    assert np.max(np.abs(sim - mat)) < 1e-6 * np.max(np.abs(sim))
+
+
+def test_slow_period_with_substeps():
+    # 31.6 ms (a grid period of the filter's gain: no interpolation): four prediction
+    # substeps, the filter's 20 ms delay selecting different commands within one step
+    period = 10.0 ** -1.5
+    m = stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, 20.0, period=period,
+                                delay_steps=1)
+    sim = _simulate(20.0, VEHICLE, 1, 200, period=period)
+    mat = _matrix_run(m, 5, 200)
     assert np.max(np.abs(sim - mat)) < 1e-6 * np.max(np.abs(sim))
 
 
