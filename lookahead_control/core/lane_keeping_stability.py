@@ -57,7 +57,12 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
 - :func:`discrete_radius` is the robustness check: the sampled loop (ZOH at the control
   period), a plant whose mass, inertia and cornering stiffnesses differ from the
   design's, a first-order steering actuator and a transport delay of whole periods;
-  stable if the spectral radius is below 1.
+  stable if the spectral radius is below 1. :func:`filtered_radius` is the same loop
+  with the law acting on the Kalman filter's estimate (``core/state_filter.py``: its
+  model is the design vehicle, its gain ``steady_gain`` at the loop's period and speed,
+  its own actuator model and command buffer), and :func:`robust_check` takes either.
+- The varying-speed certificate covers the law on exact states only; the filter is
+  covered by the sampled check, at frozen speeds.
 """
 
 from __future__ import annotations
@@ -69,6 +74,9 @@ from lookahead_control.core.lane_keeping import LaneKeepingParams, loop_gains
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
+from lookahead_control.core.state_filter import (continuous_model, MAX_SUBSTEP,
+                                                 measurement_matrix, StateFilterParams,
+                                                 steady_gain)
 import numpy as np
 import numpy.typing as npt
 
@@ -439,6 +447,154 @@ def expm(a: Matrix) -> Matrix:
     return result
 
 
+def _zoh(a_c: Matrix, b_c: Matrix, period: float) -> tuple[Matrix, Matrix]:
+    """Return the exact zero-order-hold discretization ``(Phi, Gamma)`` over ``period``."""
+    n = a_c.shape[0]
+    block = np.zeros((n + b_c.shape[1],) * 2)
+    block[:n, :n] = a_c
+    block[:n, n:] = b_c
+    e = expm(block * period)
+    return e[:n, :n], e[:n, n:]
+
+
+def _actuated_plant(plant: VehicleParams, v_x: float, lag: float) -> tuple[Matrix, Matrix]:
+    """Return the continuous plant with its first-order actuator (``lag`` 0: none)."""
+    a_p, b_p = plant_matrices(plant, v_x)
+    if lag <= 0.0:
+        return a_p, b_p
+    a_c = np.zeros((5, 5))
+    a_c[:4, :4] = a_p
+    a_c[:4, 4:5] = b_p
+    a_c[4, 4] = -1.0 / lag
+    b_c = np.zeros((5, 1))
+    b_c[4, 0] = 1.0 / lag
+    return a_c, b_c
+
+
+def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
+                  settings: LaneKeepingParams, v_x: float, *,
+                  plant: Optional[VehicleParams] = None, period: float = 0.01,
+                  lag: float = 0.05, delay_steps: int = 2,
+                  filter_settings: Optional[StateFilterParams] = None,
+                  filter_vehicle: Optional[VehicleParams] = None) -> Matrix:
+    """
+    Return the one-period matrix of the sampled loop with the law on the filter's estimate.
+
+    The state at step ``k``, after the filter's update and before the law:
+    ``s_k = [x_k (plant, actuator), I_k, x_hat_k (6), w_k (the filter's wheel angle, if
+    its lag > 0), u_k-1 ... u_k-B]``. At each step the law computes
+    ``u_k = K [x_hat_k[:4], I_k]``; the plant moves over the period under ``u_k-d``
+    (``d = delay_steps``, exact ZOH with the actuator), the integral sums the estimate's
+    ``y_cg`` (forward Euler, as the law), the filter predicts with its model (the design
+    vehicle's ``continuous_model`` and its own first-order wheel model, exact over each
+    substep; the node's RK4 differs by ``O((lambda h)^5)``) under the command its
+    ``delay`` selects at each substep's middle (as ``KalmanStateFilter._applied``), and
+    updates with ``steady_gain`` on the exact measurement ``H x_k+1`` (no noise: the
+    homogeneous loop, straight road).
+
+    :param vehicle: the design vehicle (the law's).
+    :param controller: gains and schedule.
+    :param settings: the law's settings (the filter's from ``filter_settings()`` if
+        ``filter_settings`` is None).
+    :param v_x: speed [m/s].
+    :param plant: the plant's parameters (None: the design vehicle).
+    :param period: control period [s] (the filter's step).
+    :param lag: the plant's actuator time constant [s].
+    :param delay_steps: the plant's transport delay in periods.
+    :param filter_settings: the filter's settings (None: those of ``settings``).
+    :param filter_vehicle: the filter's model (None: the design vehicle).
+    :return: the square one-step matrix.
+    """
+    fs = filter_settings or settings.filter_settings()
+    model = filter_vehicle or vehicle
+    a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
+    phi, gamma = _zoh(a_c, b_c, period)
+    n = a_c.shape[0]
+    # the filter's prediction: its 6 states and its wheel, substeps as the node's
+    a_f, b_f, _ = continuous_model(model, v_x)
+    wheel = fs.actuator_lag > 0.0
+    nf = 7 if wheel else 6
+    a_w = np.zeros((nf, nf))
+    a_w[:6, :6] = a_f
+    b_w = np.zeros((nf, 1))
+    if wheel:
+        a_w[:6, 6] = b_f[:, 0]
+        a_w[6, 6] = -1.0 / fs.actuator_lag
+        b_w[6, 0] = 1.0 / fs.actuator_lag
+    else:
+        b_w[:6, 0] = b_f[:, 0]
+    count = max(1, int(np.ceil(period / MAX_SUBSTEP - 1e-9)))
+    fastest = max((model.c_f + model.c_r) / (model.mass * fs.min_speed),
+                  (model.c_f * model.l1 ** 2 + model.c_r * model.l2 ** 2)
+                  / (model.yaw_inertia * fs.min_speed))
+    count = max(count, int(np.ceil(period / min(MAX_SUBSTEP, 1.0 / fastest) - 1e-9)))
+    sub = period / count
+    phi_s, gamma_s = _zoh(a_w, b_w, sub)
+    # the command at substep j's middle: issued at t_k - i h with i >= 0 the smallest
+    # such that t_k - i h <= t_k + (j + 1/2) sub - delay
+    ages = [max(0, int(np.ceil((fs.delay - (j + 0.5) * sub) / period - 1e-9)))
+            for j in range(count)]
+    depth = max(delay_steps, max(ages) + 1, 1)
+    # indices in s_k
+    i_int = n
+    i_est = n + 1
+    i_buf = i_est + nf
+    size = i_buf + depth
+    gain = steady_gain(model, fs, v_x, period)
+    h_model = measurement_matrix(model)
+    k = feedback_gain(vehicle, controller, settings, v_x)
+    law = np.zeros((1, size))                   # u_k over s_k
+    law[0, i_est:i_est + 4] = k[:4]
+    law[0, i_int] = k[4]
+
+    def command(age: int) -> Matrix:
+        """Return u_k-age as a row over s_k."""
+        if age == 0:
+            return law
+        row = np.zeros((1, size))
+        row[0, i_buf + age - 1] = 1.0
+        return row
+
+    m = np.zeros((size, size))
+    m[:n, :n] = phi
+    m[:n, :] += gamma @ command(delay_steps)
+    m[i_int, i_int] = 1.0
+    m[i_int, i_est] = period * settings.integral_gain
+    # the prior, substep by substep, over s_k
+    prior = np.zeros((nf, size))
+    prior[:, i_est:i_est + nf] = np.eye(nf)
+    for age in ages:
+        prior = phi_s @ prior + gamma_s @ command(age)
+    # the update on the true measurement H_plant x_k+1 (the plant's y_cg, eps_r, v_y, r)
+    h_true = np.zeros((4, n))
+    h_true[0, 0], h_true[0, 1] = 1.0, model.d_s
+    h_true[1, 1], h_true[2, 2], h_true[3, 3] = 1.0, 1.0, 1.0
+    measured = h_true @ m[:n, :]
+    posterior = prior.copy()
+    posterior[:6] = prior[:6] + gain @ (measured - h_model @ prior[:6])
+    m[i_est:i_est + nf, :] = posterior
+    m[i_buf, :] = law[0]
+    for j in range(1, depth):
+        m[i_buf + j, i_buf + j - 1] = 1.0
+    return m
+
+
+def filtered_radius(vehicle: VehicleParams, controller: ControllerParams,
+                    settings: LaneKeepingParams, v_x: float, **kwargs: object) -> float:
+    """
+    Return the spectral radius of :func:`filtered_loop` (stable if < 1).
+
+    :param vehicle: the design vehicle.
+    :param controller: gains and schedule.
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :param kwargs: :func:`filtered_loop`'s keywords.
+    :return: the spectral radius.
+    """
+    m = filtered_loop(vehicle, controller, settings, v_x, **kwargs)  # type: ignore[arg-type]
+    return float(np.max(np.abs(np.linalg.eigvals(m))))
+
+
 def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_x: float, *,
                     plant: Optional[VehicleParams] = None, period: float = 0.01,
@@ -461,22 +617,10 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     :param delay_steps: transport delay in control periods.
     :return: the spectral radius.
     """
-    a_p, b_p = plant_matrices(plant or vehicle, v_x)
-    if lag > 0.0:          # actuator state: delta' = (u - delta) / lag
-        a_c = np.zeros((5, 5))
-        a_c[:4, :4] = a_p
-        a_c[:4, 4:5] = b_p
-        a_c[4, 4] = -1.0 / lag
-        b_c = np.zeros((5, 1))
-        b_c[4, 0] = 1.0 / lag
-    else:
-        a_c, b_c = a_p, b_p
+    # actuator state: delta' = (u - delta) / lag
+    a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
     n = a_c.shape[0]
-    block = np.zeros((n + 1, n + 1))
-    block[:n, :n] = a_c
-    block[:n, n:] = b_c
-    e = expm(block * period)
-    phi, gamma = e[:n, :n], e[:n, n:]
+    phi, gamma = _zoh(a_c, b_c, period)
     k = feedback_gain(vehicle, controller, settings, v_x)
     # state: plant (n), integral (1), commands in flight (delay_steps)
     size = n + 1 + delay_steps
@@ -519,7 +663,9 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                  stiffness: tuple[float, ...] = (0.7, 1.0, 1.3),
                  mass: tuple[float, ...] = (0.8, 1.0, 1.2),
                  delays: tuple[float, ...] = (0.0, 0.02, 0.05), period: float = 0.01,
-                 lag: float = 0.05) -> RobustResult:
+                 lag: float = 0.05, filtered: bool = False,
+                 filter_vehicle: Optional[VehicleParams] = None,
+                 filter_settings: Optional[StateFilterParams] = None) -> RobustResult:
     """
     Check the sampled loop over a grid of plant mismatch, speed and delay.
 
@@ -538,6 +684,10 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
     :param delays: transport delays [s] (rounded to whole periods).
     :param period: control period [s].
     :param lag: actuator time constant [s].
+    :param filtered: the law acts on the Kalman filter's estimate (:func:`filtered_radius`,
+        the filter's settings from ``settings``), not on the exact states.
+    :param filter_vehicle: the filter's model when filtered (None: the design vehicle).
+    :param filter_settings: the filter's settings when filtered (None: ``settings``').
     :return: the worst case.
     """
     worst, where, cases = -np.inf, {}, 0
@@ -547,8 +697,14 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                               l1=vehicle.l1, l2=vehicle.l2, c_f=vehicle.c_f * c_f,
                               c_r=vehicle.c_r * c_r, d_s=vehicle.d_s)
         steps = int(round(delay / period))
-        radius = discrete_radius(vehicle, controller, settings, v, plant=plant,
-                                 period=period, lag=lag, delay_steps=steps)
+        if filtered:
+            radius = filtered_radius(vehicle, controller, settings, v, plant=plant,
+                                     period=period, lag=lag, delay_steps=steps,
+                                     filter_vehicle=filter_vehicle,
+                                     filter_settings=filter_settings)
+        else:
+            radius = discrete_radius(vehicle, controller, settings, v, plant=plant,
+                                     period=period, lag=lag, delay_steps=steps)
         cases += 1
         if radius > worst:
             worst = radius

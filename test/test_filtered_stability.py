@@ -1,0 +1,177 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The sampled robust check with the Kalman filter in the loop, against a time simulation."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from lookahead_control.core import lane_keeping_stability as stability
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.state_filter import KalmanStateFilter, StateFilterParams
+import numpy as np
+import pytest
+
+VEHICLE = VehicleParams()
+CONTROLLER = ControllerParams()
+SETTINGS = LaneKeepingParams()
+PERIOD = 0.01
+# a filter that trusts its model (large measurement noise, small force disturbances)
+TRUSTING = StateFilterParams(lateral_noise=5.0, yaw_noise=0.5, lateral_velocity_noise=5.0,
+                             yaw_rate_noise=0.5, force_noise=0.0, force_drift=10.0,
+                             kinematic_noise=1e-3)
+# its model's tyres ten times too stiff
+STIFF = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * 10.0, c_r=VEHICLE.c_r * 10.0)
+
+
+def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
+              filter_settings=None, lag=0.05, period=PERIOD):
+    """
+    Run the linear sampled loop with the node's own ``KalmanStateFilter`` (RK4 inside).
+
+    Independent of ``filtered_loop``: the plant by ZOH, the delay as a list, the
+    filter's class as the node runs it, the law's gain ``feedback_gain``.
+    """
+    k = stability.feedback_gain(VEHICLE, CONTROLLER, SETTINGS, v_x)
+    a_c, b_c = stability._actuated_plant(plant, v_x, lag)
+    phi, gamma = stability._zoh(a_c, b_c, period)
+    x = np.zeros(a_c.shape[0])
+    x[:4] = (0.5, 0.02, -0.1, 0.03)
+    kalman = KalmanStateFilter(filter_vehicle, filter_settings or SETTINGS.filter_settings())
+    integral = 0.0
+    sent = [0.0] * delay_steps
+    trajectory = []
+    for _ in range(steps):
+        trajectory.append(x.copy())
+        est = kalman.step(LateralState(x[0], x[1], x[2], x[3], v_x, 0.0, 0.0, 0.0), period)
+        u = float(k[0] * est.y_cg + k[1] * est.eps_r + k[2] * est.v_y + k[3] * est.r
+                  + k[4] * integral)
+        kalman.command(u)
+        integral += period * SETTINGS.integral_gain * est.y_cg
+        sent.append(u)
+        x = phi @ x + gamma[:, 0] * sent.pop(0)
+    return np.array(trajectory)
+
+
+def _matrix_run(m, n, steps):
+    """Iterate the one-step matrix from the same start (filter starts at the measurement)."""
+    s = np.zeros(m.shape[0])
+    s[:4] = (0.5, 0.02, -0.1, 0.03)
+    s[n + 1:n + 5] = s[:4]
+    out = []
+    for _ in range(steps):
+        out.append(s[:n].copy())
+        s = m @ s
+    return np.array(out)
+
+
+@pytest.mark.parametrize('v_x, scale, delay_steps',
+                         [(20.0, 1.0, 2), (10.0, 0.7, 0), (37.0, 1.3, 5)])
+def test_filtered_loop_matches_the_node_filter_in_time(v_x, scale, delay_steps):
+    # the matrix's plant trajectory equals that of the real filter class (RK4 vs exact
+    # exponential: ~1e-9), with plant mismatch and a delay the filter does not assume
+    plant = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * scale, mass=VEHICLE.mass * 1.2,
+                                yaw_inertia=VEHICLE.yaw_inertia * 1.2)
+    m = stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, v_x, plant=plant,
+                                delay_steps=delay_steps)
+    sim = _simulate(v_x, plant, delay_steps, 400)
+    mat = _matrix_run(m, 5, 400)
+    assert np.max(np.abs(sim - mat)) < 1e-6 * np.max(np.abs(sim))
+    # and the exact-state loop differs (the filter is really in the matrix)
+    exact = stability.discrete_radius(VEHICLE, CONTROLLER, SETTINGS, v_x, plant=plant,
+                                      delay_steps=delay_steps)
+    assert stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, v_x, plant=plant,
+                                     delay_steps=delay_steps) != exact
+
+
+def test_wrong_filter_model_fails_and_diverges_in_time():
+    # a filter trusting a model with tyres 10x too stiff: radius > 1 at 37 m/s, and the
+    # node's filter class in the loop grows at that rate
+    radius = stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, 37.0,
+                                       filter_vehicle=STIFF, filter_settings=TRUSTING)
+    assert radius > 1.02
+    sim = _simulate(37.0, VEHICLE, 2, 1500, filter_vehicle=STIFF, filter_settings=TRUSTING)
+    norms = np.linalg.norm(sim, axis=1)
+    window = 500
+    rate = (norms[-1] / norms[-1 - window]) ** (1.0 / window)
+    # the dominant pair oscillates: the growth over a window to 0.2 % per step
+    assert rate == pytest.approx(radius, abs=2e-3)
+    m = stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, 37.0, filter_vehicle=STIFF,
+                                filter_settings=TRUSTING)
+    mat = _matrix_run(m, 5, 1500)
+    # the stiff model's tyre mode is 29 1/s at 37 m/s: the node's RK4 step (h = 10 ms)
+    # is off the exponential by (29 h)^5 / 120 = 2e-5 a step, compounded over 1500
+    assert np.max(np.abs(sim - mat)) < 1e-4 * np.max(np.abs(sim))
+    # the same filter on the right model is stable: the failure is the model's
+    assert stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, 37.0,
+                                     filter_settings=TRUSTING) < 1.0
+    # without any force noise its force states are never corrected: a pole at 1, which
+    # the check reports as not stable (radius not below 1)
+    frozen = dataclasses.replace(TRUSTING, force_drift=0.0)
+    assert stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, 37.0,
+                                     filter_settings=frozen) == pytest.approx(1.0, abs=1e-9)
+    result = stability.robust_check(VEHICLE, CONTROLLER, SETTINGS, speeds=(37.0,),
+                                    stiffness=(1.0,), mass=(1.0,), delays=(0.02,),
+                                    filtered=True, filter_vehicle=STIFF,
+                                    filter_settings=TRUSTING)
+    assert not result.holds and result.max_radius == pytest.approx(radius)
+
+
+def test_filtered_robust_check_holds_on_the_486_cases():
+    exact = stability.robust_check(VEHICLE, CONTROLLER, SETTINGS)
+    filtered = stability.robust_check(VEHICLE, CONTROLLER, SETTINGS, filtered=True)
+    assert exact.cases == filtered.cases == 486
+    assert filtered.holds and exact.holds
+    assert filtered.max_radius == pytest.approx(0.99688, abs=1e-5)
+    assert math.isfinite(filtered.max_radius)
+
+
+def test_without_filter_lag():
+    # the filter's wheel model off (lag 0), the plant without actuator
+    settings = StateFilterParams(actuator_lag=0.0)
+    m = stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, 20.0, lag=0.0,
+                                delay_steps=2, filter_settings=settings)
+    sim = _simulate(20.0, VEHICLE, 2, 300, filter_settings=settings, lag=0.0)
+    mat = _matrix_run(m, 4, 300)
+    assert np.max(np.abs(sim - mat)) < 1e-6 * np.max(np.abs(sim))
+
+
+def test_slow_period_with_substeps():
+    # 31.6 ms (a grid period of the filter's gain: no interpolation): four prediction
+    # substeps, the filter's 20 ms delay selecting different commands within one step
+    period = 10.0 ** -1.5
+    m = stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, 20.0, period=period,
+                                delay_steps=1)
+    sim = _simulate(20.0, VEHICLE, 1, 200, period=period)
+    mat = _matrix_run(m, 5, 200)
+    assert np.max(np.abs(sim - mat)) < 1e-6 * np.max(np.abs(sim))
+
+
+def test_tool_reports_both_robust_checks(capsys, tmp_path):
+    import json
+
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    path = tmp_path / 's.json'
+    assert stability_main(['--samples', '21', '--json', str(path)]) == 0
+    out = capsys.readouterr().out
+    assert 'robust check HOLDS; robust check with the filter HOLDS' in out
+    assert '486 mismatch cases, exact states | 0.9969' in out
+    assert '486 mismatch cases, Kalman estimate | 0.9969' in out
+    assert 'certificate covers the law on exact states' in out
+    data = json.loads(path.read_text())
+    assert data['robust_filtered']['cases'] == 486 and data['robust_filtered']['holds']
