@@ -22,7 +22,7 @@ import math
 from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.lane_keeping import LaneKeepingParams
-from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.state_filter import KalmanStateFilter, StateFilterParams
 import numpy as np
 import pytest
@@ -120,11 +120,10 @@ def test_wrong_filter_model_fails_and_diverges_in_time():
     # the same filter on the right model is stable: the failure is the model's
     assert stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, 37.0,
                                      filter_settings=TRUSTING) < 1.0
-    # without any force noise its force states are never corrected: a pole at 1, which
-    # the check reports as not stable (radius not below 1)
-    frozen = dataclasses.replace(TRUSTING, force_drift=0.0)
-    assert stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, 37.0,
-                                     filter_settings=frozen) == pytest.approx(1.0, abs=1e-9)
+    # without any force noise its force states would never be corrected (a pole at 1):
+    # such settings are refused
+    with pytest.raises(ParameterError, match='filter_force_drift'):
+        dataclasses.replace(TRUSTING, force_drift=0.0)
     result = stability.robust_check(VEHICLE, CONTROLLER, SETTINGS, speeds=(37.0,),
                                     stiffness=(1.0,), mass=(1.0,), delays=(0.02,),
                                     filtered=True, filter_vehicle=STIFF,

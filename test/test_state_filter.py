@@ -388,9 +388,12 @@ def test_a_max_gap_beyond_the_filters_longest_step_is_refused(context):
         node.destroy_node()
 
 
-def test_all_process_noises_zero_is_refused():
-    with pytest.raises(ParameterError, match='filter_force_noise'):
-        StateFilterParams(force_noise=0.0, force_drift=0.0, kinematic_noise=0.0)
+def test_a_force_disturbance_that_never_drifts_is_refused():
+    # force_noise and force_drift 0 passed (kinematic noise on): the force states were
+    # never corrected, a closed-loop pole at 1 (lane_keeping_stability, radius 1.0)
+    for other in ({}, {'force_noise': 0.0}, {'force_noise': 0.0, 'kinematic_noise': 0.0}):
+        with pytest.raises(ParameterError, match='filter_force_drift = 0.0'):
+            StateFilterParams(force_drift=0.0, **other)
 
 
 def test_node_runs_the_filter_by_default_and_switches_it(context):

@@ -128,10 +128,12 @@ class StateFilterParams:
             object.__setattr__(self, item.name, check_range(
                 f'lane_keeping.filter_{item.name}', getattr(self, item.name), low, high,
                 unit=unit))
-        if self.force_noise == 0.0 and self.force_drift == 0.0 and self.kinematic_noise == 0.0:
-            raise ParameterError('lane_keeping.filter_force_noise, filter_force_drift and '
-                                 'filter_kinematic_noise are all 0: the filter would trust '
-                                 'its model forever; at least one must be positive')
+        if self.force_drift == 0.0:
+            # the force disturbances would never be corrected: a closed-loop pole at 1
+            # (lane_keeping_stability's filtered check, radius 1.0)
+            raise ParameterError('lane_keeping.filter_force_drift = 0.0: the filter would '
+                                 'never learn the tyre-force disturbances (a closed-loop '
+                                 'pole at 1); it must be positive')
 
 
 def continuous_model(vehicle: VehicleParams, v_x: float) -> tuple[Matrix, Matrix, Matrix]:
