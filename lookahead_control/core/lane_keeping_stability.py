@@ -74,7 +74,7 @@ from lookahead_control.core.lane_keeping import LaneKeepingParams, loop_gains
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
-from lookahead_control.core.state_filter import (continuous_model, MAX_SUBSTEP,
+from lookahead_control.core.state_filter import (continuous_model, expm, MAX_SUBSTEP,
                                                  measurement_matrix, StateFilterParams,
                                                  steady_gain)
 import numpy as np
@@ -425,26 +425,6 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
                for name, weight in CERTIFICATE_WEIGHTS.items()]
     return min(results, key=lambda c: (c.between, list(CERTIFICATE_WEIGHTS).index(
         c.weight)))
-
-
-def expm(a: Matrix) -> Matrix:
-    """
-    Return the matrix exponential (scaling and squaring, Taylor series to 20 terms).
-
-    :param a: a square matrix.
-    :return: ``exp(a)``.
-    """
-    norm = float(np.max(np.sum(np.abs(a), axis=1))) if a.size else 0.0
-    squarings = max(0, int(np.ceil(np.log2(norm))) + 1) if norm > 0.5 else 0
-    scaled = a / (2.0 ** squarings)
-    result = np.eye(a.shape[0])
-    term = np.eye(a.shape[0])
-    for n in range(1, 21):
-        term = term @ scaled / n
-        result = result + term
-    for _ in range(squarings):
-        result = result @ result
-    return result
 
 
 def _zoh(a_c: Matrix, b_c: Matrix, period: float) -> tuple[Matrix, Matrix]:
