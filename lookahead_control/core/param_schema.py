@@ -134,8 +134,8 @@ LANE_KEEPING_SPECS = tuple(
         ('lateral_velocity_noise', 'standard deviation of v_y [m/s]', 1e-5, 5.0),
         ('yaw_rate_noise', 'standard deviation of the yaw rate [rad/s]', 1e-6, 0.5),
         ('force_noise', 'white noise on each axle force [N sqrt(s)]', 0.0, 1e6),
-        ('force_drift', 'random walk of the axle-force disturbances [N/sqrt(s)]',
-         0.0, 1e7),
+        ('force_drift', 'random walk of the axle-force disturbances; at least 1: 0 would '
+         'never correct them, a closed-loop pole at 1 [N/sqrt(s)]', 1.0, 1e7),
         ('kinematic_noise', 'white noise on the rate of y_cg [m/sqrt(s)]', 0.0, 10.0),
     ))
 

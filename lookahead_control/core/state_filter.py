@@ -61,7 +61,7 @@ from typing import Any, Optional
 
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import check_range, ParameterError, VehicleParams
+from lookahead_control.core.params import check_range, VehicleParams
 import numpy as np
 import numpy.typing as npt
 
@@ -121,19 +121,15 @@ class StateFilterParams:
                   'lateral_velocity_noise': (1e-5, 5.0, 'm/s'),
                   'yaw_rate_noise': (1e-6, 0.5, 'rad/s'),
                   'force_noise': (0.0, 1e6, 'N sqrt(s)'),
-                  'force_drift': (0.0, 1e7, 'N/sqrt(s)'),
+                  # 0 would never correct the force states: a closed-loop pole at 1
+                  # (lane_keeping_stability's filtered check, radius 1.0)
+                  'force_drift': (1.0, 1e7, 'N/sqrt(s)'),
                   'kinematic_noise': (0.0, 10.0, 'm/sqrt(s)')}
         for item in fields(self):
             low, high, unit = limits[item.name]
             object.__setattr__(self, item.name, check_range(
                 f'lane_keeping.filter_{item.name}', getattr(self, item.name), low, high,
                 unit=unit))
-        if self.force_drift == 0.0:
-            # the force disturbances would never be corrected: a closed-loop pole at 1
-            # (lane_keeping_stability's filtered check, radius 1.0)
-            raise ParameterError('lane_keeping.filter_force_drift = 0.0: the filter would '
-                                 'never learn the tyre-force disturbances (a closed-loop '
-                                 'pole at 1); it must be positive')
 
 
 def continuous_model(vehicle: VehicleParams, v_x: float) -> tuple[Matrix, Matrix, Matrix]:
