@@ -258,3 +258,15 @@ def test_a_response_drowned_in_noise_is_not_measured_and_does_not_raise():
     noisy = clean + 0.05 + _wander(8, clean.size, 0.0001)
     m = step_metrics(TIME, noisy, 0.0, noise_free=clean)
     assert math.isnan(m.overshoot) and 'would measure the noise' in m.note
+
+
+def test_the_twin_does_not_make_a_response_settle_before_its_noise_free_twin():
+    # probe15: zeta 0.6 settles (2 % band) after about 2.3 s without noise; a bounded
+    # noise of 3 % rms widens the band to 9 %, which the noisy run enters earlier. Old
+    # code: settled after 1.78 s, before the response itself (1.99 s).
+    clean = _second_order_step(0.6)
+    noise = np.random.default_rng(8).uniform(-1.0, 1.0, clean.size) * 0.03 * math.sqrt(3.0)
+    twin = step_metrics(TIME, clean, 0.0)
+    m = step_metrics(TIME, clean + noise, 0.0, noise_free=clean)
+    assert math.isfinite(twin.settling_time) and math.isfinite(m.settling_time)
+    assert m.settling_time >= twin.settling_time - 0.02

@@ -651,3 +651,30 @@ def test_the_node_at_25_hz_filters_every_message(context):
         finally:
             node.destroy_node()
     assert moves['kalman'] < 0.5 * moves['none'], moves
+
+
+def test_the_node_filter_models_the_command_the_safety_layer_sent():
+    # probe15: the node's safety layer cuts the law's command (0.059 rad at 37 m/s,
+    # 0.4 rad/s); the actuator gets the cut one. Old code: the filter's model was fed
+    # the law's uncut command, so its prediction steered harder than the car did.
+    from lookahead_control.core.controller import SteeringController
+    from lookahead_control.core.safety import SafetyParams
+    from lookahead_control.core.samples import (LateralErrorSample, VelocitySample,
+                                                YawSample)
+    core = SteeringController(VehicleParams(), ControllerParams(), 'zero', False,
+                              SafetyParams(), 'cg_compensated',
+                              lane_keeping=LaneKeepingParams())
+    ms = 1_000_000
+    cut = 0
+    for k in range(40):
+        stamp = (1000 + 20 * k) * ms
+        for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
+                             ('velocity', VelocitySample(stamp, 30.0, 0.0)),
+                             ('lateral_error', LateralErrorSample(stamp, 0.0, 1.5))):
+            assert core.accept(name, sample, stamp) is None
+        command = core.compute(stamp)
+        assert command is not None and command.law is not None
+        cut += command.law.steering != command.steering
+        recorded = core.law.state_filter.history[-1][1]
+        assert recorded == command.steering
+    assert cut > 0          # the case is one where the safety layer cut the command

@@ -282,7 +282,8 @@ def step_metrics(time: Array, x: Array, step_time: float,
     noise's effect on the response is measured, not guessed: ``n = RMS(x - noise_free)``
     over the response. The settling band is then ``max(2% of the excursion, 3 n)`` (noise
     alone does not make a settled response unsettled; a response that has not settled
-    beyond the noise still is not), and the overshoot is measured on the noisy signal
+    beyond the noise still is not; the run is settled no earlier than its twin within
+    2% of the excursion), and the overshoot is measured on the noisy signal
     itself, so the noise can only raise it. Where ``3 n`` exceeds
     :data:`MAX_NOISE_FRACTION` of the step's size the overshoot would be the noise's:
     NaN with a note.
@@ -346,6 +347,16 @@ def step_metrics(time: Array, x: Array, step_time: float,
                          f'or 3 x the noise effect {noise_effect:.3g}) before the end of the '
                          f'response ({end - step_time:.3g} s)', excursion)
     settling = float(t[min(last + 1, t.size - 1)] - step_time)
+    if noise_free is not None:
+        # the wider band lets the noisy run in earlier than the response itself settles:
+        # it is settled no earlier than its noise-free twin within 2% of the excursion
+        clean = np.asarray(noise_free, dtype=float)[window]
+        twin = np.abs(np.concatenate([[initial], clean])
+                      - float(np.mean(clean[t[1:] >= t[-1] - final_window])))
+        outside = np.nonzero(twin > SETTLING_BAND * excursion)[0]
+        if outside.size:
+            settling = max(settling, float(t[min(int(outside[-1]) + 1, t.size - 1)]
+                                           - step_time))
     size = abs(final - initial)
     if 3.0 * noise_effect > MAX_NOISE_FRACTION * size:
         overshoot = math.nan

@@ -670,4 +670,7 @@ class SteeringController:
         note_limited = getattr(self.law, 'note_limited', None)
         if note_limited is not None:        # anti-windup of a law with an integral
             note_limited(self.last.saturated or self.last.rate_limited)
+        note_sent = getattr(self.law, 'note_sent', None)
+        if note_sent is not None:           # a state filter models the command sent
+            note_sent(self.last.steering)
         return self.last

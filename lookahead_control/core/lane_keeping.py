@@ -432,6 +432,15 @@ class CgCompensatedLaw:
         """
         self.cut = bool(cut)
 
+    def note_sent(self, angle: float) -> None:
+        """
+        Take the command the safety layer sent for the last step (the state filter's input).
+
+        :param angle: the angle sent [rad] (cut by the angle and rate limits).
+        """
+        if self.state_filter is not None:
+            self.state_filter.correct(angle)
+
     def compliance(self) -> Real:
         """
         Return the rear-compliance estimate [s^2/m] (eta before anything is learned).

@@ -449,6 +449,19 @@ class KalmanStateFilter:
         last = self.history[-1][1] if self.history else self.held
         self.history.append((self.time, _select(np.isfinite(steering), steering, last)))
 
+    def correct(self, steering: float) -> None:
+        """
+        Replace the command recorded at the present step by the one actually sent.
+
+        The node's safety layer cuts the law's command (angle and rate limits, the
+        low-speed blend): the actuator gets the cut one, so the model must too.
+        A non-finite value is ignored (the recorded command stays).
+
+        :param steering: the command sent [rad].
+        """
+        if self.history and math.isfinite(steering):
+            self.history[-1] = (self.history[-1][0], steering)
+
     def _applied(self, when: float) -> Real:
         """Return the command in effect at the actuator's input at time ``when``."""
         value = self.held
