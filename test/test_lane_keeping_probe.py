@@ -423,10 +423,50 @@ def test_slow_lateral_errors_restart_the_law_and_diagnostics_say_so(context):
         status = node.diagnostics()
         assert node.core.law_restarts == 5 and node.core.law.integral == 0.0
         assert status.level == DiagnosticStatus.WARN
-        assert 'law restarts: 5' in status.message and 'max_gap 0.25 s' in status.message
-        assert {v.key: v.value for v in status.values}['law_restarts'] == '5'
+        assert 'law restarts: 5' in status.message and 'max_gap 0.25 s: 5' in status.message
+        assert 'non-finite' not in status.message
+        values = {v.key: v.value for v in status.values}
+        assert values['law_restarts'] == '5' and values['law_restarts_gap'] == '5'
         stamp += 10 * MS
         _send(node, stamp)
         assert 'law restarts' not in node.diagnostics().message     # since the last report
+    finally:
+        node.destroy_node()
+
+
+def test_a_law_restart_on_a_non_finite_output_is_reported_as_such(context, monkeypatch):
+    # probe15: a restart because the law's output was not finite was counted, but
+    # /diagnostics explained every restart as a lateral-error gap beyond max_gap; the
+    # scalar path also left the 'cut' flag of the failed step in place
+    import lookahead_control.core.lane_keeping as lane_keeping
+    from diagnostic_msgs.msg import DiagnosticStatus
+    real = lane_keeping.cg_compensated_law
+    broken = {'on': False}
+
+    def law(*args, **kwargs):
+        out = real(*args, **kwargs)
+        return out._replace(steering=math.nan) if broken['on'] else out
+
+    monkeypatch.setattr(lane_keeping, 'cg_compensated_law', law)
+    node = _node(context)
+    try:
+        stamp = 100 * S
+        for _ in range(50):
+            stamp += 10 * MS
+            _send(node, stamp)
+        node.diagnostics()
+        assert node.core.law.integral > 0.0
+        broken['on'] = True
+        stamp += 10 * MS
+        command = _send(node, stamp)
+        assert math.isfinite(command.steering)
+        broken['on'] = False
+        status = node.diagnostics()
+        assert node.core.law_restarts == 1 and node.core.law.integral == 0.0
+        assert status.level == DiagnosticStatus.WARN
+        assert 'law restarts: 1 (a non-finite law output: 1;' in status.message
+        assert 'max_gap' not in status.message
+        values = {v.key: v.value for v in status.values}
+        assert values['law_restarts_non_finite'] == '1' and 'law_restarts_gap' not in values
     finally:
         node.destroy_node()

@@ -192,8 +192,10 @@ class SteeringController:
         self.refusals: dict[str, str] = {}      # input -> why its last refused sample was
         self.time_jumps = 0
         #: restarts of a stateful law inside its own step (a gap between lateral errors
-        #: beyond its ``max_gap``): its integral and estimate start again
+        #: beyond its ``max_gap``, a non-finite output): its integral and estimate start
+        #: again; by cause in ``law_restart_causes``
         self.law_restarts = 0
+        self.law_restart_causes: dict[str, int] = {}
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
@@ -652,9 +654,13 @@ class SteeringController:
         dt = 0.0 if self._law_stamp is None else max(0, stamp - self._law_stamp) * 1e-9
         self._law_stamp = stamp
         resets = getattr(self.law, 'resets', 0)
+        causes = dict(getattr(self.law, 'restart_causes', {}))
         law = self.law.step(state, self.preview(now_ns), dt)
         if getattr(self.law, 'resets', 0) != resets:
             self.law_restarts += 1
+            for cause, count in getattr(self.law, 'restart_causes', {}).items():
+                if count > causes.get(cause, 0):
+                    self.law_restart_causes[cause] = self.law_restart_causes.get(cause, 0) + 1
         self._stale_since = None
         if now_ns is not None and now_ns > 0:
             self.timing.note_latency((now_ns - self.lateral.stamp_ns) * 1e-9)

@@ -409,6 +409,10 @@ class CgCompensatedLaw:
         self.state_filter = (KalmanStateFilter(vehicle, st.filter_settings())
                              if st.state_filter == 'kalman' else None)
         self.resets = 0
+        #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
+        #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
+        #: the runs restarted)
+        self.restart_causes = {'gap': 0, 'non_finite': 0}
 
     def reset(self) -> None:
         """Forget the integral, the estimate and the last command (time jump, stale)."""
@@ -467,6 +471,7 @@ class CgCompensatedLaw:
         # advances, nothing restarts
         if not (math.isfinite(dt) and 0.0 <= dt <= s.max_gap):
             self.reset()
+            self.restart_causes['gap'] += 1
             dt = 0.0
         if self.state_filter is not None:
             state = self.state_filter.step(state, dt)
@@ -509,11 +514,10 @@ class CgCompensatedLaw:
             self.estimator.forget(~finite)
             if self.state_filter is not None:
                 self.state_filter.forget(~finite)
+            self.restart_causes['non_finite'] += int(np.count_nonzero(~finite))
         elif not finite:
-            self.integral, self.last_steering = 0.0, 0.0
-            self.estimator.reset()
-            if self.state_filter is not None:
-                self.state_filter.reset()
+            self.reset()
+            self.restart_causes['non_finite'] += 1
         else:
             self.integral, self.last_steering = integral, out.steering
         return out

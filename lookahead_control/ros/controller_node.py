@@ -522,8 +522,10 @@ class ControllerNode(LifecycleNode):
 
         :return: the status with its reasons and counters.
         """
+        causes = {f'law_restarts_{k}': v for k, v in self.core.law_restart_causes.items()}
         counts = {**self.counters, 'rejected': sum(self.core.rejected.values()),
-                  'time_jumps': self.core.time_jumps, 'law_restarts': self.core.law_restarts}
+                  'time_jumps': self.core.time_jumps, 'law_restarts': self.core.law_restarts,
+                  **causes}
         new = {k: v - self._reported.get(k, 0) for k, v in counts.items()}
         self._reported = counts
         ages, latency = self.core.timing.take()
@@ -546,9 +548,13 @@ class ControllerNode(LifecycleNode):
                 if key == 'rejected':
                     text += f' (last: {self.core.last_rejection})'
                 elif key == 'law_restarts':
-                    text += (' (lateral errors further apart than lane_keeping.max_gap '
-                             f'{self.core.lane_keeping.max_gap:g} s: integral and estimate '
-                             'start again)')
+                    why = {'gap': 'lateral errors further apart than lane_keeping.max_gap '
+                                  f'{self.core.lane_keeping.max_gap:g} s',
+                           'non_finite': 'a non-finite law output'}
+                    each = [f'{why.get(cause, cause)}: {new[f"law_restarts_{cause}"]}'
+                            for cause in self.core.law_restart_causes
+                            if new[f'law_restarts_{cause}'] > 0]
+                    text += f' ({"; ".join(each)}; integral and estimate start again)'
                 reasons.append(text)
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
