@@ -319,8 +319,10 @@ def test_killed_lateral_error_publisher_gives_safe_command_error_and_recovery(pr
     node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: diagnostics.append(
         (time.monotonic(), m.status[0].level, m.status[0].message)), 100)
     rate = 0.5
+    # the paper law: stateless, so after the outage the same inputs give the held angle
+    # again (the default law's integral would keep growing on a frozen 0.5 m offset)
     controller = subprocess.Popen([str(EXES / 'controller'), '--ros-args', '-p',
-                                   f'safety.max_steering_rate:={rate}'])
+                                   f'safety.max_steering_rate:={rate}', '-p', 'law:=paper'])
     bridges = []
     try:
         bridges.append(_bridge('yaw', 'velocity'))

@@ -60,9 +60,16 @@ def test_steering_without_the_joint_is_refused():
 
 
 def _controller(context, *overrides, sim=True):
-    """Create a controller in a private context, on a fake clock (sim time, set by hand)."""
+    """
+    Create a controller in a private context, on a fake clock (sim time, set by hand).
+
+    The node's plumbing is checked against the paper law (stateless: an answer is the
+    core's on that step's inputs alone); the default law, cg_compensated, has its own
+    node tests (test_lane_keeping_node.py, test_lane_keeping_probe.py).
+    """
     from lookahead_control.ros.controller_node import ControllerNode
     params = [Parameter('use_sim_time', value=True)] if sim else []
+    params.append(Parameter('law', value='paper'))
     return ControllerNode(context=context, parameter_overrides=params + list(overrides))
 
 

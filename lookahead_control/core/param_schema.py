@@ -76,10 +76,11 @@ CONTROLLER_SPECS = (
          0.01, 20.0),
 )
 
-LAW_SPEC = Spec('law', 'paper', 'steering law: paper (the look-ahead law, eq. 15 with the '
-                'controller.* schedule), cg_compensated (the look-ahead law keeping the CG '
-                'on the lane, lane_keeping.* below) or a baseline with its own parameters '
-                'below; switchable while active (the rate limit applies to the change)',
+LAW_SPEC = Spec('law', 'cg_compensated', 'steering law: cg_compensated (the default: the '
+                'look-ahead law keeping the CG on the lane, lane_keeping.* below), paper '
+                '(the look-ahead law, eq. 15 with the controller.* schedule) or a baseline '
+                'with its own parameters below; switchable while active (the rate limit '
+                'applies to the change)',
                 choices=LAW_NAMES)
 
 # the CG-compensated law (law: cg_compensated); defaults: LaneKeepingParams
