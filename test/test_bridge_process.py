@@ -87,13 +87,22 @@ def test_a_bridge_joining_a_running_stack(probe):
         spin_until(executor, lambda: False, 0.5)
 
         def drive(first, count, frame='map'):
+            # in lockstep: each message waits (up to 5 s) for the answer to the one
+            # before, so that neither a loaded machine's dropped messages nor a late
+            # answer changes what the test counts
             for k in range(first, first + count):
+                before = len(answers)
                 odom_pub.publish(vconv.to_odometry(k * 10_000_000, frame, 'base_link',
                                                    10.0 + 0.2 * k, 0.3, 0.0, 20.0, 0.0, 0.0))
-                spin_until(executor, lambda: False, 0.01)
+                spin_until(executor, lambda: len(answers) > before,
+                           5.0 if frame == 'map' else 0.01)
 
         drive(0, 30)
-        assert spin_until(executor, lambda: len(answers) >= 25, 10)
+        # every message from the first the bridge had the path for is answered, in order
+        # (the path reaches a late joiner by transient local, at discovery)
+        assert len(answers) >= 25
+        assert [a.stamp_ns for a in answers] == [k * 10_000_000
+                                                 for k in range(30 - len(answers), 30)]
         assert all(a.value == pytest.approx(0.3, abs=1e-9) for a in answers)
         # odometry in another frame than the path: ERROR at once, and no output
         count = len(answers)
