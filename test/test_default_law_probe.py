@@ -22,8 +22,11 @@ Each test fails on the code before its fix (named in the test).
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.ros import conversions as conv
 import numpy as np
 import pytest
+from rclpy.parameter import Parameter
+from rclpy.time import Time
 
 VEHICLE = VehicleParams()
 
@@ -109,3 +112,61 @@ def test_the_launch_file_runs_the_law_closed_loop_runs(monkeypatch):
     assert (args['schedule'], args['mode'], args['plant'], float(args['speed'])) == (
         cfg.schedule, cfg.mode, cfg.plant, cfg.speed)
     assert 'law' in keys            # handed to the controller
+
+
+MS = 1_000_000
+S = 1_000_000_000
+
+
+def _default_node(context, *overrides):
+    """Return an active controller with the default law on a fake sim clock."""
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), *overrides])
+    node.trigger_configure()
+    node.trigger_activate()
+    return node
+
+
+def _send(node, stamp, y=0.3, rho=-0.0025, v_x=30.0, points=None):
+    node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
+    node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.0, v_x * rho, 0.0))
+    node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, 0.0, 0.0))
+    if points is not False:
+        node.on_curvature(conv.to_curvature(stamp, 'base_link',
+                                            points or [(0.0, rho), (5.0, rho)]))
+    node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', VEHICLE.d_s, y))
+    return node.core.last
+
+
+def test_the_paper_gains_neither_tune_nor_restart_the_default_law(context):
+    # old code: controller.natural_frequency / damping_ratio described as "the
+    # look-ahead error loop" with no word that law cg_compensated (the default) ignores
+    # them, and setting one threw away its integral, estimate and filter for nothing
+    node = _default_node(context)
+    try:
+        for name in ('controller.natural_frequency', 'controller.damping_ratio'):
+            text = node.describe_parameter(name).description
+            assert 'law paper' in text and 'lane_keeping.' in text
+        stamp = 100 * S
+        for _ in range(200):
+            stamp += 10 * MS
+            _send(node, stamp)
+        law, integral = node.core.law, node.core.law.integral
+        assert node.core.law_name == 'cg_compensated' and integral > 0.05
+        assert node.set_parameters([Parameter('controller.natural_frequency',
+                                              value=5.0)])[0].successful
+        stamp += 10 * MS
+        _send(node, stamp)
+        assert node.core.law is law and law.integral > integral
+        assert node.set_parameters([Parameter('lane_keeping.natural_frequency',
+                                              value=6.0)])[0].successful
+        assert node.core.law is not law
+        # the paper law does take them
+        assert node.set_parameters([Parameter('law', value='paper')])[0].successful
+        paper = node.core.law
+        assert node.set_parameters([Parameter('controller.natural_frequency',
+                                              value=4.0)])[0].successful
+        assert node.core.law is not paper and node.core.law.controller.k_p == 16.0
+    finally:
+        node.destroy_node()

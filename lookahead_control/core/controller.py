@@ -22,7 +22,7 @@ and the whole input -> command path testable without DDS.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Optional
 
 from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, BaselineParams
@@ -62,6 +62,31 @@ def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
     if name == 'cg_compensated':
         return CgCompensatedLaw(vehicle, controller, lane_keeping)
     return baseline_law(name, vehicle, baselines)
+
+
+def law_key(name: str, vehicle: VehicleParams, controller: ControllerParams,
+            baselines: BaselineParams, lane_keeping: LaneKeepingParams) -> tuple[Any, ...]:
+    """
+    Return what the law called ``name`` is built from (equal keys: the same law).
+
+    Only the parameters the law reads: ``cg_compensated`` takes its gains from
+    ``lane_keeping`` (``controller.natural_frequency`` and ``damping_ratio`` are the
+    paper law's), the baselines neither ``controller`` nor ``lane_keeping``, the paper
+    law neither ``lane_keeping`` nor the baselines'.
+
+    :param name: the law.
+    :param vehicle: the controller's vehicle model.
+    :param controller: the paper law's parameters.
+    :param baselines: the baselines' parameters.
+    :param lane_keeping: the ``cg_compensated`` law's settings.
+    :return: the key.
+    """
+    if name == 'paper':
+        return name, vehicle, controller
+    if name == 'cg_compensated':
+        return name, vehicle, replace(controller, natural_frequency=1.0,
+                                      damping_ratio=1.0), lane_keeping
+    return name, vehicle, baselines
 
 
 # the law cannot run without these; road_curvature is optional (0 without it)
@@ -267,7 +292,7 @@ class SteeringController:
         another parameter (a limit, a diagnostics threshold) does not restart an
         integral or an estimate.
         """
-        key = (name, vehicle, controller, baselines, self.lane_keeping)
+        key = law_key(name, vehicle, controller, baselines, self.lane_keeping)
         if key == self._law_key:
             self.baselines = baselines
             return
