@@ -19,6 +19,8 @@ Probe of the default law (dev-probe16): a hostile new user's findings, one test 
 Each test fails on the code before its fix (named in the test).
 """
 
+import time
+
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingParams,
                                                  steady_relative_yaw)
@@ -248,3 +250,27 @@ def test_without_a_v_y_measurement_the_documented_setting_keeps_the_car_on_the_l
 
     assert peak(LaneKeepingParams()) > 0.5
     assert peak(LaneKeepingParams(filter_lateral_velocity_noise=5.0)) < 0.06
+
+
+def test_diagnostics_say_when_the_sim_clock_stops(context):
+    # dev-probe16 process run: sim_plant killed (kill -9) mid-curve in realtime; under
+    # use_sim_time the controller's clock stopped with it, no input went stale, and
+    # /diagnostics said ok for the 4 s until the simulator was restarted
+    from diagnostic_msgs.msg import DiagnosticStatus
+    node = _default_node(context)
+    try:
+        stamp = 100 * S
+        for _ in range(20):
+            stamp += 10 * MS
+            _send(node, stamp, y=0.0, rho=0.0)
+        assert node.diagnostics().level == DiagnosticStatus.OK
+        assert node.diagnostics().level == DiagnosticStatus.OK      # at once: not stopped
+        time.sleep(0.6)                     # the wall clock runs on, the sim clock not
+        status = node.diagnostics()
+        assert status.level == DiagnosticStatus.WARN
+        assert 'sim clock stopped at 100.200 s for ' in status.message
+        stamp += 10 * MS
+        _send(node, stamp, y=0.0, rho=0.0)
+        assert node.diagnostics().level == DiagnosticStatus.OK
+    finally:
+        node.destroy_node()

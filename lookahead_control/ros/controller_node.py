@@ -83,6 +83,8 @@ READ_ONLY_STARTED = ('autostart', 'executor')
 # /diagnostics WARNs when, since its last report, the controller answered this long while
 # turning with no curvature or with a v_y of exactly 0 [s]
 TURNING_WARN = 0.5
+# /diagnostics WARNs when the sim clock has not moved for this long on the steady clock [s]
+SIM_CLOCK_STOPPED = 0.5
 MALFORMED = (ValueError, IndexError, TypeError, AttributeError, OverflowError, struct.error,
              UnicodeDecodeError)
 DEBUG_FIELDS = ('d_v', 'd_v_rate', 'y_v', 'y_v_rate', 'y_ref', 'error', 'error_rate', 'f_v',
@@ -123,6 +125,8 @@ class ControllerNode(LifecycleNode):
                          'd_v_clamped': 0, 'stale_commands': 0}
         self._reported: dict[str, int] = {}
         self._reported_turning: dict[str, float] = {}
+        # the sim clock as last seen by a report, and the steady clock when it last moved
+        self._sim_seen: tuple[Optional[int], int] = (None, 0)
         self.stale_inputs: list[str] = []
         self.curvature_lost = False
         self._watchdog: Any = None
@@ -520,7 +524,8 @@ class ControllerNode(LifecycleNode):
 
         ERROR on stale inputs (named, with why their last message was refused); WARN on
         a lost curvature, refused messages, saturation, low-speed hand-over, clamped
-        d_v, time jumps or law restarts since the last report, answers while turning
+        d_v, time jumps or law restarts since the last report, a sim clock that has
+        not moved for :data:`SIM_CLOCK_STOPPED` (``use_sim_time``), answers while turning
         without a curvature or with a ``v_y`` of exactly 0 (:data:`TURNING_WARN`), or an
         input age or answer latency above ``safety.latency_warn``; else OK.
 
@@ -560,6 +565,17 @@ class ControllerNode(LifecycleNode):
                             if new[f'law_restarts_{cause}'] > 0]
                     text += f' ({"; ".join(each)}; integral and estimate start again)'
                 reasons.append(text)
+        # under sim time a dead simulator stops the clock: nothing goes stale on it
+        sim_ns = now_ns(self) if self.sim_time() else None
+        steady = time.monotonic_ns()
+        if sim_ns != self._sim_seen[0]:
+            self._sim_seen = (sim_ns, steady)
+        stopped = (steady - self._sim_seen[1]) * 1e-9
+        if self.active and sim_ns is not None and sim_ns > 0 and stopped >= SIM_CLOCK_STOPPED:
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'sim clock stopped at {sim_ns * 1e-9:.3f} s for {stopped:.1f} s '
+                           '(wall): nothing is judged stale on it (use_sim_time; the '
+                           'simulator or /clock gone?)')
         turning = {k: v - self._reported_turning.get(k, 0.0)
                    for k, v in self.core.turning.items()}
         self._reported_turning = dict(self.core.turning)
