@@ -16,6 +16,10 @@
 Launch sim_plant and controller (real ROS 2 Jazzy installs; here use ``closed_loop``).
 
 ros2 launch lookahead_control closed_loop.launch.py speed:=37.0 schedule:=paper
+
+Its arguments and their defaults are ``closed_loop``'s: ``law`` is ``paper`` (the paper's
+law with ``schedule``), as ``closed_loop`` runs it; ``law:=cg_compensated`` runs the
+controller's own default law.
 """
 
 import os
@@ -35,6 +39,7 @@ def generate_launch_description():
     args = {
         'scenario': os.path.join(config, 'scenarios', 'paper_r400.yaml'),
         'speed': '0.0', 'schedule': 'paper', 'mode': 'lockstep', 'plant': 'linear',
+        'law': 'paper',
     }
     sim = Node(package='lookahead_control', executable='sim_plant', name='sim_plant',
                parameters=[os.path.join(config, 'vehicle.yaml'), {
@@ -47,6 +52,7 @@ def generate_launch_description():
                       parameters=[os.path.join(config, 'vehicle.yaml'),
                                   os.path.join(config, 'controller.yaml'), {
                                       'controller.schedule': LaunchConfiguration('schedule'),
+                                      'law': LaunchConfiguration('law'),
                                       'wait_for_matching_stamps': True,
                                       'use_sim_time': True}])
     return LaunchDescription(

@@ -22,7 +22,7 @@ and the whole input -> command path testable without DDS.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Optional
 
 from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, BaselineParams
@@ -64,7 +64,36 @@ def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
     return baseline_law(name, vehicle, baselines)
 
 
+def law_key(name: str, vehicle: VehicleParams, controller: ControllerParams,
+            baselines: BaselineParams, lane_keeping: LaneKeepingParams) -> tuple[Any, ...]:
+    """
+    Return what the law called ``name`` is built from (equal keys: the same law).
+
+    Only the parameters the law reads: ``cg_compensated`` takes its gains from
+    ``lane_keeping`` (``controller.natural_frequency`` and ``damping_ratio`` are the
+    paper law's), the baselines neither ``controller`` nor ``lane_keeping``, the paper
+    law neither ``lane_keeping`` nor the baselines'.
+
+    :param name: the law.
+    :param vehicle: the controller's vehicle model.
+    :param controller: the paper law's parameters.
+    :param baselines: the baselines' parameters.
+    :param lane_keeping: the ``cg_compensated`` law's settings.
+    :return: the key.
+    """
+    if name == 'paper':
+        return name, vehicle, controller
+    if name == 'cg_compensated':
+        return name, vehicle, replace(controller, natural_frequency=1.0,
+                                      damping_ratio=1.0), lane_keeping
+    return name, vehicle, baselines
+
+
 # the law cannot run without these; road_curvature is optional (0 without it)
+# turning: a yaw rate at least this at a speed at least TURN_SPEED (at 37 m/s a radius of
+# 1850 m) is a curve, where a missing curvature or an unmeasured v_y costs the laws most
+TURN_RATE = 0.02        # [rad/s]
+TURN_SPEED = 10.0       # [m/s]
 REQUIRED_INPUTS = ('lateral_error', 'yaw', 'velocity')
 JUMP_NS = 1_000_000_000         # the node's clock going back further is a time jump
 # per input: the attribute holding its latest sample, and the method storing a new one
@@ -196,6 +225,11 @@ class SteeringController:
         #: again; by cause in ``law_restart_causes``
         self.law_restarts = 0
         self.law_restart_causes: dict[str, int] = {}
+        #: seconds of answers, while turning (:data:`TURN_RATE`), with no curvature
+        #: (``turning_without_curvature``: never received or lost) and with a ``v_y`` of
+        #: exactly 0 (``v_y_exactly_zero``: a bridge that does not measure it)
+        self.turning: dict[str, float] = {'turning_without_curvature': 0.0,
+                                          'v_y_exactly_zero': 0.0}
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
@@ -267,7 +301,7 @@ class SteeringController:
         another parameter (a limit, a diagnostics threshold) does not restart an
         integral or an estimate.
         """
-        key = (name, vehicle, controller, baselines, self.lane_keeping)
+        key = law_key(name, vehicle, controller, baselines, self.lane_keeping)
         if key == self._law_key:
             self.baselines = baselines
             return
@@ -653,6 +687,12 @@ class SteeringController:
         stamp = self.lateral.stamp_ns
         dt = 0.0 if self._law_stamp is None else max(0, stamp - self._law_stamp) * 1e-9
         self._law_stamp = stamp
+        v_x, r = float(state.v_x), float(state.r)
+        if 0.0 < dt <= 1.0 and v_x >= TURN_SPEED and abs(r) >= TURN_RATE:
+            if self.curvature is None or self.curvature_lost(now_ns):
+                self.turning['turning_without_curvature'] += dt
+            if float(state.v_y) == 0.0:
+                self.turning['v_y_exactly_zero'] += dt
         resets = getattr(self.law, 'resets', 0)
         causes = dict(getattr(self.law, 'restart_causes', {}))
         law = self.law.step(state, self.preview(now_ns), dt)

@@ -113,13 +113,19 @@ class ComplianceEstimator:
         self.moment = 0.0
         self.energy = 0.0
 
-    def update(self, state: LateralState, dt: float, active: Any) -> None:
+    def update(self, state: LateralState, dt: float, active: Any,
+               running: Any = True) -> None:
         """
         Take one measurement.
 
         :param state: the measured state (``v_y``, ``r``, ``v_x``).
         :param dt: time since the previous update [s] (0: the filters only start).
         :param active: where false (per run), nothing is learned from this sample.
+        :param running: where false (per run; below the law's speed floor, where
+            ``(l_2 r - v_y) / v_x`` is no rear slip, e.g. a speed read as 0 for a
+            moment), the signal filters restart at the next sample where it holds,
+            instead of carrying this sample into the first ones learned from after it;
+            what was learned is kept.
         """
         veh = self.vehicle
         v_x = xp.maximum(state.v_x, 1.0)
@@ -146,6 +152,11 @@ class ComplianceEstimator:
         g = xp.where(active, min(dt / self.time_constant, 1.0) + zero, zero)
         self.moment = self.moment + g * (f_slip * phi - self.moment)
         self.energy = self.energy + g * (phi * phi - self.energy)
+        if isinstance(running, np.ndarray) and not running.all():
+            self.filtered = tuple(np.where(running, x, math.nan)     # type: ignore[assignment]
+                                  for x in self.filtered)
+        elif not isinstance(running, np.ndarray) and not running:
+            self.filtered = None
 
     def forget(self, where: Any) -> None:
         """

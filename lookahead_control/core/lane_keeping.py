@@ -494,7 +494,7 @@ class CgCompensatedLaw:
                   & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut))
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
-            self.estimator.update(state, dt, active)
+            self.estimator.update(state, dt, active, state.v_x >= s.integral_min_speed)
         rate = xp.where(active & ((xp.absolute(self.integral) < s.integral_limit)
                                   | (self.integral * state.y_cg < 0.0)),   # held at the clamp
                         s.integral_gain * state.y_cg, zero)

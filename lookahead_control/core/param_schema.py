@@ -59,10 +59,11 @@ VEHICLE_SPECS = (
 
 CONTROLLER_SPECS = (
     Spec('controller.natural_frequency', 3.0,
-         'natural frequency w_n of the look-ahead error loop, k_p = w_n^2 [rad/s]',
+         'natural frequency w_n of the look-ahead error loop, k_p = w_n^2, of law paper '
+         '(law cg_compensated, the default, uses lane_keeping.natural_frequency) [rad/s]',
          0.01, 100.0),
-    Spec('controller.damping_ratio', 1.0, 'damping ratio zeta, k_d = 2 zeta w_n [-]',
-         0.01, 10.0),
+    Spec('controller.damping_ratio', 1.0, 'damping ratio zeta, k_d = 2 zeta w_n, of law '
+         'paper (law cg_compensated: lane_keeping.damping_ratio) [-]', 0.01, 10.0),
     Spec('controller.schedule', 'paper',
          'd_v schedule: paper (eq. 26), exact (eq. 24) or fixed (d_v = vehicle.d_s)',
          choices=SCHEDULE_MODES),

@@ -80,6 +80,11 @@ ALL_SPECS = (VEHICLE_SPECS + (LAW_SPEC,) + CONTROLLER_SPECS + BASELINE_SPECS + S
 READ_ONLY_CONFIGURED = ('mode', 'rate_hz', 'qos_reliability', 'watchdog_rate_hz',
                         'diagnostics_rate_hz', 'use_sim_time')
 READ_ONLY_STARTED = ('autostart', 'executor')
+# /diagnostics WARNs when, since its last report, the controller answered this long while
+# turning with no curvature or with a v_y of exactly 0 [s]
+TURNING_WARN = 0.5
+# /diagnostics WARNs when the sim clock has not moved for this long on the steady clock [s]
+SIM_CLOCK_STOPPED = 0.5
 MALFORMED = (ValueError, IndexError, TypeError, AttributeError, OverflowError, struct.error,
              UnicodeDecodeError)
 DEBUG_FIELDS = ('d_v', 'd_v_rate', 'y_v', 'y_v_rate', 'y_ref', 'error', 'error_rate', 'f_v',
@@ -119,6 +124,9 @@ class ControllerNode(LifecycleNode):
         self.counters = {'saturated': 0, 'rate_limited': 0, 'low_speed': 0,
                          'd_v_clamped': 0, 'stale_commands': 0}
         self._reported: dict[str, int] = {}
+        self._reported_turning: dict[str, float] = {}
+        # the sim clock as last seen by a report, and the steady clock when it last moved
+        self._sim_seen: tuple[Optional[int], int] = (None, 0)
         self.stale_inputs: list[str] = []
         self.curvature_lost = False
         self._watchdog: Any = None
@@ -516,9 +524,10 @@ class ControllerNode(LifecycleNode):
 
         ERROR on stale inputs (named, with why their last message was refused); WARN on
         a lost curvature, refused messages, saturation, low-speed hand-over, clamped
-        d_v, time jumps or law restarts since the last report, or an input age or answer
-        latency above
-        ``safety.latency_warn``; else OK.
+        d_v, time jumps or law restarts since the last report, a sim clock that has
+        not moved for :data:`SIM_CLOCK_STOPPED` (``use_sim_time``), answers while turning
+        without a curvature or with a ``v_y`` of exactly 0 (:data:`TURNING_WARN`), or an
+        input age or answer latency above ``safety.latency_warn``; else OK.
 
         :return: the status with its reasons and counters.
         """
@@ -556,6 +565,32 @@ class ControllerNode(LifecycleNode):
                             if new[f'law_restarts_{cause}'] > 0]
                     text += f' ({"; ".join(each)}; integral and estimate start again)'
                 reasons.append(text)
+        # under sim time a dead simulator stops the clock: nothing goes stale on it
+        sim_ns = now_ns(self) if self.sim_time() else None
+        steady = time.monotonic_ns()
+        if sim_ns != self._sim_seen[0]:
+            self._sim_seen = (sim_ns, steady)
+        stopped = (steady - self._sim_seen[1]) * 1e-9
+        if self.active and sim_ns is not None and sim_ns > 0 and stopped >= SIM_CLOCK_STOPPED:
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'sim clock stopped at {sim_ns * 1e-9:.3f} s for {stopped:.1f} s '
+                           '(wall): nothing is judged stale on it (use_sim_time; the '
+                           'simulator or /clock gone?)')
+        turning = {k: v - self._reported_turning.get(k, 0.0)
+                   for k, v in self.core.turning.items()}
+        self._reported_turning = dict(self.core.turning)
+        if turning['turning_without_curvature'] >= TURNING_WARN:
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'turning without road_curvature for '
+                           f'{turning["turning_without_curvature"]:.2f} s: the laws take the '
+                           'road as straight (R 400 m at 37 m/s: the CG settles metres '
+                           'outside the curve; docs/vehicle_bridge.md)')
+        if turning['v_y_exactly_zero'] >= TURNING_WARN:
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'velocity v_y exactly 0 while turning for '
+                           f'{turning["v_y_exactly_zero"]:.2f} s: not measured? (law '
+                           'cg_compensated: set lane_keeping.filter_lateral_velocity_noise '
+                           '5.0; docs/vehicle_bridge.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
@@ -563,6 +598,8 @@ class ControllerNode(LifecycleNode):
             listed = ', '.join(f'{k} {v * 1e3:.0f} ms' for k, v in sorted(late.items()))
             reasons.append(f'late: {listed} (> latency_warn {warn_at * 1e3:g} ms)')
         values = [KeyValue(key=k, value=str(v)) for k, v in counts.items()]
+        values += [KeyValue(key=f'{k} [s]', value=f'{v:.3f}')
+                   for k, v in self.core.turning.items()]
         values += [KeyValue(key=f'age max {k} [s]', value=f'{v:.6f}')
                    for k, v in sorted(ages.items())]
         if latency is not None:
