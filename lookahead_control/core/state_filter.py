@@ -40,6 +40,13 @@ converges to the steady one within a few tenths of a second; the steady gain nee
 covariance per run of a batch and costs one interpolation per step. The prediction
 integrates the model over the actual step (RK4) at the measured speed.
 
+A ``v_y`` of exactly 0 while ``r`` is not (a bridge that does not measure the lateral
+velocity and sends 0, as many odometry sources do: no turning car has exactly 0) is taken
+as not measured: that step's gain is the steady gain of the filter without ``v_y`` among
+its measurements, and ``v_y`` is estimated from the lateral error, ``eps_r`` and ``r``
+(``unmeasured_v_y_steps`` counts those steps). A car standing straight (both exactly 0,
+a noise-free simulation) keeps the full gain.
+
 Safety: a non-finite measurement passes through (the law refuses it) and the filter
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
 finite, ``> max_gap``, decided by the law) restarts it; ``dt = 0`` advances nothing and
@@ -266,21 +273,27 @@ def riccati_doubling(phi: Matrix, h: Matrix, q: Matrix, r: Matrix,
 
 
 def steady_gain(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
-                period: float) -> Matrix:
+                period: float, v_y_measured: bool = True) -> Matrix:
     """
     Return the steady-state Kalman gain ``K`` (6x4) at a speed and a sampling period.
 
     The update is ``x = x_prior + K (z - H x_prior)``, ``K = P H^T (H P H^T + R)^-1``.
+    Without ``v_y`` among the measurements, its row of ``H`` is dropped and its column of
+    ``K`` is 0.
 
     :param vehicle: the design vehicle.
     :param settings: the filter's settings.
     :param v_x: speed [m/s].
     :param period: sampling period [s].
+    :param v_y_measured: whether ``v_y`` is measured.
     :return: ``K``.
     """
     phi, q, h, r = discrete_model(vehicle, settings, v_x, period)
+    rows = [0, 1, 2, 3] if v_y_measured else [0, 1, 3]
+    h, r = h[rows], r[np.ix_(rows, rows)]
     p = riccati_doubling(phi, h, q, r)
-    gain: Matrix = np.asarray(np.linalg.solve(h @ p @ h.T + r, h @ p).T, dtype=float)
+    gain: Matrix = np.zeros((6, 4))
+    gain[:, rows] = np.linalg.solve(h @ p @ h.T + r, h @ p).T
     return gain
 
 
@@ -321,14 +334,16 @@ class GainTable:
     ``CACHED_PERIODS`` periods are kept.
     """
 
-    def __init__(self, vehicle: VehicleParams, settings: StateFilterParams) -> None:
+    def __init__(self, vehicle: VehicleParams, settings: StateFilterParams,
+                 v_y_measured: bool = True) -> None:
         """
         Create the empty table.
 
         :param vehicle: the design vehicle.
         :param settings: the filter's settings.
+        :param v_y_measured: whether ``v_y`` is among the measurements.
         """
-        self.vehicle, self.settings = vehicle, settings
+        self.vehicle, self.settings, self.v_y_measured = vehicle, settings, v_y_measured
         count = int(math.ceil((TOP_SPEED - settings.min_speed) / SPEED_STEP)) + 1
         self.speeds: Matrix = settings.min_speed + SPEED_STEP * np.arange(count, dtype=float)
         self.periods: OrderedDict[int, tuple[Matrix, npt.NDArray[np.bool_]]] = OrderedDict()
@@ -356,22 +371,24 @@ class GainTable:
         missing = np.unique(np.asarray(needed))
         for i in missing[~done[missing]]:
             gains[i] = steady_gain(self.vehicle, self.settings, float(self.speeds[i]),
-                                   bucket_period(bucket))
+                                   bucket_period(bucket), self.v_y_measured)
             done[i] = True
             self.solved += 1
         return gains
 
 
 @functools.lru_cache(maxsize=32)
-def gain_table(vehicle: VehicleParams, settings: StateFilterParams) -> GainTable:
+def gain_table(vehicle: VehicleParams, settings: StateFilterParams,
+               v_y_measured: bool = True) -> GainTable:
     """
     Return the gain table of a vehicle and settings (one shared by all filters).
 
     :param vehicle: the design vehicle.
     :param settings: the filter's settings.
+    :param v_y_measured: whether ``v_y`` is among the measurements.
     :return: the table.
     """
-    return GainTable(vehicle, settings)
+    return GainTable(vehicle, settings, v_y_measured)
 
 
 def _select(mask: Any, a: Real, b: Real) -> Real:
@@ -402,6 +419,8 @@ class KalmanStateFilter:
         self.vehicle = vehicle
         self.settings = settings or StateFilterParams()
         self.table = gain_table(vehicle, self.settings)
+        #: the gains without ``v_y`` (made when first needed)
+        self.blind_table: Optional[GainTable] = None
         self.steps_cache: tuple[float, int, float, float, float] = (
             math.nan, 1, 0.0, 0.0, 0.0)
         veh, low = vehicle, self.settings.min_speed
@@ -418,6 +437,8 @@ class KalmanStateFilter:
         self.restarts = 0
         #: steps longer than ``MAX_PERIOD`` (restarts from the measurement)
         self.long_steps = 0
+        #: steps (of any run) that took ``v_y`` as not measured (exactly 0, ``r`` not)
+        self.unmeasured_v_y_steps = 0
 
     def reset(self) -> None:
         """
@@ -481,9 +502,29 @@ class KalmanStateFilter:
         zero = 0.0 * state.y_cg
         return [state.y_cg, state.eps_r, state.v_y, state.r, zero, zero]
 
-    def _gain(self, v_x: Real, dt: float) -> list[list[Real]]:
-        """Return ``K`` at the speed and step, interpolated in speed (element by element)."""
-        speeds = self.table.speeds
+    def _gain(self, v_x: Real, dt: float, blind: Any = False) -> list[list[Real]]:
+        """
+        Return ``K`` at the speed and step, interpolated in speed (element by element).
+
+        :param v_x: speed [m/s].
+        :param dt: the step [s].
+        :param blind: where true, the gain without ``v_y`` among the measurements.
+        :return: ``K`` as rows of columns.
+        """
+        gain = self._table_gain(self.table, v_x, dt)
+        count = int(np.count_nonzero(blind))
+        if count == 0:
+            return gain
+        self.unmeasured_v_y_steps += count
+        if self.blind_table is None:
+            self.blind_table = gain_table(self.vehicle, self.settings, False)
+        other = self._table_gain(self.blind_table, v_x, dt)
+        return [[_select(blind, b, g) for b, g in zip(row_b, row_g)]
+                for row_b, row_g in zip(other, gain)]
+
+    def _table_gain(self, table: GainTable, v_x: Real, dt: float) -> list[list[Real]]:
+        """Return ``K`` of one table at the speed and step, interpolated in speed."""
+        speeds = table.speeds
         bucket, between = period_bucket(dt)
         top = speeds.size - 1
         u = (v_x - speeds[0]) / SPEED_STEP
@@ -491,23 +532,24 @@ class KalmanStateFilter:
             u = np.clip(u, 0.0, float(top))
             i = np.minimum(np.floor(u).astype(int), top - 1)
             w = u - i
-            gains = self._period_gains(bucket, between,
+            gains = self._period_gains(table, bucket, between,
                                        np.concatenate([i.ravel(), i.ravel() + 1]))
             return [[gains[i, row, col] + w * (gains[i + 1, row, col] - gains[i, row, col])
                      for col in range(4)] for row in range(6)]
         u = min(max(float(u), 0.0), float(top))
         j = min(int(math.floor(u)), top - 1)
         f = u - j
-        gains = self._period_gains(bucket, between, [j, j + 1])
+        gains = self._period_gains(table, bucket, between, [j, j + 1])
         return [[float(gains[j, row, col] + f * (gains[j + 1, row, col] - gains[j, row, col]))
                  for col in range(4)] for row in range(6)]
 
-    def _period_gains(self, bucket: int, between: float, needed: Any) -> Matrix:
+    @staticmethod
+    def _period_gains(table: GainTable, bucket: int, between: float, needed: Any) -> Matrix:
         """Return the gains on the speed grid at the period ``(bucket, between)``."""
-        lower = self.table.gains(bucket, needed)
+        lower = table.gains(bucket, needed)
         if between == 0.0:
             return lower
-        upper = self.table.gains(bucket + 1, needed)
+        upper = table.gains(bucket + 1, needed)
         gains: Matrix = lower + between * (upper - lower)
         return gains
 
@@ -587,7 +629,9 @@ class KalmanStateFilter:
         if MAX_PERIOD >= dt > 0.0:
             v_x = _select(fast, state.v_x, self.settings.min_speed)
             prior = self._predict(self.x, dt, v_x, state.rho)
-            gain = self._gain(v_x, dt)
+            # a v_y of exactly 0 while r is not: a bridge that does not measure v_y
+            blind = fast & (state.v_y == 0.0) & (state.r != 0.0)
+            gain = self._gain(v_x, dt, blind)
             y, e, v, r = measured[:4]
             innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
                           e - prior[1], v - prior[2], r - prior[3])

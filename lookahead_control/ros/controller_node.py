@@ -588,9 +588,10 @@ class ControllerNode(LifecycleNode):
         if turning['v_y_exactly_zero'] >= TURNING_WARN:
             level = max(level, DiagnosticStatus.WARN)
             reasons.append(f'velocity v_y exactly 0 while turning for '
-                           f'{turning["v_y_exactly_zero"]:.2f} s: not measured? (law '
-                           'cg_compensated: set lane_keeping.filter_lateral_velocity_noise '
-                           '5.0; docs/vehicle_bridge.md)')
+                           f'{turning["v_y_exactly_zero"]:.2f} s: taken as not measured by '
+                           "law cg_compensated's state filter (it estimates v_y: about 2 "
+                           'times the CG error); other laws and state_filter none take '
+                           'the 0 (docs/vehicle_bridge.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
