@@ -480,3 +480,21 @@ def test_a_twist_in_the_parent_frame_is_refused(bridge):
                                            s * math.cos(heading), s * math.sin(heading),
                                            heading, 20.0, 0.0, 0.0))
     assert [name for name, _ in node.out].count('lateral_error') == 8
+
+
+def test_rear_axle_odometry_without_v_y_sends_the_0_on(bridge):
+    # probe17: odometry that does not measure v_y (Autoware's EKF, wheel odometry) sends
+    # linear.y = 0 at the rear axle; moved to the CG it became base_to_cg * r, which the
+    # controller took as measured: nonlinear plant, 37 m/s, noise, S2, default law 87.7 cm
+    # (S1 89.5; the paper law 351) instead of 4.9 cm with the 0 passed on (taken as not
+    # measured by its filter, and /diagnostics WARNs)
+    node = bridge(base_to_cg=1.58)
+    node.on_path(road_path())
+    for k, v_y in enumerate((0.0, -0.0, 1e-9)):
+        x, y, yaw = ROAD.global_pose(20.0 + 0.2 * k, 0.0, 0.02)
+        node.on_odometry(vconv.to_odometry((k + 1) * PERIOD, 'map', 'base_link',
+                                           x - 1.58 * math.cos(yaw), y - 1.58 * math.sin(yaw),
+                                           yaw, 20.0, v_y, 0.05))
+        sent = contract(node)['velocity'].v_y
+        assert sent == (0.0 if v_y == 0.0 else pytest.approx(1e-9 + 1.58 * 0.05))
+    assert node.counters['published'] == 3

@@ -341,7 +341,10 @@ class PathBridgeNode(LifecycleNode):
         path = self.follower.path
         pubs = self._pubs
         pubs['yaw'].publish(conv.to_yaw(stamp, frame, lane.relative_yaw, yaw_rate, accel))
-        pubs['velocity'].publish(conv.to_velocity(stamp, frame, odom.v_x, v_y, yaw_rate))
+        # a linear.y of exactly 0 is not measured (wheel odometry, an EKF without it): sent
+        # on as 0, not as base_to_cg * r, which the controller would take as measured
+        sent_v_y = v_y if odom.v_y != 0.0 else 0.0
+        pubs['velocity'].publish(conv.to_velocity(stamp, frame, odom.v_x, sent_v_y, yaw_rate))
         pubs['road_curvature'].publish(conv.to_curvature(
             stamp, frame, path.preview(lane.s, p['preview_distance'], p['preview_step'])))
         distance = p['sensor_distance']
