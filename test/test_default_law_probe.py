@@ -223,6 +223,22 @@ def test_diagnostics_say_when_a_curve_is_driven_without_curvature_or_v_y(context
         node.destroy_node()
 
 
+@pytest.mark.parametrize('law, state_filter', [('paper', 'kalman'), ('cg_compensated', 'none')])
+def test_diagnostics_say_which_law_believes_a_v_y_of_0(context, law, state_filter):
+    # probe17: with law paper or state_filter none the 0 is taken as measured (S2 at
+    # 37 m/s: 318 / 85 cm), but /diagnostics said "taken as not measured by law
+    # cg_compensated's state filter" whatever law ran
+    node = _default_node(context, Parameter('law', value=law),
+                         Parameter('lane_keeping.state_filter', value=state_filter))
+    try:
+        _, status = _one_second(node, 100 * S, rho=-1.0 / 400.0, v_x=37.0, v_y=0.0)
+        assert 'v_y exactly 0 while turning' in status.message
+        assert 'taken as not measured' not in status.message
+        assert f'law {law} takes the 0 as measured' in status.message
+    finally:
+        node.destroy_node()
+
+
 class _NoLateralVelocity:
     """A bridge that does not measure v_y: the law gets 0."""
 

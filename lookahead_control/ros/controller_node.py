@@ -587,11 +587,17 @@ class ControllerNode(LifecycleNode):
                            'outside the curve; docs/vehicle_bridge.md)')
         if turning['v_y_exactly_zero'] >= TURNING_WARN:
             level = max(level, DiagnosticStatus.WARN)
+            # what the running law does with it (a law without a state filter believes it)
+            if getattr(self.core.law, 'state_filter', None) is not None:
+                what = ("taken as not measured by law cg_compensated's state filter (it "
+                        'estimates v_y: about 2 times the CG error)')
+            else:
+                what = (f'law {self.core.law_name} takes the 0 as measured (S2 at 37 m/s: '
+                        '85 cm and more; law cg_compensated with lane_keeping.state_filter '
+                        'kalman estimates v_y)')
             reasons.append(f'velocity v_y exactly 0 while turning for '
-                           f'{turning["v_y_exactly_zero"]:.2f} s: taken as not measured by '
-                           "law cg_compensated's state filter (it estimates v_y: about 2 "
-                           'times the CG error); other laws and state_filter none take '
-                           'the 0 (docs/vehicle_bridge.md)')
+                           f'{turning["v_y_exactly_zero"]:.2f} s: {what} '
+                           '(docs/vehicle_bridge.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
