@@ -44,8 +44,9 @@ A ``v_y`` of exactly 0 while ``r`` is not (a bridge that does not measure the la
 velocity and sends 0, as many odometry sources do: no turning car has exactly 0) is taken
 as not measured: that step's gain is the steady gain of the filter without ``v_y`` among
 its measurements, and ``v_y`` is estimated from the lateral error, ``eps_r`` and ``r``
-(``unmeasured_v_y_steps`` counts those steps). A car standing straight (both exactly 0,
-a noise-free simulation) keeps the full gain.
+(``unmeasured_v_y_steps`` counts those steps); a restart on such a step starts ``v_y``
+from the steady cornering value at the measured ``r``, ``(l_2 - eta v_x^2) r``. A car
+standing straight (both exactly 0, a noise-free simulation) keeps the full gain.
 
 Safety: a non-finite measurement passes through (the law refuses it) and the filter
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
@@ -618,6 +619,8 @@ class KalmanStateFilter:
         good = (np.isfinite(state.y_cg) & np.isfinite(state.eps_r) & np.isfinite(state.v_y)
                 & np.isfinite(state.r) & np.isfinite(state.v_x) & np.isfinite(state.rho))
         fast = good & (state.v_x >= self.settings.min_speed)
+        # a v_y of exactly 0 while r is not: a bridge that does not measure v_y
+        blind = fast & (state.v_y == 0.0) & (state.r != 0.0)
         if self.x is None:              # (re)start: every run from its next measurement
             self.x = [math.nan + 0.0 * mv for mv in measured]
             self.rho = state.rho
@@ -629,8 +632,6 @@ class KalmanStateFilter:
         if MAX_PERIOD >= dt > 0.0:
             v_x = _select(fast, state.v_x, self.settings.min_speed)
             prior = self._predict(self.x, dt, v_x, state.rho)
-            # a v_y of exactly 0 while r is not: a bridge that does not measure v_y
-            blind = fast & (state.v_y == 0.0) & (state.r != 0.0)
             gain = self._gain(v_x, dt, blind)
             y, e, v, r = measured[:4]
             innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
@@ -644,9 +645,16 @@ class KalmanStateFilter:
             self.rho = _select(good, state.rho, self.rho)
         else:                           # the same instant again: nothing advances
             posterior = self.x
-        # restarted runs (NaN marks) start from this measurement
+        # restarted runs (NaN marks) start from this measurement; without v_y, from the
+        # steady cornering v_y at the measured r (not from the 0: 14 cm instead of 3 after
+        # a restart in a R 400 m curve at 37 m/s)
+        start = measured
+        if np.count_nonzero(blind):
+            eta = self.vehicle.eta
+            cornering = (self.vehicle.l2 - eta * state.v_x * state.v_x) * state.r
+            start = [*measured[:2], _select(blind, cornering, measured[2]), *measured[3:]]
         self.x = [_select(fast & ~fresh, p, _select(fast, mv, math.nan))
-                  for p, mv in zip(posterior, measured)]
+                  for p, mv in zip(posterior, start)]
         return self._out(state, measured, fast)
 
     def _out(self, state: LateralState, measured: list[Real], fast: Any) -> LateralState:
