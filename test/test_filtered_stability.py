@@ -140,6 +140,22 @@ def test_filtered_robust_check_holds_on_the_486_cases():
     assert math.isfinite(filtered.max_radius)
 
 
+def test_filtered_robust_check_holds_without_v_y():
+    # probe17: the filter takes a v_y of exactly 0 while turning as not measured (a bridge
+    # without v_y); the filtered check covered only the gain with v_y. Without it at every
+    # step the 486 cases hold too (the worst is the same integral mode), and the gain
+    # does differ (the radius at 37 m/s with a soft front axle)
+    blind = stability.robust_check(VEHICLE, CONTROLLER, SETTINGS, filtered=True,
+                                   v_y_measured=False)
+    assert blind.cases == 486 and blind.holds
+    assert blind.max_radius == pytest.approx(0.99688, abs=1e-5)
+    plant = dataclasses.replace(VEHICLE, c_f=0.7 * VEHICLE.c_f)
+    with_v_y, without = (stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, 37.0,
+                                                   plant=plant, v_y_measured=measured)
+                         for measured in (True, False))
+    assert with_v_y < 1.0 and without < 1.0 and abs(with_v_y - without) > 1e-6
+
+
 def test_without_filter_lag():
     # the filter's wheel model off (lag 0), the plant without actuator
     settings = StateFilterParams(actuator_lag=0.0)

@@ -60,7 +60,8 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   stable if the spectral radius is below 1. :func:`filtered_radius` is the same loop
   with the law acting on the Kalman filter's estimate (``core/state_filter.py``: its
   model is the design vehicle, its gain ``steady_gain`` at the loop's period and speed,
-  its own actuator model and command buffer), and :func:`robust_check` takes either.
+  its own actuator model and command buffer; with ``v_y_measured=False`` the gain
+  without ``v_y``, a bridge that sends 0), and :func:`robust_check` takes either.
 - The varying-speed certificate covers the law on exact states only; the filter is
   covered by the sampled check, at frozen speeds.
 """
@@ -456,7 +457,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
                   plant: Optional[VehicleParams] = None, period: float = 0.01,
                   lag: float = 0.05, delay_steps: int = 2,
                   filter_settings: Optional[StateFilterParams] = None,
-                  filter_vehicle: Optional[VehicleParams] = None) -> Matrix:
+                  filter_vehicle: Optional[VehicleParams] = None,
+                  v_y_measured: bool = True) -> Matrix:
     """
     Return the one-period matrix of the sampled loop with the law on the filter's estimate.
 
@@ -483,6 +485,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     :param delay_steps: the plant's transport delay in periods.
     :param filter_settings: the filter's settings (None: those of ``settings``).
     :param filter_vehicle: the filter's model (None: the design vehicle).
+    :param v_y_measured: False: a bridge without ``v_y`` (``linear.y`` exactly 0 while
+        turning): the filter's gain is the one without ``v_y`` at every step.
     :return: the square one-step matrix.
     """
     fs = filter_settings or settings.filter_settings()
@@ -520,7 +524,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     i_est = n + 1
     i_buf = i_est + nf
     size = i_buf + depth
-    gain = steady_gain(model, fs, v_x, period)
+    gain = steady_gain(model, fs, v_x, period, v_y_measured)
     h_model = measurement_matrix(model)
     k = feedback_gain(vehicle, controller, settings, v_x)
     law = np.zeros((1, size))                   # u_k over s_k
@@ -645,7 +649,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                  delays: tuple[float, ...] = (0.0, 0.02, 0.05), period: float = 0.01,
                  lag: float = 0.05, filtered: bool = False,
                  filter_vehicle: Optional[VehicleParams] = None,
-                 filter_settings: Optional[StateFilterParams] = None) -> RobustResult:
+                 filter_settings: Optional[StateFilterParams] = None,
+                 v_y_measured: bool = True) -> RobustResult:
     """
     Check the sampled loop over a grid of plant mismatch, speed and delay.
 
@@ -668,6 +673,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
         the filter's settings from ``settings``), not on the exact states.
     :param filter_vehicle: the filter's model when filtered (None: the design vehicle).
     :param filter_settings: the filter's settings when filtered (None: ``settings``').
+    :param v_y_measured: when filtered, False: the filter without ``v_y`` (a bridge that
+        sends ``linear.y = 0``) at every step.
     :return: the worst case.
     """
     worst, where, cases = -np.inf, {}, 0
@@ -681,7 +688,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
             radius = filtered_radius(vehicle, controller, settings, v, plant=plant,
                                      period=period, lag=lag, delay_steps=steps,
                                      filter_vehicle=filter_vehicle,
-                                     filter_settings=filter_settings)
+                                     filter_settings=filter_settings,
+                                     v_y_measured=v_y_measured)
         else:
             radius = discrete_radius(vehicle, controller, settings, v, plant=plant,
                                      period=period, lag=lag, delay_steps=steps)
