@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.time import Time
+from test_safety_probe import _controller
 
 VEHICLE = VehicleParams()
 
@@ -123,12 +124,7 @@ S = 1_000_000_000
 
 def _default_node(context, *overrides):
     """Return an active controller with the default law on a fake sim clock."""
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True), *overrides])
-    node.trigger_configure()
-    node.trigger_activate()
-    return node
+    return _controller(context, *overrides)
 
 
 def _send(node, stamp, y=0.3, rho=-0.0025, v_x=30.0, points=None, v_y=0.0, eps_r=0.0):

@@ -512,14 +512,16 @@ class KalmanStateFilter:
         :param blind: where true, the gain without ``v_y`` among the measurements.
         :return: ``K`` as rows of columns.
         """
-        gain = self._table_gain(self.table, v_x, dt)
         count = int(np.count_nonzero(blind))
         if count == 0:
-            return gain
+            return self._table_gain(self.table, v_x, dt)
         self.unmeasured_v_y_steps += count
         if self.blind_table is None:
             self.blind_table = gain_table(self.vehicle, self.settings, False)
         other = self._table_gain(self.blind_table, v_x, dt)
+        if count == np.size(blind):     # every run without v_y: the full gain is not needed
+            return other
+        gain = self._table_gain(self.table, v_x, dt)
         return [[_select(blind, b, g) for b, g in zip(row_b, row_g)]
                 for row_b, row_g in zip(other, gain)]
 
