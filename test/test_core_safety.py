@@ -408,3 +408,20 @@ def test_a_rate_lowered_between_two_answers_at_one_reading_holds():
     assert third.steering == second.steering and third.rate_limited
     fourth, _ = _live(core, now + 20 * MS, stamp=now + 30 * MS, y=-2.0)
     assert abs(fourth.steering - third.steering) == pytest.approx(0.001, abs=1e-12)
+
+
+def test_at_start_up_the_answers_at_the_first_reading_are_limited_on_their_stamps():
+    # no command was ever sent: the first is free (the actuator's angle is unknown), the
+    # others at its clock reading move within the rate limit on their stamps (sim time:
+    # steps 0 and 1 are both answered at the reading of /clock 0), then on the clock
+    safety = SafetyParams(max_steering_rate=0.1)
+    stamps = _stamps(4)
+    readings = [stamps[0], stamps[0], stamps[0], stamps[3]]
+    run = _sim_time_run(readings, y_of=lambda t: 0.05 + (1.0 if t >= 100.01 else 0.0),
+                        safety=safety)
+    angles = [c.steering for c, _ in run]
+    assert [c.rate_limited for c, _ in run] == [False, True, True, True]
+    assert angles[1] - angles[0] == pytest.approx(-0.001, abs=1e-12)
+    assert angles[2] - angles[1] == pytest.approx(-0.001, abs=1e-12)
+    # the clock advances 30 ms from the last command at the first reading
+    assert angles[3] - angles[2] == pytest.approx(-0.001, abs=1e-12)    # stamps: 10 ms
