@@ -573,16 +573,25 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
                            for c, _, _ in answers)
     # an answer from the step's own inputs is the recorded one, unless the rate limit
     # cut it: a backlog makes the replayed /clock (depth 1) run ahead of the inputs, and
-    # the rate limit counts the node's clock between two answers; the recorded run,
-    # in lockstep, was never rate limited
+    # the rate limit counts the node's clock; the recorded run, in lockstep, was never
+    # rate limited
     same = [(c, recorded[c.stamp_ns]) for c, _, stamps in answers
             if stamps == [c.stamp_ns] * 4 and not c.rate_limited]
     assert same, 'no step was delivered whole'
     assert max(abs(c.steering - angle) for c, angle in same) < 1e-15
-    # and the rate limit holds on the node's clock between every two commands
+    # and the rate limit holds on the node's clock from the last command at an earlier
+    # clock reading (the answers at one reading share one step), and on the stamps
+    # (the newest so far) from the previous command
     rate = core.safety.max_steering_rate
+    ref, newest = None, answers[0][0].stamp_ns
     for (c0, t0, _), (c1, t1, _) in zip(answers, answers[1:]):
-        assert abs(c1.steering - c0.steering) <= rate * max(t1 - t0, 0) * 1e-9 + 1e-12
+        if t1 != t0:
+            ref = (t0, c0.steering) if t1 > t0 else (t1, c0.steering)
+        if ref is not None:
+            assert abs(c1.steering - ref[1]) <= rate * (t1 - ref[0]) * 1e-9 + 1e-12
+        assert abs(c1.steering - c0.steering) <= rate * max(c1.stamp_ns - newest, 0) * 1e-9 \
+            + 1e-12
+        newest = max(newest, c1.stamp_ns)
     stamps = [c.stamp_ns for c, _, _ in answers]
     assert stamps == sorted(set(stamps))        # one answer per step, in order
 

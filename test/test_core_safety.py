@@ -14,6 +14,8 @@
 
 """The output limits' reference: the last angle sent and the newest stamp sent."""
 
+import math
+
 from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.safety import check_stamp, SafetyParams, stale_target
@@ -148,9 +150,12 @@ def test_the_rate_limit_counts_the_node_clock_not_the_stamps():
     assert jump.steering - start.steering == pytest.approx(0.1 * 0.010, abs=1e-15)
     # the published rate is the change over the node's clock
     assert jump.steering_rate == pytest.approx(0.1, rel=1e-9)
-    # the node's clock stands still: the command holds, whatever the stamps do
+    # the node's clock stands still: this answer shares the 10 ms step already spent
+    # from the last command at an earlier reading, so it holds, whatever the stamps do;
+    # its rate is the change since that command over the node-clock time since it
     held = _step_at(core, now + 10 * MS, now + 105 * MS, -0.5)
-    assert held.steering == jump.steering and held.steering_rate == 0.0
+    assert held.steering == jump.steering and held.rate_limited
+    assert held.steering_rate == pytest.approx(0.1, rel=1e-9)
     # and it cannot move faster than the stamps advance either
     slow = _step_at(core, now + 60 * MS, now + 106 * MS, -0.5)
     assert slow.steering - held.steering == pytest.approx(0.1 * 0.001, abs=1e-15)
@@ -264,3 +269,159 @@ def test_hold_time_and_max_future_may_be_zero_and_errors_name_the_parameter():
             SafetyParams(**{name: -1.0})
     with pytest.raises(ParameterError, match=r'^safety.input_timeout = 0.0 .*\(0, '):
         SafetyParams(input_timeout=0.0)
+
+
+def _sim_time_run(readings, law='cg_compensated', y_of=None, safety=None, period=10 * MS):
+    """
+    Answer steps stamped ``t_k`` (every ``period``) on a sim clock reading ``readings[k]``.
+
+    As in a realtime run on ``use_sim_time``: the /clock of step k may be processed
+    before or after its lateral error, so two answers can see one clock reading.
+    """
+    core = SteeringController(VehicleParams(), ControllerParams(), 'imu', True,
+                              safety or SafetyParams(), law=law)
+    y_of = y_of or (lambda t: 0.3 * math.sin(0.5 * t) + 0.05)
+    out = []
+    for k, now in enumerate(readings):
+        stamp = 100_000 * MS + period * k
+        t = stamp * 1e-9
+        samples = {'yaw': YawSample(stamp, 0.01 * math.cos(0.5 * t), 0.0, 0.0),
+                   'velocity': VelocitySample(stamp, 25.0, 0.0),
+                   'lateral_error': LateralErrorSample(stamp, 1.96, y_of(t))}
+        refused = [core.accept(name, samples[name], now)
+                   for name in ('yaw', 'velocity', 'lateral_error')]
+        assert refused == [None] * 3 or stamp > now + core.safety.max_future * 1e9
+        command = None if refused[2] else core.compute(now)     # as the node
+        out.append((command, getattr(core.law, 'cut', None)))
+    return out
+
+
+def _stamps(n):
+    return [100_000 * MS + 10 * MS * k for k in range(n)]
+
+
+def test_two_answers_at_one_sim_clock_reading_are_not_rate_limited():
+    # healthy realtime sim time: the clock of step k is seen before its lateral error
+    # every third step, so the next answer sees the same reading (dt = 0 on the clock);
+    # the steering changes at most ~2 mrad per step, far within 5 rad/s x 10 ms
+    stamps = _stamps(300)
+    readings = [s if k % 3 == 0 else s - 10 * MS for k, s in enumerate(stamps)]
+    assert sum(a == b for a, b in zip(readings, readings[1:])) == 100
+    for law in ('cg_compensated', 'paper'):
+        jittered = _sim_time_run(readings, law)
+        ideal = _sim_time_run(stamps, law)          # each answer at its own reading
+        assert not any(c.rate_limited for c, _ in jittered), law
+        assert not any(cut for _, cut in jittered if cut is not None), law
+        # the clock's jitter changes nothing while the limit does not bind
+        assert [c.steering for c, _ in jittered] == [c.steering for c, _ in ideal], law
+        assert max(abs(a.steering - b.steering)
+                   for (a, _), (b, _) in zip(ideal, ideal[1:])) < 0.005
+
+
+def _check_rate_bound(readings, stamps, commands, rate):
+    """
+    Check every command against the rate limit; return the largest share used.
+
+    On the node's clock from the last command at an earlier clock reading, on the
+    stamps from the previous command; the share: of its step, the largest one a second
+    answer at one reading took from that reference.
+    """
+    ref, last, shared = None, None, 0.0         # ref: (reading, angle)
+    for now, stamp, command in zip(readings, stamps, commands):
+        if last is not None and now > last[0]:
+            ref = (last[0], last[2])
+        if ref is not None:
+            assert abs(command.steering - ref[1]) <= rate * (now - ref[0]) * 1e-9 + 1e-12
+            if now == last[0]:
+                shared = max(shared, abs(command.steering - ref[1]) / (
+                    rate * (now - ref[0]) * 1e-9))
+        if last is not None:
+            assert abs(command.steering - last[2]) <= rate * (stamp - last[1]) * 1e-9 + 1e-12
+        last = (now, stamp, command.steering)
+    return shared
+
+
+def test_a_true_rate_limit_still_flags_and_one_reading_shares_one_step():
+    # a 1 m step of the lateral error at 1.0 s: the law wants more than 0.1 rad/s
+    safety = SafetyParams(max_steering_rate=0.1)
+    stamps = _stamps(200)
+    readings = [s if k % 3 == 0 else s - 10 * MS for k, s in enumerate(stamps)]
+    run = _sim_time_run(readings, y_of=lambda t: 0.05 + (1.0 if t >= 101.0 else 0.0),
+                        safety=safety)
+    commands = [c for c, _ in run]
+    flagged = [k for k, c in enumerate(commands) if c.rate_limited]
+    assert flagged and flagged[0] == 100
+    assert all(cut for (c, cut) in run if c.rate_limited)      # anti-windup told
+    # the answers at one reading share one step from the last command at an earlier
+    # reading (checked command by command), and the second ones use all of it
+    shared = _check_rate_bound(readings, stamps, commands, 0.1)
+    assert shared == pytest.approx(1.0, rel=1e-9)
+    # the published rate: the change since the last command at an earlier reading
+    assert max(abs(c.steering_rate) for c in commands) == pytest.approx(0.1, rel=1e-9)
+
+
+def test_a_standing_clock_and_a_flood_move_the_command_one_step_at_most():
+    # sim paused: /clock stands still while a 1 kHz flood with advancing stamps goes on
+    safety = SafetyParams()                         # 5 rad/s, max_future 0.1 s
+    stamps = [100_000 * MS + k * MS for k in range(300)]
+    frozen = 100_000 * MS + 20 * MS
+    readings = [min(s, frozen) for s in stamps]     # the clock stops at 20 ms
+    run = _sim_time_run(readings, y_of=lambda t: 0.05 + (2.0 if t >= 100.02 else 0.0),
+                        safety=safety, period=MS)
+    answered = [(now, c) for now, (c, _) in zip(readings, run) if c is not None]
+    held_at = [c.steering for now, c in answered if now == frozen]
+    before = [c.steering for now, c in answered if now < frozen][-1]
+    # every answer at the standing reading stays within one 1 ms step of the last
+    # command before it, however many come and however far the stamps go
+    assert len(held_at) == 101          # stamps up to max_future ahead, then refused
+    assert max(abs(a - before) for a in held_at) <= 5.0 * 0.001 + 1e-12
+    # and it still flags: the law wants more
+    assert all(c.rate_limited for now, c in answered[21:])
+
+
+def test_a_clock_going_back_within_answers_holds_then_goes_on():
+    stamps = _stamps(40)
+    # the clock goes back 30 ms at step 20 (not a time jump), then on
+    readings = [s - (30 * MS if k >= 20 else 0) for k, s in enumerate(stamps)]
+    readings[21] = readings[20]                 # and stands still once
+    run = _sim_time_run(readings, y_of=lambda t: 0.05 + (1.0 if t >= 100.15 else 0.0),
+                        safety=SafetyParams(max_steering_rate=0.5))
+    commands = [c for c, _ in run]
+    assert commands[20].steering == commands[19].steering
+    assert commands[21].steering == commands[19].steering
+    assert abs(commands[22].steering - commands[21].steering) == pytest.approx(0.005, abs=1e-12)
+
+
+def test_a_rate_lowered_between_two_answers_at_one_reading_holds():
+    core = SteeringController(VehicleParams(), ControllerParams(), 'imu', True,
+                              SafetyParams(max_steering_rate=1.0))
+    now = 100_000 * MS
+    first, _ = _live(core, now)
+    second, _ = _live(core, now + 10 * MS, stamp=now + 10 * MS, y=2.0)
+    assert second.rate_limited and abs(second.steering - first.steering) == pytest.approx(
+        0.01, abs=1e-12)
+    core.configure(VehicleParams(), ControllerParams(), 'imu', True,
+                   SafetyParams(max_steering_rate=0.1))
+    third, _ = _live(core, now + 10 * MS, stamp=now + 20 * MS, y=-2.0)
+    # 0.1 rad/s x 10 ms around the first and 0.1 rad/s x 10 ms around the second do not
+    # meet: it holds (never moves beyond either window)
+    assert third.steering == second.steering and third.rate_limited
+    fourth, _ = _live(core, now + 20 * MS, stamp=now + 30 * MS, y=-2.0)
+    assert abs(fourth.steering - third.steering) == pytest.approx(0.001, abs=1e-12)
+
+
+def test_at_start_up_the_answers_at_the_first_reading_are_limited_on_their_stamps():
+    # no command was ever sent: the first is free (the actuator's angle is unknown), the
+    # others at its clock reading move within the rate limit on their stamps (sim time:
+    # steps 0 and 1 are both answered at the reading of /clock 0), then on the clock
+    safety = SafetyParams(max_steering_rate=0.1)
+    stamps = _stamps(4)
+    readings = [stamps[0], stamps[0], stamps[0], stamps[3]]
+    run = _sim_time_run(readings, y_of=lambda t: 0.05 + (1.0 if t >= 100.01 else 0.0),
+                        safety=safety)
+    angles = [c.steering for c, _ in run]
+    assert [c.rate_limited for c, _ in run] == [False, True, True, True]
+    assert angles[1] - angles[0] == pytest.approx(-0.001, abs=1e-12)
+    assert angles[2] - angles[1] == pytest.approx(-0.001, abs=1e-12)
+    # the clock advances 30 ms from the last command at the first reading
+    assert angles[3] - angles[2] == pytest.approx(-0.001, abs=1e-12)    # stamps: 10 ms

@@ -107,8 +107,11 @@ class Invariants:
     - finite; within ``max_steering_angle``; within the speed's angle limit or moving
       towards it at the rate limit;
     - the rate limit on the node's clock: ``|change| <= max_steering_rate x (time
-      between the two commands on the node's clock)``, with no exception (a clock going
-      back allows no change), and the published rate is that change over that time;
+      since it on the node's clock)`` from the last command sent at an earlier clock
+      reading (the answers at one reading share one step), with no exception (a clock
+      going back or a time jump allows no change), and the published rate is that
+      change over that time; on the stamps (the newest so far), from the previous
+      command; where the two windows do not meet (the rate was lowered), it holds;
     - no command from stale data: an answer of the law uses only samples delivered
       within ``input_timeout`` of now and stamped within ``input_timeout`` of now
       (judged here from the test's own record of what it delivered and when), and the
@@ -118,6 +121,7 @@ class Invariants:
     def __init__(self, core):
         self.core = core
         self.previous = None            # (now, angle)
+        self.ref = None                 # (now, angle): the last at an earlier reading
         self.arrivals = {}              # (input, stamp) -> node clock of the last delivery
         self.used = {}                  # input -> the last stamp an answer used
         self.time_jumps = core.time_jumps
@@ -140,27 +144,37 @@ class Invariants:
         self.hold_next = False
         if jumped:                  # stamps restart; the first command after it holds
             self.time_jumps, self.used, self.newest = core.time_jumps, {}, None
-        if self.previous is not None and now < self.previous[0]:
-            self.newest = None                      # the node's clock went back
-        allowed = 0.0
+        rate_limit = safety.max_steering_rate
         if self.previous is not None:
             then, before = self.previous
-            dt = max(0, now - then) * 1e-9
-            # also on the stamps (the newest so far): a recording obeys the limit
-            on_stamps = dt if self.newest is None else max(0, command.stamp_ns -
-                                                           self.newest) * 1e-9
-            allowed = 0.0 if jumped else safety.max_steering_rate * min(dt, on_stamps)
-            step = abs(angle - before)
-            assert step <= allowed + 1e-12, (then, before, now, angle)
-            if dt > 0.0:
-                assert abs(rate - (angle - before) / dt) <= 1e-9 * max(1.0, abs(rate))
+            if jumped or now < then:        # the angle sent, no time on the clock yet
+                self.ref = (now, before)
+                if now < then:
+                    self.newest = None      # the node's clock went back
+            elif now > then:                # a new reading: the last command is the ref
+                self.ref = (then, before)
+        low, high = -math.inf, math.inf
+        if self.ref is not None:
+            since = (now - self.ref[0]) * 1e-9
+            low, high = self.ref[1] - rate_limit * since, self.ref[1] + rate_limit * since
+            if since > 0.0:
+                assert abs(rate - (angle - self.ref[1]) / since) <= 1e-9 * max(1.0, abs(rate))
             else:
-                assert rate == 0.0 and step == 0.0
+                assert rate == 0.0
+        if self.previous is not None and self.newest is not None:
+            # also on the stamps (the newest so far): a recording obeys the limit
+            span = rate_limit * max(0, command.stamp_ns - self.newest) * 1e-9
+            low, high = max(low, self.previous[1] - span), min(high, self.previous[1] + span)
+        if low > high:                  # the rate was lowered within one reading: hold
+            assert angle == self.previous[1], (self.ref, self.previous, now, angle)
+        else:
+            assert low - 1e-12 <= angle <= high + 1e-12, (self.ref, self.previous, now, angle)
         v_x = core.velocity.v_x if core.velocity else 0.0
         cap = angle_limit(v_x, VEHICLE.wheelbase, safety)
         if abs(angle) > cap + 1e-12:        # only while moving towards it at the rate
             assert self.previous is not None, (angle, cap)
-            assert abs(self.previous[1]) - abs(angle) >= allowed - 1e-12
+            edge = self.previous[1] if low > high else (low if angle > 0.0 else high)
+            assert abs(angle - edge) <= 1e-12, (angle, cap, low, high)
         stamp = command.stamp_ns
         self.newest = stamp if self.newest is None else max(self.newest, stamp)
         if command.law is not None:

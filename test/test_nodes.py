@@ -597,3 +597,40 @@ def test_configure_only_parameters_apply_after_cleanup(context):
         assert not node.set_parameters([Parameter('mode', value='event')])[0].successful
     finally:
         node.destroy_node()
+
+
+def test_two_lateral_errors_at_one_sim_clock_reading_are_not_rate_limited(context):
+    # A healthy realtime run on use_sim_time: the simulator publishes step k's inputs,
+    # then its /clock; every third step the node reads that clock before the lateral
+    # error, so the next lateral error comes at the same clock reading. The node counted
+    # each such answer `rate limited` (held it: 0 s on the clock allows no change) and
+    # the default law froze its integral and estimate on it.
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        assert node.core.law_name == 'cg_compensated'
+        sent = []
+        node._steering_pub.publish = lambda msg: sent.append(conv.from_steering(msg))
+        cuts = 0
+        for k in range(300):
+            stamp = T0 + 10 * MS * k
+            _at(node, stamp if k % 3 == 0 else stamp - 10 * MS)
+            t = k * 0.01
+            node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.01 * math.cos(0.5 * t), 0.0, 0.0))
+            node.on_velocity(conv.to_velocity(stamp, 'base_link', 25.0, 0.0, 0.0))
+            node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, 0.0), (5.0, 0.0)]))
+            node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 1.96,
+                                                        0.3 * math.sin(0.5 * t) + 0.05))
+            cuts += bool(node.core.law.cut)
+            if k % 5 == 0:
+                node.on_watchdog()
+        assert [s for s, _ in sent] == [T0 + 10 * MS * k for k in range(300)]
+        assert node.counters['rate_limited'] == 0 and cuts == 0
+        assert 'rate limited' not in node.diagnostics().message
+        # the steering did move: 0.3 m of error swing, tens of mrad
+        assert max(a for _, a in sent) - min(a for _, a in sent) > 0.02
+    finally:
+        node.destroy_node()

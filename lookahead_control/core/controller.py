@@ -111,8 +111,9 @@ class Command:
     :param stamp_ns: stamp of the lateral-error measurement it answers [ns] (a watchdog
         command: the node's time on the measurements' clock).
     :param steering: front-wheel angle (+ left) [rad].
-    :param steering_rate: change since the previous command over the time between them
-        on the node's clock [rad/s] (0 for the first; without a clock, on the stamps).
+    :param steering_rate: change since the last command sent at an earlier reading of
+        the node's clock over the time since it [rad/s] (0 for the first and when no
+        time has passed; without a clock, since the previous command on the stamps).
     :param law: the law's intermediate values (None for a stale-input command).
     :param status: ``ok``, ``low_speed`` (handing over to hold) or ``stale`` (inputs
         timed out: hold, then ramp to the safe angle).
@@ -177,11 +178,12 @@ class SteeringController:
       age against the node's clock (refused outside ``[now - input_timeout, now +
       max_future]``), measure latency, and name the measurement a command answers.
     - **The node's clock** (sim time under ``use_sim_time``) judges staleness and times
-      the rate limit: between two commands the angle moves at most ``max_steering_rate``
-      times the node-clock time between them (on the wall clock, also at most times the
+      the rate limit: a command moves at most ``max_steering_rate`` times the
+      node-clock time since the last command sent at an earlier reading (the answers at
+      one reading share one step; on the wall clock, also at most times the
       steady-clock time, so a system clock step cannot open the limit), and at most
-      that rate times the advance of the newest command stamp, so a recording of the
-      commands obeys the limit on its own time axis too.
+      that rate times the advance of the newest command stamp since the previous
+      command, so a recording of the commands obeys the limit on its own time axis too.
     - Without a clock (``now_ns`` None: offline re-runs, tests) the stamps are the only
       time axis, as in a lockstep simulation.
     """
@@ -261,6 +263,9 @@ class SteeringController:
         self._rate_now: Optional[int] = None
         self._rate_steady: Optional[int] = None
         self._rate_time: Optional[int] = None
+        # the last command sent at a node-clock reading before the latest one: (angle,
+        # node clock, steady clock); the rate limit's reference on the node's clock
+        self._rate_ref: tuple[Optional[float], int, Optional[int]] = (None, 0, None)
 
     def configure(self, vehicle: VehicleParams, controller: ControllerParams,
                   acceleration_source: str, use_preview: bool,
@@ -583,16 +588,29 @@ class SteeringController:
                      if self._rate_time is not None else None)
         if now_ns is None:
             elapsed = on_stamps if on_stamps is not None else 0.0
-            dt = elapsed
+            out = limit(wanted, sent, elapsed, v_x, self.vehicle.wheelbase, self.safety)
+            rate = (out.angle - sent) / elapsed if sent is not None and elapsed > 0.0 else 0.0
         else:
-            elapsed = (max(0, now_ns - self._rate_now) * 1e-9
-                       if self._rate_now is not None else 0.0)
-            if steady_ns is not None and self._rate_steady is not None:
-                elapsed = min(elapsed, max(0, steady_ns - self._rate_steady) * 1e-9)
-            dt = elapsed if on_stamps is None else min(elapsed, on_stamps)
+            # the node clock's reference: the last command sent at an earlier reading, so
+            # the answers given at one reading (sim time: /clock did not advance between
+            # two lateral errors) share one step of the rate limit instead of holding;
+            # first after a reset or the clock going back: the last angle, no time yet
+            if self._rate_now is None or now_ns < self._rate_now:
+                self._rate_ref = (sent, now_ns, steady_ns)
+            elif now_ns > self._rate_now:
+                self._rate_ref = (sent, self._rate_now, self._rate_steady)
+            ref_angle, ref_now, ref_steady = self._rate_ref
+            elapsed = (now_ns - ref_now) * 1e-9
+            if steady_ns is not None and ref_steady is not None:
+                elapsed = min(elapsed, max(0, steady_ns - ref_steady) * 1e-9)
             self._rate_now, self._rate_steady = now_ns, steady_ns
-        out = limit(wanted, sent, dt, v_x, self.vehicle.wheelbase, self.safety)
-        rate = (out.angle - sent) / elapsed if sent is not None and elapsed > 0.0 else 0.0
+            # and from the last command on the stamps, so a recording obeys the limit
+            out = limit(wanted, sent if on_stamps is not None else None,
+                        on_stamps if on_stamps is not None else 0.0, v_x,
+                        self.vehicle.wheelbase, self.safety,
+                        None if ref_angle is None else (ref_angle, elapsed))
+            rate = ((out.angle - ref_angle) / elapsed
+                    if ref_angle is not None and elapsed > 0.0 else 0.0)
         self._rate_angle = out.angle
         self._rate_time = stamp_ns if self._rate_time is None else max(self._rate_time,
                                                                        stamp_ns)

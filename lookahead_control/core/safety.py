@@ -23,8 +23,9 @@ ramps it to a safe angle within the rate limit.
 
 Output limits: ``|delta| <= min(max_steering_angle, atan(a_lat_max L / v_x^2))`` (the
 lateral-acceleration limit of a kinematic single track, speed-dependent like the
-gate's), ``|d delta / dt| <= max_steering_rate``. The rate limit has the last word: a
-cap that falls faster than the rate allows (the speed rose) is approached at the rate.
+gate's), ``|d delta / dt| <= max_steering_rate`` (from one or two references: the
+controller's node clock and stamps). The rate limit has the last word: a cap that
+falls faster than the rate allows (the speed rose) is approached at the rate.
 
 Low speed: the law divides by ``v_x``. Below ``low_speed`` the command is blended over
 ``low_speed_blend`` m/s from the law to the last command given above it (hold), so the
@@ -250,20 +251,24 @@ class Limited:
 
 
 def limit(raw: float, previous: Optional[float], dt: float, v_x: float, wheelbase: float,
-          params: SafetyParams) -> Limited:
+          params: SafetyParams, reference: Optional[tuple[float, float]] = None) -> Limited:
     """
-    Clamp to the angle limit, then rate-limit from the previous command.
+    Clamp to the angle limit, then rate-limit from the previous command (and a reference).
 
     A non-finite ``raw`` holds the previous command (0 if none). The rate limit has the
     last word: when the angle limit falls below the previous command faster than the
-    rate allows, the command moves towards it at the rate limit.
+    rate allows, the command moves towards it at the rate limit. With a ``reference``
+    the command must lie within the rate limit of both; windows that do not meet (the
+    rate was lowered since the previous command) hold the previous command.
 
     :param raw: the wanted angle [rad].
-    :param previous: the last command sent [rad] (None: no rate limit).
+    :param previous: the last command sent [rad] (None: no rate limit from it).
     :param dt: time since it [s] (non-finite or negative: 0).
     :param v_x: speed for the angle limit [m/s].
     :param wheelbase: l_1 + l_2 [m].
     :param params: the limits.
+    :param reference: a second reference ``(angle [rad], time since it [s])``, e.g. the
+        last command sent at an earlier clock reading (None: none).
     :return: the limited command, always finite and within the rate limit; within the
         angle limit, or moving towards it at the rate limit.
     """
@@ -273,13 +278,19 @@ def limit(raw: float, previous: Optional[float], dt: float, v_x: float, wheelbas
     wanted = raw if _finite(raw) else (previous if previous is not None else 0.0)
     angle = min(cap, max(-cap, wanted))
     saturated = angle != wanted
+    low, high = -math.inf, math.inf
+    for ref, span in ((previous, dt), reference or (None, 0.0)):
+        if ref is None or not _finite(ref):
+            continue
+        step = params.max_steering_rate * (span if _finite(span) and span > 0.0 else 0.0)
+        low, high = max(low, ref - step), min(high, ref + step)
     rate_limited = False
-    if previous is not None:
-        step = params.max_steering_rate * (dt if _finite(dt) and dt > 0.0 else 0.0)
-        low, high = previous - step, previous + step
-        if angle < low or angle > high:
-            angle = min(high, max(low, angle))
-            rate_limited = True
+    if low > high:                  # windows that do not meet (both references given): hold
+        rate_limited = angle != previous
+        angle = previous if previous is not None else angle
+    elif angle < low or angle > high:
+        angle = min(high, max(low, angle))
+        rate_limited = True
     return Limited(float(angle), saturated, rate_limited)
 
 
