@@ -26,7 +26,7 @@ import os
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped, TwistStamped
-from hypothesis import given, HealthCheck, settings, strategies as st
+from hypothesis import example, given, HealthCheck, settings, strategies as st
 from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.safety import angle_limit, SafetyParams
@@ -280,6 +280,12 @@ node_item = st.one_of(step, step, step, single, single,
 @settings(max_examples=NODE_EXAMPLES, deadline=None, database=None,
           suppress_health_check=list(HealthCheck))
 @given(st.lists(node_item, max_size=24))
+# an answer to inputs 0.125 s old, then input_timeout lowered to 0.1 s: the watchdog's
+# command continues the answers' stamps (0.125 s behind), it answers no measurement (this
+# check failed about one full run in six when hypothesis found it)
+@example(sequence=[('step', 'base_link', -0.125, ('watchdog',), ('watchdog',), ('watchdog',)),
+                   ('param', ('safety.input_timeout', 0.1)), ('clock', 60_000_000),
+                   ('watchdog',)])
 def test_no_message_sequence_makes_the_node_raise_or_command_badly(node, sequence):
     from lookahead_control.ros.controller_node import ALL_SPECS
     from rclpy.parameter import Parameter
@@ -293,6 +299,7 @@ def test_no_message_sequence_makes_the_node_raise_or_command_badly(node, sequenc
     clock = [node.get_clock().now().nanoseconds or 1000 * 10**9]
     node.get_clock().set_ros_time_override(Time(nanoseconds=clock[0]))
     invariants = Invariants(core)
+    widest = [core.safety.input_timeout]      # the widest input_timeout so far
     if core._rate_angle is not None:
         # the node keeps the angle it last sent (an earlier example's) as the rate
         # limit's reference; after the reset its first command holds it (a checker that
@@ -312,8 +319,14 @@ def test_no_message_sequence_makes_the_node_raise_or_command_badly(node, sequenc
         assert (command.stamp_ns, command.steering, command.steering_rate) == (
             stamp, angle, msg.velocity[0])
         invariants.check(command, clock[0])
-        # never an answer to a measurement older than input_timeout
-        assert clock[0] - stamp <= core.safety.input_timeout * 1e9
+        widest[0] = max(widest[0], core.safety.input_timeout)
+        if command.law is not None:
+            # never an answer to a measurement older than input_timeout
+            assert clock[0] - stamp <= core.safety.input_timeout * 1e9
+        else:
+            # a watchdog command continues the answers' stamps: behind the clock by at
+            # most the age its inputs were accepted at (input_timeout may have fallen)
+            assert clock[0] - stamp <= widest[0] * 1e9
 
     core.accept = spy_accept
     node._steering_pub.publish = publish
