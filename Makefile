@@ -29,8 +29,11 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/demo --out bags/demo
 
+# Two pytest-xdist workers (the CI machine's two cores), each test file on one worker
+# (module fixtures run once); TEST_WORKERS=0 runs in one process.
+TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile --durations=15
 
 fuzz: $(STAMP)
 	FUZZ_EXAMPLES=100000 $(PY) -m pytest -q -s test/test_fuzz.py

@@ -23,8 +23,16 @@ import time
 import pytest
 
 # A unique ROS_DOMAIN_ID per test session (0..101 are safe for Fast DDS ports), set
-# before anything imports rclpy, and discovery on loopback only.
-os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
+# before anything imports rclpy, and discovery on loopback only. Under pytest-xdist
+# (`make test` runs two workers) each worker of a session gets its own domain: the
+# session's slot from the parent's pid, the worker's number within it.
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')
+if _WORKER.startswith('gw') and _WORKER[2:].isdigit():
+    _COUNT = max(1, min(100, int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1'))))
+    os.environ['ROS_DOMAIN_ID'] = str(
+        1 + (os.getppid() % (100 // _COUNT)) * _COUNT + int(_WORKER[2:]) % _COUNT)
+else:
+    os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('MPLBACKEND', 'Agg')
 
