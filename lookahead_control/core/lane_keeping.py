@@ -144,7 +144,7 @@ class LaneKeepingParams:
     filter_force_noise: float = 100.0
     filter_force_drift: float = 2000.0
     filter_kinematic_noise: float = 0.01
-    filter_curvature_drift: float = 2.5e-4
+    filter_curvature_drift: float = 0.5
 
     def __post_init__(self) -> None:
         check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,
@@ -424,6 +424,8 @@ class CgCompensatedLaw:
         self._blend_left: Real = 0.0        # its time left [s]
         self._rho_used: Real = 0.0          # the curvature at the CG the last step used
         self._blending: Optional[Real] = None   # the offset the present step adds
+        self._changed: Any = False              # the runs that switched at this step
+        self._steer_offset: Real = 0.0          # command jump to blend out at the switch
         self.resets = 0
         #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
         #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
@@ -439,7 +441,7 @@ class CgCompensatedLaw:
         if self.state_filter is not None:
             self.state_filter.reset()
         self._was_estimating = None
-        self._blend_offset = self._blend_left = 0.0
+        self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self.resets += 1
 
     def note_curvature(self, received: Any) -> None:
@@ -554,6 +556,15 @@ class CgCompensatedLaw:
                                  compliance=secant, rate_feedforward=s.rate_feedforward,
                                  tangent_compliance=tangent, gains=loop_gains(s, v_x),
                                  lead_rate=lead_rate)
+        if self._blending is not None:
+            # what the curvature does not carry (its rate, the preview) blends on the
+            # command: the jump at the switch-over taken out over the same time
+            jump = self.last_steering - out.steering
+            self._steer_offset = xp.where(self._changed, xp.where(_finite(jump), jump, 0.0),
+                                          self._steer_offset)
+            left = self._blend_left
+            out = out._replace(steering=out.steering + xp.where(
+                left > 0.0, self._steer_offset * (left / s.curvature_blend), 0.0))
         finite = _finite(out.steering)
         if self.state_filter is not None:
             self.state_filter.command(out.steering)
@@ -590,6 +601,7 @@ class CgCompensatedLaw:
         if before is None or span <= 0.0:
             return state
         changed = estimating != before
+        self._changed = changed
         if not np.count_nonzero(changed) and not np.count_nonzero(self._blend_left):
             return state
         if np.count_nonzero(changed):

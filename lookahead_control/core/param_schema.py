@@ -143,8 +143,9 @@ LANE_KEEPING_SPECS = tuple(
         ('force_drift', 'random walk of the axle-force disturbances; at least 1: 0 would '
          'never correct them, a closed-loop pole at 1 [N/sqrt(s)]', 1.0, 1e7),
         ('kinematic_noise', 'white noise on the rate of y_cg [m/sqrt(s)]', 0.0, 10.0),
-        ('curvature_drift', 'random walk of the road curvature along the road, for its '
-         'estimate while no road_curvature is received [1/m^1.5]', 1e-7, 1.0),
+        ('curvature_drift', 'random walk of the road lateral acceleration v_x^2 rho, for '
+         'the curvature estimate while no road_curvature is received [m/s^2.5]', 1e-4,
+         100.0),
     ))
 
 BASELINE_SPECS = (

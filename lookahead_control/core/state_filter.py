@@ -111,9 +111,12 @@ class StateFilterParams:
     :param force_drift: random walk of the axle-force disturbances [N / sqrt(s)].
     :param kinematic_noise: white noise on ``y_cg'`` [m / sqrt(s)] (and on ``eps_r'``,
         divided by 10 m): the small-angle kinematics' error.
-    :param curvature_drift: random walk of the road curvature along the road, in the
-        variant that estimates it (no ``road_curvature`` received): ``rho`` changes by
-        about ``curvature_drift sqrt(L)`` over ``L`` metres [1/m^1.5].
+    :param curvature_drift: in the variant that estimates the road curvature (no
+        ``road_curvature`` received), the random walk of the road's lateral acceleration
+        ``v_x^2 rho`` [m/s^2.5]: ``rho' = w curvature_drift / v_x^2``. Roads are laid out
+        for a rate of change of the lateral acceleration of 0.3-0.6 m/s^3 along their
+        clothoids (highway design: clothoid length ``L = v^3 / (C R)``), about 0.5 m/s^2
+        over a 1-2 s clothoid.
     """
 
     min_speed: float = 3.0
@@ -126,7 +129,7 @@ class StateFilterParams:
     force_noise: float = 100.0
     force_drift: float = 2000.0
     kinematic_noise: float = 0.01
-    curvature_drift: float = 2.5e-4
+    curvature_drift: float = 0.5
 
     def __post_init__(self) -> None:
         limits = {'min_speed': (0.5, 50.0, 'm/s'), 'actuator_lag': (0.0, 2.0, 's'),
@@ -139,7 +142,7 @@ class StateFilterParams:
                   # (lane_keeping_stability's filtered check, radius 1.0)
                   'force_drift': (1.0, 1e7, 'N/sqrt(s)'),
                   'kinematic_noise': (0.0, 10.0, 'm/sqrt(s)'),
-                  'curvature_drift': (1e-7, 1.0, '1/m^1.5')}
+                  'curvature_drift': (1e-4, 100.0, 'm/s^2.5')}
         for item in fields(self):
             low, high, unit = limits[item.name]
             object.__setattr__(self, item.name, check_range(
@@ -186,8 +189,8 @@ def curvature_model(vehicle: VehicleParams, v_x: float) -> tuple[Matrix, Matrix]
 
     ``x = [y_cg, eps_r, v_y, r, F_f, F_r, rho]``, ``rho' = w_rho`` (a random walk):
     ``eps_r' = r - v_x rho`` takes it from the state instead of an input. ``w`` gains a
-    sixth unit white noise, the curvature's (scaled by ``curvature_drift sqrt(v_x)``:
-    its random walk is along the road).
+    sixth unit white noise, the curvature's (scaled by ``curvature_drift / v_x^2``: the
+    random walk is the road's lateral acceleration's).
 
     :param vehicle: the design vehicle.
     :param v_x: speed [m/s] (> 0).
@@ -261,7 +264,7 @@ def discrete_model(vehicle: VehicleParams, settings: StateFilterParams, v_x: flo
               s.force_drift]
     if curvature_estimated:
         a, g = curvature_model(vehicle, v_x)
-        noises.append(s.curvature_drift * math.sqrt(v_x))
+        noises.append(s.curvature_drift / (v_x * v_x))
     else:
         a, _, g = continuous_model(vehicle, v_x)
     q = np.diag(np.array(noises) ** 2)
