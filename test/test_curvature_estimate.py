@@ -275,3 +275,77 @@ def test_bad_inputs_while_estimating_give_no_nan_after_them():
     assert all(math.isfinite(v) for v in good)
     assert law.state_filter.curvature() == pytest.approx(-1 / 400.0, rel=0.05)
     assert abs(out[-1] - out[99]) < 2e-3
+
+
+@pytest.mark.parametrize('v_x', [10.0, 37.0])
+def test_the_curvature_gain_steers_the_steady_turn_by_hand(v_x):
+    # K x_ss + k_rho rho is the linear model's steady wheel angle (worked out by hand)
+    from lookahead_control.core.lane_keeping_stability import curvature_gain, feedback_gain
+    settings = LaneKeepingParams()
+    rho = -1 / 400.0
+    v_y, r, eps_r = _turn(v_x, rho)
+    k = feedback_gain(VEHICLE, ControllerParams(), settings, v_x)
+    k_rho = curvature_gain(VEHICLE, ControllerParams(), settings, v_x)
+    steady = k @ np.array([0.0, eps_r, v_y, r, 0.0]) + k_rho * rho
+    assert steady == pytest.approx(_steady_steering(v_x, rho), rel=1e-9)
+
+
+@pytest.mark.parametrize('v_y_measured', [True, False])
+def test_the_curvature_estimating_loop_passes_the_filtered_robust_check(v_y_measured):
+    # the 486 cases (speed 10-37 m/s, C_f, C_r x0.7-1.3, mass x0.8-1.2, delay 0-50 ms):
+    # the largest radius is the integral's, as with the curvature received (0.99688)
+    from lookahead_control.core.lane_keeping_stability import filtered_loop, robust_check
+    settings = LaneKeepingParams()
+    result = robust_check(VEHICLE, ControllerParams(), settings, filtered=True,
+                          v_y_measured=v_y_measured, curvature_estimated=True)
+    assert result.cases == 486 and result.holds and result.max_radius < 0.9970
+    # the loop is the one with the curvature state: one state more, the law reads it
+    plain = filtered_loop(VEHICLE, ControllerParams(), settings, 37.0)
+    augmented = filtered_loop(VEHICLE, ControllerParams(), settings, 37.0,
+                              curvature_estimated=True)
+    assert augmented.shape[0] == plain.shape[0] + 1
+
+
+def test_the_node_estimates_a_curvature_never_received_or_lost_and_says_so(context):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from lookahead_control.ros import conversions as conv
+    from rclpy.time import Time
+    from test_safety_probe import _controller
+    ms = 1_000_000
+    rho, v_x = -1 / 400.0, 37.0
+    v_y, r, eps_r = _turn(v_x, rho)
+    node = _controller(context)
+
+    def one_second(stamp, curvature):
+        for _ in range(100):
+            stamp += 10 * ms
+            node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
+            node.on_yaw(conv.to_yaw(stamp, 'base_link', eps_r, r, 0.0))
+            node.on_velocity(conv.to_velocity(stamp, 'base_link', v_x, v_y, 0.0))
+            if curvature:
+                node.on_curvature(conv.to_curvature(stamp, 'base_link',
+                                                    [(0.0, rho), (5.0, rho)]))
+            node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', VEHICLE.d_s,
+                                                        VEHICLE.d_s * eps_r))
+        return stamp, node.diagnostics()
+
+    try:
+        stamp, status = one_second(100_000 * ms, False)
+        law = node.core.law
+        assert law.curvature_estimated()
+        assert law.state_filter.curvature() == pytest.approx(rho, rel=0.02)
+        assert node.core.last.steering == pytest.approx(_steady_steering(v_x, rho), rel=0.05)
+        assert status.level == DiagnosticStatus.WARN
+        assert 'turning without road_curvature' in status.message
+        assert 'the curvature is estimated' in status.message
+        stamp, status = one_second(stamp, True)
+        assert not law.curvature_estimated()
+        assert status.level == DiagnosticStatus.OK, status.message
+        stamp, status = one_second(stamp, False)       # lost: stale after input_timeout
+        node._judge_inputs(stamp)
+        status = node.diagnostics()
+        assert law.curvature_estimated()
+        assert 'road_curvature lost: the curvature is estimated' in status.message
+        assert law.state_filter.curvature() == pytest.approx(rho, rel=0.02)
+    finally:
+        node.destroy_node()

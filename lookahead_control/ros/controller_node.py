@@ -467,7 +467,9 @@ class ControllerNode(LifecycleNode):
         if lost and not self.curvature_lost:
             self.get_logger().warn('road_curvature lost: '
                                    f'{self.core.describe_stale(["road_curvature"])}: '
-                                   'steering without curvature feed-forward')
+                                   + ('steering on the estimated curvature'
+                                      if self._estimates_curvature()
+                                      else 'steering without curvature feed-forward'))
         elif self.curvature_lost and not lost:
             self.get_logger().info('road_curvature is back')
         changed = stale != self.stale_inputs or lost != self.curvature_lost
