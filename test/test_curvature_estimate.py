@@ -349,3 +349,21 @@ def test_the_node_estimates_a_curvature_never_received_or_lost_and_says_so(conte
         assert law.state_filter.curvature() == pytest.approx(rho, rel=0.02)
     finally:
         node.destroy_node()
+
+
+def test_a_speed_read_as_zero_holds_the_last_estimate():
+    # below the filter's floor the estimate is the last one above it, not r / v_x at
+    # the floor speed (a wheel-speed dropout at 37 m/s: r / 3 m/s is 12 times the curve)
+    rho, v_x = -1 / 400.0, 37.0
+    v_y, r, eps_r = _turn(v_x, rho)
+    f = KalmanStateFilter(VEHICLE)
+    state = LateralState(0.0, eps_r, v_y, r, v_x, 0.0, 0.0, 0.0)
+    for _ in range(300):
+        f.command(_steady_steering(v_x, rho))
+        f.step(state, 0.01, True)
+    out = f.step(state._replace(v_x=0.0), 0.01, True)
+    assert out.rho == pytest.approx(rho, rel=0.02)
+    # never above the floor: the path the car drives at the floor speed, bounded
+    fresh = KalmanStateFilter(VEHICLE)
+    out = fresh.step(state._replace(v_x=0.0, r=5.0), 0.01, True)
+    assert out.rho == 0.2

@@ -492,6 +492,9 @@ class KalmanStateFilter:
         self.history: list[tuple[float, Real]] = []
         self.time = 0.0
         self.rho: Real = 0.0
+        #: the last curvature of a step above ``min_speed`` (estimated or received): the
+        #: estimate below it (a speed read as 0 for a moment must not make ``r / v_x``)
+        self.held_rho: Real = math.nan
         self.restarts = 0
         #: steps longer than ``MAX_PERIOD`` (restarts from the measurement)
         self.long_steps = 0
@@ -508,6 +511,7 @@ class KalmanStateFilter:
         the car's, not the estimate's (a run of a batch restarts the same way).
         """
         self.x = None
+        self.held_rho = math.nan
         self.restarts += 1
 
     def forget(self, where: Any) -> None:
@@ -783,10 +787,13 @@ class KalmanStateFilter:
                                          start[6])]
         self.x = [_select(fast & ~fresh, p, _select(fast, mv, math.nan))
                   for p, mv in zip(posterior, start)]
+        self.held_rho = _select(fast & np.isfinite(self.x[6]), self.x[6],
+                                self.held_rho + 0.0 * state.rho)
         return self._out(state, measured, fast, estimating if any_estimate else None)
 
     def _path_curvature(self, state: LateralState) -> Real:
         """Return ``r / v_x`` (the speed at least ``min_speed``), within the bounds."""
+        # (a restart above min_speed: eps_r' = 0 on a steady turn)
         v_x = state.v_x
         low = self.settings.min_speed
         v_x = _select(v_x >= low, v_x, low + 0.0 * v_x)
@@ -800,8 +807,10 @@ class KalmanStateFilter:
         out = state._replace(y_cg=x[0], eps_r=x[1], v_y=x[2], r=x[3])
         if estimating is None:
             return out
-        # below min_speed (and restarting) the path the car drives
-        rho = _select(fast, _bounded(self.x[6]), self._path_curvature(state))
+        # below min_speed the last estimate above it (none yet: the path the car drives,
+        # the speed taken as at least min_speed)
+        held = _select(np.isfinite(self.held_rho), self.held_rho, self._path_curvature(state))
+        rho = _select(fast, _bounded(self.x[6]), _bounded(held))
         return out._replace(rho=_select(estimating, rho, state.rho))
 
     def curvature(self) -> Real:
