@@ -104,8 +104,8 @@ class LaneKeepingParams:
         impulse); 0: no clip [m/s^3].
     :param state_filter: ``kalman``: the law sees the Kalman filter's estimate of
         ``y_cg, eps_r, v_y, r`` (``core/state_filter.py``), and of the road curvature
-        while none is received; ``none``: the measurements (and curvature 0 while none
-        is received).
+        while none is received; ``none``: the measurements (while no curvature is
+        received the same filter runs for the curvature estimate alone).
     :param curvature_blend: when the curvature starts or stops arriving, the law moves
         from the curvature it used to the new one (received or estimated) linearly over
         this time [s]; 0: at once.
@@ -419,6 +419,10 @@ class CgCompensatedLaw:
                              if st.state_filter == 'kalman' else None)
         #: no curvature received (set by :meth:`note_curvature`; an array over a batch)
         self.estimating: Any = False
+        #: with ``state_filter: none``, the filter run for the curvature alone (made at the
+        #: first step without one, then run on: a curvature going and coming again finds
+        #: it converged; its estimate is used only while none is received)
+        self.curvature_filter: Optional[KalmanStateFilter] = None
         self._was_estimating: Any = None
         self._blend_offset: Real = 0.0      # curvature left to blend out at the switch
         self._blend_left: Real = 0.0        # its time left [s]
@@ -440,6 +444,7 @@ class CgCompensatedLaw:
         self.estimator.reset()
         if self.state_filter is not None:
             self.state_filter.reset()
+        self.curvature_filter = None
         self._was_estimating = None
         self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self.resets += 1
@@ -450,7 +455,9 @@ class CgCompensatedLaw:
 
         Without one (never received, or lost) the state filter estimates it and the law
         uses the estimate at the CG where it would use the received curvature (the
-        feed-forward and the reference; no preview). ``state_filter: none`` uses 0.
+        feed-forward and the reference; no preview). With ``state_filter: none`` a filter
+        runs for that estimate alone while none is received (the law keeps the
+        measurements of the rest).
 
         :param received: True, False, or a boolean array over a batch.
         """
@@ -463,7 +470,7 @@ class CgCompensatedLaw:
 
         :return: whether it does (for any run of a batch).
         """
-        return self.state_filter is not None and bool(np.count_nonzero(self.estimating))
+        return bool(np.count_nonzero(self.estimating))
 
     def note_limited(self, cut: bool) -> None:
         """
@@ -485,6 +492,8 @@ class CgCompensatedLaw:
         """
         if self.state_filter is not None:
             self.state_filter.correct(angle)
+        if self.curvature_filter is not None:
+            self.curvature_filter.correct(angle)
 
     def compliance(self) -> Real:
         """
@@ -514,9 +523,11 @@ class CgCompensatedLaw:
             self.reset()
             self.restart_causes['gap'] += 1
             dt = 0.0
-        estimating = self.estimating if self.state_filter is not None else False
+        estimating = self.estimating
         if self.state_filter is not None:
             state = self.state_filter.step(state, dt, estimating)
+        elif self.curvature_filter is not None or np.count_nonzero(estimating):
+            state = self._estimate_curvature(state, dt, estimating)
         if estimating is True:          # no preview without a curvature
             preview = None
         v_x = xp.maximum(state.v_x, self.controller.min_speed)
@@ -568,6 +579,8 @@ class CgCompensatedLaw:
         finite = _finite(out.steering)
         if self.state_filter is not None:
             self.state_filter.command(out.steering)
+        if self.curvature_filter is not None:
+            self.curvature_filter.command(out.steering)
         self._rho_used = state.rho
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)
@@ -577,6 +590,8 @@ class CgCompensatedLaw:
             self.estimator.forget(~finite)
             if self.state_filter is not None:
                 self.state_filter.forget(~finite)
+            if self.curvature_filter is not None:
+                self.curvature_filter.forget(~finite)
             self.restart_causes['non_finite'] += int(np.count_nonzero(~finite))
         elif not finite:
             self.reset()
@@ -584,6 +599,22 @@ class CgCompensatedLaw:
         else:
             self.integral, self.last_steering = integral, out.steering
         return out
+
+    def _estimate_curvature(self, state: LateralState, dt: float,
+                            estimating: Any) -> LateralState:
+        """
+        Return the measured state with the curvature estimated (``state_filter: none``).
+
+        The filter starts with its actuator at the last command (the commands before it
+        were not recorded) and from the next measurement.
+        """
+        if self.curvature_filter is None:
+            self.curvature_filter = KalmanStateFilter(self.vehicle,
+                                                      self.settings.filter_settings())
+            self.curvature_filter.held = self.last_steering
+            self.curvature_filter.wheel = self.last_steering
+        estimate = self.curvature_filter.step(state, dt, estimating)
+        return state._replace(rho=estimate.rho, rho_rate=estimate.rho_rate)
 
     def _blend(self, state: LateralState, estimating: Any, dt: float) -> LateralState:
         """

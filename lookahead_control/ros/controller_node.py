@@ -522,8 +522,7 @@ class ControllerNode(LifecycleNode):
 
     def _estimates_curvature(self) -> bool:
         """Return whether the running law estimates a curvature that is not received."""
-        return (self.core.law_name == 'cg_compensated'
-                and getattr(self.core.law, 'state_filter', None) is not None)
+        return self.core.law_name == 'cg_compensated'
 
     def diagnostics(self) -> DiagnosticStatus:
         """
@@ -557,7 +556,7 @@ class ControllerNode(LifecycleNode):
         if self.curvature_lost:
             level = max(level, DiagnosticStatus.WARN)
             reasons.append('road_curvature lost: ' + (
-                "the curvature is estimated by law cg_compensated's state filter"
+                'the curvature is estimated by law cg_compensated'
                 if estimates else 'no curvature feed-forward'))
         for key in ('rejected', 'saturated', 'rate_limited', 'low_speed', 'd_v_clamped',
                     'time_jumps', 'law_restarts'):
@@ -592,11 +591,11 @@ class ControllerNode(LifecycleNode):
         if turning['turning_without_curvature'] >= TURNING_WARN:
             level = max(level, DiagnosticStatus.WARN)
             what = ('the curvature is estimated from the yaw rate and the relative yaw by law '
-                    "cg_compensated's state filter (R 400 m at 37 m/s: about 40 cm peak, "
-                    'no preview)' if estimates else
+                    'cg_compensated (R 400 m at 37 m/s: about 40 cm peak, no preview)'
+                    if estimates else
                     f'law {self.core.law_name} takes the road as straight (R 400 m at 37 '
-                    'm/s: the CG settles metres outside the curve; law cg_compensated with '
-                    'lane_keeping.state_filter kalman estimates the curvature)')
+                    'm/s: the CG settles metres outside the curve; law cg_compensated '
+                    'estimates the curvature)')
             reasons.append(f'turning without road_curvature for '
                            f'{turning["turning_without_curvature"]:.2f} s: {what} '
                            '(docs/vehicle_bridge.md)')
