@@ -48,6 +48,16 @@ its measurements, and ``v_y`` is estimated from the lateral error, ``eps_r`` and
 from the steady cornering value at the measured ``r``, ``(l_2 - eta v_x^2) r``. A car
 standing straight (both exactly 0, a noise-free simulation) keeps the full gain.
 
+Without a road curvature (``step(..., estimating=True)``: none received, or lost) the
+filter runs a variant with the curvature as a seventh state, a random walk of the road's
+lateral acceleration ``v_x^2 rho`` (``curvature_drift``; :func:`curvature_model`), with
+its own steady gains (7x4, with and without ``v_y``); ``state.rho`` is ignored and the
+estimate is returned as ``rho`` (``rho_rate`` 0). With a curvature received everything
+is as without the variant, bit for bit (the seventh state is set to the curvature
+received, so an estimate starts from the last one). A restart while estimating starts
+it from ``r / v_x`` (a steady turn); below ``min_speed`` the last estimate above it is
+returned (none yet: ``r / max(v_x, min_speed)``); within ``+-MAX_CURVATURE``.
+
 Safety: a non-finite measurement passes through (the law refuses it) and the filter
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
 finite, ``> max_gap``, decided by the law) restarts it; ``dt = 0`` advances nothing and
