@@ -377,3 +377,26 @@ def test_without_the_state_filter_the_curvature_is_estimated_too():
     assert np.max(np.abs(result['y_cg'])) < 0.5
     assert result.law.law.state_filter is None
     assert result.law.law.curvature_filter is not None
+
+
+def test_a_batch_with_a_preview_estimates_only_where_no_curvature_is_received():
+    from lookahead_control.core.laws import Preview
+    rho = -1 / 400.0
+    v_y, r, eps_r = _turn(30.0, rho)
+    distances = np.array([0.0, 10.0, 50.0])
+    ahead = np.array([rho, 1.5 * rho, 2.0 * rho])
+    batch = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    singles = [CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+               for _ in range(2)]
+    for k in range(200):
+        received = np.array([True, k < 80 or k >= 140])
+        states = LateralState(np.full(2, 0.01), np.full(2, eps_r), np.full(2, v_y),
+                              np.full(2, r), np.full(2, 30.0), np.zeros(2),
+                              np.where(received, rho, 0.0), np.zeros(2))
+        batch.note_curvature(received)
+        both = batch.step(states, Preview(distances, np.stack([ahead, ahead], axis=1)), 0.01)
+        for i, single in enumerate(singles):
+            single.note_curvature(bool(received[i]))
+            one = single.step(LateralState(*(float(v[i]) for v in states)),
+                              Preview(distances, ahead), 0.01)
+            assert both.steering[i] == one.steering
