@@ -363,6 +363,11 @@ def test_a_speed_read_as_zero_holds_the_last_estimate():
         f.step(state, 0.01, True)
     out = f.step(state._replace(v_x=0.0), 0.01, True)
     assert out.rho == pytest.approx(rho, rel=0.02)
+    # crawling straight after the curve (r = 0): the path's 0, not the old curve
+    assert f.step(state._replace(v_x=2.0, r=0.0), 0.01, True).rho == 0.0
+    # a tighter turn at crawling speed: no more than the last estimate
+    assert f.step(state._replace(v_x=2.0, r=-0.2), 0.01, True).rho == pytest.approx(
+        rho, rel=0.02)
     # never above the floor: the path the car drives at the floor speed, bounded
     fresh = KalmanStateFilter(VEHICLE)
     out = fresh.step(state._replace(v_x=0.0, r=5.0), 0.01, True)

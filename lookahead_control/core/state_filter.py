@@ -56,7 +56,8 @@ estimate is returned as ``rho`` (``rho_rate`` 0). With a curvature received ever
 is as without the variant, bit for bit (the seventh state is set to the curvature
 received, so an estimate starts from the last one). A restart while estimating starts
 it from ``r / v_x`` (a steady turn); below ``min_speed`` the last estimate above it is
-returned (none yet: ``r / max(v_x, min_speed)``); within ``+-MAX_CURVATURE``.
+returned, but no more than ``r / max(v_x, min_speed)`` in the same direction (0 in the
+other; none yet: ``r / max(v_x, min_speed)``); within ``+-MAX_CURVATURE``.
 
 Safety: a non-finite measurement passes through (the law refuses it) and the filter
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
@@ -503,7 +504,8 @@ class KalmanStateFilter:
         self.time = 0.0
         self.rho: Real = 0.0
         #: the last curvature of a step above ``min_speed`` (estimated or received): the
-        #: estimate below it (a speed read as 0 for a moment must not make ``r / v_x``)
+        #: bound of the estimate below it (a speed read as 0 for a moment must not make
+        #: ``r / min_speed``)
         self.held_rho: Real = math.nan
         self.restarts = 0
         #: steps longer than ``MAX_PERIOD`` (restarts from the measurement)
@@ -817,10 +819,14 @@ class KalmanStateFilter:
         out = state._replace(y_cg=x[0], eps_r=x[1], v_y=x[2], r=x[3])
         if estimating is None:
             return out
-        # below min_speed the last estimate above it (none yet: the path the car drives,
-        # the speed taken as at least min_speed)
-        held = _select(np.isfinite(self.held_rho), self.held_rho, self._path_curvature(state))
-        rho = _select(fast, _bounded(self.x[6]), _bounded(held))
+        # below min_speed: the path the car drives (the speed taken as at least
+        # min_speed), but no more than the last estimate above it in the same direction
+        # (a speed read as 0 for a moment; a car crawling straight after a curve: 0)
+        path = self._path_curvature(state)
+        held = self.held_rho
+        smaller = _select(np.abs(held) <= np.abs(path), held, path)
+        low = _select(np.isfinite(held), _select(held * path > 0.0, smaller, 0.0 * path), path)
+        rho = _select(fast, _bounded(self.x[6]), _bounded(low))
         return out._replace(rho=_select(estimating, rho, state.rho))
 
     def curvature(self) -> Real:
