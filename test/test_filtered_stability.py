@@ -190,3 +190,7 @@ def test_tool_reports_both_robust_checks(capsys, tmp_path):
     assert 'certificate covers the law on exact states' in out
     data = json.loads(path.read_text())
     assert data['robust_filtered']['cases'] == 486 and data['robust_filtered']['holds']
+    # dev-rho: the loop with the curvature estimated (no road_curvature received)
+    assert 'Kalman estimate, curvature estimated | 0.9969' in out
+    assert 'with the curvature estimated HOLDS' in out
+    assert data['robust_curvature_estimated']['cases'] == 486

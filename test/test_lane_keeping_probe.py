@@ -23,6 +23,7 @@ held are checked against values worked out independently (by hand from the
 single-track equations, Fiala's force by root finding).
 """
 
+import dataclasses
 import math
 
 from lookahead_control.core.control_law import LateralState
@@ -99,8 +100,10 @@ def test_lost_curvature_leaves_no_trace_in_the_preview(law):
     # docs/safety.md: a lost road_curvature means curvature 0 (no feed-forward). Old
     # code: the state's rho was 0 but the preview kept the last curvature, so
     # cg_compensated still fed R = 100 m forward (f_v = 9, 0.09 rad on a straight
-    # state), pure pursuit steered 0.017 rad.
-    core = _core(law, lane_keeping=NO_LEARNING)
+    # state), pure pursuit steered 0.017 rad. (dev-rho: cg_compensated now estimates a
+    # lost curvature, here the straight the yaw rate 0 says, and blends the switch-over
+    # out over lane_keeping.curvature_blend: 0 here to see the estimate at once.)
+    core = _core(law, lane_keeping=dataclasses.replace(NO_LEARNING, curvature_blend=0.0))
     for k in range(10):
         _feed(core, (1000 + 10 * k) * MS, y=0.0, rho=-0.01)
         core.compute((1000 + 10 * k) * MS)
@@ -110,8 +113,12 @@ def test_lost_curvature_leaves_no_trace_in_the_preview(law):
         command = core.compute(stamp)
     assert core.curvature_lost(1590 * MS)
     assert core.preview(1590 * MS).curvatures.tolist() == [0.0]
-    assert command.law.steering == 0.0
-    assert command.law.f_v == 0.0
+    if law == 'cg_compensated':
+        assert core.law.curvature_estimated()
+        assert abs(command.law.steering) < 1e-3 and abs(command.law.f_v) < 0.05
+    else:
+        assert command.law.steering == 0.0
+        assert command.law.f_v == 0.0
 
 
 def test_node_gives_the_law_its_preview_without_use_curvature_preview():

@@ -711,6 +711,9 @@ class SteeringController:
                 self.turning['turning_without_curvature'] += dt
             if float(state.v_y) == 0.0:
                 self.turning['v_y_exactly_zero'] += dt
+        note_curvature = getattr(self.law, 'note_curvature', None)
+        if note_curvature is not None:      # a law that estimates a missing curvature
+            note_curvature(self.curvature is not None and not self.curvature_lost(now_ns))
         resets = getattr(self.law, 'resets', 0)
         causes = dict(getattr(self.law, 'restart_causes', {}))
         law = self.law.step(state, self.preview(now_ns), dt)

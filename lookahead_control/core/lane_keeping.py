@@ -103,7 +103,12 @@ class LaneKeepingParams:
         this lateral jerk ``v_x^2 rho'`` (a curvature step in the map would be an
         impulse); 0: no clip [m/s^3].
     :param state_filter: ``kalman``: the law sees the Kalman filter's estimate of
-        ``y_cg, eps_r, v_y, r`` (``core/state_filter.py``); ``none``: the measurements.
+        ``y_cg, eps_r, v_y, r`` (``core/state_filter.py``), and of the road curvature
+        while none is received; ``none``: the measurements (while no curvature is
+        received the same filter runs for the curvature estimate alone).
+    :param curvature_blend: when the curvature starts or stops arriving, the law moves
+        from the curvature it used to the new one (received or estimated) linearly over
+        this time [s]; 0: at once.
     :param filter_min_speed: ... (and the ``filter_*`` below): the filter's settings,
         :class:`~lookahead_control.core.state_filter.StateFilterParams` without the
         ``filter_`` prefix.
@@ -128,6 +133,7 @@ class LaneKeepingParams:
     design_friction: float = 1.0
     max_lateral_jerk: float = 10.0
     state_filter: str = 'kalman'
+    curvature_blend: float = 0.5
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
     filter_delay: float = 0.02
@@ -138,6 +144,7 @@ class LaneKeepingParams:
     filter_force_noise: float = 100.0
     filter_force_drift: float = 2000.0
     filter_kinematic_noise: float = 0.01
+    filter_curvature_drift: float = 0.5
 
     def __post_init__(self) -> None:
         check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,
@@ -175,6 +182,8 @@ class LaneKeepingParams:
         check_range('lane_keeping.design_friction', self.design_friction, 0.0, 2.0)
         check_range('lane_keeping.max_lateral_jerk', self.max_lateral_jerk, 0.0, 1000.0,
                     unit='m/s^3')
+        check_range('lane_keeping.curvature_blend', self.curvature_blend, 0.0, 10.0,
+                    unit='s')
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
@@ -408,6 +417,19 @@ class CgCompensatedLaw:
             st.compliance_prior, st.compliance_range, st.design_friction)
         self.state_filter = (KalmanStateFilter(vehicle, st.filter_settings())
                              if st.state_filter == 'kalman' else None)
+        #: no curvature received (set by :meth:`note_curvature`; an array over a batch)
+        self.estimating: Any = False
+        #: with ``state_filter: none``, the filter run for the curvature alone (made at the
+        #: first step without one, then run on: a curvature going and coming again finds
+        #: it converged; its estimate is used only while none is received)
+        self.curvature_filter: Optional[KalmanStateFilter] = None
+        self._was_estimating: Any = None
+        self._blend_offset: Real = 0.0      # curvature left to blend out at the switch
+        self._blend_left: Real = 0.0        # its time left [s]
+        self._rho_used: Real = 0.0          # the curvature at the CG the last step used
+        self._blending: Optional[Real] = None   # the offset the present step adds
+        self._changed: Any = False              # the runs that switched at this step
+        self._steer_offset: Real = 0.0          # command jump to blend out at the switch
         self.resets = 0
         #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
         #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
@@ -422,7 +444,33 @@ class CgCompensatedLaw:
         self.estimator.reset()
         if self.state_filter is not None:
             self.state_filter.reset()
+        self.curvature_filter = None
+        self._was_estimating = None
+        self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self.resets += 1
+
+    def note_curvature(self, received: Any) -> None:
+        """
+        Say whether a road curvature is received for the next steps.
+
+        Without one (never received, or lost) the state filter estimates it and the law
+        uses the estimate at the CG where it would use the received curvature (the
+        feed-forward and the reference; no preview). With ``state_filter: none`` a filter
+        runs for that estimate alone while none is received (the law keeps the
+        measurements of the rest).
+
+        :param received: True, False, or a boolean array over a batch.
+        """
+        self.estimating = (~np.asarray(received, dtype=bool)
+                           if isinstance(received, np.ndarray) else not received)
+
+    def curvature_estimated(self) -> bool:
+        """
+        Return whether the law runs on an estimated curvature (filter on, none received).
+
+        :return: whether it does (for any run of a batch).
+        """
+        return bool(np.count_nonzero(self.estimating))
 
     def note_limited(self, cut: bool) -> None:
         """
@@ -444,6 +492,8 @@ class CgCompensatedLaw:
         """
         if self.state_filter is not None:
             self.state_filter.correct(angle)
+        if self.curvature_filter is not None:
+            self.curvature_filter.correct(angle)
 
     def compliance(self) -> Real:
         """
@@ -473,9 +523,15 @@ class CgCompensatedLaw:
             self.reset()
             self.restart_causes['gap'] += 1
             dt = 0.0
+        estimating = self.estimating
         if self.state_filter is not None:
-            state = self.state_filter.step(state, dt)
+            state = self.state_filter.step(state, dt, estimating)
+        elif self.curvature_filter is not None or np.count_nonzero(estimating):
+            state = self._estimate_curvature(state, dt, estimating)
+        if estimating is True:          # no preview without a curvature
+            preview = None
         v_x = xp.maximum(state.v_x, self.controller.min_speed)
+        state = self._blend(state, estimating, dt)
         slope = state.rho_rate / v_x
         distances = getattr(preview, 'distances', None)
         curvatures = getattr(preview, 'curvatures', None)
@@ -483,6 +539,12 @@ class CgCompensatedLaw:
                                                v_x * s.reference_preview, state.rho, slope)
         rho_ff, slope_ff = preview_curvature(distances, curvatures,
                                              v_x * s.feedforward_preview, state.rho, slope)
+        if isinstance(estimating, np.ndarray) and np.count_nonzero(estimating):
+            rho_ref, slope_ref, rho_ff, slope_ff = (
+                xp.where(estimating, state.rho, rho_ref), xp.where(estimating, 0.0, slope_ref),
+                xp.where(estimating, state.rho, rho_ff), xp.where(estimating, 0.0, slope_ff))
+        if self._blending is not None:  # the preview moves with the curvature at the CG
+            rho_ref, rho_ff = rho_ref + self._blending, rho_ff + self._blending
         lead_rate = None
         if s.max_lateral_jerk > 0.0:
             # a curvature step in the map is an impulse of curvature rate no steering can
@@ -505,15 +567,31 @@ class CgCompensatedLaw:
                                  compliance=secant, rate_feedforward=s.rate_feedforward,
                                  tangent_compliance=tangent, gains=loop_gains(s, v_x),
                                  lead_rate=lead_rate)
+        if self._blending is not None:
+            # what the curvature does not carry (its rate, the preview) blends on the
+            # command: the jump at the switch-over taken out over the same time
+            jump = self.last_steering - out.steering
+            self._steer_offset = xp.where(self._changed, xp.where(_finite(jump), jump, 0.0),
+                                          self._steer_offset)
+            left = self._blend_left
+            out = out._replace(steering=out.steering + xp.where(
+                left > 0.0, self._steer_offset * (left / s.curvature_blend), 0.0))
         finite = _finite(out.steering)
         if self.state_filter is not None:
             self.state_filter.command(out.steering)
+        if self.curvature_filter is not None:
+            self.curvature_filter.command(out.steering)
+        self._rho_used = state.rho
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)
             self.last_steering = np.where(finite, out.steering, 0.0)
+            if self._blending is not None:
+                self._blend_left = np.where(finite, self._blend_left, 0.0)
             self.estimator.forget(~finite)
             if self.state_filter is not None:
                 self.state_filter.forget(~finite)
+            if self.curvature_filter is not None:
+                self.curvature_filter.forget(~finite)
             self.restart_causes['non_finite'] += int(np.count_nonzero(~finite))
         elif not finite:
             self.reset()
@@ -521,6 +599,50 @@ class CgCompensatedLaw:
         else:
             self.integral, self.last_steering = integral, out.steering
         return out
+
+    def _estimate_curvature(self, state: LateralState, dt: float,
+                            estimating: Any) -> LateralState:
+        """
+        Return the measured state with the curvature estimated (``state_filter: none``).
+
+        The filter starts with its actuator at the last command (the commands before it
+        were not recorded) and from the next measurement.
+        """
+        if self.curvature_filter is None:
+            self.curvature_filter = KalmanStateFilter(self.vehicle,
+                                                      self.settings.filter_settings())
+            self.curvature_filter.held = self.last_steering
+            self.curvature_filter.wheel = self.last_steering
+        estimate = self.curvature_filter.step(state, dt, estimating)
+        return state._replace(rho=estimate.rho, rho_rate=estimate.rho_rate)
+
+    def _blend(self, state: LateralState, estimating: Any, dt: float) -> LateralState:
+        """
+        Return the state with the curvature moved from the one used at a switch-over.
+
+        When the curvature starts or stops arriving, the difference between the
+        curvature used at the last step and the new one (at the CG) is added and taken
+        out linearly over ``curvature_blend``: no jump of the reference or the
+        feed-forward. Sets ``_blending`` to the offset added (None: nothing to blend).
+        """
+        self._blending = None
+        before = self._was_estimating
+        self._was_estimating = estimating
+        span = self.settings.curvature_blend
+        if before is None or span <= 0.0:
+            return state
+        changed = estimating != before
+        self._changed = changed
+        if not np.count_nonzero(changed) and not np.count_nonzero(self._blend_left):
+            return state
+        if np.count_nonzero(changed):
+            jump = self._rho_used - state.rho
+            self._blend_offset = xp.where(changed, xp.where(_finite(jump), jump, 0.0),
+                                          self._blend_offset)
+        self._blend_left = xp.where(changed, span, xp.maximum(self._blend_left - dt, 0.0))
+        left = self._blend_left
+        self._blending = xp.where(left > 0.0, self._blend_offset * (left / span), 0.0)
+        return state._replace(rho=state.rho + self._blending)
 
 
 def _finite(x: Real) -> Any:

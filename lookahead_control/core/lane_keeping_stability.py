@@ -61,23 +61,29 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   with the law acting on the Kalman filter's estimate (``core/state_filter.py``: its
   model is the design vehicle, its gain ``steady_gain`` at the loop's period and speed,
   its own actuator model and command buffer; with ``v_y_measured=False`` the gain
-  without ``v_y``, a bridge that sends 0), and :func:`robust_check` takes either.
+  without ``v_y``, a bridge that sends 0; with ``curvature_estimated=True`` the filter
+  with the curvature state and the law on its estimate, ``delta = K x_hat + k_rho
+  rho_hat`` (:func:`curvature_gain`), no ``road_curvature`` received), and
+  :func:`robust_check` takes either.
 - The varying-speed certificate covers the law on exact states only; the filter is
   covered by the sampled check, at frozen speeds.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 import itertools
 from typing import NamedTuple, Optional
 
-from lookahead_control.core.lane_keeping import LaneKeepingParams, loop_gains
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.lane_keeping import (cg_compensated_law, LaneKeepingParams,
+                                                 loop_gains)
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
-from lookahead_control.core.state_filter import (continuous_model, expm, MAX_SUBSTEP,
-                                                 measurement_matrix, StateFilterParams,
-                                                 steady_gain)
+from lookahead_control.core.state_filter import (continuous_model, curvature_model, expm,
+                                                 MAX_SUBSTEP, measurement_matrix,
+                                                 StateFilterParams, steady_gain)
 import numpy as np
 import numpy.typing as npt
 
@@ -133,6 +139,35 @@ def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
     error = y_v + np.array([0.0, 0.0, 0.0, 0.0, 1.0])           # y_ref = -I
     error_rate = y_v_rate + np.array([k_i, 0.0, 0.0, 0.0, 0.0])  # y_ref' = -k_i y_cg
     return np.asarray((-f_v - k_p * error - k_d * error_rate) / beta_1)
+
+
+def curvature_gain(vehicle: VehicleParams, controller: ControllerParams,
+                   settings: LaneKeepingParams, v_x: float) -> float:
+    """
+    Return ``k_rho`` with ``delta = K x + k_rho rho`` (the law's terms in the curvature).
+
+    The curvature at the CG enters ``y_v'`` (``-d_v v_x rho``), the drift term's road
+    terms and the reference ``d_v eps_ss(v_x, rho)`` (the model's ``eta``); with an
+    estimated curvature all three take the estimate (no preview, no rate). Evaluated on
+    the law itself (it is linear in ``rho`` at a constant compliance).
+
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the law's gains.
+    :param v_x: speed [m/s].
+    :return: the gain [rad m].
+    """
+    law_controller = replace(controller, natural_frequency=settings.natural_frequency,
+                             damping_ratio=settings.damping_ratio)
+    gains = loop_gains(settings, v_x)
+
+    def steering(rho: float) -> float:
+        state = LateralState(0.0, 0.0, 0.0, 0.0, v_x, 0.0, rho, 0.0)
+        out = cg_compensated_law(state, vehicle, law_controller, rho, 0.0, rho, 0.0,
+                                 gains=gains)
+        return float(out.steering)
+
+    return steering(1.0) - steering(0.0)
 
 
 def plant_matrices(plant: VehicleParams, v_x: float) -> tuple[Matrix, Matrix]:
@@ -458,7 +493,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
                   lag: float = 0.05, delay_steps: int = 2,
                   filter_settings: Optional[StateFilterParams] = None,
                   filter_vehicle: Optional[VehicleParams] = None,
-                  v_y_measured: bool = True) -> Matrix:
+                  v_y_measured: bool = True, curvature_estimated: bool = False) -> Matrix:
     """
     Return the one-period matrix of the sampled loop with the law on the filter's estimate.
 
@@ -487,6 +522,9 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     :param filter_vehicle: the filter's model (None: the design vehicle).
     :param v_y_measured: False: a bridge without ``v_y`` (``linear.y`` exactly 0 while
         turning): the filter's gain is the one without ``v_y`` at every step.
+    :param curvature_estimated: no ``road_curvature`` received: the filter has the
+        curvature state (``curvature_model``, its gain) and the law uses its estimate
+        (:func:`curvature_gain`); the true road is straight.
     :return: the square one-step matrix.
     """
     fs = filter_settings or settings.filter_settings()
@@ -496,17 +534,22 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     n = a_c.shape[0]
     # the filter's prediction: its 6 states and its wheel, substeps as the node's
     a_f, b_f, _ = continuous_model(model, v_x)
+    ns = 6                              # the filter's states (7 with the curvature)
+    if curvature_estimated:
+        a_f, _ = curvature_model(model, v_x)
+        b_f = np.vstack([b_f, np.zeros((1, 2))])
+        ns = 7
     wheel = fs.actuator_lag > 0.0
-    nf = 7 if wheel else 6
+    nf = ns + 1 if wheel else ns
     a_w = np.zeros((nf, nf))
-    a_w[:6, :6] = a_f
+    a_w[:ns, :ns] = a_f
     b_w = np.zeros((nf, 1))
     if wheel:
-        a_w[:6, 6] = b_f[:, 0]
-        a_w[6, 6] = -1.0 / fs.actuator_lag
-        b_w[6, 0] = 1.0 / fs.actuator_lag
+        a_w[:ns, ns] = b_f[:, 0]
+        a_w[ns, ns] = -1.0 / fs.actuator_lag
+        b_w[ns, 0] = 1.0 / fs.actuator_lag
     else:
-        b_w[:6, 0] = b_f[:, 0]
+        b_w[:ns, 0] = b_f[:, 0]
     count = max(1, int(np.ceil(period / MAX_SUBSTEP - 1e-9)))
     fastest = max((model.c_f + model.c_r) / (model.mass * fs.min_speed),
                   (model.c_f * model.l1 ** 2 + model.c_r * model.l2 ** 2)
@@ -524,12 +567,14 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     i_est = n + 1
     i_buf = i_est + nf
     size = i_buf + depth
-    gain = steady_gain(model, fs, v_x, period, v_y_measured)
-    h_model = measurement_matrix(model)
+    gain = steady_gain(model, fs, v_x, period, v_y_measured, curvature_estimated)
+    h_model = measurement_matrix(model, ns)
     k = feedback_gain(vehicle, controller, settings, v_x)
     law = np.zeros((1, size))                   # u_k over s_k
     law[0, i_est:i_est + 4] = k[:4]
     law[0, i_int] = k[4]
+    if curvature_estimated:
+        law[0, i_est + 6] = curvature_gain(vehicle, controller, settings, v_x)
 
     def command(age: int) -> Matrix:
         """Return u_k-age as a row over s_k."""
@@ -555,7 +600,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     h_true[1, 1], h_true[2, 2], h_true[3, 3] = 1.0, 1.0, 1.0
     measured = h_true @ m[:n, :]
     posterior = prior.copy()
-    posterior[:6] = prior[:6] + gain @ (measured - h_model @ prior[:6])
+    posterior[:ns] = prior[:ns] + gain @ (measured - h_model @ prior[:ns])
     m[i_est:i_est + nf, :] = posterior
     m[i_buf, :] = law[0]
     for j in range(1, depth):
@@ -650,7 +695,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                  lag: float = 0.05, filtered: bool = False,
                  filter_vehicle: Optional[VehicleParams] = None,
                  filter_settings: Optional[StateFilterParams] = None,
-                 v_y_measured: bool = True) -> RobustResult:
+                 v_y_measured: bool = True,
+                 curvature_estimated: bool = False) -> RobustResult:
     """
     Check the sampled loop over a grid of plant mismatch, speed and delay.
 
@@ -675,6 +721,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
     :param filter_settings: the filter's settings when filtered (None: ``settings``').
     :param v_y_measured: when filtered, False: the filter without ``v_y`` (a bridge that
         sends ``linear.y = 0``) at every step.
+    :param curvature_estimated: when filtered, True: no ``road_curvature``, the filter
+        estimates it and the law uses the estimate (:func:`filtered_loop`).
     :return: the worst case.
     """
     worst, where, cases = -np.inf, {}, 0
@@ -689,7 +737,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                                      period=period, lag=lag, delay_steps=steps,
                                      filter_vehicle=filter_vehicle,
                                      filter_settings=filter_settings,
-                                     v_y_measured=v_y_measured)
+                                     v_y_measured=v_y_measured,
+                                     curvature_estimated=curvature_estimated)
         else:
             radius = discrete_radius(vehicle, controller, settings, v, plant=plant,
                                      period=period, lag=lag, delay_steps=steps)

@@ -118,10 +118,14 @@ LANE_KEEPING_SPECS = tuple(
         ('max_lateral_jerk', 'the rate feedforward sees at most this lateral jerk '
          '(a curvature step in the map is not followed as an impulse); 0: no limit '
          '[m/s^3]', 0.0, 1000.0),
+        ('curvature_blend', 'when road_curvature starts or stops arriving, the curvature '
+         'used moves to the new one (received or estimated) over this time; 0: at once '
+         '[s]', 0.0, 10.0),
     )) + (
     Spec('lane_keeping.state_filter', LaneKeepingParams().state_filter,
-         'kalman: the law uses the estimate of y_cg, eps_r, v_y, r of the Kalman filter '
-         '(docs/lane_keeping.md, State filter); none: the measurements',
+         'kalman: the law uses the estimate of y_cg, eps_r, v_y, r of the Kalman filter, '
+         'and of the road curvature while none is received (docs/lane_keeping.md, State '
+         'filter); none: the measurements (curvature 0 while none is received)',
          choices=FILTER_MODES),
 ) + tuple(
     Spec(f'lane_keeping.filter_{name}', getattr(LaneKeepingParams(), f'filter_{name}'),
@@ -139,6 +143,9 @@ LANE_KEEPING_SPECS = tuple(
         ('force_drift', 'random walk of the axle-force disturbances; at least 1: 0 would '
          'never correct them, a closed-loop pole at 1 [N/sqrt(s)]', 1.0, 1e7),
         ('kinematic_noise', 'white noise on the rate of y_cg [m/sqrt(s)]', 0.0, 10.0),
+        ('curvature_drift', 'random walk of the road lateral acceleration v_x^2 rho, for '
+         'the curvature estimate while no road_curvature is received [m/s^2.5]', 1e-4,
+         100.0),
     ))
 
 BASELINE_SPECS = (

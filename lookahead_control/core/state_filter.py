@@ -48,6 +48,17 @@ its measurements, and ``v_y`` is estimated from the lateral error, ``eps_r`` and
 from the steady cornering value at the measured ``r``, ``(l_2 - eta v_x^2) r``. A car
 standing straight (both exactly 0, a noise-free simulation) keeps the full gain.
 
+Without a road curvature (``step(..., estimating=True)``: none received, or lost) the
+filter runs a variant with the curvature as a seventh state, a random walk of the road's
+lateral acceleration ``v_x^2 rho`` (``curvature_drift``; :func:`curvature_model`), with
+its own steady gains (7x4, with and without ``v_y``); ``state.rho`` is ignored and the
+estimate is returned as ``rho`` (``rho_rate`` 0). With a curvature received everything
+is as without the variant, bit for bit (the seventh state is set to the curvature
+received, so an estimate starts from the last one). A restart while estimating starts
+it from ``r / v_x`` (a steady turn); below ``min_speed`` the last estimate above it is
+returned, but no more than ``r / max(v_x, min_speed)`` in the same direction (0 in the
+other; none yet: ``r / max(v_x, min_speed)``); within ``+-MAX_CURVATURE``.
+
 Safety: a non-finite measurement passes through (the law refuses it) and the filter
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
 finite, ``> max_gap``, decided by the law) restarts it; ``dt = 0`` advances nothing and
@@ -90,6 +101,8 @@ MAX_SUBSTEP = 0.01
 #: speed grid of the gain table [m/s] (above its end the last gain is used)
 SPEED_STEP = 1.0
 TOP_SPEED = 80.0
+#: the estimated curvature is kept within this [1/m] (R = 5 m; the node's max_curvature)
+MAX_CURVATURE = 0.2
 Matrix = npt.NDArray[np.float64]
 
 
@@ -109,6 +122,12 @@ class StateFilterParams:
     :param force_drift: random walk of the axle-force disturbances [N / sqrt(s)].
     :param kinematic_noise: white noise on ``y_cg'`` [m / sqrt(s)] (and on ``eps_r'``,
         divided by 10 m): the small-angle kinematics' error.
+    :param curvature_drift: in the variant that estimates the road curvature (no
+        ``road_curvature`` received), the random walk of the road's lateral acceleration
+        ``v_x^2 rho`` [m/s^2.5]: ``rho' = w curvature_drift / v_x^2``. Roads are laid out
+        for a rate of change of the lateral acceleration of 0.3-0.6 m/s^3 along their
+        clothoids (highway design: clothoid length ``L = v^3 / (C R)``), about 0.5 m/s^2
+        over a 1-2 s clothoid.
     """
 
     min_speed: float = 3.0
@@ -121,6 +140,7 @@ class StateFilterParams:
     force_noise: float = 100.0
     force_drift: float = 2000.0
     kinematic_noise: float = 0.01
+    curvature_drift: float = 0.5
 
     def __post_init__(self) -> None:
         limits = {'min_speed': (0.5, 50.0, 'm/s'), 'actuator_lag': (0.0, 2.0, 's'),
@@ -132,7 +152,8 @@ class StateFilterParams:
                   # 0 would never correct the force states: a closed-loop pole at 1
                   # (lane_keeping_stability's filtered check, radius 1.0)
                   'force_drift': (1.0, 1e7, 'N/sqrt(s)'),
-                  'kinematic_noise': (0.0, 10.0, 'm/sqrt(s)')}
+                  'kinematic_noise': (0.0, 10.0, 'm/sqrt(s)'),
+                  'curvature_drift': (1e-4, 100.0, 'm/s^2.5')}
         for item in fields(self):
             low, high, unit = limits[item.name]
             object.__setattr__(self, item.name, check_range(
@@ -173,14 +194,38 @@ def continuous_model(vehicle: VehicleParams, v_x: float) -> tuple[Matrix, Matrix
     return a, b, g
 
 
-def measurement_matrix(vehicle: VehicleParams) -> Matrix:
+def curvature_model(vehicle: VehicleParams, v_x: float) -> tuple[Matrix, Matrix]:
+    """
+    Return ``(A, G)`` of the model with the road curvature as a seventh state.
+
+    ``x = [y_cg, eps_r, v_y, r, F_f, F_r, rho]``, ``rho' = w_rho`` (a random walk):
+    ``eps_r' = r - v_x rho`` takes it from the state instead of an input. ``w`` gains a
+    sixth unit white noise, the curvature's (scaled by ``curvature_drift / v_x^2``: the
+    random walk is the road's lateral acceleration's).
+
+    :param vehicle: the design vehicle.
+    :param v_x: speed [m/s] (> 0).
+    :return: ``A`` (7x7), ``G`` (7x6).
+    """
+    a6, _, g6 = continuous_model(vehicle, v_x)
+    a = np.zeros((7, 7))
+    a[:6, :6] = a6
+    a[1, 6] = -v_x
+    g = np.zeros((7, 6))
+    g[:6, :5] = g6
+    g[6, 5] = 1.0
+    return a, g
+
+
+def measurement_matrix(vehicle: VehicleParams, states: int = 6) -> Matrix:
     """
     Return ``H`` of ``z = H x + n``, ``z = [y_cg + d_s eps_r, eps_r, v_y, r]``.
 
     :param vehicle: the vehicle (``d_s``).
-    :return: ``H`` (4x6).
+    :param states: 6, or 7 with the curvature state (not measured).
+    :return: ``H`` (4 x states).
     """
-    h = np.zeros((4, 6))
+    h = np.zeros((4, states))
     h[0, 0], h[0, 1] = 1.0, vehicle.d_s
     h[1, 1], h[2, 2], h[3, 3] = 1.0, 1.0, 1.0
     return h
@@ -210,7 +255,8 @@ def expm(a: Matrix) -> Matrix:
 
 
 def discrete_model(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
-                   period: float) -> tuple[Matrix, Matrix, Matrix, Matrix]:
+                   period: float, curvature_estimated: bool = False
+                   ) -> tuple[Matrix, Matrix, Matrix, Matrix]:
     """
     Return ``(Phi, Q, H, R)`` of the filter sampled at ``period``.
 
@@ -221,12 +267,18 @@ def discrete_model(vehicle: VehicleParams, settings: StateFilterParams, v_x: flo
     :param settings: the filter's settings.
     :param v_x: speed [m/s].
     :param period: sampling period [s].
+    :param curvature_estimated: the model with the curvature state (:func:`curvature_model`).
     :return: the four matrices.
     """
-    a, _, g = continuous_model(vehicle, v_x)
     s = settings
-    q = np.diag(np.array([s.kinematic_noise, s.force_noise, s.force_noise, s.force_drift,
-                          s.force_drift]) ** 2)
+    noises = [s.kinematic_noise, s.force_noise, s.force_noise, s.force_drift,
+              s.force_drift]
+    if curvature_estimated:
+        a, g = curvature_model(vehicle, v_x)
+        noises.append(s.curvature_drift / (v_x * v_x))
+    else:
+        a, _, g = continuous_model(vehicle, v_x)
+    q = np.diag(np.array(noises) ** 2)
     qc = g @ q @ g.T
     n, h = a.shape[0], period
     block = np.zeros((2 * n, 2 * n))
@@ -237,7 +289,7 @@ def discrete_model(vehicle: VehicleParams, settings: StateFilterParams, v_x: flo
     qd = 0.5 * (qd + qd.T)
     r = np.diag(np.array([s.lateral_noise, s.yaw_noise, s.lateral_velocity_noise,
                           s.yaw_rate_noise]) ** 2)
-    return phi, qd, measurement_matrix(vehicle), r
+    return phi, qd, measurement_matrix(vehicle, a.shape[0]), r
 
 
 def riccati_doubling(phi: Matrix, h: Matrix, q: Matrix, r: Matrix,
@@ -274,9 +326,10 @@ def riccati_doubling(phi: Matrix, h: Matrix, q: Matrix, r: Matrix,
 
 
 def steady_gain(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
-                period: float, v_y_measured: bool = True) -> Matrix:
+                period: float, v_y_measured: bool = True,
+                curvature_estimated: bool = False) -> Matrix:
     """
-    Return the steady-state Kalman gain ``K`` (6x4) at a speed and a sampling period.
+    Return the steady-state Kalman gain ``K`` (6x4, 7x4) at a speed and a sampling period.
 
     The update is ``x = x_prior + K (z - H x_prior)``, ``K = P H^T (H P H^T + R)^-1``.
     Without ``v_y`` among the measurements, its row of ``H`` is dropped and its column of
@@ -287,13 +340,14 @@ def steady_gain(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
     :param v_x: speed [m/s].
     :param period: sampling period [s].
     :param v_y_measured: whether ``v_y`` is measured.
+    :param curvature_estimated: with the curvature state (7 rows).
     :return: ``K``.
     """
-    phi, q, h, r = discrete_model(vehicle, settings, v_x, period)
+    phi, q, h, r = discrete_model(vehicle, settings, v_x, period, curvature_estimated)
     rows = [0, 1, 2, 3] if v_y_measured else [0, 1, 3]
     h, r = h[rows], r[np.ix_(rows, rows)]
     p = riccati_doubling(phi, h, q, r)
-    gain: Matrix = np.zeros((6, 4))
+    gain: Matrix = np.zeros((phi.shape[0], 4))
     gain[:, rows] = np.linalg.solve(h @ p @ h.T + r, h @ p).T
     return gain
 
@@ -336,15 +390,18 @@ class GainTable:
     """
 
     def __init__(self, vehicle: VehicleParams, settings: StateFilterParams,
-                 v_y_measured: bool = True) -> None:
+                 v_y_measured: bool = True, curvature_estimated: bool = False) -> None:
         """
         Create the empty table.
 
         :param vehicle: the design vehicle.
         :param settings: the filter's settings.
         :param v_y_measured: whether ``v_y`` is among the measurements.
+        :param curvature_estimated: with the curvature state (gains of 7 rows).
         """
         self.vehicle, self.settings, self.v_y_measured = vehicle, settings, v_y_measured
+        self.curvature_estimated = curvature_estimated
+        self.states = 7 if curvature_estimated else 6
         count = int(math.ceil((TOP_SPEED - settings.min_speed) / SPEED_STEP)) + 1
         self.speeds: Matrix = settings.min_speed + SPEED_STEP * np.arange(count, dtype=float)
         self.periods: OrderedDict[int, tuple[Matrix, npt.NDArray[np.bool_]]] = OrderedDict()
@@ -361,7 +418,7 @@ class GainTable:
         """
         entry = self.periods.get(bucket)
         if entry is None:
-            entry = (np.full((self.speeds.size, 6, 4), math.nan),
+            entry = (np.full((self.speeds.size, self.states, 4), math.nan),
                      np.zeros(self.speeds.size, dtype=bool))
             self.periods[bucket] = entry
             while len(self.periods) > CACHED_PERIODS:
@@ -372,7 +429,8 @@ class GainTable:
         missing = np.unique(np.asarray(needed))
         for i in missing[~done[missing]]:
             gains[i] = steady_gain(self.vehicle, self.settings, float(self.speeds[i]),
-                                   bucket_period(bucket), self.v_y_measured)
+                                   bucket_period(bucket), self.v_y_measured,
+                                   self.curvature_estimated)
             done[i] = True
             self.solved += 1
         return gains
@@ -380,16 +438,24 @@ class GainTable:
 
 @functools.lru_cache(maxsize=32)
 def gain_table(vehicle: VehicleParams, settings: StateFilterParams,
-               v_y_measured: bool = True) -> GainTable:
+               v_y_measured: bool = True, curvature_estimated: bool = False) -> GainTable:
     """
     Return the gain table of a vehicle and settings (one shared by all filters).
 
     :param vehicle: the design vehicle.
     :param settings: the filter's settings.
     :param v_y_measured: whether ``v_y`` is among the measurements.
+    :param curvature_estimated: with the curvature state.
     :return: the table.
     """
-    return GainTable(vehicle, settings, v_y_measured)
+    return GainTable(vehicle, settings, v_y_measured, curvature_estimated)
+
+
+def _bounded(rho: Real) -> Real:
+    """Return the curvature within ``+-MAX_CURVATURE`` (NaN stays NaN)."""
+    if isinstance(rho, np.ndarray):
+        return np.where(np.isnan(rho), rho, np.clip(rho, -MAX_CURVATURE, MAX_CURVATURE))
+    return rho if math.isnan(rho) else min(max(rho, -MAX_CURVATURE), MAX_CURVATURE)
 
 
 def _select(mask: Any, a: Real, b: Real) -> Real:
@@ -422,6 +488,8 @@ class KalmanStateFilter:
         self.table = gain_table(vehicle, self.settings)
         #: the gains without ``v_y`` (made when first needed)
         self.blind_table: Optional[GainTable] = None
+        #: the gains with the curvature state, with and without ``v_y`` (when needed)
+        self.curvature_tables: list[Optional[GainTable]] = [None, None]
         self.steps_cache: tuple[float, int, float, float, float] = (
             math.nan, 1, 0.0, 0.0, 0.0)
         veh, low = vehicle, self.settings.min_speed
@@ -435,11 +503,17 @@ class KalmanStateFilter:
         self.history: list[tuple[float, Real]] = []
         self.time = 0.0
         self.rho: Real = 0.0
+        #: the last curvature of a step above ``min_speed`` (estimated or received): the
+        #: bound of the estimate below it (a speed read as 0 for a moment must not make
+        #: ``r / min_speed``)
+        self.held_rho: Real = math.nan
         self.restarts = 0
         #: steps longer than ``MAX_PERIOD`` (restarts from the measurement)
         self.long_steps = 0
         #: steps (of any run) that took ``v_y`` as not measured (exactly 0, ``r`` not)
         self.unmeasured_v_y_steps = 0
+        #: steps (of any run) that estimated the road curvature (none received)
+        self.curvature_estimated_steps = 0
 
     def reset(self) -> None:
         """
@@ -449,6 +523,7 @@ class KalmanStateFilter:
         the car's, not the estimate's (a run of a batch restarts the same way).
         """
         self.x = None
+        self.held_rho = math.nan
         self.restarts += 1
 
     def forget(self, where: Any) -> None:
@@ -499,29 +574,68 @@ class KalmanStateFilter:
         return value
 
     def _measured(self, state: LateralState) -> list[Real]:
-        """Return the state as measured: ``y_cg, eps_r, v_y, r`` and no disturbance."""
-        zero = 0.0 * state.y_cg
-        return [state.y_cg, state.eps_r, state.v_y, state.r, zero, zero]
+        """
+        Return the state as measured.
 
-    def _gain(self, v_x: Real, dt: float, blind: Any = False) -> list[list[Real]]:
+        ``y_cg, eps_r, v_y, r``, no disturbance and the curvature received.
+        """
+        zero = 0.0 * state.y_cg
+        return [state.y_cg, state.eps_r, state.v_y, state.r, zero, zero, state.rho]
+
+    def _gain(self, v_x: Real, dt: float, blind: Any = False,
+              estimating: Any = False) -> list[list[Real]]:
         """
         Return ``K`` at the speed and step, interpolated in speed (element by element).
 
         :param v_x: speed [m/s].
         :param dt: the step [s].
         :param blind: where true, the gain without ``v_y`` among the measurements.
-        :return: ``K`` as rows of columns.
+        :param estimating: where true, the gain with the curvature state (7 rows); the
+            others' seventh row is 0 (the curvature is an input).
+        :return: ``K`` as rows of columns (6 rows when no run estimates the curvature).
         """
         count = int(np.count_nonzero(blind))
-        if count == 0:
-            return self._table_gain(self.table, v_x, dt)
         self.unmeasured_v_y_steps += count
+        gain: list[list[Real]] = []
+        estimates = int(np.count_nonzero(estimating))
+        if estimates < np.size(estimating):
+            gain = self._blind_or_not(self.table, self._blind_table, v_x, dt, blind, count)
+        if estimates == 0:
+            return gain
+        self.curvature_estimated_steps += estimates
+        augmented = self._blind_or_not(self._curvature_table(True),
+                                       lambda: self._curvature_table(False),
+                                       v_x, dt, blind, count)
+        if not gain:                    # every run estimates it
+            return augmented
+        zero = [0.0 * v_x] * 4
+        return [[_select(estimating, a, g) for a, g in zip(row_a, row_g)]
+                for row_a, row_g in zip(augmented, gain + [zero])]
+
+    def _blind_table(self) -> GainTable:
+        """Return the table without ``v_y`` (made when first needed)."""
         if self.blind_table is None:
             self.blind_table = gain_table(self.vehicle, self.settings, False)
-        other = self._table_gain(self.blind_table, v_x, dt)
+        return self.blind_table
+
+    def _curvature_table(self, v_y_measured: bool) -> GainTable:
+        """Return a table with the curvature state (made when first needed)."""
+        index = int(v_y_measured)
+        table = self.curvature_tables[index]
+        if table is None:
+            table = gain_table(self.vehicle, self.settings, v_y_measured, True)
+            self.curvature_tables[index] = table
+        return table
+
+    def _blind_or_not(self, table: GainTable, blind_table: Any, v_x: Real, dt: float,
+                      blind: Any, count: int) -> list[list[Real]]:
+        """Return ``table``'s gain, ``blind_table()``'s where ``blind`` holds."""
+        if count == 0:
+            return self._table_gain(table, v_x, dt)
+        other = self._table_gain(blind_table(), v_x, dt)
         if count == np.size(blind):     # every run without v_y: the full gain is not needed
             return other
-        gain = self._table_gain(self.table, v_x, dt)
+        gain = self._table_gain(table, v_x, dt)
         return [[_select(blind, b, g) for b, g in zip(row_b, row_g)]
                 for row_b, row_g in zip(other, gain)]
 
@@ -538,13 +652,13 @@ class KalmanStateFilter:
             gains = self._period_gains(table, bucket, between,
                                        np.concatenate([i.ravel(), i.ravel() + 1]))
             return [[gains[i, row, col] + w * (gains[i + 1, row, col] - gains[i, row, col])
-                     for col in range(4)] for row in range(6)]
+                     for col in range(4)] for row in range(table.states)]
         u = min(max(float(u), 0.0), float(top))
         j = min(int(math.floor(u)), top - 1)
         f = u - j
         gains = self._period_gains(table, bucket, between, [j, j + 1])
         return [[float(gains[j, row, col] + f * (gains[j + 1, row, col] - gains[j, row, col]))
-                 for col in range(4)] for row in range(6)]
+                 for col in range(4)] for row in range(table.states)]
 
     @staticmethod
     def _period_gains(table: GainTable, bucket: int, between: float, needed: Any) -> Matrix:
@@ -556,9 +670,13 @@ class KalmanStateFilter:
         gains: Matrix = lower + between * (upper - lower)
         return gains
 
-    def _predict(self, x: list[Real], dt: float, v_x: Real, rho: Real) -> list[Real]:
+    def _predict(self, x: list[Real], dt: float, v_x: Real, rho: Real,
+                 rho_start: Real) -> list[Real]:
         """
         Integrate the model over ``dt`` (RK4 substeps), the wheel angle exact in between.
+
+        The curvature goes linearly from ``rho_start`` to ``rho`` over the step (the
+        estimated one is constant: ``x[6]`` both, the random walk's prediction).
 
         A substep is at most ``MAX_SUBSTEP`` and at most ``1 / lambda`` of the fastest
         tyre mode at ``min_speed`` (RK4 is unstable beyond ``2.8 / lambda``): a long step
@@ -579,10 +697,9 @@ class KalmanStateFilter:
         a_vr = -(cf * l1 - cr * l2) / (m * v_x) - v_x
         a_rv = -(cf * l1 - cr * l2) / (iz * v_x)
         a_rr = -(cf * l1 * l1 + cr * l2 * l2) / (iz * v_x)
-        y, e, v, r, f_f, f_r = x
+        y, e, v, r, f_f, f_r = x[:6]
         v_force = (f_f + f_r) / m
         r_force = (l1 * f_f - l2 * f_r) / iz
-        rho_start = self.rho
         for j in range(count):
             applied = self._applied(self.time + (j + 0.5) * h - s.delay)
             start = self.wheel if s.actuator_lag > 0.0 else applied
@@ -606,17 +723,27 @@ class KalmanStateFilter:
             y, e, v, r = (old + w * (p + 2.0 * q + 2.0 * u + z)
                           for old, p, q, u, z in zip((y, e, v, r), k1, k2, k3, k4))
             self.wheel = wheel[2]
-        return [y, e, v, r, f_f, f_r]
+        return [y, e, v, r, f_f, f_r, x[6]]
 
-    def step(self, state: LateralState, dt: float) -> LateralState:
+    def step(self, state: LateralState, dt: float, estimating: Any = False) -> LateralState:
         """
         Take one measurement and return the estimated state.
 
         :param state: the measured state (``y_cg`` from the sensor's error and ``eps_r``).
         :param dt: time since the previous measurement [s]; the caller restarts the
             filter on a time jump; 0 returns the last estimate.
-        :return: ``state`` with ``y_cg``, ``eps_r``, ``v_y``, ``r`` estimated.
+        :param estimating: where true (a bool, or an array over a batch), no curvature
+            is received (``state.rho`` is ignored): the filter estimates it.
+        :return: ``state`` with ``y_cg``, ``eps_r``, ``v_y``, ``r`` estimated, and where
+            estimating ``rho`` too (``rho_rate`` 0).
         """
+        if not isinstance(estimating, np.ndarray):
+            estimating = bool(estimating)
+        if np.count_nonzero(estimating):
+            # no curvature received: its input is ignored (the node sends 0)
+            state = state._replace(rho=_select(estimating, 0.0 * state.rho, state.rho),
+                                   rho_rate=_select(estimating, 0.0 * state.rho_rate,
+                                                    state.rho_rate))
         measured = self._measured(state)
         good = (np.isfinite(state.y_cg) & np.isfinite(state.eps_r) & np.isfinite(state.v_y)
                 & np.isfinite(state.r) & np.isfinite(state.v_x) & np.isfinite(state.rho))
@@ -626,6 +753,7 @@ class KalmanStateFilter:
         if self.x is None:              # (re)start: every run from its next measurement
             self.x = [math.nan + 0.0 * mv for mv in measured]
             self.rho = state.rho
+        any_estimate = bool(np.count_nonzero(estimating))
         fresh = np.isnan(self.x[0])
         if dt > MAX_PERIOD:
             # beyond the longest period with a well-conditioned gain
@@ -633,8 +761,13 @@ class KalmanStateFilter:
             self.long_steps += 1
         if MAX_PERIOD >= dt > 0.0:
             v_x = _select(fast, state.v_x, self.settings.min_speed)
-            prior = self._predict(self.x, dt, v_x, state.rho)
-            gain = self._gain(v_x, dt, blind)
+            if any_estimate:
+                prior = self._predict(self.x, dt, v_x,
+                                      _select(estimating, self.x[6], state.rho),
+                                      _select(estimating, self.x[6], self.rho))
+            else:
+                prior = self._predict(self.x, dt, v_x, state.rho, self.rho)
+            gain = self._gain(v_x, dt, blind, estimating)
             y, e, v, r = measured[:4]
             innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
                           e - prior[1], v - prior[2], r - prior[3])
@@ -642,9 +775,14 @@ class KalmanStateFilter:
             posterior = [prior[i] + (gain[i][0] * innovation[0] + gain[i][1] * innovation[1]
                                      + gain[i][2] * innovation[2]
                                      + gain[i][3] * innovation[3])
-                         for i in range(6)]
+                         for i in range(len(gain))]
+            if any_estimate:            # the others take the curvature received
+                posterior[6] = _select(estimating, posterior[6], state.rho)
+            else:
+                posterior.append(state.rho)
             self.time += dt
-            self.rho = _select(good, state.rho, self.rho)
+            # the curvature the model used to the end of the step (the next step's start)
+            self.rho = _select(good, _select(estimating, posterior[6], state.rho), self.rho)
         else:                           # the same instant again: nothing advances
             posterior = self.x
         # restarted runs (NaN marks) start from this measurement; without v_y, from the
@@ -655,15 +793,51 @@ class KalmanStateFilter:
             eta = self.vehicle.eta
             cornering = (self.vehicle.l2 - eta * state.v_x * state.v_x) * state.r
             start = [*measured[:2], _select(blind, cornering, measured[2]), *measured[3:]]
+        if any_estimate:
+            # without a curvature, a restart takes the path the car drives (eps_r' = 0)
+            start = [*start[:6], _select(estimating, self._path_curvature(state),
+                                         start[6])]
         self.x = [_select(fast & ~fresh, p, _select(fast, mv, math.nan))
                   for p, mv in zip(posterior, start)]
-        return self._out(state, measured, fast)
+        self.held_rho = _select(fast & np.isfinite(self.x[6]), self.x[6],
+                                self.held_rho + 0.0 * state.rho)
+        return self._out(state, measured, fast, estimating if any_estimate else None)
 
-    def _out(self, state: LateralState, measured: list[Real], fast: Any) -> LateralState:
+    def _path_curvature(self, state: LateralState) -> Real:
+        """Return ``r / v_x`` (the speed at least ``min_speed``), within the bounds."""
+        # (a restart above min_speed: eps_r' = 0 on a steady turn)
+        v_x = state.v_x
+        low = self.settings.min_speed
+        v_x = _select(v_x >= low, v_x, low + 0.0 * v_x)
+        return _bounded(state.r / v_x)
+
+    def _out(self, state: LateralState, measured: list[Real], fast: Any,
+             estimating: Any = None) -> LateralState:
         """Return the estimate where the filter runs, the measurement elsewhere."""
         assert self.x is not None
         x = [_select(fast, est, mv) for est, mv in zip(self.x, measured)]
-        return state._replace(y_cg=x[0], eps_r=x[1], v_y=x[2], r=x[3])
+        out = state._replace(y_cg=x[0], eps_r=x[1], v_y=x[2], r=x[3])
+        if estimating is None:
+            return out
+        # below min_speed: the path the car drives (the speed taken as at least
+        # min_speed), but no more than the last estimate above it in the same direction
+        # (a speed read as 0 for a moment; a car crawling straight after a curve: 0)
+        path = self._path_curvature(state)
+        held = self.held_rho
+        smaller = _select(np.abs(held) <= np.abs(path), held, path)
+        low = _select(np.isfinite(held), _select(held * path > 0.0, smaller, 0.0 * path), path)
+        rho = _select(fast, _bounded(self.x[6]), _bounded(low))
+        return out._replace(rho=_select(estimating, rho, state.rho))
+
+    def curvature(self) -> Real:
+        """
+        Return the curvature the model uses: the estimate or the one received [1/m].
+
+        :return: the curvature (NaN where the filter restarts).
+        """
+        if self.x is None:
+            return math.nan
+        return self.x[6]
 
     def disturbance(self) -> tuple[Real, Real]:
         """

@@ -39,9 +39,10 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                'law (V = x^T P(v) x, A_0^T P + P A_0 = -Q), and the sampled loop over '
                'plant mismatch, actuator lag and delay, with the law on exact states and on '
                'the estimate of the Kalman filter (lane_keeping.state_filter: kalman, the '
-               'default; the exit code counts the filtered check). The varying-speed '
-               'certificate covers the law on exact states only; the sampled check covers '
-               'the filter at frozen speeds', plot=False)
+               'default; the exit code counts the filtered check), and with the filter '
+               'estimating the road curvature (no road_curvature received). The '
+               'varying-speed certificate covers the law on exact states only; the sampled '
+               'check covers the filter at frozen speeds', plot=False)
     add_envelope(p, 271, 'speeds checked from --v-min to --v-max (default 271)')
     p.add_argument('--natural-frequency', type=number(0.0, 100.0, low_open=True,
                                                       unit='rad/s'), default=None,
@@ -63,6 +64,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                        args.samples, a_error=args.a_error)
     robust = robust_check(vehicle, controller, settings)
     filtered = robust_check(vehicle, controller, settings, filtered=True)
+    estimated = robust_check(vehicle, controller, settings, filtered=True,
+                             curvature_estimated=True)
     # the test's value is proportional to (a_max, a_error): the largest factor on both
     # that it certifies (with a_error = 0: the largest |a_x|)
     factor = 1.0 / cert.between if cert.between > 0.0 else float('inf')
@@ -81,6 +84,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
          'value': robust.max_radius, 'passes if': '< 1', 'holds': robust.holds},
         {'check': f'max spectral radius, {filtered.cases} mismatch cases, Kalman estimate',
          'value': filtered.max_radius, 'passes if': '< 1', 'holds': filtered.holds},
+        {'check': f'max spectral radius, {estimated.cases} mismatch cases, Kalman estimate, '
+                  'curvature estimated', 'value': estimated.max_radius, 'passes if': '< 1',
+         'holds': estimated.holds},
     ]
     kinks = (f'kinks at {", ".join(f"{k:.2f}" for k in cert.kinks)} m/s, both sides'
              if cert.kinks else 'no kinks')
@@ -92,13 +98,16 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     print('the certificate covers the law on exact states at varying speed; the sampled '
           'check covers the law on the estimate of the Kalman filter at frozen speeds')
     print(markdown_table(rows))
-    verdict = cert.holds and robust.holds and filtered.holds
+    verdict = cert.holds and robust.holds and filtered.holds and estimated.holds
     print(f'certificate {"HOLDS" if cert.holds else "DOES NOT HOLD"}; robust check '
           f'{"HOLDS" if robust.holds else "DOES NOT HOLD"}; robust check with the filter '
-          f'{"HOLDS" if filtered.holds else "DOES NOT HOLD"}')
+          f'{"HOLDS" if filtered.holds else "DOES NOT HOLD"}; with the curvature '
+          f'estimated {"HOLDS" if estimated.holds else "DOES NOT HOLD"}')
     if args.json:
         write_json(args.json, {'certificate': cert._asdict(), 'robust': robust._asdict(),
-                               'robust_filtered': filtered._asdict(), 'rows': rows})
+                               'robust_filtered': filtered._asdict(),
+                               'robust_curvature_estimated': estimated._asdict(),
+                               'rows': rows})
     return 0 if verdict else 1
 
 
