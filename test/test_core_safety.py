@@ -276,7 +276,10 @@ def _sim_time_run(readings, law='cg_compensated', y_of=None, safety=None, period
     Answer steps stamped ``t_k`` (every ``period``) on a sim clock reading ``readings[k]``.
 
     As in a realtime run on ``use_sim_time``: the /clock of step k may be processed
-    before or after its lateral error, so two answers can see one clock reading.
+    before or after its lateral error, so two answers can see one clock reading. A
+    straight road's curvature (0) comes with every step, as from ``sim_plant``: without
+    it the default law estimates the curvature and its want follows a jump in the
+    lateral error more slowly (these tests are about the rate limit).
     """
     core = SteeringController(VehicleParams(), ControllerParams(), 'imu', True,
                               safety or SafetyParams(), law=law)
@@ -287,11 +290,12 @@ def _sim_time_run(readings, law='cg_compensated', y_of=None, safety=None, period
         t = stamp * 1e-9
         samples = {'yaw': YawSample(stamp, 0.01 * math.cos(0.5 * t), 0.0, 0.0),
                    'velocity': VelocitySample(stamp, 25.0, 0.0),
+                   'road_curvature': CurvatureSample(stamp, 0.0, 0.0),
                    'lateral_error': LateralErrorSample(stamp, 1.96, y_of(t))}
         refused = [core.accept(name, samples[name], now)
-                   for name in ('yaw', 'velocity', 'lateral_error')]
-        assert refused == [None] * 3 or stamp > now + core.safety.max_future * 1e9
-        command = None if refused[2] else core.compute(now)     # as the node
+                   for name in ('yaw', 'velocity', 'road_curvature', 'lateral_error')]
+        assert refused == [None] * 4 or stamp > now + core.safety.max_future * 1e9
+        command = None if refused[3] else core.compute(now)     # as the node
         out.append((command, getattr(core.law, 'cut', None)))
     return out
 
