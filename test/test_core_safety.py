@@ -425,3 +425,25 @@ def test_at_start_up_the_answers_at_the_first_reading_are_limited_on_their_stamp
     assert angles[2] - angles[1] == pytest.approx(-0.001, abs=1e-12)
     # the clock advances 30 ms from the last command at the first reading
     assert angles[3] - angles[2] == pytest.approx(-0.001, abs=1e-12)    # stamps: 10 ms
+
+
+def test_at_start_up_the_stamps_open_the_limit_no_further_than_a_running_clock_would():
+    # sim time before the first /clock (or use_sim_time without one): the clock reads 0
+    # and does not judge the stamps; a flood of lateral errors stamped 1 s apart, the
+    # wanted angle flipping, moved the command by rate x 1 s at every answer, unflagged,
+    # in no time on the node's clock; now the answers at the first reading together
+    # move at most rate x (input_timeout + max_future) from the first command
+    safety = SafetyParams(max_steering_rate=0.1)
+    span = safety.input_timeout + safety.max_future
+    run = _sim_time_run([0] * 12, y_of=lambda t: 2.0 if int(t) % 2 else -2.0,
+                        safety=safety, period=1000 * MS)
+    angles = [c.steering for c, _ in run]
+    path = sum(abs(b - a) for a, b in zip(angles, angles[1:]))
+    assert path == pytest.approx(0.1 * span, rel=1e-9)
+    assert all(c.rate_limited for c, _ in run[1:])
+    # the clock running: the first reading's stamps are judged, the same bound holds
+    now = 100_000 * MS
+    run = _sim_time_run([now] * 4, y_of=lambda t: -2.0 if t < 100.15 else 2.0,
+                        safety=safety, period=100 * MS)
+    angles = [c.steering for c, _ in run if c is not None]
+    assert abs(angles[-1] - angles[0]) <= 0.1 * span + 1e-12
