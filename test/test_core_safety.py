@@ -15,6 +15,7 @@
 """The output limits' reference: the last angle sent and the newest stamp sent."""
 
 import math
+import random
 
 from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
@@ -429,3 +430,78 @@ def test_at_start_up_the_answers_at_the_first_reading_are_limited_on_their_stamp
     assert angles[2] - angles[1] == pytest.approx(-0.001, abs=1e-12)
     # the clock advances 30 ms from the last command at the first reading
     assert angles[3] - angles[2] == pytest.approx(-0.001, abs=1e-12)    # stamps: 10 ms
+
+
+def test_at_start_up_the_stamps_open_the_limit_no_further_than_a_running_clock_would():
+    # sim time before the first /clock (or use_sim_time without one): the clock reads 0
+    # and does not judge the stamps; a flood of lateral errors stamped 1 s apart, the
+    # wanted angle flipping, moved the command by rate x 1 s at every answer, unflagged,
+    # in no time on the node's clock; now the answers at the first reading together
+    # move at most rate x (input_timeout + max_future) from the first command
+    safety = SafetyParams(max_steering_rate=0.1)
+    span = safety.input_timeout + safety.max_future
+    run = _sim_time_run([0] * 12, y_of=lambda t: 2.0 if int(t) % 2 else -2.0,
+                        safety=safety, period=1000 * MS)
+    angles = [c.steering for c, _ in run]
+    path = sum(abs(b - a) for a, b in zip(angles, angles[1:]))
+    assert path == pytest.approx(0.1 * span, rel=1e-9)
+    assert all(c.rate_limited for c, _ in run[1:])
+    # the clock running: the first reading's stamps are judged, the same bound holds
+    now = 100_000 * MS
+    run = _sim_time_run([now] * 4, y_of=lambda t: -2.0 if t < 100.15 else 2.0,
+                        safety=safety, period=100 * MS)
+    angles = [c.steering for c, _ in run if c is not None]
+    assert abs(angles[-1] - angles[0]) <= 0.1 * span + 1e-12
+
+
+def _random_run(seed, rate):
+    """Feed a random hostile sequence; return ``(node clock, stamp, angle, jumps)``s."""
+    rng = random.Random(seed)
+    core = SteeringController(VehicleParams(), ControllerParams(), 'imu', True,
+                              SafetyParams(max_steering_rate=rate),
+                              law=rng.choice(['cg_compensated', 'paper']))
+    now, stamp, sent = rng.choice([0, 100_000 * MS]), 100_000 * MS, []
+    for _ in range(60):
+        draw = rng.random()
+        if draw < 0.3:
+            pass                                            # the clock stands
+        elif draw < 0.4:
+            now = max(0, now - rng.randint(1, 900) * MS) if now else 0     # goes back
+        else:
+            now = now + rng.randint(1, 50) * MS if now else rng.choice([0, 0, 100_000 * MS])
+        stamp += rng.choice([0, 1, 5, 10, 50, 300]) * MS    # frozen, flooding, jumping
+        if rng.random() < 0.15:
+            command = core.safe_command(now)
+        else:
+            command, _ = _live(core, now, stamp, y=rng.choice([-3.0, 3.0, 0.1, -0.1]),
+                               v_x=8.0)
+        if command is not None:
+            sent.append((now, command.stamp_ns, command.steering, core.time_jumps))
+    return sent
+
+
+def test_no_input_sequence_moves_the_command_faster_than_the_rate_limit():
+    # clock standing, going back, running; stamps frozen, flooding, jumping; answers and
+    # watchdog commands: each command within the rate of the last command at an earlier
+    # reading on the node's clock and of the previous one on the newest stamp; a clock
+    # going back (or a time jump) holds; the answers at the first reading move at most
+    # rate x (input_timeout + max_future) in all (was up to 0.63 rad at 0.5 rad/s)
+    rate, span = 0.5, SafetyParams().input_timeout + SafetyParams().max_future
+    for seed in range(200):
+        sent = _random_run(seed, rate)
+        ref, start_path = None, 0.0
+        newest = sent[0][1] if sent else 0
+        for (n0, s0, a0, j0), (n1, s1, a1, j1) in zip(sent, sent[1:]):
+            if j1 != j0 or n1 < n0:
+                assert a1 == a0, seed
+                ref, newest = (n1, a1), s1
+                continue
+            if n1 > n0:
+                ref = (n0, a0)
+            if ref is None:
+                start_path += abs(a1 - a0)
+            else:
+                assert abs(a1 - ref[1]) <= rate * (n1 - ref[0]) * 1e-9 + 1e-12, seed
+            assert abs(a1 - a0) <= rate * max(0, s1 - newest) * 1e-9 + 1e-12, seed
+            newest = max(newest, s1)
+        assert start_path <= rate * span + 1e-12, seed

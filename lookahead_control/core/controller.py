@@ -266,6 +266,8 @@ class SteeringController:
         # the last command sent at a node-clock reading before the latest one: (angle,
         # node clock, steady clock); the rate limit's reference on the node's clock
         self._rate_ref: tuple[Optional[float], int, Optional[int]] = (None, 0, None)
+        # the stamp of the first command ever sent (start-up: see _limited)
+        self._start_stamp = 0
 
     def configure(self, vehicle: VehicleParams, controller: ControllerParams,
                   acceleration_source: str, use_preview: bool,
@@ -586,6 +588,15 @@ class SteeringController:
         # time since the last command on the stamps' axis (newest stamp so far)
         on_stamps = (max(0, stamp_ns - self._rate_time) * 1e-9
                      if self._rate_time is not None else None)
+        if (now_ns is not None and self._rate_time is not None and self._rate_ref[0] is None
+                and now_ns == self._rate_now):
+            # start-up, still at the first reading (no reference on the node's clock):
+            # the stamps count only within the span a running clock lets them have after
+            # the first command's, so a clock reading 0 (not judging them) or a flood of
+            # answers cannot move the command further than the rate times that span
+            span = int((self.safety.input_timeout + self.safety.max_future) * 1e9)
+            on_stamps = max(0, min(stamp_ns, self._start_stamp + span)
+                            - self._rate_time) * 1e-9
         if now_ns is None:
             elapsed = on_stamps if on_stamps is not None else 0.0
             out = limit(wanted, sent, elapsed, v_x, self.vehicle.wheelbase, self.safety)
@@ -611,6 +622,8 @@ class SteeringController:
                         None if ref_angle is None else (ref_angle, elapsed))
             rate = ((out.angle - ref_angle) / elapsed
                     if ref_angle is not None and elapsed > 0.0 else 0.0)
+        if sent is None:
+            self._start_stamp = stamp_ns        # the first command ever: no reference
         self._rate_angle = out.angle
         self._rate_time = stamp_ns if self._rate_time is None else max(self._rate_time,
                                                                        stamp_ns)
