@@ -194,3 +194,42 @@ def test_tool_reports_both_robust_checks(capsys, tmp_path):
     assert 'Kalman estimate, curvature estimated | 0.9969' in out
     assert 'with the curvature estimated HOLDS' in out
     assert data['robust_curvature_estimated']['cases'] == 486
+    # dev-windup: the loop with the integral held (the CG error outside integral_band)
+    assert r'integral held (\|y_cg\| >= integral_band) | 0.9952' in out
+    assert 'with the integral held HOLDS' in out
+    assert data['robust_integral_held']['cases'] == 486
+
+
+@pytest.mark.parametrize('filtered', [False, True])
+def test_the_loop_with_the_integral_held_is_the_loop_without_its_unit_root(filtered):
+    # with k_i = 0 the integral is decoupled: its root is exactly 1 and the others are
+    # the held loop's (the integral's shift of the reference is a constant input, and
+    # the law's reference rate has no k_i y_cg while it is held)
+    plant = dataclasses.replace(VEHICLE, c_r=VEHICLE.c_r * 0.7, mass=VEHICLE.mass * 1.2,
+                                yaw_inertia=VEHICLE.yaw_inertia * 1.2)
+    off = dataclasses.replace(SETTINGS, integral_gain=0.0)
+    for v in (10.0, 15.0, 37.0):
+        if filtered:
+            full = stability.filtered_loop(VEHICLE, CONTROLLER, off, v, plant=plant,
+                                           delay_steps=5)
+            held = stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, v, plant=plant,
+                                           delay_steps=5, integral_frozen=True)
+        else:
+            full_radius = stability.discrete_radius(VEHICLE, CONTROLLER, off, v, plant=plant,
+                                                    delay_steps=5)
+            held_radius = stability.discrete_radius(VEHICLE, CONTROLLER, SETTINGS, v,
+                                                    plant=plant, delay_steps=5,
+                                                    integral_frozen=True)
+            assert full_radius == pytest.approx(1.0, abs=1e-12) and held_radius < 0.999
+            assert held_radius != stability.discrete_radius(
+                VEHICLE, CONTROLLER, SETTINGS, v, plant=plant, delay_steps=5)
+            continue
+        roots = np.linalg.eigvals(full)
+        kept = np.append(np.linalg.eigvals(held), 1.0)
+        assert held.shape[0] == full.shape[0] - 1
+        for a, b in ((roots, kept), (kept, roots)):
+            assert max(np.min(np.abs(b - z)) for z in a) < 1e-9
+    result = stability.robust_check(VEHICLE, CONTROLLER, SETTINGS, filtered=filtered,
+                                    integral_frozen=True)
+    # measured: 0.99459 exact, 0.99517 filtered (37 m/s, C x1.3, mass x0.8, 50 ms)
+    assert result.holds and result.cases == 486 and result.max_radius < 0.996

@@ -153,8 +153,8 @@ def test_integral_resets_on_time_jumps_and_bad_input():
 def test_integral_anti_windup():
     settings = LaneKeepingParams(integral_limit=0.2)
     law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
-    for _ in range(2000):                                      # 20 s at 1 m: clamped
-        law.step(state(y_cg=1.0), EMPTY, 0.01)
+    for _ in range(2000):                                      # 20 s at 0.4 m: clamped
+        law.step(state(y_cg=0.4), EMPTY, 0.01)
     assert law.integral == pytest.approx(0.2)
     law = CgCompensatedLaw(VEHICLE, CONTROLLER)
     law.step(state(y_cg=-30.0), EMPTY, 0.01)                  # saturating command
@@ -163,6 +163,53 @@ def test_integral_anti_windup():
     for _ in range(100):
         law.step(state(y_cg=-30.0), EMPTY, 0.01)
     assert law.integral == frozen
+
+
+def test_the_integral_is_frozen_while_the_cg_error_is_outside_its_band():
+    # a metre-sized error is a transient for the feedback: integrated, it overshot the
+    # lane by 15-45 cm for seconds (dev-probe16)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(state_filter='none'))
+    off = CgCompensatedLaw(VEHICLE, CONTROLLER,
+                           LaneKeepingParams(state_filter='none', integral_gain=0.0))
+    assert law.settings.integral_band == 0.5
+    for y in (0.6, -0.5, 3.0):
+        for _ in range(100):
+            out = law.step(state(y_cg=y), EMPTY, 0.01)
+            # held: no k_i y_cg in the reference's rate either (the law without it)
+            assert out.steering == off.step(state(y_cg=y), EMPTY, 0.01).steering
+        assert law.integral == 0.0
+    for _ in range(100):
+        law.step(state(y_cg=0.4), EMPTY, 0.01)
+    assert law.integral == pytest.approx(0.3 * 0.4 * 1.0)
+    # 0: integrates at any error (the law before the band)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER,
+                           LaneKeepingParams(state_filter='none', integral_band=0.0))
+    for _ in range(100):
+        law.step(state(y_cg=0.6), EMPTY, 0.01)
+    assert law.integral == pytest.approx(0.3 * 0.6 * 1.0)
+    with pytest.raises(ParameterError, match='integral_band'):
+        LaneKeepingParams(integral_band=-0.1)
+
+
+def _engaged_off_centre(speed, band):
+    """Engage the default law 1.75 m off the lane centre (goal plant, straight road)."""
+    from lookahead_control.tools.compare import load_scenarios
+    from sim_plant.sensors import NoiseParams
+    scenario = load_scenarios(['s0_straight'])['s0_straight']
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(integral_band=band))
+    return run(scenario, VEHICLE, law, PlantParams(model='nonlinear'), initial_speed=speed,
+               initial_error=1.75, dt=0.001, delay=0.02, preview_distance=100.0,
+               noise=NoiseParams(), seed=1)['y_cg']
+
+
+@pytest.mark.parametrize('speed, bound', [(20.0, 0.08), (37.0, 0.12)])
+def test_a_car_engaged_half_a_lane_off_does_not_overshoot_the_centre(speed, bound):
+    # measured: 4.3 / 8.3 cm past the centre at 20 / 37 m/s; integrating at any error
+    # (integral_band 0, the law before) 37.2 / 40.2 cm
+    y = _engaged_off_centre(speed, 0.5)
+    assert y[0] == pytest.approx(1.75) and abs(y[-100:]).max() < 0.05
+    assert -y.min() < bound
+    assert -_engaged_off_centre(speed, 0.0).min() > 0.3
 
 
 def test_speed_from_37_to_3_freezes_learning_and_stays_finite():

@@ -402,14 +402,14 @@ def test_an_integral_at_its_clamp_feeds_no_rate_forward():
     assert outputs[1].steering == outputs[0].steering
     law = CgCompensatedLaw(VEHICLE, ControllerParams(),
                            LaneKeepingParams(integral_limit=0.2, state_filter='none'))
-    for _ in range(2000):
-        law.step(LateralState(1.0, 0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0), None, 0.01)
+    for _ in range(2000):       # 0.4 m: inside integral_band (0.5 m), the clamp holds it
+        law.step(LateralState(0.4, 0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0), None, 0.01)
     held = law.integral
     assert held == 0.2
-    out = law.step(LateralState(1.0, 0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0), None, 0.01)
+    out = law.step(LateralState(0.4, 0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0), None, 0.01)
     assert law.integral == held and out.y_ref == -held
-    law.step(LateralState(-1.0, 0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0), None, 0.01)
-    assert law.integral == pytest.approx(held - 0.3 * 0.01)        # back inside: moves
+    law.step(LateralState(-0.4, 0.0, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0), None, 0.01)
+    assert law.integral == pytest.approx(held - 0.3 * 0.4 * 0.01)  # back inside: moves
 
 
 def test_slow_lateral_errors_restart_the_law_and_diagnostics_say_so(context):

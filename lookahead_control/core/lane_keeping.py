@@ -40,7 +40,10 @@ structure (eq. 15) but regulates ``y_v`` to ::
 - ``I`` is the integral of the CG error, ``I' = k_i y_cg``: it removes what the model
   gets wrong (cornering stiffness, tyre saturation, road bank) without knowing the tyre
   model. It is clamped to ``integral_limit`` and frozen while the steering command is
-  at ``steering_limit`` or the speed is below ``integral_min_speed`` (anti-windup), and
+  at ``steering_limit``, the speed is below ``integral_min_speed`` or the CG error is
+  ``integral_band`` or more (anti-windup: a metre-sized error, a car engaged off the lane
+  centre or a wrong curvature for a moment, is a transient for the feedback, not a
+  model error; integrated, it overshot the lane by 15-45 cm for seconds), and
   reset when time jumps (a step of ``dt < 0`` or ``> max_gap``) or an input is not
   finite; ``dt = 0`` (the same measurement evaluated again) advances nothing.
 
@@ -83,6 +86,8 @@ class LaneKeepingParams:
     :param integral_gain: ``k_i`` of the CG-error integral [1/s]; 0 switches it off.
     :param integral_limit: clamp of the integral's shift of the reference [m].
     :param integral_min_speed: below this speed the integral is frozen [m/s].
+    :param integral_band: the integral is frozen while ``|y_cg|`` is this or more [m];
+        0 integrates at any error.
     :param steering_limit: the integral is frozen while ``|delta|`` reaches this [rad].
     :param max_gap: a step longer than this (or negative) is a time jump: the
         integral restarts at 0 [s].
@@ -123,6 +128,7 @@ class LaneKeepingParams:
     integral_gain: float = 0.3
     integral_limit: float = 0.5
     integral_min_speed: float = 5.0
+    integral_band: float = 0.5
     steering_limit: float = 0.5
     max_gap: float = 0.25
     compliance_time_constant: float = 0.5
@@ -168,6 +174,7 @@ class LaneKeepingParams:
         check_range('lane_keeping.integral_limit', self.integral_limit, 0.0, 5.0, unit='m')
         check_range('lane_keeping.integral_min_speed', self.integral_min_speed, 0.0, 50.0,
                     unit='m/s')
+        check_range('lane_keeping.integral_band', self.integral_band, 0.0, 10.0, unit='m')
         check_range('lane_keeping.steering_limit', self.steering_limit, 0.0, 1.5,
                     low_open=True, unit='rad')
         check_range('lane_keeping.max_gap', self.max_gap, 0.0, 10.0, low_open=True,
@@ -557,8 +564,9 @@ class CgCompensatedLaw:
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
             self.estimator.update(state, dt, active, state.v_x >= s.integral_min_speed)
-        rate = xp.where(active & ((xp.absolute(self.integral) < s.integral_limit)
-                                  | (self.integral * state.y_cg < 0.0)),   # held at the clamp
+        inside = (xp.absolute(state.y_cg) < s.integral_band) if s.integral_band > 0.0 else True
+        rate = xp.where(active & inside & ((xp.absolute(self.integral) < s.integral_limit)
+                                           | (self.integral * state.y_cg < 0.0)),
                         s.integral_gain * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref)

@@ -493,7 +493,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
                   lag: float = 0.05, delay_steps: int = 2,
                   filter_settings: Optional[StateFilterParams] = None,
                   filter_vehicle: Optional[VehicleParams] = None,
-                  v_y_measured: bool = True, curvature_estimated: bool = False) -> Matrix:
+                  v_y_measured: bool = True, curvature_estimated: bool = False,
+                  integral_frozen: bool = False) -> Matrix:
     """
     Return the one-period matrix of the sampled loop with the law on the filter's estimate.
 
@@ -525,9 +526,14 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     :param curvature_estimated: no ``road_curvature`` received: the filter has the
         curvature state (``curvature_model``, its gain) and the law uses its estimate
         (:func:`curvature_gain`); the true road is straight.
+    :param integral_frozen: the integral held (the CG error outside ``integral_band``):
+        a constant input, not a state, and no ``k_i y_cg`` in the reference's rate; the
+        matrix without it.
     :return: the square one-step matrix.
     """
     fs = filter_settings or settings.filter_settings()
+    if integral_frozen:                 # the law's rate term: k_i y_cg only while it runs
+        settings = replace(settings, integral_gain=0.0)
     model = filter_vehicle or vehicle
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
     phi, gamma = _zoh(a_c, b_c, period)
@@ -605,7 +611,22 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     m[i_buf, :] = law[0]
     for j in range(1, depth):
         m[i_buf + j, i_buf + j - 1] = 1.0
-    return m
+    return _without_integral(m, i_int) if integral_frozen else m
+
+
+def _without_integral(m: Matrix, index: int) -> Matrix:
+    """
+    Return the loop matrix with the integral held: its row and column taken out.
+
+    A held integral is a constant shift of the reference: it drives the loop but is not
+    driven (its eigenvalue would be exactly 1); the loop's stability is that of the rest.
+
+    :param m: the loop matrix with the integral as state ``index``.
+    :param index: the integral's index.
+    :return: the matrix without it.
+    """
+    keep = [i for i in range(m.shape[0]) if i != index]
+    return m[np.ix_(keep, keep)]
 
 
 def filtered_radius(vehicle: VehicleParams, controller: ControllerParams,
@@ -627,7 +648,8 @@ def filtered_radius(vehicle: VehicleParams, controller: ControllerParams,
 def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_x: float, *,
                     plant: Optional[VehicleParams] = None, period: float = 0.01,
-                    lag: float = 0.05, delay_steps: int = 2) -> float:
+                    lag: float = 0.05, delay_steps: int = 2,
+                    integral_frozen: bool = False) -> float:
     """
     Return the spectral radius of the sampled closed loop (stable if < 1).
 
@@ -644,8 +666,12 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     :param period: control period [s].
     :param lag: actuator time constant [s] (0: none).
     :param delay_steps: transport delay in control periods.
+    :param integral_frozen: the integral held (the CG error outside ``integral_band``):
+        the loop without it and without ``k_i y_cg`` in the reference's rate.
     :return: the spectral radius.
     """
+    if integral_frozen:
+        settings = replace(settings, integral_gain=0.0)
     # actuator state: delta' = (u - delta) / lag
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
     n = a_c.shape[0]
@@ -667,6 +693,8 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
             m[n + 1 + j, n + j] = 1.0
     m[n, n] = 1.0
     m[n, 0] = period * settings.integral_gain
+    if integral_frozen:
+        m = _without_integral(m, n)
     return float(np.max(np.abs(np.linalg.eigvals(m))))
 
 
@@ -696,7 +724,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                  filter_vehicle: Optional[VehicleParams] = None,
                  filter_settings: Optional[StateFilterParams] = None,
                  v_y_measured: bool = True,
-                 curvature_estimated: bool = False) -> RobustResult:
+                 curvature_estimated: bool = False,
+                 integral_frozen: bool = False) -> RobustResult:
     """
     Check the sampled loop over a grid of plant mismatch, speed and delay.
 
@@ -723,6 +752,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
         sends ``linear.y = 0``) at every step.
     :param curvature_estimated: when filtered, True: no ``road_curvature``, the filter
         estimates it and the law uses the estimate (:func:`filtered_loop`).
+    :param integral_frozen: True: the integral held (the CG error outside
+        ``integral_band``), the loop without it.
     :return: the worst case.
     """
     worst, where, cases = -np.inf, {}, 0
@@ -738,10 +769,12 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                                      filter_vehicle=filter_vehicle,
                                      filter_settings=filter_settings,
                                      v_y_measured=v_y_measured,
-                                     curvature_estimated=curvature_estimated)
+                                     curvature_estimated=curvature_estimated,
+                                     integral_frozen=integral_frozen)
         else:
             radius = discrete_radius(vehicle, controller, settings, v, plant=plant,
-                                     period=period, lag=lag, delay_steps=steps)
+                                     period=period, lag=lag, delay_steps=steps,
+                                     integral_frozen=integral_frozen)
         cases += 1
         if radius > worst:
             worst = radius

@@ -66,6 +66,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     filtered = robust_check(vehicle, controller, settings, filtered=True)
     estimated = robust_check(vehicle, controller, settings, filtered=True,
                              curvature_estimated=True)
+    # outside integral_band the integral is held: the loop without it must hold too
+    frozen = robust_check(vehicle, controller, settings, filtered=True, integral_frozen=True)
     # the test's value is proportional to (a_max, a_error): the largest factor on both
     # that it certifies (with a_error = 0: the largest |a_x|)
     factor = 1.0 / cert.between if cert.between > 0.0 else float('inf')
@@ -87,6 +89,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         {'check': f'max spectral radius, {estimated.cases} mismatch cases, Kalman estimate, '
                   'curvature estimated', 'value': estimated.max_radius, 'passes if': '< 1',
          'holds': estimated.holds},
+        {'check': f'max spectral radius, {frozen.cases} mismatch cases, Kalman estimate, '
+                  'integral held (|y_cg| >= integral_band)', 'value': frozen.max_radius,
+         'passes if': '< 1', 'holds': frozen.holds},
     ]
     kinks = (f'kinks at {", ".join(f"{k:.2f}" for k in cert.kinks)} m/s, both sides'
              if cert.kinks else 'no kinks')
@@ -98,15 +103,18 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     print('the certificate covers the law on exact states at varying speed; the sampled '
           'check covers the law on the estimate of the Kalman filter at frozen speeds')
     print(markdown_table(rows))
-    verdict = cert.holds and robust.holds and filtered.holds and estimated.holds
+    verdict = (cert.holds and robust.holds and filtered.holds and estimated.holds
+               and frozen.holds)
     print(f'certificate {"HOLDS" if cert.holds else "DOES NOT HOLD"}; robust check '
           f'{"HOLDS" if robust.holds else "DOES NOT HOLD"}; robust check with the filter '
           f'{"HOLDS" if filtered.holds else "DOES NOT HOLD"}; with the curvature '
-          f'estimated {"HOLDS" if estimated.holds else "DOES NOT HOLD"}')
+          f'estimated {"HOLDS" if estimated.holds else "DOES NOT HOLD"}; with the integral '
+          f'held {"HOLDS" if frozen.holds else "DOES NOT HOLD"}')
     if args.json:
         write_json(args.json, {'certificate': cert._asdict(), 'robust': robust._asdict(),
                                'robust_filtered': filtered._asdict(),
                                'robust_curvature_estimated': estimated._asdict(),
+                               'robust_integral_held': frozen._asdict(),
                                'rows': rows})
     return 0 if verdict else 1
 
