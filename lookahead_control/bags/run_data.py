@@ -377,7 +377,8 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     The whole controller core runs as in the node: input checks, the law, the low-speed
     hold and the output limits (angle, rate, lateral acceleration), with the recorded
     ``safety.*`` values or the overrides. Not modeled (no node clock): the watchdog's
-    stale-input hold and ramp, the future-stamp check, timer mode.
+    stale-input hold and ramp, the future-stamp check, timer mode. A lost
+    ``road_curvature`` is judged on the stamps (``SteeringController.curvature_lost``).
 
     :param run: the recorded run.
     :param overrides: parameter overrides (``controller.natural_frequency`` ...).
