@@ -71,8 +71,8 @@ def _samples(rows, names):
     return stamps, values
 
 
-def test_a_re_run_of_a_curvature_lost_mid_run_estimates_it_where_the_node_did():
-    params = {'law': 'cg_compensated'}
+def _recorded(params):
+    """Return a run of the node whose curvature stopped at 1.5 s, and its estimating answers."""
     rows = _inputs(300, 1_500_000_000)
     # the node: its clock at the lateral error's stamp (lockstep sim time)
     node, _ = controller_from_params(params)
@@ -95,14 +95,36 @@ def test_a_re_run_of_a_curvature_lost_mid_run_estimates_it_where_the_node_did():
     stamps = np.array(sorted(commands), dtype=np.int64)
     steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
                        {'angle': np.array([commands[s] for s in stamps])})
-    run = RunData(Path('synthetic'), inputs=inputs, steering=steering,
-                  controller_params=params)
+    return RunData(Path('synthetic'), inputs=inputs, steering=steering,
+                   controller_params=params), estimated
+
+
+def test_a_re_run_of_a_curvature_lost_mid_run_estimates_it_where_the_node_did():
+    params = {'law': 'cg_compensated'}
+    run, estimated = _recorded(params)
     result = rerun(run, order='receive')
     # before: max 0.083 rad, RMS 0.037 (the re-run held the curvature of 1.49 s)
     assert result.compared == 300
     assert result.max_diff == 0.0, result.max_diff
+    assert result.estimated == estimated        # and the re-run says where
     # offline, a curvature that keeps coming is never lost, however late in the run
     again, _ = controller_from_params(params)
     for role, sample in _feed(_inputs(300, math.inf)):
         if again.accept(role, sample) is None and role == 'lateral_error':
             assert again.compute() is not None and not again.law.curvature_estimated()
+
+
+def test_replay_offline_says_where_the_law_ran_on_its_estimate(monkeypatch, capsys, tmp_path):
+    import argparse
+    import json
+
+    from lookahead_control.bags import replay_node
+    run, estimated = _recorded({'law': 'cg_compensated'})
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics: run)
+    args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
+                              json=tmp_path / 'report.json', check=0.0)
+    assert replay_node.offline(args) == 0
+    out = capsys.readouterr().out
+    assert (f'the law ran on its curvature estimate in {estimated} of 300 answers'
+            in out), out
+    assert json.loads((tmp_path / 'report.json').read_text())['curvature_estimated'] == 131

@@ -325,6 +325,8 @@ class Rerun:
     :param max_diff: largest |recorded - re-computed| steering [rad].
     :param rms_diff: RMS of the differences [rad].
     :param order: ``stamp`` (lockstep: inputs of a step first) or ``receive``.
+    :param estimated: answers of a law that ran on its own curvature estimate (no
+        ``road_curvature`` received, or lost on the stamps).
     """
 
     commands: dict[int, Command]
@@ -332,6 +334,7 @@ class Rerun:
     max_diff: float
     rms_diff: float
     order: str
+    estimated: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -400,6 +403,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             core.seed_output(float(run.steering.values['angle'][last]),
                              int(run.steering.stamp_ns[last]))
     commands: dict[int, Command] = {}
+    estimated = 0
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
@@ -408,11 +412,13 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             command = core.compute()
             if command is not None:
                 commands[command.stamp_ns] = command
+                estimates = getattr(core.law, 'curvature_estimated', None)
+                estimated += bool(estimates is not None and estimates())
     recorded = {stamp: v['angle'] for stamp, v in run.steering.by_stamp().items()}
     diffs = [abs(recorded[s] - c.steering) for s, c in commands.items() if s in recorded]
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
-                 order)
+                 order, estimated)
 
 
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
