@@ -28,10 +28,12 @@ lateral error's stamp), as the node runs it.
 import math
 from pathlib import Path
 
-from lookahead_control.bags.run_data import controller_from_params, rerun, RunData, Samples
+from lookahead_control.bags.run_data import (controller_from_params, rerun, rerun_law,
+                                             RunData, Samples)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
 import numpy as np
+import pytest
 
 PERIOD_NS = 10_000_000
 SPEED, RHO = 30.0, 1.0 / 400.0
@@ -82,8 +84,8 @@ def _recorded(params):
         if role == 'lateral_error':
             command = node.compute(sample.stamp_ns)
             commands[sample.stamp_ns] = command.steering
-            estimated += node.law.curvature_estimated()
-    assert estimated == 300 - 150 - 19      # lost once stamped over 0.2 s ago
+            estimates = getattr(node.law, 'curvature_estimated', None)
+            estimated += bool(estimates is not None and estimates())
     fields = {'lateral_error': ('distance', 'value'),
               'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
               'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
@@ -102,6 +104,7 @@ def _recorded(params):
 def test_a_re_run_of_a_curvature_lost_mid_run_estimates_it_where_the_node_did():
     params = {'law': 'cg_compensated'}
     run, estimated = _recorded(params)
+    assert estimated == 300 - 150 - 19      # lost once stamped over 0.2 s ago
     result = rerun(run, order='receive')
     # before: max 0.083 rad, RMS 0.037 (the re-run held the curvature of 1.49 s)
     assert result.compared == 300
@@ -128,3 +131,20 @@ def test_replay_offline_says_where_the_law_ran_on_its_estimate(monkeypatch, caps
     assert (f'the law ran on its curvature estimate in {estimated} of 300 answers'
             in out), out
     assert json.loads((tmp_path / 'report.json').read_text())['curvature_estimated'] == 131
+
+
+@pytest.mark.parametrize('preview', [True, False])
+def test_the_paper_law_as_arrays_takes_a_lost_curvature_as_0_as_the_node(preview):
+    # the vectorized re-run of the paper law (analyze without the debug topic) took the
+    # last curvature to the end of the run, the node 0 once it was lost: 0.016 rad apart
+    params = {'law': 'paper', 'use_curvature_preview': preview}
+    run, _ = _recorded(params)
+    result = rerun(run, order='receive')
+    assert result.compared == 300 and result.max_diff == 0.0, result.max_diff
+    stamps, law = rerun_law(run, order='receive')
+    assert stamps.size == 300
+    for i, stamp in enumerate(stamps):
+        for name in ('y_ref', 'error', 'steering'):
+            assert float(getattr(law, name)[i]) == pytest.approx(
+                getattr(result.commands[int(stamp)].law, name), rel=1e-12, abs=1e-15), (
+                    stamp, name)

@@ -488,12 +488,21 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     else:
         a_x = np.zeros(at.size)
     lateral = run.inputs['lateral_error']
+    # a curvature stamped more than input_timeout before the lateral error is lost: 0
+    # (as SteeringController.curvature_lost judges it without a clock)
+    received = np.zeros(at.size, dtype=bool)
+    if 'road_curvature' in latest:
+        where = latest['road_curvature'][at]
+        age = (lateral.stamp_ns[index[at]]
+               - run.inputs['road_curvature'].stamp_ns[index[np.maximum(where, 0)]])
+        received = (where >= 0) & ~(age > core.safety.input_timeout * 1e9)
     state = LateralState(
         y_cg=cg_error_from(column('lateral_error', 'value'), eps_r,
                            column('lateral_error', 'distance')),
-        eps_r=eps_r, v_y=v_y, r=rate, v_x=v_x, a_x=a_x, rho=column('road_curvature', 'rho'),
-        rho_rate=(v_x * column('road_curvature', 'slope') if core.use_preview
-                  else np.zeros(at.size)))
+        eps_r=eps_r, v_y=v_y, r=rate, v_x=v_x, a_x=a_x,
+        rho=np.where(received, column('road_curvature', 'rho'), 0.0),
+        rho_rate=(np.where(received, v_x * column('road_curvature', 'slope'), 0.0)
+                  if core.use_preview else np.zeros(at.size)))
     return lateral.stamp_ns[index[at]], steering_law(state, core.vehicle, core.params)
 
 
