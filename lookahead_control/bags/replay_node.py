@@ -61,9 +61,13 @@ def offline(args: argparse.Namespace) -> int:
     report = {'bag': str(args.bag), 'order': result.order, 'compared': result.compared,
               'recorded': len(run.steering.by_stamp()), 'recomputed': len(result.commands),
               'max_diff_rad': result.max_diff, 'rms_diff_rad': result.rms_diff,
-              'overrides': overrides}
+              'curvature_estimated': result.estimated, 'overrides': overrides}
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
+    if result.estimated:
+        print(f'replay: the law ran on its curvature estimate in {result.estimated} of '
+              f'{len(result.commands)} answers (road_curvature not in the bag, or stamped '
+              'more than safety.input_timeout before the lateral error: lost)')
     if args.json:
         write_json(Path(args.json), report)         # NaN (nothing compared) as null
     if args.check is not None:

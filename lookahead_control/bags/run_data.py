@@ -325,6 +325,8 @@ class Rerun:
     :param max_diff: largest |recorded - re-computed| steering [rad].
     :param rms_diff: RMS of the differences [rad].
     :param order: ``stamp`` (lockstep: inputs of a step first) or ``receive``.
+    :param estimated: answers of a law that ran on its own curvature estimate (no
+        ``road_curvature`` received, or lost on the stamps).
     """
 
     commands: dict[int, Command]
@@ -332,6 +334,7 @@ class Rerun:
     max_diff: float
     rms_diff: float
     order: str
+    estimated: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -377,7 +380,8 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     The whole controller core runs as in the node: input checks, the law, the low-speed
     hold and the output limits (angle, rate, lateral acceleration), with the recorded
     ``safety.*`` values or the overrides. Not modeled (no node clock): the watchdog's
-    stale-input hold and ramp, the future-stamp check, timer mode.
+    stale-input hold and ramp, the future-stamp check, timer mode. A lost
+    ``road_curvature`` is judged on the stamps (``SteeringController.curvature_lost``).
 
     :param run: the recorded run.
     :param overrides: parameter overrides (``controller.natural_frequency`` ...).
@@ -399,6 +403,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             core.seed_output(float(run.steering.values['angle'][last]),
                              int(run.steering.stamp_ns[last]))
     commands: dict[int, Command] = {}
+    estimated = 0
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
@@ -407,11 +412,13 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             command = core.compute()
             if command is not None:
                 commands[command.stamp_ns] = command
+                estimates = getattr(core.law, 'curvature_estimated', None)
+                estimated += bool(estimates is not None and estimates())
     recorded = {stamp: v['angle'] for stamp, v in run.steering.by_stamp().items()}
     diffs = [abs(recorded[s] - c.steering) for s, c in commands.items() if s in recorded]
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
-                 order)
+                 order, estimated)
 
 
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
@@ -481,12 +488,21 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     else:
         a_x = np.zeros(at.size)
     lateral = run.inputs['lateral_error']
+    # a curvature stamped more than input_timeout before the lateral error is lost: 0
+    # (as SteeringController.curvature_lost judges it without a clock)
+    received = np.zeros(at.size, dtype=bool)
+    if 'road_curvature' in latest:
+        where = latest['road_curvature'][at]
+        age = (lateral.stamp_ns[index[at]]
+               - run.inputs['road_curvature'].stamp_ns[index[np.maximum(where, 0)]])
+        received = (where >= 0) & ~(age > core.safety.input_timeout * 1e9)
     state = LateralState(
         y_cg=cg_error_from(column('lateral_error', 'value'), eps_r,
                            column('lateral_error', 'distance')),
-        eps_r=eps_r, v_y=v_y, r=rate, v_x=v_x, a_x=a_x, rho=column('road_curvature', 'rho'),
-        rho_rate=(v_x * column('road_curvature', 'slope') if core.use_preview
-                  else np.zeros(at.size)))
+        eps_r=eps_r, v_y=v_y, r=rate, v_x=v_x, a_x=a_x,
+        rho=np.where(received, column('road_curvature', 'rho'), 0.0),
+        rho_rate=(np.where(received, v_x * column('road_curvature', 'slope'), 0.0)
+                  if core.use_preview else np.zeros(at.size)))
     return lateral.stamp_ns[index[at]], steering_law(state, core.vehicle, core.params)
 
 

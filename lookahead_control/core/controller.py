@@ -498,10 +498,20 @@ class SteeringController:
         alone holds the lane) rather than on the old curvature or not at all: see
         ``docs/safety.md``.
 
-        :param now_ns: the node's clock [ns] (None: not running).
+        Without a clock (``now_ns`` None: an offline re-run) it is judged on the stamps,
+        the lateral error's stamp as the clock: lost when the latest curvature is stamped
+        more than ``input_timeout`` before the latest lateral error (the node, whose clock
+        is about the lateral error's stamp when it answers, judges the same; before, a
+        re-run held the last curvature where the node estimated it).
+
+        :param now_ns: the node's clock [ns] (None: offline, judged on the stamps).
         :return: whether the curvature is lost.
         """
-        return (now_ns is not None and 'road_curvature' in self._received
+        if now_ns is None:
+            return (self.curvature is not None and self.lateral is not None
+                    and self.lateral.stamp_ns - self.curvature.stamp_ns
+                    > self.safety.input_timeout * 1e9)
+        return ('road_curvature' in self._received
                 and not self._fresh('road_curvature', now_ns))
 
     def describe_stale(self, names: list[str]) -> str:

@@ -1,0 +1,150 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""
+An offline re-run of a run whose ``road_curvature`` stopped mid-run (probe19).
+
+The node judges the curvature lost on its clock (stamped more than ``input_timeout``
+ago) and the default law then estimates it; the offline re-run has no clock and held the
+last curvature received to the end of the run, so it re-ran another law: a 400 m curve
+at 30 m/s, the curvature stopped at 1.5 s and the curve ended at 2 s, 83 mrad apart (RMS
+37 mrad; S2 at 37 m/s recorded over DDS with the curvature cut at 3 s: 37.6 mrad), with
+nothing saying why. The reference is the node's own core fed with its lockstep clock (the
+lateral error's stamp), as the node runs it.
+"""
+
+import math
+from pathlib import Path
+
+from lookahead_control.bags.run_data import (controller_from_params, rerun, rerun_law,
+                                             RunData, Samples)
+from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
+                                            YawSample)
+import numpy as np
+import pytest
+
+PERIOD_NS = 10_000_000
+SPEED, RHO = 30.0, 1.0 / 400.0
+#: the order the inputs of one step arrive in
+RANK = {'yaw': 0, 'velocity': 1, 'road_curvature': 2, 'lateral_error': 3}
+
+
+def _inputs(steps, curvature_until_ns):
+    """Return the samples of a 400 m curve to 2 s, the curvature sent until a stamp."""
+    rows = {'lateral_error': [], 'yaw': [], 'velocity': [], 'road_curvature': []}
+    for k in range(1, steps + 1):
+        stamp = k * PERIOD_NS
+        t = stamp * 1e-9
+        # the curve ends at 2 s, after the curvature stopped coming
+        rows['yaw'].append(YawSample(stamp, 0.002, SPEED * RHO if t < 2.0 else 0.0, 0.0))
+        rows['velocity'].append(VelocitySample(stamp, SPEED, 0.0))
+        if stamp < curvature_until_ns:
+            rows['road_curvature'].append(CurvatureSample(stamp, RHO, 0.0))
+        rows['lateral_error'].append(
+            LateralErrorSample(stamp, 0.0, 0.1 + 0.05 * math.sin(2.0 * math.pi * t)))
+    return rows
+
+
+def _feed(rows):
+    """Return ``(role, sample)`` as the node gets them: each step's lateral error last."""
+    return sorted(((role, sample) for role, samples in rows.items() for sample in samples),
+                  key=lambda item: (item[1].stamp_ns, RANK[item[0]]))
+
+
+def _samples(rows, names):
+    stamps = np.array([row.stamp_ns for row in rows], dtype=np.int64)
+    values = {name: np.array([getattr(row, name) for row in rows], dtype=float)
+              for name in names}
+    if 'rho' in names:                  # the preview's points: a tuple per sample
+        values['ahead'] = np.empty(len(rows), dtype=object)
+        values['ahead'][:] = [()] * len(rows)
+    return stamps, values
+
+
+def _recorded(params):
+    """Return a run of the node whose curvature stopped at 1.5 s, and its estimating answers."""
+    rows = _inputs(300, 1_500_000_000)
+    # the node: its clock at the lateral error's stamp (lockstep sim time)
+    node, _ = controller_from_params(params)
+    commands, estimated = {}, 0
+    for role, sample in _feed(rows):
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role == 'lateral_error':
+            command = node.compute(sample.stamp_ns)
+            commands[sample.stamp_ns] = command.steering
+            estimates = getattr(node.law, 'curvature_estimated', None)
+            estimated += bool(estimates is not None and estimates())
+    fields = {'lateral_error': ('distance', 'value'),
+              'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
+              'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
+    inputs = {}
+    for role, names in fields.items():
+        stamps, values = _samples(rows[role], names)
+        # received (on the recorder's clock) in the order the node gets them
+        inputs[role] = Samples(stamps + RANK[role], stamps, np.arange(stamps.size), values)
+    stamps = np.array(sorted(commands), dtype=np.int64)
+    steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
+                       {'angle': np.array([commands[s] for s in stamps])})
+    return RunData(Path('synthetic'), inputs=inputs, steering=steering,
+                   controller_params=params), estimated
+
+
+def test_a_re_run_of_a_curvature_lost_mid_run_estimates_it_where_the_node_did():
+    params = {'law': 'cg_compensated'}
+    run, estimated = _recorded(params)
+    assert estimated == 300 - 150 - 19      # lost once stamped over 0.2 s ago
+    result = rerun(run, order='receive')
+    # before: max 0.083 rad, RMS 0.037 (the re-run held the curvature of 1.49 s)
+    assert result.compared == 300
+    assert result.max_diff == 0.0, result.max_diff
+    assert result.estimated == estimated        # and the re-run says where
+    # offline, a curvature that keeps coming is never lost, however late in the run
+    again, _ = controller_from_params(params)
+    for role, sample in _feed(_inputs(300, math.inf)):
+        if again.accept(role, sample) is None and role == 'lateral_error':
+            assert again.compute() is not None and not again.law.curvature_estimated()
+
+
+def test_replay_offline_says_where_the_law_ran_on_its_estimate(monkeypatch, capsys, tmp_path):
+    import argparse
+    import json
+
+    from lookahead_control.bags import replay_node
+    run, estimated = _recorded({'law': 'cg_compensated'})
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics: run)
+    args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
+                              json=tmp_path / 'report.json', check=0.0)
+    assert replay_node.offline(args) == 0
+    out = capsys.readouterr().out
+    assert (f'the law ran on its curvature estimate in {estimated} of 300 answers'
+            in out), out
+    assert json.loads((tmp_path / 'report.json').read_text())['curvature_estimated'] == 131
+
+
+@pytest.mark.parametrize('preview', [True, False])
+def test_the_paper_law_as_arrays_takes_a_lost_curvature_as_0_as_the_node(preview):
+    # the vectorized re-run of the paper law (analyze without the debug topic) took the
+    # last curvature to the end of the run, the node 0 once it was lost: 0.016 rad apart
+    params = {'law': 'paper', 'use_curvature_preview': preview}
+    run, _ = _recorded(params)
+    result = rerun(run, order='receive')
+    assert result.compared == 300 and result.max_diff == 0.0, result.max_diff
+    stamps, law = rerun_law(run, order='receive')
+    assert stamps.size == 300
+    for i, stamp in enumerate(stamps):
+        for name in ('y_ref', 'error', 'steering'):
+            assert float(getattr(law, name)[i]) == pytest.approx(
+                getattr(result.commands[int(stamp)].law, name), rel=1e-12, abs=1e-15), (
+                    stamp, name)
