@@ -28,12 +28,11 @@ import math
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.params import ControllerParams, VehicleParams
-from lookahead_control.core.state_filter import (kinematic_gain, KalmanStateFilter,
+from lookahead_control.core.state_filter import (KalmanStateFilter, kinematic_gain,
                                                  StateFilterParams)
 import numpy as np
 import pytest
 import scipy.linalg
-from test_state_filter import independent_discretization
 
 VEHICLE = VehicleParams()
 

@@ -670,7 +670,9 @@ def test_the_node_filter_models_the_command_the_safety_layer_sent():
         stamp = (1000 + 20 * k) * ms
         for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
                              ('velocity', VelocitySample(stamp, 30.0, 0.0)),
-                             ('lateral_error', LateralErrorSample(stamp, 0.0, 1.5))):
+                             # 2 m: a command the safety layer cuts (1.5 m was cut
+                             # while the curvature estimate took the error for a curve)
+                             ('lateral_error', LateralErrorSample(stamp, 0.0, 2.0))):
             assert core.accept(name, sample, stamp) is None
         command = core.compute(stamp)
         assert command is not None and command.law is not None

@@ -48,16 +48,22 @@ its measurements, and ``v_y`` is estimated from the lateral error, ``eps_r`` and
 from the steady cornering value at the measured ``r``, ``(l_2 - eta v_x^2) r``. A car
 standing straight (both exactly 0, a noise-free simulation) keeps the full gain.
 
-Without a road curvature (``step(..., estimating=True)``: none received, or lost) the
-filter runs a variant with the curvature as a seventh state, a random walk of the road's
-lateral acceleration ``v_x^2 rho`` (``curvature_drift``; :func:`curvature_model`), with
-its own steady gains (7x4, with and without ``v_y``); ``state.rho`` is ignored and the
-estimate is returned as ``rho`` (``rho_rate`` 0). With a curvature received everything
-is as without the variant, bit for bit (the seventh state is set to the curvature
-received, so an estimate starts from the last one). A restart while estimating starts
-it from ``r / v_x`` (a steady turn); below ``min_speed`` the last estimate above it is
-returned, but no more than ``r / max(v_x, min_speed)`` in the same direction (0 in the
-other; none yet: ``r / max(v_x, min_speed)``); within ``+-MAX_CURVATURE``.
+Without a road curvature (``step(..., estimating=True)``: none received, or lost) a
+small estimator on the kinematics alone (:func:`kinematic_model`, dev-kinrho) gives it:
+states ``[eps_r, rho]``, ``eps_r' = r - v_x rho`` with the measured yaw rate a known
+input, ``rho`` a random walk of the road's lateral acceleration ``v_x^2 rho``
+(``curvature_drift``), the measured relative yaw the only measurement, its own steady
+gain (2x1, same period grid and speed table). Its estimate is the filter's curvature
+input, as a received one would be (``state.rho`` is ignored; returned as ``rho``,
+``rho_rate`` 0). A constant bias of the measured relative yaw (a camera's heading
+calibration) moves the estimator's ``eps_r`` alone: in a steady state the innovation
+vanishes and the estimate is ``r / v_x`` (the full model's ``y_cg' = v_y + v_x eps_r``
+would take the bias for a curve). With a curvature received everything is as without
+the estimator, bit for bit (the estimator follows the curvature received, so an estimate
+starts from the last one). A restart starts it from ``r / v_x`` (a steady turn); below
+``min_speed`` the last estimate above it is returned, but no more than
+``r / max(v_x, min_speed)`` in the same direction (0 in the other; none yet:
+``r / max(v_x, min_speed)``); within ``+-MAX_CURVATURE``.
 
 Safety: a non-finite measurement passes through (the law refuses it) and the filter
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
@@ -122,8 +128,8 @@ class StateFilterParams:
     :param force_drift: random walk of the axle-force disturbances [N / sqrt(s)].
     :param kinematic_noise: white noise on ``y_cg'`` [m / sqrt(s)] (and on ``eps_r'``,
         divided by 10 m): the small-angle kinematics' error.
-    :param curvature_drift: in the variant that estimates the road curvature (no
-        ``road_curvature`` received), the random walk of the road's lateral acceleration
+    :param curvature_drift: in the curvature estimator (no ``road_curvature``
+        received), the random walk of the road's lateral acceleration
         ``v_x^2 rho`` [m/s^2.5]: ``rho' = w curvature_drift / v_x^2``. Roads are laid out
         for a rate of change of the lateral acceleration of 0.3-0.6 m/s^3 along their
         clothoids (highway design: clothoid length ``L = v^3 / (C R)``), about 0.5 m/s^2
@@ -361,7 +367,7 @@ def kinematic_gain(settings: StateFilterParams, v_x: float, period: float) -> Ma
     """
     phi, q, h, r = kinematic_model(settings, v_x, period)
     p = riccati_doubling(phi, h, q, r)
-    gain: Matrix = np.linalg.solve(h @ p @ h.T + r, h @ p).T
+    gain: Matrix = np.asarray(np.linalg.solve(h @ p @ h.T + r, h @ p).T, dtype=np.float64)
     return gain
 
 
