@@ -807,7 +807,7 @@ class KalmanStateFilter:
         relative yaw moves ``eps_r`` alone: in a steady state the innovation vanishes and
         ``rho = r / v_x``. Where a curvature is received, the estimator follows it
         (``eps_r`` the measurement, ``rho`` the curvature received: an estimate starts
-        from the last one).
+        from the last one; a non-finite one restarts it), without a gain.
         It restarts as the filter does (a non-finite input, below ``min_speed``, a step
         longer than ``MAX_PERIOD``, :meth:`reset`, :meth:`forget`) from ``eps_r`` and the
         path the car drives, ``r / v_x``.
@@ -818,6 +818,15 @@ class KalmanStateFilter:
         eps, r, v_x = state.eps_r, state.r, state.v_x
         fast = (np.isfinite(eps) & np.isfinite(r) & np.isfinite(v_x)
                 & (v_x >= self.settings.min_speed))
+        # where a curvature is received: the measurement and that curvature (where it
+        # is not usable, a restart)
+        follow = fast & np.isfinite(state.rho)
+        followed = [_select(follow, eps, math.nan), _select(follow, _bounded(state.rho),
+                                                             math.nan),
+                    _select(fast, r, math.nan)]
+        if not estimates:               # nothing to estimate: no gain needed
+            self.kinematic = followed
+            return state.rho
         path = self._path_curvature(state)
         if self.kinematic is None:
             self.kinematic = [math.nan + 0.0 * eps] * 3
@@ -835,15 +844,10 @@ class KalmanStateFilter:
         else:                           # the same instant again: nothing advances
             e_new, rho_new = e_old, rho_old
         run = fast & ~fresh
-        e_next = _select(run, e_new, _select(fast, eps, math.nan))
-        rho_next = _select(run, rho_new, _select(fast, path, math.nan))
-        # where a curvature is received: the measurement and that curvature
-        received = ~np.asarray(estimating) if isinstance(estimating, np.ndarray) else (
-            not estimating)
-        follow = received & fast & np.isfinite(state.rho)
-        self.kinematic = [_select(follow, eps, e_next),
-                          _select(follow, _bounded(state.rho), rho_next),
-                          _select(fast, r, math.nan)]
+        estimated = [_select(run, e_new, _select(fast, eps, math.nan)),
+                     _select(run, rho_new, _select(fast, path, math.nan)),
+                     followed[2]]
+        self.kinematic = [_select(estimating, a, b) for a, b in zip(estimated, followed)]
         # the filter needs a finite curvature: the path where the estimator restarts
         rho_out = self.kinematic[1]
         return _select(np.isfinite(rho_out), rho_out, _select(np.isfinite(path), path,
