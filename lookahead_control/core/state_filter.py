@@ -821,8 +821,8 @@ class KalmanStateFilter:
         # where a curvature is received: the measurement and that curvature (where it
         # is not usable, a restart)
         follow = fast & np.isfinite(state.rho)
-        followed = [_select(follow, eps, math.nan), _select(follow, _bounded(state.rho),
-                                                             math.nan),
+        followed = [_select(follow, eps, math.nan),
+                    _select(follow, _bounded(state.rho), math.nan),
                     _select(fast, r, math.nan)]
         if not estimates:               # nothing to estimate: no gain needed
             self.kinematic = followed
