@@ -191,6 +191,52 @@ def test_the_integral_is_frozen_while_the_cg_error_is_outside_its_band():
         LaneKeepingParams(integral_band=-0.1)
 
 
+def test_the_band_description_says_what_0_does():
+    # dev-probe20: old '0: never' (--help, the descriptor) and '0: never' (the shipped
+    # YAML) read as 'never integrates', the opposite of what 0 does; a tiny band is the
+    # one that (nearly) never integrates
+    from pathlib import Path
+    from lookahead_control.core.param_schema import LANE_KEEPING_SPECS
+    spec, = (s for s in LANE_KEEPING_SPECS if s.name == 'lane_keeping.integral_band')
+    assert '0: no band, it integrates at any error [m]' in spec.description
+    text = (Path(__file__).resolve().parent.parent / 'config' / 'controller.yaml').read_text()
+    line, = (x for x in text.splitlines() if 'integral_band:' in x)
+    assert '0: no band' in line and 'never' not in line
+
+
+@pytest.mark.parametrize('v_x', [10.0, 37.0])
+def test_the_held_loop_of_the_stability_check_is_the_law_outside_the_band(v_x):
+    # the law's steering, differentiated numerically at a CG error outside the band
+    # (0.8 m), against the gains the stability check uses for the held integral
+    # (feedback_gain with k_i = 0); inside (0.2 m) it has the k_i k_d term
+    import copy
+    import dataclasses
+    settings = LaneKeepingParams(state_filter='none', compliance_time_constant=0.0)
+    held = stability.feedback_gain(VEHICLE, CONTROLLER,
+                                   dataclasses.replace(settings, integral_gain=0.0), v_x)
+    running = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v_x)
+    for y0, gains in ((0.8, held), (0.2, running)):
+        law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
+        base = [y0, 0.001, 0.01, 0.002]
+        for _ in range(5):
+            law.step(LateralState(*base, v_x, 0.0, 0.0, 0.0), EMPTY, 0.01)
+
+        def steering(x, shift=0.0):
+            twin = copy.deepcopy(law)
+            twin.integral = twin.integral + shift
+            return float(twin.step(LateralState(*x, v_x, 0.0, 0.0, 0.0), EMPTY, 0.01).steering)
+        h = 1e-6
+        slopes = [(steering(base[:i] + [base[i] + h] + base[i + 1:])
+                   - steering(base[:i] + [base[i] - h] + base[i + 1:])) / (2 * h)
+                  for i in range(4)]
+        slopes.append((steering(base, h) - steering(base, -h)) / (2 * h))
+        # inside, the law integrates within the step: k_I k_i dt more on y_cg
+        extra = gains[4] * settings.integral_gain * 0.01 if y0 < 0.5 else 0.0
+        expected = np.asarray(gains, dtype=float).ravel() + np.array([extra, 0, 0, 0, 0])
+        assert np.allclose(slopes, expected, rtol=1e-5, atol=1e-7)
+    assert not np.allclose(held, running)
+
+
 def _engaged_off_centre(speed, band):
     """Engage the default law 1.75 m off the lane centre (goal plant, straight road)."""
     from lookahead_control.tools.compare import load_scenarios
