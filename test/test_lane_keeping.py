@@ -168,7 +168,9 @@ def test_integral_anti_windup():
 def test_the_integral_is_frozen_while_the_cg_error_is_outside_its_band():
     # a metre-sized error is a transient for the feedback: integrated, it overshot the
     # lane by 15-45 cm for seconds (dev-probe16)
-    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(state_filter='none'))
+    # (integral_band_time 0: held for as long as the error is outside)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER,
+                           LaneKeepingParams(state_filter='none', integral_band_time=0.0))
     off = CgCompensatedLaw(VEHICLE, CONTROLLER,
                            LaneKeepingParams(state_filter='none', integral_gain=0.0))
     assert law.settings.integral_band == 0.5
@@ -189,6 +191,62 @@ def test_the_integral_is_frozen_while_the_cg_error_is_outside_its_band():
     assert law.integral == pytest.approx(0.3 * 0.6 * 1.0)
     with pytest.raises(ParameterError, match='integral_band'):
         LaneKeepingParams(integral_band=-0.1)
+
+
+def test_an_error_standing_outside_the_band_is_integrated_after_the_band_time():
+    # dev-probe20: old code held the integral for as long as |y_cg| >= integral_band: a
+    # model error that put the CG outside the band at once was never removed
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(state_filter='none'))
+    assert law.settings.integral_band_time == 2.0
+    for _ in range(190):                        # 1.9 s at 0.6 m: held
+        law.step(state(y_cg=0.6), EMPTY, 0.01)
+    assert law.integral == 0.0
+    for _ in range(110):                        # from 2 s on (+- a step): 0.3 x 0.6 m/s
+        law.step(state(y_cg=0.6), EMPTY, 0.01)
+    assert law.integral == pytest.approx(0.3 * 0.6 * 1.0, abs=0.3 * 0.6 * 0.011)
+    held = law.integral
+    law.step(state(y_cg=0.4), EMPTY, 0.01)       # back inside: the time starts again
+    assert law.outside_time == 0.0
+    for _ in range(100):                        # 1 s at -0.7 m: held again
+        law.step(state(y_cg=-0.7), EMPTY, 0.01)
+    assert law.integral == pytest.approx(held + 0.3 * 0.4 * 0.01)
+    law.step(state(y_cg=-0.7), EMPTY, 0.5)       # a time jump restarts it
+    assert law.outside_time == 0.0 and law.integral == 0.0
+    # a batch: each run its own time
+    batch = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(state_filter='none'))
+    for k in range(300):
+        y = np.array([0.6, 0.6 if k < 150 else 0.2])
+        batch.step(state(y_cg=y), EMPTY, 0.01)
+    assert batch.integral[0] == pytest.approx(0.3 * 0.6 * 1.0, abs=0.3 * 0.6 * 0.011)
+    assert batch.integral[1] == pytest.approx(0.3 * 0.2 * 1.5)
+    assert list(batch.outside_time) == pytest.approx([3.0, 0.0])
+    with pytest.raises(ParameterError, match='integral_band_time'):
+        LaneKeepingParams(integral_band_time=-1.0)
+
+
+def _standing_crosswind(force, band_time):
+    """Return the CG error under a crosswind stepped on at 2 s (goal plant, 37 m/s)."""
+    import dataclasses
+    from lookahead_control.tools.compare import load_scenarios
+    from sim_plant.sensors import NoiseParams
+    scenario = dataclasses.replace(load_scenarios(['s0_straight'])['s0_straight'],
+                                   duration=20.0)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER,
+                           LaneKeepingParams(integral_band_time=band_time))
+    return run(scenario, VEHICLE, law, PlantParams(model='nonlinear'), initial_speed=37.0,
+               initial_error=0.0, dt=0.001, delay=0.02, preview_distance=100.0,
+               noise=NoiseParams(), seed=1,
+               disturbance=lambda t: (force if t >= 2.0 else 0.0, 0.0))['y_cg']
+
+
+def test_a_crosswind_that_puts_the_cg_outside_the_band_at_once_is_removed():
+    # dev-probe20: 3 kN stepped on at 37 m/s (a strong gust or bank, 2 m/s^2): the CG
+    # goes 0.54 m off; old code (held while outside, integral_band_time 0) kept it there
+    # for good (0.54 m in the last second); integrating at any error 0.21 m (the
+    # integral at its clamp); 2.95 kN stays inside the band: 0.20 m
+    y = _standing_crosswind(3000.0, 2.0)
+    assert abs(y[-1000:].mean()) < 0.25
+    assert abs(_standing_crosswind(3000.0, 0.0)[-1000:].mean()) > 0.5
 
 
 def test_the_band_description_says_what_0_does():
