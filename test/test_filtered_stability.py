@@ -198,6 +198,12 @@ def test_tool_reports_both_robust_checks(capsys, tmp_path):
     assert r'integral held (\|y_cg\| >= integral_band) | 0.9952' in out
     assert 'with the integral held HOLDS' in out
     assert data['robust_integral_held']['cases'] == 486
+    # dev-probe20: held where the band acts, without road_curvature (the CG metres off);
+    # old tool: not checked. Measured 0.99521 (37 m/s, C x1.3, mass x0.8, 50 ms)
+    assert 'curvature estimated, integral held | 0.9952' in out
+    assert 'and with the curvature estimated HOLDS' in out
+    held = data['robust_integral_held_curvature_estimated']
+    assert held['cases'] == 486 and held['holds']
 
 
 @pytest.mark.parametrize('filtered', [False, True])

@@ -168,7 +168,9 @@ def test_integral_anti_windup():
 def test_the_integral_is_frozen_while_the_cg_error_is_outside_its_band():
     # a metre-sized error is a transient for the feedback: integrated, it overshot the
     # lane by 15-45 cm for seconds (dev-probe16)
-    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(state_filter='none'))
+    # (integral_band_time 0: held for as long as the error is outside)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER,
+                           LaneKeepingParams(state_filter='none', integral_band_time=0.0))
     off = CgCompensatedLaw(VEHICLE, CONTROLLER,
                            LaneKeepingParams(state_filter='none', integral_gain=0.0))
     assert law.settings.integral_band == 0.5
@@ -189,6 +191,108 @@ def test_the_integral_is_frozen_while_the_cg_error_is_outside_its_band():
     assert law.integral == pytest.approx(0.3 * 0.6 * 1.0)
     with pytest.raises(ParameterError, match='integral_band'):
         LaneKeepingParams(integral_band=-0.1)
+
+
+def test_an_error_standing_outside_the_band_is_integrated_after_the_band_time():
+    # dev-probe20: old code held the integral for as long as |y_cg| >= integral_band: a
+    # model error that put the CG outside the band at once was never removed
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(state_filter='none'))
+    assert law.settings.integral_band_time == 2.0
+    for _ in range(190):                        # 1.9 s at 0.6 m: held
+        law.step(state(y_cg=0.6), EMPTY, 0.01)
+    assert law.integral == 0.0
+    for _ in range(110):                        # from 2 s on (+- a step): 0.3 x 0.6 m/s
+        law.step(state(y_cg=0.6), EMPTY, 0.01)
+    assert law.integral == pytest.approx(0.3 * 0.6 * 1.0, abs=0.3 * 0.6 * 0.011)
+    held = law.integral
+    law.step(state(y_cg=0.4), EMPTY, 0.01)       # back inside: the time starts again
+    assert law.outside_time == 0.0
+    for _ in range(100):                        # 1 s at -0.7 m: held again
+        law.step(state(y_cg=-0.7), EMPTY, 0.01)
+    assert law.integral == pytest.approx(held + 0.3 * 0.4 * 0.01)
+    law.step(state(y_cg=-0.7), EMPTY, 0.5)       # a time jump restarts it
+    assert law.outside_time == 0.0 and law.integral == 0.0
+    # a batch: each run its own time
+    batch = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(state_filter='none'))
+    for k in range(300):
+        y = np.array([0.6, 0.6 if k < 150 else 0.2])
+        batch.step(state(y_cg=y), EMPTY, 0.01)
+    assert batch.integral[0] == pytest.approx(0.3 * 0.6 * 1.0, abs=0.3 * 0.6 * 0.011)
+    assert batch.integral[1] == pytest.approx(0.3 * 0.2 * 1.5)
+    assert list(batch.outside_time) == pytest.approx([3.0, 0.0])
+    with pytest.raises(ParameterError, match='integral_band_time'):
+        LaneKeepingParams(integral_band_time=-1.0)
+
+
+def _standing_crosswind(force, band_time):
+    """Return the CG error under a crosswind stepped on at 2 s (goal plant, 37 m/s)."""
+    import dataclasses
+    from lookahead_control.tools.compare import load_scenarios
+    from sim_plant.sensors import NoiseParams
+    scenario = dataclasses.replace(load_scenarios(['s0_straight'])['s0_straight'],
+                                   duration=20.0)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER,
+                           LaneKeepingParams(integral_band_time=band_time))
+    return run(scenario, VEHICLE, law, PlantParams(model='nonlinear'), initial_speed=37.0,
+               initial_error=0.0, dt=0.001, delay=0.02, preview_distance=100.0,
+               noise=NoiseParams(), seed=1,
+               disturbance=lambda t: (force if t >= 2.0 else 0.0, 0.0))['y_cg']
+
+
+def test_a_crosswind_that_puts_the_cg_outside_the_band_at_once_is_removed():
+    # dev-probe20: 3 kN stepped on at 37 m/s (a strong gust or bank, 2 m/s^2): the CG
+    # goes 0.54 m off; old code (held while outside, integral_band_time 0) kept it there
+    # for good (0.545 m in the last second, 19-20 s); now 0.217 m, as integrating at
+    # any error (the integral at its clamp); 2.95 kN: 0.20 m either way
+    y = _standing_crosswind(3000.0, 2.0)
+    assert abs(y[-100:].mean()) < 0.25
+    assert abs(_standing_crosswind(3000.0, 0.0)[-100:].mean()) > 0.5
+
+
+def test_the_band_description_says_what_0_does():
+    # dev-probe20: old '0: never' (--help, the descriptor) and '0: never' (the shipped
+    # YAML) read as 'never integrates', the opposite of what 0 does; a tiny band is the
+    # one that (nearly) never integrates
+    from pathlib import Path
+    from lookahead_control.core.param_schema import LANE_KEEPING_SPECS
+    spec, = (s for s in LANE_KEEPING_SPECS if s.name == 'lane_keeping.integral_band')
+    assert '0: no band, it integrates at any error [m]' in spec.description
+    text = (Path(__file__).resolve().parent.parent / 'config' / 'controller.yaml').read_text()
+    line, = (x for x in text.splitlines() if 'integral_band:' in x)
+    assert '0: no band' in line and 'never' not in line
+
+
+@pytest.mark.parametrize('v_x', [10.0, 37.0])
+def test_the_held_loop_of_the_stability_check_is_the_law_outside_the_band(v_x):
+    # the law's steering, differentiated numerically at a CG error outside the band
+    # (0.8 m), against the gains the stability check uses for the held integral
+    # (feedback_gain with k_i = 0); inside (0.2 m) it has the k_i k_d term
+    import copy
+    import dataclasses
+    settings = LaneKeepingParams(state_filter='none', compliance_time_constant=0.0)
+    held = stability.feedback_gain(VEHICLE, CONTROLLER,
+                                   dataclasses.replace(settings, integral_gain=0.0), v_x)
+    running = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v_x)
+    for y0, gains in ((0.8, held), (0.2, running)):
+        law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
+        base = [y0, 0.001, 0.01, 0.002]
+        for _ in range(5):
+            law.step(LateralState(*base, v_x, 0.0, 0.0, 0.0), EMPTY, 0.01)
+
+        def steering(x, shift=0.0):
+            twin = copy.deepcopy(law)
+            twin.integral = twin.integral + shift
+            return float(twin.step(LateralState(*x, v_x, 0.0, 0.0, 0.0), EMPTY, 0.01).steering)
+        h = 1e-6
+        slopes = [(steering(base[:i] + [base[i] + h] + base[i + 1:])
+                   - steering(base[:i] + [base[i] - h] + base[i + 1:])) / (2 * h)
+                  for i in range(4)]
+        slopes.append((steering(base, h) - steering(base, -h)) / (2 * h))
+        # inside, the law integrates within the step: k_I k_i dt more on y_cg
+        extra = gains[4] * settings.integral_gain * 0.01 if y0 < 0.5 else 0.0
+        expected = np.asarray(gains, dtype=float).ravel() + np.array([extra, 0, 0, 0, 0])
+        assert np.allclose(slopes, expected, rtol=1e-5, atol=1e-7)
+    assert not np.allclose(held, running)
 
 
 def _engaged_off_centre(speed, band):

@@ -55,3 +55,17 @@ def test_node_selects_the_lane_keeping_law_by_parameter(context):
         assert node.core.law_name == 'paper' and node.core.last.law.y_ref == 0.0
     finally:
         node.destroy_node()
+
+
+def test_the_applied_parameters_log_names_the_running_law_s_gains():
+    # probe20: the log printed the paper law's w_n = 3 while cg_compensated ran (7)
+    from lookahead_control.core.lane_keeping import LaneKeepingParams
+    from lookahead_control.core.params import ControllerParams
+    from lookahead_control.ros.controller_node import applied_summary
+    controller, lane_keeping = ControllerParams(), LaneKeepingParams()
+    assert controller.natural_frequency != lane_keeping.natural_frequency
+    line = applied_summary('cg_compensated', controller, lane_keeping)
+    assert f'w_n={lane_keeping.natural_frequency:g}, zeta={lane_keeping.damping_ratio:g}' \
+        in line, line
+    line = applied_summary('paper', controller, lane_keeping)
+    assert f'w_n={controller.natural_frequency:g}, zeta={controller.damping_ratio:g}' in line

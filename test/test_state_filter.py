@@ -657,6 +657,8 @@ def test_the_node_filter_models_the_command_the_safety_layer_sent():
     # probe15: the node's safety layer cuts the law's command (0.059 rad at 37 m/s,
     # 0.4 rad/s); the actuator gets the cut one. Old code: the filter's model was fed
     # the law's uncut command, so its prediction steered harder than the car did.
+    # (4 m off: with the integral held outside integral_band, 1.5 m no longer reached
+    # the limits)
     from lookahead_control.core.controller import SteeringController
     from lookahead_control.core.safety import SafetyParams
     from lookahead_control.core.samples import (LateralErrorSample, VelocitySample,
@@ -670,9 +672,7 @@ def test_the_node_filter_models_the_command_the_safety_layer_sent():
         stamp = (1000 + 20 * k) * ms
         for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
                              ('velocity', VelocitySample(stamp, 30.0, 0.0)),
-                             # 2 m: a command the safety layer cuts (1.5 m was cut
-                             # while the curvature estimate took the error for a curve)
-                             ('lateral_error', LateralErrorSample(stamp, 0.0, 2.0))):
+                             ('lateral_error', LateralErrorSample(stamp, 0.0, 4.0))):
             assert core.accept(name, sample, stamp) is None
         command = core.compute(stamp)
         assert command is not None and command.law is not None

@@ -43,7 +43,8 @@ structure (eq. 15) but regulates ``y_v`` to ::
   at ``steering_limit``, the speed is below ``integral_min_speed`` or the CG error is
   ``integral_band`` or more (anti-windup: a metre-sized error, a car engaged off the lane
   centre or a wrong curvature for a moment, is a transient for the feedback, not a
-  model error; integrated, it overshot the lane by 15-45 cm for seconds), and
+  model error; integrated, it overshot the lane by 15-45 cm for seconds) unless it has
+  stood there ``integral_band_time`` (then it is the model's), and
   reset when time jumps (a step of ``dt < 0`` or ``> max_gap``) or an input is not
   finite; ``dt = 0`` (the same measurement evaluated again) advances nothing.
 
@@ -88,6 +89,9 @@ class LaneKeepingParams:
     :param integral_min_speed: below this speed the integral is frozen [m/s].
     :param integral_band: the integral is frozen while ``|y_cg|`` is this or more [m];
         0 integrates at any error.
+    :param integral_band_time: ... but not once ``|y_cg|`` has been there this long:
+        a steady error outside the band is the model's, integrated [s]; 0: held for as
+        long as it is outside.
     :param steering_limit: the integral is frozen while ``|delta|`` reaches this [rad].
     :param max_gap: a step longer than this (or negative) is a time jump: the
         integral restarts at 0 [s].
@@ -129,6 +133,7 @@ class LaneKeepingParams:
     integral_limit: float = 0.5
     integral_min_speed: float = 5.0
     integral_band: float = 0.5
+    integral_band_time: float = 2.0
     steering_limit: float = 0.5
     max_gap: float = 0.25
     compliance_time_constant: float = 0.5
@@ -175,6 +180,8 @@ class LaneKeepingParams:
         check_range('lane_keeping.integral_min_speed', self.integral_min_speed, 0.0, 50.0,
                     unit='m/s')
         check_range('lane_keeping.integral_band', self.integral_band, 0.0, 10.0, unit='m')
+        check_range('lane_keeping.integral_band_time', self.integral_band_time, 0.0, 60.0,
+                    unit='s')
         check_range('lane_keeping.steering_limit', self.steering_limit, 0.0, 1.5,
                     low_open=True, unit='rad')
         check_range('lane_keeping.max_gap', self.max_gap, 0.0, 10.0, low_open=True,
@@ -416,6 +423,8 @@ class CgCompensatedLaw:
                                   natural_frequency=self.settings.natural_frequency,
                                   damping_ratio=self.settings.damping_ratio)
         self.integral: Real = 0.0
+        #: how long ``|y_cg|`` has been outside ``integral_band`` [s]
+        self.outside_time: Real = 0.0
         self.last_steering: Real = 0.0
         self.cut = False        # the last command sent was cut outside the law
         st = self.settings
@@ -446,6 +455,7 @@ class CgCompensatedLaw:
     def reset(self) -> None:
         """Forget the integral, the estimate and the last command (time jump, stale)."""
         self.integral = 0.0
+        self.outside_time = 0.0
         self.last_steering = 0.0
         self.cut = False
         self.estimator.reset()
@@ -564,7 +574,14 @@ class CgCompensatedLaw:
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
             self.estimator.update(state, dt, active, state.v_x >= s.integral_min_speed)
-        inside = (xp.absolute(state.y_cg) < s.integral_band) if s.integral_band > 0.0 else True
+        outside = xp.absolute(state.y_cg) >= s.integral_band
+        outside_time = xp.where(outside, self.outside_time + dt, 0.0)
+        # an error that has stood outside integral_band_time is the model's: integrated
+        standing = (outside_time >= s.integral_band_time) if s.integral_band_time > 0.0 else False
+        inside: Any = True
+        if s.integral_band > 0.0:
+            inside = ((~outside | standing) if isinstance(outside, np.ndarray)
+                      else (not outside) or bool(standing))
         rate = xp.where(active & inside & ((xp.absolute(self.integral) < s.integral_limit)
                                            | (self.integral * state.y_cg < 0.0)),
                         s.integral_gain * state.y_cg, zero)
@@ -592,6 +609,7 @@ class CgCompensatedLaw:
         self._rho_used = state.rho
         if isinstance(finite, np.ndarray):
             self.integral = np.where(finite, integral, 0.0)
+            self.outside_time = np.where(finite, outside_time, 0.0)
             self.last_steering = np.where(finite, out.steering, 0.0)
             if self._blending is not None:
                 self._blend_left = np.where(finite, self._blend_left, 0.0)
@@ -606,6 +624,7 @@ class CgCompensatedLaw:
             self.restart_causes['non_finite'] += 1
         else:
             self.integral, self.last_steering = integral, out.steering
+            self.outside_time = outside_time
         return out
 
     def _estimate_curvature(self, state: LateralState, dt: float,

@@ -101,8 +101,10 @@ LANE_KEEPING_SPECS = tuple(
         ('integral_limit', 'clamp of the integral shift of the reference [m]', 0.0, 5.0),
         ('integral_min_speed', 'integral and estimate frozen below this speed [m/s]',
          0.0, 50.0),
-        ('integral_band', 'integral frozen while |CG error| is this or more, 0: never [m]',
-         0.0, 10.0),
+        ('integral_band', 'integral frozen while |CG error| is this or more; 0: no band, '
+         'it integrates at any error [m]', 0.0, 10.0),
+        ('integral_band_time', '... but integrates once |CG error| has stood outside the band '
+         'this long; 0: held while outside [s]', 0.0, 60.0),
         ('steering_limit', 'integral and estimate frozen at this |command| [rad]',
          0.01, 1.5),
         ('max_gap', 'a longer step between lateral errors restarts the law [s]', 0.01, 10.0),

@@ -31,8 +31,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.controller import (ACCELERATION_SOURCES, Command, LAW_NAMES,
                                                SteeringController)
-from lookahead_control.core.lane_keeping import CgCompensatedLaw
-from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.core.params import ControllerParams, ParameterError, SCHEDULE_MODES
 from lookahead_control.core.safety import check_points
 from lookahead_control.core.samples import curvature_from_points
 from lookahead_control.ros import conversions as conv
@@ -102,6 +102,22 @@ def qos(reliability: str) -> QoSProfile:
                       durability=DurabilityPolicy.VOLATILE,
                       reliability=ReliabilityPolicy.RELIABLE if reliability == 'reliable'
                       else ReliabilityPolicy.BEST_EFFORT)
+
+
+def applied_summary(law: str, controller: ControllerParams,
+                    lane_keeping: LaneKeepingParams) -> str:
+    """
+    Return the log line of applied parameters, with the gains of the law that runs.
+
+    :param law: the running law.
+    :param controller: the paper law's parameters (schedule, gains).
+    :param lane_keeping: the default law's (its own gains, ``lane_keeping.*``).
+    :return: the line.
+    """
+    gains: ControllerParams | LaneKeepingParams = (
+        lane_keeping if law == 'cg_compensated' else controller)
+    return (f'parameters applied: law={law}, schedule={controller.schedule}, '
+            f'w_n={gains.natural_frequency:g}, zeta={gains.damping_ratio:g}')
 
 
 class ControllerNode(LifecycleNode):
@@ -189,14 +205,11 @@ class ControllerNode(LifecycleNode):
     def _apply_parameters(self) -> None:
         params = values(self, ALL_SPECS)
         vehicle, controller = vehicle_and_controller(params)
+        lane_keeping = lane_keeping_params(params)
         self.core.configure(vehicle, controller, params['acceleration_source'],
                             params['use_curvature_preview'], safety_params(params),
-                            params['law'], baseline_params(params),
-                            lane_keeping_params(params))
-        self.get_logger().info(f'parameters applied: law={params["law"]}, '
-                               f'schedule={controller.schedule}, '
-                               f'w_n={controller.natural_frequency:g}, '
-                               f'zeta={controller.damping_ratio:g}')
+                            params['law'], baseline_params(params), lane_keeping)
+        self.get_logger().info(applied_summary(params['law'], controller, lane_keeping))
 
     def param(self, name: str) -> Any:
         """
