@@ -435,7 +435,7 @@ def test_a_relative_yaw_bias_is_not_taken_for_a_curve(v_x, rho):
 
 def test_with_a_biased_relative_yaw_the_cg_stays_near_the_lane_without_curvature():
     # S0 at 37 m/s, the relative yaw measured 0.01 rad off (the goal plant, noise): old
-    # code -90 cm over the last 2 s (the integral at its clamp, -0.5 m); now -13.1 cm,
+    # code -46 cm over the last 2 s (-90 cm before integral_band_time); now -13.1 cm,
     # as with the curvature received (-11 cm)
     from lookahead_control.tools.compare import load_scenarios
     from sim_plant.closed_loop_sim import run
