@@ -155,7 +155,7 @@ class LaneKeepingParams:
     filter_force_noise: float = 100.0
     filter_force_drift: float = 2000.0
     filter_kinematic_noise: float = 0.01
-    filter_curvature_drift: float = 0.5
+    filter_curvature_drift: float = 0.7
 
     def __post_init__(self) -> None:
         check_range('lane_keeping.natural_frequency', self.natural_frequency, 0.0, 100.0,

@@ -61,8 +61,9 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   with the law acting on the Kalman filter's estimate (``core/state_filter.py``: its
   model is the design vehicle, its gain ``steady_gain`` at the loop's period and speed,
   its own actuator model and command buffer; with ``v_y_measured=False`` the gain
-  without ``v_y``, a bridge that sends 0; with ``curvature_estimated=True`` the filter
-  with the curvature state and the law on its estimate, ``delta = K x_hat + k_rho
+  without ``v_y``, a bridge that sends 0; with ``curvature_estimated=True`` the
+  curvature estimator (``eps_r' = r - v_x rho`` on the measured ``eps_r`` and ``r``)
+  feeding the filter's curvature input and the law, ``delta = K x_hat + k_rho
   rho_hat`` (:func:`curvature_gain`), no ``road_curvature`` received), and
   :func:`robust_check` takes either.
 - The varying-speed certificate covers the law on exact states only; the filter is
@@ -81,7 +82,7 @@ from lookahead_control.core.lane_keeping import (cg_compensated_law, LaneKeeping
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
-from lookahead_control.core.state_filter import (continuous_model, curvature_model, expm,
+from lookahead_control.core.state_filter import (continuous_model, expm, kinematic_gain,
                                                  MAX_SUBSTEP, measurement_matrix,
                                                  StateFilterParams, steady_gain)
 import numpy as np
@@ -523,9 +524,12 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     :param filter_vehicle: the filter's model (None: the design vehicle).
     :param v_y_measured: False: a bridge without ``v_y`` (``linear.y`` exactly 0 while
         turning): the filter's gain is the one without ``v_y`` at every step.
-    :param curvature_estimated: no ``road_curvature`` received: the filter has the
-        curvature state (``curvature_model``, its gain) and the law uses its estimate
-        (:func:`curvature_gain`); the true road is straight.
+    :param curvature_estimated: no ``road_curvature`` received: the curvature estimator
+        (states ``[eps_r, rho]``, ``kinematic_gain``, the trapezoid of the measured yaw
+        rate) runs on the exact measurements, its estimate is the filter's curvature
+        input (constant over each substep at its middle value, the estimate moving
+        linearly from the last to the new one; the node's RK4 samples the same line)
+        and the law's (:func:`curvature_gain`); the true road is straight.
     :param integral_frozen: the integral held (the CG error outside ``integral_band``):
         a constant input, not a state, and no ``k_i y_cg`` in the reference's rate; the
         matrix without it.
@@ -540,16 +544,15 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     n = a_c.shape[0]
     # the filter's prediction: its 6 states and its wheel, substeps as the node's
     a_f, b_f, _ = continuous_model(model, v_x)
-    ns = 6                              # the filter's states (7 with the curvature)
-    if curvature_estimated:
-        a_f, _ = curvature_model(model, v_x)
-        b_f = np.vstack([b_f, np.zeros((1, 2))])
-        ns = 7
+    ns = 6
     wheel = fs.actuator_lag > 0.0
     nf = ns + 1 if wheel else ns
     a_w = np.zeros((nf, nf))
     a_w[:ns, :ns] = a_f
-    b_w = np.zeros((nf, 1))
+    # inputs: the command and, estimated, the curvature
+    b_w = np.zeros((nf, 2 if curvature_estimated else 1))
+    if curvature_estimated:
+        b_w[:ns, 1] = b_f[:, 1]
     if wheel:
         a_w[:ns, ns] = b_f[:, 0]
         a_w[ns, ns] = -1.0 / fs.actuator_lag
@@ -571,16 +574,17 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     # indices in s_k
     i_int = n
     i_est = n + 1
-    i_buf = i_est + nf
+    i_kin = i_est + nf                  # the curvature estimator's eps_r, rho
+    i_buf = i_kin + (2 if curvature_estimated else 0)
     size = i_buf + depth
-    gain = steady_gain(model, fs, v_x, period, v_y_measured, curvature_estimated)
-    h_model = measurement_matrix(model, ns)
+    gain = steady_gain(model, fs, v_x, period, v_y_measured)
+    h_model = measurement_matrix(model)
     k = feedback_gain(vehicle, controller, settings, v_x)
     law = np.zeros((1, size))                   # u_k over s_k
     law[0, i_est:i_est + 4] = k[:4]
     law[0, i_int] = k[4]
     if curvature_estimated:
-        law[0, i_est + 6] = curvature_gain(vehicle, controller, settings, v_x)
+        law[0, i_kin + 1] = curvature_gain(vehicle, controller, settings, v_x)
 
     def command(age: int) -> Matrix:
         """Return u_k-age as a row over s_k."""
@@ -595,16 +599,29 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     m[:n, :] += gamma @ command(delay_steps)
     m[i_int, i_int] = 1.0
     m[i_int, i_est] = period * settings.integral_gain
-    # the prior, substep by substep, over s_k
-    prior = np.zeros((nf, size))
-    prior[:, i_est:i_est + nf] = np.eye(nf)
-    for age in ages:
-        prior = phi_s @ prior + gamma_s @ command(age)
-    # the update on the true measurement H_plant x_k+1 (the plant's y_cg, eps_r, v_y, r)
+    # the true measurement H_plant x_k+1 (the plant's y_cg, eps_r, v_y, r) over s_k
     h_true = np.zeros((4, n))
     h_true[0, 0], h_true[0, 1] = 1.0, model.d_s
     h_true[1, 1], h_true[2, 2], h_true[3, 3] = 1.0, 1.0, 1.0
     measured = h_true @ m[:n, :]
+    rho_now = np.zeros((1, size))               # the curvature input at t_k
+    rho_next = np.zeros((1, size))              # ... and at t_k+1
+    if curvature_estimated:
+        unit = np.eye(size)
+        g_kin = kinematic_gain(fs, v_x, period)
+        e_prior = (unit[i_kin] + period * (0.5 * (unit[3] + measured[3])
+                                           - v_x * unit[i_kin + 1]))
+        innovation = measured[1] - e_prior
+        m[i_kin, :] = e_prior + g_kin[0, 0] * innovation
+        m[i_kin + 1, :] = unit[i_kin + 1] + g_kin[1, 0] * innovation
+        rho_now[0], rho_next[0] = unit[i_kin + 1], m[i_kin + 1]
+    # the prior, substep by substep, over s_k
+    prior = np.zeros((nf, size))
+    prior[:, i_est:i_est + nf] = np.eye(nf)
+    for j, age in enumerate(ages):
+        prior = phi_s @ prior + gamma_s[:, :1] @ command(age)
+        if curvature_estimated:
+            prior += gamma_s[:, 1:] @ (rho_now + (rho_next - rho_now) * ((j + 0.5) / count))
     posterior = prior.copy()
     posterior[:ns] = prior[:ns] + gain @ (measured - h_model @ prior[:ns])
     m[i_est:i_est + nf, :] = posterior

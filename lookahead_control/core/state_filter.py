@@ -48,16 +48,22 @@ its measurements, and ``v_y`` is estimated from the lateral error, ``eps_r`` and
 from the steady cornering value at the measured ``r``, ``(l_2 - eta v_x^2) r``. A car
 standing straight (both exactly 0, a noise-free simulation) keeps the full gain.
 
-Without a road curvature (``step(..., estimating=True)``: none received, or lost) the
-filter runs a variant with the curvature as a seventh state, a random walk of the road's
-lateral acceleration ``v_x^2 rho`` (``curvature_drift``; :func:`curvature_model`), with
-its own steady gains (7x4, with and without ``v_y``); ``state.rho`` is ignored and the
-estimate is returned as ``rho`` (``rho_rate`` 0). With a curvature received everything
-is as without the variant, bit for bit (the seventh state is set to the curvature
-received, so an estimate starts from the last one). A restart while estimating starts
-it from ``r / v_x`` (a steady turn); below ``min_speed`` the last estimate above it is
-returned, but no more than ``r / max(v_x, min_speed)`` in the same direction (0 in the
-other; none yet: ``r / max(v_x, min_speed)``); within ``+-MAX_CURVATURE``.
+Without a road curvature (``step(..., estimating=True)``: none received, or lost) a
+small estimator on the kinematics alone (:func:`kinematic_model`, dev-kinrho) gives it:
+states ``[eps_r, rho]``, ``eps_r' = r - v_x rho`` with the measured yaw rate a known
+input, ``rho`` a random walk of the road's lateral acceleration ``v_x^2 rho``
+(``curvature_drift``), the measured relative yaw the only measurement, its own steady
+gain (2x1, same period grid and speed table). Its estimate is the filter's curvature
+input, as a received one would be (``state.rho`` is ignored; returned as ``rho``,
+``rho_rate`` 0). A constant bias of the measured relative yaw (a camera's heading
+calibration) moves the estimator's ``eps_r`` alone: in a steady state the innovation
+vanishes and the estimate is ``r / v_x`` (the full model's ``y_cg' = v_y + v_x eps_r``
+would take the bias for a curve). With a curvature received everything is as without
+the estimator, bit for bit (the estimator follows the curvature received, so an estimate
+starts from the last one). A restart starts it from ``r / v_x`` (a steady turn); below
+``min_speed`` the last estimate above it is returned, but no more than
+``r / max(v_x, min_speed)`` in the same direction (0 in the other; none yet:
+``r / max(v_x, min_speed)``); within ``+-MAX_CURVATURE``.
 
 Safety: a non-finite measurement passes through (the law refuses it) and the filter
 restarts from the next finite one (per run in a batch); a time jump (``dt < 0``, not
@@ -122,8 +128,8 @@ class StateFilterParams:
     :param force_drift: random walk of the axle-force disturbances [N / sqrt(s)].
     :param kinematic_noise: white noise on ``y_cg'`` [m / sqrt(s)] (and on ``eps_r'``,
         divided by 10 m): the small-angle kinematics' error.
-    :param curvature_drift: in the variant that estimates the road curvature (no
-        ``road_curvature`` received), the random walk of the road's lateral acceleration
+    :param curvature_drift: in the curvature estimator (no ``road_curvature``
+        received), the random walk of the road's lateral acceleration
         ``v_x^2 rho`` [m/s^2.5]: ``rho' = w curvature_drift / v_x^2``. Roads are laid out
         for a rate of change of the lateral acceleration of 0.3-0.6 m/s^3 along their
         clothoids (highway design: clothoid length ``L = v^3 / (C R)``), about 0.5 m/s^2
@@ -140,7 +146,7 @@ class StateFilterParams:
     force_noise: float = 100.0
     force_drift: float = 2000.0
     kinematic_noise: float = 0.01
-    curvature_drift: float = 0.5
+    curvature_drift: float = 0.7
 
     def __post_init__(self) -> None:
         limits = {'min_speed': (0.5, 50.0, 'm/s'), 'actuator_lag': (0.0, 2.0, 's'),
@@ -194,38 +200,14 @@ def continuous_model(vehicle: VehicleParams, v_x: float) -> tuple[Matrix, Matrix
     return a, b, g
 
 
-def curvature_model(vehicle: VehicleParams, v_x: float) -> tuple[Matrix, Matrix]:
-    """
-    Return ``(A, G)`` of the model with the road curvature as a seventh state.
-
-    ``x = [y_cg, eps_r, v_y, r, F_f, F_r, rho]``, ``rho' = w_rho`` (a random walk):
-    ``eps_r' = r - v_x rho`` takes it from the state instead of an input. ``w`` gains a
-    sixth unit white noise, the curvature's (scaled by ``curvature_drift / v_x^2``: the
-    random walk is the road's lateral acceleration's).
-
-    :param vehicle: the design vehicle.
-    :param v_x: speed [m/s] (> 0).
-    :return: ``A`` (7x7), ``G`` (7x6).
-    """
-    a6, _, g6 = continuous_model(vehicle, v_x)
-    a = np.zeros((7, 7))
-    a[:6, :6] = a6
-    a[1, 6] = -v_x
-    g = np.zeros((7, 6))
-    g[:6, :5] = g6
-    g[6, 5] = 1.0
-    return a, g
-
-
-def measurement_matrix(vehicle: VehicleParams, states: int = 6) -> Matrix:
+def measurement_matrix(vehicle: VehicleParams) -> Matrix:
     """
     Return ``H`` of ``z = H x + n``, ``z = [y_cg + d_s eps_r, eps_r, v_y, r]``.
 
     :param vehicle: the vehicle (``d_s``).
-    :param states: 6, or 7 with the curvature state (not measured).
-    :return: ``H`` (4 x states).
+    :return: ``H`` (4 x 6).
     """
-    h = np.zeros((4, states))
+    h = np.zeros((4, 6))
     h[0, 0], h[0, 1] = 1.0, vehicle.d_s
     h[1, 1], h[2, 2], h[3, 3] = 1.0, 1.0, 1.0
     return h
@@ -255,8 +237,7 @@ def expm(a: Matrix) -> Matrix:
 
 
 def discrete_model(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
-                   period: float, curvature_estimated: bool = False
-                   ) -> tuple[Matrix, Matrix, Matrix, Matrix]:
+                   period: float) -> tuple[Matrix, Matrix, Matrix, Matrix]:
     """
     Return ``(Phi, Q, H, R)`` of the filter sampled at ``period``.
 
@@ -267,17 +248,12 @@ def discrete_model(vehicle: VehicleParams, settings: StateFilterParams, v_x: flo
     :param settings: the filter's settings.
     :param v_x: speed [m/s].
     :param period: sampling period [s].
-    :param curvature_estimated: the model with the curvature state (:func:`curvature_model`).
     :return: the four matrices.
     """
     s = settings
     noises = [s.kinematic_noise, s.force_noise, s.force_noise, s.force_drift,
               s.force_drift]
-    if curvature_estimated:
-        a, g = curvature_model(vehicle, v_x)
-        noises.append(s.curvature_drift / (v_x * v_x))
-    else:
-        a, _, g = continuous_model(vehicle, v_x)
+    a, _, g = continuous_model(vehicle, v_x)
     q = np.diag(np.array(noises) ** 2)
     qc = g @ q @ g.T
     n, h = a.shape[0], period
@@ -289,7 +265,7 @@ def discrete_model(vehicle: VehicleParams, settings: StateFilterParams, v_x: flo
     qd = 0.5 * (qd + qd.T)
     r = np.diag(np.array([s.lateral_noise, s.yaw_noise, s.lateral_velocity_noise,
                           s.yaw_rate_noise]) ** 2)
-    return phi, qd, measurement_matrix(vehicle, a.shape[0]), r
+    return phi, qd, measurement_matrix(vehicle), r
 
 
 def riccati_doubling(phi: Matrix, h: Matrix, q: Matrix, r: Matrix,
@@ -326,10 +302,9 @@ def riccati_doubling(phi: Matrix, h: Matrix, q: Matrix, r: Matrix,
 
 
 def steady_gain(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
-                period: float, v_y_measured: bool = True,
-                curvature_estimated: bool = False) -> Matrix:
+                period: float, v_y_measured: bool = True) -> Matrix:
     """
-    Return the steady-state Kalman gain ``K`` (6x4, 7x4) at a speed and a sampling period.
+    Return the steady-state Kalman gain ``K`` (6x4) at a speed and a sampling period.
 
     The update is ``x = x_prior + K (z - H x_prior)``, ``K = P H^T (H P H^T + R)^-1``.
     Without ``v_y`` among the measurements, its row of ``H`` is dropped and its column of
@@ -340,15 +315,59 @@ def steady_gain(vehicle: VehicleParams, settings: StateFilterParams, v_x: float,
     :param v_x: speed [m/s].
     :param period: sampling period [s].
     :param v_y_measured: whether ``v_y`` is measured.
-    :param curvature_estimated: with the curvature state (7 rows).
     :return: ``K``.
     """
-    phi, q, h, r = discrete_model(vehicle, settings, v_x, period, curvature_estimated)
+    phi, q, h, r = discrete_model(vehicle, settings, v_x, period)
     rows = [0, 1, 2, 3] if v_y_measured else [0, 1, 3]
     h, r = h[rows], r[np.ix_(rows, rows)]
     p = riccati_doubling(phi, h, q, r)
     gain: Matrix = np.zeros((phi.shape[0], 4))
     gain[:, rows] = np.linalg.solve(h @ p @ h.T + r, h @ p).T
+    return gain
+
+
+def kinematic_model(settings: StateFilterParams, v_x: float, period: float
+                    ) -> tuple[Matrix, Matrix, Matrix, Matrix]:
+    """
+    Return ``(Phi, Q, H, R)`` of the curvature estimator sampled at ``period``.
+
+    States ``[eps_r, rho]``: ``eps_r' = r - v_x rho`` with the measured yaw rate ``r`` a
+    known input, ``rho' = w curvature_drift / v_x^2`` (a random walk of the road's
+    lateral acceleration); ``eps_r`` the only measurement. The process noise of
+    ``eps_r`` is the kinematic one (``kinematic_noise / 10 m``, as in the full model)
+    plus the yaw rate's measurement noise integrated over a step (variance
+    ``(period yaw_rate_noise)^2`` a step: a density of ``yaw_rate_noise^2 period``).
+
+    :param settings: the filter's settings.
+    :param v_x: speed [m/s] (> 0).
+    :param period: sampling period [s].
+    :return: ``Phi`` (2x2), ``Q`` (2x2), ``H`` (1x2), ``R`` (1x1).
+    """
+    s = settings
+    a = np.array([[0.0, -v_x], [0.0, 0.0]])
+    qc = np.diag([(0.1 * s.kinematic_noise) ** 2 + s.yaw_rate_noise ** 2 * period,
+                  (s.curvature_drift / (v_x * v_x)) ** 2])
+    block = np.zeros((4, 4))
+    block[:2, :2], block[:2, 2:], block[2:, 2:] = -a, qc, a.T
+    van_loan = expm(block * period)
+    phi = van_loan[2:, 2:].T
+    qd = phi @ van_loan[:2, 2:]
+    return (phi, 0.5 * (qd + qd.T), np.array([[1.0, 0.0]]),
+            np.array([[s.yaw_noise ** 2]]))
+
+
+def kinematic_gain(settings: StateFilterParams, v_x: float, period: float) -> Matrix:
+    """
+    Return the steady-state gain (2x1) of the curvature estimator (:func:`kinematic_model`).
+
+    :param settings: the filter's settings.
+    :param v_x: speed [m/s] (> 0).
+    :param period: sampling period [s].
+    :return: ``K``: the update is ``x = x_prior + K (eps_r - eps_r_prior)``.
+    """
+    phi, q, h, r = kinematic_model(settings, v_x, period)
+    p = riccati_doubling(phi, h, q, r)
+    gain: Matrix = np.asarray(np.linalg.solve(h @ p @ h.T + r, h @ p).T, dtype=np.float64)
     return gain
 
 
@@ -397,11 +416,12 @@ class GainTable:
         :param vehicle: the design vehicle.
         :param settings: the filter's settings.
         :param v_y_measured: whether ``v_y`` is among the measurements.
-        :param curvature_estimated: with the curvature state (gains of 7 rows).
+        :param curvature_estimated: the curvature estimator's gains (2x1,
+            :func:`kinematic_gain`) instead of the filter's (6x4).
         """
         self.vehicle, self.settings, self.v_y_measured = vehicle, settings, v_y_measured
         self.curvature_estimated = curvature_estimated
-        self.states = 7 if curvature_estimated else 6
+        self.states, self.columns = (2, 1) if curvature_estimated else (6, 4)
         count = int(math.ceil((TOP_SPEED - settings.min_speed) / SPEED_STEP)) + 1
         self.speeds: Matrix = settings.min_speed + SPEED_STEP * np.arange(count, dtype=float)
         self.periods: OrderedDict[int, tuple[Matrix, npt.NDArray[np.bool_]]] = OrderedDict()
@@ -414,11 +434,11 @@ class GainTable:
 
         :param bucket: the grid period's index ``k`` (``period_bucket``).
         :param needed: speed-grid indices (an int or an integer array).
-        :return: gains (n, 6, 4) (NaN at the points not solved yet).
+        :return: gains (n, 6, 4) or (n, 2, 1) (NaN at the points not solved yet).
         """
         entry = self.periods.get(bucket)
         if entry is None:
-            entry = (np.full((self.speeds.size, self.states, 4), math.nan),
+            entry = (np.full((self.speeds.size, self.states, self.columns), math.nan),
                      np.zeros(self.speeds.size, dtype=bool))
             self.periods[bucket] = entry
             while len(self.periods) > CACHED_PERIODS:
@@ -428,9 +448,11 @@ class GainTable:
         gains, done = entry
         missing = np.unique(np.asarray(needed))
         for i in missing[~done[missing]]:
-            gains[i] = steady_gain(self.vehicle, self.settings, float(self.speeds[i]),
-                                   bucket_period(bucket), self.v_y_measured,
-                                   self.curvature_estimated)
+            speed, period = float(self.speeds[i]), bucket_period(bucket)
+            gains[i] = (kinematic_gain(self.settings, speed, period)
+                        if self.curvature_estimated else
+                        steady_gain(self.vehicle, self.settings, speed, period,
+                                    self.v_y_measured))
             done[i] = True
             self.solved += 1
         return gains
@@ -445,7 +467,7 @@ def gain_table(vehicle: VehicleParams, settings: StateFilterParams,
     :param vehicle: the design vehicle.
     :param settings: the filter's settings.
     :param v_y_measured: whether ``v_y`` is among the measurements.
-    :param curvature_estimated: with the curvature state.
+    :param curvature_estimated: the curvature estimator's table.
     :return: the table.
     """
     return GainTable(vehicle, settings, v_y_measured, curvature_estimated)
@@ -488,8 +510,11 @@ class KalmanStateFilter:
         self.table = gain_table(vehicle, self.settings)
         #: the gains without ``v_y`` (made when first needed)
         self.blind_table: Optional[GainTable] = None
-        #: the gains with the curvature state, with and without ``v_y`` (when needed)
-        self.curvature_tables: list[Optional[GainTable]] = [None, None]
+        #: the curvature estimator's gains (made when first needed)
+        self.kinematic_table: Optional[GainTable] = None
+        #: the curvature estimator's states ``[eps_r, rho]`` and the yaw rate measured at
+        #: the last step (NaN where it restarts; None before the first step)
+        self.kinematic: Optional[list[Real]] = None
         self.steps_cache: tuple[float, int, float, float, float] = (
             math.nan, 1, 0.0, 0.0, 0.0)
         veh, low = vehicle, self.settings.min_speed
@@ -523,6 +548,7 @@ class KalmanStateFilter:
         the car's, not the estimate's (a run of a batch restarts the same way).
         """
         self.x = None
+        self.kinematic = None
         self.held_rho = math.nan
         self.restarts += 1
 
@@ -534,6 +560,8 @@ class KalmanStateFilter:
         """
         if self.x is not None:
             self.x = [np.where(where, math.nan, v) for v in self.x]
+        if self.kinematic is not None:
+            self.kinematic = [np.where(where, math.nan, v) for v in self.kinematic]
 
     def command(self, steering: Real) -> None:
         """
@@ -582,50 +610,24 @@ class KalmanStateFilter:
         zero = 0.0 * state.y_cg
         return [state.y_cg, state.eps_r, state.v_y, state.r, zero, zero, state.rho]
 
-    def _gain(self, v_x: Real, dt: float, blind: Any = False,
-              estimating: Any = False) -> list[list[Real]]:
+    def _gain(self, v_x: Real, dt: float, blind: Any = False) -> list[list[Real]]:
         """
         Return ``K`` at the speed and step, interpolated in speed (element by element).
 
         :param v_x: speed [m/s].
         :param dt: the step [s].
         :param blind: where true, the gain without ``v_y`` among the measurements.
-        :param estimating: where true, the gain with the curvature state (7 rows); the
-            others' seventh row is 0 (the curvature is an input).
-        :return: ``K`` as rows of columns (6 rows when no run estimates the curvature).
+        :return: ``K`` as rows of columns.
         """
         count = int(np.count_nonzero(blind))
         self.unmeasured_v_y_steps += count
-        gain: list[list[Real]] = []
-        estimates = int(np.count_nonzero(estimating))
-        if estimates < np.size(estimating):
-            gain = self._blind_or_not(self.table, self._blind_table, v_x, dt, blind, count)
-        if estimates == 0:
-            return gain
-        self.curvature_estimated_steps += estimates
-        augmented = self._blind_or_not(self._curvature_table(True),
-                                       lambda: self._curvature_table(False),
-                                       v_x, dt, blind, count)
-        if not gain:                    # every run estimates it
-            return augmented
-        zero = [0.0 * v_x] * 4
-        return [[_select(estimating, a, g) for a, g in zip(row_a, row_g)]
-                for row_a, row_g in zip(augmented, gain + [zero])]
+        return self._blind_or_not(self.table, self._blind_table, v_x, dt, blind, count)
 
     def _blind_table(self) -> GainTable:
         """Return the table without ``v_y`` (made when first needed)."""
         if self.blind_table is None:
             self.blind_table = gain_table(self.vehicle, self.settings, False)
         return self.blind_table
-
-    def _curvature_table(self, v_y_measured: bool) -> GainTable:
-        """Return a table with the curvature state (made when first needed)."""
-        index = int(v_y_measured)
-        table = self.curvature_tables[index]
-        if table is None:
-            table = gain_table(self.vehicle, self.settings, v_y_measured, True)
-            self.curvature_tables[index] = table
-        return table
 
     def _blind_or_not(self, table: GainTable, blind_table: Any, v_x: Real, dt: float,
                       blind: Any, count: int) -> list[list[Real]]:
@@ -652,13 +654,13 @@ class KalmanStateFilter:
             gains = self._period_gains(table, bucket, between,
                                        np.concatenate([i.ravel(), i.ravel() + 1]))
             return [[gains[i, row, col] + w * (gains[i + 1, row, col] - gains[i, row, col])
-                     for col in range(4)] for row in range(table.states)]
+                     for col in range(table.columns)] for row in range(table.states)]
         u = min(max(float(u), 0.0), float(top))
         j = min(int(math.floor(u)), top - 1)
         f = u - j
         gains = self._period_gains(table, bucket, between, [j, j + 1])
         return [[float(gains[j, row, col] + f * (gains[j + 1, row, col] - gains[j, row, col]))
-                 for col in range(4)] for row in range(table.states)]
+                 for col in range(table.columns)] for row in range(table.states)]
 
     @staticmethod
     def _period_gains(table: GainTable, bucket: int, between: float, needed: Any) -> Matrix:
@@ -733,15 +735,19 @@ class KalmanStateFilter:
         :param dt: time since the previous measurement [s]; the caller restarts the
             filter on a time jump; 0 returns the last estimate.
         :param estimating: where true (a bool, or an array over a batch), no curvature
-            is received (``state.rho`` is ignored): the filter estimates it.
+            is received (``state.rho`` is ignored): the curvature estimator's value is
+            the filter's curvature input.
         :return: ``state`` with ``y_cg``, ``eps_r``, ``v_y``, ``r`` estimated, and where
             estimating ``rho`` too (``rho_rate`` 0).
         """
         if not isinstance(estimating, np.ndarray):
             estimating = bool(estimating)
-        if np.count_nonzero(estimating):
+        estimates = int(np.count_nonzero(estimating))
+        rho = self._estimate_curvature(state, dt, estimating, estimates)
+        if estimates:
+            self.curvature_estimated_steps += estimates
             # no curvature received: its input is ignored (the node sends 0)
-            state = state._replace(rho=_select(estimating, 0.0 * state.rho, state.rho),
+            state = state._replace(rho=_select(estimating, rho, state.rho),
                                    rho_rate=_select(estimating, 0.0 * state.rho_rate,
                                                     state.rho_rate))
         measured = self._measured(state)
@@ -753,7 +759,6 @@ class KalmanStateFilter:
         if self.x is None:              # (re)start: every run from its next measurement
             self.x = [math.nan + 0.0 * mv for mv in measured]
             self.rho = state.rho
-        any_estimate = bool(np.count_nonzero(estimating))
         fresh = np.isnan(self.x[0])
         if dt > MAX_PERIOD:
             # beyond the longest period with a well-conditioned gain
@@ -761,13 +766,8 @@ class KalmanStateFilter:
             self.long_steps += 1
         if MAX_PERIOD >= dt > 0.0:
             v_x = _select(fast, state.v_x, self.settings.min_speed)
-            if any_estimate:
-                prior = self._predict(self.x, dt, v_x,
-                                      _select(estimating, self.x[6], state.rho),
-                                      _select(estimating, self.x[6], self.rho))
-            else:
-                prior = self._predict(self.x, dt, v_x, state.rho, self.rho)
-            gain = self._gain(v_x, dt, blind, estimating)
+            prior = self._predict(self.x, dt, v_x, state.rho, self.rho)
+            gain = self._gain(v_x, dt, blind)
             y, e, v, r = measured[:4]
             innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
                           e - prior[1], v - prior[2], r - prior[3])
@@ -776,13 +776,10 @@ class KalmanStateFilter:
                                      + gain[i][2] * innovation[2]
                                      + gain[i][3] * innovation[3])
                          for i in range(len(gain))]
-            if any_estimate:            # the others take the curvature received
-                posterior[6] = _select(estimating, posterior[6], state.rho)
-            else:
-                posterior.append(state.rho)
+            posterior.append(state.rho)
             self.time += dt
             # the curvature the model used to the end of the step (the next step's start)
-            self.rho = _select(good, _select(estimating, posterior[6], state.rho), self.rho)
+            self.rho = _select(good, state.rho, self.rho)
         else:                           # the same instant again: nothing advances
             posterior = self.x
         # restarted runs (NaN marks) start from this measurement; without v_y, from the
@@ -793,15 +790,68 @@ class KalmanStateFilter:
             eta = self.vehicle.eta
             cornering = (self.vehicle.l2 - eta * state.v_x * state.v_x) * state.r
             start = [*measured[:2], _select(blind, cornering, measured[2]), *measured[3:]]
-        if any_estimate:
-            # without a curvature, a restart takes the path the car drives (eps_r' = 0)
-            start = [*start[:6], _select(estimating, self._path_curvature(state),
-                                         start[6])]
         self.x = [_select(fast & ~fresh, p, _select(fast, mv, math.nan))
                   for p, mv in zip(posterior, start)]
         self.held_rho = _select(fast & np.isfinite(self.x[6]), self.x[6],
                                 self.held_rho + 0.0 * state.rho)
-        return self._out(state, measured, fast, estimating if any_estimate else None)
+        return self._out(state, measured, fast, estimating if estimates else None)
+
+    def _estimate_curvature(self, state: LateralState, dt: float, estimating: Any,
+                            estimates: int) -> Real:
+        """
+        Advance the curvature estimator and return its curvature (``docs/lane_keeping.md``).
+
+        States ``[eps_r, rho]``, ``eps_r' = r - v_x rho``: the measured yaw rate the input
+        (the trapezoid of the last and this step's), the measured relative yaw the only
+        measurement, the steady gain of :func:`kinematic_gain`. A constant bias of the
+        relative yaw moves ``eps_r`` alone: in a steady state the innovation vanishes and
+        ``rho = r / v_x``. Where a curvature is received, the estimator follows it
+        (``eps_r`` the measurement, ``rho`` the curvature received: an estimate starts
+        from the last one; a non-finite one restarts it), without a gain.
+        It restarts as the filter does (a non-finite input, below ``min_speed``, a step
+        longer than ``MAX_PERIOD``, :meth:`reset`, :meth:`forget`) from ``eps_r`` and the
+        path the car drives, ``r / v_x``.
+
+        :return: the estimate (the restart value where it restarts; the curvature
+            received elsewhere) [1/m].
+        """
+        eps, r, v_x = state.eps_r, state.r, state.v_x
+        fast = (np.isfinite(eps) & np.isfinite(r) & np.isfinite(v_x)
+                & (v_x >= self.settings.min_speed))
+        # where a curvature is received: the measurement and that curvature (where it
+        # is not usable, a restart)
+        follow = fast & np.isfinite(state.rho)
+        followed = [_select(follow, eps, math.nan),
+                    _select(follow, _bounded(state.rho), math.nan),
+                    _select(fast, r, math.nan)]
+        if not estimates:               # nothing to estimate: no gain needed
+            self.kinematic = followed
+            return state.rho
+        path = self._path_curvature(state)
+        if self.kinematic is None:
+            self.kinematic = [math.nan + 0.0 * eps] * 3
+        e_old, rho_old, r_old = self.kinematic
+        fresh = np.isnan(e_old) | np.isnan(rho_old) | np.isnan(r_old) | (dt > MAX_PERIOD)
+        if MAX_PERIOD >= dt > 0.0:
+            if self.kinematic_table is None:
+                self.kinematic_table = gain_table(self.vehicle, self.settings, True, True)
+            speed = _select(fast, v_x, self.settings.min_speed + 0.0 * v_x)
+            gain = self._table_gain(self.kinematic_table, speed, dt)
+            prior = e_old + dt * (0.5 * (r_old + r) - speed * rho_old)
+            innovation = eps - prior
+            e_new = prior + gain[0][0] * innovation
+            rho_new = _bounded(rho_old + gain[1][0] * innovation)
+        else:                           # the same instant again: nothing advances
+            e_new, rho_new = e_old, rho_old
+        run = fast & ~fresh
+        estimated = [_select(run, e_new, _select(fast, eps, math.nan)),
+                     _select(run, rho_new, _select(fast, path, math.nan)),
+                     followed[2]]
+        self.kinematic = [_select(estimating, a, b) for a, b in zip(estimated, followed)]
+        # the filter needs a finite curvature: the path where the estimator restarts
+        rho_out = self.kinematic[1]
+        return _select(np.isfinite(rho_out), rho_out, _select(np.isfinite(path), path,
+                                                              0.0 * path))
 
     def _path_curvature(self, state: LateralState) -> Real:
         """Return ``r / v_x`` (the speed at least ``min_speed``), within the bounds."""
