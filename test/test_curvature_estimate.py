@@ -492,3 +492,27 @@ def test_the_estimator_follows_the_received_curvature_and_restarts_on_bad_input(
     for _ in range(300):
         again = f.step(state._replace(rho=0.0), 0.01, True)
     assert again.rho == pytest.approx(rho, rel=1e-3)
+
+
+@pytest.mark.parametrize('speed', [math.nan, math.inf, -math.inf])
+def test_a_non_finite_speed_while_estimating_does_not_crash_the_filter(speed):
+    # probe21: the estimator's speed below the floor was min_speed + 0 v_x, NaN for a
+    # non-finite v_x: the gain look-up raised (ValueError; IndexError in a batch)
+    v_y, r, eps_r = _turn(37.0, 1 / 500.0)
+    state = LateralState(0.0, eps_r, v_y, r, 37.0, 0.0, 0.0, 0.0)
+    f = KalmanStateFilter(VEHICLE)
+    f.step(state, 0.02, True)
+    f.step(state._replace(v_x=speed), 0.02, True)
+    out = f.step(state, 0.02, True)
+    assert math.isfinite(out.rho) and abs(out.rho) <= 0.2
+    batch = LateralState(*[np.array([x, x]) for x in state])
+    g = KalmanStateFilter(VEHICLE)
+    g.step(batch, 0.02, np.array([True, True]))
+    g.step(batch._replace(v_x=np.array([37.0, speed])), 0.02, np.array([True, True]))
+    out = g.step(batch, 0.02, np.array([True, True]))
+    assert np.all(np.isfinite(out.rho)) and np.all(np.abs(out.rho) <= 0.2)
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    law.note_curvature(False)
+    law.step(state, None, 0.02)
+    law.step(state._replace(v_x=speed), None, 0.02)
+    assert all(math.isfinite(law.step(state, None, 0.02).steering) for _ in range(3))

@@ -835,7 +835,8 @@ class KalmanStateFilter:
         if MAX_PERIOD >= dt > 0.0:
             if self.kinematic_table is None:
                 self.kinematic_table = gain_table(self.vehicle, self.settings, True, True)
-            speed = _select(fast, v_x, self.settings.min_speed + 0.0 * v_x)
+            # (not min_speed + 0 v_x: a non-finite speed would make it NaN)
+            speed = _select(fast, v_x, self.settings.min_speed)
             gain = self._table_gain(self.kinematic_table, speed, dt)
             prior = e_old + dt * (0.5 * (r_old + r) - speed * rho_old)
             innovation = eps - prior
@@ -850,8 +851,7 @@ class KalmanStateFilter:
         self.kinematic = [_select(estimating, a, b) for a, b in zip(estimated, followed)]
         # the filter needs a finite curvature: the path where the estimator restarts
         rho_out = self.kinematic[1]
-        return _select(np.isfinite(rho_out), rho_out, _select(np.isfinite(path), path,
-                                                              0.0 * path))
+        return _select(np.isfinite(rho_out), rho_out, _select(np.isfinite(path), path, 0.0))
 
     def _path_curvature(self, state: LateralState) -> Real:
         """Return ``r / v_x`` (the speed at least ``min_speed``), within the bounds."""
