@@ -788,3 +788,26 @@ def test_a_restart_without_v_y_starts_from_the_cornering_v_y_not_the_0():
     # with v_y measured a restart starts from the measurement, as before
     measured_error, _, _ = _blind_run(lambda v: v, restart=300, wander=0.0)
     assert np.max(measured_error[300:]) < 2e-6
+
+
+def test_an_absurd_command_does_not_poison_the_filter_s_wheel_model():
+    # probe21: a finite but absurd eps_r (1e300) made the law command -1.9e300 rad; a
+    # caller that never reports the angle sent (note_sent) left that in the filter's
+    # actuator model, which overflowed: after two such steps every second output NaN
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    good = LateralState(0.1, 0.01, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0)
+    for _ in range(20):
+        law.step(good, None, 0.01)
+    for _ in range(2):                  # two in a row: the first one alone recovered
+        law.step(good._replace(eps_r=1e300), None, 0.01)
+    outputs = [law.step(good, None, 0.01).steering for _ in range(200)]
+    assert all(math.isfinite(x) for x in outputs[5:]), outputs[:20]
+    # a batch: the same per run
+    batch = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    two = LateralState(*(np.array([v, v]) for v in good))
+    for _ in range(20):
+        batch.step(two, None, 0.01)
+    for _ in range(2):
+        batch.step(two._replace(eps_r=np.array([1e300, 0.01])), None, 0.01)
+    outputs = [batch.step(two, None, 0.01).steering for _ in range(200)]
+    assert np.all(np.isfinite(np.array(outputs[5:])))

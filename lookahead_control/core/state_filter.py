@@ -91,6 +91,8 @@ import numpy as np
 import numpy.typing as npt
 
 FILTER_MODES = ('none', 'kalman')
+#: [rad] the model's actuator input is clamped here: no road wheel turns further
+MAX_WHEEL_ANGLE = 0.5 * math.pi
 STATES = ('y_cg', 'eps_r', 'v_y', 'r', 'front_force', 'rear_force')
 #: the gain's grid periods: ``10^(k / PERIOD_STEPS)`` s (0.01 s is one), a step's gain
 #: interpolated between the two around its period, linearly in ``log(period)``: within
@@ -569,9 +571,16 @@ class KalmanStateFilter:
 
         A non-finite command (refused downstream) leaves the actuator where it was.
 
-        :param steering: the steering command [rad].
+        :param steering: the steering command [rad]; beyond ``MAX_WHEEL_ANGLE`` no wheel
+            follows it: the model's input is clamped there (a command of 1e300 rad once
+            made the model's wheel overflow into NaN for good when the caller did not
+            report the angle sent).
         """
         last = self.history[-1][1] if self.history else self.held
+        if isinstance(steering, np.ndarray):
+            steering = np.clip(steering, -MAX_WHEEL_ANGLE, MAX_WHEEL_ANGLE)
+        elif math.isfinite(steering):
+            steering = min(MAX_WHEEL_ANGLE, max(-MAX_WHEEL_ANGLE, steering))
         self.history.append((self.time, _select(np.isfinite(steering), steering, last)))
 
     def correct(self, steering: float) -> None:
