@@ -33,6 +33,7 @@ from lookahead_control.core.state_filter import (KalmanStateFilter, kinematic_ga
 import numpy as np
 import pytest
 import scipy.linalg
+from test_state_filter import van_loan
 
 VEHICLE = VehicleParams()
 
@@ -45,12 +46,7 @@ def kinematic_reference_gain(settings, v_x, period):
     qc = np.diag([(settings.kinematic_noise / 10.0) ** 2
                   + settings.yaw_rate_noise ** 2 * period,
                   (settings.curvature_drift / v_x ** 2) ** 2])
-    block = np.zeros((4, 4))
-    block[:2, :2], block[:2, 2:], block[2:, 2:] = -a, qc, a.T
-    vl = scipy.linalg.expm(block * period)
-    phi = vl[2:, 2:].T
-    q = phi @ vl[:2, 2:]
-    q = 0.5 * (q + q.T)
+    phi, q = van_loan(a, qc, period)
     assert np.allclose(phi, [[1.0, -v_x * period], [0.0, 1.0]], rtol=0, atol=1e-15)
     h = np.array([[1.0, 0.0]])
     r = np.array([[settings.yaw_noise ** 2]])

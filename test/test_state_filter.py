@@ -52,6 +52,17 @@ def independent_model(v_x):
         [0, 0, 0, 0, 0, 0]], dtype=float)
 
 
+def van_loan(a, qc, period):
+    """Return ``(phi, q)`` of ``x' = a x + w`` (``w`` of density ``qc``) over ``period``."""
+    n = a.shape[0]
+    block = np.zeros((2 * n, 2 * n))
+    block[:n, :n], block[:n, n:], block[n:, n:] = -a, qc, a.T
+    vl = scipy.linalg.expm(block * period)
+    phi = vl[n:, n:].T
+    q = phi @ vl[:n, n:]
+    return phi, 0.5 * (q + q.T)
+
+
 def independent_discretization(settings, v_x, period):
     """Return ``(phi, q, h, r)`` sampled at ``period`` by scipy's expm and Van Loan."""
     m, iz, l1, l2 = VEHICLE.mass, VEHICLE.yaw_inertia, VEHICLE.l1, VEHICLE.l2
@@ -63,12 +74,7 @@ def independent_discretization(settings, v_x, period):
     s = settings
     qc = g @ np.diag([s.kinematic_noise ** 2, s.force_noise ** 2, s.force_noise ** 2,
                       s.force_drift ** 2, s.force_drift ** 2]) @ g.T
-    block = np.zeros((12, 12))
-    block[:6, :6], block[:6, 6:], block[6:, 6:] = -a, qc, a.T
-    vl = scipy.linalg.expm(block * period)
-    phi = vl[6:, 6:].T
-    q = phi @ vl[:6, 6:]
-    q = 0.5 * (q + q.T)
+    phi, q = van_loan(a, qc, period)
     h = np.zeros((4, 6))
     h[0, 0], h[0, 1], h[1, 1], h[2, 2], h[3, 3] = 1, VEHICLE.d_s, 1, 1, 1
     r = np.diag([s.lateral_noise ** 2, s.yaw_noise ** 2, s.lateral_velocity_noise ** 2,
