@@ -20,6 +20,7 @@ from pathlib import Path
 import time
 
 from conftest import Swerve
+from lookahead_control.core.cli import run_tool
 from lookahead_control.core.params import VehicleParams
 from lookahead_control.tools import compare
 import numpy as np
@@ -78,7 +79,7 @@ def test_goal_rows_apply_where_issue_14_puts_them():
 def test_every_law_builds_and_is_a_law():
     from lookahead_control.core.laws import Law
     for name, factory in compare.LAWS.items():
-        assert isinstance(factory(VEHICLE), Law), name
+        assert isinstance(factory(VEHICLE, compare.LawSettings()), Law), name
 
 
 def test_small_league_is_deterministic_and_complete(tmp_path):
@@ -150,7 +151,7 @@ class _Broken:
 
 
 def test_a_diverged_run_is_a_row_and_the_league_goes_on(monkeypatch, tmp_path):
-    monkeypatch.setitem(compare.LAWS, 'swerve', lambda v: Swerve())
+    monkeypatch.setitem(compare.LAWS, 'swerve', lambda v, s: Swerve())
     mb = next(p for p in compare.PLANTS if p.name == 'commonroad_mb')
     rows = compare.league(['swerve'], ['s2_curve_entry'], [10.0, 37.0], [mb], VEHICLE,
                           duration=2.5)
@@ -175,7 +176,7 @@ def test_every_goal_is_missed_by_a_run_without_metrics():
 @pytest.mark.parametrize('workers', [1, 2])
 def test_a_failing_task_keeps_the_other_rows_and_exits_1(monkeypatch, tmp_path, capsys,
                                                          workers):
-    monkeypatch.setitem(compare.LAWS, 'broken', lambda v: _Broken())
+    monkeypatch.setitem(compare.LAWS, 'broken', lambda v, s: _Broken())
     monkeypatch.setattr(compare, 'PLANTS', compare.PLANTS[:2])
     code = compare.main(['--laws', 'paper_eq26', 'broken', '--scenarios', 's0_straight',
                          '--speeds', '37', '--out', str(tmp_path), '--no-plots',
@@ -265,3 +266,65 @@ def test_the_yaw_overshoot_is_measured_on_the_noisy_goal_plant():
     assert 'noise effect' in noisy['notes']
     assert clean['yaw_overshoot'] <= noisy['yaw_overshoot'] < 0.10
     assert math.isnan(noisy['steering_noise_rms_rad'])      # S0 only
+
+
+def test_the_controller_file_sets_what_each_law_runs(tmp_path, capsys):
+    # before, compare ran every law at its package defaults whatever the node's params file
+    # said: a tuning of lane_keeping.* (or of a baseline) could not be put on the league
+    text = (compare.ROOT / 'config' / 'controller.yaml').read_text()
+    for line in ('      natural_frequency: 7.0 ', '    gain: 4.0 '):
+        assert text.count(line) == 1, line
+    tuned = tmp_path / 'tuned.yaml'
+    tuned.write_text(text.replace('      natural_frequency: 7.0 ', '      natural_frequency: 4 ')
+                     .replace('    gain: 4.0 ', '    gain: 2.5 '))
+    settings = compare.load_law_settings(tuned)
+    assert settings.lane_keeping.natural_frequency == 4.0
+    assert settings.baselines.stanley.gain == 2.5
+    assert compare.settings_changes(settings) == ['lane_keeping.natural_frequency = 4.0',
+                                                  'stanley.gain = 2.5']
+    assert compare.settings_changes(compare.load_law_settings(
+        compare.ROOT / 'config' / 'controller.yaml')) == []
+    args = ['--laws', 'cg_compensated', 'stanley', 'paper_eq26', '--scenarios',
+            's2_curve_entry', '--plants', 'nonlinear', '--speeds', '37', '--duration', '5',
+            '--dt', '0.005', '--workers', '1', '--no-plots', '--no-progress']
+    assert compare.main(args + ['--out', str(tmp_path / 'd')]) == 0
+    assert compare.main(args + ['--out', str(tmp_path / 't'), '--controller', str(tuned)]) == 0
+    capsys.readouterr()
+
+    def peaks(folder):
+        lines = (folder / 'league.csv').read_text().splitlines()
+        head = lines[0].split(',')
+        return {row.split(',')[0]: float(row.split(',')[head.index('peak_cg_error_m')])
+                for row in lines[1:]}
+
+    default, mine = peaks(tmp_path / 'd'), peaks(tmp_path / 't')
+    # each tuned law's row is that law with those settings, and not its default's
+    scenario = compare.load_scenarios(['s2_curve_entry'])['s2_curve_entry']
+    for name in ('cg_compensated', 'stanley'):
+        for settings_used, table in ((settings, mine), (compare.LawSettings(), default)):
+            result = compare.run(compare.replace(scenario, duration=5.0), VEHICLE,
+                                 compare.LAWS[name](VEHICLE, settings_used),
+                                 compare.NONLINEAR, initial_speed=np.array([37.0]), dt=0.005,
+                                 preview_distance=compare.PREVIEW_DISTANCE, delay=0.0)
+            assert table[name] == pytest.approx(float(np.max(np.abs(result['y_cg']))),
+                                                rel=1e-6), name
+        assert abs(mine[name] - default[name]) > 0.05 * default[name], name
+    assert mine['paper_eq26'] == default['paper_eq26']       # nothing of its changed
+    head = (tmp_path / 't' / 'league.md').read_text()
+    assert (f"The laws' settings are those of `{tuned}` (`--controller`)" in head
+            and '`lane_keeping.natural_frequency = 4.0`; `stanley.gain = 2.5`' in head)
+    assert '--controller' not in (tmp_path / 'd' / 'league.md').read_text()
+    # a value no law accepts is one line naming it, before any run or output
+    tuned.write_text(text.replace('      natural_frequency: 7.0 ',
+                                  '      natural_frequency: -3.0 '))
+    code = run_tool(compare.main, args + ['--out', str(tmp_path / 'b'), '--controller',
+                                          str(tuned)])
+    err = capsys.readouterr().err
+    assert code == 2 and 'lane_keeping.natural_frequency = -3.0' in err
+    assert err.count('\n') == 1 and not (tmp_path / 'b').exists()
+    tuned.write_text(text.replace('reference: lane_tangent', 'reference: arc_exact'))
+    code = run_tool(compare.main, args + ['--out', str(tmp_path / 'c'), '--controller',
+                                          str(tuned)])
+    err = capsys.readouterr().err
+    assert code == 2 and 'cg_compensated' in err and 'arc_exact' in err
+    assert err.count('\n') == 1 and not (tmp_path / 'c').exists()

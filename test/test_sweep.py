@@ -14,12 +14,13 @@
 
 """The sweep tool: results, resume, a killed Dask worker, bad options (small batches)."""
 
-from dataclasses import replace
+from dataclasses import asdict, replace
 import json
 import os
 from pathlib import Path
 
 from lookahead_control.core.cli import run_tool, ToolError
+from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.tools import sweep as sw
 import numpy as np
@@ -110,13 +111,13 @@ def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path, ref
         _sweep(tmp_path / 'r', replace(SPEC, runs=4))
 
 
-def crash_once(task, data, vehicle, controller):
+def crash_once(task, data, vehicle, controller, lane_keeping=None):
     """Kill the worker process the first time the first task runs."""
     marker = Path(os.environ['SWEEP_TEST_MARKER'])
     if task['task'].endswith('-00000') and task['law'] == 'paper_eq26' and not marker.exists():
         marker.write_text('crashed')
         os._exit(1)
-    return sw.run_task(task, data, vehicle, controller)
+    return sw.run_task(task, data, vehicle, controller, lane_keeping)
 
 
 def test_a_killed_dask_worker_loses_no_result(tmp_path, monkeypatch, reference):
@@ -149,11 +150,11 @@ def test_output_folder_that_is_not_a_sweep_is_refused(tmp_path):
         _sweep(tmp_path / 'o')
 
 
-def fail_third(task, data, vehicle, controller):
+def fail_third(task, data, vehicle, controller, lane_keeping=None):
     """Fail on the third task (a bug in a law, say)."""
     if task['task'] == 'paper_fixed-s1_paper_step-00000':
         raise ValueError('law exploded')
-    return sw.run_task(task, data, vehicle, controller)
+    return sw.run_task(task, data, vehicle, controller, lane_keeping)
 
 
 def test_a_failing_task_stops_the_sweep_and_keeps_finished_parts(tmp_path):
@@ -175,17 +176,72 @@ def test_a_resume_with_another_vehicle_or_controller_is_refused(reference, tmp_p
     with pytest.raises(ToolError, match='options differ: vehicle'):
         sw.sweep(SPEC, folder, vehicle=replace(VEHICLE, mass=1600.0),
                  controller=CONTROLLER, workers=0, plots=False)
+    with pytest.raises(ToolError, match='options differ: lane_keeping'):
+        _sweep(folder, lane_keeping=LaneKeepingParams(integral_gain=1.0))
     assert sorted(p.name for p in (folder / 'parts').iterdir()) == before
     again, count = _sweep(folder)                 # the same models: resumed, nothing to do
     assert count == 0 and _same(again, table)
-    # a folder of the version that did not record them: refused, not guessed
+    # a folder of the versions that did not record them: refused, not guessed
     manifest = json.loads((folder / 'sweep.json').read_text())
-    old = tmp_path / 'old'
-    (old / 'parts').mkdir(parents=True)
-    (old / 'sweep.json').write_text(json.dumps(
-        {k: v for k, v in manifest.items() if k not in ('vehicle', 'controller')}))
-    with pytest.raises(ToolError, match='did not record its vehicle and controller'):
-        _sweep(old)
+    for i, left_out in enumerate((('vehicle', 'controller', 'lane_keeping'),
+                                  ('lane_keeping',))):
+        old = tmp_path / f'old{i}'
+        (old / 'parts').mkdir(parents=True)
+        (old / 'sweep.json').write_text(json.dumps(
+            {k: v for k, v in manifest.items() if k not in left_out}))
+        with pytest.raises(ToolError, match='did not record its vehicle, controller and '
+                           'lane-keeping settings'):
+            _sweep(old)
+
+
+def test_the_controller_file_tunes_the_lane_keeping_law(tmp_path, capsys):
+    # before, --controller gave the paper laws their parameters and cg_compensated ran its
+    # defaults whatever the file said: a tuning of the node's lane_keeping.* was never
+    # what the sweep measured
+    text = (Path(sw.source_config_dir()) / 'controller.yaml').read_text()
+    assert '      integral_gain: 0.3 ' in text and '      natural_frequency: 7.0 ' in text
+    tuned = tmp_path / 'tuned.yaml'
+    tuned.write_text(text.replace('      integral_gain: 0.3 ', '      integral_gain: 2 ')
+                     .replace('      natural_frequency: 7.0 ', '      natural_frequency: 4.0 '))
+    args = ['--workers', '0', '--mode', 'grid', '--levels', '2', '--cornering=-0.3:0.3',
+            '--mass', '0:0', '--friction', '1:1', '--delay', '0:0', '--speeds', '37',
+            '--scenarios', 's2_curve_entry', '--duration', '5', '--laws', 'cg_compensated',
+            '--no-plots', '--no-progress', '--no-noise', '--dt', '0.005']
+    assert run_tool(sw.main, args + ['--out', str(tmp_path / 'd')]) == 0
+    assert run_tool(sw.main, args + ['--out', str(tmp_path / 't'), '--controller',
+                                     str(tuned)]) == 0
+    capsys.readouterr()
+    default = pq.read_table(tmp_path / 'd' / 'results.parquet').to_pydict()
+    mine = pq.read_table(tmp_path / 't' / 'results.parquet').to_pydict()
+    settings = LaneKeepingParams(integral_gain=2.0, natural_frequency=4.0)
+    assert json.loads((tmp_path / 't' / 'sweep.json').read_text())['lane_keeping'] == (
+        json.loads(json.dumps(asdict(settings))))
+    # each run is the law with those settings on that plant, and not the default's
+    scenario = replace(load_scenario(sw.scenario_path('s2_curve_entry')), duration=5.0)
+    for i, cornering in enumerate(mine['cornering']):
+        body = replace(VEHICLE, c_f=VEHICLE.c_f * (1 + cornering),
+                       c_r=VEHICLE.c_r * (1 + cornering))
+        peaks = []
+        for lk in (settings, LaneKeepingParams()):
+            law = sw.cg_compensated_law(VEHICLE, CONTROLLER, lk)
+            result = run(scenario, VEHICLE, law, PlantParams(model='nonlinear'), dt=0.005,
+                         initial_speed=np.array([37.0]), plant_vehicle=[body],
+                         delay=np.array([0.0]))
+            peaks.append(float(np.max(np.abs(result['y_cg']))))
+        assert mine['peak_cg_error_m'][i] == pytest.approx(peaks[0], rel=1e-9)
+        assert default['peak_cg_error_m'][i] == pytest.approx(peaks[1], rel=1e-9)
+        assert abs(peaks[0] - peaks[1]) > 0.05 * peaks[1]
+    summary = (tmp_path / 't' / 'summary.md').read_text()
+    assert ('cg_compensated: lane_keeping.natural_frequency = 4.0, '
+            'lane_keeping.integral_gain = 2.0 (the rest default).') in summary
+    assert 'cg_compensated: the default settings.' in (tmp_path / 'd' / 'summary.md').read_text()
+    # a bad value in the file is one line naming it, before any run
+    tuned.write_text(text.replace('      integral_gain: 0.3 ', '      integral_gain: -1.0 '))
+    code = run_tool(sw.main, args + ['--out', str(tmp_path / 'b'), '--controller',
+                                     str(tuned)])
+    err = capsys.readouterr().err
+    assert code == 2 and 'lane_keeping.integral_gain = -1.0' in err and err.count('\n') == 1
+    assert not (tmp_path / 'b').exists()
 
 
 def test_the_printed_summary_gives_the_worst_case_of_each_scenario(tmp_path, capsys):

@@ -28,7 +28,11 @@ import fnmatch
 from pathlib import Path
 from typing import Any, Mapping, Sequence, Type, TypeVar
 
-from lookahead_control.core.param_schema import (check_params, CONTROLLER_SPECS, namespaces_of,
+from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
+                                              StanleyParams)
+from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.param_schema import (BASELINE_SPECS, check_params, CONTROLLER_SPECS,
+                                                 LANE_KEEPING_SPECS, namespaces_of,
                                                  SAFETY_SPECS, Spec, unknown_name,
                                                  VEHICLE_SPECS)
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
@@ -40,7 +44,10 @@ D = TypeVar('D')
 
 
 SPECS_BY_NAMESPACE = {'vehicle': VEHICLE_SPECS, 'controller': CONTROLLER_SPECS,
-                      'safety': SAFETY_SPECS}
+                      'safety': SAFETY_SPECS, 'lane_keeping': LANE_KEEPING_SPECS,
+                      **{name: tuple(s for s in BASELINE_SPECS
+                                     if s.name.partition('.')[0] == name)
+                         for name in ('pure_pursuit', 'stanley', 'lqr')}}
 
 
 class ConfigError(ValueError):
@@ -230,3 +237,49 @@ def load_controller(path: Path | str | None = None, **overrides: Any) -> Control
     params = load_ros_params(file, 'controller')
     params.update({f'controller.{k}': v for k, v in overrides.items()})
     return dataclass_from_params(ControllerParams, params, 'controller', str(file))
+
+
+def load_lane_keeping(path: Path | str | None = None) -> LaneKeepingParams:
+    """
+    Load the CG-compensated law's settings (default: ``config/controller.yaml``).
+
+    The node's own params file: its ``lane_keeping.*`` entries (in the ``controller``
+    node's section or ``/**``), the rest of the law's settings at their defaults, exactly
+    what the node would run.
+
+    :param path: a ROS params file.
+    :return: the settings.
+    :raises ConfigError: ``<file>: lane_keeping.<name> = <value> ...``.
+    """
+    file = Path(path) if path else source_config_dir() / 'controller.yaml'
+    return dataclass_from_params(LaneKeepingParams, load_ros_params(file, 'controller'),
+                                 'lane_keeping', str(file))
+
+
+def load_baselines(path: Path | str | None = None) -> BaselineParams:
+    """
+    Load the baseline laws' parameters (default: ``config/controller.yaml``).
+
+    :param path: a ROS params file with ``pure_pursuit.*``, ``stanley.*``, ``lqr.*``
+        entries for the ``controller`` node (the rest at their defaults).
+    :return: the parameters.
+    :raises ConfigError: ``<file>: <name> = <value> ...``.
+    """
+    file = Path(path) if path else source_config_dir() / 'controller.yaml'
+    params = load_ros_params(file, 'controller')
+    return BaselineParams(
+        dataclass_from_params(PurePursuitParams, params, 'pure_pursuit', str(file)),
+        dataclass_from_params(StanleyParams, params, 'stanley', str(file)),
+        dataclass_from_params(LqrParams, params, 'lqr', str(file)))
+
+
+def changed_fields(params: Any) -> dict[str, Any]:
+    """
+    Return the fields of a parameter dataclass that differ from its defaults.
+
+    :param params: a dataclass instance whose fields all have defaults.
+    :return: field name -> value, in field order (empty: all defaults).
+    """
+    default = type(params)()
+    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params)
+            if getattr(params, f.name) != getattr(default, f.name)}

@@ -20,6 +20,8 @@ noise, the same curvature preview), the same actuator, plant and safety-free off
 loop (``sim_plant.closed_loop_sim.run``, vectorized over speeds). Writes ``league.md``
 (summary and goal rows), ``league.csv`` (one row per run) and ``league.png`` into
 ``--out``; ``--tune`` runs the baselines' tuning grids instead (``docs/baselines.md``).
+Every law runs its package defaults (the league's one tuning), or with ``--controller``
+the settings the controller node would run with that params file.
 A law added later is one entry of :data:`LAWS`.
 """
 
@@ -39,11 +41,12 @@ from lookahead_control.analysis.metrics import step_metrics
 from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrParams,
                                               PurePursuitParams, StanleyParams)
 from lookahead_control.core.cli import (claim_output, markdown_table, number, one_line, parser,
-                                        record_output, run_tool, write_csv, write_json)
+                                        record_output, run_tool, ToolError, write_csv,
+                                        write_json)
 from lookahead_control.core.control_law import arc_offset
-from lookahead_control.core.lane_keeping import CgCompensatedLaw
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
-from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.schedule import paper_look_ahead
 import numpy as np
 import numpy.typing as npt
@@ -68,15 +71,62 @@ MAX_DURATION = 600.0            # [s] of simulated time per run (--duration)
 DT = 0.005                      # [s] plant step (CommonRoad's multi-body model: 0.002)
 
 
-LawFactory = Callable[[VehicleParams], Law]
+@dataclass(frozen=True)
+class LawSettings:
+    """
+    The settings the laws run with (a controller node's parameters, by namespace).
+
+    :param controller: ``controller.*``: the paper laws' (their schedule is the law's
+        name's) and the d_v schedule, clamp and speed floor of ``cg_compensated``.
+    :param lane_keeping: ``lane_keeping.*``: the ``cg_compensated`` law's settings.
+    :param baselines: ``pure_pursuit.*``, ``stanley.*``, ``lqr.*``.
+    """
+
+    controller: ControllerParams = ControllerParams()
+    lane_keeping: LaneKeepingParams = LaneKeepingParams()
+    baselines: BaselineParams = BaselineParams()
+
+
+LawFactory = Callable[[VehicleParams, LawSettings], Law]
 LAWS: dict[str, LawFactory] = {
-    'paper_fixed': lambda v: PaperLaw(v, ControllerParams(schedule='fixed')),
-    'paper_eq26': lambda v: PaperLaw(v, ControllerParams()),
-    'pure_pursuit': lambda v: baseline_law('pure_pursuit', v, BaselineParams()),
-    'stanley': lambda v: baseline_law('stanley', v, BaselineParams()),
-    'lqr': lambda v: baseline_law('lqr', v, BaselineParams()),
-    'cg_compensated': lambda v: CgCompensatedLaw(v, ControllerParams()),
+    'paper_fixed': lambda v, s: PaperLaw(v, replace(s.controller, schedule='fixed')),
+    'paper_eq26': lambda v, s: PaperLaw(v, replace(s.controller, schedule='paper')),
+    'pure_pursuit': lambda v, s: baseline_law('pure_pursuit', v, s.baselines),
+    'stanley': lambda v, s: baseline_law('stanley', v, s.baselines),
+    'lqr': lambda v, s: baseline_law('lqr', v, s.baselines),
+    # as the node builds it (core/controller.build_law)
+    'cg_compensated': lambda v, s: CgCompensatedLaw(v, s.controller, s.lane_keeping),
 }
+
+
+def load_law_settings(path: Path | str) -> LawSettings:
+    """
+    Load the laws' settings from a controller node's params file.
+
+    :param path: a ROS params file (``config/controller.yaml`` format); what it does not
+        set stays at the package default.
+    :return: the settings.
+    :raises ConfigError: a bad file or value, in one line naming it.
+    """
+    from lookahead_control.core.config import (load_baselines, load_controller,
+                                               load_lane_keeping)
+    return LawSettings(load_controller(path), load_lane_keeping(path), load_baselines(path))
+
+
+def settings_changes(settings: LawSettings) -> list[str]:
+    """
+    Return ``namespace.name = value`` for every setting that differs from the default.
+
+    :param settings: the laws' settings.
+    :return: the lines, in field order (empty: the package defaults).
+    """
+    from lookahead_control.core.config import changed_fields
+    parts: list[tuple[str, Any]] = [('controller', settings.controller),
+                                    ('lane_keeping', settings.lane_keeping),
+                                    *((name, getattr(settings.baselines, name))
+                                      for name in ('pure_pursuit', 'stanley', 'lqr'))]
+    return [f'{space}.{name} = {value!r}' for space, params in parts
+            for name, value in changed_fields(params).items()]
 
 
 @dataclass(frozen=True)
@@ -375,16 +425,17 @@ def speed_seed(speed: float) -> int:
     return NOISE_SEED + len(SPEEDS) + int(round(speed * 1000.0))
 
 
-def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], VehicleParams,
-                         float, Optional[float]]) -> list[dict[str, Any]]:
+def run_case(task: tuple[Any, ...]) -> list[dict[str, Any]]:
     """
     Run one law on one scenario: every plant, every speed (vectorized per plant).
 
-    :param task: ``(law, scenario name, speeds, plants, vehicle, dt, duration)`` (names,
-        not objects: a task crosses to a worker process; duration None: the scenario's).
+    :param task: ``(law, scenario name, speeds, plants, vehicle, dt, duration[,
+        settings])`` (names, not objects: a task crosses to a worker process; duration
+        None: the scenario's; settings: :class:`LawSettings`, the defaults without).
     :return: one row per run.
     """
-    law_name, scenario_name, speeds, plants, league_vehicle, dt, duration = task
+    law_name, scenario_name, speeds, plants, league_vehicle, dt, duration = task[:7]
+    settings = task[7] if len(task) > 7 else LawSettings()
     scenario = load_scenarios([scenario_name])[scenario_name]
     if duration is not None:
         scenario = replace(scenario, duration=duration)
@@ -394,7 +445,7 @@ def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], Vehicle
     for case in plants:
         try:
             metrics = _plant_runs(law_name, scenario_name, scenario, v0, seeds, case,
-                                  league_vehicle, dt)
+                                  league_vehicle, dt, settings)
         except Exception as err:        # one plant's failure loses no other row
             metrics = [empty_row(FAILED + one_line(f'{type(err).__name__}: {err}'))] * v0.size
         rows += [finish_row(law_name, scenario_name, case.name, float(speed), m)
@@ -404,9 +455,9 @@ def run_case(task: tuple[str, str, Sequence[float], Sequence[PlantCase], Vehicle
 
 def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario, v0: Array,
                 seeds: list[int], case: PlantCase, league_vehicle: VehicleParams,
-                dt: float) -> list[dict[str, Any]]:
+                dt: float, settings: LawSettings) -> list[dict[str, Any]]:
     vehicle = case.law_vehicle(league_vehicle)
-    law = LAWS[law_name](vehicle)
+    law = LAWS[law_name](vehicle, settings)
     common: dict[str, Any] = {'initial_speed': v0, 'dt': case.dt or dt,
                               'preview_distance': PREVIEW_DISTANCE, 'delay': case.delay}
     if not case.noisy:
@@ -448,7 +499,8 @@ def finish_row(law: str, scenario: str, plant: str, speed: float,
 def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float],
            plants: Sequence[PlantCase], vehicle: VehicleParams, dt: float = DT,
            workers: int = 1, duration: Optional[float] = None,
-           progress: bool = False) -> list[dict[str, Any]]:
+           progress: bool = False,
+           settings: Optional[LawSettings] = None) -> list[dict[str, Any]]:
     """
     Run the league: every law on every scenario, plant and speed.
 
@@ -461,14 +513,16 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     :param workers: processes (1: in this process).
     :param duration: cut every scenario to this duration [s] (None: their own; tests).
     :param progress: show a progress bar on stderr (one step per law and scenario).
+    :param settings: the laws' settings (None: the package defaults).
     :return: one row per run, in a fixed order (law, scenario, plant, speed).
     """
+    settings = settings or LawSettings()
     loaded = load_scenarios(scenarios)
     # one task per law, scenario and plant (each plant's runs are independent: the same
     # rows as one task per law and scenario), so that the pool can balance the costly
     # multi-body runs
     tasks = [(law, name, scenario_speeds(loaded[name], speeds), (case,), vehicle, dt,
-              duration) for law in laws for name in scenarios for case in plants]
+              duration, settings) for law in laws for name in scenarios for case in plants]
     bar = None
     if progress:
         from tqdm import tqdm
@@ -687,7 +741,8 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
 
 
 def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Path,
-                 plot: bool = True, duration: Optional[float] = None) -> Path:
+                 plot: bool = True, duration: Optional[float] = None,
+                 settings: Optional[tuple[str, LawSettings]] = None) -> Path:
     """
     Write league.csv (every run), league.md (summary, goals, per scenario), league.png.
 
@@ -696,6 +751,8 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
     :param out: the output folder.
     :param plot: also write the PNG.
     :param duration: the runs were cut to this duration [s] (said in the table's head).
+    :param settings: the params file the laws' settings came from and the settings
+        (said in the table's head; None: the package defaults).
     :return: the markdown file.
     """
     out.mkdir(parents=True, exist_ok=True)
@@ -712,6 +769,11 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         *([] if duration is None else [
             f'**Every scenario cut to {duration:g} s of simulated time (`--duration`): a '
             "quick look, not the league; the goal rows assume the scenarios' own.**", '']),
+        *([] if settings is None else [
+            f"**The laws' settings are those of `{settings[0]}` (`--controller`), not the "
+            'package defaults the goal rows were set for:** '
+            + ('; '.join(f'`{line}`' for line in settings_changes(settings[1]))
+               or 'none differs from the defaults') + '.', '']),
         markdown_table(summary(rows, laws), digits=3), '']
     for plant in plants:
         text += [f'## Peak CG error [cm] at 37 m/s, plant `{plant}` (S5: its profile)', '',
@@ -859,9 +921,25 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='no progress bar (it goes to stderr, one step per law and scenario)')
     p.add_argument('--tune', action='store_true',
                    help="score the baselines' tuning grids instead (writes tuning.csv)")
+    p.add_argument('--controller', type=Path, default=None, metavar='YAML',
+                   help='run every law with the settings the controller node would run '
+                   "with this params file (controller.*, lane_keeping.*, the baselines' "
+                   'sections; default: the package defaults, the one tuning the goal rows '
+                   'are for)')
     args = p.parse_args(argv)
-    from lookahead_control.core.config import load_vehicle
+    from lookahead_control.core.config import ConfigError, load_vehicle
     vehicle = load_vehicle(args.vehicle)
+    settings = None
+    if args.controller is not None:
+        if args.tune:
+            raise ToolError("--controller: --tune scores the baselines' grids, not a file's "
+                            'settings; use one or the other')
+        settings = load_law_settings(args.controller)
+        for name in args.laws:       # a setting no law accepts: one line, before any run
+            try:
+                LAWS[name](vehicle, settings)
+            except (ParameterError, ConfigError) as err:
+                raise ToolError(f'--controller {args.controller}: {name}: {err}') from err
     previous = claim_output(args.out, 'compare', args.overwrite)   # before any run
     start = time.monotonic()
     if args.tune:
@@ -877,9 +955,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     plants = [c for c in PLANTS if c.name in args.plants]
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
-                  args.workers, args.duration, progress=not args.no_progress)
+                  args.workers, args.duration, progress=not args.no_progress,
+                  settings=settings)
     report = write_report(rows, args.laws, args.out, plot=not args.no_plots,
-                          duration=args.duration)
+                          duration=args.duration,
+                          settings=None if settings is None else (str(args.controller),
+                                                                  settings))
     record_output(args.out, 'compare', [args.out / name for name in (
         'league.csv', 'league.md', *(() if args.no_plots else ('league.png',)))], previous)
     table = summary(rows, args.laws)

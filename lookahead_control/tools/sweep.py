@@ -47,8 +47,9 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 from lookahead_control.analysis.metrics import rms, run_metrics
 from lookahead_control.core.cli import (ArgumentParser, markdown_table, number, run_tool,
                                         ToolError, write_csv)
-from lookahead_control.core.config import load_controller, load_vehicle, source_config_dir
-from lookahead_control.core.lane_keeping import CgCompensatedLaw
+from lookahead_control.core.config import (changed_fields, load_controller, load_lane_keeping,
+                                           load_vehicle, source_config_dir)
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
 from lookahead_control.core.params import ControllerParams, VehicleParams
 import numpy as np
@@ -63,25 +64,29 @@ SUMMARY_METRICS = ('peak_cg_error_m', 'peak_look_ahead_lane_error_m',
                    'rms_steering_noise_rad')
 
 
-def paper_law(vehicle: VehicleParams, controller: ControllerParams) -> Law:
-    """Return the paper's law with the eq. 26 schedule."""
+def paper_law(vehicle: VehicleParams, controller: ControllerParams,
+              lane_keeping: LaneKeepingParams) -> Law:
+    """Return the paper's law with the eq. 26 schedule (``lane_keeping`` unused)."""
     return PaperLaw(vehicle, ControllerParams(**{**asdict(controller), 'schedule': 'paper'}))
 
 
-def paper_fixed_law(vehicle: VehicleParams, controller: ControllerParams) -> Law:
-    """Return the paper's law with the fixed look-down d_v = d_s."""
+def paper_fixed_law(vehicle: VehicleParams, controller: ControllerParams,
+                    lane_keeping: LaneKeepingParams) -> Law:
+    """Return the paper's law with the fixed look-down (``lane_keeping`` unused)."""
     return PaperLaw(vehicle, ControllerParams(**{**asdict(controller), 'schedule': 'fixed'}))
 
 
-# name -> factory(controller's vehicle model, paper-law parameters); a new law registers
-# here (one law object serves a whole batch: see core/laws.py). The names are those of the
-# compare tool's league.
-def cg_compensated_law(vehicle: VehicleParams, controller: ControllerParams) -> Law:
-    """Return the CG-compensated look-ahead law (docs/lane_keeping.md), default settings."""
-    return CgCompensatedLaw(vehicle, replace(controller, reference='lane_tangent'))
+# name -> factory(controller's vehicle model, paper-law parameters, lane-keeping
+# settings); a new law registers here (one law object serves a whole batch: see
+# core/laws.py). The names are those of the compare tool's league.
+def cg_compensated_law(vehicle: VehicleParams, controller: ControllerParams,
+                       lane_keeping: LaneKeepingParams) -> Law:
+    """Return the CG-compensated look-ahead law (docs/lane_keeping.md) with its settings."""
+    return CgCompensatedLaw(vehicle, replace(controller, reference='lane_tangent'),
+                            lane_keeping)
 
 
-LAWS: dict[str, Callable[[VehicleParams, ControllerParams], Law]] = {
+LAWS: dict[str, Callable[[VehicleParams, ControllerParams, LaneKeepingParams], Law]] = {
     'paper_eq26': paper_law,
     'paper_fixed': paper_fixed_law,
     'cg_compensated': cg_compensated_law,
@@ -261,7 +266,8 @@ def tasks(spec: SweepSpec) -> list[dict[str, Any]]:
 
 
 def run_task(task: Mapping[str, Any], spec_data: Mapping[str, Any],
-             vehicle: VehicleParams, controller: ControllerParams) -> dict[str, list[Any]]:
+             vehicle: VehicleParams, controller: ControllerParams,
+             lane_keeping: LaneKeepingParams | None = None) -> dict[str, list[Any]]:
     """
     Run one task as one vectorized batch and return its rows as columns.
 
@@ -269,6 +275,7 @@ def run_task(task: Mapping[str, Any], spec_data: Mapping[str, Any],
     :param spec_data: the sweep's ``to_json``.
     :param vehicle: the controller's vehicle model (the plant's before scaling).
     :param controller: the paper law's parameters.
+    :param lane_keeping: the CG-compensated law's settings (None: the defaults).
     :return: column name -> values, one per run.
     """
     from dataclasses import replace
@@ -290,7 +297,7 @@ def run_task(task: Mapping[str, Any], spec_data: Mapping[str, Any],
               for c in conds]
     plants = [PlantParams(model=spec.plant, friction=c['friction']) for c in conds]
     speeds = None if scenario.speed.fixed else np.array([c['speed'] for c in conds])
-    law = LAWS[task['law']](vehicle, controller)
+    law = LAWS[task['law']](vehicle, controller, lane_keeping or LaneKeepingParams())
     with np.errstate(all='ignore'):
         result = run(scenario, vehicle, law, plants, dt=spec.dt, initial_speed=speeds,
                      plant_vehicle=bodies, delay=np.array([c['delay'] for c in conds]),
@@ -372,37 +379,43 @@ def write_parquet(columns: Mapping[str, Sequence[Any]], path: Path) -> None:
     os.replace(tmp, path)
 
 
-def manifest_data(spec: SweepSpec, vehicle: VehicleParams,
-                  controller: ControllerParams) -> dict[str, Any]:
+def manifest_data(spec: SweepSpec, vehicle: VehicleParams, controller: ControllerParams,
+                  lane_keeping: LaneKeepingParams | None = None) -> dict[str, Any]:
     """
     Return what ``sweep.json`` holds: the options and the models every run used.
 
     :param spec: the sweep.
     :param vehicle: the controller's vehicle model (the plants are it, scaled).
     :param controller: the paper law's parameters.
+    :param lane_keeping: the CG-compensated law's settings (None: the defaults).
     :return: JSON data (as read back from the file).
     """
-    data = {**spec.to_json(), 'vehicle': asdict(vehicle), 'controller': asdict(controller)}
+    data = {**spec.to_json(), 'vehicle': asdict(vehicle), 'controller': asdict(controller),
+            'lane_keeping': asdict(lane_keeping or LaneKeepingParams())}
     return dict(json.loads(json.dumps(data)))
 
 
 def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
-            controller: ControllerParams | None = None) -> None:
+            controller: ControllerParams | None = None,
+            lane_keeping: LaneKeepingParams | None = None) -> None:
     """
     Create the sweep folder, or check that it holds the same sweep (resume).
 
-    The same sweep: the same options and the same vehicle and controller models (a
-    resumed sweep must not mix runs of two models).
+    The same sweep: the same options, vehicle and controller models and lane-keeping
+    settings (a resumed sweep must not mix runs of two models or two tunings).
 
     :param out: the folder.
     :param spec: the sweep.
     :param vehicle: the controller's vehicle model (default: config/vehicle.yaml).
     :param controller: the paper law's parameters (default: config/controller.yaml).
+    :param lane_keeping: the CG-compensated law's settings (default: those of
+        config/controller.yaml).
     :raises ToolError: it holds another sweep.
     """
     manifest = out / 'sweep.json'
     new = manifest_data(spec, vehicle or load_vehicle(None),
-                        controller or load_controller(None))
+                        controller or load_controller(None),
+                        lane_keeping or load_lane_keeping(None))
     if manifest.exists():
         try:
             old = json.loads(manifest.read_text(encoding='utf-8'))
@@ -410,10 +423,10 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
             raise ToolError(f'{manifest}: unreadable ({err}); remove it or use another '
                             '--out') from err
         differ = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
-        if differ and not {'vehicle', 'controller'} <= set(old):
-            raise ToolError(f'{out} holds a sweep that did not record its vehicle and '
-                            'controller (an older version): it cannot be resumed safely; '
-                            'use another --out')
+        if differ and not {'vehicle', 'controller', 'lane_keeping'} <= set(old):
+            raise ToolError(f'{out} holds a sweep that did not record its vehicle, '
+                            'controller and lane-keeping settings (an older version): it '
+                            'cannot be resumed safely; use another --out')
         if differ:
             raise ToolError(f'{out} holds another sweep (options differ: '
                             f'{", ".join(differ)}); use another --out or the same options')
@@ -449,7 +462,8 @@ def _local_progress(total: int, enabled: bool) -> Any:
 def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
             vehicle: VehicleParams, controller: ControllerParams, workers: int,
             scheduler: Optional[str], progress: bool,
-            runner: Callable[..., dict[str, list[Any]]] = run_task) -> int:
+            runner: Callable[..., dict[str, list[Any]]] = run_task,
+            lane_keeping: LaneKeepingParams | None = None) -> int:
     """
     Run the tasks and write each one's part as it finishes.
 
@@ -462,13 +476,15 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     :param scheduler: address of an existing Dask scheduler (None: a local cluster).
     :param progress: show a progress bar.
     :param runner: the task function (:func:`run_task`; tests wrap it).
+    :param lane_keeping: the CG-compensated law's settings (None: the defaults).
     :return: the number of tasks run.
     """
     bar = _local_progress(len(todo), progress)
     data = spec.to_json()
+    lane_keeping = lane_keeping or LaneKeepingParams()
     if workers == 0 and scheduler is None:
         for task in todo:
-            write_parquet(runner(task, data, vehicle, controller),
+            write_parquet(runner(task, data, vehicle, controller, lane_keeping),
                           part_path(out, task['task']))
             if bar is not None:
                 bar.update(1)
@@ -486,7 +502,7 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     try:
         # no retries: an exception is deterministic (it stops the sweep, finished parts
         # stay); a worker that dies is rerun elsewhere by the scheduler (allowed-failures)
-        futures = {client.submit(runner, task, data, vehicle, controller,
+        futures = {client.submit(runner, task, data, vehicle, controller, lane_keeping,
                                  key=f'sweep-{task["task"]}-{time.time_ns()}',
                                  pure=False): task for task in todo}
         for future in as_completed(futures):
@@ -627,7 +643,8 @@ def plot(table: Any, out: Path) -> list[Path]:
     return paths
 
 
-def report(out: Path, spec: SweepSpec, table: Any, plots: bool) -> Path:
+def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
+           lane_keeping: LaneKeepingParams | None = None) -> Path:
     """
     Write ``summary.md`` and ``summary.csv`` (and the plots).
 
@@ -635,16 +652,24 @@ def report(out: Path, spec: SweepSpec, table: Any, plots: bool) -> Path:
     :param spec: the sweep.
     :param table: the results.
     :param plots: also write the plots.
+    :param lane_keeping: the CG-compensated law's settings (None: the defaults).
     :return: the markdown summary's path.
     """
     rows = summarize(table)
+    changed = changed_fields(lane_keeping or LaneKeepingParams())
+    settings = ('' if 'cg_compensated' not in spec.laws else
+                ' cg_compensated: ' + ('the default settings.' if not changed else
+                                       ', '.join(f'lane_keeping.{k} = {v!r}'
+                                                 for k, v in changed.items())
+                                       + ' (the rest default).'))
     write_csv(out / 'summary.csv', rows)
     text = [f'# Sweep: {spec.mode}, {table.num_rows} runs', '',
             f'Scenarios {", ".join(spec.scenarios)}; speeds {spec.speeds} m/s; '
             f'{spec.plant} plant; cornering stiffness x(1 + {spec.cornering}), mass and '
             f'yaw inertia x(1 + {spec.mass}), friction {spec.friction}, delay '
             f'{spec.delay} s, noise {"on" if spec.noise else "off"}. A run fails when its '
-            f'peak CG error exceeds {spec.max_error:g} m or a value is not finite.', '',
+            f'peak CG error exceeds {spec.max_error:g} m or a value is not finite.'
+            + settings, '',
             markdown_table(rows, SUMMARY_COLUMNS, digits=3), '']
     if plots:
         for png in plot(table, out):
@@ -655,7 +680,8 @@ def report(out: Path, spec: SweepSpec, table: Any, plots: bool) -> Path:
 
 
 def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
-          controller: ControllerParams | None = None, workers: int = 2,
+          controller: ControllerParams | None = None,
+          lane_keeping: LaneKeepingParams | None = None, workers: int = 2,
           scheduler: Optional[str] = None, progress: bool = False, plots: bool = True,
           max_tasks: Optional[int] = None,
           runner: Callable[..., dict[str, list[Any]]] = run_task) -> tuple[Any, int]:
@@ -666,6 +692,8 @@ def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
     :param out: the output folder.
     :param vehicle: the controller's vehicle model (default: config/vehicle.yaml).
     :param controller: the paper law's parameters (default: config/controller.yaml).
+    :param lane_keeping: the CG-compensated law's settings (default: those of
+        config/controller.yaml).
     :param workers: local Dask workers (0: no Dask).
     :param scheduler: address of an existing Dask scheduler.
     :param progress: show a progress bar.
@@ -676,17 +704,18 @@ def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
     """
     vehicle = vehicle or load_vehicle(None)
     controller = controller or load_controller(None)
+    lane_keeping = lane_keeping or load_lane_keeping(None)
     all_tasks = tasks(spec)
-    prepare(out, spec, vehicle, controller)
+    prepare(out, spec, vehicle, controller, lane_keeping)
     todo = pending(out, all_tasks)
     if max_tasks is not None:
         todo = todo[:max_tasks]
     count = execute(out, spec, todo, vehicle, controller, workers, scheduler, progress,
-                    runner)
+                    runner, lane_keeping)
     if pending(out, all_tasks):
         return None, count
     table = collect(out, all_tasks)
-    report(out, spec, table, plots)
+    report(out, spec, table, plots, lane_keeping)
     return table, count
 
 
@@ -725,7 +754,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--out', type=Path, required=True, help='sweep folder (resumed if it '
                    'holds the same sweep)')
     p.add_argument('--controller', type=Path, default=None,
-                   help='paper-law params YAML (default: config/controller.yaml)')
+                   help="the controller node's params YAML: the paper laws' controller.* "
+                   "and cg_compensated's lane_keeping.* (default: config/controller.yaml)")
     p.add_argument('--mode', choices=('monte_carlo', 'grid'), default=d.mode)
     p.add_argument('--runs', type=int, default=d.runs, help='Monte Carlo: conditions per '
                    'scenario')
@@ -770,6 +800,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     start = time.monotonic()
     table, count = sweep(spec, args.out, vehicle=load_vehicle(args.vehicle),
                          controller=load_controller(args.controller),
+                         lane_keeping=load_lane_keeping(args.controller),
                          workers=args.workers, scheduler=args.scheduler,
                          progress=not args.no_progress, plots=not args.no_plots)
     print(markdown_table(summarize(table), STDOUT_COLUMNS, digits=3))
