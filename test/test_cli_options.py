@@ -506,6 +506,7 @@ def _compare():
         assert text.count('pure_pursuit') == 6 and 'best' in text.splitlines()[0]
     return {
         '--vehicle': ((), lambda c: differs('--vehicle', str(c.vehicle))(c)),
+        '--controller': ((), lambda c: differs('--controller', str(c.controller))(c)),
         '--json': ((), json_file),
         '--laws': (('bogus',), differs('--laws', 'stanley')),
         '--scenarios': (('bogus',), differs('--scenarios', 's2_curve_entry')),
