@@ -430,8 +430,35 @@ def _lane_keeping():
         out = run(exe, *base, '--json', path, cwd=c.folder(exe))
         assert out.returncode in (0, 1), out.stderr
         assert json.loads(path.read_text())['certificate']['v_max'] == 37.0
+
+    def controller(c):
+        # the file's lane_keeping.* is what is checked (before: no way to check a tuning
+        # other than two of its gains); an option overrides the file
+        folder = c.folder(exe)
+        tuned = folder / 'tuned.yaml'
+        tuned.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
+                         '      natural_frequency: 5\n      integral_gain: 0.6\n')
+
+        def rows(*args):
+            path = folder / 'rows.json'
+            out = run(exe, *base, *args, '--json', path, cwd=folder)
+            assert out.returncode in (0, 1), out.stderr
+            return json.loads(path.read_text())['rows'], out.stdout.splitlines()[0]
+
+        from_file, said = rows('--controller', tuned)
+        assert from_file == rows('--natural-frequency', '5', '--integral-gain', '0.6')[0]
+        assert from_file != rows()[0]
+        assert said == (f'settings: {tuned}; differing from the defaults: '
+                        'lane_keeping.natural_frequency = 5.0, lane_keeping.integral_gain = 0.6')
+        assert rows('--controller', tuned, '--integral-gain', '0.3')[0] == rows(
+            '--natural-frequency', '5')[0]
+        tuned.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
+                         '      natural_frequency: -5.0\n')
+        bad = run(exe, *base, '--controller', tuned, cwd=folder)
+        assert bad.returncode == 2 and 'lane_keeping.natural_frequency = -5.0' in bad.stderr
     return {
         '--vehicle': ((), lambda c: changes('--vehicle', str(c.vehicle))(c)),
+        '--controller': ((), controller),
         '--json': ((), json_effect),
         '--v-min': (NON_NUMBERS + ('0', '-5', '1e300'), changes('--v-min', '20')),
         '--v-max': (NON_NUMBERS + ('0', '1e300', '5'), changes('--v-max', '30')),

@@ -20,7 +20,11 @@ from __future__ import annotations
 from typing import Sequence
 
 from lookahead_control.core.cli import markdown_table, number, parser, run_tool, write_json
-from lookahead_control.core.config import load_vehicle
+from dataclasses import replace
+from pathlib import Path
+
+from lookahead_control.core.config import (changed_fields, load_controller, load_lane_keeping,
+                                           load_vehicle)
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import certificate, robust_check
 from lookahead_control.core.params import ControllerParams
@@ -54,12 +58,25 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                    'acceleration_source zero (default 0)')
     p.add_argument('--integral-gain', type=number(0.0, 5.0, unit='1/s'), default=None,
                    help='k_i of the CG-error integral (default: that of the law)')
+    p.add_argument('--controller', type=Path, default=None, metavar='YAML',
+                   help="check the law the controller node would run with this params "
+                   'file: its controller.* (d_v schedule) and lane_keeping.*; '
+                   '--natural-frequency and --integral-gain override it (default: the '
+                   'package defaults)')
     args = p.parse_args(argv)
     check_envelope(args)
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
-    settings = LaneKeepingParams(**overrides)
-    vehicle, controller = load_vehicle(args.vehicle), ControllerParams()
+    if args.controller is None:
+        settings, controller = LaneKeepingParams(**overrides), ControllerParams()
+    else:
+        settings = replace(load_lane_keeping(args.controller), **overrides)
+        controller = load_controller(args.controller)
+    vehicle = load_vehicle(args.vehicle)
+    changed = [f'controller.{k} = {v!r}' for k, v in changed_fields(controller).items()]
+    changed += [f'lane_keeping.{k} = {v!r}' for k, v in changed_fields(settings).items()]
+    print(f'settings: {args.controller or "the package defaults"}'
+          + (f'; differing from the defaults: {", ".join(changed)}' if changed else ''))
     cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
                        args.samples, a_error=args.a_error)
     robust = robust_check(vehicle, controller, settings)
