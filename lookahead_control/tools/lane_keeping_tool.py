@@ -17,12 +17,11 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
 from typing import Sequence
 
 from lookahead_control.core.cli import markdown_table, number, parser, run_tool, write_json
-from dataclasses import replace
-from pathlib import Path
-
 from lookahead_control.core.config import (changed_fields, load_controller, load_lane_keeping,
                                            load_vehicle)
 from lookahead_control.core.lane_keeping import LaneKeepingParams
@@ -59,7 +58,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--integral-gain', type=number(0.0, 5.0, unit='1/s'), default=None,
                    help='k_i of the CG-error integral (default: that of the law)')
     p.add_argument('--controller', type=Path, default=None, metavar='YAML',
-                   help="check the law the controller node would run with this params "
+                   help='check the law the controller node would run with this params '
                    'file: its controller.* (d_v schedule) and lane_keeping.*; '
                    '--natural-frequency and --integral-gain override it (default: the '
                    'package defaults)')
