@@ -634,3 +634,54 @@ def test_two_lateral_errors_at_one_sim_clock_reading_are_not_rate_limited(contex
         assert max(a for _, a in sent) - min(a for _, a in sent) > 0.02
     finally:
         node.destroy_node()
+
+
+def test_an_integer_for_a_real_parameter_is_taken_as_that_real(context):
+    # rclpy alone refused it at run time ("Wrong parameter type, expected 'Type.DOUBLE'"):
+    # `ros2 param set /controller lane_keeping.integral_gain 1` failed where the same
+    # integer in a params file is accepted
+    from lookahead_control.ros.path_bridge_node import PathBridgeNode
+    from sim_plant.sim_plant_node import SimPlantNode
+    node = _controller(context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        ok = node.set_parameters([Parameter('lane_keeping.integral_gain', value=1)])[0]
+        assert ok.successful, ok.reason
+        value = node.get_parameter('lane_keeping.integral_gain').value
+        assert value == 1.0 and isinstance(value, float)
+        assert node.core.lane_keeping.integral_gain == 1.0
+        ok = node.set_parameters_atomically([Parameter('controller.natural_frequency',
+                                                       value=2),
+                                             Parameter('safety.max_steering_rate', value=1)])
+        assert ok.successful, ok.reason
+        assert node.core.params.natural_frequency == 2.0
+        # still checked as the real it is: range and the node's own checks
+        refused = node.set_parameters([Parameter('lane_keeping.integral_gain', value=9)])[0]
+        assert not refused.successful
+        refused = node.set_parameters([Parameter('vehicle.mass', value=-5)])[0]
+        assert not refused.successful
+        assert node.get_parameter('vehicle.mass').value == 1485.0
+        # other types are not converted
+        refused = node.set_parameters([Parameter('lane_keeping.integral_gain',
+                                                 value='1')])[0]
+        assert not refused.successful
+        refused = node.set_parameters([Parameter('lane_keeping.rate_feedforward',
+                                                 value=1)])[0]
+        assert not refused.successful
+        assert node.get_parameter('lane_keeping.integral_gain').value == 1.0
+    finally:
+        node.destroy_node()
+    for make, name in ((lambda: SimPlantNode(context=context), 'speed'),
+                       (lambda: PathBridgeNode(context=context), None)):
+        other = make()
+        try:
+            if name is None:
+                name = next(n for n, p in other._parameters.items()
+                            if p.type_ == Parameter.Type.DOUBLE and not n.startswith('qos'))
+            old = other.get_parameter(name).value
+            ok = other.set_parameters([Parameter(name, value=int(round(old)) or 1)])[0]
+            assert ok.successful, (name, ok.reason)
+            assert isinstance(other.get_parameter(name).value, float), name
+        finally:
+            other.destroy_node()

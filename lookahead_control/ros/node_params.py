@@ -77,12 +77,27 @@ def descriptor(spec: Spec) -> ParameterDescriptor:
 
 def declare(node: Node, specs: Sequence[Spec]) -> None:
     """
-    Declare every spec on the node.
+    Declare every spec on the node (once per node).
+
+    An integer set at run time for a real parameter (``ros2 param set /controller
+    lane_keeping.integral_gain 1``) is taken as that real, as an integer in a params file
+    is at start-up (``node_main.checked_arguments``); rclpy alone refuses it ("Wrong
+    parameter type, expected 'Type.DOUBLE'"). Its range and the node's checks then apply
+    to the real.
 
     :param node: the node.
     :param specs: the specs.
     """
     node.declare_parameters('', [(s.name, s.default, descriptor(s)) for s in specs])
+    reals = frozenset(s.name for s in specs if isinstance(s.default, float))
+
+    def as_reals(params: list[Parameter]) -> list[Parameter]:
+        return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
+                if p.name in reals and p.type_ == Parameter.Type.INTEGER else p
+                for p in params]
+
+    # rclpy concatenates what every pre-set callback returns: one per node
+    node.add_pre_set_parameters_callback(as_reals)
 
 
 def values(node: Node, specs: Sequence[Spec],
