@@ -15,6 +15,8 @@
 
 """The controller node with reference cg_compensated: parameters, law, resets (no DDS)."""
 
+import math
+
 from conftest import feed
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 import pytest
@@ -69,3 +71,45 @@ def test_the_applied_parameters_log_names_the_running_law_s_gains():
         in line, line
     line = applied_summary('paper', controller, lane_keeping)
     assert f'w_n={controller.natural_frequency:g}, zeta={controller.damping_ratio:g}' in line
+
+
+def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(context):
+    # before, nothing recorded told whether the default law received the curvature or
+    # estimated it: a bag holding a curvature the controller never got (remapped) was
+    # re-run on it, 20 mrad off, unexplained
+    from lookahead_control.ros import conversions as conv
+    from lookahead_control.ros.controller_node import ControllerNode
+    from rclpy.time import Time
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    sent = []
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        assert node.core.law_name == 'cg_compensated'
+        node._debug_pub.get_subscription_count = lambda: 1
+        node._debug_pub.publish = sent.append
+        for k in range(1, 101):             # 1 s with the curvature, 1 s without
+            stamp = k * 10 * MS
+            node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
+            node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.01, 0.075, 0.0))
+            node.on_velocity(conv.to_velocity(stamp, 'base_link', 30.0, 0.0, 0.075))
+            if k <= 50:
+                node.on_curvature(conv.to_curvature(stamp, 'base_link',
+                                                    [(0.0, 0.0025), (5.0, 0.0025)]))
+            node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 1.96, 0.05))
+        assert len(sent) == 100
+        values = [dict(zip(m.name, m.position)) for m in sent]
+        flags = [v['curvature_estimated'] for v in values]
+        # lost once stamped more than input_timeout (0.2 s) before the lateral error
+        assert flags == [0.0] * 70 + [1.0] * 30, flags
+        assert values[40]['rho_used'] == pytest.approx(0.0025)
+        assert values[40]['compliance_scale'] == pytest.approx(1.0, abs=0.2)
+        assert values[-1]['integral'] == node.core.law.integral != 0.0
+        assert all(math.isfinite(x) for v in values for x in v.values())
+        # the paper law has no such state: its debug message is as before
+        assert node.set_parameters([Parameter('law', value='paper')])[0].successful
+        node.on_lateral_error(conv.to_lateral_error(101 * 10 * MS, 'base_link', 1.96, 0.05))
+        assert 'curvature_estimated' not in sent[-1].name and 'd_v' in sent[-1].name
+    finally:
+        node.destroy_node()

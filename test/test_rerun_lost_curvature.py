@@ -25,6 +25,7 @@ nothing saying why. The reference is the node's own core fed with its lockstep c
 lateral error's stamp), as the node runs it.
 """
 
+from dataclasses import replace
 import math
 from pathlib import Path
 
@@ -73,19 +74,31 @@ def _samples(rows, names):
     return stamps, values
 
 
-def _recorded(params):
-    """Return a run of the node whose curvature stopped at 1.5 s, and its estimating answers."""
-    rows = _inputs(300, 1_500_000_000)
+def _recorded(params, curvature_until_ns=1_500_000_000, seen_until_ns=None):
+    """
+    Return a run of the node whose curvature stopped, and its estimating answers.
+
+    :param curvature_until_ns: the bag's curvature stops here.
+    :param seen_until_ns: the node's stops here (None: the bag's; 0: it never gets one, as
+        with a remapping).
+    """
+    rows = _inputs(300, curvature_until_ns)
+    seen = [c for c in rows['road_curvature'] if seen_until_ns is None
+            or c.stamp_ns < seen_until_ns]
     # the node: its clock at the lateral error's stamp (lockstep sim time)
     node, _ = controller_from_params(params)
-    commands, estimated = {}, 0
-    for role, sample in _feed(rows):
+    commands, estimated, flags = {}, 0, {}
+    for role, sample in _feed({**rows, 'road_curvature': seen}):
         assert node.accept(role, sample, sample.stamp_ns) is None
         if role == 'lateral_error':
             command = node.compute(sample.stamp_ns)
             commands[sample.stamp_ns] = command.steering
             estimates = getattr(node.law, 'curvature_estimated', None)
             estimated += bool(estimates is not None and estimates())
+            # what the node publishes on ~/debug with the command
+            state = getattr(node.law, 'debug_values', None)
+            flags[sample.stamp_ns] = (math.nan if state is None
+                                      else dict(state())['curvature_estimated'])
     fields = {'lateral_error': ('distance', 'value'),
               'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
               'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
@@ -97,7 +110,9 @@ def _recorded(params):
     stamps = np.array(sorted(commands), dtype=np.int64)
     steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
                        {'angle': np.array([commands[s] for s in stamps])})
-    return RunData(Path('synthetic'), inputs=inputs, steering=steering,
+    debug = Samples(stamps + 11, stamps, np.arange(stamps.size),
+                    {'curvature_estimated': np.array([flags[s] for s in stamps])})
+    return RunData(Path('synthetic'), inputs=inputs, steering=steering, debug=debug,
                    controller_params=params), estimated
 
 
@@ -130,7 +145,41 @@ def test_replay_offline_says_where_the_law_ran_on_its_estimate(monkeypatch, caps
     out = capsys.readouterr().out
     assert (f'the law ran on its curvature estimate in {estimated} of 300 answers'
             in out), out
-    assert json.loads((tmp_path / 'report.json').read_text())['curvature_estimated'] == 131
+    report = json.loads((tmp_path / 'report.json').read_text())
+    assert report['curvature_estimated'] == 131
+    assert report['curvature_estimate_disagreements'] == 0 and 'warning' not in out
+
+
+@pytest.mark.parametrize('seen_until_ns', [0, 1_000_000_000])
+def test_replay_offline_warns_of_a_curvature_the_controller_did_not_receive(
+        monkeypatch, capsys, tmp_path, seen_until_ns):
+    # the bag holds a curvature the controller never got (remapped, or a QoS mismatch from
+    # 1 s on): before, the re-run used it and differed by 20 mrad with nothing saying why;
+    # the node's ~/debug now says per answer whether it ran on its estimate
+    import argparse
+    import json
+
+    from lookahead_control.bags import replay_node
+    run, estimated = _recorded({'law': 'cg_compensated'}, math.inf, seen_until_ns)
+    assert estimated == (300 if seen_until_ns == 0 else 300 - 100 - 19)
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics: run)
+    args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
+                              json=tmp_path / 'report.json', check=None)
+    assert replay_node.offline(args) == 0
+    out = capsys.readouterr().out
+    assert (f'warning: the recorded controller and the re-run differ in {estimated} of 300 '
+            'answers on whether the law ran on its curvature estimate') in out, out
+    report = json.loads((tmp_path / 'report.json').read_text())
+    assert report['curvature_estimate_disagreements'] == estimated
+    assert report['curvature_estimated'] == 0
+    assert report['max_diff_rad'] > 0.005
+    # a bag without the flag (an older recording, or the paper law) says nothing
+    bare = replace(run, debug=Samples.empty())
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics: bare)
+    assert replay_node.offline(args) == 0
+    assert 'warning' not in capsys.readouterr().out
+    assert json.loads((tmp_path / 'report.json').read_text())[
+        'curvature_estimate_disagreements'] is None
 
 
 @pytest.mark.parametrize('preview', [True, False])

@@ -327,6 +327,7 @@ class Rerun:
     :param order: ``stamp`` (lockstep: inputs of a step first) or ``receive``.
     :param estimated: answers of a law that ran on its own curvature estimate (no
         ``road_curvature`` received, or lost on the stamps).
+    :param estimated_at: their stamps.
     """
 
     commands: dict[int, Command]
@@ -335,6 +336,29 @@ class Rerun:
     rms_diff: float
     order: str
     estimated: int = 0
+    estimated_at: frozenset[int] = frozenset()
+
+    def estimate_disagreements(self, run: RunData) -> Optional[tuple[int, int]]:
+        """
+        Compare where the recorded controller and the re-run ran on a curvature estimate.
+
+        The controller's debug topic says per answer whether it did
+        (``curvature_estimated``); a bag can hold a curvature the recorder received and
+        the controller did not (a remapping, a QoS mismatch), which the re-run would use.
+
+        :param run: the bag the re-run ran on.
+        :return: ``(answers compared, answers where they differ)``, None if the bag's
+            debug topic does not say (not recorded, or a law without the estimate).
+        """
+        flags = run.debug.values.get('curvature_estimated')
+        if flags is None:
+            return None
+        recorded = {int(t): bool(f) for t, f in zip(run.debug.stamp_ns, flags)
+                    if math.isfinite(f)}
+        both = [t for t in self.commands if t in recorded]
+        if not both:
+            return None
+        return len(both), sum(recorded[t] != (t in self.estimated_at) for t in both)
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -403,7 +427,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             core.seed_output(float(run.steering.values['angle'][last]),
                              int(run.steering.stamp_ns[last]))
     commands: dict[int, Command] = {}
-    estimated = 0
+    estimated_at: set[int] = set()
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
@@ -413,12 +437,13 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             if command is not None:
                 commands[command.stamp_ns] = command
                 estimates = getattr(core.law, 'curvature_estimated', None)
-                estimated += bool(estimates is not None and estimates())
+                if estimates is not None and estimates():
+                    estimated_at.add(command.stamp_ns)
     recorded = {stamp: v['angle'] for stamp, v in run.steering.by_stamp().items()}
     diffs = [abs(recorded[s] - c.steering) for s, c in commands.items() if s in recorded]
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
-                 order, estimated)
+                 order, len(estimated_at), frozenset(estimated_at))
 
 
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,

@@ -489,6 +489,23 @@ class CgCompensatedLaw:
         """
         return bool(np.count_nonzero(self.estimating))
 
+    def debug_values(self) -> list[tuple[str, float]]:
+        """
+        Return the law's state after its last step, for the controller's debug topic.
+
+        ``curvature_estimated`` (1: it ran on its own estimate, no curvature received),
+        ``rho_used`` (the curvature at the CG it used [1/m]), ``integral`` (the CG-error
+        integral's shift of the reference [m]), ``compliance_scale`` (the rear-compliance
+        estimate over the model's ``eta``). One run (not a batch).
+
+        :return: ``(name, value)`` pairs.
+        """
+        def one(value: Any) -> float:
+            return float(np.asarray(value, dtype=float).reshape(-1)[0])
+        return [('curvature_estimated', float(self.curvature_estimated())),
+                ('rho_used', one(self._rho_used)), ('integral', one(self.integral)),
+                ('compliance_scale', one(self.estimator.compliance()) / self.vehicle.eta)]
+
     def note_limited(self, cut: bool) -> None:
         """
         Say whether the command sent was cut outside the law (anti-windup).
