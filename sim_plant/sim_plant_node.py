@@ -104,6 +104,9 @@ SIM_SPECS = (
     Spec('frame_id', 'base_link', 'vehicle frame (at the CG) of the published messages'),
     Spec('preview_distance', 50.0, 'curvature preview published ahead of the CG [m]',
          0.0, 1000.0),
+    Spec('curvature_stop', 0.0, 'output contract: road_curvature is published only before '
+         'this scenario time (a map lost mid-run: the default controller then estimates the '
+         'curvature) [s]; 0: to the end', 0.0, 1.0e6),
     Spec('preview_step', 5.0, 'spacing of the curvature preview points [m]', 0.1, 100.0),
     Spec('subscribers', 1, 'start once each contract topic has this many matched '
          'subscriptions (2: controller and recorder)', 1, 100),
@@ -322,8 +325,10 @@ class SimPlantNode(Node):
                                          a_x - x[3] * x[4]))
         self.pub_velocity.publish(conv.to_velocity(stamp, self.frame, v_x, x[3] + n_vy,
                                                    x[4] + n_r))
-        self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
-                                                     self.preview(x[0])))
+        stop = self.params['curvature_stop']
+        if stop <= 0.0 or stamp < int(round(stop * 1e9)):
+            self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
+                                                         self.preview(x[0])))
 
     def preview(self, s: float) -> list[tuple[float, float]]:
         """

@@ -685,3 +685,36 @@ def test_an_integer_for_a_real_parameter_is_taken_as_that_real(context):
             assert isinstance(other.get_parameter(name).value, float), name
         finally:
             other.destroy_node()
+
+
+def test_sim_plant_stops_the_curvature_at_curvature_stop(context):
+    # a map lost mid-run, for the controller's curvature estimate (before: no way to make
+    # the simulator do it; probe19 emulated it by hand)
+    from sim_plant.sim_plant_node import SimPlantNode
+    node = SimPlantNode(context=context, parameter_overrides=[
+        Parameter('speed', value=20.0), Parameter('curvature_stop', value=0.05)])
+    sent = {'road_curvature': [], 'yaw': [], 'lateral_error': []}
+    try:
+        for name, pub in (('road_curvature', 'pub_curvature'), ('yaw', 'pub_yaw'),
+                          ('lateral_error', 'pub_lateral')):
+            getattr(node, pub).publish = (lambda n: (lambda msg: sent[n].append(msg)))(name)
+        for k in range(10):
+            node.k = k
+            node.publish_measurements()
+        stamps = [conv.from_curvature(m).stamp_ns for m in sent['road_curvature']]
+        assert stamps == [k * 10_000_000 for k in range(5)]         # before 0.05 s only
+        assert len(sent['yaw']) == len(sent['lateral_error']) == 10  # the rest goes on
+        refused = node.set_parameters([Parameter('curvature_stop', value=-1.0)])[0]
+        assert not refused.successful
+    finally:
+        node.destroy_node()
+    node = SimPlantNode(context=context)            # default: to the end
+    try:
+        count = []
+        node.pub_curvature.publish = count.append
+        for k in (0, 10_000, 10_000_000):
+            node.k = k
+            node.publish_measurements()
+        assert len(count) == 3
+    finally:
+        node.destroy_node()

@@ -62,20 +62,21 @@ def offline(args: argparse.Namespace) -> int:
               'recorded': len(run.steering.by_stamp()), 'recomputed': len(result.commands),
               'max_diff_rad': result.max_diff, 'rms_diff_rad': result.rms_diff,
               'curvature_estimated': result.estimated, 'overrides': overrides}
-    disagree = result.estimate_disagreements(run)
-    report['curvature_estimate_disagreements'] = None if disagree is None else disagree[1]
+    report['curvature_judgment_followed'] = result.followed
+    report['curvature_judged_otherwise_on_stamps'] = result.judged_otherwise
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
     if result.estimated:
         print(f'replay: the law ran on its curvature estimate in {result.estimated} of '
               f'{len(result.commands)} answers (road_curvature not in the bag, or stamped '
               'more than safety.input_timeout before the lateral error: lost)')
-    if disagree is not None and disagree[1]:
-        print(f'replay: warning: the recorded controller and the re-run differ in '
-              f'{disagree[1]} of {disagree[0]} answers on whether the law ran on its '
-              'curvature estimate (its /controller/debug curvature_estimated): the '
-              'controller did not receive the road_curvature the bag holds (a remapping, a '
-              'QoS mismatch), or the other way; those answers are not comparable')
+    if result.judged_otherwise:
+        print("replay: the re-run took the recorded controller's own judgment of the "
+              f'curvature (/controller/debug curvature_estimated) in {result.followed} '
+              f'answers; on the stamps alone {result.judged_otherwise} would have gone '
+              "otherwise (one or two at a switch-over: the node's clock; many: a "
+              'road_curvature in the bag that the controller did not receive, remapped or '
+              'a QoS mismatch)')
     if args.json:
         write_json(Path(args.json), report)         # NaN (nothing compared) as null
     if args.check is not None:

@@ -326,8 +326,14 @@ class Rerun:
     :param rms_diff: RMS of the differences [rad].
     :param order: ``stamp`` (lockstep: inputs of a step first) or ``receive``.
     :param estimated: answers of a law that ran on its own curvature estimate (no
-        ``road_curvature`` received, or lost on the stamps).
+        ``road_curvature`` received, or lost).
     :param estimated_at: their stamps.
+    :param followed: answers where the re-run took the recorded controller's own
+        judgment of the curvature (its debug ``curvature_estimated``) instead of judging
+        it on the stamps.
+    :param judged_otherwise: of those, the answers the stamps alone judge otherwise (a
+        loss a step apart at a switch-over: the node's clock; many: a curvature in the
+        bag that the controller did not receive, remapped or a QoS mismatch).
     """
 
     commands: dict[int, Command]
@@ -337,28 +343,8 @@ class Rerun:
     order: str
     estimated: int = 0
     estimated_at: frozenset[int] = frozenset()
-
-    def estimate_disagreements(self, run: RunData) -> Optional[tuple[int, int]]:
-        """
-        Compare where the recorded controller and the re-run ran on a curvature estimate.
-
-        The controller's debug topic says per answer whether it did
-        (``curvature_estimated``); a bag can hold a curvature the recorder received and
-        the controller did not (a remapping, a QoS mismatch), which the re-run would use.
-
-        :param run: the bag the re-run ran on.
-        :return: ``(answers compared, answers where they differ)``, None if the bag's
-            debug topic does not say (not recorded, or a law without the estimate).
-        """
-        flags = run.debug.values.get('curvature_estimated')
-        if flags is None:
-            return None
-        recorded = {int(t): bool(f) for t, f in zip(run.debug.stamp_ns, flags)
-                    if math.isfinite(f)}
-        both = [t for t in self.commands if t in recorded]
-        if not both:
-            return None
-        return len(both), sum(recorded[t] != (t in self.estimated_at) for t in both)
+    followed: int = 0
+    judged_otherwise: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -404,8 +390,11 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     The whole controller core runs as in the node: input checks, the law, the low-speed
     hold and the output limits (angle, rate, lateral acceleration), with the recorded
     ``safety.*`` values or the overrides. Not modeled (no node clock): the watchdog's
-    stale-input hold and ramp, the future-stamp check, timer mode. A lost
-    ``road_curvature`` is judged on the stamps (``SteeringController.curvature_lost``).
+    stale-input hold and ramp, the future-stamp check, timer mode. Whether the curvature
+    is in (a law that estimates a missing one) is what the recorded controller judged
+    where its debug topic says (``curvature_estimated``; with any law, ``law``
+    overridden too: it says which curvature the node had), else judged on the stamps
+    (``SteeringController.curvature_lost``).
 
     :param run: the recorded run.
     :param overrides: parameter overrides (``controller.natural_frequency`` ...).
@@ -428,12 +417,18 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                              int(run.steering.stamp_ns[last]))
     commands: dict[int, Command] = {}
     estimated_at: set[int] = set()
+    judged = recorded_judgment(run)
+    followed = otherwise = 0
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
         refused = core.accept(role, sample)
         if role == 'lateral_error' and refused is None:
-            command = core.compute()
+            received = judged.get(sample.stamp_ns)
+            if received is not None:
+                followed += 1
+                otherwise += received != core.curvature_received(None)
+            command = core.compute(curvature_received=received)
             if command is not None:
                 commands[command.stamp_ns] = command
                 estimates = getattr(core.law, 'curvature_estimated', None)
@@ -443,7 +438,25 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     diffs = [abs(recorded[s] - c.steering) for s, c in commands.items() if s in recorded]
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
-                 order, len(estimated_at), frozenset(estimated_at))
+                 order, len(estimated_at), frozenset(estimated_at), followed, otherwise)
+
+
+def recorded_judgment(run: RunData) -> dict[int, bool]:
+    """
+    Return, per answered stamp, whether the recorded controller took the curvature as in.
+
+    From its debug topic's ``curvature_estimated`` (the default law's; 1: it ran on its
+    estimate). The node judges a loss on its clock, which no stamp holds, and only it
+    knows whether it received a curvature the bag holds (a remapping, a QoS mismatch).
+
+    :param run: the bag.
+    :return: stamp -> received (empty: the bag does not say).
+    """
+    flags = run.debug.values.get('curvature_estimated')
+    if flags is None:
+        return {}
+    return {int(t): not bool(f) for t, f in zip(run.debug.stamp_ns.tolist(), flags.tolist())
+            if math.isfinite(f)}
 
 
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,

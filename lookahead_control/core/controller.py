@@ -226,6 +226,8 @@ class SteeringController:
         #: beyond its ``max_gap``, a non-finite output): its integral and estimate start
         #: again; by cause in ``law_restart_causes``
         self.law_restarts = 0
+        #: the curvature judged in or lost by the caller during compute() (None: here)
+        self._judged: Optional[bool] = None
         self.law_restart_causes: dict[str, int] = {}
         #: seconds of answers, while turning (:data:`TURN_RATE`), with no curvature
         #: (``turning_without_curvature``: never received or lost) and with a ``v_y`` of
@@ -490,6 +492,15 @@ class SteeringController:
                 if (name in self._received and not self._fresh(name, now_ns))
                 or (name not in self._received and waited)]
 
+    def curvature_received(self, now_ns: Optional[int]) -> bool:
+        """
+        Return whether a usable curvature is in: received once and not lost.
+
+        :param now_ns: the node's clock [ns] (None: offline, judged on the stamps).
+        :return: whether it is.
+        """
+        return self.curvature is not None and not self.curvature_lost(now_ns)
+
     def curvature_lost(self, now_ns: Optional[int]) -> bool:
         """
         Return True when ``road_curvature`` came in once and is now stale.
@@ -505,8 +516,11 @@ class SteeringController:
         re-run held the last curvature where the node estimated it).
 
         :param now_ns: the node's clock [ns] (None: offline, judged on the stamps).
-        :return: whether the curvature is lost.
+        :return: whether the curvature is lost (while :meth:`compute` is given the
+            judgment: its opposite).
         """
+        if self._judged is not None and self.curvature is not None:
+            return not self._judged
         if now_ns is None:
             return (self.curvature is not None and self.lateral is not None
                     and self.lateral.stamp_ns - self.curvature.stamp_ns
@@ -708,16 +722,27 @@ class SteeringController:
             rho_rate=v_x * slope if self.use_preview else 0.0)
 
     def compute(self, now_ns: Optional[int] = None,
-                steady_ns: Optional[int] = None) -> Optional[Command]:
+                steady_ns: Optional[int] = None,
+                curvature_received: Optional[bool] = None) -> Optional[Command]:
         """
         Evaluate the law on the latest inputs, or give the safe command if one is stale.
 
         :param now_ns: the node's clock [ns] (None: no clock, inputs are not judged
             stale and the stamps time the rate limit: offline re-runs).
         :param steady_ns: the steady clock [ns], on the wall clock (None: sim time).
+        :param curvature_received: whether the curvature received counts as in at this
+            step, not lost (None: judged here, :meth:`curvature_lost`; an offline re-run
+            gives the recorded node's own judgment, which no stamp holds).
         :return: the command answering the latest lateral error (the safe command when
             a required input is stale), None if an input is missing.
         """
+        self._judged = curvature_received
+        try:
+            return self._compute(now_ns, steady_ns)
+        finally:
+            self._judged = None
+
+    def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):
             fresh = self._fresh('lateral_error', now_ns)
             return self.safe_command(now_ns, steady_ns,
@@ -736,7 +761,7 @@ class SteeringController:
                 self.turning['v_y_exactly_zero'] += dt
         note_curvature = getattr(self.law, 'note_curvature', None)
         if note_curvature is not None:      # a law that estimates a missing curvature
-            note_curvature(self.curvature is not None and not self.curvature_lost(now_ns))
+            note_curvature(self.curvature_received(now_ns))
         resets = getattr(self.law, 'resets', 0)
         causes = dict(getattr(self.law, 'restart_causes', {}))
         law = self.law.step(state, self.preview(now_ns), dt)
