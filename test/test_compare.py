@@ -21,6 +21,7 @@ import time
 
 from conftest import Swerve
 from lookahead_control.core.cli import run_tool
+from lookahead_control.core.config import ConfigError
 from lookahead_control.core.params import VehicleParams
 from lookahead_control.tools import compare
 import numpy as np
@@ -328,3 +329,69 @@ def test_the_controller_file_sets_what_each_law_runs(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and 'cg_compensated' in err and 'arc_exact' in err
     assert err.count('\n') == 1 and not (tmp_path / 'c').exists()
+
+
+# params files -> the lane_keeping.natural_frequency the controller node runs with them
+# (rclpy: a section applies if its name matches the node's as a pattern, /** any levels,
+# /* one; the sections in the file's order, a later value replacing an earlier one)
+NODE_FILES = {
+    'double_wildcard_node': ('/**/controller', 5.0),
+    'single_wildcard': ('/*', 5.0),
+    'node_then_wildcard': ('controller:6.0 /**', 5.0),
+    'wildcard_then_node': ('/** controller:6.0', 6.0),
+    'other_node': ('/**/sim_plant', 7.0),
+}
+
+
+def _params_file(path, sections):
+    text = ''
+    for section in sections.split():
+        name, _, value = section.partition(':')
+        text += (f'{name}:\n  ros__parameters:\n    lane_keeping:\n'
+                 f'      natural_frequency: {value or 5.0}\n')
+    path.write_text(text)
+    return path
+
+
+def _node_settings(path):
+    import rclpy
+    from rclpy.context import Context
+
+    from lookahead_control.ros.controller_node import ControllerNode
+    ctx = Context()
+    rclpy.init(args=['controller', '--ros-args', '--params-file', str(path)], context=ctx)
+    try:
+        node = ControllerNode(context=ctx)
+        try:
+            return node.get_parameter('lane_keeping.natural_frequency').value
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+@pytest.mark.parametrize('case', sorted(NODE_FILES))
+def test_the_controller_file_is_read_as_the_node_reads_it(case, tmp_path):
+    # before, the tools read only the /**, controller and /controller sections, the node's
+    # own last: a /**/controller or /* section (rclpy applies both) was left at the
+    # defaults, and a /** section after the node's lost to it (in rclpy it wins)
+    sections, expected = NODE_FILES[case]
+    path = _params_file(tmp_path / 'c.yaml', sections)
+    assert _node_settings(path) == expected
+    assert compare.load_law_settings(path).lane_keeping.natural_frequency == expected
+
+
+@pytest.mark.parametrize('body, blamed', [
+    ('lane_keping:\n      natural_frequency: 5.0', "'lane_keping.natural_frequency'"),
+    ('lwa: paper', "'lwa'"),
+])
+def test_a_name_the_node_refuses_is_refused_not_left_at_its_default(body, blamed, tmp_path):
+    # before, a namespace typo in the node's section (which the node refuses) gave the
+    # package defaults: a league of another tuning than the file's, said to be the file's
+    path = tmp_path / 'c.yaml'
+    path.write_text('controller:\n  ros__parameters:\n    ' + body + '\n')
+    with pytest.raises(ConfigError, match=f'unknown parameter {blamed}'):
+        compare.load_law_settings(path)
+    # in a /** section (other nodes' too) only the node's namespaces are its business
+    path.write_text('/**:\n  ros__parameters:\n    ' + body + '\n')
+    assert compare.settings_changes(compare.load_law_settings(path)) == []

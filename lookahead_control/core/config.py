@@ -24,8 +24,8 @@ nested keys flatten to dotted names (``vehicle.mass``).
 from __future__ import annotations
 
 import dataclasses
-import fnmatch
 from pathlib import Path
+import re
 from typing import Any, Mapping, Sequence, Type, TypeVar
 
 from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
@@ -110,15 +110,35 @@ def flat_parameters(section: Any) -> dict[str, Any]:
     return out
 
 
+def applies_to(key: Any, node_name: str) -> bool:
+    """
+    Return True if a params file's section ``key`` is for the node, as rcl matches it.
+
+    As rclpy reads a params file: a leading slash is added, ``/**`` matches any number of
+    namespace levels (``/**``, ``/**/controller``) and ``/*`` one (``/*``), and the
+    pattern must match the node's whole name.
+
+    :param key: the section's name in the file.
+    :param node_name: the node's name (``controller``; the node runs in the root namespace).
+    :return: whether the section's parameters apply to the node.
+    """
+    pattern = str(key) if str(key).startswith('/') else '/' + str(key)
+    parts = re.split(r'(/\*\*|/\*)', pattern)
+    regex = ''.join({'/**': r'(/\w+)*', '/*': r'(/\w+)'}.get(p, re.escape(p)) for p in parts)
+    return re.fullmatch(regex, '/' + node_name.lstrip('/')) is not None
+
+
 def load_ros_params(path: Path | str, node_name: str | None = None) -> dict[str, Any]:
     """
     Read the flattened parameters of a ROS 2 params YAML file.
 
-    Sections for ``/**`` apply to every node; a section named after ``node_name``
-    (with or without a leading slash) overrides them, as in ROS.
+    With ``node_name``, every section that applies to that node (``/**``, ``/*``,
+    ``/**/controller``, ``controller``, ``/controller``: :func:`applies_to`) in the
+    file's order, a later section's value replacing an earlier one's, as rclpy merges
+    them; without, the ``/**`` sections only.
 
     :param path: the params file.
-    :param node_name: the node whose section to merge, or None for wildcards only.
+    :param node_name: the node whose sections to merge, or None for wildcards only.
     :return: a mapping of dotted parameter names to values.
     """
     document = read_yaml(path)
@@ -126,12 +146,10 @@ def load_ros_params(path: Path | str, node_name: str | None = None) -> dict[str,
         raise ConfigError(f'{path}: expected a mapping of node names to '
                           f'ros__parameters, got {type(document).__name__}')
     merged: dict[str, Any] = {}
-    wanted = ['/**', '**']
-    if node_name:
-        wanted += [node_name, '/' + node_name.lstrip('/')]
-    for key in wanted:
-        section = document.get(key)
-        if section is None:
+    for key, section in document.items():
+        wanted = (applies_to(key, node_name) if node_name else
+                  str(key) in ('/**', '**'))
+        if not wanted:
             continue
         if not isinstance(section, Mapping) or not isinstance(
                 section.get('ros__parameters'), Mapping):
@@ -197,9 +215,7 @@ def check_params_file(path: Path | str, node_name: str,
     out: dict[str, dict[str, Any]] = {}
     for key, section in document.items():
         pattern = str(key)
-        target = '/' + node_name.lstrip('/')
-        glob = '/' + pattern.lstrip('/')
-        if not fnmatch.fnmatchcase(target, glob.replace('/**', '*')):
+        if not applies_to(pattern, node_name):
             continue
         if not isinstance(section, Mapping) or not isinstance(
                 section.get('ros__parameters'), Mapping):

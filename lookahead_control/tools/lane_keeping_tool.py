@@ -22,9 +22,8 @@ from pathlib import Path
 from typing import Sequence
 
 from lookahead_control.core.cli import markdown_table, number, parser, run_tool, write_json
-from lookahead_control.core.config import (changed_fields, load_controller, load_lane_keeping,
-                                           load_vehicle)
-from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.config import changed_fields, load_vehicle
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import certificate, robust_check
 from lookahead_control.core.params import ControllerParams
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
@@ -69,9 +68,15 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     if args.controller is None:
         settings, controller = LaneKeepingParams(**overrides), ControllerParams()
     else:
-        settings = replace(load_lane_keeping(args.controller), **overrides)
-        controller = load_controller(args.controller)
+        # as the node reads the file (its own check first: a name it does not have is
+        # refused, not left at its default)
+        from lookahead_control.tools.compare import load_law_settings
+        loaded = load_law_settings(args.controller)
+        settings, controller = replace(loaded.lane_keeping, **overrides), loaded.controller
     vehicle = load_vehicle(args.vehicle)
+    # the node's own checks across parameters (controller.reference): the law it refuses
+    # is not certified
+    CgCompensatedLaw(vehicle, controller, settings)
     changed = [f'controller.{k} = {v!r}' for k, v in changed_fields(controller).items()]
     changed += [f'lane_keeping.{k} = {v!r}' for k, v in changed_fields(settings).items()]
     print(f'settings: {args.controller or "the package defaults"}'

@@ -34,7 +34,7 @@ failure rate, worst case and percentiles) and ``plots/*.png``.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields
 import itertools
 import json
 import math
@@ -51,7 +51,7 @@ from lookahead_control.core.config import (changed_fields, load_controller, load
                                            load_vehicle, source_config_dir)
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
-from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 import numpy as np
 
 PLANTS = ('nonlinear', 'linear')
@@ -81,9 +81,8 @@ def paper_fixed_law(vehicle: VehicleParams, controller: ControllerParams,
 # core/laws.py). The names are those of the compare tool's league.
 def cg_compensated_law(vehicle: VehicleParams, controller: ControllerParams,
                        lane_keeping: LaneKeepingParams) -> Law:
-    """Return the CG-compensated look-ahead law (docs/lane_keeping.md) with its settings."""
-    return CgCompensatedLaw(vehicle, replace(controller, reference='lane_tangent'),
-                            lane_keeping)
+    """Return the CG-compensated look-ahead law (docs/lane_keeping.md), as the node builds it."""
+    return CgCompensatedLaw(vehicle, controller, lane_keeping)
 
 
 LAWS: dict[str, Callable[[VehicleParams, ControllerParams, LaneKeepingParams], Law]] = {
@@ -422,6 +421,15 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
         except (OSError, ValueError) as err:
             raise ToolError(f'{manifest}: unreadable ({err}); remove it or use another '
                             '--out') from err
+        if not isinstance(old, dict):
+            raise ToolError(f'{manifest}: not a sweep manifest (a JSON object); remove it '
+                            'or use another --out')
+        if {'vehicle', 'controller'} <= set(old) and 'lane_keeping' not in old:
+            # the version before lane_keeping was recorded ran cg_compensated at the
+            # package defaults whatever the file said: resumable with those, and only
+            old['lane_keeping'] = manifest_data(spec, vehicle or load_vehicle(None),
+                                                controller or load_controller(None),
+                                                LaneKeepingParams())['lane_keeping']
         differ = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
         if differ and not {'vehicle', 'controller', 'lane_keeping'} <= set(old):
             raise ToolError(f'{out} holds a sweep that did not record its vehicle, '
@@ -797,10 +805,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in spec.scenarios:
         if not scenario_path(name).exists():
             raise ToolError(f'--scenarios: no scenario {name!r} ({scenario_path(name)})')
+    if args.controller is None:
+        controller, lane_keeping = load_controller(None), load_lane_keeping(None)
+    else:
+        # as the node reads the file (its own check first: a name it does not have is
+        # refused, not left at its default)
+        from lookahead_control.tools.compare import load_law_settings
+        loaded = load_law_settings(args.controller)
+        controller, lane_keeping = loaded.controller, loaded.lane_keeping
+    vehicle = load_vehicle(args.vehicle)
+    for law in spec.laws:       # the node's checks across parameters: before any run
+        try:
+            LAWS[law](vehicle, controller, lane_keeping)
+        except ParameterError as err:
+            raise ToolError(f'--controller {args.controller or "(default)"}: {law}: '
+                            f'{err}') from err
     start = time.monotonic()
-    table, count = sweep(spec, args.out, vehicle=load_vehicle(args.vehicle),
-                         controller=load_controller(args.controller),
-                         lane_keeping=load_lane_keeping(args.controller),
+    table, count = sweep(spec, args.out, vehicle=vehicle, controller=controller,
+                         lane_keeping=lane_keeping,
                          workers=args.workers, scheduler=args.scheduler,
                          progress=not args.no_progress, plots=not args.no_plots)
     print(markdown_table(summarize(table), STDOUT_COLUMNS, digits=3))
