@@ -293,3 +293,17 @@ def test_the_printed_summary_gives_the_worst_case_of_each_scenario(tmp_path, cap
         assert float(lines[scenario][7]) == pytest.approx(max(peaks), rel=5e-3)
         assert f'C x{1 + cornering[worst]:.2f}' in lines[scenario][8]
     assert float(lines['all'][7]) == pytest.approx(max(data['peak_cg_error_m']), rel=5e-3)
+
+
+def test_the_summary_names_every_setting_each_law_ran_with(tmp_path):
+    # before, summary.md named only lane_keeping.*: cg_compensated run with the file's
+    # controller.max_look_ahead was said to run "the rest default", and the paper laws'
+    # controller.* went unnamed
+    spec = replace(SPEC, laws=('paper_eq26', 'cg_compensated'), runs=1, speeds=(37.0,))
+    sw.sweep(spec, tmp_path / 's', vehicle=VEHICLE, workers=0, plots=False,
+             controller=ControllerParams(natural_frequency=2.0, max_look_ahead=40.0),
+             lane_keeping=LaneKeepingParams(integral_gain=0.6))
+    summary = (tmp_path / 's' / 'summary.md').read_text()
+    assert (' paper_eq26: controller.natural_frequency = 2.0, controller.max_look_ahead = '
+            '40.0 (the rest default). cg_compensated: controller.max_look_ahead = 40.0, '
+            'lane_keeping.integral_gain = 0.6 (the rest default).') in summary

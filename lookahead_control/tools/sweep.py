@@ -651,8 +651,39 @@ def plot(table: Any, out: Path) -> list[Path]:
     return paths
 
 
+def settings_note(spec: SweepSpec, controller: ControllerParams | None,
+                  lane_keeping: LaneKeepingParams | None) -> str:
+    """
+    Return what ``summary.md`` says of the laws' settings: those that differ from the defaults.
+
+    Each law is named with the settings it reads: the paper laws ``controller.*`` but
+    their schedule (their name's), ``cg_compensated`` the d_v schedule, clamp and speed
+    floor of ``controller.*`` (its gains are ``lane_keeping.*``'s) and ``lane_keeping.*``.
+
+    :param spec: the sweep.
+    :param controller: the paper law's parameters (None: the defaults).
+    :param lane_keeping: the CG-compensated law's settings (None: the defaults).
+    :return: the sentences, each with a leading space ('' with no law to name).
+    """
+    control = changed_fields(controller or ControllerParams())
+    mine = changed_fields(lane_keeping or LaneKeepingParams())
+    text = ''
+    paper = [law for law in spec.laws if law != 'cg_compensated']
+    shown = [f'controller.{k} = {v!r}' for k, v in control.items() if k != 'schedule']
+    if paper and shown:
+        text += f' {", ".join(paper)}: {", ".join(shown)} (the rest default).'
+    if 'cg_compensated' in spec.laws:
+        shown = [f'controller.{k} = {v!r}' for k, v in control.items()
+                 if k not in ('natural_frequency', 'damping_ratio', 'reference')]
+        shown += [f'lane_keeping.{k} = {v!r}' for k, v in mine.items()]
+        text += ' cg_compensated: ' + (', '.join(shown) + ' (the rest default).' if shown
+                                       else 'the default settings.')
+    return text
+
+
 def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
-           lane_keeping: LaneKeepingParams | None = None) -> Path:
+           lane_keeping: LaneKeepingParams | None = None,
+           controller: ControllerParams | None = None) -> Path:
     """
     Write ``summary.md`` and ``summary.csv`` (and the plots).
 
@@ -661,15 +692,11 @@ def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
     :param table: the results.
     :param plots: also write the plots.
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
+    :param controller: the paper law's parameters (None: the defaults).
     :return: the markdown summary's path.
     """
     rows = summarize(table)
-    changed = changed_fields(lane_keeping or LaneKeepingParams())
-    settings = ('' if 'cg_compensated' not in spec.laws else
-                ' cg_compensated: ' + ('the default settings.' if not changed else
-                                       ', '.join(f'lane_keeping.{k} = {v!r}'
-                                                 for k, v in changed.items())
-                                       + ' (the rest default).'))
+    settings = settings_note(spec, controller, lane_keeping)
     write_csv(out / 'summary.csv', rows)
     text = [f'# Sweep: {spec.mode}, {table.num_rows} runs', '',
             f'Scenarios {", ".join(spec.scenarios)}; speeds {spec.speeds} m/s; '
@@ -723,7 +750,7 @@ def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
     if pending(out, all_tasks):
         return None, count
     table = collect(out, all_tasks)
-    report(out, spec, table, plots, lane_keeping)
+    report(out, spec, table, plots, lane_keeping, controller)
     return table, count
 
 
