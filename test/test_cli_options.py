@@ -465,6 +465,12 @@ def _lane_keeping():
             bad = run(exe, *base, '--controller', tuned, cwd=folder)
             assert bad.returncode == 2 and blamed in bad.stderr, bad.stderr
             assert bad.stderr.count('\n') == 1 and not bad.stdout, bad.stderr
+        # an option the other settings refuse is named (before: only the setting, whose
+        # value the file did not hold)
+        bad = run(exe, *base, '--natural-frequency', '2', cwd=folder)
+        assert bad.returncode == 2 and bad.stderr.count('\n') == 1, bad.stderr
+        assert bad.stderr.startswith(f'{exe}: error: --natural-frequency 2: lane_keeping.'
+                                     'low_speed_frequency = 3.0'), bad.stderr
     return {
         '--vehicle': ((), lambda c: changes('--vehicle', str(c.vehicle))(c)),
         '--controller': ((), controller),

@@ -21,11 +21,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
-from lookahead_control.core.cli import markdown_table, number, parser, run_tool, write_json
+from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
+                                        write_json)
 from lookahead_control.core.config import changed_fields, load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import certificate, robust_check
-from lookahead_control.core.params import ControllerParams
+from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 
 
@@ -66,13 +67,18 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
     if args.controller is None:
-        settings, controller = LaneKeepingParams(**overrides), ControllerParams()
+        loaded, controller = LaneKeepingParams(), ControllerParams()
     else:
         # as the node reads the file (its own check first: a name it does not have is
         # refused, not left at its default)
         from lookahead_control.tools.compare import load_law_settings
-        loaded = load_law_settings(args.controller)
-        settings, controller = replace(loaded.lane_keeping, **overrides), loaded.controller
+        both = load_law_settings(args.controller)
+        loaded, controller = both.lane_keeping, both.controller
+    try:
+        settings = replace(loaded, **overrides)
+    except ParameterError as err:       # with the file's (or the default) other settings
+        given = ' '.join(f'--{k.replace("_", "-")} {v:g}' for k, v in overrides.items())
+        raise ToolError(f'{given}: {err}') from err
     vehicle = load_vehicle(args.vehicle)
     # the node's own checks across parameters (controller.reference): the law it refuses
     # is not certified
