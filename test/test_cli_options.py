@@ -456,6 +456,21 @@ def _lane_keeping():
                          '      natural_frequency: -5.0\n')
         bad = run(exe, *base, '--controller', tuned, cwd=folder)
         assert bad.returncode == 2 and 'lane_keeping.natural_frequency = -5.0' in bad.stderr
+        # a file the node refuses for this law is not certified (before: the law with
+        # controller.reference arc_exact passed, and a namespace typo in the node's
+        # section certified the defaults)
+        for body, blamed in (('controller:\n      reference: arc_exact', 'arc_exact'),
+                             ('lane_keping:\n      integral_gain: 0.6', "'lane_keping.")):
+            tuned.write_text('controller:\n  ros__parameters:\n    ' + body + '\n')
+            bad = run(exe, *base, '--controller', tuned, cwd=folder)
+            assert bad.returncode == 2 and blamed in bad.stderr, bad.stderr
+            assert bad.stderr.count('\n') == 1 and not bad.stdout, bad.stderr
+        # an option the other settings refuse is named (before: only the setting, whose
+        # value the file did not hold)
+        bad = run(exe, *base, '--natural-frequency', '2', cwd=folder)
+        assert bad.returncode == 2 and bad.stderr.count('\n') == 1, bad.stderr
+        assert bad.stderr.startswith(f'{exe}: error: --natural-frequency 2: lane_keeping.'
+                                     'low_speed_frequency = 3.0'), bad.stderr
     return {
         '--vehicle': ((), lambda c: changes('--vehicle', str(c.vehicle))(c)),
         '--controller': ((), controller),

@@ -21,6 +21,7 @@ import time
 
 from conftest import Swerve
 from lookahead_control.core.cli import run_tool
+from lookahead_control.core.config import ConfigError
 from lookahead_control.core.params import VehicleParams
 from lookahead_control.tools import compare
 import numpy as np
@@ -328,3 +329,86 @@ def test_the_controller_file_sets_what_each_law_runs(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and 'cg_compensated' in err and 'arc_exact' in err
     assert err.count('\n') == 1 and not (tmp_path / 'c').exists()
+
+
+# params files -> the lane_keeping.natural_frequency the controller node runs with them
+# (rclpy: a section applies if its name matches the node's as a pattern, /** any levels,
+# /* one; the sections in the file's order, a later value replacing an earlier one; a
+# nesting of namespaces spells a node name; a name written twice is one section)
+def _section(name, value, indent=''):
+    return (f'{indent}{name}:\n{indent}  ros__parameters:\n{indent}    lane_keeping:\n'
+            f'{indent}      natural_frequency: {value}\n')
+
+
+NODE_FILES = {
+    'double_wildcard_node': (_section('/**/controller', 5.0), 5.0),
+    'single_wildcard': (_section('/*', 5.0), 5.0),
+    'node_then_wildcard': (_section('controller', 6.0) + _section('/**', 5.0), 5.0),
+    'wildcard_then_node': (_section('/**', 5.0) + _section('controller', 6.0), 6.0),
+    'other_node': (_section('/**/sim_plant', 5.0), 7.0),
+    'nested_namespaces': ('/**:\n' + _section('controller', 5.0, '  ')
+                          + 'ns:\n' + _section('controller', 6.0, '  '), 5.0),
+    'root_namespace': ('/:\n' + _section('controller', 5.0, '  '), 5.0),
+    # the node's own section twice around a /**: one section, before the /**
+    'twice': (_section('controller', 6.0) + _section('/**', 5.0)
+              + _section('controller', 4.0), 5.0),
+    # /** twice, an integer in the first (the node then gets a converted copy)
+    'twice_with_integer': (_section('/**', 5) + 'controller:\n  ros__parameters:\n'
+                           '    lane_keeping:\n      damping_ratio: 1\n'
+                           + '/**:\n  ros__parameters:\n    lane_keeping:\n'
+                           '      integral_gain: 0.1\n', 5.0),
+}
+
+
+def _node_settings(path):
+    import rclpy
+    from rclpy.context import Context
+
+    from lookahead_control.ros.controller_node import ALL_SPECS, ControllerNode
+    from lookahead_control.ros.node_main import checked_arguments
+    scratch = []
+    ctx = Context()
+    try:
+        # as run_node starts the node: the file checked (and converted) first
+        args = checked_arguments(['--ros-args', '--params-file', str(path)], 'controller',
+                                 ALL_SPECS, scratch)
+        rclpy.init(args=['controller', *args], context=ctx)
+        node = ControllerNode(context=ctx)
+        try:
+            return node.get_parameter('lane_keeping.natural_frequency').value
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+        for copy in scratch:
+            copy.unlink()
+
+
+@pytest.mark.parametrize('case', sorted(NODE_FILES))
+def test_the_controller_file_is_read_as_the_node_reads_it(case, tmp_path):
+    # before, the tools read only the /**, controller and /controller sections, the node's
+    # own last: a /**/controller or /* section (rclpy applies both) was left at the
+    # defaults, and a /** section after the node's lost to it (in rclpy it wins); a nesting
+    # of namespaces (rcl's form) was refused by the node's own check or not read; a
+    # section written twice kept only its last copy (the node's converted copy too)
+    text, expected = NODE_FILES[case]
+    path = tmp_path / 'c.yaml'
+    path.write_text(text)
+    assert _node_settings(path) == expected
+    assert compare.load_law_settings(path).lane_keeping.natural_frequency == expected
+
+
+@pytest.mark.parametrize('body, blamed', [
+    ('lane_keping:\n      natural_frequency: 5.0', "'lane_keping.natural_frequency'"),
+    ('lwa: paper', "'lwa'"),
+])
+def test_a_name_the_node_refuses_is_refused_not_left_at_its_default(body, blamed, tmp_path):
+    # before, a namespace typo in the node's section (which the node refuses) gave the
+    # package defaults: a league of another tuning than the file's, said to be the file's
+    path = tmp_path / 'c.yaml'
+    path.write_text('controller:\n  ros__parameters:\n    ' + body + '\n')
+    with pytest.raises(ConfigError, match=f'unknown parameter {blamed}'):
+        compare.load_law_settings(path)
+    # in a /** section (other nodes' too) only the node's namespaces are its business
+    path.write_text('/**:\n  ros__parameters:\n    ' + body + '\n')
+    assert compare.settings_changes(compare.load_law_settings(path)) == []

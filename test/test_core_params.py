@@ -110,6 +110,27 @@ def test_node_section_overrides_wildcard(tmp_path):
     assert load_controller(path).schedule == 'fixed'
 
 
+@pytest.mark.parametrize('key, applies', [
+    ('/**', True), ('**', True), ('/*', True), ('controller', True), ('/controller', True),
+    ('/**/controller', True), ('/*/controller', False), ('/ns/controller', False),
+    ('/**/sim_plant', False), ('controllers', False), ('contr.ller', False),
+])
+def test_a_section_applies_to_the_node_as_rclpy_matches_it(key, applies, tmp_path):
+    # rclpy: '/' prepended, '/*' -> '(/\\w+)', '/**' -> '(/\\w+)*', the whole name matched;
+    # the sections in the file's order, a later one's value replacing an earlier one's.
+    # Before, only /**, controller and /controller were read, the node's own last
+    path = tmp_path / 'c.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    controller:\n      schedule: exact\n'
+                    f'{key!r}:\n  ros__parameters:\n    controller:\n'
+                    '      schedule: fixed\n')
+    assert load_controller(path).schedule == ('fixed' if applies else 'exact')
+    if key != '/**':
+        path.write_text(f'{key!r}:\n  ros__parameters:\n    controller:\n'
+                        '      schedule: fixed\n'
+                        '/**:\n  ros__parameters:\n    controller:\n      schedule: exact\n')
+        assert load_controller(path).schedule == 'exact'
+
+
 def test_scenario_files_load():
     for path in sorted((ROOT / 'config' / 'scenarios').glob('*.yaml')):
         scenario = load_scenario(path)

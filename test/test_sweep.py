@@ -183,15 +183,28 @@ def test_a_resume_with_another_vehicle_or_controller_is_refused(reference, tmp_p
     assert count == 0 and _same(again, table)
     # a folder of the versions that did not record them: refused, not guessed
     manifest = json.loads((folder / 'sweep.json').read_text())
-    for i, left_out in enumerate((('vehicle', 'controller', 'lane_keeping'),
-                                  ('lane_keeping',))):
-        old = tmp_path / f'old{i}'
-        (old / 'parts').mkdir(parents=True)
-        (old / 'sweep.json').write_text(json.dumps(
-            {k: v for k, v in manifest.items() if k not in left_out}))
-        with pytest.raises(ToolError, match='did not record its vehicle, controller and '
-                           'lane-keeping settings'):
-            _sweep(old)
+    old = tmp_path / 'old'
+    (old / 'parts').mkdir(parents=True)
+    models = ('vehicle', 'controller', 'lane_keeping')
+    (old / 'sweep.json').write_text(json.dumps(
+        {k: v for k, v in manifest.items() if k not in models}))
+    with pytest.raises(ToolError, match='did not record its vehicle, controller and '
+                       'lane-keeping settings'):
+        _sweep(old)
+    # the version before this one recorded the models but not lane_keeping, and ran
+    # cg_compensated at its defaults whatever the file said: resumed with those (before:
+    # refused), refused with another tuning
+    (old / 'sweep.json').write_text(json.dumps(
+        {k: v for k, v in manifest.items() if k != 'lane_keeping'}))
+    before = (old / 'sweep.json').read_text()
+    with pytest.raises(ToolError, match='options differ: lane_keeping'):
+        _sweep(old, lane_keeping=LaneKeepingParams(integral_gain=1.0))
+    resumed, count = _sweep(old)
+    assert count == 4 and _same(resumed, table)
+    assert (old / 'sweep.json').read_text() == before
+    (old / 'sweep.json').write_text('[]')
+    with pytest.raises(ToolError, match='not a sweep manifest'):
+        _sweep(old)
 
 
 def test_the_controller_file_tunes_the_lane_keeping_law(tmp_path, capsys):
@@ -242,6 +255,19 @@ def test_the_controller_file_tunes_the_lane_keeping_law(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and 'lane_keeping.integral_gain = -1.0' in err and err.count('\n') == 1
     assert not (tmp_path / 'b').exists()
+    # so is a file the node refuses: controller.reference arc_exact with cg_compensated
+    # (before: run with lane_tangent put in its place), a namespace typo in the node's
+    # section (before: run at the defaults)
+    for bad, blamed in ((text.replace('reference: lane_tangent', 'reference: arc_exact'),
+                         "cg_compensated: controller.reference = 'arc_exact'"),
+                        ('controller:\n  ros__parameters:\n    lane_keping:\n'
+                         '      integral_gain: 2.0\n', "'lane_keping.integral_gain'")):
+        tuned.write_text(bad)
+        code = run_tool(sw.main, args + ['--out', str(tmp_path / 'b'), '--controller',
+                                         str(tuned)])
+        err = capsys.readouterr().err
+        assert code == 2 and blamed in err and err.count('\n') == 1, err
+        assert not (tmp_path / 'b').exists()
 
 
 def test_the_printed_summary_gives_the_worst_case_of_each_scenario(tmp_path, capsys):
@@ -267,3 +293,17 @@ def test_the_printed_summary_gives_the_worst_case_of_each_scenario(tmp_path, cap
         assert float(lines[scenario][7]) == pytest.approx(max(peaks), rel=5e-3)
         assert f'C x{1 + cornering[worst]:.2f}' in lines[scenario][8]
     assert float(lines['all'][7]) == pytest.approx(max(data['peak_cg_error_m']), rel=5e-3)
+
+
+def test_the_summary_names_every_setting_each_law_ran_with(tmp_path):
+    # before, summary.md named only lane_keeping.*: cg_compensated run with the file's
+    # controller.max_look_ahead was said to run "the rest default", and the paper laws'
+    # controller.* went unnamed
+    spec = replace(SPEC, laws=('paper_eq26', 'cg_compensated'), runs=1, speeds=(37.0,))
+    sw.sweep(spec, tmp_path / 's', vehicle=VEHICLE, workers=0, plots=False,
+             controller=ControllerParams(natural_frequency=2.0, max_look_ahead=40.0),
+             lane_keeping=LaneKeepingParams(integral_gain=0.6))
+    summary = (tmp_path / 's' / 'summary.md').read_text()
+    assert (' paper_eq26: controller.natural_frequency = 2.0, controller.max_look_ahead = '
+            '40.0 (the rest default). cg_compensated: controller.max_look_ahead = 40.0, '
+            'lane_keeping.integral_gain = 0.6 (the rest default).') in summary

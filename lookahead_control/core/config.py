@@ -24,8 +24,8 @@ nested keys flatten to dotted names (``vehicle.mass``).
 from __future__ import annotations
 
 import dataclasses
-import fnmatch
 from pathlib import Path
+import re
 from typing import Any, Mapping, Sequence, Type, TypeVar
 
 from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
@@ -110,33 +110,101 @@ def flat_parameters(section: Any) -> dict[str, Any]:
     return out
 
 
+def _is_namespace(node: Any) -> bool:
+    # a mapping of node names (rcl's nested form ``/**: {controller: {ros__parameters:
+    # ...}}``), not a node's section (``ros__parameters`` missing: an error if it applies)
+    if not isinstance(node, yaml.MappingNode) or not node.value or any(
+            k.tag == 'tag:yaml.org,2002:merge' for k, _ in node.value):
+        return False
+    if any(getattr(k, 'value', None) == 'ros__parameters' for k, _ in node.value):
+        return False
+    return all(isinstance(v, yaml.MappingNode) and (
+        any(getattr(k, 'value', None) == 'ros__parameters' for k, _ in v.value)
+        or _is_namespace(v)) for _, v in node.value)
+
+
+def node_sections(path: Path | str) -> list[tuple[str, dict[str, Any] | None]]:
+    """
+    Return a params file's node sections as rcl reads them, in the file's order.
+
+    A namespace nesting (``/**: {controller: {ros__parameters: ...}}``) is the node name
+    it spells (``/**/controller``); sections of the same name (a key written twice) are
+    one, at the place of the first, the later one's entries replacing the earlier one's.
+
+    :param path: the params file.
+    :return: (node name or pattern, its flat parameters, or None if it has no
+        ``ros__parameters`` mapping) pairs.
+    :raises ConfigError: a missing, unreadable or malformed file, or not a mapping.
+    """
+    document = read_yaml(path)
+    if not isinstance(document, Mapping):
+        raise ConfigError(f'{path}: not a ROS parameters file (expected '
+                          '"<node>: {ros__parameters: {...}}")')
+    loader = yaml.SafeLoader(Path(path).read_text(encoding='utf-8'))
+    out: dict[str, dict[str, Any] | None] = {}
+
+    def walk(node: Any, prefix: list[str]) -> None:
+        loader.flatten_mapping(node)        # YAML merge keys (<<: *defaults)
+        for key_node, value_node in node.value:
+            parts = [*prefix, str(loader.construct_object(key_node, deep=True))]
+            if _is_namespace(value_node):
+                walk(value_node, parts)
+                continue
+            name = parts[0] if len(parts) == 1 else '/' + '/'.join(
+                p.strip('/') for p in parts if p.strip('/'))
+            section = loader.construct_object(value_node, deep=True)
+            flat = (flat_parameters(section) if isinstance(section, Mapping) and isinstance(
+                section.get('ros__parameters'), Mapping) else None)
+            old = out.get(name, {})
+            out[name] = None if old is None or flat is None else {**old, **flat}
+
+    try:
+        walk(loader.get_single_node(), [])
+    finally:
+        loader.dispose()
+    return list(out.items())
+
+
+def applies_to(key: Any, node_name: str) -> bool:
+    """
+    Return True if a params file's section ``key`` is for the node, as rcl matches it.
+
+    As rclpy reads a params file: a leading slash is added, ``/**`` matches any number of
+    namespace levels (``/**``, ``/**/controller``) and ``/*`` one (``/*``), and the
+    pattern must match the node's whole name.
+
+    :param key: the section's name in the file.
+    :param node_name: the node's name (``controller``; the node runs in the root namespace).
+    :return: whether the section's parameters apply to the node.
+    """
+    pattern = str(key) if str(key).startswith('/') else '/' + str(key)
+    parts = re.split(r'(/\*\*|/\*)', pattern)
+    regex = ''.join({'/**': r'(/\w+)*', '/*': r'(/\w+)'}.get(p, re.escape(p)) for p in parts)
+    return re.fullmatch(regex, '/' + node_name.lstrip('/')) is not None
+
+
 def load_ros_params(path: Path | str, node_name: str | None = None) -> dict[str, Any]:
     """
     Read the flattened parameters of a ROS 2 params YAML file.
 
-    Sections for ``/**`` apply to every node; a section named after ``node_name``
-    (with or without a leading slash) overrides them, as in ROS.
+    With ``node_name``, every section that applies to that node (``/**``, ``/*``,
+    ``/**/controller``, ``controller``, ``/controller``: :func:`applies_to`) in the
+    file's order, a later section's value replacing an earlier one's, as rclpy merges
+    them; without, the ``/**`` sections only.
 
     :param path: the params file.
-    :param node_name: the node whose section to merge, or None for wildcards only.
+    :param node_name: the node whose sections to merge, or None for wildcards only.
     :return: a mapping of dotted parameter names to values.
     """
-    document = read_yaml(path)
-    if not isinstance(document, Mapping):
-        raise ConfigError(f'{path}: expected a mapping of node names to '
-                          f'ros__parameters, got {type(document).__name__}')
     merged: dict[str, Any] = {}
-    wanted = ['/**', '**']
-    if node_name:
-        wanted += [node_name, '/' + node_name.lstrip('/')]
-    for key in wanted:
-        section = document.get(key)
-        if section is None:
+    for key, flat in node_sections(path):
+        wanted = (applies_to(key, node_name) if node_name else
+                  str(key) in ('/**', '**'))
+        if not wanted:
             continue
-        if not isinstance(section, Mapping) or not isinstance(
-                section.get('ros__parameters'), Mapping):
+        if flat is None:
             raise ConfigError(f'{path}: section {key!r} has no ros__parameters mapping')
-        _flatten('', section['ros__parameters'], merged)
+        merged.update(flat)
     return merged
 
 
@@ -190,21 +258,12 @@ def check_params_file(path: Path | str, node_name: str,
     :return: section -> the section's flat parameters, integers for reals converted.
     :raises ConfigError: ``<file>: <name> = <value> ...``, or a malformed file.
     """
-    document = read_yaml(path)
-    if not isinstance(document, Mapping):
-        raise ConfigError(f'{path}: not a ROS parameters file (expected '
-                          '"<node>: {ros__parameters: {...}}")')
     out: dict[str, dict[str, Any]] = {}
-    for key, section in document.items():
-        pattern = str(key)
-        target = '/' + node_name.lstrip('/')
-        glob = '/' + pattern.lstrip('/')
-        if not fnmatch.fnmatchcase(target, glob.replace('/**', '*')):
+    for pattern, flat in node_sections(path):
+        if not applies_to(pattern, node_name):
             continue
-        if not isinstance(section, Mapping) or not isinstance(
-                section.get('ros__parameters'), Mapping):
-            raise ConfigError(f'{path}: section {key!r} has no ros__parameters mapping')
-        flat = flat_parameters(section)
+        if flat is None:
+            raise ConfigError(f'{path}: section {pattern!r} has no ros__parameters mapping')
         wildcard = '*' in pattern
         try:
             out[pattern] = check_params(flat, specs,

@@ -33,7 +33,7 @@ from typing import Any, Callable, Optional, Sequence, TypeVar
 
 from lookahead_control.core import interrupts
 from lookahead_control.core.cli import one_line
-from lookahead_control.core.config import (check_params_file, ConfigError, flat_parameters,
+from lookahead_control.core.config import (check_params_file, ConfigError, node_sections,
                                            read_yaml)
 from lookahead_control.core.param_schema import check_params
 from lookahead_control.core.params import ParameterError
@@ -168,9 +168,9 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
     out = list(args)
     for i, (flag, value) in enumerate(zip(args, args[1:])):
         if flag == '--params-file':
-            document = read_yaml(value)
+            raw = dict(node_sections(value))
             sections = check_params_file(value, node_name, specs)
-            if any(type(v) is not type(flat_parameters(document[key])[name])
+            if any(type(v) is not type((raw[key] or {})[name])
                    for key, flat in sections.items() for name, v in flat.items()):
                 handle = tempfile.NamedTemporaryFile(
                     'w', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)

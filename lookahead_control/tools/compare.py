@@ -103,13 +103,19 @@ def load_law_settings(path: Path | str) -> LawSettings:
     """
     Load the laws' settings from a controller node's params file.
 
+    The file is checked first as the node checks it (``check_params_file`` with the
+    node's parameters): a name the node does not have (``lane_keping.*``), in a section
+    for the node, is refused as the node refuses it, not left at its default.
+
     :param path: a ROS params file (``config/controller.yaml`` format); what it does not
         set stays at the package default.
     :return: the settings.
     :raises ConfigError: a bad file or value, in one line naming it.
     """
-    from lookahead_control.core.config import (load_baselines, load_controller,
-                                               load_lane_keeping)
+    from lookahead_control.core.config import (check_params_file, load_baselines,
+                                               load_controller, load_lane_keeping)
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    check_params_file(path, 'controller', ALL_SPECS)
     return LawSettings(load_controller(path), load_lane_keeping(path), load_baselines(path))
 
 

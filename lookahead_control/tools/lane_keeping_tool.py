@@ -21,12 +21,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
-from lookahead_control.core.cli import markdown_table, number, parser, run_tool, write_json
-from lookahead_control.core.config import (changed_fields, load_controller, load_lane_keeping,
-                                           load_vehicle)
-from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
+                                        write_json)
+from lookahead_control.core.config import changed_fields, load_vehicle
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import certificate, robust_check
-from lookahead_control.core.params import ControllerParams
+from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 
 
@@ -67,11 +67,22 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
     if args.controller is None:
-        settings, controller = LaneKeepingParams(**overrides), ControllerParams()
+        loaded, controller = LaneKeepingParams(), ControllerParams()
     else:
-        settings = replace(load_lane_keeping(args.controller), **overrides)
-        controller = load_controller(args.controller)
+        # as the node reads the file (its own check first: a name it does not have is
+        # refused, not left at its default)
+        from lookahead_control.tools.compare import load_law_settings
+        both = load_law_settings(args.controller)
+        loaded, controller = both.lane_keeping, both.controller
+    try:
+        settings = replace(loaded, **overrides)
+    except ParameterError as err:       # with the file's (or the default) other settings
+        given = ' '.join(f'--{k.replace("_", "-")} {v:g}' for k, v in overrides.items())
+        raise ToolError(f'{given}: {err}') from err
     vehicle = load_vehicle(args.vehicle)
+    # the node's own checks across parameters (controller.reference): the law it refuses
+    # is not certified
+    CgCompensatedLaw(vehicle, controller, settings)
     changed = [f'controller.{k} = {v!r}' for k, v in changed_fields(controller).items()]
     changed += [f'lane_keeping.{k} = {v!r}' for k, v in changed_fields(settings).items()]
     print(f'settings: {args.controller or "the package defaults"}'

@@ -34,7 +34,7 @@ failure rate, worst case and percentiles) and ``plots/*.png``.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields
 import itertools
 import json
 import math
@@ -51,7 +51,7 @@ from lookahead_control.core.config import (changed_fields, load_controller, load
                                            load_vehicle, source_config_dir)
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
-from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 import numpy as np
 
 PLANTS = ('nonlinear', 'linear')
@@ -81,9 +81,8 @@ def paper_fixed_law(vehicle: VehicleParams, controller: ControllerParams,
 # core/laws.py). The names are those of the compare tool's league.
 def cg_compensated_law(vehicle: VehicleParams, controller: ControllerParams,
                        lane_keeping: LaneKeepingParams) -> Law:
-    """Return the CG-compensated look-ahead law (docs/lane_keeping.md) with its settings."""
-    return CgCompensatedLaw(vehicle, replace(controller, reference='lane_tangent'),
-                            lane_keeping)
+    """Return the CG-compensated look-ahead law (docs/lane_keeping.md), as the node builds it."""
+    return CgCompensatedLaw(vehicle, controller, lane_keeping)
 
 
 LAWS: dict[str, Callable[[VehicleParams, ControllerParams, LaneKeepingParams], Law]] = {
@@ -422,6 +421,15 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
         except (OSError, ValueError) as err:
             raise ToolError(f'{manifest}: unreadable ({err}); remove it or use another '
                             '--out') from err
+        if not isinstance(old, dict):
+            raise ToolError(f'{manifest}: not a sweep manifest (a JSON object); remove it '
+                            'or use another --out')
+        if {'vehicle', 'controller'} <= set(old) and 'lane_keeping' not in old:
+            # the version before lane_keeping was recorded ran cg_compensated at the
+            # package defaults whatever the file said: resumable with those, and only
+            old['lane_keeping'] = manifest_data(spec, vehicle or load_vehicle(None),
+                                                controller or load_controller(None),
+                                                LaneKeepingParams())['lane_keeping']
         differ = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
         if differ and not {'vehicle', 'controller', 'lane_keeping'} <= set(old):
             raise ToolError(f'{out} holds a sweep that did not record its vehicle, '
@@ -643,8 +651,39 @@ def plot(table: Any, out: Path) -> list[Path]:
     return paths
 
 
+def settings_note(spec: SweepSpec, controller: ControllerParams | None,
+                  lane_keeping: LaneKeepingParams | None) -> str:
+    """
+    Return what ``summary.md`` says of the laws' settings: those that differ from the defaults.
+
+    Each law is named with the settings it reads: the paper laws ``controller.*`` but
+    their schedule (their name's), ``cg_compensated`` the d_v schedule, clamp and speed
+    floor of ``controller.*`` (its gains are ``lane_keeping.*``'s) and ``lane_keeping.*``.
+
+    :param spec: the sweep.
+    :param controller: the paper law's parameters (None: the defaults).
+    :param lane_keeping: the CG-compensated law's settings (None: the defaults).
+    :return: the sentences, each with a leading space ('' with no law to name).
+    """
+    control = changed_fields(controller or ControllerParams())
+    mine = changed_fields(lane_keeping or LaneKeepingParams())
+    text = ''
+    paper = [law for law in spec.laws if law != 'cg_compensated']
+    shown = [f'controller.{k} = {v!r}' for k, v in control.items() if k != 'schedule']
+    if paper and shown:
+        text += f' {", ".join(paper)}: {", ".join(shown)} (the rest default).'
+    if 'cg_compensated' in spec.laws:
+        shown = [f'controller.{k} = {v!r}' for k, v in control.items()
+                 if k not in ('natural_frequency', 'damping_ratio', 'reference')]
+        shown += [f'lane_keeping.{k} = {v!r}' for k, v in mine.items()]
+        text += ' cg_compensated: ' + (', '.join(shown) + ' (the rest default).' if shown
+                                       else 'the default settings.')
+    return text
+
+
 def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
-           lane_keeping: LaneKeepingParams | None = None) -> Path:
+           lane_keeping: LaneKeepingParams | None = None,
+           controller: ControllerParams | None = None) -> Path:
     """
     Write ``summary.md`` and ``summary.csv`` (and the plots).
 
@@ -653,15 +692,11 @@ def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
     :param table: the results.
     :param plots: also write the plots.
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
+    :param controller: the paper law's parameters (None: the defaults).
     :return: the markdown summary's path.
     """
     rows = summarize(table)
-    changed = changed_fields(lane_keeping or LaneKeepingParams())
-    settings = ('' if 'cg_compensated' not in spec.laws else
-                ' cg_compensated: ' + ('the default settings.' if not changed else
-                                       ', '.join(f'lane_keeping.{k} = {v!r}'
-                                                 for k, v in changed.items())
-                                       + ' (the rest default).'))
+    settings = settings_note(spec, controller, lane_keeping)
     write_csv(out / 'summary.csv', rows)
     text = [f'# Sweep: {spec.mode}, {table.num_rows} runs', '',
             f'Scenarios {", ".join(spec.scenarios)}; speeds {spec.speeds} m/s; '
@@ -715,7 +750,7 @@ def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
     if pending(out, all_tasks):
         return None, count
     table = collect(out, all_tasks)
-    report(out, spec, table, plots, lane_keeping)
+    report(out, spec, table, plots, lane_keeping, controller)
     return table, count
 
 
@@ -797,10 +832,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in spec.scenarios:
         if not scenario_path(name).exists():
             raise ToolError(f'--scenarios: no scenario {name!r} ({scenario_path(name)})')
+    if args.controller is None:
+        controller, lane_keeping = load_controller(None), load_lane_keeping(None)
+    else:
+        # as the node reads the file (its own check first: a name it does not have is
+        # refused, not left at its default)
+        from lookahead_control.tools.compare import load_law_settings
+        loaded = load_law_settings(args.controller)
+        controller, lane_keeping = loaded.controller, loaded.lane_keeping
+    vehicle = load_vehicle(args.vehicle)
+    for law in spec.laws:       # the node's checks across parameters: before any run
+        try:
+            LAWS[law](vehicle, controller, lane_keeping)
+        except ParameterError as err:
+            raise ToolError(f'--controller {args.controller or "(default)"}: {law}: '
+                            f'{err}') from err
     start = time.monotonic()
-    table, count = sweep(spec, args.out, vehicle=load_vehicle(args.vehicle),
-                         controller=load_controller(args.controller),
-                         lane_keeping=load_lane_keeping(args.controller),
+    table, count = sweep(spec, args.out, vehicle=vehicle, controller=controller,
+                         lane_keeping=lane_keeping,
                          workers=args.workers, scheduler=args.scheduler,
                          progress=not args.no_progress, plots=not args.no_plots)
     print(markdown_table(summarize(table), STDOUT_COLUMNS, digits=3))
