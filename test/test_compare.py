@@ -412,3 +412,50 @@ def test_a_name_the_node_refuses_is_refused_not_left_at_its_default(body, blamed
     # in a /** section (other nodes' too) only the node's namespaces are its business
     path.write_text('/**:\n  ros__parameters:\n    ' + body + '\n')
     assert compare.settings_changes(compare.load_law_settings(path)) == []
+
+
+def test_a_vehicle_the_controller_file_gives_the_node_must_be_the_one_measured(tmp_path):
+    # before, compare / sweep / lane_keeping_stability --controller ran the --vehicle
+    # model (also the plant) while the file gave the node another one, unsaid (probe22)
+    from lookahead_control.core.config import ConfigError
+    from lookahead_control.tools import lane_keeping_tool, sweep
+    text = (compare.ROOT / 'config' / 'controller.yaml').read_text()
+    assert text.count('  ros__parameters:\n') == 1
+    heavy = tmp_path / 'heavy.yaml'
+    heavy.write_text(text.replace('  ros__parameters:\n', '  ros__parameters:\n'
+                                  '    vehicle:\n      mass: 2000\n', 1))
+    with pytest.raises(ConfigError, match=r'vehicle.mass = 2000.0: the controller would '
+                       'run this vehicle model'):
+        compare.load_law_settings(heavy, VEHICLE)
+    # the same model as --vehicle's: accepted; no vehicle given: not checked
+    same = tmp_path / 'same.yaml'
+    same.write_text(text.replace('  ros__parameters:\n', '  ros__parameters:\n'
+                                 f'    vehicle:\n      mass: {VEHICLE.mass!r}\n', 1))
+    assert compare.load_law_settings(same, VEHICLE) == compare.load_law_settings(same)
+    assert compare.load_law_settings(heavy) == compare.load_law_settings(same)
+    for main, args in ((compare.main, ['--laws', 'paper_eq26', '--scenarios', 's0_straight',
+                                       '--plants', 'linear', '--speeds', '37', '--out',
+                                       str(tmp_path / 'c')]),
+                       (sweep.main, ['--out', str(tmp_path / 's'), '--workers', '0']),
+                       (lane_keeping_tool.stability_main, [])):
+        code = run_tool(main, args + ['--controller', str(heavy)])
+        assert code == 2, main
+    assert not (tmp_path / 'c').exists() and not (tmp_path / 's').exists()
+
+
+def test_a_controller_file_without_a_section_for_the_controller_is_refused(tmp_path):
+    # before, another node's file (sim_plant's, the bridge's) ran every default and the
+    # league said "none differs from the defaults" (probe22)
+    from lookahead_control.core.config import ConfigError
+    other = tmp_path / 'sim.yaml'
+    other.write_text('sim_plant:\n  ros__parameters:\n    speed: 20.0\n'
+                     '/**/path_bridge:\n  ros__parameters:\n    preview_step: 2.0\n')
+    with pytest.raises(ConfigError, match=r'no section applies to the controller node '
+                       r'\(sections: sim_plant, /\*\*/path_bridge\)'):
+        compare.load_law_settings(other)
+    code = run_tool(compare.main, ['--controller', str(other), '--out', str(tmp_path / 'o')])
+    assert code == 2 and not (tmp_path / 'o').exists()
+    wildcard = tmp_path / 'all.yaml'
+    wildcard.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
+                        '      integral_gain: 0.6\n')
+    assert compare.load_law_settings(wildcard).lane_keeping.integral_gain == 0.6

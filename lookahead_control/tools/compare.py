@@ -99,7 +99,8 @@ LAWS: dict[str, LawFactory] = {
 }
 
 
-def load_law_settings(path: Path | str) -> LawSettings:
+def load_law_settings(path: Path | str,
+                      vehicle: Optional[VehicleParams] = None) -> LawSettings:
     """
     Load the laws' settings from a controller node's params file.
 
@@ -109,13 +110,36 @@ def load_law_settings(path: Path | str) -> LawSettings:
 
     :param path: a ROS params file (``config/controller.yaml`` format); what it does not
         set stays at the package default.
+    :param vehicle: the tool's vehicle model (``--vehicle``; also its plant): a
+        ``vehicle.*`` the file gives the node that differs from it is refused (the node
+        would run another model than the one measured).
     :return: the settings.
     :raises ConfigError: a bad file or value, in one line naming it.
     """
-    from lookahead_control.core.config import (check_params_file, load_baselines,
-                                               load_controller, load_lane_keeping)
+    from dataclasses import fields
+
+    from lookahead_control.core.config import (applies_to, check_params_file, ConfigError,
+                                               dataclass_from_params, load_baselines,
+                                               load_controller, load_lane_keeping,
+                                               load_ros_params, node_sections)
     from lookahead_control.ros.controller_node import ALL_SPECS
+    sections = [str(name) for name, _ in node_sections(path)]
+    if not any(applies_to(name, 'controller') for name in sections):
+        raise ConfigError(f'{path}: no section applies to the controller node (sections: '
+                          f'{", ".join(sections) or "none"}): its parameters are not in this '
+                          'file; expected controller:, /controller:, /**: or the like')
     check_params_file(path, 'controller', ALL_SPECS)
+    if vehicle is not None:
+        params = load_ros_params(path, 'controller')
+        given = {k.partition('.')[2] for k in params if k.startswith('vehicle.')}
+        node = dataclass_from_params(VehicleParams, params, 'vehicle', str(path))
+        differ = [f'vehicle.{f.name} = {getattr(node, f.name)!r}' for f in fields(node)
+                  if f.name in given and getattr(node, f.name) != getattr(vehicle, f.name)]
+        if differ:
+            raise ConfigError(
+                f'{path}: {", ".join(differ)}: the controller would run this vehicle '
+                'model, the tool measures the one of --vehicle (also its plant): give that '
+                "vehicle in --vehicle, or leave vehicle.* out of the controller's file")
     return LawSettings(load_controller(path), load_lane_keeping(path), load_baselines(path))
 
 
@@ -940,7 +964,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.tune:
             raise ToolError("--controller: --tune scores the baselines' grids, not a file's "
                             'settings; use one or the other')
-        settings = load_law_settings(args.controller)
+        settings = load_law_settings(args.controller, vehicle)
         for name in args.laws:       # a setting no law accepts: one line, before any run
             try:
                 LAWS[name](vehicle, settings)

@@ -66,20 +66,20 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     check_envelope(args)
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
+    vehicle = load_vehicle(args.vehicle)
     if args.controller is None:
         loaded, controller = LaneKeepingParams(), ControllerParams()
     else:
         # as the node reads the file (its own check first: a name it does not have is
         # refused, not left at its default)
         from lookahead_control.tools.compare import load_law_settings
-        both = load_law_settings(args.controller)
+        both = load_law_settings(args.controller, vehicle)
         loaded, controller = both.lane_keeping, both.controller
     try:
         settings = replace(loaded, **overrides)
     except ParameterError as err:       # with the file's (or the default) other settings
         given = ' '.join(f'--{k.replace("_", "-")} {v:g}' for k, v in overrides.items())
         raise ToolError(f'{given}: {err}') from err
-    vehicle = load_vehicle(args.vehicle)
     # the node's own checks across parameters (controller.reference): the law it refuses
     # is not certified
     CgCompensatedLaw(vehicle, controller, settings)

@@ -832,15 +832,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in spec.scenarios:
         if not scenario_path(name).exists():
             raise ToolError(f'--scenarios: no scenario {name!r} ({scenario_path(name)})')
+    vehicle = load_vehicle(args.vehicle)
     if args.controller is None:
         controller, lane_keeping = load_controller(None), load_lane_keeping(None)
     else:
         # as the node reads the file (its own check first: a name it does not have is
         # refused, not left at its default)
         from lookahead_control.tools.compare import load_law_settings
-        loaded = load_law_settings(args.controller)
+        loaded = load_law_settings(args.controller, vehicle)
         controller, lane_keeping = loaded.controller, loaded.lane_keeping
-    vehicle = load_vehicle(args.vehicle)
     for law in spec.laws:       # the node's checks across parameters: before any run
         try:
             LAWS[law](vehicle, controller, lane_keeping)
