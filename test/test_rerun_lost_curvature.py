@@ -200,3 +200,24 @@ def test_the_paper_law_as_arrays_takes_a_lost_curvature_as_0_as_the_node(preview
             assert float(getattr(law, name)[i]) == pytest.approx(
                 getattr(result.commands[int(stamp)].law, name), rel=1e-12, abs=1e-15), (
                     stamp, name)
+
+
+def test_a_lockstep_answer_does_not_wait_for_a_lost_curvature():
+    # wait_for_matching_stamps (lockstep) waited for a curvature once seen, lost or not:
+    # each answer after a map was lost waited sync_timeout of wall clock (S2 at 37 m/s
+    # with sim_plant curvature_stop 4 s: 38 s instead of 6 s), for the same answer
+    core, _ = controller_from_params({'law': 'cg_compensated'})
+    timeout_ns = int(core.safety.input_timeout * 1e9)
+    stamp = 2_000_000_000
+    for role, sample in (('road_curvature', CurvatureSample(stamp - timeout_ns, RHO, 0.0)),
+                         ('yaw', YawSample(stamp, 0.002, SPEED * RHO, 0.0)),
+                         ('velocity', VelocitySample(stamp, SPEED, 0.0)),
+                         ('lateral_error', LateralErrorSample(stamp, 0.0, 0.1))):
+        assert core.accept(role, sample, stamp) is None
+    assert not core.inputs_at(stamp)        # not lost yet (input_timeout ago): waited for
+    later = stamp + PERIOD_NS
+    for role, sample in (('yaw', YawSample(later, 0.002, SPEED * RHO, 0.0)),
+                         ('velocity', VelocitySample(later, SPEED, 0.0))):
+        assert core.accept(role, sample, later) is None
+    assert core.inputs_at(later)            # lost: not waited for
+    assert not core.inputs_at(later + PERIOD_NS)      # yaw and velocity still are
