@@ -72,7 +72,7 @@ def offline(args: argparse.Namespace) -> int:
               'more than safety.input_timeout before the lateral error: lost)')
     if result.judged_otherwise:
         print("replay: the re-run took the recorded controller's own judgment of the "
-              f'curvature (/controller/debug curvature_estimated) in {result.followed} '
+              f'curvature (its /controller/debug) in {result.followed} '
               f'answers; on the stamps alone {result.judged_otherwise} would have gone '
               "otherwise (one or two at a switch-over: the node's clock; many: a "
               'road_curvature in the bag that the controller did not receive, remapped or '

@@ -391,10 +391,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     hold and the output limits (angle, rate, lateral acceleration), with the recorded
     ``safety.*`` values or the overrides. Not modeled (no node clock): the watchdog's
     stale-input hold and ramp, the future-stamp check, timer mode. Whether the curvature
-    is in (a law that estimates a missing one) is what the recorded controller judged
-    where its debug topic says (``curvature_estimated``; with any law, ``law``
-    overridden too: it says which curvature the node had), else judged on the stamps
-    (``SteeringController.curvature_lost``).
+    is in is what the recorded controller judged where its debug topic says
+    (:func:`recorded_judgment`; with ``law`` overridden too: it says which curvature the
+    node had), else judged on the stamps (``SteeringController.curvature_lost``).
 
     :param run: the recorded run.
     :param overrides: parameter overrides (``controller.natural_frequency`` ...).
@@ -445,18 +444,24 @@ def recorded_judgment(run: RunData) -> dict[int, bool]:
     """
     Return, per answered stamp, whether the recorded controller took the curvature as in.
 
-    From its debug topic's ``curvature_estimated`` (the default law's; 1: it ran on its
-    estimate). The node judges a loss on its clock, which no stamp holds, and only it
-    knows whether it received a curvature the bag holds (a remapping, a QoS mismatch).
+    From its debug topic's ``curvature_received`` (any law; 1: in), or in an older bag
+    the default law's ``curvature_estimated`` (1: it ran on its estimate, not in). The
+    node judges a loss on its clock, which no stamp holds (in lockstep it receives a
+    step's curvature on the previous step's clock: lost a step before the stamps say),
+    and only it knows whether it received a curvature the bag holds (a remapping, a QoS
+    mismatch).
 
     :param run: the bag.
     :return: stamp -> received (empty: the bag does not say).
     """
-    flags = run.debug.values.get('curvature_estimated')
+    flags = run.debug.values.get('curvature_received')
+    received = True
+    if flags is None:
+        flags, received = run.debug.values.get('curvature_estimated'), False
     if flags is None:
         return {}
-    return {int(t): not bool(f) for t, f in zip(run.debug.stamp_ns.tolist(), flags.tolist())
-            if math.isfinite(f)}
+    return {int(t): bool(f) == received
+            for t, f in zip(run.debug.stamp_ns.tolist(), flags.tolist()) if math.isfinite(f)}
 
 
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,

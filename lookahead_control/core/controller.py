@@ -228,6 +228,9 @@ class SteeringController:
         self.law_restarts = 0
         #: the curvature judged in or lost by the caller during compute() (None: here)
         self._judged: Optional[bool] = None
+        #: whether the last law step had the curvature in (received, not lost): any law's
+        #: judgment, on the node's ~/debug for the offline re-run (``curvature_received``)
+        self.curvature_in = False
         self.law_restart_causes: dict[str, int] = {}
         #: seconds of answers, while turning (:data:`TURN_RATE`), with no curvature
         #: (``turning_without_curvature``: never received or lost) and with a ``v_y`` of
@@ -768,9 +771,10 @@ class SteeringController:
                 self.turning['turning_without_curvature'] += dt
             if float(state.v_y) == 0.0:
                 self.turning['v_y_exactly_zero'] += dt
+        self.curvature_in = self.curvature_received(now_ns)
         note_curvature = getattr(self.law, 'note_curvature', None)
         if note_curvature is not None:      # a law that estimates a missing curvature
-            note_curvature(self.curvature_received(now_ns))
+            note_curvature(self.curvature_in)
         resets = getattr(self.law, 'resets', 0)
         causes = dict(getattr(self.law, 'restart_causes', {}))
         law = self.law.step(state, self.preview(now_ns), dt)
