@@ -259,3 +259,48 @@ def test_any_law_is_re_run_with_the_curvature_the_node_judged_in(law):
     assert result.followed == 300 and result.judged_otherwise == 1
     blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
     assert blind.max_diff > 1e-6, blind.max_diff       # from the switch-over step
+
+
+def test_a_law_set_at_run_time_is_re_run_where_the_node_switched_it():
+    # `ros2 param set /controller law paper` mid-run: the bag's parameters are those of
+    # the start, and the re-run ran that law throughout (over DDS, S2 37 m/s switched at
+    # 5 s: 40.6 mrad apart from there on, unexplained); the node's debug names the law of
+    # each answer, and the re-run now switches where it did
+    rows = _inputs(300, math.inf)
+    node, _ = controller_from_params({'law': 'cg_compensated'})
+    commands, laws = {}, {}
+    for role, sample in _feed(rows):
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role == 'lateral_error':
+            k = sample.stamp_ns // PERIOD_NS
+            law = 'paper' if 100 < k <= 200 else 'cg_compensated'
+            if law != node.law_name:
+                node.configure(node.vehicle, node.params, node.acceleration_source,
+                               node.use_preview, law=law)
+            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+            laws[sample.stamp_ns] = law
+    fields = {'lateral_error': ('distance', 'value'),
+              'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
+              'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
+    inputs = {}
+    for role, names in fields.items():
+        stamps, values = _samples(rows[role], names)
+        inputs[role] = Samples(stamps + RANK[role], stamps, np.arange(stamps.size), values)
+    stamps = np.array(sorted(commands), dtype=np.int64)
+    steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
+                       {'angle': np.array([commands[s] for s in stamps])})
+    columns = {f'law:{name}': np.array([0.0 if laws[s] == name else math.nan
+                                        for s in stamps])
+               for name in ('paper', 'cg_compensated')}
+    columns['law:mpc'] = np.zeros(stamps.size)      # no such law: left out
+    debug = Samples(stamps + 11, stamps, np.arange(stamps.size), columns)
+    run = RunData(Path('synthetic'), inputs=inputs, steering=steering, debug=debug,
+                  controller_params={'law': 'cg_compensated'})
+    result = rerun(run, order='stamp')
+    assert result.max_diff == 0.0 and result.compared == 300, result.max_diff
+    assert result.law_switches == 2
+    blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
+    assert blind.max_diff > 0.01 and blind.law_switches == 0
+    # an override of the law runs it throughout
+    forced = rerun(run, {'law': 'paper'}, order='stamp')
+    assert forced.law_switches == 0 and forced.max_diff > 0.01
