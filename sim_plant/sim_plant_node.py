@@ -143,6 +143,11 @@ class SimPlantNode(Node):
         declare(self, ALL_SPECS)
         p = values(self, ALL_SPECS)
         self.params = p
+        if p['output'] == 'vehicle' and p['curvature_stop'] > 0.0:
+            # the road goes out once, as a path: path_bridge's curvature would not stop
+            raise ParameterError(f"curvature_stop = {p['curvature_stop']:g}: only with output "
+                                 "'contract' (road_curvature); output 'vehicle' sends the "
+                                 "road once as a path, the curvature is path_bridge's")
         self.vehicle: VehicleParams = build(VehicleParams, p, 'vehicle')
         self.plant: PlantParams = build(PlantParams, p, 'plant')
         self.plant_vehicle = replace(
