@@ -43,9 +43,11 @@ from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, Sp
                                                VEHICLE_SPECS)
 from lookahead_control.ros.vehicle_conversions import to_odometry, to_path
 from nav_msgs.msg import Odometry, Path as PathMsg
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -141,6 +143,11 @@ class SimPlantNode(Node):
         declare(self, ALL_SPECS)
         p = values(self, ALL_SPECS)
         self.params = p
+        if p['output'] == 'vehicle' and p['curvature_stop'] > 0.0:
+            # the road goes out once, as a path: path_bridge's curvature would not stop
+            raise ParameterError(f"curvature_stop = {p['curvature_stop']:g}: only with output "
+                                 "'contract' (road_curvature); output 'vehicle' sends the "
+                                 "road once as a path, the curvature is path_bridge's")
         self.vehicle: VehicleParams = build(VehicleParams, p, 'vehicle')
         self.plant: PlantParams = build(PlantParams, p, 'plant')
         self.plant_vehicle = replace(
@@ -217,6 +224,21 @@ class SimPlantNode(Node):
             f'scenario {self.scenario.name!r}: {self.scenario.duration:g} s at '
             f'{self.scenario.speed.initial:g} m/s, {p["mode"]} at {p["rate_hz"]:g} Hz, '
             f'{self.plant.model} plant, {p["output"]} output')
+        # every parameter is read once, above: a change at run time would be taken and
+        # do nothing (``ros2 param set /sim_plant curvature_stop 5`` said it was set)
+        self.add_on_set_parameters_callback(self._refuse_changes)
+
+    def _refuse_changes(self, params: list[Parameter]) -> SetParametersResult:
+        """
+        Refuse a parameter change at run time: the simulator reads its parameters at start.
+
+        :param params: the parameters to set.
+        :return: the refusal, naming them.
+        """
+        names = ', '.join(p.name for p in params)
+        return SetParametersResult(successful=False, reason=(
+            f'{names}: sim_plant reads its parameters once, at start-up (scenario, plant, '
+            'outputs); start it again with -p NAME:=VALUE'))
 
     def road_path(self) -> PathMsg:
         """

@@ -103,6 +103,8 @@ def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(contex
         flags = [v['curvature_estimated'] for v in values]
         # lost once stamped more than input_timeout (0.2 s) before the lateral error
         assert flags == [0.0] * 70 + [1.0] * 30, flags
+        # any law's judgment, for the offline re-run
+        assert [v['curvature_received'] for v in values] == [1.0 - f for f in flags]
         assert values[40]['rho_used'] == pytest.approx(0.0025)
         assert values[40]['compliance_scale'] == pytest.approx(1.0, abs=0.2)
         assert values[-1]['integral'] == node.core.law.integral != 0.0
@@ -111,5 +113,6 @@ def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(contex
         assert node.set_parameters([Parameter('law', value='paper')])[0].successful
         node.on_lateral_error(conv.to_lateral_error(101 * 10 * MS, 'base_link', 1.96, 0.05))
         assert 'curvature_estimated' not in sent[-1].name and 'd_v' in sent[-1].name
+        assert dict(zip(sent[-1].name, sent[-1].position))['curvature_received'] == 0.0
     finally:
         node.destroy_node()

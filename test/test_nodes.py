@@ -641,7 +641,6 @@ def test_an_integer_for_a_real_parameter_is_taken_as_that_real(context):
     # `ros2 param set /controller lane_keeping.integral_gain 1` failed where the same
     # integer in a params file is accepted
     from lookahead_control.ros.path_bridge_node import PathBridgeNode
-    from sim_plant.sim_plant_node import SimPlantNode
     node = _controller(context)
     try:
         node.trigger_configure()
@@ -672,19 +671,35 @@ def test_an_integer_for_a_real_parameter_is_taken_as_that_real(context):
         assert node.get_parameter('lane_keeping.integral_gain').value == 1.0
     finally:
         node.destroy_node()
-    for make, name in ((lambda: SimPlantNode(context=context), 'speed'),
-                       (lambda: PathBridgeNode(context=context), None)):
-        other = make()
-        try:
-            if name is None:
-                name = next(n for n, p in other._parameters.items()
-                            if p.type_ == Parameter.Type.DOUBLE and not n.startswith('qos'))
-            old = other.get_parameter(name).value
-            ok = other.set_parameters([Parameter(name, value=int(round(old)) or 1)])[0]
-            assert ok.successful, (name, ok.reason)
-            assert isinstance(other.get_parameter(name).value, float), name
-        finally:
-            other.destroy_node()
+    other = PathBridgeNode(context=context)
+    try:
+        name = next(n for n, p in other._parameters.items()
+                    if p.type_ == Parameter.Type.DOUBLE and not n.startswith('qos'))
+        old = other.get_parameter(name).value
+        ok = other.set_parameters([Parameter(name, value=int(round(old)) or 1)])[0]
+        assert ok.successful, (name, ok.reason)
+        assert isinstance(other.get_parameter(name).value, float), name
+    finally:
+        other.destroy_node()
+
+
+def test_sim_plant_refuses_a_parameter_change_at_run_time(context):
+    # it reads every parameter once, at start-up: before, `ros2 param set /sim_plant
+    # curvature_stop 5` (or speed, plant.delay ...) said it was set and changed nothing
+    from sim_plant.sim_plant_node import SimPlantNode
+    node = SimPlantNode(context=context)
+    try:
+        for name, value in (('curvature_stop', 5), ('curvature_stop', 5.0), ('speed', 20.0),
+                            ('plant.model', 'nonlinear')):
+            old = node.get_parameter(name).value
+            refused = node.set_parameters([Parameter(name, value=value)])[0]
+            assert not refused.successful, name
+            assert refused.reason.startswith(f'{name}: sim_plant reads its parameters '
+                                             'once, at start-up'), refused.reason
+            assert node.get_parameter(name).value == old
+        assert node.params['curvature_stop'] == 0.0
+    finally:
+        node.destroy_node()
 
 
 def test_sim_plant_stops_the_curvature_at_curvature_stop(context):
@@ -718,3 +733,17 @@ def test_sim_plant_stops_the_curvature_at_curvature_stop(context):
         assert len(count) == 3
     finally:
         node.destroy_node()
+
+
+def test_sim_plant_refuses_curvature_stop_with_the_vehicle_output(context):
+    # output 'vehicle' sends the road once as a path (path_bridge makes the curvature):
+    # before, curvature_stop was taken and did nothing, the curvature never stopped
+    from lookahead_control.core.params import ParameterError
+    from sim_plant.sim_plant_node import SimPlantNode
+    with pytest.raises(ParameterError, match=r'^curvature_stop = 4: only with output '
+                       r"'contract'"):
+        SimPlantNode(context=context, parameter_overrides=[
+            Parameter('output', value='vehicle'), Parameter('curvature_stop', value=4.0)])
+    node = SimPlantNode(context=context, parameter_overrides=[
+        Parameter('output', value='vehicle')])
+    node.destroy_node()

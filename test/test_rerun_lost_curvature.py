@@ -177,7 +177,7 @@ def test_a_curvature_the_controller_did_not_receive_is_re_run_as_the_controller_
     assert replay_node.offline(args) == 0
     out = capsys.readouterr().out
     assert ("the re-run took the recorded controller's own judgment of the curvature "
-            f'(/controller/debug curvature_estimated) in 300 answers; on the stamps alone '
+            f'(its /controller/debug) in 300 answers; on the stamps alone '
             f'{estimated} would have gone otherwise') in out, out
     report = json.loads((tmp_path / 'report.json').read_text())
     assert report['curvature_judgment_followed'] == 300
@@ -200,3 +200,107 @@ def test_the_paper_law_as_arrays_takes_a_lost_curvature_as_0_as_the_node(preview
             assert float(getattr(law, name)[i]) == pytest.approx(
                 getattr(result.commands[int(stamp)].law, name), rel=1e-12, abs=1e-15), (
                     stamp, name)
+
+
+def test_a_lockstep_answer_does_not_wait_for_a_lost_curvature():
+    # wait_for_matching_stamps (lockstep) waited for a curvature once seen, lost or not:
+    # each answer after a map was lost waited sync_timeout of wall clock (S2 at 37 m/s
+    # with sim_plant curvature_stop 4 s: 38 s instead of 6 s), for the same answer
+    core, _ = controller_from_params({'law': 'cg_compensated'})
+    timeout_ns = int(core.safety.input_timeout * 1e9)
+    stamp = 2_000_000_000
+    for role, sample in (('road_curvature', CurvatureSample(stamp - timeout_ns, RHO, 0.0)),
+                         ('yaw', YawSample(stamp, 0.002, SPEED * RHO, 0.0)),
+                         ('velocity', VelocitySample(stamp, SPEED, 0.0)),
+                         ('lateral_error', LateralErrorSample(stamp, 0.0, 0.1))):
+        assert core.accept(role, sample, stamp) is None
+    assert not core.inputs_at(stamp)        # not lost yet (input_timeout ago): waited for
+    later = stamp + PERIOD_NS
+    for role, sample in (('yaw', YawSample(later, 0.002, SPEED * RHO, 0.0)),
+                         ('velocity', VelocitySample(later, SPEED, 0.0))):
+        assert core.accept(role, sample, later) is None
+    assert core.inputs_at(later)            # lost: not waited for
+    assert not core.inputs_at(later + PERIOD_NS)      # yaw and velocity still are
+
+
+@pytest.mark.parametrize('law', ['paper', 'cg_compensated', 'stanley'])
+def test_any_law_is_re_run_with_the_curvature_the_node_judged_in(law):
+    # in lockstep the node receives a step's curvature on the previous step's clock (the
+    # simulator sends /clock after the measurements): it lost a stopped curvature a step
+    # before the stamps say. The paper law had no debug flag: judged on the stamps, the
+    # answer at the switch-over was 20 mrad off (S2 37 m/s over DDS, curvature_stop 4 s);
+    # ~/debug curvature_received (any law) now says what the node had
+    rows = _inputs(300, 1_500_000_000)
+    node, _ = controller_from_params({'law': law})
+    commands, flags = {}, {}
+    for role, sample in _feed(rows):
+        now = sample.stamp_ns - (PERIOD_NS if role == 'road_curvature' else 0)
+        assert node.accept(role, sample, now) is None
+        if role == 'lateral_error':
+            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+            flags[sample.stamp_ns] = float(node.curvature_in)
+    assert sum(1 for f in flags.values() if not f) == 300 - 150 - 19 + 1   # a step early
+    fields = {'lateral_error': ('distance', 'value'),
+              'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
+              'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
+    inputs = {}
+    for role, names in fields.items():
+        stamps, values = _samples(rows[role], names)
+        inputs[role] = Samples(stamps + RANK[role], stamps, np.arange(stamps.size), values)
+    stamps = np.array(sorted(commands), dtype=np.int64)
+    steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
+                       {'angle': np.array([commands[s] for s in stamps])})
+    debug = Samples(stamps + 11, stamps, np.arange(stamps.size),
+                    {'curvature_received': np.array([flags[s] for s in stamps])})
+    run = RunData(Path('synthetic'), inputs=inputs, steering=steering, debug=debug,
+                  controller_params={'law': law})
+    result = rerun(run, order='stamp')
+    assert result.compared == 300 and result.max_diff == 0.0, result.max_diff
+    assert result.followed == 300 and result.judged_otherwise == 1
+    blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
+    assert blind.max_diff > 1e-6, blind.max_diff       # from the switch-over step
+
+
+def test_a_law_set_at_run_time_is_re_run_where_the_node_switched_it():
+    # `ros2 param set /controller law paper` mid-run: the bag's parameters are those of
+    # the start, and the re-run ran that law throughout (over DDS, S2 37 m/s switched at
+    # 5 s: 40.6 mrad apart from there on, unexplained); the node's debug names the law of
+    # each answer, and the re-run now switches where it did
+    rows = _inputs(300, math.inf)
+    node, _ = controller_from_params({'law': 'cg_compensated'})
+    commands, laws = {}, {}
+    for role, sample in _feed(rows):
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role == 'lateral_error':
+            k = sample.stamp_ns // PERIOD_NS
+            law = 'paper' if 100 < k <= 200 else 'cg_compensated'
+            if law != node.law_name:
+                node.configure(node.vehicle, node.params, node.acceleration_source,
+                               node.use_preview, law=law)
+            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+            laws[sample.stamp_ns] = law
+    fields = {'lateral_error': ('distance', 'value'),
+              'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
+              'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
+    inputs = {}
+    for role, names in fields.items():
+        stamps, values = _samples(rows[role], names)
+        inputs[role] = Samples(stamps + RANK[role], stamps, np.arange(stamps.size), values)
+    stamps = np.array(sorted(commands), dtype=np.int64)
+    steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
+                       {'angle': np.array([commands[s] for s in stamps])})
+    columns = {f'law:{name}': np.array([0.0 if laws[s] == name else math.nan
+                                        for s in stamps])
+               for name in ('paper', 'cg_compensated')}
+    columns['law:mpc'] = np.zeros(stamps.size)      # no such law: left out
+    debug = Samples(stamps + 11, stamps, np.arange(stamps.size), columns)
+    run = RunData(Path('synthetic'), inputs=inputs, steering=steering, debug=debug,
+                  controller_params={'law': 'cg_compensated'})
+    result = rerun(run, order='stamp')
+    assert result.max_diff == 0.0 and result.compared == 300, result.max_diff
+    assert result.law_switches == 2
+    blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
+    assert blind.max_diff > 0.01 and blind.law_switches == 0
+    # an override of the law runs it throughout
+    forced = rerun(run, {'law': 'paper'}, order='stamp')
+    assert forced.law_switches == 0 and forced.max_diff > 0.01

@@ -64,6 +64,7 @@ def offline(args: argparse.Namespace) -> int:
               'curvature_estimated': result.estimated, 'overrides': overrides}
     report['curvature_judgment_followed'] = result.followed
     report['curvature_judged_otherwise_on_stamps'] = result.judged_otherwise
+    report['law_switches_followed'] = result.law_switches
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
     if result.estimated:
@@ -72,11 +73,16 @@ def offline(args: argparse.Namespace) -> int:
               'more than safety.input_timeout before the lateral error: lost)')
     if result.judged_otherwise:
         print("replay: the re-run took the recorded controller's own judgment of the "
-              f'curvature (/controller/debug curvature_estimated) in {result.followed} '
+              f'curvature (its /controller/debug) in {result.followed} '
               f'answers; on the stamps alone {result.judged_otherwise} would have gone '
               "otherwise (one or two at a switch-over: the node's clock; many: a "
               'road_curvature in the bag that the controller did not receive, remapped or '
               'a QoS mismatch)')
+    if result.law_switches:
+        print(f'replay: the law was set at run time: the re-run switched it where the '
+              f'recorded controller did ({result.law_switches} switches, /controller/debug '
+              "law:<name>); other parameters set at run time are not in the bag's record: "
+              'the re-run keeps the start-up values')
     if args.json:
         write_json(Path(args.json), report)         # NaN (nothing compared) as null
     if args.check is not None:

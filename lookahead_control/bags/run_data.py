@@ -39,7 +39,7 @@ from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePur
                                               StanleyParams)
 from lookahead_control.core.config import ConfigError, dataclass_from_params
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput, steering_law
-from lookahead_control.core.controller import Command, SteeringController
+from lookahead_control.core.controller import Command, LAW_NAMES, SteeringController
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.safety import SafetyParams
@@ -334,6 +334,8 @@ class Rerun:
     :param judged_otherwise: of those, the answers the stamps alone judge otherwise (a
         loss a step apart at a switch-over: the node's clock; many: a curvature in the
         bag that the controller did not receive, remapped or a QoS mismatch).
+    :param law_switches: switches of the law at run time (``law`` set while running)
+        that the re-run followed, from the debug topic's ``law:<name>``.
     """
 
     commands: dict[int, Command]
@@ -345,6 +347,7 @@ class Rerun:
     estimated_at: frozenset[int] = frozenset()
     followed: int = 0
     judged_otherwise: int = 0
+    law_switches: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -391,10 +394,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     hold and the output limits (angle, rate, lateral acceleration), with the recorded
     ``safety.*`` values or the overrides. Not modeled (no node clock): the watchdog's
     stale-input hold and ramp, the future-stamp check, timer mode. Whether the curvature
-    is in (a law that estimates a missing one) is what the recorded controller judged
-    where its debug topic says (``curvature_estimated``; with any law, ``law``
-    overridden too: it says which curvature the node had), else judged on the stamps
-    (``SteeringController.curvature_lost``).
+    is in is what the recorded controller judged where its debug topic says
+    (:func:`recorded_judgment`; with ``law`` overridden too: it says which curvature the
+    node had), else judged on the stamps (``SteeringController.curvature_lost``).
 
     :param run: the recorded run.
     :param overrides: parameter overrides (``controller.natural_frequency`` ...).
@@ -418,12 +420,20 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     commands: dict[int, Command] = {}
     estimated_at: set[int] = set()
     judged = recorded_judgment(run)
-    followed = otherwise = 0
+    # a law set at run time: the node's debug names the law of each answer (an override
+    # of ``law`` runs that law throughout)
+    laws = {} if 'law' in (overrides or {}) else recorded_laws(run)
+    followed = otherwise = switches = 0
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
         refused = core.accept(role, sample)
         if role == 'lateral_error' and refused is None:
+            law = laws.get(sample.stamp_ns, core.law_name)
+            if law != core.law_name:    # as the node: a new law from its reset state
+                core.configure(core.vehicle, core.params, core.acceleration_source,
+                               core.use_preview, law=law)
+                switches += 1
             received = judged.get(sample.stamp_ns)
             if received is not None:
                 followed += 1
@@ -438,25 +448,49 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     diffs = [abs(recorded[s] - c.steering) for s, c in commands.items() if s in recorded]
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
-                 order, len(estimated_at), frozenset(estimated_at), followed, otherwise)
+                 order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
+                 switches)
+
+
+def recorded_laws(run: RunData) -> dict[int, str]:
+    """
+    Return, per answered stamp, the law the recorded controller ran (its debug topic).
+
+    :param run: the bag.
+    :return: stamp -> law name (empty: the bag does not say; a name no law has is left
+        out).
+    """
+    out: dict[int, str] = {}
+    stamps = run.debug.stamp_ns.tolist()
+    for key, flags in run.debug.values.items():
+        if key.startswith('law:') and key[4:] in LAW_NAMES:
+            out.update((int(t), key[4:]) for t, f in zip(stamps, flags.tolist())
+                       if math.isfinite(f))
+    return out
 
 
 def recorded_judgment(run: RunData) -> dict[int, bool]:
     """
     Return, per answered stamp, whether the recorded controller took the curvature as in.
 
-    From its debug topic's ``curvature_estimated`` (the default law's; 1: it ran on its
-    estimate). The node judges a loss on its clock, which no stamp holds, and only it
-    knows whether it received a curvature the bag holds (a remapping, a QoS mismatch).
+    From its debug topic's ``curvature_received`` (any law; 1: in), or in an older bag
+    the default law's ``curvature_estimated`` (1: it ran on its estimate, not in). The
+    node judges a loss on its clock, which no stamp holds (in lockstep it receives a
+    step's curvature on the previous step's clock: lost a step before the stamps say),
+    and only it knows whether it received a curvature the bag holds (a remapping, a QoS
+    mismatch).
 
     :param run: the bag.
     :return: stamp -> received (empty: the bag does not say).
     """
-    flags = run.debug.values.get('curvature_estimated')
+    flags = run.debug.values.get('curvature_received')
+    received = True
+    if flags is None:
+        flags, received = run.debug.values.get('curvature_estimated'), False
     if flags is None:
         return {}
-    return {int(t): not bool(f) for t, f in zip(run.debug.stamp_ns.tolist(), flags.tolist())
-            if math.isfinite(f)}
+    return {int(t): bool(f) == received
+            for t, f in zip(run.debug.stamp_ns.tolist(), flags.tolist()) if math.isfinite(f)}
 
 
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,

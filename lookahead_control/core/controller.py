@@ -228,6 +228,9 @@ class SteeringController:
         self.law_restarts = 0
         #: the curvature judged in or lost by the caller during compute() (None: here)
         self._judged: Optional[bool] = None
+        #: whether the last law step had the curvature in (received, not lost): any law's
+        #: judgment, on the node's ~/debug for the offline re-run (``curvature_received``)
+        self.curvature_in = False
         self.law_restart_causes: dict[str, int] = {}
         #: seconds of answers, while turning (:data:`TURN_RATE`), with no curvature
         #: (``turning_without_curvature``: never received or lost) and with a ``v_y`` of
@@ -685,10 +688,19 @@ class SteeringController:
         """
         Return True when every received input is at least as new as ``stamp_ns``.
 
+        A curvature lost at ``stamp_ns`` (stamped more than ``input_timeout`` before it:
+        a map lost, ``sim_plant`` ``curvature_stop``) is not waited for: before, each
+        answer of a lockstep run waited ``sync_timeout`` of wall clock for it (S2 at 37 m/s,
+        curvature stopped at 4 s: 38 s instead of 6 s), for the same answer.
+
         :param stamp_ns: the lateral-error stamp to wait for [ns].
-        :return: whether yaw, velocity (and curvature, once seen) have caught up.
+        :return: whether yaw, velocity (and curvature, once seen and not lost) have caught
+            up.
         """
-        samples = [self.yaw, self.velocity] + ([self.curvature] if self.curvature else [])
+        curvature = self.curvature
+        waited = (curvature is not None
+                  and stamp_ns - curvature.stamp_ns <= self.safety.input_timeout * 1e9)
+        samples = [self.yaw, self.velocity] + ([curvature] if waited else [])
         return all(s is not None and s.stamp_ns >= stamp_ns for s in samples)
 
     def acceleration(self) -> float:
@@ -759,9 +771,10 @@ class SteeringController:
                 self.turning['turning_without_curvature'] += dt
             if float(state.v_y) == 0.0:
                 self.turning['v_y_exactly_zero'] += dt
+        self.curvature_in = self.curvature_received(now_ns)
         note_curvature = getattr(self.law, 'note_curvature', None)
         if note_curvature is not None:      # a law that estimates a missing curvature
-            note_curvature(self.curvature_received(now_ns))
+            note_curvature(self.curvature_in)
         resets = getattr(self.law, 'resets', 0)
         causes = dict(getattr(self.law, 'restart_causes', {}))
         law = self.law.step(state, self.preview(now_ns), dt)

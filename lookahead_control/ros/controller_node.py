@@ -531,6 +531,9 @@ class ControllerNode(LifecycleNode):
         debug = [(name, float(getattr(law, name))) for name in DEBUG_FIELDS]
         debug.append((f'schedule:{mode}', float(SCHEDULE_MODES.index(mode))))
         debug.append((f'law:{self.core.law_name}', float(LAW_NAMES.index(self.core.law_name))))
+        # any law: whether it had the curvature (judged on this node's clock, which no
+        # stamp holds: the offline re-run takes it)
+        debug.append(('curvature_received', float(self.core.curvature_in)))
         state = getattr(self.core.law, 'debug_values', None)
         if state is not None:       # a law with a state: cg_compensated (its estimate ...)
             debug += state()
