@@ -304,3 +304,21 @@ def test_a_law_set_at_run_time_is_re_run_where_the_node_switched_it():
     # an override of the law runs it throughout
     forced = rerun(run, {'law': 'paper'}, order='stamp')
     assert forced.law_switches == 0 and forced.max_diff > 0.01
+
+
+def test_a_simulator_run_is_re_run_in_stamp_order_by_default():
+    # a realtime simulator run (the node not waiting for matching stamps): the recorder
+    # received a step's lateral error before that step's curvature, which the node did
+    # not; the default, receive order, re-ran it 50 mrad off over DDS (probe23), stamp
+    # order exactly. Receive order stays the default for a real vehicle's bag.
+    run, _ = _recorded({'law': 'cg_compensated'}, math.inf)
+    late = run.inputs['road_curvature']
+    run.inputs['road_curvature'] = Samples(late.stamp_ns + 5, late.stamp_ns, late.order,
+                                           late.values)
+    run = replace(run, debug=Samples.empty())
+    vehicle = rerun(run)
+    assert vehicle.order == 'receive' and vehicle.max_diff > 1e-4
+    simulated = rerun(replace(run, plant_params={'mode': 'realtime'}))
+    assert simulated.order == 'stamp' and simulated.max_diff == 0.0
+    assert rerun(replace(run, plant_params={'mode': 'realtime'}),
+                 order='receive').max_diff == vehicle.max_diff
