@@ -304,6 +304,10 @@ def test_a_law_set_at_run_time_is_re_run_where_the_node_switched_it():
     # an override of the law runs it throughout
     forced = rerun(run, {'law': 'paper'}, order='stamp')
     assert forced.law_switches == 0 and forced.max_diff > 0.01
+    # and analyze names the laws the run had, not only the start-up one
+    from lookahead_control.analysis.bag_analysis import run_labels
+    assert run_labels(run)['law'] == 'cg_compensated -> paper -> cg_compensated'
+    assert run_labels(replace(run, debug=Samples.empty()))['law'] == 'cg_compensated'
 
 
 def test_a_simulator_run_is_re_run_in_stamp_order_by_default():

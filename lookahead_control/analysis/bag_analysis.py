@@ -36,6 +36,7 @@ from typing import Any, Mapping, Optional
 from lookahead_control.analysis.metrics import run_metrics
 from lookahead_control.bags.run_data import rerun_law, RunData, Samples
 from lookahead_control.core.control_law import cg_error_from
+from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.params import ControllerParams, VehicleParams
 import numpy as np
 import numpy.typing as npt
@@ -300,7 +301,8 @@ def run_labels(run: RunData) -> dict[str, Any]:
 
     :param run: the run.
     :return: ``bag, scenario, plant, mode, rate_hz, law, schedule`` ('n/a' where the bag
-        does not say; ``law`` is ``paper`` for a bag from before the parameter existed).
+        does not say; ``law`` is ``paper`` for a bag from before the parameter existed,
+        ``a -> b`` for a run whose law was set while it ran, as its debug topic says).
     """
     scenario = 'n/a'
     text = run.description.get('lookahead_control/scenario')
@@ -312,13 +314,27 @@ def run_labels(run: RunData) -> dict[str, Any]:
             scenario = 'n/a'
     plant, ctl = run.plant_params, run.controller_params
     rate = plant.get('rate_hz', ctl.get('rate_hz'))
+    law = str(ctl.get('law', 'paper' if ctl else 'n/a'))
+    # a law set at run time: the debug topic names the law of every answer
+    # (``law:<name>``); before, only the start-up law was named
+    named = {key[4:]: values for key, values in run.debug.values.items()
+             if key.startswith('law:') and key[4:] in LAW_NAMES}
+    if len(named) > 1:
+        order = np.argsort(run.debug.stamp_ns, kind='stable')
+        sequence: list[str] = []
+        for i in order:
+            here = [name for name, values in named.items() if math.isfinite(values[i])]
+            if len(here) == 1 and (not sequence or sequence[-1] != here[0]):
+                sequence.append(here[0])
+        if len(sequence) > 1:
+            law = ' -> '.join(sequence)
     return {
         'bag': run.bag.name,
         'scenario': scenario,
         'plant': str(plant.get('plant.model', 'n/a')),
         'mode': str(plant.get('mode', 'n/a')),
         'rate_hz': float(rate) if rate is not None else math.nan,
-        'law': str(ctl.get('law', 'paper' if ctl else 'n/a')),
+        'law': law,
         'schedule': str(ctl.get('controller.schedule', 'n/a')),
     }
 
