@@ -180,15 +180,26 @@ def _record(bag, stderr=subprocess.PIPE, **kwargs):
                              '--chunk-interval', '0.2'], stderr=stderr, text=True, **kwargs)
 
 
-def _wait_recording(bag, timeout=30):
-    """Wait until the recorder has flushed its first chunk of /talk messages."""
+def _wait_recording(bag, recorder=None, log=None, timeout=180):
+    """
+    Wait until the recorder has flushed its first chunk of /talk messages.
+
+    A condition, not a time: the bound is far above what a loaded machine needs (four
+    recorders, a talker and two test workers under two CPU hogs once took over 30 s);
+    a recorder that exits is reported at once, with what it said.
+    """
     end = time.monotonic() + timeout
     mcap = bag / f'{bag.name}.mcap'
     while time.monotonic() < end:
         if mcap.is_file() and mcap.stat().st_size > 4096:
             return
+        if recorder is not None and recorder.poll() is not None:
+            said = log.read_text() if log is not None and log.exists() else ''
+            raise AssertionError(f'{bag}: the recorder exited ({recorder.returncode}) '
+                                 f'before recording: {said[-2000:]}')
         time.sleep(0.02)
-    raise AssertionError(f'{bag}: nothing recorded within {timeout} s')
+    said = log.read_text() if log is not None and log.exists() else ''
+    raise AssertionError(f'{bag}: nothing recorded within {timeout} s: {said[-2000:]}')
 
 
 def test_full_disk_is_one_line_and_keeps_what_was_recorded(tmp_path, talker):
@@ -216,7 +227,7 @@ def test_a_late_recorder_counts_what_it_missed_before_subscribing(tmp_path, talk
     time.sleep(0.5)                 # the talker has published about 100 messages
     bag = tmp_path / 'run'
     recorder = _record(bag)
-    _wait_recording(bag)
+    _wait_recording(bag, recorder)
     recorder.send_signal(signal.SIGINT)
     _, err = recorder.communicate(timeout=30)
     assert recorder.returncode == 0, err
@@ -233,9 +244,10 @@ def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
     rng = random.Random(20261121)
     for batch in range(5):              # four recorders at a time, each killed on its own
         bags = [tmp_path / f'run{batch}_{i}' for i in range(4)]
-        recorders = [_record(bag, stderr=subprocess.DEVNULL) for bag in bags]
-        for bag in bags:
-            _wait_recording(bag)
+        logs = [tmp_path / f'run{batch}_{i}.log' for i in range(4)]
+        recorders = [_record(bag, stderr=log.open('w')) for bag, log in zip(bags, logs)]
+        for bag, recorder, log in zip(bags, recorders, logs):
+            _wait_recording(bag, recorder, log)
         killed_at = {}
         start = time.monotonic()
         for delay, bag, recorder in sorted(zip([rng.uniform(0.0, 1.0) for _ in bags],
