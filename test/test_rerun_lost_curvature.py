@@ -74,6 +74,33 @@ def _samples(rows, names):
     return stamps, values
 
 
+def _bag(rows, commands, debug, params):
+    """
+    Return the recording of a run: the inputs as received, the commands, the debug topic.
+
+    :param rows: the inputs (:func:`_inputs`), received in the order the node got them.
+    :param commands: stamp -> the steering sent.
+    :param debug: debug column name -> stamp -> value.
+    :param params: the controller's recorded parameters.
+    """
+    fields = {'lateral_error': ('distance', 'value'),
+              'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
+              'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
+    inputs = {}
+    for role, names in fields.items():
+        stamps, values = _samples(rows[role], names)
+        # received (on the recorder's clock) in the order the node gets them
+        inputs[role] = Samples(stamps + RANK[role], stamps, np.arange(stamps.size), values)
+    stamps = np.array(sorted(commands), dtype=np.int64)
+    steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
+                       {'angle': np.array([commands[s] for s in stamps])})
+    columns = Samples(stamps + 11, stamps, np.arange(stamps.size),
+                      {name: np.array([column[s] for s in stamps])
+                       for name, column in debug.items()})
+    return RunData(Path('synthetic'), inputs=inputs, steering=steering, debug=columns,
+                   controller_params=params)
+
+
 def _recorded(params, curvature_until_ns=1_500_000_000, seen_until_ns=None):
     """
     Return a run of the node whose curvature stopped, and its estimating answers.
@@ -99,21 +126,7 @@ def _recorded(params, curvature_until_ns=1_500_000_000, seen_until_ns=None):
             state = getattr(node.law, 'debug_values', None)
             flags[sample.stamp_ns] = (math.nan if state is None
                                       else dict(state())['curvature_estimated'])
-    fields = {'lateral_error': ('distance', 'value'),
-              'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
-              'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
-    inputs = {}
-    for role, names in fields.items():
-        stamps, values = _samples(rows[role], names)
-        # received (on the recorder's clock) in the order the node gets them
-        inputs[role] = Samples(stamps + RANK[role], stamps, np.arange(stamps.size), values)
-    stamps = np.array(sorted(commands), dtype=np.int64)
-    steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
-                       {'angle': np.array([commands[s] for s in stamps])})
-    debug = Samples(stamps + 11, stamps, np.arange(stamps.size),
-                    {'curvature_estimated': np.array([flags[s] for s in stamps])})
-    return RunData(Path('synthetic'), inputs=inputs, steering=steering, debug=debug,
-                   controller_params=params), estimated
+    return _bag(rows, commands, {'curvature_estimated': flags}, params), estimated
 
 
 def test_a_re_run_of_a_curvature_lost_mid_run_estimates_it_where_the_node_did():
@@ -240,20 +253,7 @@ def test_any_law_is_re_run_with_the_curvature_the_node_judged_in(law):
             commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
             flags[sample.stamp_ns] = float(node.curvature_in)
     assert sum(1 for f in flags.values() if not f) == 300 - 150 - 19 + 1   # a step early
-    fields = {'lateral_error': ('distance', 'value'),
-              'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
-              'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
-    inputs = {}
-    for role, names in fields.items():
-        stamps, values = _samples(rows[role], names)
-        inputs[role] = Samples(stamps + RANK[role], stamps, np.arange(stamps.size), values)
-    stamps = np.array(sorted(commands), dtype=np.int64)
-    steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
-                       {'angle': np.array([commands[s] for s in stamps])})
-    debug = Samples(stamps + 11, stamps, np.arange(stamps.size),
-                    {'curvature_received': np.array([flags[s] for s in stamps])})
-    run = RunData(Path('synthetic'), inputs=inputs, steering=steering, debug=debug,
-                  controller_params={'law': law})
+    run = _bag(rows, commands, {'curvature_received': flags}, {'law': law})
     result = rerun(run, order='stamp')
     assert result.compared == 300 and result.max_diff == 0.0, result.max_diff
     assert result.followed == 300 and result.judged_otherwise == 1
@@ -279,23 +279,11 @@ def test_a_law_set_at_run_time_is_re_run_where_the_node_switched_it():
                                node.use_preview, law=law)
             commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
             laws[sample.stamp_ns] = law
-    fields = {'lateral_error': ('distance', 'value'),
-              'yaw': ('relative_yaw', 'yaw_rate', 'accel_x'),
-              'velocity': ('v_x', 'v_y'), 'road_curvature': ('rho', 'slope')}
-    inputs = {}
-    for role, names in fields.items():
-        stamps, values = _samples(rows[role], names)
-        inputs[role] = Samples(stamps + RANK[role], stamps, np.arange(stamps.size), values)
-    stamps = np.array(sorted(commands), dtype=np.int64)
-    steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
-                       {'angle': np.array([commands[s] for s in stamps])})
-    columns = {f'law:{name}': np.array([0.0 if laws[s] == name else math.nan
-                                        for s in stamps])
+    columns = {f'law:{name}': {s: 0.0 if law == name else math.nan
+                               for s, law in laws.items()}
                for name in ('paper', 'cg_compensated')}
-    columns['law:mpc'] = np.zeros(stamps.size)      # no such law: left out
-    debug = Samples(stamps + 11, stamps, np.arange(stamps.size), columns)
-    run = RunData(Path('synthetic'), inputs=inputs, steering=steering, debug=debug,
-                  controller_params={'law': 'cg_compensated'})
+    columns['law:mpc'] = dict.fromkeys(laws, 0.0)     # no such law: left out
+    run = _bag(rows, commands, columns, {'law': 'cg_compensated'})
     result = rerun(run, order='stamp')
     assert result.max_diff == 0.0 and result.compared == 300, result.max_diff
     assert result.law_switches == 2

@@ -23,7 +23,7 @@ from typing import Sequence
 
 from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
                                         write_json)
-from lookahead_control.core.config import changed_fields, load_vehicle
+from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import certificate, robust_check
 from lookahead_control.core.params import ControllerParams, ParameterError
@@ -83,8 +83,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # the node's own checks across parameters (controller.reference): the law it refuses
     # is not certified
     CgCompensatedLaw(vehicle, controller, settings)
-    changed = [f'controller.{k} = {v!r}' for k, v in changed_fields(controller).items()]
-    changed += [f'lane_keeping.{k} = {v!r}' for k, v in changed_fields(settings).items()]
+    from lookahead_control.tools.compare import LawSettings, settings_changes
+    changed = settings_changes(LawSettings(controller, settings))
     print(f'settings: {args.controller or "the package defaults"}'
           + (f'; differing from the defaults: {", ".join(changed)}' if changed else ''))
     cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
