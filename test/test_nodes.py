@@ -747,3 +747,17 @@ def test_sim_plant_refuses_curvature_stop_with_the_vehicle_output(context):
     node = SimPlantNode(context=context, parameter_overrides=[
         Parameter('output', value='vehicle')])
     node.destroy_node()
+
+
+def test_sim_plant_keeps_ground_truth_for_a_recorder_that_falls_behind(context):
+    # keep-last 10 (the contract's QoS) is 30 ms of a lockstep run at 319 steps/s: a
+    # recorder behind by more lost ground truth (0.93 s of a bridged run under load)
+    from rclpy.qos import HistoryPolicy, ReliabilityPolicy
+    from sim_plant.sim_plant_node import SimPlantNode, TRUTH_DEPTH
+    node = SimPlantNode(context=context)
+    try:
+        profile = node.pub_truth.qos_profile
+        assert profile.history == HistoryPolicy.KEEP_LAST and profile.depth == TRUTH_DEPTH
+        assert TRUTH_DEPTH >= 1000 and profile.reliability == ReliabilityPolicy.RELIABLE
+    finally:
+        node.destroy_node()
