@@ -451,7 +451,9 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
                            road_preview(scenario, state[0], distances), 0.0).steering
         return plant_rhs(command)(t, state)
 
-    law.reset()
+    # a new run from rest: start() where the law has one (reset() keeps a model of the
+    # car's actuator for the node), reset() otherwise (the Law contract, core/laws.py)
+    getattr(law, 'start', law.reset)()
     commands: list[Real] = []
     rows: list[list[Any]] = []
     linear = plant_model.model == 'linear'

@@ -14,6 +14,7 @@
 
 """The ``compare`` tool: its metrics by hand, goal rows, a small league run twice."""
 
+from dataclasses import replace
 import math
 import os
 from pathlib import Path
@@ -463,3 +464,100 @@ def test_a_controller_file_without_a_section_for_the_controller_is_refused(tmp_p
     wildcard.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
                         '      integral_gain: 0.6\n')
     assert compare.load_law_settings(wildcard).lane_keeping.integral_gain == 0.6
+
+
+def test_seeds_repeat_each_noisy_run_and_each_row_is_its_own_single_run():
+    from sim_plant.closed_loop_sim import run
+    from sim_plant.sensors import NoiseParams
+    linear, noisy = compare.PLANTS[0], compare.PLANTS[2]
+    kwargs = {'laws': ['lqr'], 'scenarios': ['s1_paper_step'], 'speeds': [30.0, 37.0],
+              'plants': [linear, noisy], 'vehicle': VEHICLE, 'dt': 0.005, 'duration': 4.5}
+    rows = compare.league(seeds=3, **kwargs)
+    one = compare.league(**kwargs)
+    assert [(r['plant'], r['speed_mps'], r['noise_seed']) for r in rows] == [
+        ('linear', 30.0, None), ('linear', 37.0, None),
+        *[(noisy.name, v, compare.speed_seed(v) + k * compare.SEED_STRIDE)
+          for v in (30.0, 37.0) for k in range(3)]]
+    # the first seed is the league's: --seeds 1 is the league as it was
+    first = [r for r in rows if r['noise_seed'] in (None, 3, 4)]
+    assert [str(r) for r in first] == [str(r) for r in one]
+    # every seeded row is the single run with that seed and speed (no column mixed up)
+    scenario = replace(compare.load_scenarios(['s1_paper_step'])['s1_paper_step'],
+                       duration=4.5)
+    for r in rows[2:]:
+        law = compare.LAWS['lqr'](VEHICLE, compare.LawSettings())
+        alone = run(scenario, VEHICLE, law, noisy.plant, initial_speed=r['speed_mps'],
+                    dt=0.005, preview_distance=compare.PREVIEW_DISTANCE, delay=noisy.delay,
+                    noise=NoiseParams(), seed=r['noise_seed'])
+        assert r['peak_cg_error_m'] == float(np.max(np.abs(alone['y_cg'])))
+    assert len({r['peak_cg_error_m'] for r in rows[2:]}) == 6       # the seeds differ
+
+
+def _seeded(value, seed, **fields):
+    return compare.finish_row('x', 's2_curve_entry', compare.GOAL_PLANT, 37.0,
+                              {**_row(scenario='s2_curve_entry', peak_cg_error_m=value,
+                                      steady_cg_error_m=0.002, yaw_overshoot=0.05),
+                               'notes': '', **fields}, seed)
+
+
+def test_each_goal_s_share_of_seeds_by_hand():
+    rows = [_seeded(0.02, 4), _seeded(0.025, 1000004), _seeded(0.035, 2000004),
+            _seeded(math.nan, 3000004), _seeded(0.01, 4000004, off_road=True)]
+    cells = compare.goal_cells(rows, ['x'])
+    peak = next(c for c in cells if c['goal'] == 'S2 peak <= 3 cm at 37')
+    assert (peak['runs'], peak['not_measurable']) == (5, 1)
+    assert peak['met_fraction'] == pytest.approx(2 / 5)     # NaN and off the road: missed
+    assert peak['mean'] == pytest.approx((2.0 + 2.5 + 3.5 + 1.0) / 4)
+    assert peak['worst'] == pytest.approx(3.5) and peak['unit'] == 'cm'
+    assert peak['p95'] == pytest.approx(np.percentile([1.0, 2.0, 2.5, 3.5], 95))
+    table = compare.goals_over_seeds(cells)
+    first = table[0]
+    assert first['goal'] == 'S2 peak <= 3 cm at 37' and first['met [%]'] == pytest.approx(40)
+    assert first['met least'] == 'S2 37 m/s: 40 %'
+    missed = compare.missed_runs(rows)
+    assert missed == [{'law': 'x', 'scenario': 's2_curve_entry', 'speed_mps': 37.0,
+                       'goals_missed': 'S2 peak <= 3 cm at 37 (3/5), steady on an arc <= 1 '
+                                       'cm (1/5), yaw overshoot <= 10 % (1/5)'}]
+    assert compare.goal_unit('steering_noise_rms_rad') == (1000.0, 'mrad')
+    assert compare.goal_unit('yaw_rebound') == (100.0, '%')
+
+
+def test_the_per_scenario_peak_is_the_worst_seed_not_the_last():
+    # before, the table took whichever seed's row came last
+    rows = [_seeded(0.05, 4), _seeded(0.01, 1000004)]
+    assert compare.per_scenario(rows, ['x'], compare.GOAL_PLANT, 37.0) == [
+        {'law': 'x', 'S2': pytest.approx(5.0)}]
+
+
+def test_the_seeds_option_writes_each_goal_s_share(tmp_path, capsys):
+    base = ['--laws', 'paper_eq26', '--scenarios', 's0_straight', '--speeds', '37',
+            '--plants', 'nonlinear_delay_noise', '--workers', '1', '--no-plots',
+            '--no-progress', '--duration', '3', '--dt', '0.01']
+    for bad in (['--seeds', '0'], ['--seeds', '2.5'], ['--seeds', '1001']):
+        with pytest.raises(SystemExit) as stop:
+            compare.main(base + ['--out', str(tmp_path / 'x')] + bad)
+        err = capsys.readouterr().err
+        assert stop.value.code == 2 and err.count('\n') == 1 and '--seeds' in err, err
+    assert run_tool(compare.main, base + ['--out', str(tmp_path / 'x'), '--seeds', '2',
+                                          '--tune']) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and '--seeds' in err and '--tune' in err, err
+    assert not (tmp_path / 'x').exists()
+    out = tmp_path / 'three'
+    json_path = tmp_path / 'three.json'
+    assert compare.main(base + ['--out', str(out), '--seeds', '3', '--json',
+                                str(json_path)]) == 0
+    text = (out / 'league.md').read_text()
+    assert '**3 noise seeds per speed' in text and '## Goals over 3 noise seeds' in text
+    assert '| paper_eq26 | S0 yaw rebound <= 50 % | 3 |' in text
+    assert (out / 'league.csv').read_text().count('\n') == 1 + 3
+    cells = (out / 'goals_over_seeds.csv').read_text().splitlines()
+    assert len(cells) == 1 + 2 and all(',3,' in line for line in cells[1:])
+    import json
+    assert len(json.loads(json_path.read_text())['goals_over_seeds']) == 2
+    # one seed: the league as before, and its file of shares (no stale one left)
+    assert compare.main(base + ['--out', str(out)]) == 0
+    assert 'noise seeds' not in (out / 'league.md').read_text().split('## Peak')[0].split(
+        'Same inputs')[1].replace('noise seeds per run', '')
+    assert all(',1,' in line for line in (out / 'goals_over_seeds.csv').read_text()
+               .splitlines()[1:])

@@ -272,6 +272,39 @@ def test_law_float_equals_a_one_element_batch_bit_for_bit():
     assert single.state_filter.restarts == batch.state_filter.restarts == 1
 
 
+def test_a_run_of_the_runner_does_not_depend_on_the_run_before_it():
+    """A law reused by the runner starts from rest (its wheel model too), any batch size."""
+    from sim_plant.closed_loop_sim import run
+    from sim_plant.scenario import paper_scenario
+    from sim_plant.vehicle_model import PlantParams
+    scenario = paper_scenario(37.0, duration=3.0)
+    plant = PlantParams(model='nonlinear')
+    kwargs = {'dt': 0.005, 'delay': 0.02}
+
+    def law():
+        return CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    fresh = run(scenario, VEHICLE, law(), plant, initial_speed=[30.0, 37.0], **kwargs)
+    reused = law()
+    # before: a run ending in a curve left the filter's wheel model there (0.3 mrad off
+    # in the next run's first commands), and a batch of another size raised
+    run(scenario, VEHICLE, reused, plant, initial_speed=[20.0, 25.0, 30.0], **kwargs)
+    again = run(scenario, VEHICLE, reused, plant, initial_speed=[30.0, 37.0], **kwargs)
+    assert np.array_equal(again['steering_cmd'], fresh['steering_cmd'])
+
+
+def test_start_keeps_nothing_reset_keeps_the_actuator_model():
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    for k in range(50):
+        law.step(measured(0.1, 0.01, 0.0, 0.0, v_x=30.0, rho=0.002), None,
+                 0.0 if k == 0 else PERIOD)
+    kf = law.state_filter
+    law.reset()         # the node after stale inputs: the car's wheel is still there
+    assert kf.history or kf.held != 0.0
+    law.start()         # a new run from rest
+    assert (kf.history, kf.held, kf.wheel, kf.time) == ([], 0.0, 0.0, 0.0)
+    assert law.integral == 0.0 and law.estimating is False
+
+
 def test_nan_input_restarts_from_the_next_good_measurement():
     kf = KalmanStateFilter(VEHICLE)
     for k in range(50):

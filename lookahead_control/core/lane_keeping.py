@@ -466,6 +466,24 @@ class CgCompensatedLaw:
         self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self.resets += 1
 
+    def start(self) -> None:
+        """
+        Restart for a new run from rest (the offline runner, before each run).
+
+        :meth:`reset` keeps the state filter's actuator model (the node's car still has
+        its wheel where the last command put it); a new simulation starts with the wheel
+        at 0 and with no curvature judged missing, so that a run does not depend on the
+        run before it.
+        """
+        self.reset()
+        if self.state_filter is not None:
+            self.state_filter.start()
+        self.estimating = False
+        self.cut = False
+        self._rho_used = 0.0
+        self._blending = None
+        self._changed = False
+
     def note_curvature(self, received: Any) -> None:
         """
         Say whether a road curvature is received for the next steps.

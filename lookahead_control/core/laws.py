@@ -23,7 +23,11 @@ this interface, so every law gets the same inputs, actuator and plant.
 The contract:
 
 - ``reset() -> None`` clears all internal state (integrators, filters, delay buffers).
-  A runner calls it once before the first step of a run or batch.
+  A runner calls it once before the first step of a run or batch. A law whose
+  ``reset`` keeps a model of the car (the default law's actuator model: after stale
+  inputs the node's wheel is still where it was) also has ``start() -> None``, a new
+  run from rest; the offline runner calls ``start`` when a law has it, so that a run
+  never depends on the run before it.
 - ``step(state, preview, dt) -> LawOutput`` gives one command. ``dt`` is the time since
   the previous step [s], 0 on the first step after ``reset``. The fields of ``state``
   are floats (one run) or numpy arrays of one shape (a batch of runs, one element per

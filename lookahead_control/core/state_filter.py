@@ -554,6 +554,22 @@ class KalmanStateFilter:
         self.held_rho = math.nan
         self.restarts += 1
 
+    def start(self) -> None:
+        """
+        Restart for a new run from rest: :meth:`reset`, and the actuator model at rest.
+
+        A new simulation's wheel starts at 0 with no command on its way (the offline
+        runner's); :meth:`reset` keeps them, for the node's car whose actuator is still
+        there. A batch of another size then starts clean as well.
+        """
+        self.reset()
+        self.wheel = 0.0
+        self.held = 0.0
+        self.history = []
+        self.time = 0.0
+        self.rho = 0.0
+        self.innovation = ()
+
     def forget(self, where: Any) -> None:
         """
         Restart the runs of a batch where ``where`` holds (a non-finite input).

@@ -64,6 +64,8 @@ SPEEDS = (10.0, 20.0, 30.0, 37.0)
 PREVIEW_DISTANCE = 100.0        # [m] every law sees the curvature this far ahead
 DELAY = 0.02                    # [s] transport delay of the "nonlinear + delay + noise" plant
 NOISE_SEED = 1                  # seeds: speed_seed(speed): a run repeats in any subset
+SEED_STRIDE = 1_000_000         # --seeds: the k-th seed of a speed is speed_seed + k stride
+MAX_SEEDS = 1000                # --seeds' largest value
 FINAL_WINDOW = 1.0              # [s] the steady error is the mean of the last second
 NOISE_SCENARIO = 's0_straight'  # steering noise: command with noise minus without, here
 MAX_SPEED = 90.0                # [m/s] the scenarios' limit
@@ -455,58 +457,96 @@ def speed_seed(speed: float) -> int:
     return NOISE_SEED + len(SPEEDS) + int(round(speed * 1000.0))
 
 
+def run_seed(speed: float, index: int) -> int:
+    """
+    Return the ``index``-th noise seed of the runs at one speed (``--seeds``).
+
+    :param speed: the run's initial speed [m/s].
+    :param index: 0 .. seeds - 1 (0: :func:`speed_seed`, the league's one seed).
+    :return: ``speed_seed(speed) + index * SEED_STRIDE`` (distinct over every speed the
+        league allows and every index below :data:`MAX_SEEDS`).
+    """
+    return speed_seed(speed) + index * SEED_STRIDE
+
+
+def case_runs(case: PlantCase, speeds: Sequence[float],
+              seeds: int = 1) -> list[tuple[float, Optional[int]]]:
+    """
+    Return the runs of one plant: ``(speed, noise seed)``, in the rows' order.
+
+    :param case: the plant.
+    :param speeds: the speeds [m/s].
+    :param seeds: noise seeds per speed on a noisy plant (a noise-free plant runs each
+        speed once, seed None).
+    :return: per speed, its seeds in order.
+    """
+    if not case.noisy:
+        return [(float(v), None) for v in speeds]
+    return [(float(v), run_seed(float(v), k)) for v in speeds for k in range(seeds)]
+
+
 def run_case(task: tuple[Any, ...]) -> list[dict[str, Any]]:
     """
     Run one law on one scenario: every plant, every speed (vectorized per plant).
 
     :param task: ``(law, scenario name, speeds, plants, vehicle, dt, duration[,
-        settings])`` (names, not objects: a task crosses to a worker process; duration
-        None: the scenario's; settings: :class:`LawSettings`, the defaults without).
+        settings[, seeds]])`` (names, not objects: a task crosses to a worker process;
+        duration None: the scenario's; settings: :class:`LawSettings`, the defaults
+        without; seeds: noise seeds per speed on a noisy plant, 1 without).
     :return: one row per run.
     """
     law_name, scenario_name, speeds, plants, league_vehicle, dt, duration = task[:7]
     settings = task[7] if len(task) > 7 else LawSettings()
+    seeds = task[8] if len(task) > 8 else 1
     scenario = load_scenarios([scenario_name])[scenario_name]
     if duration is not None:
         scenario = replace(scenario, duration=duration)
-    v0 = np.asarray(speeds, dtype=float)
-    seeds = [speed_seed(float(v)) for v in v0]
     rows = []
     for case in plants:
+        runs = case_runs(case, speeds, seeds)
         try:
-            metrics = _plant_runs(law_name, scenario_name, scenario, v0, seeds, case,
+            metrics = _plant_runs(law_name, scenario_name, scenario, runs, case,
                                   league_vehicle, dt, settings)
         except Exception as err:        # one plant's failure loses no other row
-            metrics = [empty_row(FAILED + one_line(f'{type(err).__name__}: {err}'))] * v0.size
-        rows += [finish_row(law_name, scenario_name, case.name, float(speed), m)
-                 for speed, m in zip(v0, metrics)]
+            metrics = [empty_row(FAILED + one_line(f'{type(err).__name__}: {err}'))] * len(
+                runs)
+        rows += [finish_row(law_name, scenario_name, case.name, speed, m, seed)
+                 for (speed, seed), m in zip(runs, metrics)]
     return rows
 
 
-def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario, v0: Array,
-                seeds: list[int], case: PlantCase, league_vehicle: VehicleParams,
-                dt: float, settings: LawSettings) -> list[dict[str, Any]]:
+def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario,
+                runs: Sequence[tuple[float, Optional[int]]], case: PlantCase,
+                league_vehicle: VehicleParams, dt: float,
+                settings: LawSettings) -> list[dict[str, Any]]:
     vehicle = case.law_vehicle(league_vehicle)
     law = LAWS[law_name](vehicle, settings)
-    common: dict[str, Any] = {'initial_speed': v0, 'dt': case.dt or dt,
-                              'preview_distance': PREVIEW_DISTANCE, 'delay': case.delay}
+    common: dict[str, Any] = {'dt': case.dt or dt, 'preview_distance': PREVIEW_DISTANCE,
+                              'delay': case.delay}
+    speeds = list(dict.fromkeys(speed for speed, _ in runs))
     if not case.noisy:
-        result = run(scenario, vehicle, law, case.plant, **common)
-        return [run_row(result, i, vehicle, None) for i in range(v0.size)]
-    # the noise-free twin of each run: the steering noise (S0) and the noise's effect on
-    # the yaw responses
-    twin = run(scenario, vehicle, law, case.plant, **common)
-    result = run(scenario, vehicle, law, case.plant, noise=NoiseParams(), seed=seeds,
-                 **common)
-    return [run_row(result, i, vehicle,
-                    twin['steering_cmd'][:, i] if scenario_name == NOISE_SCENARIO else None,
-                    {'yaw_overshoot': twin['eps_r'][:, i],
-                     'yaw_rate_overshoot': twin['r'][:, i]})
-            for i in range(v0.size)]
+        result = run(scenario, vehicle, law, case.plant,
+                     initial_speed=np.asarray(speeds, dtype=float), **common)
+        return [run_row(result, i, vehicle, None) for i in range(len(speeds))]
+    # the noise-free twin of each speed (one for all its seeds): the steering noise (S0)
+    # and the noise's effect on the yaw responses
+    twin = run(scenario, vehicle, law, case.plant,
+               initial_speed=np.asarray(speeds, dtype=float), **common)
+    result = run(scenario, vehicle, law, case.plant,
+                 initial_speed=np.asarray([speed for speed, _ in runs], dtype=float),
+                 noise=NoiseParams(), seed=[int(seed or 0) for _, seed in runs], **common)
+    rows = []
+    for i, (speed, _) in enumerate(runs):
+        j = speeds.index(speed)
+        rows.append(run_row(
+            result, i, vehicle,
+            twin['steering_cmd'][:, j] if scenario_name == NOISE_SCENARIO else None,
+            {'yaw_overshoot': twin['eps_r'][:, j], 'yaw_rate_overshoot': twin['r'][:, j]}))
+    return rows
 
 
 def finish_row(law: str, scenario: str, plant: str, speed: float,
-               metrics: Mapping[str, Any]) -> dict[str, Any]:
+               metrics: Mapping[str, Any], seed: Optional[int] = None) -> dict[str, Any]:
     """
     Return a run's full row: its keys, metrics and goal verdicts.
 
@@ -515,10 +555,11 @@ def finish_row(law: str, scenario: str, plant: str, speed: float,
     :param plant: the plant's name.
     :param speed: the initial speed [m/s].
     :param metrics: the run's metrics (:func:`run_row` or :func:`empty_row`).
+    :param seed: its noise seed (None: a noise-free plant).
     :return: the row.
     """
     row: dict[str, Any] = {'law': law, 'scenario': scenario, 'plant': plant,
-                           'speed_mps': speed}
+                           'speed_mps': speed, 'noise_seed': seed}
     row.update(metrics)
     applicable, missed = goal_verdicts(row)
     row['goals'] = ', '.join(applicable)
@@ -529,8 +570,8 @@ def finish_row(law: str, scenario: str, plant: str, speed: float,
 def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float],
            plants: Sequence[PlantCase], vehicle: VehicleParams, dt: float = DT,
            workers: int = 1, duration: Optional[float] = None,
-           progress: bool = False,
-           settings: Optional[LawSettings] = None) -> list[dict[str, Any]]:
+           progress: bool = False, settings: Optional[LawSettings] = None,
+           seeds: int = 1) -> list[dict[str, Any]]:
     """
     Run the league: every law on every scenario, plant and speed.
 
@@ -544,7 +585,9 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     :param duration: cut every scenario to this duration [s] (None: their own; tests).
     :param progress: show a progress bar on stderr (one step per law and scenario).
     :param settings: the laws' settings (None: the package defaults).
-    :return: one row per run, in a fixed order (law, scenario, plant, speed).
+    :param seeds: noise seeds per speed on the noisy plant (:func:`run_seed`; 1: the
+        league's one seed per speed).
+    :return: one row per run, in a fixed order (law, scenario, plant, speed, seed).
     """
     settings = settings or LawSettings()
     loaded = load_scenarios(scenarios)
@@ -552,7 +595,8 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     # rows as one task per law and scenario), so that the pool can balance the costly
     # multi-body runs
     tasks = [(law, name, scenario_speeds(loaded[name], speeds), (case,), vehicle, dt,
-              duration, settings) for law in laws for name in scenarios for case in plants]
+              duration, settings, seeds)
+             for law in laws for name in scenarios for case in plants]
     bar = None
     if progress:
         from tqdm import tqdm
@@ -647,12 +691,13 @@ def _guarded(runner: Callable[[], list[dict[str, Any]]], task: Any) -> list[dict
     :return: its rows.
     """
     law, scenario, speeds, plants = task[:4]
+    seeds = task[8] if len(task) > 8 else 1
     try:
         return runner()
     except Exception as err:            # one task's failure loses no other row
         note = FAILED + one_line(f'{type(err).__name__}: {err}')
-        return [finish_row(law, scenario, case.name, float(v), empty_row(note))
-                for case in plants for v in speeds]
+        return [finish_row(law, scenario, case.name, v, empty_row(note), seed)
+                for case in plants for v, seed in case_runs(case, speeds, seeds)]
 
 
 # -- reports -------------------------------------------------------------------------------
@@ -716,11 +761,123 @@ def per_scenario(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], plant: 
     table = []
     for law in laws:
         entry: dict[str, Any] = {'law': law}
-        for r in rows:
-            if r['law'] == law and r['plant'] == plant and (
-                    r['speed_mps'] == speed or r['scenario'] == 's5_envelope'):
-                entry[r['scenario'][:2].upper()] = 100.0 * float(r['peak_cg_error_m'])
+        mine = [r for r in rows if r['law'] == law and r['plant'] == plant and (
+            r['speed_mps'] == speed or r['scenario'] == 's5_envelope')]
+        for scenario in dict.fromkeys(r['scenario'] for r in mine):    # worst over seeds
+            entry[scenario[:2].upper()] = 100.0 * _worst(
+                [r for r in mine if r['scenario'] == scenario], 'peak_cg_error_m')
         table.append(entry)
+    return table
+
+
+def goal_unit(metric: str) -> tuple[float, str]:
+    """
+    Return the factor and unit a goal's metric is reported in.
+
+    :param metric: a row field (``*_m``, ``*_rad`` or a ratio).
+    :return: ``(100, 'cm')``, ``(1000, 'mrad')`` or ``(100, '%')``.
+    """
+    if metric.endswith('_m'):
+        return 100.0, 'cm'
+    if metric.endswith('_rad'):
+        return 1000.0, 'mrad'
+    return 100.0, '%'
+
+
+def _meets(goal: Goal, row: Mapping[str, Any]) -> bool:
+    return bool(row[goal.metric] <= goal.bound) and not row['off_road']   # as goal_verdicts
+
+
+def goal_cells(rows: Sequence[Mapping[str, Any]],
+               laws: Sequence[str]) -> list[dict[str, Any]]:
+    """
+    Return each goal's verdict over the seeds of each run it applies to.
+
+    One row per law, goal, scenario and speed: how many runs (seeds) there are, the share
+    that meet the goal (as :func:`goal_verdicts`: a NaN metric or a run off the road
+    misses it), how many have no value (not measurable), and the metric's mean, median,
+    95th percentile and worst over the runs with one, in the goal's unit
+    (:func:`goal_unit`).
+
+    :param rows: the runs.
+    :param laws: the laws, in order.
+    :return: the rows.
+    """
+    table = []
+    for law in laws:
+        mine = [r for r in rows if r['law'] == law]
+        for goal in GOALS:
+            applies = [r for r in mine if goal.applies(r)]
+            scale, unit = goal_unit(goal.metric)
+            for scenario, speed in dict.fromkeys((r['scenario'], r['speed_mps'])
+                                                 for r in applies):
+                runs = [r for r in applies
+                        if r['scenario'] == scenario and r['speed_mps'] == speed]
+                values = np.array([float(r[goal.metric]) for r in runs], dtype=float)
+                values = scale * values[np.isfinite(values)]
+                stats = ([float(np.mean(values)), float(np.median(values)),
+                          float(np.percentile(values, 95.0)), float(np.max(values))]
+                         if values.size else [math.nan] * 4)
+                table.append({
+                    'law': law, 'goal': goal.name, 'scenario': scenario, 'speed_mps': speed,
+                    'runs': len(runs), 'met_fraction': sum(_meets(goal, r) for r in runs)
+                    / len(runs), 'not_measurable': len(runs) - int(values.size),
+                    'mean': stats[0], 'median': stats[1], 'p95': stats[2], 'worst': stats[3],
+                    'unit': unit, 'bound': scale * goal.bound})
+    return table
+
+
+def goals_over_seeds(cells: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """
+    Return one row per law and goal from :func:`goal_cells`: its share of runs met.
+
+    :param cells: :func:`goal_cells`' rows.
+    :return: law, goal, runs, met [%], the cell met least often and its share, and the
+        worst cell's median / 95th percentile / worst (the cell with the highest 95th
+        percentile), in the goal's unit.
+    """
+    table = []
+    for key in dict.fromkeys((c['law'], c['goal']) for c in cells):
+        mine = [c for c in cells if (c['law'], c['goal']) == key]
+        runs = sum(int(c['runs']) for c in mine)
+        met = sum(float(c['met_fraction']) * int(c['runs']) for c in mine)
+        least = min(mine, key=lambda c: float(c['met_fraction']))
+        measured = [c for c in mine if math.isfinite(float(c['p95']))]
+        high = max(measured, key=lambda c: float(c['p95'])) if measured else mine[0]
+        table.append({
+            'law': key[0], 'goal': key[1], 'runs': runs,
+            'met [%]': 100.0 * met / runs,
+            'met least': f"{least['scenario'][:2].upper()} {least['speed_mps']:g} m/s: "
+                         f"{100.0 * float(least['met_fraction']):.0f} %",
+            'not measurable': sum(int(c['not_measurable']) for c in mine),
+            'highest cell': f"{high['scenario'][:2].upper()} {high['speed_mps']:g} m/s",
+            'median': high['median'], '95th pct': high['p95'], 'worst': high['worst'],
+            'unit': high['unit']})
+    return table
+
+
+def missed_runs(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """
+    Return the goals missed, one row per law, scenario, plant and speed.
+
+    :param rows: the runs.
+    :return: ``goals_missed`` with, where a cell has several seeds, in how many of its
+        runs each goal was missed (``name (k/n)``).
+    """
+    table = []
+    for key in dict.fromkeys((r['law'], r['scenario'], r['plant'], r['speed_mps'])
+                             for r in rows):
+        runs = [r for r in rows
+                if (r['law'], r['scenario'], r['plant'], r['speed_mps']) == key]
+        counts: dict[str, int] = {}
+        for r in runs:
+            for name in filter(None, str(r['goals_missed']).split(', ')):
+                counts[name] = counts.get(name, 0) + 1
+        if counts:
+            table.append({'law': key[0], 'scenario': key[1], 'speed_mps': key[3],
+                          'goals_missed': ', '.join(
+                              name if len(runs) == 1 else f'{name} ({k}/{len(runs)})'
+                              for name, k in counts.items())})
     return table
 
 
@@ -772,9 +929,13 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
 
 def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Path,
                  plot: bool = True, duration: Optional[float] = None,
-                 settings: Optional[tuple[str, LawSettings]] = None) -> Path:
+                 settings: Optional[tuple[str, LawSettings]] = None,
+                 seeds: int = 1) -> Path:
     """
     Write league.csv (every run), league.md (summary, goals, per scenario), league.png.
+
+    Also goals_over_seeds.csv (:func:`goal_cells`: each goal's share of runs met per
+    scenario and speed; with one seed each share is 0 or 1).
 
     :param rows: the runs.
     :param laws: the laws.
@@ -783,10 +944,14 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
     :param duration: the runs were cut to this duration [s] (said in the table's head).
     :param settings: the params file the laws' settings came from and the settings
         (said in the table's head; None: the package defaults).
+    :param seeds: noise seeds per speed on the noisy plant (more than 1: league.md has
+        a section with each goal's share of runs met).
     :return: the markdown file.
     """
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / 'league.csv', rows)
+    cells = goal_cells(rows, laws)
+    write_csv(out / 'goals_over_seeds.csv', cells)
     plants = list(dict.fromkeys(r['plant'] for r in rows))
     text = [
         '# League table: every law x S0-S5 x plants x speeds', '',
@@ -804,7 +969,20 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
             'package defaults the goal rows were set for:** '
             + ('; '.join(f'`{line}`' for line in settings_changes(settings[1]))
                or 'none differs from the defaults') + '.', '']),
+        *([] if seeds == 1 else [
+            f'**{seeds} noise seeds per speed on the noisy plant (`--seeds`): every worst '
+            'case below is over them, and the goal count counts runs.**', '']),
         markdown_table(summary(rows, laws), digits=3), '']
+    if seeds > 1:
+        text += [f'## Goals over {seeds} noise seeds', '',
+                 f'Each run of a noisy plant repeated with {seeds} noise seeds per speed '
+                 f'(seed k of a speed: `speed_seed` + k x {SEED_STRIDE:,}; k = 0 is the '
+                 "league's one seed). Per law and goal: the share of its runs that meet it "
+                 '(a NaN metric counts as missed), the scenario and speed where it is met '
+                 'least often, and the median, 95th percentile and worst of the metric in '
+                 'the cell where its 95th percentile is highest. Every cell: '
+                 '`goals_over_seeds.csv`.', '',
+                 markdown_table(goals_over_seeds(cells), digits=3), '']
     for plant in plants:
         text += [f'## Peak CG error [cm] at 37 m/s, plant `{plant}` (S5: its profile)', '',
                  markdown_table(per_scenario(rows, laws, plant, 37.0), digits=3), '']
@@ -819,11 +997,11 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
              markdown_table([{k: r[k] for k in ('law', 'scenario', 'plant', 'speed_mps',
                                                 'notes')} for r in broken])
              if broken else 'none', '']
-    missed = [r for r in rows if r['goals_missed']]
+    missed = missed_runs(rows)
     text += ['## Goals missed', '',
-             markdown_table([{k: r[k] for k in ('law', 'scenario', 'speed_mps',
-                                                'goals_missed')} for r in missed])
-             if missed else 'none', '']
+             *([] if seeds == 1 else [
+                 '(k/n: missed in k of the n runs of the noise seeds.)', '']),
+             markdown_table(missed) if missed else 'none', '']
     if plot:
         png = write_plot(rows, laws, out / 'league.png')
         text.append(f'![league]({png.name})')
@@ -951,6 +1129,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='no progress bar (it goes to stderr, one step per law and scenario)')
     p.add_argument('--tune', action='store_true',
                    help="score the baselines' tuning grids instead (writes tuning.csv)")
+    p.add_argument('--seeds', type=number(1, MAX_SEEDS, integer=True), default=1,
+                   metavar='N',
+                   help='noise seeds per speed on the noisy plant (nonlinear_delay_noise): '
+                   "its runs are repeated with N seeds, and league.md gives each goal's "
+                   'share of runs met (default 1: the league, one seed per speed)')
     p.add_argument('--controller', type=Path, default=None, metavar='YAML',
                    help='run every law with the settings the controller node would run '
                    "with this params file (controller.*, lane_keeping.*, the baselines' "
@@ -970,6 +1153,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 LAWS[name](vehicle, settings)
             except (ParameterError, ConfigError) as err:
                 raise ToolError(f'--controller {args.controller}: {name}: {err}') from err
+    if args.tune and args.seeds != 1:
+        raise ToolError("--seeds: --tune scores the baselines' grids on the league's seeds; "
+                        'use one or the other')
     previous = claim_output(args.out, 'compare', args.overwrite)   # before any run
     start = time.monotonic()
     if args.tune:
@@ -986,17 +1172,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     plants = [c for c in PLANTS if c.name in args.plants]
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
                   args.workers, args.duration, progress=not args.no_progress,
-                  settings=settings)
+                  settings=settings, seeds=args.seeds)
     report = write_report(rows, args.laws, args.out, plot=not args.no_plots,
                           duration=args.duration,
                           settings=None if settings is None else (str(args.controller),
-                                                                  settings))
+                                                                  settings),
+                          seeds=args.seeds)
     record_output(args.out, 'compare', [args.out / name for name in (
-        'league.csv', 'league.md', *(() if args.no_plots else ('league.png',)))], previous)
+        'league.csv', 'league.md', 'goals_over_seeds.csv',
+        *(() if args.no_plots else ('league.png',)))], previous)
     table = summary(rows, args.laws)
     print(markdown_table(table, digits=3))
     if args.json:
-        write_json(args.json, {'summary': table, 'runs': rows})
+        write_json(args.json, {'summary': table, 'runs': rows,
+                               'goals_over_seeds': goals_over_seeds(goal_cells(rows,
+                                                                               args.laws))})
     print(f'wrote {report} ({len(rows)} runs in {time.monotonic() - start:.0f} s)')
     failed = [r for r in rows if str(r['notes']).startswith(FAILED)]
     if failed:
