@@ -151,9 +151,9 @@ def test_replay_offline_says_where_the_law_ran_on_its_estimate(monkeypatch, caps
 
     from lookahead_control.bags import replay_node
     run, estimated = _recorded({'law': 'cg_compensated'})
-    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics: run)
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node: run)
     args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
-                              json=tmp_path / 'report.json', check=0.0)
+                              json=tmp_path / 'report.json', check=0.0, node=None)
     assert replay_node.offline(args) == 0
     out = capsys.readouterr().out
     assert (f'the law ran on its curvature estimate in {estimated} of 300 answers'
@@ -184,9 +184,9 @@ def test_a_curvature_the_controller_did_not_receive_is_re_run_as_the_controller_
     bare = replace(run, debug=Samples.empty())
     blind = rerun(bare, order='receive')
     assert blind.max_diff > 0.005 and blind.estimated == blind.followed == 0
-    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics: run)
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node: run)
     args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
-                              json=tmp_path / 'report.json', check=0.0)
+                              json=tmp_path / 'report.json', check=0.0, node=None)
     assert replay_node.offline(args) == 0
     out = capsys.readouterr().out
     assert ("the re-run took the recorded controller's own judgment of the curvature "
@@ -314,3 +314,104 @@ def test_a_simulator_run_is_re_run_in_stamp_order_by_default():
     assert simulated.order == 'stamp' and simulated.max_diff == 0.0
     assert rerun(replace(run, plant_params={'mode': 'realtime'}),
                  order='receive').max_diff == vehicle.max_diff
+
+
+def _conv_sample(role, msg):
+    """Return the controller's sample of a message, as the node converts it."""
+    from lookahead_control.ros import conversions as conv
+    return {'lateral_error': conv.from_lateral_error, 'yaw': conv.from_yaw,
+            'velocity': conv.from_velocity, 'road_curvature': conv.from_curvature}[role](msg)
+
+
+def _two_controller_bag(path):
+    """
+    Write a bag of two vehicles: ``/controller`` and ``/car_b/controller``, each its topics.
+
+    Each controller's commands are its core's answers (its own parameters) to its own
+    inputs; both nodes' parameters are in the bag's description.
+    """
+    import yaml
+
+    from lookahead_control.bags.rosbag_io import (BagWriter, PARAMETERS_KEY, qos_from_ints,
+                                                  serialize_cdr, typestore)
+    from lookahead_control.bags.run_data import node_topics
+    from lookahead_control.ros import conversions as conv
+    store = typestore()
+    qos = [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})]
+    params = {'/controller': {'law': 'paper'},
+              '/car_b/controller': {'law': 'stanley', 'stanley.gain': 2.5}}
+    encode = {'lateral_error': lambda s: conv.to_lateral_error(s.stamp_ns, 'b', s.distance,
+                                                               s.value),
+              'yaw': lambda s: conv.to_yaw(s.stamp_ns, 'b', s.relative_yaw, s.yaw_rate,
+                                           s.accel_x),
+              'velocity': lambda s: conv.to_velocity(s.stamp_ns, 'b', s.v_x, s.v_y, 0.0),
+              'road_curvature': lambda s: conv.to_curvature(s.stamp_ns, 'b', [(0.0, s.rho)])}
+    msgtypes = {'lateral_error': 'geometry_msgs/msg/PointStamped', 'yaw': 'sensor_msgs/msg/Imu',
+                'velocity': 'geometry_msgs/msg/TwistStamped',
+                'road_curvature': 'geometry_msgs/msg/PolygonStamped',
+                'steering': 'sensor_msgs/msg/JointState'}
+    writer = BagWriter(path)
+    messages = []
+    for node, own in params.items():
+        topics = node_topics(node)
+        core, _ = controller_from_params(own)
+        rows = _inputs(120, 10**12)
+        if node != '/controller':       # the other car: another curve, another error
+            rows = {role: [s._replace(**{f: 0.5 * v for f, v in s._asdict().items()
+                                         if f != 'stamp_ns' and isinstance(v, float)})
+                           for s in samples] for role, samples in rows.items()}
+        for role, sample in _feed(rows):
+            msg = encode[role](sample)
+            messages.append((topics[role], sample.stamp_ns, RANK[role], msg))
+            assert core.accept(role, _conv_sample(role, msg), sample.stamp_ns) is None
+            if role == 'lateral_error':
+                command = core.compute(sample.stamp_ns)
+                messages.append((topics['steering'], sample.stamp_ns, 4,
+                                 conv.to_steering(sample.stamp_ns, command.steering, 0.0)))
+        for role, msgtype in msgtypes.items():
+            writer.add_topic(topics[role], msgtype, qos)
+    for topic, stamp, rank, msg in sorted(messages, key=lambda m: (m[1], m[2])):
+        writer.write(topic, 10**12 + stamp + rank, serialize_cdr(msg, store))
+    writer.describe(PARAMETERS_KEY, yaml.safe_dump(
+        {node: {'ros__parameters': own} for node, own in params.items()}))
+    writer.close()
+
+
+def test_replay_offline_node_re_runs_the_named_controller_of_a_two_vehicle_bag(
+        tmp_path, capsys):
+    # before: no --node; --topic steering=/car_b/steering compared car b's commands with
+    # /controller's law (paper) on /controller's inputs, and no option named car b's
+    # parameters or debug
+    import json
+
+    from lookahead_control.bags import replay_node
+    from lookahead_control.core.cli import run_tool
+    bag = tmp_path / 'two'
+    _two_controller_bag(bag)
+    for i, node in enumerate(([], ['--node', '/controller'], ['--node', '/car_b/controller'])):
+        report = tmp_path / f'{i}.json'
+        assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-9',
+                                           '--json', str(report), *node]) == 0, node
+        data = json.loads(report.read_text())
+        assert data['compared'] == 120 and data['max_diff_rad'] <= 1e-9, data
+        assert data['node'] == (node[-1] if node else '/controller')
+    capsys.readouterr()
+    # the old way: car b's steering against the other controller's law and inputs
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-6', '--topic',
+                                       'steering=/car_b/steering']) == 1
+    # a --topic still overrides one of the node's topics
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-6', '--node',
+                                       '/car_b/controller', '--topic',
+                                       'steering=/steering']) == 1
+    capsys.readouterr()
+    # a node the bag does not know, a name that is not one: one line each
+    for node, words in (('/car_c/controller', ['/car_b/controller, /controller']),
+                        ('car_b/controller', ['not a fully qualified node name']),
+                        ('/car_b/', ['not a fully qualified']),
+                        ('/1car/controller', ['not a fully qualified'])):
+        assert run_tool(replay_node.main, [str(bag), '--offline', '--node', node]) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and all(w in err for w in words), err
+    # --node is for the offline re-run only
+    assert run_tool(replay_node.main, [str(bag), '--node', '/car_b/controller']) == 2
+    assert '--node: only with --offline' in capsys.readouterr().err

@@ -33,7 +33,7 @@ from typing import Any, Optional, Sequence
 
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader
-from lookahead_control.bags.run_data import load_run, rerun
+from lookahead_control.bags.run_data import CONTROLLER_NODE, load_run, rerun
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
                                         ToolError, write_json)
 from lookahead_control.ros import conversions as conv
@@ -56,9 +56,10 @@ def offline(args: argparse.Namespace) -> int:
     """
     # override values as YAML: numbers, booleans, strings
     overrides = {k: yaml.safe_load(v) for k, v in assignments(args.param, '-p').items()}
-    run = load_run(args.bag, assignments(args.topic, '--topic'))
+    run = load_run(args.bag, assignments(args.topic, '--topic'), args.node or CONTROLLER_NODE)
     result = rerun(run, overrides, args.order)
-    report = {'bag': str(args.bag), 'order': result.order, 'compared': result.compared,
+    report = {'bag': str(args.bag), 'node': run.controller_node, 'order': result.order,
+              'compared': result.compared,
               'recorded': len(run.steering.by_stamp()), 'recomputed': len(result.commands),
               'max_diff_rad': result.max_diff, 'rms_diff_rad': result.rms_diff,
               'curvature_estimated': result.estimated, 'overrides': overrides}
@@ -73,14 +74,15 @@ def offline(args: argparse.Namespace) -> int:
               'more than safety.input_timeout before the lateral error: lost)')
     if result.judged_otherwise:
         print("replay: the re-run took the recorded controller's own judgment of the "
-              f'curvature (its /controller/debug) in {result.followed} '
+              f'curvature (its {run.controller_node}/debug) in {result.followed} '
               f'answers; on the stamps alone {result.judged_otherwise} would have gone '
               "otherwise (one or two at a switch-over: the node's clock; many: a "
               'road_curvature in the bag that the controller did not receive, remapped or '
               'a QoS mismatch)')
     if result.law_switches:
         print(f'replay: the law was set at run time: the re-run switched it where the '
-              f'recorded controller did ({result.law_switches} switches, /controller/debug '
+              f'recorded controller did ({result.law_switches} switches, '
+              f'{run.controller_node}/debug '
               "law:<name>); other parameters set at run time are not in the bag's record: "
               'the re-run keeps the start-up values')
     if args.json:
@@ -217,6 +219,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                               metavar='NAME=VALUE', help='override a recorded controller '
                               'parameter (vehicle.*, controller.*, safety.*); clock-driven '
                               'ones (watchdog, timer) are refused')
+    offline_only.add_argument('--node', default=None, metavar='NAME',
+                              help='the controller node whose run to re-run (default '
+                              '/controller): its recorded parameters, its NAME/debug and '
+                              'the contract topics in its namespace (/car_b/controller: '
+                              '/car_b/lateral_error, ...; --topic overrides one)')
     offline_only.add_argument('--topic', action='append', default=[], metavar='ROLE=TOPIC',
                               help='contract topic names in the bag (lateral_error=/x)')
     offline_only.add_argument('--order', choices=('stamp', 'receive'), default=None,
@@ -233,6 +240,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
               if value is not None]
     offline_given = [name for name, value in (
         ('-p', args.param), ('--topic', args.topic), ('--order', args.order),
+        ('--node', args.node),
         ('--json', args.json)) if value]
     if offline_run:
         if played:

@@ -395,6 +395,18 @@ def run_description(path: Path) -> dict[str, str]:
     return {str(k): str(v) for k, v in data.items() if str(k).startswith(KEY_PREFIX)}
 
 
+def described_nodes(path: Path) -> list[str]:
+    """
+    Return the nodes whose parameters the run's bag recorded.
+
+    :param path: the bag.
+    :return: their fully qualified names, sorted.
+    """
+    text = run_description(path).get(PARAMETERS_KEY, '')
+    params = (yaml.safe_load(text) or {}) if text else {}
+    return sorted(str(name) for name in params) if isinstance(params, dict) else []
+
+
 def node_parameters(path: Path, node: str) -> dict[str, Any]:
     """
     Return the recorded parameters of one node of the run.

@@ -28,13 +28,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
+import re
 import struct
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
-from lookahead_control.bags.rosbag_io import (bag_topics, node_parameters, run_description,
-                                              typestore)
+from lookahead_control.bags.rosbag_io import (bag_topics, described_nodes, node_parameters,
+                                              run_description, typestore)
 from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
                                               StanleyParams)
 from lookahead_control.core.config import ConfigError, dataclass_from_params
@@ -54,6 +55,8 @@ TOPICS = {'lateral_error': '/lateral_error', 'yaw': '/yaw', 'velocity': '/veloci
           'road_curvature': '/road_curvature', 'steering': '/steering',
           'debug': '/controller/debug', 'ground_truth': '/sim_plant/ground_truth'}
 INPUTS = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
+CONTROLLER_NODE = '/controller'
+_NODE_NAME = re.compile(r'(/[A-Za-z_][A-Za-z0-9_]*)+')
 MSGTYPES = {'lateral_error': 'geometry_msgs/msg/PointStamped',
             'yaw': 'sensor_msgs/msg/Imu', 'velocity': 'geometry_msgs/msg/TwistStamped',
             'road_curvature': 'geometry_msgs/msg/PolygonStamped',
@@ -67,6 +70,29 @@ _PARSE: dict[str, Callable[[Any], Any]] = {
     'velocity': conv.from_velocity, 'road_curvature': conv.from_curvature}
 _CORRUPT = (ValueError, AssertionError, struct.error, UnicodeDecodeError, IndexError,
             KeyError)
+
+
+def node_topics(node: str = CONTROLLER_NODE) -> dict[str, str]:
+    """
+    Return the contract topics of a controller node and its simulator, by its namespace.
+
+    A controller started in a namespace (``/car_b/controller``) reads and publishes its
+    relative topic names there (``/car_b/lateral_error``, ``/car_b/steering``), its debug
+    is ``<node>/debug`` and its simulator's ground truth ``<namespace>/sim_plant/
+    ground_truth``: one bag can hold several vehicles.
+
+    :param node: the controller's fully qualified name.
+    :return: role -> topic (:data:`TOPICS` for ``/controller``).
+    :raises ConfigError: not a fully qualified node name.
+    """
+    if not _NODE_NAME.fullmatch(node):
+        raise ConfigError(f'--node {node!r}: not a fully qualified node name (e.g. '
+                          '/controller or /car_b/controller: /-separated names of letters, '
+                          'digits and _, not starting with a digit)')
+    namespace = node.rpartition('/')[0]
+    topics = {role: namespace + topic for role, topic in TOPICS.items()}
+    topics['debug'] = f'{node}/debug'
+    return topics
 
 
 @dataclass(frozen=True)
@@ -158,8 +184,9 @@ class RunData:
     :param truth: the simulator's ground truth (empty for real vehicles).
     :param counts: messages per topic in the bag.
     :param description: the bag's ``lookahead_control/*`` run description.
-    :param controller_params: the recorded parameters of ``/controller``.
-    :param plant_params: the recorded parameters of ``/sim_plant`` (empty: none).
+    :param controller_params: the recorded parameters of the controller node.
+    :param plant_params: the recorded parameters of its ``sim_plant`` (empty: none).
+    :param controller_node: the controller node's name (``/controller``).
     """
 
     bag: Path
@@ -171,9 +198,11 @@ class RunData:
     description: dict[str, str] = field(default_factory=dict)
     controller_params: dict[str, Any] = field(default_factory=dict)
     plant_params: dict[str, Any] = field(default_factory=dict)
+    controller_node: str = CONTROLLER_NODE
 
 
-def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
+def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
+             node: str = CONTROLLER_NODE) -> RunData:
     """
     Read the contract topics of a bag.
 
@@ -182,14 +211,24 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
     through the general deserializer.
 
     :param bag: the bag directory.
-    :param topics: role -> topic name overrides of :data:`TOPICS`.
+    :param topics: role -> topic name overrides of the node's topics.
+    :param node: the controller node whose run it is: its parameters, its debug topic
+        and, unless ``topics`` says otherwise, the contract topics in its namespace
+        (:func:`node_topics`).
     :return: the run.
-    :raises ConfigError: the bag is unreadable, lacks the lateral-error topic, or a
-        contract topic has another type.
+    :raises ConfigError: the bag is unreadable, lacks the lateral-error topic, a contract
+        topic has another type, or ``node`` is not ``/controller`` and the bag has
+        neither its parameters nor its debug topic.
     """
-    names = {**TOPICS, **(topics or {})}
+    names = {**node_topics(node), **(topics or {})}
     role_of = {topic: role for role, topic in names.items()}
     available = bag_topics(bag)
+    controller_params = node_parameters(Path(bag), node)
+    if node != CONTROLLER_NODE and not controller_params and names['debug'] not in available:
+        described = described_nodes(Path(bag))
+        raise ConfigError(f'{bag}: --node {node}: neither its parameters nor its '
+                          f'{names["debug"]} are in the bag (parameters recorded of: '
+                          f'{", ".join(described) or "no node"})')
     if names['lateral_error'] not in available:
         raise ConfigError(f'{bag}: no {names["lateral_error"]} topic (has: '
                           f'{", ".join(sorted(available)) or "none"}); remap with '
@@ -213,8 +252,9 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None) -> RunData:
                   pieces['ground_truth'].samples(),
                   counts={t: c for t, (_, c) in available.items()},
                   description=run_description(Path(bag)))
-    run.controller_params = node_parameters(Path(bag), '/controller')
-    run.plant_params = node_parameters(Path(bag), '/sim_plant')
+    run.controller_params = controller_params
+    run.plant_params = node_parameters(Path(bag), node.rpartition('/')[0] + '/sim_plant')
+    run.controller_node = node
     return run
 
 
