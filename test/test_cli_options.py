@@ -540,6 +540,13 @@ def _compare():
                         cwd=folder))
         assert 'compare: 100%' in shown.stderr and quiet.stderr == ''
 
+    def seeds(c):
+        table, _ = runs(c, '--plants', 'nonlinear_delay_noise', '--seeds', '2')
+        assert [r['noise_seed'] for r in table] == [4, 1_000_004], table
+        assert table[0]['peak_cg_error_m'] != table[1]['peak_cg_error_m']
+        one, _ = runs(c, '--plants', 'nonlinear_delay_noise')
+        assert [r['noise_seed'] for r in one] == [4]
+
     def tune(c):
         folder = c.folder('cmp_tune')
         _ok(run('compare', '--tune', '--laws', 'pure_pursuit', '--workers', '2', '--out',
@@ -562,6 +569,7 @@ def _compare():
         '--overwrite': ((), overwrite),
         '--no-progress': ((), no_progress),
         '--duration': (NON_NUMBERS + ('0', '-1', '1e9'), differs('--duration', '3')),
+        '--seeds': (NON_NUMBERS + ('0', '-1', '2.5', '1001'), seeds),
     }
 
 
@@ -691,6 +699,11 @@ def _replay():
 
     def offline_flag(c):
         assert 'commands compared' in base(c)
+
+    def node(c):
+        assert offline(c, '--node', '/controller').stdout == base(c)
+        refused = offline(c, '--node', '/car_b/controller', code=2)
+        assert 'recorded of: /controller, /sim_plant' in refused.stderr, refused.stderr
     return {
         '--rate': (NON_NUMBERS + ('0', '-1'), rate),
         '--topics': ((), topics),
@@ -700,6 +713,8 @@ def _replay():
         '--param': (('novalue',), param),
         '--topic': (('norole',), topic),
         '--order': (('sideways',), order),
+        '--node': (('car_b/controller', '/car_b/', '/1car/controller', '/car_b/controller'),
+                   node),
         '--check': (NON_NUMBERS + ('-1',), check),
         '--json': ((), json_file),
     }
@@ -730,10 +745,18 @@ def _analyze():
         out = run('analyze', c.bag, '--out', c.tmp / 'an_topic', '--topic',
                   'lateral_error=/nope')
         assert out.returncode == 2 and '/nope' in out.stderr
+
+    def node(c):
+        folder = c.tmp / 'an_node'
+        _ok(run('analyze', c.bag, '--out', folder, '--no-plots', '--node', '/controller'))
+        assert (folder / 'report.md').exists()
+        out = run('analyze', c.bag, '--out', c.tmp / 'an_node_b', '--node', '/car_b/controller')
+        assert out.returncode == 2 and 'recorded of: /controller' in out.stderr
     return {
         '--out': ((), out_folder),
         '--no-plots': ((), no_plots),
         '--topic': (('bogus=/x', 'novalue'), topic),
+        '--node': (('car_b/controller', '/car_b/', '/car_b/controller'), node),
         '--overwrite': ((), overwrite),
     }
 
@@ -862,7 +885,7 @@ def test_option_bad_values_are_refused_in_one_line(exe, option, ctx):
     before = sorted(folder.iterdir())
     lead = POSITIONAL[exe](ctx) if exe in POSITIONAL else []
     extra = ['--offline'] if exe == 'replay' and option in (
-        '--param', '--topic', '--order') else []
+        '--param', '--topic', '--order', '--node') else []
     # the first refusal through the installed executable (a process: exit code and
     # stderr as a user sees them), the others through its entry point in this process
     outs = []

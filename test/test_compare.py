@@ -542,6 +542,11 @@ def test_the_seeds_option_writes_each_goal_s_share(tmp_path, capsys):
                                           '--tune']) == 2
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and '--seeds' in err and '--tune' in err, err
+    # seeds for no plant with noise: refused, not silently the noise-free league
+    assert run_tool(compare.main, base[:-6] + ['--plants', 'linear', 'nonlinear', '--out',
+                                               str(tmp_path / 'x'), '--seeds', '4']) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'none of --plants linear nonlinear' in err, err
     assert not (tmp_path / 'x').exists()
     out = tmp_path / 'three'
     json_path = tmp_path / 'three.json'

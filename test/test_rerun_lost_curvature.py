@@ -415,3 +415,20 @@ def test_replay_offline_node_re_runs_the_named_controller_of_a_two_vehicle_bag(
     # --node is for the offline re-run only
     assert run_tool(replay_node.main, [str(bag), '--node', '/car_b/controller']) == 2
     assert '--node: only with --offline' in capsys.readouterr().err
+
+
+def test_analyze_node_names_the_controller_of_a_two_vehicle_bag(tmp_path):
+    # before: analyze read /controller's parameters and topics whatever the bag held
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _two_controller_bag(bag)
+    rows = {}
+    for node in ('/controller', '/car_b/controller'):
+        (run, _, row), = analyze_tool.analyze([bag], None, node)
+        rows[node] = row
+        assert run.controller_node == node and len(run.steering) == 120
+    assert rows['/controller']['law'] == 'paper' and rows['/car_b/controller']['law'] == \
+        'stanley'
+    assert analyze_tool.main([str(bag), '--node', '/car_b/controller', '--out',
+                              str(tmp_path / 'out'), '--no-plots']) == 0
+    assert '| stanley |' in (tmp_path / 'out' / 'report.md').read_text()

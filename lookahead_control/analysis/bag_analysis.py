@@ -366,8 +366,8 @@ def _assumptions(run: RunData) -> list[str]:
     """Return what the analysis assumes because the bag does not record it."""
     params = run.controller_params
     if not params:
-        return ['assumed: the bag has no /controller parameters; the default vehicle '
-                f'(d_s = {VehicleParams().d_s:g} m) and controller (schedule '
+        return [f'assumed: the bag has no {run.controller_node} parameters; the default '
+                f'vehicle (d_s = {VehicleParams().d_s:g} m) and controller (schedule '
                 f'{ControllerParams().schedule}) are used for d_s and any law re-run']
     missing = [name for name in ('vehicle.d_s', 'controller.schedule')
                if name not in params]

@@ -24,7 +24,7 @@ from lookahead_control.analysis.bag_analysis import (bag_row, law_label, run_lab
                                                      RunSeries, speed_points)
 from lookahead_control.analysis.metrics import METRIC_COLUMNS, metrics_legend, notes_list
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid
-from lookahead_control.bags.run_data import load_run, RunData, TOPICS
+from lookahead_control.bags.run_data import CONTROLLER_NODE, load_run, RunData, TOPICS
 from lookahead_control.core.cli import (assignments, claim_output, markdown_table,
                                         record_output, run_tool, ToolError, write_csv,
                                         write_json)
@@ -59,18 +59,20 @@ def topic_overrides(items: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def analyze(bags: Sequence[Path], topics: dict[str, str] | None = None
-            ) -> list[tuple[RunData, RunSeries, dict[str, Any]]]:
+def analyze(bags: Sequence[Path], topics: dict[str, str] | None = None,
+            node: str = CONTROLLER_NODE) -> list[tuple[RunData, RunSeries, dict[str, Any]]]:
     """
     Read every bag and compute its metrics row.
 
     :param bags: bag directories.
     :param topics: contract topic name overrides (role -> topic).
+    :param node: the controller node whose run to analyze (its parameters, debug and
+        namespace's topics: :func:`~lookahead_control.bags.run_data.node_topics`).
     :return: ``(run, series, row)`` per bag.
     """
     out = []
     for bag in bags:
-        run = load_run(bag, topics)
+        run = load_run(bag, topics, node)
         series = run_series(run)
         out.append((run, series, bag_row(run, series)))
     return out
@@ -174,9 +176,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--topic', action='append', default=[], metavar='ROLE=TOPIC',
                    help='contract topic name in the bags, e.g. lateral_error=/lane/offset; '
                    f'ROLE is one of {", ".join(TOPICS)}')
+    p.add_argument('--node', default=CONTROLLER_NODE, metavar='NAME',
+                   help='the controller node whose run to analyze, in a bag of several '
+                   'vehicles (default /controller): its recorded parameters, NAME/debug and '
+                   'the contract topics in its namespace (/car_b/controller: '
+                   '/car_b/lateral_error, ...; --topic overrides one)')
     p.add_argument('--no-plots', action='store_true', help='write no PNG plots')
     args = p.parse_args(argv)
-    results = analyze(args.bags, topic_overrides(args.topic))     # a bad bag: said first
+    results = analyze(args.bags, topic_overrides(args.topic), args.node)   # said first
     previous = claim_output(args.out, 'analyze', args.overwrite)
     written: list[Path] = []
     report = write_outputs(results, args.out, plots=not args.no_plots, written=written)

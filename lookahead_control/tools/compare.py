@@ -1156,6 +1156,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.tune and args.seeds != 1:
         raise ToolError("--seeds: --tune scores the baselines' grids on the league's seeds; "
                         'use one or the other')
+    noisy = [c.name for c in PLANTS if c.noisy]
+    if args.seeds != 1 and not set(noisy) & set(args.plants):
+        raise ToolError(f'--seeds {args.seeds}: none of --plants {" ".join(args.plants)} has '
+                        f'sensor noise (the seeds are those of {", ".join(noisy)}); add it '
+                        'or drop --seeds')
     previous = claim_output(args.out, 'compare', args.overwrite)   # before any run
     start = time.monotonic()
     if args.tune:
