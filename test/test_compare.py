@@ -561,3 +561,59 @@ def test_the_seeds_option_writes_each_goal_s_share(tmp_path, capsys):
         'Same inputs')[1].replace('noise seeds per run', '')
     assert all(',1,' in line for line in (out / 'goals_over_seeds.csv').read_text()
                .splitlines()[1:])
+
+
+def test_seeds_without_the_noisy_plant_or_with_a_speed_twice_are_refused(tmp_path, capsys):
+    base = ['--laws', 'lqr', '--scenarios', 's0_straight', '--workers', '1', '--no-plots',
+            '--no-progress', '--duration', '3', '--dt', '0.01', '--out', str(tmp_path / 'x')]
+    # before: --plants nonlinear --seeds 3 ran, and league.md said '3 noise seeds per
+    # speed on the noisy plant' over an empty, broken table (goals_over_seeds.csv: no
+    # header); --speeds 37 37 --seeds 2 ran each seed twice and counted both runs in
+    # each goal's share (4 runs of 2 seeds)
+    for bad, words in (
+            (['--plants', 'nonlinear', '--speeds', '37', '--seeds', '3'],
+             ('--seeds 3', compare.GOAL_PLANT)),
+            (['--plants', 'nonlinear_delay_noise', '--speeds', '37', '30', '37.0',
+              '--seeds', '2'], ('--speeds', '37 m/s given twice'))):
+        assert run_tool(compare.main, base + bad) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and all(w in err for w in words), err
+    assert not (tmp_path / 'x').exists()
+
+
+def test_a_league_where_no_goal_applies_says_so_and_its_cells_file_has_a_header(tmp_path):
+    # S4 at 10 m/s: no goal applies (S4's is at 37)
+    rows = [compare.finish_row('lqr', 's4_lane_change', compare.GOAL_PLANT, 10.0,
+                               compare.empty_row(''), compare.run_seed(10.0, k))
+            for k in range(3)]
+    assert all(r['goals'] == '' for r in rows)
+    text = compare.write_report(rows, ['lqr'], tmp_path, plot=False, seeds=3).read_text()
+    # before: the section's table was '|  |' over '|' (no columns) and the CSV was empty
+    section = text.split('## Goals over 3 noise seeds')[1].split('## Peak')[0]
+    assert 'none: no goal applies' in section and '|  |' not in section, section
+    assert (tmp_path / 'goals_over_seeds.csv').read_text().splitlines() == [
+        ','.join(compare.CELL_COLUMNS)]
+
+
+def test_the_report_says_what_one_seed_and_a_noise_free_goal_mean(tmp_path):
+    def rows(plant, seeds):
+        return [compare.finish_row('lqr', 's2_curve_entry', plant, 37.0,
+                                   {**compare.empty_row(''), 'peak_cg_error_m': 0.02,
+                                    'off_road': False},
+                                   compare.run_seed(37.0, k) if plant == compare.GOAL_PLANT
+                                   else None)
+                for k in range(seeds)]
+    # before: a one-seed league never said that its goals hold for one noise sample
+    one = compare.write_report(rows(compare.GOAL_PLANT, 1), ['lqr'], tmp_path / 'one',
+                               plot=False).read_text()
+    assert '**One noise seed per speed on the noisy plant' in one
+    free = compare.write_report(rows('nonlinear', 1), ['lqr'], tmp_path / 'free',
+                                plot=False).read_text()
+    assert 'One noise seed' not in free                 # no noisy run: nothing to say
+    # before: the CommonRoad goal's one run per speed sat among the 'N noise seeds' rows
+    text = compare.write_report(rows(compare.GOAL_PLANT, 2) + rows('commonroad_mb', 1),
+                                ['lqr'], tmp_path / 'two', plot=False, seeds=2).read_text()
+    section = text.split('## Goals over 2 noise seeds')[1].split('## Peak')[0]
+    assert ('`CommonRoad S2 <= 5 cm at 30-37` is on a noise-free plant: one run per speed, '
+            'not 2.') in section
+    assert '| lqr | CommonRoad S2 <= 5 cm at 30-37 | 1 | 100 |' in section

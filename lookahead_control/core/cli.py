@@ -216,16 +216,20 @@ def markdown_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str] | N
     return '\n'.join(lines)
 
 
-def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
+def write_csv(path: Path, rows: Sequence[Mapping[str, Any]],
+              columns: Sequence[str] | None = None) -> None:
     """
     Write rows as CSV.
 
     :param path: the file.
     :param rows: the rows.
+    :param columns: the header (default: the first row's keys; without rows and
+        columns the file has an empty header).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open('w', newline='', encoding='utf-8') as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0].keys()) if rows else [])
+        fields = list(columns) if columns is not None else list(rows[0].keys()) if rows else []
+        writer = csv.DictWriter(handle, fieldnames=fields)
         writer.writeheader()
         writer.writerows(rows)
 
