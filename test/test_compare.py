@@ -617,3 +617,31 @@ def test_the_report_says_what_one_seed_and_a_noise_free_goal_mean(tmp_path):
     assert ('`CommonRoad S2 <= 5 cm at 30-37` is on a noise-free plant: one run per speed, '
             'not 2.') in section
     assert '| lqr | CommonRoad S2 <= 5 cm at 30-37 | 1 | 100 |' in section
+
+
+def test_a_row_fits_no_damping_ratio_it_does_not_report(monkeypatch):
+    # before: every overshoot fitted a damped cosine for a damping ratio the league throws
+    # away, 90 % of a curve run's time (a --seeds 1000 league: about 10 h instead of 1)
+    from lookahead_control.analysis import metrics
+    from sim_plant.closed_loop_sim import run
+    from sim_plant.sensors import NoiseParams
+    noisy = compare.PLANTS[2]
+    scenario = replace(compare.load_scenarios(['s2_curve_entry'])['s2_curve_entry'],
+                       duration=8.0)
+    kwargs = {'initial_speed': 37.0, 'dt': 0.005, 'delay': noisy.delay,
+              'preview_distance': compare.PREVIEW_DISTANCE}
+    law = compare.LAWS['cg_compensated'](VEHICLE, compare.LawSettings())
+    twin = run(scenario, VEHICLE, law, noisy.plant, **kwargs)
+    result = run(scenario, VEHICLE, law, noisy.plant, noise=NoiseParams(), seed=4, **kwargs)
+    clean = {'yaw_overshoot': twin['eps_r'], 'yaw_rate_overshoot': twin['r']}
+    start, end = compare.curve_window(result.time, result['rho'])
+    full = {name: metrics.step_metrics(result.time, result[channel], start,
+                                       compare.FINAL_WINDOW, end, clean[name])
+            for name, channel in (('yaw_overshoot', 'eps_r'), ('yaw_rate_overshoot', 'r'))}
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError('fit_second_order called')
+    monkeypatch.setattr(metrics, 'fit_second_order', no_fit)
+    row = compare.run_row(result, None, VEHICLE, None, clean)
+    for name, step in full.items():
+        assert math.isfinite(step.overshoot) and row[name] == step.overshoot
