@@ -645,3 +645,26 @@ def test_a_row_fits_no_damping_ratio_it_does_not_report(monkeypatch):
     row = compare.run_row(result, None, VEHICLE, None, clean)
     for name, step in full.items():
         assert math.isfinite(step.overshoot) and row[name] == step.overshoot
+
+
+def test_a_file_of_its_names_compare_did_not_write_is_not_overwritten(tmp_path, capsys):
+    # a folder an older compare wrote (it wrote no goals_over_seeds.csv), and a file of
+    # that name someone put there since
+    out = tmp_path / 'old'
+    out.mkdir()
+    (out / 'league.csv').write_text('old league\n')
+    (out / '.compare_written').write_text('league.csv\nleague.md\n')
+    (out / 'goals_over_seeds.csv').write_text('mine\n')
+    args = ['--laws', 'lqr', '--scenarios', 's0_straight', '--speeds', '37', '--plants',
+            'nonlinear_delay_noise', '--workers', '1', '--no-plots', '--no-progress',
+            '--duration', '2', '--dt', '0.01', '--seeds', '2', '--out', str(out)]
+    # before: the folder was compare's, so the file was replaced without a word
+    assert run_tool(compare.main, args) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'goals_over_seeds.csv' in err, err
+    assert (out / 'goals_over_seeds.csv').read_text() == 'mine\n'
+    assert (out / 'league.csv').read_text() == 'old league\n'          # before any run
+    assert compare.main(args + ['--overwrite']) == 0
+    assert (out / 'goals_over_seeds.csv').read_text().startswith('law,goal,')
+    assert 'goals_over_seeds.csv' in (out / '.compare_written').read_text()
+    assert compare.main(args) == 0      # now it is compare's own

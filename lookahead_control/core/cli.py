@@ -273,25 +273,36 @@ def output_manifest(out: Path, tool: str) -> Path:
     return out / f'.{tool}_written'
 
 
-def claim_output(out: Path, tool: str, overwrite: bool = False) -> frozenset[str]:
+def claim_output(out: Path, tool: str, overwrite: bool = False,
+                 names: Sequence[str] = ()) -> frozenset[str]:
     """
     Check that ``tool`` may write into ``out`` before it runs; never delete anything.
 
     A missing or empty folder (created here), or one that ``tool`` wrote (its manifest is
     there), is fine. Any other non-empty folder is refused unless ``overwrite``: then
-    files of the tool's names are replaced and nothing else is touched.
+    files of the tool's names are replaced and nothing else is touched. In a folder
+    ``tool`` wrote, a file of one of ``names`` that its manifest does not list (put
+    there by someone else, e.g. a name an older version of the tool did not write) is
+    refused the same way.
 
     :param out: the ``--out`` folder.
     :param tool: the tool's name (the manifest's and the message's).
     :param overwrite: the user allowed writing into a folder ``tool`` did not make.
+    :param names: the files this run will write there.
     :return: the names the tool's previous runs wrote there (empty if none).
-    :raises ToolError: ``out`` is a file, or a non-empty folder ``tool`` did not write.
+    :raises ToolError: ``out`` is a file, or a non-empty folder ``tool`` did not write,
+        or a file of ``names`` there that ``tool`` did not write.
     """
     if out.exists() and not out.is_dir():
         raise ToolError(f'--out {out}: is a file, not a folder')
     manifest = output_manifest(out, tool)
     if manifest.is_file():
-        return frozenset(manifest.read_text(encoding='utf-8').split('\n')) - {''}
+        previous = frozenset(manifest.read_text(encoding='utf-8').split('\n')) - {''}
+        foreign = [n for n in names if n not in previous and (out / n).exists()]
+        if foreign and not overwrite:
+            raise ToolError(f'--out {out}: {foreign[0]} is there and {tool} did not write '
+                            'it; move it away, or give --overwrite to replace it')
+        return previous
     entries = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
     if entries and not overwrite:
         raise ToolError(f'--out {out}: not empty and not written by {tool} (holds '

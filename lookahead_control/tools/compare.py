@@ -1185,7 +1185,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ToolError(f'--speeds: {twice[0]:g} m/s given twice: each run would be counted '
                         'twice (the same speed runs the same noise seeds); give each speed '
                         'once')
-    previous = claim_output(args.out, 'compare', args.overwrite)   # before any run
+    outputs = (['tuning.csv'] if args.tune else
+               ['league.csv', 'league.md', 'goals_over_seeds.csv',
+                *(() if args.no_plots else ('league.png',))])
+    previous = claim_output(args.out, 'compare', args.overwrite, outputs)   # before any run
     start = time.monotonic()
     if args.tune:
         names = [n for n in args.laws if n in TUNING_GRIDS] or list(TUNING_GRIDS)
@@ -1207,9 +1210,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                           settings=None if settings is None else (str(args.controller),
                                                                   settings),
                           seeds=args.seeds)
-    record_output(args.out, 'compare', [args.out / name for name in (
-        'league.csv', 'league.md', 'goals_over_seeds.csv',
-        *(() if args.no_plots else ('league.png',)))], previous)
+    record_output(args.out, 'compare', [args.out / name for name in outputs], previous)
     table = summary(rows, args.laws)
     print(markdown_table(table, digits=3))
     if args.json:
