@@ -542,6 +542,9 @@ def test_the_seeds_option_writes_each_goal_s_share(tmp_path, capsys):
                                           '--tune']) == 2
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and '--seeds' in err and '--tune' in err, err
+    # before: 'on the league's seeds', but tune_point runs seeds 1 and 2 at 30 and 37 m/s
+    # (the league's: speed_seed, 3 and 4)
+    assert "league's seeds" not in err and 'fixed noise seeds' in err, err
     assert not (tmp_path / 'x').exists()
     out = tmp_path / 'three'
     json_path = tmp_path / 'three.json'
@@ -668,3 +671,20 @@ def test_a_file_of_its_names_compare_did_not_write_is_not_overwritten(tmp_path, 
     assert (out / 'goals_over_seeds.csv').read_text().startswith('law,goal,')
     assert 'goals_over_seeds.csv' in (out / '.compare_written').read_text()
     assert compare.main(args) == 0      # now it is compare's own
+
+
+def test_many_seeds_make_the_noisy_plant_s_task_the_costliest():
+    # before: a package plant's task cost its steps whatever its runs, so with --seeds
+    # 1000 (4000 runs of S2: about 45 s) the pool started CommonRoad's 4 runs first and
+    # could leave the longest task for last
+    noisy = next(c for c in compare.PLANTS if c.name == compare.GOAL_PLANT)
+    multi_body = next(c for c in compare.PLANTS if c.name == 'commonroad_mb')
+    speeds = list(compare.SPEEDS)
+
+    def cost(case, seeds):
+        return compare.task_cost(case, len(compare.case_runs(case, speeds, seeds)), 12.0,
+                                 compare.DT)
+    assert cost(multi_body, 1000) == cost(multi_body, 1)     # no noise: no seeds
+    assert cost(noisy, 1) < cost(multi_body, 1) < cost(noisy, 1000)
+    assert cost(noisy, 1000) / cost(noisy, 1) == pytest.approx(
+        (1.0 + 4000 / compare.BATCH_RUNS) / (1.0 + 4 / compare.BATCH_RUNS))

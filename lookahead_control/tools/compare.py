@@ -618,8 +618,8 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
         else:
             # the costliest tasks first (longest processing time first); rows in tasks'
             # order
-            cost = [task_cost(t[3][0], len(t[2]), t[6] or loaded[t[1]].duration, dt)
-                    for t in tasks]
+            cost = [task_cost(t[3][0], len(case_runs(t[3][0], t[2], seeds)),
+                              t[6] or loaded[t[1]].duration, dt) for t in tasks]
             order = sorted(range(len(tasks)), key=lambda i: -cost[i])
             with stoppable_pool(workers) as pool:
                 futures = {pool.submit(run_case, tasks[i]): i for i in order}
@@ -663,6 +663,7 @@ def stoppable_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
 
 
 RUN_STEP_COST = 0.35     # a CommonRoad multi-body run's step / a package plant's batch step
+BATCH_RUNS = 300         # a package plant's batch step costs as much as this many runs' share
 
 
 def task_cost(case: PlantCase, runs: int, duration: float, dt: float) -> float:
@@ -670,12 +671,13 @@ def task_cost(case: PlantCase, runs: int, duration: float, dt: float) -> float:
     Return a task's rough relative cost, to start the costliest first.
 
     A package plant steps its whole batch vectorized, at about the cost of one run
-    (0.56-0.87 ms of CPU per step with 4 runs, measured); the CommonRoad models step one
-    run after the other in pure Python (the multi-body model: 0.27 ms per run step, at
-    2 ms steps instead of 5).
+    (0.56-0.87 ms of CPU per step with 4 runs, measured) plus about 2.3 us per run and
+    step (a ``--seeds`` batch of thousands of runs: S0, 4000 runs, 22 s; 100 runs,
+    4.7 s); the CommonRoad models step one run after the other in pure Python (the
+    multi-body model: 0.27 ms per run step, at 2 ms steps instead of 5).
 
     :param case: the plant.
-    :param runs: the number of speeds.
+    :param runs: the number of runs (speeds, times the seeds on a noisy plant).
     :param duration: the simulated time [s].
     :param dt: the league's plant step [s].
     :return: the cost (arbitrary units).
@@ -683,7 +685,7 @@ def task_cost(case: PlantCase, runs: int, duration: float, dt: float) -> float:
     steps = duration / (case.dt or dt)
     if case.plant.model.startswith('commonroad'):
         return steps * runs * RUN_STEP_COST
-    return steps
+    return steps * (1.0 + runs / BATCH_RUNS)
 
 
 def _guarded(runner: Callable[[], list[dict[str, Any]]], task: Any) -> list[dict[str, Any]]:
@@ -1173,8 +1175,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             except (ParameterError, ConfigError) as err:
                 raise ToolError(f'--controller {args.controller}: {name}: {err}') from err
     if args.tune and args.seeds != 1:
-        raise ToolError("--seeds: --tune scores the baselines' grids on the league's seeds; "
-                        'use one or the other')
+        raise ToolError("--seeds: --tune scores the baselines' grids on its own fixed noise "
+                        'seeds (docs/baselines.md); use one or the other')
     noisy = [c.name for c in PLANTS if c.noisy]
     if args.seeds != 1 and not args.tune and not set(noisy) & set(args.plants):
         raise ToolError(f'--seeds {args.seeds}: the seeds repeat the runs of the noisy plant '
