@@ -542,11 +542,14 @@ def test_the_seeds_option_writes_each_goal_s_share(tmp_path, capsys):
                                           '--tune']) == 2
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and '--seeds' in err and '--tune' in err, err
+    # before: 'on the league's seeds', but tune_point runs seeds 1 and 2 at 30 and 37 m/s
+    # (the league's: speed_seed, 3 and 4)
+    assert "league's seeds" not in err and 'fixed noise seeds' in err, err
     # seeds for no plant with noise: refused, not silently the noise-free league
     assert run_tool(compare.main, base[:-6] + ['--plants', 'linear', 'nonlinear', '--out',
                                                str(tmp_path / 'x'), '--seeds', '4']) == 2
     err = capsys.readouterr().err
-    assert err.count('\n') == 1 and 'none of --plants linear nonlinear' in err, err
+    assert err.count('\n') == 1 and 'which --plants leaves out' in err, err
     assert not (tmp_path / 'x').exists()
     out = tmp_path / 'three'
     json_path = tmp_path / 'three.json'
@@ -566,3 +569,127 @@ def test_the_seeds_option_writes_each_goal_s_share(tmp_path, capsys):
         'Same inputs')[1].replace('noise seeds per run', '')
     assert all(',1,' in line for line in (out / 'goals_over_seeds.csv').read_text()
                .splitlines()[1:])
+
+
+def test_seeds_without_the_noisy_plant_or_with_a_speed_twice_are_refused(tmp_path, capsys):
+    base = ['--laws', 'lqr', '--scenarios', 's0_straight', '--workers', '1', '--no-plots',
+            '--no-progress', '--duration', '3', '--dt', '0.01', '--out', str(tmp_path / 'x')]
+    # before: --plants nonlinear --seeds 3 ran, and league.md said '3 noise seeds per
+    # speed on the noisy plant' over an empty, broken table (goals_over_seeds.csv: no
+    # header); --speeds 37 37 --seeds 2 ran each seed twice and counted both runs in
+    # each goal's share (4 runs of 2 seeds)
+    for bad, words in (
+            (['--plants', 'nonlinear', '--speeds', '37', '--seeds', '3'],
+             ('--seeds 3', compare.GOAL_PLANT)),
+            (['--plants', 'nonlinear_delay_noise', '--speeds', '37', '30', '37.0',
+              '--seeds', '2'], ('--speeds', '37 m/s given twice'))):
+        assert run_tool(compare.main, base + bad) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and all(w in err for w in words), err
+    assert not (tmp_path / 'x').exists()
+
+
+def test_a_league_where_no_goal_applies_says_so_and_its_cells_file_has_a_header(tmp_path):
+    # S4 at 10 m/s: no goal applies (S4's is at 37)
+    rows = [compare.finish_row('lqr', 's4_lane_change', compare.GOAL_PLANT, 10.0,
+                               compare.empty_row(''), compare.run_seed(10.0, k))
+            for k in range(3)]
+    assert all(r['goals'] == '' for r in rows)
+    text = compare.write_report(rows, ['lqr'], tmp_path, plot=False, seeds=3).read_text()
+    # before: the section's table was '|  |' over '|' (no columns) and the CSV was empty
+    section = text.split('## Goals over 3 noise seeds')[1].split('## Peak')[0]
+    assert 'none: no goal applies' in section and '|  |' not in section, section
+    assert (tmp_path / 'goals_over_seeds.csv').read_text().splitlines() == [
+        ','.join(compare.CELL_COLUMNS)]
+
+
+def test_the_report_says_what_one_seed_and_a_noise_free_goal_mean(tmp_path):
+    def rows(plant, seeds):
+        return [compare.finish_row('lqr', 's2_curve_entry', plant, 37.0,
+                                   {**compare.empty_row(''), 'peak_cg_error_m': 0.02,
+                                    'off_road': False},
+                                   compare.run_seed(37.0, k) if plant == compare.GOAL_PLANT
+                                   else None)
+                for k in range(seeds)]
+    # before: a one-seed league never said that its goals hold for one noise sample
+    one = compare.write_report(rows(compare.GOAL_PLANT, 1), ['lqr'], tmp_path / 'one',
+                               plot=False).read_text()
+    assert '**One noise seed per speed on the noisy plant' in one
+    free = compare.write_report(rows('nonlinear', 1), ['lqr'], tmp_path / 'free',
+                                plot=False).read_text()
+    assert 'One noise seed' not in free                 # no noisy run: nothing to say
+    # before: the CommonRoad goal's one run per speed sat among the 'N noise seeds' rows
+    text = compare.write_report(rows(compare.GOAL_PLANT, 2) + rows('commonroad_mb', 1),
+                                ['lqr'], tmp_path / 'two', plot=False, seeds=2).read_text()
+    section = text.split('## Goals over 2 noise seeds')[1].split('## Peak')[0]
+    assert ('`CommonRoad S2 <= 5 cm at 30-37` is on a noise-free plant: one run per speed, '
+            'not 2.') in section
+    assert '| lqr | CommonRoad S2 <= 5 cm at 30-37 | 1 | 100 |' in section
+
+
+def test_a_row_fits_no_damping_ratio_it_does_not_report(monkeypatch):
+    # before: every overshoot fitted a damped cosine for a damping ratio the league throws
+    # away, 90 % of a curve run's time (a --seeds 1000 league: about 10 h instead of 1)
+    from lookahead_control.analysis import metrics
+    from sim_plant.closed_loop_sim import run
+    from sim_plant.sensors import NoiseParams
+    noisy = compare.PLANTS[2]
+    scenario = replace(compare.load_scenarios(['s2_curve_entry'])['s2_curve_entry'],
+                       duration=8.0)
+    kwargs = {'initial_speed': 37.0, 'dt': 0.005, 'delay': noisy.delay,
+              'preview_distance': compare.PREVIEW_DISTANCE}
+    law = compare.LAWS['cg_compensated'](VEHICLE, compare.LawSettings())
+    twin = run(scenario, VEHICLE, law, noisy.plant, **kwargs)
+    result = run(scenario, VEHICLE, law, noisy.plant, noise=NoiseParams(), seed=4, **kwargs)
+    clean = {'yaw_overshoot': twin['eps_r'], 'yaw_rate_overshoot': twin['r']}
+    start, end = compare.curve_window(result.time, result['rho'])
+    full = {name: metrics.step_metrics(result.time, result[channel], start,
+                                       compare.FINAL_WINDOW, end, clean[name])
+            for name, channel in (('yaw_overshoot', 'eps_r'), ('yaw_rate_overshoot', 'r'))}
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError('fit_second_order called')
+    monkeypatch.setattr(metrics, 'fit_second_order', no_fit)
+    row = compare.run_row(result, None, VEHICLE, None, clean)
+    for name, step in full.items():
+        assert math.isfinite(step.overshoot) and row[name] == step.overshoot
+
+
+def test_a_file_of_its_names_compare_did_not_write_is_not_overwritten(tmp_path, capsys):
+    # a folder an older compare wrote (it wrote no goals_over_seeds.csv), and a file of
+    # that name someone put there since
+    out = tmp_path / 'old'
+    out.mkdir()
+    (out / 'league.csv').write_text('old league\n')
+    (out / '.compare_written').write_text('league.csv\nleague.md\n')
+    (out / 'goals_over_seeds.csv').write_text('mine\n')
+    args = ['--laws', 'lqr', '--scenarios', 's0_straight', '--speeds', '37', '--plants',
+            'nonlinear_delay_noise', '--workers', '1', '--no-plots', '--no-progress',
+            '--duration', '2', '--dt', '0.01', '--seeds', '2', '--out', str(out)]
+    # before: the folder was compare's, so the file was replaced without a word
+    assert run_tool(compare.main, args) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'goals_over_seeds.csv' in err, err
+    assert (out / 'goals_over_seeds.csv').read_text() == 'mine\n'
+    assert (out / 'league.csv').read_text() == 'old league\n'          # before any run
+    assert compare.main(args + ['--overwrite']) == 0
+    assert (out / 'goals_over_seeds.csv').read_text().startswith('law,goal,')
+    assert 'goals_over_seeds.csv' in (out / '.compare_written').read_text()
+    assert compare.main(args) == 0      # now it is compare's own
+
+
+def test_many_seeds_make_the_noisy_plant_s_task_the_costliest():
+    # before: a package plant's task cost its steps whatever its runs, so with --seeds
+    # 1000 (4000 runs of S2: about 45 s) the pool started CommonRoad's 4 runs first and
+    # could leave the longest task for last
+    noisy = next(c for c in compare.PLANTS if c.name == compare.GOAL_PLANT)
+    multi_body = next(c for c in compare.PLANTS if c.name == 'commonroad_mb')
+    speeds = list(compare.SPEEDS)
+
+    def cost(case, seeds):
+        return compare.task_cost(case, len(compare.case_runs(case, speeds, seeds)), 12.0,
+                                 compare.DT)
+    assert cost(multi_body, 1000) == cost(multi_body, 1)     # no noise: no seeds
+    assert cost(noisy, 1) < cost(multi_body, 1) < cost(noisy, 1000)
+    assert cost(noisy, 1000) / cost(noisy, 1) == pytest.approx(
+        (1.0 + 4000 / compare.BATCH_RUNS) / (1.0 + 4 / compare.BATCH_RUNS))

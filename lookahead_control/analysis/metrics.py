@@ -269,7 +269,7 @@ def decay_damping(deviation: Array, noise: float = 0.0,
 
 def step_metrics(time: Array, x: Array, step_time: float,
                  final_window: float = 1.0, end_time: Optional[float] = None,
-                 noise_free: Optional[Array] = None) -> StepMetrics:
+                 noise_free: Optional[Array] = None, damping: bool = True) -> StepMetrics:
     """
     Return overshoot, damping ratio and settling time of a step response.
 
@@ -294,6 +294,9 @@ def step_metrics(time: Array, x: Array, step_time: float,
     :param final_window: the final value is the mean over this last stretch [s].
     :param end_time: end of the response (the next step), default: the last sample [s].
     :param noise_free: ``x`` of the same run without sensor noise, at the same times.
+    :param damping: measure the damping ratio (False: NaN without a note; it is the
+        costly part, a least-squares fit, for a caller that needs only the overshoot and
+        settling time).
     :return: the step metrics; NaN with a note where they do not apply.
     """
     end = float(time[-1]) if end_time is None else end_time
@@ -370,11 +373,11 @@ def step_metrics(time: Array, x: Array, step_time: float,
     else:
         beyond = float(np.max(math.copysign(1.0, final - initial) * deviation))
         overshoot = max(beyond, 0.0) / size
-    damping, why = decay_damping(deviation, float(np.std(y[t[1:] >= t[-1] - final_window])),
-                                 t)
+    zeta, why = (decay_damping(deviation, float(np.std(y[t[1:] >= t[-1] - final_window])),
+                               t) if damping else (math.nan, ''))
     if why:
         notes.append(f'damping: {why}')
-    return StepMetrics(initial, final, excursion, overshoot, damping, settling,
+    return StepMetrics(initial, final, excursion, overshoot, zeta, settling,
                        '; '.join(notes))
 
 

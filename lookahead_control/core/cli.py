@@ -216,16 +216,20 @@ def markdown_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[str] | N
     return '\n'.join(lines)
 
 
-def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
+def write_csv(path: Path, rows: Sequence[Mapping[str, Any]],
+              columns: Sequence[str] | None = None) -> None:
     """
     Write rows as CSV.
 
     :param path: the file.
     :param rows: the rows.
+    :param columns: the header (default: the first row's keys; without rows and
+        columns the file has an empty header).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open('w', newline='', encoding='utf-8') as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0].keys()) if rows else [])
+        fields = list(columns) if columns is not None else list(rows[0].keys()) if rows else []
+        writer = csv.DictWriter(handle, fieldnames=fields)
         writer.writeheader()
         writer.writerows(rows)
 
@@ -269,25 +273,36 @@ def output_manifest(out: Path, tool: str) -> Path:
     return out / f'.{tool}_written'
 
 
-def claim_output(out: Path, tool: str, overwrite: bool = False) -> frozenset[str]:
+def claim_output(out: Path, tool: str, overwrite: bool = False,
+                 names: Sequence[str] = ()) -> frozenset[str]:
     """
     Check that ``tool`` may write into ``out`` before it runs; never delete anything.
 
     A missing or empty folder (created here), or one that ``tool`` wrote (its manifest is
     there), is fine. Any other non-empty folder is refused unless ``overwrite``: then
-    files of the tool's names are replaced and nothing else is touched.
+    files of the tool's names are replaced and nothing else is touched. In a folder
+    ``tool`` wrote, a file of one of ``names`` that its manifest does not list (put
+    there by someone else, e.g. a name an older version of the tool did not write) is
+    refused the same way.
 
     :param out: the ``--out`` folder.
     :param tool: the tool's name (the manifest's and the message's).
     :param overwrite: the user allowed writing into a folder ``tool`` did not make.
+    :param names: the files this run will write there.
     :return: the names the tool's previous runs wrote there (empty if none).
-    :raises ToolError: ``out`` is a file, or a non-empty folder ``tool`` did not write.
+    :raises ToolError: ``out`` is a file, or a non-empty folder ``tool`` did not write,
+        or a file of ``names`` there that ``tool`` did not write.
     """
     if out.exists() and not out.is_dir():
         raise ToolError(f'--out {out}: is a file, not a folder')
     manifest = output_manifest(out, tool)
     if manifest.is_file():
-        return frozenset(manifest.read_text(encoding='utf-8').split('\n')) - {''}
+        previous = frozenset(manifest.read_text(encoding='utf-8').split('\n')) - {''}
+        foreign = [n for n in names if n not in previous and (out / n).exists()]
+        if foreign and not overwrite:
+            raise ToolError(f'--out {out}: {foreign[0]} is there and {tool} did not write '
+                            'it; move it away, or give --overwrite to replace it')
+        return previous
     entries = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
     if entries and not overwrite:
         raise ToolError(f'--out {out}: not empty and not written by {tool} (holds '
