@@ -522,6 +522,12 @@ def test_each_goal_s_share_of_seeds_by_hand():
     assert compare.goal_unit('yaw_rebound') == (100.0, '%')
 
 
+def test_the_plot_says_its_bars_are_the_worst_of_the_seeds():
+    rows = [_seeded(0.05, 4), _seeded(0.01, 1000004)]
+    assert compare.plot_title(rows).endswith(', worst of 2 noise seeds')
+    assert 'seeds' not in compare.plot_title(rows[:1])
+
+
 def test_the_per_scenario_peak_is_the_worst_seed_not_the_last():
     # before, the table took whichever seed's row came last
     rows = [_seeded(0.05, 4), _seeded(0.01, 1000004)]

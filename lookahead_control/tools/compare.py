@@ -27,6 +27,7 @@ A law added later is one entry of :data:`LAWS`.
 
 from __future__ import annotations
 
+from collections import Counter
 from concurrent.futures import as_completed, ProcessPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -894,6 +895,20 @@ def missed_runs(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     return table
 
 
+def plot_title(rows: Sequence[Mapping[str, Any]]) -> str:
+    """
+    Return the title of the plot's peak panel: what its bars are the worst of.
+
+    :param rows: the runs.
+    :return: the title (with the seeds per run when there are several).
+    """
+    cells = Counter((r['law'], r['scenario'], r['speed_mps']) for r in rows
+                    if r['plant'] == GOAL_PLANT)
+    seeds = max(cells.values(), default=1)
+    return ('37 m/s (S5: 10-37-10 m/s), nonlinear + 20 ms + noise'
+            + (f', worst of {seeds} noise seeds' if seeds > 1 else ''))
+
+
 def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Path) -> Path:
     """
     Plot peak CG error per scenario at 37 m/s, S0 noise and rebound, on the goal plant.
@@ -925,7 +940,7 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
         axes[0].set_yscale('log')
     axes[0].set_ylabel('peak CG lateral error y_cg [cm] (log)' if plotted else
                        f'no {GOAL_PLANT} run at 37 m/s in this league')
-    axes[0].set_title('37 m/s (S5: 10-37-10 m/s), nonlinear + 20 ms + noise')
+    axes[0].set_title(plot_title(rows))
     axes[0].legend(fontsize=8)
     for ax, label in ((axes[1], 'S0 steering noise rms [mrad]'),
                       (axes[2], 'S0 yaw rebound [%]')):
