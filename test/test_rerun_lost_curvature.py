@@ -432,3 +432,28 @@ def test_analyze_node_names_the_controller_of_a_two_vehicle_bag(tmp_path):
     assert analyze_tool.main([str(bag), '--node', '/car_b/controller', '--out',
                               str(tmp_path / 'out'), '--no-plots']) == 0
     assert '| stanley |' in (tmp_path / 'out' / 'report.md').read_text()
+
+
+def test_analyze_refuses_to_replace_a_file_of_its_names_it_did_not_write(tmp_path, capsys):
+    # before: in a folder analyze wrote (--no-plots), a user's overlay.png was replaced by
+    # the next run with plots without a word (compare has the same check since probe24)
+    from lookahead_control.core.cli import run_tool
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _two_controller_bag(bag)
+    out = tmp_path / 'out'
+    assert analyze_tool.main([str(bag), '--out', str(out), '--no-plots']) == 0
+    (out / 'overlay.png').write_bytes(b'my own figure')
+    assert run_tool(analyze_tool.main, [str(bag), '--out', str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'overlay.png' in err and '--overwrite' in err, err
+    assert (out / 'overlay.png').read_bytes() == b'my own figure'
+    assert analyze_tool.main([str(bag), '--out', str(out), '--overwrite']) == 0
+    assert (out / 'overlay.png').read_bytes()[:4] == b'\x89PNG'
+    assert analyze_tool.main([str(bag), '--out', str(out)]) == 0        # its own now
+    # a law labelled n/a (the bag names no schedule): before, its figure went to a folder
+    # fig_n/ as a.png and the report linked a.png, which was not there
+    assert not (out / 'fig_n').exists() and (out / 'fig_n_a.png').is_file()
+    assert '](fig_n_a.png)' in (out / 'report.md').read_text()
+    assert analyze_tool.output_names([]) == ['metrics.csv', 'metrics.json', 'report.md',
+                                             'overlay.png', 'look_ahead_vs_speed.png']

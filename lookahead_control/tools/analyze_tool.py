@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+import re
 from typing import Any, Sequence
 
 from lookahead_control.analysis.bag_analysis import (bag_row, law_label, run_label, run_series,
@@ -96,6 +97,33 @@ def curve_vehicle(runs: Sequence[RunData]) -> tuple[VehicleParams, str]:
                              'the curves are the default vehicle (assumed).')
 
 
+def figure_name(label: str) -> str:
+    """
+    Return the file name of a law's figure: ``fig_<label>.png``, a file name whatever it is.
+
+    :param label: the law's label (:func:`law_label`: ``n/a`` when the bag names none).
+    :return: the name, every character but letters, digits, ``_``, ``-`` and ``.`` as ``_``.
+    """
+    return 'fig_' + re.sub(r'[^A-Za-z0-9_.-]', '_', label) + '.png'
+
+
+def output_names(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
+                 plots: bool = True) -> list[str]:
+    """
+    Return the names of the files :func:`write_outputs` will write for these results.
+
+    :param results: the output of :func:`analyze`.
+    :param plots: the plots are written too.
+    :return: the file names.
+    """
+    names = ['metrics.csv', 'metrics.json', 'report.md']
+    if plots:
+        labels = dict.fromkeys(law_label(row) for _, _, row in results)
+        names += [figure_name(label) for label in labels]
+        names += ['overlay.png', 'look_ahead_vs_speed.png']
+    return names
+
+
 def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
                   out: Path, plots: bool = True, title: str = 'Recorded runs',
                   written: list[Path] | None = None) -> Path:
@@ -133,7 +161,7 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
             groups.setdefault(law_label(row), []).append(
                 {'label': run_label(row), 'time': series.time, **series.channels})
         for label, runs in groups.items():
-            png = plot_runs(runs, out / f'fig_{label}.png',
+            png = plot_runs(runs, out / figure_name(label),
                             f'{LAW_TITLES.get(label, "law " + label)}: one line per bag')
             files.append(png)
             text.append(f'![{label}]({png.name})')
@@ -184,7 +212,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--no-plots', action='store_true', help='write no PNG plots')
     args = p.parse_args(argv)
     results = analyze(args.bags, topic_overrides(args.topic), args.node)   # said first
-    previous = claim_output(args.out, 'analyze', args.overwrite)
+    previous = claim_output(args.out, 'analyze', args.overwrite,
+                            output_names(results, not args.no_plots))
     written: list[Path] = []
     report = write_outputs(results, args.out, plots=not args.no_plots, written=written)
     record_output(args.out, 'analyze', written, previous)
