@@ -260,6 +260,9 @@ class RecorderNode(Node):
                 except OSError as err:
                     self.get_logger().warn(f'scenario {path} not stored: {err}')
                 else:
+                    # per node (a bag of several simulators, each its scenario) and the
+                    # last one read (what bags before the per-node key hold)
+                    self.bag.describe(SCENARIO_KEY + target, scenario_text)
                     self.bag.describe(SCENARIO_KEY, scenario_text)
         except BagError:
             return              # the bag failed: the node stops, main reports it

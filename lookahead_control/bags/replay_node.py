@@ -56,7 +56,8 @@ def offline(args: argparse.Namespace) -> int:
     """
     # override values as YAML: numbers, booleans, strings
     overrides = {k: yaml.safe_load(v) for k, v in assignments(args.param, '-p').items()}
-    run = load_run(args.bag, assignments(args.topic, '--topic'), args.node or CONTROLLER_NODE)
+    node = CONTROLLER_NODE if args.node is None else args.node     # '' is refused
+    run = load_run(args.bag, assignments(args.topic, '--topic'), node)
     result = rerun(run, overrides, args.order)
     report = {'bag': str(args.bag), 'node': run.controller_node, 'order': result.order,
               'compared': result.compared,
@@ -240,7 +241,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
               if value is not None]
     offline_given = [name for name, value in (
         ('-p', args.param), ('--topic', args.topic), ('--order', args.order),
-        ('--node', args.node),
+        ('--node', args.node is not None),
         ('--json', args.json)) if value]
     if offline_run:
         if played:

@@ -1,0 +1,197 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""
+``replay --offline --node`` and ``analyze --node`` on bags of several vehicles (probe25).
+
+Found on a real two-car run over DDS (``/controller`` + ``/sim_plant`` and the same in
+``/car_b``, recorded with ``--describe`` of all four): the re-run and the analysis of
+each car held (0 rad apart), but a node of the bag that is no controller was re-run as
+one, an empty ``--node`` was the default, and the scenario of car b's row was whichever
+simulator the recorder read last.
+"""
+
+from types import SimpleNamespace
+
+from lookahead_control.bags.rosbag_io import PARAMETERS_KEY, SCENARIO_KEY
+from lookahead_control.bags.run_data import controller_from_params, load_run, node_topics
+from lookahead_control.core.cli import run_tool
+import pytest
+from test_rerun_lost_curvature import _conv_sample, _feed, _inputs, RANK
+import yaml
+
+SCENARIO_A = 'scenario:\n  name: road_a\n'
+SCENARIO_B = 'scenario:\n  name: road_b\n'
+
+
+def _bag(path, params, description=None):
+    """
+    Write a bag of the controllers of ``params`` (each its topics and commands).
+
+    :param path: the bag directory.
+    :param params: node -> its recorded parameters (nodes without ``law`` get no topics).
+    :param description: more run description entries.
+    """
+    from lookahead_control.bags.rosbag_io import (BagWriter, qos_from_ints, serialize_cdr,
+                                                  typestore)
+    from lookahead_control.ros import conversions as conv
+    store = typestore()
+    qos = [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})]
+    encode = {'lateral_error': lambda s: conv.to_lateral_error(s.stamp_ns, 'b', s.distance,
+                                                               s.value),
+              'yaw': lambda s: conv.to_yaw(s.stamp_ns, 'b', s.relative_yaw, s.yaw_rate,
+                                           s.accel_x),
+              'velocity': lambda s: conv.to_velocity(s.stamp_ns, 'b', s.v_x, s.v_y, 0.0),
+              'road_curvature': lambda s: conv.to_curvature(s.stamp_ns, 'b', [(0.0, s.rho)])}
+    msgtypes = {'lateral_error': 'geometry_msgs/msg/PointStamped', 'yaw': 'sensor_msgs/msg/Imu',
+                'velocity': 'geometry_msgs/msg/TwistStamped',
+                'road_curvature': 'geometry_msgs/msg/PolygonStamped',
+                'steering': 'sensor_msgs/msg/JointState'}
+    writer = BagWriter(path)
+    messages = []
+    for node, own in params.items():
+        if 'law' not in own:
+            continue
+        topics = node_topics(node)
+        core, _ = controller_from_params(own)
+        for role, sample in _feed(_inputs(60, 10**12)):
+            msg = encode[role](sample)
+            messages.append((topics[role], sample.stamp_ns, RANK[role], msg))
+            assert core.accept(role, _conv_sample(role, msg), sample.stamp_ns) is None
+            if role == 'lateral_error':
+                command = core.compute(sample.stamp_ns)
+                messages.append((topics['steering'], sample.stamp_ns, 4,
+                                 conv.to_steering(sample.stamp_ns, command.steering, 0.0)))
+        for role, msgtype in msgtypes.items():
+            writer.add_topic(topics[role], msgtype, qos)
+    for topic, stamp, rank, msg in sorted(messages, key=lambda m: (m[1], m[2])):
+        writer.write(topic, 10**12 + stamp + rank, serialize_cdr(msg, store))
+    writer.describe(PARAMETERS_KEY, yaml.safe_dump(
+        {node: {'ros__parameters': own} for node, own in params.items()}))
+    for key, text in (description or {}).items():
+        writer.describe(key, text)
+    writer.close()
+
+
+TWO_CARS = {'/controller': {'law': 'paper'},
+            '/sim_plant': {'vehicle.d_s': 1.5, 'scenario_file': '/x/road_a.yaml',
+                           'plant.model': 'linear', 'mode': 'lockstep'},
+            '/car_b/controller': {'law': 'stanley'},
+            '/car_b/sim_plant': {'vehicle.d_s': 1.5, 'scenario_file': '/x/road_b.yaml',
+                                 'plant.model': 'nonlinear', 'mode': 'lockstep'}}
+
+
+@pytest.mark.parametrize('node', ['/car_b/sim_plant', '/sim_plant'])
+def test_a_recorded_node_that_is_no_controller_is_refused(tmp_path, capsys, node):
+    # before: its parameters were in the bag, so it passed: replay re-ran the default
+    # controller (its vehicle.*, defaults for the rest) on its namespace's topics against
+    # its namespace's steering and exited 0 (a real two-car DDS bag: 1.6 mrad off),
+    # analyze made a row of it; nothing said it was the simulator
+    from lookahead_control.bags import replay_node
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--node', node]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1, err
+    assert "not a controller's" in err and '/car_b/controller, /controller' in err, err
+    assert run_tool(analyze_tool.main, [str(bag), '--node', node, '--out',
+                                        str(tmp_path / 'out'), '--no-plots']) == 2
+    assert "not a controller's" in capsys.readouterr().err
+    assert not (tmp_path / 'out').exists()
+    # the controllers themselves still re-run exactly
+    for name in ('/controller', '/car_b/controller'):
+        assert run_tool(replay_node.main, [str(bag), '--offline', '--node', name,
+                                           '--check', '1e-9']) == 0
+
+
+def test_an_empty_node_name_is_refused_in_both_modes(tmp_path, capsys):
+    # before: replay took --node '' for the default (args.node or /controller) and ran
+    # /controller's re-run; without --offline the empty value was not "given" and the bag
+    # was played over DDS. analyze refused it already
+    from lookahead_control.bags import replay_node
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--node', '']) == 2
+    assert 'not a fully qualified node name' in capsys.readouterr().err
+    assert run_tool(replay_node.main, [str(bag), '--node', '']) == 2
+    assert '--node: only with --offline' in capsys.readouterr().err
+
+
+def test_each_car_is_named_by_its_own_simulators_scenario(tmp_path):
+    # before: the row's scenario was the bag's one lookahead_control/scenario entry, the
+    # scenario of whichever simulator the recorder read last: car b's row named road_a
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS, {SCENARIO_KEY + '/sim_plant': SCENARIO_A,
+                         SCENARIO_KEY + '/car_b/sim_plant': SCENARIO_B,
+                         SCENARIO_KEY: SCENARIO_A})
+    for node, scenario, plant in (('/controller', 'road_a', 'linear'),
+                                  ('/car_b/controller', 'road_b', 'nonlinear')):
+        (_, _, row), = analyze_tool.analyze([bag], None, node)
+        assert (row['scenario'], row['plant']) == (scenario, plant), node
+
+
+def test_a_bag_before_the_per_node_scenario_says_what_it_can(tmp_path):
+    # a bag written before the per-node key: one entry, the last simulator's. Where the
+    # simulators ran different files it cannot say whose: n/a, not the other car's name
+    # (before: road_a for both cars); one simulator or one file: that scenario
+    from lookahead_control.bags.run_data import scenario_text
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'old_two'
+    _bag(bag, TWO_CARS, {SCENARIO_KEY: SCENARIO_A})
+    for node in ('/controller', '/car_b/controller'):
+        (_, _, row), = analyze_tool.analyze([bag], None, node)
+        assert row['scenario'] == 'n/a', node
+    same = {**TWO_CARS, '/car_b/sim_plant': {**TWO_CARS['/car_b/sim_plant'],
+                                             'scenario_file': '/x/road_a.yaml'}}
+    bag = tmp_path / 'old_same'
+    _bag(bag, same, {SCENARIO_KEY: SCENARIO_A})
+    for node in ('/controller', '/car_b/controller'):
+        assert scenario_text(load_run(bag, None, node)) == SCENARIO_A
+    one = {k: v for k, v in TWO_CARS.items() if not k.startswith('/car_b')}
+    bag = tmp_path / 'old_one'
+    _bag(bag, one, {SCENARIO_KEY: SCENARIO_A})
+    (_, _, row), = analyze_tool.analyze([bag])
+    assert row['scenario'] == 'road_a'
+
+
+def test_the_recorder_stores_each_simulators_scenario(probe, tmp_path):
+    # before: one lookahead_control/scenario entry, overwritten by every simulator whose
+    # parameters came in: a two-car bag kept the last one's only
+    from lookahead_control.bags.recorder_node import RecorderNode
+    from lookahead_control.bags.rosbag_io import BagWriter, run_description
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+    node, _ = probe
+    files = {}
+    for name, text in (('a', SCENARIO_A), ('b', SCENARIO_B)):
+        files[name] = tmp_path / f'road_{name}.yaml'
+        files[name].write_text(text)
+    bag = tmp_path / 'bag'
+    recorder = RecorderNode(BagWriter(bag), ['/none'],
+                            describe=('/sim_plant', '/car_b/sim_plant'), context=node.context)
+    try:
+        for target, name in (('/sim_plant', 'a'), ('/car_b/sim_plant', 'b')):
+            value = ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                   string_value=str(files[name]))
+            answer = SimpleNamespace(result=lambda v=value: SimpleNamespace(values=[v]))
+            recorder._got_values(target, ['scenario_file'], answer)
+        described = run_description(bag)
+    finally:
+        recorder.destroy_node()
+        recorder.bag.close()
+    assert described[SCENARIO_KEY + '/sim_plant'] == SCENARIO_A
+    assert described[SCENARIO_KEY + '/car_b/sim_plant'] == SCENARIO_B
+    assert described[SCENARIO_KEY] == SCENARIO_B        # as before: the last one read
