@@ -36,13 +36,14 @@ SCENARIO_A = 'scenario:\n  name: road_a\n'
 SCENARIO_B = 'scenario:\n  name: road_b\n'
 
 
-def _bag(path, params, description=None):
+def _bag(path, params, description=None, recorded=None):
     """
     Write a bag of the controllers of ``params`` (each its topics and commands).
 
     :param path: the bag directory.
-    :param params: node -> its recorded parameters (nodes without ``law`` get no topics).
+    :param params: node -> its parameters (nodes without ``law`` get no topics).
     :param description: more run description entries.
+    :param recorded: the nodes whose parameters the bag records (default: all).
     """
     from lookahead_control.bags.rosbag_io import (BagWriter, qos_from_ints, serialize_cdr,
                                                   typestore)
@@ -76,10 +77,12 @@ def _bag(path, params, description=None):
                                  conv.to_steering(sample.stamp_ns, command.steering, 0.0)))
         for role, msgtype in msgtypes.items():
             writer.add_topic(topics[role], msgtype, qos)
+        writer.add_topic(topics['debug'], 'sensor_msgs/msg/JointState', qos)   # no message
     for topic, stamp, rank, msg in sorted(messages, key=lambda m: (m[1], m[2])):
         writer.write(topic, 10**12 + stamp + rank, serialize_cdr(msg, store))
     writer.describe(PARAMETERS_KEY, yaml.safe_dump(
-        {node: {'ros__parameters': own} for node, own in params.items()}))
+        {node: {'ros__parameters': own} for node, own in params.items()
+         if recorded is None or node in recorded}))
     for key, text in (description or {}).items():
         writer.describe(key, text)
     writer.close()
@@ -195,3 +198,25 @@ def test_the_recorder_stores_each_simulators_scenario(probe, tmp_path):
     assert described[SCENARIO_KEY + '/sim_plant'] == SCENARIO_A
     assert described[SCENARIO_KEY + '/car_b/sim_plant'] == SCENARIO_B
     assert described[SCENARIO_KEY] == SCENARIO_B        # as before: the last one read
+
+
+def test_a_re_run_without_the_nodes_parameters_says_so(tmp_path, capsys):
+    # a recorder that joined late (or was not asked of the node): the node's debug is in
+    # the bag, its parameters are not. Before: replay re-ran the default controller and
+    # printed only the difference (analyze said "assumed: ..."; replay nothing); car b's
+    # stanley run was re-run as the paper law
+    import json
+
+    from lookahead_control.bags import replay_node
+    bag = tmp_path / 'late'
+    _bag(bag, TWO_CARS, recorded=('/controller', '/sim_plant', '/car_b/sim_plant'))
+    report = tmp_path / 'r.json'
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--node', '/car_b/controller',
+                                       '--json', str(report)]) == 0
+    out = capsys.readouterr().out
+    assert ('the bag has no /car_b/controller parameters (recorded of: /car_b/sim_plant, '
+            '/controller, /sim_plant): the re-run uses the default') in out, out
+    assert json.loads(report.read_text())['parameters_recorded'] is False
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--json', str(report)]) == 0
+    assert 'parameters (recorded of' not in capsys.readouterr().out
+    assert json.loads(report.read_text())['parameters_recorded'] is True
