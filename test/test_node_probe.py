@@ -220,3 +220,16 @@ def test_a_re_run_without_the_nodes_parameters_says_so(tmp_path, capsys):
     assert run_tool(replay_node.main, [str(bag), '--offline', '--json', str(report)]) == 0
     assert 'parameters (recorded of' not in capsys.readouterr().out
     assert json.loads(report.read_text())['parameters_recorded'] is True
+
+
+@pytest.mark.parametrize('topic', ['lateral=/car_b/lateral_error', 'foo=/none'])
+def test_an_unknown_topic_role_is_one_line(tmp_path, capsys, topic):
+    # before: a typo'd role (lateral=) whose topic was in the bag crashed replay with a
+    # KeyError traceback (exit 1, as a failed --check); one not in the bag was ignored
+    from lookahead_control.bags import replay_node
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--node', '/car_b/controller',
+                                       '--topic', topic]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'unknown role' in err and 'lateral_error, yaw' in err, err

@@ -275,10 +275,16 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         and, unless ``topics`` says otherwise, the contract topics in its namespace
         (:func:`node_topics`).
     :return: the run.
-    :raises ConfigError: the bag is unreadable, lacks the lateral-error topic, a contract
-        topic has another type, or ``node`` is not ``/controller`` and the bag has
-        neither its parameters nor its debug topic.
+    :raises ConfigError: an unknown role in ``topics``, the bag is unreadable, lacks the
+        lateral-error topic, a contract topic has another type, ``node`` is not
+        ``/controller`` and the bag has neither its parameters nor its debug topic, or
+        its recorded parameters are not a controller's.
     """
+    unknown = sorted(set(topics or {}) - set(TOPICS))
+    if unknown:
+        # before: a KeyError traceback where the topic was in the bag, else ignored
+        raise ConfigError(f'--topic {unknown[0]}=...: unknown role {unknown[0]!r}; roles: '
+                          f'{", ".join(TOPICS)}')
     names = {**node_topics(node), **(topics or {})}
     role_of = {topic: role for role, topic in names.items()}
     available = bag_topics(bag)
