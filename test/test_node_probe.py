@@ -233,3 +233,35 @@ def test_an_unknown_topic_role_is_one_line(tmp_path, capsys, topic):
                                        '--topic', topic]) == 2
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'unknown role' in err and 'lateral_error, yaw' in err, err
+
+
+def test_a_simulator_sharing_its_clock_warns_once(probe):
+    # a real two-car lockstep run (both sim_plants on /clock, controllers with
+    # use_sim_time): each controller followed both clocks, refused its inputs as 1-2 s
+    # ahead of or behind its clock, 20-24 missed deadlines; nothing named the cause.
+    # Before: no shared_clock (AttributeError)
+    from conftest import spin_until
+    from rosgraph_msgs.msg import Clock
+    from sim_plant.sim_plant_node import SimPlantNode
+    node, executor = probe
+    sim = SimPlantNode(context=node.context, namespace='/car_b')
+    alone = SimPlantNode(context=node.context, namespace='/car_c', cli_args=[
+        '--ros-args', '-r', '/clock:=/car_c/clock'])
+    try:
+        assert sim.shared_clock() is None        # alone on /clock
+        other = node.create_publisher(Clock, '/clock', 10)
+        warnings = []
+        assert spin_until(executor, lambda: warnings.append(sim.shared_clock()) or
+                          any(warnings), 60)
+        warning = next(w for w in warnings if w)
+        assert warning == ('another node publishes /clock: a controller with use_sim_time '
+                           "follows both clocks; start each vehicle's nodes with "
+                           '-r /clock:=/car_b/clock')
+        assert sim.shared_clock() is None        # once
+        # a simulator whose clock is remapped shares it with no one
+        assert alone.pub_clock.topic_name == '/car_c/clock'
+        assert alone.shared_clock() is None
+        node.destroy_publisher(other)
+    finally:
+        sim.destroy_node()
+        alone.destroy_node()
