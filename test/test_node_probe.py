@@ -265,3 +265,24 @@ def test_a_simulator_sharing_its_clock_warns_once(probe):
     finally:
         sim.destroy_node()
         alone.destroy_node()
+
+
+def test_a_bag_of_namespaced_vehicles_only_names_its_controllers(tmp_path, capsys):
+    # before: replay/analyze without --node on a bag of /car_b and /car_c only said "no
+    # /lateral_error topic ...; remap with --topic lateral_error=NAME": remapping one
+    # topic re-runs the default /controller's (absent) parameters on a mix of topics
+    from lookahead_control.bags import replay_node
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'b_c'
+    _bag(bag, {'/car_b/controller': {'law': 'paper'}, '/car_c/controller': {'law': 'stanley'},
+               '/car_b/sim_plant': TWO_CARS['/car_b/sim_plant']})
+    for main, args in ((replay_node.main, ['--offline']),
+                       (analyze_tool.main, ['--out', str(tmp_path / 'out'), '--no-plots'])):
+        assert run_tool(main, [str(bag), *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1, err
+        assert err.rstrip().endswith('remap with --topic lateral_error=NAME or name the '
+                                     'controller: --node /car_b/controller or '
+                                     '/car_c/controller'), err
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--node', '/car_c/controller',
+                                       '--check', '1e-9']) == 0

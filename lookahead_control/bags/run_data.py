@@ -303,9 +303,12 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
                           'recorded: '
                           f'{", ".join(recorded_controllers(Path(bag))) or "none"})')
     if names['lateral_error'] not in available:
+        # a bag of vehicles in namespaces only: the controller to name is one of them
+        others = [name for name in recorded_controllers(Path(bag)) if name != node]
+        hint = (f' or name the controller: --node {" or ".join(others)}' if others else '')
         raise ConfigError(f'{bag}: no {names["lateral_error"]} topic (has: '
                           f'{", ".join(sorted(available)) or "none"}); remap with '
-                          '--topic lateral_error=NAME')
+                          f'--topic lateral_error=NAME{hint}')
     for topic, (msgtype, _) in available.items():
         role = role_of.get(topic)
         if role is not None and msgtype != MSGTYPES[role]:
