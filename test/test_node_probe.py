@@ -286,3 +286,17 @@ def test_a_bag_of_namespaced_vehicles_only_names_its_controllers(tmp_path, capsy
                                      '/car_c/controller'), err
     assert run_tool(replay_node.main, [str(bag), '--offline', '--node', '/car_c/controller',
                                        '--check', '1e-9']) == 0
+
+
+def test_the_report_names_the_controller_it_analyzed(tmp_path):
+    # before: car b's report.md was car a's but for its numbers: one row named by the
+    # bag, nothing saying which controller of it (the two rows of one bag, two reports)
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    for node, line in (('/car_b/controller', f'Bags (controller /car_b/controller): `{bag}`'),
+                       ('/controller', f'Bags: `{bag}`')):
+        out = tmp_path / node.replace('/', '_')
+        assert analyze_tool.main([str(bag), '--node', node, '--out', str(out),
+                                  '--no-plots']) == 0
+        assert line in (out / 'report.md').read_text().splitlines()
