@@ -23,6 +23,8 @@ one, an empty ``--node`` was the default, and the scenario of car b's row was wh
 simulator the recorder read last.
 """
 
+from pathlib import Path
+import re
 from types import SimpleNamespace
 
 from lookahead_control.bags.rosbag_io import PARAMETERS_KEY, SCENARIO_KEY
@@ -300,3 +302,63 @@ def test_the_report_names_the_controller_it_analyzed(tmp_path):
         assert analyze_tool.main([str(bag), '--node', node, '--out', str(out),
                                   '--no-plots']) == 0
         assert line in (out / 'report.md').read_text().splitlines()
+
+
+@pytest.mark.process
+def test_a_two_car_dds_run_re_runs_and_analyzes_each_car(tmp_path):
+    # the probe's real run, kept: /controller + /sim_plant and /car_b/... (remapped clock)
+    # in lockstep on two scenarios, recorded with --describe of all four. Each car's
+    # re-run is exact, and its row is its own (scenario, plant, schedule, steps)
+    import json
+    import subprocess
+    import sys
+
+    from lookahead_control.bags import replay_node
+    from lookahead_control.ros.closed_loop import LoopConfig, node_commands, stop
+    from lookahead_control.tools import analyze_tool
+    root = Path(__file__).resolve().parent.parent / 'config' / 'scenarios'
+    scenarios = {}
+    for name, source in (('a', 'paper_r400.yaml'), ('b', 's2_curve_entry.yaml')):
+        text = (root / source).read_text()
+        scenarios[name] = tmp_path / f'{name}.yaml'
+        scenarios[name].write_text(re.sub(r'duration: [0-9.]+', 'duration: 2.0', text))
+    bag = tmp_path / 'two_cars'
+    sim_a, ctl_a = node_commands(LoopConfig(scenarios['a'], speed=30.0, bag=bag))
+    sim_b, ctl_b = node_commands(LoopConfig(scenarios['b'], speed=20.0, plant='nonlinear',
+                                            schedule='exact', bag=bag))
+    car_b = ['-r', '__ns:=/car_b', '-r', '/clock:=/car_b/clock']
+    recorder = subprocess.Popen([sys.executable, '-m', 'lookahead_control.bags.recorder_node',
+                                 '-o', str(bag), '--describe', '/controller', '/sim_plant',
+                                 '/car_b/controller', '/car_b/sim_plant'])
+    controllers = [subprocess.Popen(ctl_a), subprocess.Popen(ctl_b + car_b)]
+    logs = [tmp_path / 'sim_a.log', tmp_path / 'sim_b.log']
+    sims = []
+    for command, log in ((sim_a, logs[0]), (sim_b + car_b, logs[1])):
+        with open(log, 'w') as stream:
+            sims.append(subprocess.Popen(command, stderr=stream))
+    try:
+        for sim in sims:
+            sim.wait(timeout=600)       # start-up on a loaded machine: minutes
+    finally:
+        for sim in sims:
+            stop(sim, 'sim')
+        assert [stop(c, 'controller') for c in controllers] == [0, 0]
+        assert stop(recorder, 'record') == 0
+    for sim, log in zip(sims, logs):
+        text = log.read_text()
+        assert sim.returncode == 0, text
+        assert 'finished at t = 2 s: 200 steps' in text and 'publishes /clock' not in text
+    for node in ('/controller', '/car_b/controller'):
+        report = tmp_path / 'replay.json'
+        assert run_tool(replay_node.main, [str(bag), '--offline', '--node', node, '--check',
+                                           '1e-9', '--json', str(report)]) == 0, node
+        data = json.loads(report.read_text())
+        assert (data['node'], data['compared'], data['parameters_recorded']) == \
+            (node, 200, True), data
+    rows = {node: analyze_tool.analyze([bag], None, node)[0][2]
+            for node in ('/controller', '/car_b/controller')}
+    assert [(r['scenario'], r['plant'], r['schedule'], r['steps'], r['mode'])
+            for r in rows.values()] == [('paper_r400', 'linear', 'paper', 200, 'lockstep'),
+                                        ('s2_curve_entry', 'nonlinear', 'exact', 200,
+                                         'lockstep')]
+    assert rows['/car_b/controller']['speed_mps'] == pytest.approx(20.0, abs=0.5)
