@@ -362,3 +362,21 @@ def test_a_two_car_dds_run_re_runs_and_analyzes_each_car(tmp_path):
                                         ('s2_curve_entry', 'nonlinear', 'exact', 200,
                                          'lockstep')]
     assert rows['/car_b/controller']['speed_mps'] == pytest.approx(20.0, abs=0.5)
+
+
+@pytest.mark.parametrize('name', ['/car_b/controller/', '//controller', '/car b/controller',
+                                  '/1car/controller', '/car_ü/controller'])
+def test_record_refuses_a_describe_name_no_node_can_have(tmp_path, capsys, monkeypatch,
+                                                         name):
+    # before: only a leading / was checked: record --describe /car_b/controller/ (a typo)
+    # recorded the run, the name matched no node, and the bag lacked car b's parameters
+    # without a word (replay --node then re-ran car b without them)
+    from lookahead_control.bags import recorder_node
+    # a recording that started would run until a signal: here it ends at once, exit 0
+    monkeypatch.setattr(recorder_node, 'run_node', lambda *args, **kwargs: 0)
+    bag = tmp_path / 'bag'
+    assert run_tool(recorder_node.main, ['-o', str(bag), '--describe', '/controller',
+                                         name]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'not a fully qualified node name' in err, err
+    assert repr(name) in err and not bag.exists()

@@ -34,7 +34,8 @@ import re
 import sys
 from typing import Any, Optional, Sequence
 
-from lookahead_control.bags.rosbag_io import (BagError, BagWriter, PARAMETERS_KEY, qos_from_ints,
+from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAME,
+                                              NODE_NAME_RULE, PARAMETERS_KEY, qos_from_ints,
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
@@ -390,9 +391,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         except re.error as err:
             raise ToolError(f'-e {args.regex!r}: not a regular expression: {err}') from err
     if args.describe and args.describe != list(DEFAULT_DESCRIBE):
-        bad = [n for n in args.describe if not n.startswith('/')]
+        # before: only a leading / was checked; /car_b/controller/ (a typo) was never
+        # matched by a node, and the bag silently lacked its parameters
+        bad = [n for n in args.describe if not FULL_NODE_NAME.fullmatch(n)]
         if bad:
-            raise ToolError(f'--describe {" ".join(bad)}: node names start with /')
+            raise ToolError(f'--describe {bad[0]!r}: {NODE_NAME_RULE}')
     bag = BagWriter(args.output or Path(default_bag_name()),
                     0.5 if args.chunk_interval is None else args.chunk_interval)
     try:

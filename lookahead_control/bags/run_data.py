@@ -28,13 +28,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
-import re
 import struct
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
-from lookahead_control.bags.rosbag_io import (bag_topics, described_nodes, node_parameters,
+from lookahead_control.bags.rosbag_io import (bag_topics, described_nodes, FULL_NODE_NAME,
+                                              NODE_NAME_RULE, node_parameters,
                                               run_description, SCENARIO_KEY, typestore)
 from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
                                               StanleyParams)
@@ -56,7 +56,6 @@ TOPICS = {'lateral_error': '/lateral_error', 'yaw': '/yaw', 'velocity': '/veloci
           'debug': '/controller/debug', 'ground_truth': '/sim_plant/ground_truth'}
 INPUTS = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
 CONTROLLER_NODE = '/controller'
-_NODE_NAME = re.compile(r'(/[A-Za-z_][A-Za-z0-9_]*)+')
 MSGTYPES = {'lateral_error': 'geometry_msgs/msg/PointStamped',
             'yaw': 'sensor_msgs/msg/Imu', 'velocity': 'geometry_msgs/msg/TwistStamped',
             'road_curvature': 'geometry_msgs/msg/PolygonStamped',
@@ -85,10 +84,8 @@ def node_topics(node: str = CONTROLLER_NODE) -> dict[str, str]:
     :return: role -> topic (:data:`TOPICS` for ``/controller``).
     :raises ConfigError: not a fully qualified node name.
     """
-    if not _NODE_NAME.fullmatch(node):
-        raise ConfigError(f'--node {node!r}: not a fully qualified node name (e.g. '
-                          '/controller or /car_b/controller: /-separated names of letters, '
-                          'digits and _, not starting with a digit)')
+    if not FULL_NODE_NAME.fullmatch(node):
+        raise ConfigError(f'--node {node!r}: {NODE_NAME_RULE}')
     namespace = node.rpartition('/')[0]
     topics = {role: namespace + topic for role, topic in TOPICS.items()}
     topics['debug'] = f'{node}/debug'
