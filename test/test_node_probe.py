@@ -380,3 +380,21 @@ def test_record_refuses_a_describe_name_no_node_can_have(tmp_path, capsys, monke
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'not a fully qualified node name' in err, err
     assert repr(name) in err and not bag.exists()
+
+
+def test_record_says_which_described_node_it_never_saw(probe, tmp_path, capsys):
+    # before: a --describe node that never showed (misspelt: /car_b/controler, or in
+    # another namespace) ended the recording with no word; the bag lacked its parameters
+    # and only replay --node found out. A default one (/sim_plant on a real car) is not
+    # named
+    from lookahead_control.bags.recorder_node import RecorderNode
+    from lookahead_control.bags.rosbag_io import BagWriter
+    node, _ = probe
+    recorder = RecorderNode(BagWriter(tmp_path / 'bag'), ['/none'],
+                            describe=('/controller', '/sim_plant', '/car_b/controler'),
+                            context=node.context)
+    recorder.destroy_node()
+    err = capsys.readouterr().err
+    assert err.rstrip().endswith('; never saw /car_b/controler (--describe): no '
+                                 'parameters'), err
+    assert '/sim_plant' not in err and ' /controller' not in err, err

@@ -332,10 +332,16 @@ class RecorderNode(Node):
                              if r['before_first'])
             missing = [n for n in self.to_describe if n in self._asked
                        and n not in self.parameters]
+            # a node named with --describe (not a default one: a real vehicle has no
+            # /sim_plant) that never showed: misspelt, or in another namespace
+            unseen = [n for n in self.to_describe if n not in self._asked
+                      and n not in DEFAULT_DESCRIBE]
             print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
                   f'{dropped} dropped'
                   + (f'; subscribed late: missed the first {late}' if late else '')
-                  + (f'; no parameters from {", ".join(missing)}' if missing else ''),
+                  + (f'; no parameters from {", ".join(missing)}' if missing else '')
+                  + (f'; never saw {", ".join(unseen)} (--describe): no parameters'
+                     if unseen else ''),
                   file=sys.stderr)
         super().destroy_node()
 
