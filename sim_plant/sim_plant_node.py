@@ -199,6 +199,7 @@ class SimPlantNode(Node):
         reliable = qos('reliable')
         self.vehicle_output = p['output'] == 'vehicle'
         self._resent_at = 0.0
+        self._clock_shared = False
         if self.vehicle_output:
             self.pub_odometry = self.create_publisher(Odometry, 'odometry', reliable)
             self.pub_imu = self.create_publisher(Imu, 'imu', reliable)
@@ -508,10 +509,31 @@ class SimPlantNode(Node):
             self._connected_since = now
         return now - self._connected_since >= self.params['settle']
 
+    def shared_clock(self) -> Optional[str]:
+        """
+        Return a warning, once, if another node publishes this simulator's ``/clock``.
+
+        Two simulators on one ``/clock`` (vehicles in namespaces, a replay with
+        ``--clock``) drive every ``use_sim_time`` node by both clocks: inputs refused as
+        ahead of or behind its clock, missed deadlines (a real two-car lockstep run).
+
+        :return: the warning the first time the clock is shared, else None.
+        """
+        topic = self.pub_clock.topic_name
+        if self._clock_shared or self.count_publishers(topic) < 2:
+            return None
+        self._clock_shared = True
+        namespace = self.get_namespace().rstrip('/') or '/<vehicle>'
+        return (f'another node publishes {topic}: a controller with use_sim_time follows '
+                f"both clocks; start each vehicle's nodes with -r /clock:={namespace}/clock")
+
     def on_poll(self) -> None:
         """Start once the controller is connected; enforce the deadline."""
         if self.done.done():
             return
+        warning = self.shared_clock()
+        if warning:
+            self.get_logger().warn(warning)
         if self.waiting_stamp is None and self.k == 0 and self.answered_stamp is None:
             if not self.settled():
                 return

@@ -34,7 +34,7 @@ import math
 from typing import Any, Mapping, Optional
 
 from lookahead_control.analysis.metrics import run_metrics
-from lookahead_control.bags.run_data import rerun_law, RunData, Samples
+from lookahead_control.bags.run_data import rerun_law, RunData, Samples, scenario_text
 from lookahead_control.core.control_law import cg_error_from
 from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.params import ControllerParams, VehicleParams
@@ -305,7 +305,7 @@ def run_labels(run: RunData) -> dict[str, Any]:
         ``a -> b`` for a run whose law was set while it ran, as its debug topic says).
     """
     scenario = 'n/a'
-    text = run.description.get('lookahead_control/scenario')
+    text = scenario_text(run)     # the run's own simulator's (a bag of several vehicles)
     if text:
         try:
             loaded = yaml.safe_load(text) or {}

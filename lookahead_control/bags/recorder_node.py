@@ -34,7 +34,8 @@ import re
 import sys
 from typing import Any, Optional, Sequence
 
-from lookahead_control.bags.rosbag_io import (BagError, BagWriter, PARAMETERS_KEY, qos_from_ints,
+from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAME,
+                                              NODE_NAME_RULE, PARAMETERS_KEY, qos_from_ints,
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
@@ -260,6 +261,9 @@ class RecorderNode(Node):
                 except OSError as err:
                     self.get_logger().warn(f'scenario {path} not stored: {err}')
                 else:
+                    # per node (a bag of several simulators, each its scenario) and the
+                    # last one read (what bags before the per-node key hold)
+                    self.bag.describe(SCENARIO_KEY + target, scenario_text)
                     self.bag.describe(SCENARIO_KEY, scenario_text)
         except BagError:
             return              # the bag failed: the node stops, main reports it
@@ -328,10 +332,16 @@ class RecorderNode(Node):
                              if r['before_first'])
             missing = [n for n in self.to_describe if n in self._asked
                        and n not in self.parameters]
+            # a node named with --describe (not a default one: a real vehicle has no
+            # /sim_plant) that never showed: misspelt, or in another namespace
+            unseen = [n for n in self.to_describe if n not in self._asked
+                      and n not in DEFAULT_DESCRIBE]
             print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
                   f'{dropped} dropped'
                   + (f'; subscribed late: missed the first {late}' if late else '')
-                  + (f'; no parameters from {", ".join(missing)}' if missing else ''),
+                  + (f'; no parameters from {", ".join(missing)}' if missing else '')
+                  + (f'; never saw {", ".join(unseen)} (--describe): no parameters'
+                     if unseen else ''),
                   file=sys.stderr)
         super().destroy_node()
 
@@ -387,9 +397,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         except re.error as err:
             raise ToolError(f'-e {args.regex!r}: not a regular expression: {err}') from err
     if args.describe and args.describe != list(DEFAULT_DESCRIBE):
-        bad = [n for n in args.describe if not n.startswith('/')]
+        # before: only a leading / was checked; /car_b/controller/ (a typo) was never
+        # matched by a node, and the bag silently lacked its parameters
+        bad = [n for n in args.describe if not FULL_NODE_NAME.fullmatch(n)]
         if bad:
-            raise ToolError(f'--describe {" ".join(bad)}: node names start with /')
+            raise ToolError(f'--describe {bad[0]!r}: {NODE_NAME_RULE}')
     bag = BagWriter(args.output or Path(default_bag_name()),
                     0.5 if args.chunk_interval is None else args.chunk_interval)
     try:

@@ -32,7 +32,7 @@ import time
 from typing import Any, Optional, Sequence
 
 from lookahead_control.bags.recorder_node import message_class
-from lookahead_control.bags.rosbag_io import bag_reader
+from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
 from lookahead_control.bags.run_data import CONTROLLER_NODE, load_run, rerun
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
                                         ToolError, write_json)
@@ -56,7 +56,8 @@ def offline(args: argparse.Namespace) -> int:
     """
     # override values as YAML: numbers, booleans, strings
     overrides = {k: yaml.safe_load(v) for k, v in assignments(args.param, '-p').items()}
-    run = load_run(args.bag, assignments(args.topic, '--topic'), args.node or CONTROLLER_NODE)
+    node = CONTROLLER_NODE if args.node is None else args.node     # '' is refused
+    run = load_run(args.bag, assignments(args.topic, '--topic'), node)
     result = rerun(run, overrides, args.order)
     report = {'bag': str(args.bag), 'node': run.controller_node, 'order': result.order,
               'compared': result.compared,
@@ -66,8 +67,16 @@ def offline(args: argparse.Namespace) -> int:
     report['curvature_judgment_followed'] = result.followed
     report['curvature_judged_otherwise_on_stamps'] = result.judged_otherwise
     report['law_switches_followed'] = result.law_switches
+    report['parameters_recorded'] = bool(run.controller_params)
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
+    if not run.controller_params:
+        # a recorder that joined late, or not asked (--describe): the re-run is the
+        # default controller, which is not what ran
+        print(f'replay: the bag has no {run.controller_node} parameters (recorded of: '
+              f'{", ".join(described_nodes(Path(args.bag))) or "no node"}): the re-run '
+              'uses the default vehicle, law and safety parameters (-p NAME=VALUE sets '
+              'one)')
     if result.estimated:
         print(f'replay: the law ran on its curvature estimate in {result.estimated} of '
               f'{len(result.commands)} answers (road_curvature not in the bag, or stamped '
@@ -240,7 +249,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
               if value is not None]
     offline_given = [name for name, value in (
         ('-p', args.param), ('--topic', args.topic), ('--order', args.order),
-        ('--node', args.node),
+        ('--node', args.node is not None),
         ('--json', args.json)) if value]
     if offline_run:
         if played:

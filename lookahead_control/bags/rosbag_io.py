@@ -35,6 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import os
 from pathlib import Path
+import re
 import shutil
 import struct
 import tempfile
@@ -53,6 +54,10 @@ import yaml
 
 DESCRIPTION_FILE = 'run_description.yaml'
 KEY_PREFIX = 'lookahead_control/'
+# a fully qualified node name (what --node and record --describe take)
+FULL_NODE_NAME = re.compile(r'(/[A-Za-z_][A-Za-z0-9_]*)+')
+NODE_NAME_RULE = ('not a fully qualified node name (e.g. /controller or /car_b/controller: '
+                  '/-separated names of letters, digits and _, not starting with a digit)')
 PARAMETERS_KEY = KEY_PREFIX + 'parameters'
 SCENARIO_KEY = KEY_PREFIX + 'scenario'
 RECORDER_KEY = KEY_PREFIX + 'recorder'

@@ -28,14 +28,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
-import re
 import struct
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
-from lookahead_control.bags.rosbag_io import (bag_topics, described_nodes, node_parameters,
-                                              run_description, typestore)
+from lookahead_control.bags.rosbag_io import (bag_topics, described_nodes, FULL_NODE_NAME,
+                                              NODE_NAME_RULE, node_parameters,
+                                              run_description, SCENARIO_KEY, typestore)
 from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
                                               StanleyParams)
 from lookahead_control.core.config import ConfigError, dataclass_from_params
@@ -56,7 +56,6 @@ TOPICS = {'lateral_error': '/lateral_error', 'yaw': '/yaw', 'velocity': '/veloci
           'debug': '/controller/debug', 'ground_truth': '/sim_plant/ground_truth'}
 INPUTS = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
 CONTROLLER_NODE = '/controller'
-_NODE_NAME = re.compile(r'(/[A-Za-z_][A-Za-z0-9_]*)+')
 MSGTYPES = {'lateral_error': 'geometry_msgs/msg/PointStamped',
             'yaw': 'sensor_msgs/msg/Imu', 'velocity': 'geometry_msgs/msg/TwistStamped',
             'road_curvature': 'geometry_msgs/msg/PolygonStamped',
@@ -85,14 +84,71 @@ def node_topics(node: str = CONTROLLER_NODE) -> dict[str, str]:
     :return: role -> topic (:data:`TOPICS` for ``/controller``).
     :raises ConfigError: not a fully qualified node name.
     """
-    if not _NODE_NAME.fullmatch(node):
-        raise ConfigError(f'--node {node!r}: not a fully qualified node name (e.g. '
-                          '/controller or /car_b/controller: /-separated names of letters, '
-                          'digits and _, not starting with a digit)')
+    if not FULL_NODE_NAME.fullmatch(node):
+        raise ConfigError(f'--node {node!r}: {NODE_NAME_RULE}')
     namespace = node.rpartition('/')[0]
     topics = {role: namespace + topic for role, topic in TOPICS.items()}
     topics['debug'] = f'{node}/debug'
     return topics
+
+
+def plant_node(node: str = CONTROLLER_NODE) -> str:
+    """
+    Return the simulator node of a controller: ``sim_plant`` in its namespace.
+
+    :param node: the controller's fully qualified name (``/car_b/controller``).
+    :return: e.g. ``/car_b/sim_plant``.
+    """
+    return node.rpartition('/')[0] + '/sim_plant'
+
+
+def is_controller(params: Mapping[str, Any]) -> bool:
+    """
+    Return whether recorded node parameters are a controller's.
+
+    :param params: a node's recorded parameters (flat names).
+    :return: whether any is a controller's (``law``, ``controller.*``, ``safety.*`` ...;
+        a simulator has ``vehicle.*`` only of these).
+    """
+    return any(name in MODELED or name.partition('.')[0] in LAW_SETS[1:] for name in params)
+
+
+def recorded_controllers(bag: Path) -> list[str]:
+    """
+    Return the controller nodes whose parameters a bag recorded.
+
+    :param bag: the bag.
+    :return: their fully qualified names, sorted.
+    """
+    return [node for node in described_nodes(bag)
+            if is_controller(node_parameters(bag, node))]
+
+
+def scenario_text(run: RunData) -> Optional[str]:
+    """
+    Return the scenario file the run's simulator ran, as the bag stored it.
+
+    The recorder stores each described simulator's scenario under
+    ``lookahead_control/scenario/<node>`` and the last one it read under
+    ``lookahead_control/scenario``; a bag from before the per-node key holds only the
+    latter, which is another simulator's where the bag's simulators ran different files.
+
+    :param run: the run.
+    :return: the scenario YAML text, or None where the bag does not say which it is.
+    """
+    own = run.description.get(SCENARIO_KEY + plant_node(run.controller_node))
+    if own is not None:
+        return own
+    if not run.plant_params:
+        return None
+    files = set()
+    for node in described_nodes(run.bag):
+        params = node_parameters(run.bag, node)
+        if 'scenario_file' in params:
+            files.add(str(params['scenario_file']))
+    if len(files) > 1:
+        return None         # simulators of different scenarios: the one stored is either's
+    return run.description.get(SCENARIO_KEY)
 
 
 @dataclass(frozen=True)
@@ -216,10 +272,16 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         and, unless ``topics`` says otherwise, the contract topics in its namespace
         (:func:`node_topics`).
     :return: the run.
-    :raises ConfigError: the bag is unreadable, lacks the lateral-error topic, a contract
-        topic has another type, or ``node`` is not ``/controller`` and the bag has
-        neither its parameters nor its debug topic.
+    :raises ConfigError: an unknown role in ``topics``, the bag is unreadable, lacks the
+        lateral-error topic, a contract topic has another type, ``node`` is not
+        ``/controller`` and the bag has neither its parameters nor its debug topic, or
+        its recorded parameters are not a controller's.
     """
+    unknown = sorted(set(topics or {}) - set(TOPICS))
+    if unknown:
+        # before: a KeyError traceback where the topic was in the bag, else ignored
+        raise ConfigError(f'--topic {unknown[0]}=...: unknown role {unknown[0]!r}; roles: '
+                          f'{", ".join(TOPICS)}')
     names = {**node_topics(node), **(topics or {})}
     role_of = {topic: role for role, topic in names.items()}
     available = bag_topics(bag)
@@ -229,10 +291,21 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         raise ConfigError(f'{bag}: --node {node}: neither its parameters nor its '
                           f'{names["debug"]} are in the bag (parameters recorded of: '
                           f'{", ".join(described) or "no node"})')
+    if controller_params and not is_controller(controller_params):
+        # another node of the bag (a simulator: vehicle.* only) is no controller: its
+        # re-run was the default controller on its namespace's inputs, a result without
+        # a word (1.6 mrad off on a two-car DDS run)
+        raise ConfigError(f'{bag}: --node {node}: its recorded parameters are not a '
+                          "controller's (no law, controller.*, safety.* ...; controllers "
+                          'recorded: '
+                          f'{", ".join(recorded_controllers(Path(bag))) or "none"})')
     if names['lateral_error'] not in available:
+        # a bag of vehicles in namespaces only: the controller to name is one of them
+        others = [name for name in recorded_controllers(Path(bag)) if name != node]
+        hint = (f' or name the controller: --node {" or ".join(others)}' if others else '')
         raise ConfigError(f'{bag}: no {names["lateral_error"]} topic (has: '
                           f'{", ".join(sorted(available)) or "none"}); remap with '
-                          '--topic lateral_error=NAME')
+                          f'--topic lateral_error=NAME{hint}')
     for topic, (msgtype, _) in available.items():
         role = role_of.get(topic)
         if role is not None and msgtype != MSGTYPES[role]:
@@ -253,7 +326,7 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
                   counts={t: c for t, (_, c) in available.items()},
                   description=run_description(Path(bag)))
     run.controller_params = controller_params
-    run.plant_params = node_parameters(Path(bag), node.rpartition('/')[0] + '/sim_plant')
+    run.plant_params = node_parameters(Path(bag), plant_node(node))
     run.controller_node = node
     return run
 

@@ -124,6 +124,18 @@ def output_names(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
     return names
 
 
+def bags_line(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]]) -> str:
+    """
+    Return the report's line naming the bags, and the controller unless ``/controller``.
+
+    :param results: the output of :func:`analyze`.
+    :return: e.g. ``Bags (controller /car_b/controller): `two```.
+    """
+    nodes = sorted({run.controller_node for run, _, _ in results})
+    which = f' (controller {", ".join(nodes)})' if nodes != [CONTROLLER_NODE] else ''
+    return f'Bags{which}: ' + ', '.join(f'`{run.bag}`' for run, _, _ in results)
+
+
 def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
                   out: Path, plots: bool = True, title: str = 'Recorded runs',
                   written: list[Path] | None = None) -> Path:
@@ -153,7 +165,7 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
             '',
             markdown_table(rows, COLUMNS, digits=3), '',
             *notes_list(rows, ('bag',)),
-            'Bags: ' + ', '.join(f'`{run.bag}`' for run, _, _ in results), '']
+            bags_line(results), '']
     if plots:
         from lookahead_control.analysis.plotting import plot_measured_look_ahead, plot_runs
         groups: dict[str, list[dict[str, Any]]] = {}
