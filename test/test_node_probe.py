@@ -27,68 +27,17 @@ from pathlib import Path
 import re
 from types import SimpleNamespace
 
-from lookahead_control.bags.rosbag_io import PARAMETERS_KEY, SCENARIO_KEY
-from lookahead_control.bags.run_data import controller_from_params, load_run, node_topics
+from lookahead_control.bags.rosbag_io import SCENARIO_KEY
+from lookahead_control.bags.run_data import load_run
 from lookahead_control.core.cli import run_tool
 import pytest
-from test_rerun_lost_curvature import _conv_sample, _feed, _inputs, RANK
-import yaml
+from test_rerun_lost_curvature import controllers_bag
 
 SCENARIO_A = 'scenario:\n  name: road_a\n'
 SCENARIO_B = 'scenario:\n  name: road_b\n'
 
 
-def _bag(path, params, description=None, recorded=None):
-    """
-    Write a bag of the controllers of ``params`` (each its topics and commands).
-
-    :param path: the bag directory.
-    :param params: node -> its parameters (nodes without ``law`` get no topics).
-    :param description: more run description entries.
-    :param recorded: the nodes whose parameters the bag records (default: all).
-    """
-    from lookahead_control.bags.rosbag_io import (BagWriter, qos_from_ints, serialize_cdr,
-                                                  typestore)
-    from lookahead_control.ros import conversions as conv
-    store = typestore()
-    qos = [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})]
-    encode = {'lateral_error': lambda s: conv.to_lateral_error(s.stamp_ns, 'b', s.distance,
-                                                               s.value),
-              'yaw': lambda s: conv.to_yaw(s.stamp_ns, 'b', s.relative_yaw, s.yaw_rate,
-                                           s.accel_x),
-              'velocity': lambda s: conv.to_velocity(s.stamp_ns, 'b', s.v_x, s.v_y, 0.0),
-              'road_curvature': lambda s: conv.to_curvature(s.stamp_ns, 'b', [(0.0, s.rho)])}
-    msgtypes = {'lateral_error': 'geometry_msgs/msg/PointStamped', 'yaw': 'sensor_msgs/msg/Imu',
-                'velocity': 'geometry_msgs/msg/TwistStamped',
-                'road_curvature': 'geometry_msgs/msg/PolygonStamped',
-                'steering': 'sensor_msgs/msg/JointState'}
-    writer = BagWriter(path)
-    messages = []
-    for node, own in params.items():
-        if 'law' not in own:
-            continue
-        topics = node_topics(node)
-        core, _ = controller_from_params(own)
-        for role, sample in _feed(_inputs(60, 10**12)):
-            msg = encode[role](sample)
-            messages.append((topics[role], sample.stamp_ns, RANK[role], msg))
-            assert core.accept(role, _conv_sample(role, msg), sample.stamp_ns) is None
-            if role == 'lateral_error':
-                command = core.compute(sample.stamp_ns)
-                messages.append((topics['steering'], sample.stamp_ns, 4,
-                                 conv.to_steering(sample.stamp_ns, command.steering, 0.0)))
-        for role, msgtype in msgtypes.items():
-            writer.add_topic(topics[role], msgtype, qos)
-        writer.add_topic(topics['debug'], 'sensor_msgs/msg/JointState', qos)   # no message
-    for topic, stamp, rank, msg in sorted(messages, key=lambda m: (m[1], m[2])):
-        writer.write(topic, 10**12 + stamp + rank, serialize_cdr(msg, store))
-    writer.describe(PARAMETERS_KEY, yaml.safe_dump(
-        {node: {'ros__parameters': own} for node, own in params.items()
-         if recorded is None or node in recorded}))
-    for key, text in (description or {}).items():
-        writer.describe(key, text)
-    writer.close()
-
+_bag = controllers_bag
 
 TWO_CARS = {'/controller': {'law': 'paper'},
             '/sim_plant': {'vehicle.d_s': 1.5, 'scenario_file': '/x/road_a.yaml',

@@ -323,12 +323,18 @@ def _conv_sample(role, msg):
             'velocity': conv.from_velocity, 'road_curvature': conv.from_curvature}[role](msg)
 
 
-def _two_controller_bag(path):
+def controllers_bag(path, params, description=None, recorded=None, steps=60, debug=True,
+                    scale=None):
     """
-    Write a bag of two vehicles: ``/controller`` and ``/car_b/controller``, each its topics.
+    Write a bag of the controllers of ``params``, each its topics and its core's commands.
 
-    Each controller's commands are its core's answers (its own parameters) to its own
-    inputs; both nodes' parameters are in the bag's description.
+    :param path: the bag directory.
+    :param params: node -> its parameters (nodes without ``law`` get no topics).
+    :param description: more run description entries.
+    :param recorded: the nodes whose parameters the bag records (default: all).
+    :param steps: steps of each controller's run (:func:`_inputs`).
+    :param debug: add each controller's debug topic (no message on it).
+    :param scale: node -> a factor on its inputs (another curve, another error).
     """
     import yaml
 
@@ -338,8 +344,6 @@ def _two_controller_bag(path):
     from lookahead_control.ros import conversions as conv
     store = typestore()
     qos = [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})]
-    params = {'/controller': {'law': 'paper'},
-              '/car_b/controller': {'law': 'stanley', 'stanley.gain': 2.5}}
     encode = {'lateral_error': lambda s: conv.to_lateral_error(s.stamp_ns, 'b', s.distance,
                                                                s.value),
               'yaw': lambda s: conv.to_yaw(s.stamp_ns, 'b', s.relative_yaw, s.yaw_rate,
@@ -353,11 +357,14 @@ def _two_controller_bag(path):
     writer = BagWriter(path)
     messages = []
     for node, own in params.items():
+        if 'law' not in own:
+            continue
         topics = node_topics(node)
         core, _ = controller_from_params(own)
-        rows = _inputs(120, 10**12)
-        if node != '/controller':       # the other car: another curve, another error
-            rows = {role: [s._replace(**{f: 0.5 * v for f, v in s._asdict().items()
+        rows = _inputs(steps, 10**12)
+        factor = (scale or {}).get(node)
+        if factor is not None:
+            rows = {role: [s._replace(**{f: factor * v for f, v in s._asdict().items()
                                          if f != 'stamp_ns' and isinstance(v, float)})
                            for s in samples] for role, samples in rows.items()}
         for role, sample in _feed(rows):
@@ -370,11 +377,23 @@ def _two_controller_bag(path):
                                  conv.to_steering(sample.stamp_ns, command.steering, 0.0)))
         for role, msgtype in msgtypes.items():
             writer.add_topic(topics[role], msgtype, qos)
+        if debug:
+            writer.add_topic(topics['debug'], 'sensor_msgs/msg/JointState', qos)
     for topic, stamp, rank, msg in sorted(messages, key=lambda m: (m[1], m[2])):
         writer.write(topic, 10**12 + stamp + rank, serialize_cdr(msg, store))
     writer.describe(PARAMETERS_KEY, yaml.safe_dump(
-        {node: {'ros__parameters': own} for node, own in params.items()}))
+        {node: {'ros__parameters': own} for node, own in params.items()
+         if recorded is None or node in recorded}))
+    for key, text in (description or {}).items():
+        writer.describe(key, text)
     writer.close()
+
+
+def _two_controller_bag(path):
+    """Write a bag of two vehicles: ``/controller`` and ``/car_b/controller``, 120 steps."""
+    controllers_bag(path, {'/controller': {'law': 'paper'},
+                           '/car_b/controller': {'law': 'stanley', 'stanley.gain': 2.5}},
+                    steps=120, debug=False, scale={'/car_b/controller': 0.5})
 
 
 def test_replay_offline_node_re_runs_the_named_controller_of_a_two_vehicle_bag(
