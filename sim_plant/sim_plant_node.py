@@ -37,7 +37,7 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.config import source_config_dir
 from lookahead_control.core.params import ParameterError, VehicleParams
 from lookahead_control.ros import conversions as conv
-from lookahead_control.ros.controller_node import qos
+from lookahead_control.ros.controller_node import qos, WRITER_DEPTH, writer_qos
 from lookahead_control.ros.node_main import run_node, Throttle
 from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, Spec, values,
                                                VEHICLE_SPECS)
@@ -126,7 +126,7 @@ SIM_SPECS = (
 # longest wait at exit for subscribers to acknowledge the last samples [s]
 ACK_TIMEOUT = 10.0
 #: history of the ground-truth publisher [messages]: 10 s at 100 Hz for a recorder behind
-TRUTH_DEPTH = 1000
+TRUTH_DEPTH = WRITER_DEPTH
 ALL_SPECS = VEHICLE_SPECS + PLANT_SPECS + SIM_SPECS
 GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_cmd',
                 'v_x', 'a_x', 'rho', 'command_time')
@@ -197,30 +197,32 @@ class SimPlantNode(Node):
         frame = p['frame_id']
         self.frame = frame
         reliable = qos('reliable')
+        out = writer_qos()
         self.vehicle_output = p['output'] == 'vehicle'
         self._resent_at = 0.0
         self._clock_shared = False
         if self.vehicle_output:
-            self.pub_odometry = self.create_publisher(Odometry, 'odometry', reliable)
-            self.pub_imu = self.create_publisher(Imu, 'imu', reliable)
+            self.pub_odometry = self.create_publisher(Odometry, 'odometry', out)
+            self.pub_imu = self.create_publisher(Imu, 'imu', out)
             self.pub_path = self.create_publisher(PathMsg, 'path', QoSProfile(
                 history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
             self.path_msg = self.road_path()
             self.pub_path.publish(self.path_msg)
         else:
-            self.pub_lateral = self.create_publisher(PointStamped, 'lateral_error', reliable)
-            self.pub_yaw = self.create_publisher(Imu, 'yaw', reliable)
-            self.pub_velocity = self.create_publisher(TwistStamped, 'velocity', reliable)
-            self.pub_curvature = self.create_publisher(PolygonStamped, 'road_curvature',
-                                                       reliable)
+            self.pub_lateral = self.create_publisher(PointStamped, 'lateral_error', out)
+            self.pub_yaw = self.create_publisher(Imu, 'yaw', out)
+            self.pub_velocity = self.create_publisher(TwistStamped, 'velocity', out)
+            self.pub_curvature = self.create_publisher(PolygonStamped, 'road_curvature', out)
         # for recorders, not the contract: a deep history, so a recorder that falls behind
         # a lockstep run for a moment (319 steps/s: keep-last 10 is 30 ms) catches up
         # instead of losing steps (a run under load lost 0.93 s of ground truth)
         self.pub_truth = self.create_publisher(JointState, '~/ground_truth', QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=TRUTH_DEPTH,
             reliability=ReliabilityPolicy.RELIABLE))
-        self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
+        self.pub_clock = self.create_publisher(ClockMsg, '/clock', QoSProfile(
+            history=HistoryPolicy.KEEP_LAST, depth=TRUTH_DEPTH,
+            reliability=ReliabilityPolicy.RELIABLE))
         self.sub_steering = self.create_subscription(JointState, 'steering',
                                                      self.on_steering, reliable)
         steady = Clock(clock_type=ClockType.STEADY_TIME)

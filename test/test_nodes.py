@@ -749,6 +749,47 @@ def test_sim_plant_refuses_curvature_stop_with_the_vehicle_output(context):
     node.destroy_node()
 
 
+def test_every_contract_publisher_keeps_a_history_for_a_reader_that_falls_behind(context):
+    # a fresh-clone run under two CPU hogs: the recorder of a bridged lockstep run lost 562
+    # of 1000 messages of every contract topic (keep last 10 on the publishers) and none of
+    # the ground truth (1000); the readers' own QoS (keep last 10) stays the contract's
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+    from lookahead_control.ros.controller_node import ControllerNode, WRITER_DEPTH
+    from lookahead_control.ros.path_bridge_node import PathBridgeNode
+    from sim_plant.sim_plant_node import SimPlantNode
+    assert WRITER_DEPTH >= 1000
+    nodes = [SimPlantNode(context=context),
+             SimPlantNode(context=context, parameter_overrides=[
+                 Parameter('output', value='vehicle')]),
+             ControllerNode(context=context), PathBridgeNode(context=context)]
+    try:
+        for node in nodes[2:]:
+            node.trigger_configure()
+        seen = set()
+        for node in nodes:
+            for pub in node.publishers:
+                name = pub.topic_name
+                if name in ('/rosout', '/parameter_events', '/diagnostics', '/path') or \
+                        name.endswith('/transition_event'):
+                    continue
+                profile = pub.qos_profile
+                assert (profile.history, profile.depth) == (HistoryPolicy.KEEP_LAST,
+                                                            WRITER_DEPTH), name
+                assert profile.reliability == ReliabilityPolicy.RELIABLE, name
+                assert profile.durability == DurabilityPolicy.VOLATILE, name
+                seen.add(name)
+            for sub in node.subscriptions:
+                if sub.topic_name in ('lateral_error', '/lateral_error', '/steering',
+                                      '/odometry', '/yaw', '/velocity'):
+                    assert sub.qos_profile.depth == 10, sub.topic_name
+        assert {'/lateral_error', '/yaw', '/velocity', '/road_curvature', '/steering',
+                '/controller/debug', '/odometry', '/imu', '/clock',
+                '/sim_plant/ground_truth', '/path_bridge/debug'} <= seen, seen
+    finally:
+        for node in nodes:
+            node.destroy_node()
+
+
 def test_sim_plant_keeps_ground_truth_for_a_recorder_that_falls_behind(context):
     # keep-last 10 (the contract's QoS) is 30 ms of a lockstep run at 319 steps/s: a
     # recorder behind by more lost ground truth (0.93 s of a bridged run under load)

@@ -39,7 +39,7 @@ from lookahead_control.core.path_geometry import (cg_pose, PathError, PathFollow
                                                   ReferencePath, twist_in_parent_frame)
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros import vehicle_conversions as vconv
-from lookahead_control.ros.controller_node import qos
+from lookahead_control.ros.controller_node import qos, writer_qos
 from lookahead_control.ros.node_main import run_node, Throttle
 from lookahead_control.ros.node_params import (build, check_choices, declare, EXECUTOR_SPEC,
                                                Spec, values)
@@ -162,11 +162,10 @@ class PathBridgeNode(LifecycleNode):
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Create publishers, subscriptions and timers."""
-        reliable = qos('reliable')
         for name, kind in (('yaw', Imu), ('velocity', TwistStamped),
                            ('road_curvature', PolygonStamped),
                            ('lateral_error', PointStamped), ('~/debug', JointState)):
-            self._pubs[name] = self.create_lifecycle_publisher(kind, name, reliable)
+            self._pubs[name] = self.create_lifecycle_publisher(kind, name, writer_qos())
         inputs = qos(self.params['qos_reliability'])
         durability = (DurabilityPolicy.TRANSIENT_LOCAL
                       if self.params['path_durability'] == 'transient_local'
