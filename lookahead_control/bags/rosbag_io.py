@@ -400,6 +400,21 @@ def run_description(path: Path) -> dict[str, str]:
     return {str(k): str(v) for k, v in data.items() if str(k).startswith(KEY_PREFIX)}
 
 
+def recorded_parameters(path: Path) -> dict[str, dict[str, Any]]:
+    """
+    Return the recorded parameters of every node the run's bag describes (one read).
+
+    :param path: the bag.
+    :return: node's fully qualified name -> flat ``{name: value}``.
+    """
+    text = run_description(path).get(PARAMETERS_KEY, '')
+    params = (yaml.safe_load(text) or {}) if text else {}
+    if not isinstance(params, dict):
+        return {}
+    return {str(node): dict((entry or {}).get('ros__parameters') or {})
+            for node, entry in params.items()}
+
+
 def described_nodes(path: Path) -> list[str]:
     """
     Return the nodes whose parameters the run's bag recorded.
@@ -407,9 +422,7 @@ def described_nodes(path: Path) -> list[str]:
     :param path: the bag.
     :return: their fully qualified names, sorted.
     """
-    text = run_description(path).get(PARAMETERS_KEY, '')
-    params = (yaml.safe_load(text) or {}) if text else {}
-    return sorted(str(name) for name in params) if isinstance(params, dict) else []
+    return sorted(recorded_parameters(path))
 
 
 def node_parameters(path: Path, node: str) -> dict[str, Any]:
@@ -420,9 +433,7 @@ def node_parameters(path: Path, node: str) -> dict[str, Any]:
     :param node: the node's fully qualified name (``/controller``).
     :return: flat ``{name: value}`` (empty if not recorded).
     """
-    text = run_description(path).get(PARAMETERS_KEY, '')
-    params = (yaml.safe_load(text) or {}) if text else {}
-    return dict((params.get(node) or {}).get('ros__parameters') or {})
+    return recorded_parameters(path).get(node, {})
 
 
 # -- recovery ------------------------------------------------------------------------

@@ -33,9 +33,9 @@ from typing import Any, Callable, Mapping, Optional, Sequence
 
 from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
-from lookahead_control.bags.rosbag_io import (bag_topics, described_nodes, FULL_NODE_NAME,
-                                              NODE_NAME_RULE, node_parameters,
-                                              run_description, SCENARIO_KEY, typestore)
+from lookahead_control.bags.rosbag_io import (bag_topics, FULL_NODE_NAME, NODE_NAME_RULE,
+                                              recorded_parameters, run_description,
+                                              SCENARIO_KEY, typestore)
 from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
                                               StanleyParams)
 from lookahead_control.core.config import ConfigError, dataclass_from_params
@@ -120,8 +120,8 @@ def recorded_controllers(bag: Path) -> list[str]:
     :param bag: the bag.
     :return: their fully qualified names, sorted.
     """
-    return [node for node in described_nodes(bag)
-            if is_controller(node_parameters(bag, node))]
+    return sorted(node for node, params in recorded_parameters(bag).items()
+                  if is_controller(params))
 
 
 def scenario_text(run: RunData) -> Optional[str]:
@@ -141,11 +141,8 @@ def scenario_text(run: RunData) -> Optional[str]:
         return own
     if not run.plant_params:
         return None
-    files = set()
-    for node in described_nodes(run.bag):
-        params = node_parameters(run.bag, node)
-        if 'scenario_file' in params:
-            files.add(str(params['scenario_file']))
+    files = {str(params['scenario_file']) for params in recorded_parameters(run.bag).values()
+             if 'scenario_file' in params}
     if len(files) > 1:
         return None         # simulators of different scenarios: the one stored is either's
     return run.description.get(SCENARIO_KEY)
@@ -285,9 +282,10 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
     names = {**node_topics(node), **(topics or {})}
     role_of = {topic: role for role, topic in names.items()}
     available = bag_topics(bag)
-    controller_params = node_parameters(Path(bag), node)
+    recorded = recorded_parameters(Path(bag))        # every node's, one read
+    controller_params = recorded.get(node, {})
     if node != CONTROLLER_NODE and not controller_params and names['debug'] not in available:
-        described = described_nodes(Path(bag))
+        described = sorted(recorded)
         raise ConfigError(f'{bag}: --node {node}: neither its parameters nor its '
                           f'{names["debug"]} are in the bag (parameters recorded of: '
                           f'{", ".join(described) or "no node"})')
@@ -326,7 +324,7 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
                   counts={t: c for t, (_, c) in available.items()},
                   description=run_description(Path(bag)))
     run.controller_params = controller_params
-    run.plant_params = node_parameters(Path(bag), plant_node(node))
+    run.plant_params = recorded.get(plant_node(node), {})
     run.controller_node = node
     return run
 

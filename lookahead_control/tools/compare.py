@@ -408,6 +408,11 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
     return row
 
 
+def _meets(goal: Goal, row: Mapping[str, Any]) -> bool:
+    """Return whether a run meets a goal: a NaN metric or a run off the road does not."""
+    return bool(row[goal.metric] <= goal.bound) and not row['off_road']
+
+
 def goal_verdicts(row: Mapping[str, Any]) -> tuple[list[str], list[str]]:
     """
     Return the goals that apply to a run and those of them it misses.
@@ -421,8 +426,7 @@ def goal_verdicts(row: Mapping[str, Any]) -> tuple[list[str], list[str]]:
     for goal in GOALS:
         if goal.applies(row):
             applicable.append(goal.name)
-            value = row[goal.metric]
-            if not (value <= goal.bound) or row['off_road']:
+            if not _meets(goal, row):
                 missed.append(goal.name)
     return applicable, missed
 
@@ -792,10 +796,6 @@ def goal_unit(metric: str) -> tuple[float, str]:
     if metric.endswith('_rad'):
         return 1000.0, 'mrad'
     return 100.0, '%'
-
-
-def _meets(goal: Goal, row: Mapping[str, Any]) -> bool:
-    return bool(row[goal.metric] <= goal.bound) and not row['off_road']   # as goal_verdicts
 
 
 CELL_COLUMNS = ('law', 'goal', 'scenario', 'speed_mps', 'runs', 'met_fraction',
