@@ -25,7 +25,8 @@ import sys
 import time
 
 from conftest import entry_points, spin_until
-from lookahead_control.bags.rosbag_io import read_messages, RECORDER_KEY, recover, run_description
+from lookahead_control.bags.rosbag_io import (bag_topics, read_messages, RECORDER_KEY, recover,
+                                              run_description)
 from lookahead_control.ros import conversions as conv
 import pytest
 import yaml
@@ -198,6 +199,14 @@ def _wait_recording(bag, recorder=None, log=None, timeout=180):
             raise AssertionError(f'{bag}: the recorder exited ({recorder.returncode}) '
                                  f'before recording: {said[-2000:]}')
         time.sleep(0.02)
+    if recorder is not None:
+        # stop it: its log then says whether it ever subscribed to /talk ('subscribed
+        # to', else 'no publisher of /talk ever seen') and what it received
+        recorder.send_signal(signal.SIGINT)
+        try:
+            recorder.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            recorder.kill()
     said = log.read_text() if log is not None and log.exists() else ''
     raise AssertionError(f'{bag}: nothing recorded within {timeout} s: {said[-2000:]}')
 
@@ -221,6 +230,35 @@ def test_full_disk_is_one_line_and_keeps_what_was_recorded(tmp_path, talker):
     # everything in the chunks that reached the file: about 300 kB of 0.5 kB messages
     assert values == list(range(values[0], values[0] + len(values)))
     assert result.messages == len(values) >= 0.7 * limit / 500
+
+
+def test_record_resolves_a_relative_name_and_names_a_topic_it_never_saw(tmp_path, talker):
+    # before: `record talk` matched no topic (only /talk does) and recorded nothing,
+    # silently; and a misspelt topic left no trace but an empty bag
+    bag, log = tmp_path / 'run', tmp_path / 'run.log'
+    recorder = subprocess.Popen([str(EXES / 'record'), 'talk', '/tlak', '-o', str(bag),
+                                 '--chunk-interval', '0.2'], stderr=log.open('w'), text=True)
+    _wait_recording(bag, recorder, log)
+    recorder.send_signal(signal.SIGINT)
+    recorder.wait(timeout=30)
+    err = log.read_text()
+    assert recorder.returncode == 0, err
+    assert list(bag_topics(bag)) == ['/talk']
+    assert ('subscribed to /talk (std_msgs/msg/Float64MultiArray, 1 publisher(s), '
+            'reliable)') in err
+    assert err.rstrip().endswith('; no publisher of /tlak ever seen: not recorded'), err
+
+
+@pytest.mark.parametrize('name', ['bad name', '/a//b', 'talk/', '1talk'])
+def test_record_refuses_a_topic_name_ros_does_not_allow(tmp_path, name):
+    bag = tmp_path / 'run'
+    out = subprocess.run([str(EXES / 'record'), name, '-o', str(bag)], capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 2, out
+    assert out.stderr.strip().splitlines() == [
+        f'record: error: topic {name!r}: not a ROS topic name (letters, digits and _ between '
+        "single '/'; a relative name is resolved in the recorder's namespace)"]
+    assert not bag.exists()
 
 
 def test_a_late_recorder_counts_what_it_missed_before_subscribing(tmp_path, talker):

@@ -324,8 +324,8 @@ def test_record_refuses_a_describe_name_no_node_can_have(tmp_path, capsys, monke
     # a recording that started would run until a signal: here it ends at once, exit 0
     monkeypatch.setattr(recorder_node, 'run_node', lambda *args, **kwargs: 0)
     bag = tmp_path / 'bag'
-    assert run_tool(recorder_node.main, ['-o', str(bag), '--describe', '/controller',
-                                         name]) == 2
+    assert run_tool(recorder_node.main, ['record', '-o', str(bag), '--describe',
+                                         '/controller', name]) == 2
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'not a fully qualified node name' in err, err
     assert repr(name) in err and not bag.exists()
@@ -345,5 +345,6 @@ def test_record_says_which_described_node_it_never_saw(probe, tmp_path, capsys):
     recorder.destroy_node()
     err = capsys.readouterr().err
     assert err.rstrip().endswith('; never saw /car_b/controler (--describe): no '
-                                 'parameters'), err
+                                 'parameters; no publisher of /none ever seen: not '
+                                 'recorded'), err
     assert '/sim_plant' not in err and ' /controller' not in err, err

@@ -42,12 +42,14 @@ from lookahead_control.core.config import source_config_dir
 from lookahead_control.ros.node_main import now_ns, run_node
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import InvalidHandle
+from rclpy.exceptions import InvalidHandle, InvalidTopicNameException
+from rclpy.expand_topic_name import expand_topic_name
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
+from rclpy.validate_full_topic_name import validate_full_topic_name
 import yaml
 
 DEFAULT_DESCRIBE = ('/controller', '/sim_plant')
@@ -136,14 +138,17 @@ class RecorderNode(Node):
         Start discovering topics.
 
         :param bag: the bag to write.
-        :param topics: exact topic names to record (with ``regex`` empty: all topics).
+        :param topics: topic names to record, relative ones in the node's namespace (with
+            ``regex`` empty: all topics).
         :param regex: record topics whose full name matches it.
         :param describe: nodes whose parameters are stored in the bag.
         :param kwargs: passed to ``Node``.
         """
         super().__init__('recorder', **kwargs)
         self.bag = bag
-        self.topics = set(topics)
+        # relative names in the recorder's namespace, as ros2 bag record resolves them:
+        # before, `record talk` never matched /talk and recorded nothing, silently
+        self.topics = {self.resolve_topic_name(t) for t in topics}
         self.regex = re.compile(regex) if regex else None
         self.stats: dict[str, TopicStats] = {}
         self._subs: dict[str, Any] = {}
@@ -184,8 +189,14 @@ class RecorderNode(Node):
             self.stats[topic] = TopicStats()
             # two arguments: rclpy passes the message info (publication sequence number)
             callback: Any = functools.partial(self.on_message, topic)
-            self._subs[topic] = self.create_subscription(
-                cls, topic, callback, matching_qos([i.qos_profile for i in infos]), raw=True)
+            qos = matching_qos([i.qos_profile for i in infos])
+            self._subs[topic] = self.create_subscription(cls, topic, callback, qos, raw=True)
+            # as rosbag2 does: a run that records nothing on a topic then tells a topic
+            # never subscribed (never in the graph) from one subscribed but never fed
+            reliable = qos.reliability == ReliabilityPolicy.RELIABLE
+            self.get_logger().info(
+                f'subscribed to {topic} ({types[0]}, {len(infos)} publisher(s), '
+                f'{"reliable" if reliable else "best effort"})')
         for topic, stats in self.stats.items():
             stats.publishers = max(stats.publishers, self.count_publishers(topic))
         self._describe_new_nodes()
@@ -336,12 +347,17 @@ class RecorderNode(Node):
             # /sim_plant) that never showed: misspelt, or in another namespace
             unseen = [n for n in self.to_describe if n not in self._asked
                       and n not in DEFAULT_DESCRIBE]
+            # a topic named on the command line that never had a publisher: misspelt, in
+            # another namespace or domain, or its publisher never discovered
+            absent = sorted(t for t in self.topics if t not in self._subs)
             print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
                   f'{dropped} dropped'
                   + (f'; subscribed late: missed the first {late}' if late else '')
                   + (f'; no parameters from {", ".join(missing)}' if missing else '')
                   + (f'; never saw {", ".join(unseen)} (--describe): no parameters'
-                     if unseen else ''),
+                     if unseen else '')
+                  + (f'; no publisher of {", ".join(absent)} ever seen: not recorded'
+                     if absent else ''),
                   file=sys.stderr)
         super().destroy_node()
 
@@ -396,6 +412,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             re.compile(args.regex)
         except re.error as err:
             raise ToolError(f'-e {args.regex!r}: not a regular expression: {err}') from err
+    for topic in args.topics:
+        try:
+            validate_full_topic_name(expand_topic_name(topic, 'recorder', '/'))
+        except (ValueError, InvalidTopicNameException) as err:
+            raise ToolError(f'topic {topic!r}: not a ROS topic name (letters, digits and _ '
+                            "between single '/'; a relative name is resolved in the "
+                            "recorder's namespace)") from err
     if args.describe and args.describe != list(DEFAULT_DESCRIBE):
         # before: only a leading / was checked; /car_b/controller/ (a typo) was never
         # matched by a node, and the bag silently lacked its parameters
