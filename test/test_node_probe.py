@@ -348,3 +348,47 @@ def test_record_says_which_described_node_it_never_saw(probe, tmp_path, capsys):
                                  'parameters; no publisher of /none ever seen: not '
                                  'recorded'), err
     assert '/sim_plant' not in err and ' /controller' not in err, err
+
+
+@pytest.mark.parametrize('name,resolved', [('steering', '/car_b/steering'),
+                                           ('~/debug', '/car_b/controller/debug'),
+                                           ('/car_b/steering', '/car_b/steering')])
+def test_a_relative_topic_override_is_the_nodes_own(name, resolved):
+    # before: --node /car_b/controller --topic steering=steering read a topic
+    # 'steering' (no such name in a bag: every recorded name is absolute)
+    from lookahead_control.bags.run_data import resolve_name
+    assert resolve_name(name, '/car_b/controller') == resolved
+    assert resolve_name('steering') == '/steering'
+
+
+def test_replay_resolves_a_relative_topic_in_the_nodes_namespace(tmp_path, capsys):
+    import json
+
+    from lookahead_control.bags import replay_node
+    bag = tmp_path / 'two'
+    _bag(bag, {'/controller': {'law': 'paper'},
+               '/car_b/controller': {'law': 'stanley', 'stanley.gain': 2.5}},
+         scale={'/car_b/controller': 0.5})
+    report = tmp_path / 'r.json'
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-9', '--node',
+                                       '/car_b/controller', '--topic', 'steering=steering',
+                                       '--json', str(report)]) == 0, capsys.readouterr()
+    assert json.loads(report.read_text())['compared'] == 60
+
+
+def test_a_bad_recorded_parameter_names_its_node(tmp_path, capsys):
+    # before: 'bag parameters: ...': in a bag of two controllers, whose?
+    import yaml
+
+    from lookahead_control.bags import replay_node
+    from lookahead_control.bags.rosbag_io import PARAMETERS_KEY
+    bag = tmp_path / 'two'
+    cars = {'/controller': {'law': 'paper'}, '/car_b/controller': {'law': 'stanley'}}
+    bad = {node: {'ros__parameters': dict(own)} for node, own in cars.items()}
+    bad['/car_b/controller']['ros__parameters']['stanley.gain'] = -1.0
+    _bag(bag, cars, description={PARAMETERS_KEY: yaml.safe_dump(bad)})
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--node',
+                                       '/car_b/controller']) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'bag parameters of /car_b/controller' in err, err
+    assert 'stanley.gain' in err, err

@@ -234,7 +234,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                               'the contract topics in its namespace (/car_b/controller: '
                               '/car_b/lateral_error, ...; --topic overrides one)')
     offline_only.add_argument('--topic', action='append', default=[], metavar='ROLE=TOPIC',
-                              help='contract topic names in the bag (lateral_error=/x)')
+                              help='contract topic names in the bag (lateral_error=/x; a relative '
+                              "name is in the node's namespace, ~/x under its name)")
     offline_only.add_argument('--order', choices=('stamp', 'receive'), default=None,
                               help='input order (default: as the recorded node worked)')
     offline_only.add_argument('--check', type=number(0.0, unit='rad'), default=None,

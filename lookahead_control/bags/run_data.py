@@ -92,6 +92,22 @@ def node_topics(node: str = CONTROLLER_NODE) -> dict[str, str]:
     return topics
 
 
+def resolve_name(topic: str, node: str = CONTROLLER_NODE) -> str:
+    """
+    Resolve a topic name as the node ``node`` resolves it (ROS name rules).
+
+    :param topic: absolute (``/car_b/x``), private (``~/x``: under the node's name) or
+        relative (``x``: in the node's namespace).
+    :param node: the node's fully qualified name.
+    :return: the absolute name.
+    """
+    if topic.startswith('/'):
+        return topic
+    if topic == '~' or topic.startswith('~/'):
+        return node + topic[1:]
+    return node.rpartition('/')[0] + '/' + topic
+
+
 def plant_node(node: str = CONTROLLER_NODE) -> str:
     """
     Return the simulator node of a controller: ``sim_plant`` in its namespace.
@@ -279,7 +295,10 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         # before: a KeyError traceback where the topic was in the bag, else ignored
         raise ConfigError(f'--topic {unknown[0]}=...: unknown role {unknown[0]!r}; roles: '
                           f'{", ".join(TOPICS)}')
-    names = {**node_topics(node), **(topics or {})}
+    # a relative override is the node's, as the node resolves its own names: before,
+    # steering=steering on /car_b/controller read a /car_b-less name (absent: refused)
+    names = {**node_topics(node), **{role: resolve_name(topic, node)
+                                     for role, topic in (topics or {}).items()}}
     role_of = {topic: role for role, topic in names.items()}
     available = bag_topics(bag)
     recorded = recorded_parameters(Path(bag))        # every node's, one read
@@ -384,13 +403,14 @@ LAW_SETS = ('vehicle', 'controller', 'safety', 'lane_keeping', 'pure_pursuit', '
 
 
 def controller_from_params(params: Mapping[str, Any],
-                           overrides: Optional[Mapping[str, Any]] = None
-                           ) -> tuple[SteeringController, bool]:
+                           overrides: Optional[Mapping[str, Any]] = None,
+                           node: str = CONTROLLER_NODE) -> tuple[SteeringController, bool]:
     """
     Build the controller core (law, input checks, output limits) from recorded parameters.
 
     :param params: flat ``/controller`` parameters (empty: defaults).
     :param overrides: ``name -> value`` replacing recorded values.
+    :param node: the node they were recorded of, named in the message of a bad value.
     :return: the controller and whether it waited for matching stamps.
     :raises ConfigError: an override names an unknown parameter, one the re-run does not
         model (:data:`NOT_MODELED`), or a bad value.
@@ -407,7 +427,8 @@ def controller_from_params(params: Mapping[str, Any],
                               're-run uses ('
                               f'{", ".join(s + ".*" for s in LAW_SETS)}, '
                               f'{", ".join(MODELED)})')
-    source = 'bag parameters'
+    # before: 'bag parameters', which in a bag of several vehicles did not say whose
+    source = f'bag parameters of {node}'
     vehicle = dataclass_from_params(VehicleParams, merged, 'vehicle', source)
     controller = dataclass_from_params(ControllerParams, merged, 'controller', source)
     safety = dataclass_from_params(SafetyParams, merged, 'safety', source)
@@ -521,7 +542,8 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
         parameters), else ``receive``).
     :return: commands and differences.
     """
-    core, matched = controller_from_params(run.controller_params, overrides)
+    core, matched = controller_from_params(run.controller_params, overrides,
+                                           run.controller_node)
     order = _resolve_order(order, matched, bool(run.plant_params))
     inputs = input_stream(run)
     feed = _stamp_order(inputs) if order == 'stamp' else inputs
@@ -626,7 +648,8 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     :return: the lateral-error stamp of each evaluation (in feed order: the last of a
         stamp is the one ``rerun`` keeps) and the law's outputs.
     """
-    core, matched = controller_from_params(run.controller_params, overrides)
+    core, matched = controller_from_params(run.controller_params, overrides,
+                                           run.controller_node)
     order = _resolve_order(order, matched, bool(run.plant_params))
     if core.law_name != 'paper':
         # a law with a state (integral, estimate) or its own structure: step by step
