@@ -392,3 +392,62 @@ def test_a_bad_recorded_parameter_names_its_node(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'bag parameters of /car_b/controller' in err, err
     assert 'stanley.gain' in err, err
+
+
+NAMES = ['~', '~/debug', '{node}/x', '{ns}/x', '{namespace}/x', 'steering', '/car_b/steering',
+         '_hidden/x', 'a/_b', '', '/', '~/', 'talk/', '/a//b', '//a', 'bad name', 'tälk',
+         'a.b', '1talk', 'a/1b', 'x/~', '~//x', '{bad}/x', 'x' * 248, 'x' * 246]
+
+
+@pytest.mark.parametrize('node', ['/controller', '/car_b/controller'])
+def test_resolve_name_resolves_and_refuses_as_rcl_does(node):
+    # before: resolve_name took any text: '{node}/x' was /car_b/{node}/x, 'bad name',
+    # '' and /a//b were names (no bag has them: the re-run compared nothing, exit 0)
+    from lookahead_control.bags.run_data import resolve_name
+    from lookahead_control.core.config import ConfigError
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    namespace, _, name = node.rpartition('/')
+    for topic in NAMES:
+        try:
+            expected = expand_topic_name(topic, name, namespace or '/')
+            validate_full_topic_name(expected)
+        except Exception:       # rcl refuses it (ValueError or its own exception types)
+            with pytest.raises(ConfigError, match='not a ROS topic name'):
+                resolve_name(topic, node)
+        else:
+            assert resolve_name(topic, node) == expected, topic
+
+
+@pytest.mark.parametrize('option,words', [
+    ('steering=stearing', '--topic steering=stearing: no /car_b/stearing in the bag (has: '),
+    ('yaw=', "--topic yaw=: '' (/car_b/controller resolves it as '/car_b/'): not a ROS "
+             'topic name'),
+    ('steering=/car_b//steering', "'/car_b//steering': not a ROS topic name")])
+def test_replay_and_analyze_refuse_a_topic_override_that_is_no_name_of_the_bag(
+        tmp_path, capsys, option, words):
+    # before: a misspelt or malformed --topic read as a topic without messages: replay
+    # compared 0 commands ('max |diff| nan rad') and exited 0
+    from lookahead_control.bags import replay_node
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    for main, args in ((replay_node.main, ['--offline']),
+                       (analyze_tool.main, ['--out', str(tmp_path / 'out'), '--no-plots'])):
+        assert run_tool(main, [str(bag), *args, '--node', '/car_b/controller',
+                               '--topic', option]) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and words in err, err
+    assert not (tmp_path / 'out').exists()
+
+
+def test_analyze_resolves_a_relative_topic_in_the_nodes_namespace(tmp_path, capsys):
+    # before: analyze refused it ('a topic name must be absolute') where replay took it
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS, scale={'/car_b/controller': 0.5})
+    out = tmp_path / 'out'
+    assert run_tool(analyze_tool.main, [str(bag), '--out', str(out), '--no-plots', '--node',
+                                        '/car_b/controller', '--topic', 'steering=steering',
+                                        '--topic', 'debug=~/debug']) == 0
+    assert 'Bags (controller /car_b/controller)' in (out / 'report.md').read_text()
