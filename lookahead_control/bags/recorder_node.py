@@ -56,22 +56,59 @@ _RCL_NOISE = re.compile(r'^failed to resolve name: |, at /\S+:\d+')
 
 @dataclass
 class TopicStats:
-    """What arrived on one topic, and the publishers' sequence numbers seen."""
+    """
+    What arrived on one topic, and the publishers' sequence numbers seen.
+
+    A writer numbers its messages from 1 and they arrive in order: a number that does
+    not grow is a new writer (a publisher restarted), whose count starts again. The
+    writers before the current one are summed in the ``earlier_*`` fields.
+    """
 
     received: int = 0
-    first_seq: Optional[int] = None
+    first_seq: Optional[int] = None     # of the current writer
     last_seq: Optional[int] = None
     publishers: int = 0
+    writer_received: int = 0            # from the current writer
+    earlier_published: int = 0
+    earlier_dropped: int = 0
+    earlier_before_first: int = 0
+
+    def count(self, seq: Optional[int]) -> None:
+        """
+        Count one message received.
+
+        :param seq: its publication sequence number (None if the middleware gives none).
+        """
+        self.received += 1
+        if seq is None:
+            return
+        if self.first_seq is None or self.last_seq is None:
+            self.first_seq = seq
+        elif seq <= self.last_seq:
+            # before: min/max over all, so a restarted publisher's 1..600 after 4..300
+            # said 600 published of 887 received, and hid its drops
+            self.earlier_published += self.last_seq
+            self.earlier_dropped += self._writer_dropped()
+            self.earlier_before_first += self.first_seq - 1
+            self.first_seq, self.writer_received = seq, 0
+        self.last_seq = seq
+        self.writer_received += 1
+
+    def _writer_dropped(self) -> int:
+        """Return the current writer's messages lost after its first one received."""
+        if self.first_seq is None or self.last_seq is None:
+            return 0
+        return max(0, self.last_seq - self.first_seq + 1 - self.writer_received)
 
     def dropped(self) -> Optional[int]:
         """Return the messages lost (None when the sequence cannot tell: many writers)."""
         if self.publishers != 1 or self.first_seq is None or self.last_seq is None:
             return None
-        return max(0, self.last_seq - self.first_seq + 1 - self.received)
+        return self.earlier_dropped + self._writer_dropped()
 
     def before_first(self) -> Optional[int]:
         """
-        Return the messages published before the first one received.
+        Return the messages published before the first one received (of each writer).
 
         A writer numbers its messages from 1; a recorder that subscribed (or matched)
         after the publisher started misses the first ``first_seq - 1`` of them. None when
@@ -79,7 +116,13 @@ class TopicStats:
         """
         if self.publishers != 1 or self.first_seq is None:
             return None
-        return self.first_seq - 1
+        return self.earlier_before_first + self.first_seq - 1
+
+    def published(self) -> Optional[int]:
+        """Return how many messages the writers numbered (None: the numbers cannot tell)."""
+        if self.dropped() is None or self.last_seq is None:
+            return None
+        return self.earlier_published + self.last_seq
 
 
 def message_class(msgtype: str) -> Any:
@@ -231,12 +274,7 @@ class RecorderNode(Node):
             self.bag.write(topic, now_ns(self), data)
         except BagError:
             return              # the bag failed: the node stops, main reports it
-        stats = self.stats[topic]
-        stats.received += 1
-        seq = info.get('publication_sequence_number')
-        if seq is not None:
-            stats.first_seq = seq if stats.first_seq is None else min(stats.first_seq, seq)
-            stats.last_seq = seq if stats.last_seq is None else max(stats.last_seq, seq)
+        self.stats[topic].count(info.get('publication_sequence_number'))
 
     # -- run description ------------------------------------------------------------
 
@@ -319,7 +357,7 @@ class RecorderNode(Node):
             dropped = stats.dropped()
             out[topic] = {'received': stats.received, 'dropped': dropped,
                           'before_first': stats.before_first(),
-                          'published': None if dropped is None else stats.last_seq}
+                          'published': stats.published()}
         return out
 
     def drain(self) -> int:
