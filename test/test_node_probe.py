@@ -466,3 +466,32 @@ def test_the_recorder_counts_a_restarted_publisher_from_its_new_numbers():
     many = TopicStats(publishers=2)
     many.count(5)
     assert (many.published(), many.dropped(), many.before_first()) == (None, None, None)
+
+
+def test_record_names_a_topic_whose_type_is_not_installed(probe, tmp_path, capsys,
+                                                          monkeypatch):
+    # before: a warning in the log, and a summary without a word of the named topic
+    from conftest import spin_until
+    from lookahead_control.bags import recorder_node
+    from lookahead_control.bags.rosbag_io import BagWriter, bag_topics
+    from std_msgs.msg import Float64MultiArray
+
+    def missing(msgtype):
+        raise ImportError(f"No module named '{msgtype.split('/')[0]}'")
+
+    monkeypatch.setattr(recorder_node, 'message_class', missing)
+    node, executor = probe
+    publisher = node.create_publisher(Float64MultiArray, '/untyped', 10)
+    recorder = recorder_node.RecorderNode(BagWriter(tmp_path / 'bag'), ['untyped'],
+                                          describe=(), context=node.context)
+    try:
+        executor.add_node(recorder)
+        assert spin_until(executor, lambda: '/untyped' in recorder._subs, 60)
+    finally:
+        executor.remove_node(recorder)
+        recorder.destroy_node()
+        node.destroy_publisher(publisher)
+    err = capsys.readouterr().err
+    assert err.rstrip().endswith('; not recorded, type not installed: /untyped '
+                                 '(std_msgs/msg/Float64MultiArray)'), err
+    assert bag_topics(tmp_path / 'bag') == {}

@@ -208,6 +208,7 @@ class RecorderNode(Node):
         self.stats: dict[str, TopicStats] = {}
         self._subs: dict[str, Any] = {}
         self.remapped: dict[str, str] = {}      # topic -> where a subscription to it goes
+        self.unrecordable: dict[str, str] = {}  # topic -> its type, not importable here
         self.parameters: dict[str, dict[str, Any]] = {}
         self._asked: set[str] = set()           # seen in the graph
         self._pending: set[str] = set()         # a request on its way
@@ -252,6 +253,9 @@ class RecorderNode(Node):
                     return          # the bag failed: the node stops, main reports it
                 self.get_logger().warn(f'{topic}: not recorded: {err}')
                 self._subs[topic] = None
+                # before: in the log only; the summary said nothing of a named topic
+                # whose type is not installed here
+                self.unrecordable[topic] = types[0]
                 continue
             self.stats[topic] = TopicStats()
             # two arguments: rclpy passes the message info (publication sequence number)
@@ -413,6 +417,7 @@ class RecorderNode(Node):
             # another namespace or domain, or its publisher never discovered
             absent = sorted(t for t in self.topics if t not in self._subs)
             moved = [f'{t} -> {u}' for t, u in sorted(self.remapped.items())]
+            untyped = [f'{t} ({u})' for t, u in sorted(self.unrecordable.items())]
             print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
                   f'{dropped} dropped'
                   + (f'; subscribed late: missed the first {late}' if late else '')
@@ -421,7 +426,9 @@ class RecorderNode(Node):
                      if unseen else '')
                   + (f'; no publisher of {", ".join(absent)} ever seen: not recorded'
                      if absent else '')
-                  + (f'; not recorded, remapped: {", ".join(moved)}' if moved else ''),
+                  + (f'; not recorded, remapped: {", ".join(moved)}' if moved else '')
+                  + (f'; not recorded, type not installed: {", ".join(untyped)}'
+                     if untyped else ''),
                   file=sys.stderr)
         super().destroy_node()
 
