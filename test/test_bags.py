@@ -492,7 +492,8 @@ def test_analyze_refuses_unknown_topic_roles_and_names(tmp_path):
     # issue 12 item 4: analyze --topic bogus=/x was accepted and ignored
     _synthetic_bag(tmp_path / 'syn', steps=300)
     for option, words in (('bogus=/x', "unknown role 'bogus'"),
-                          ('lateral_error=lane', 'must be absolute')):
+                          ('lateral_error=lane', 'no /lane in the bag'),
+                          ('lateral_error=/a//b', "'/a//b': not a ROS topic name")):
         out = _tool('lookahead_control.tools.analyze_tool', tmp_path / 'syn', '--no-plots',
                     '--out', tmp_path / 'out', '--topic', option)
         assert out.returncode == 2 and words in out.stderr, out.stderr

@@ -249,16 +249,80 @@ def test_record_resolves_a_relative_name_and_names_a_topic_it_never_saw(tmp_path
     assert err.rstrip().endswith('; no publisher of /tlak ever seen: not recorded'), err
 
 
-@pytest.mark.parametrize('name', ['bad name', '/a//b', 'talk/', '1talk'])
-def test_record_refuses_a_topic_name_ros_does_not_allow(tmp_path, name):
+@pytest.mark.parametrize('name,ros_args,reason', [
+    ('bad name', [], 'must not contain characters other than'),
+    ('/a//b', [], "must not contain repeated '/'"),
+    ('talk/', [], 'must not end with a forward slash'),
+    ('1talk', [], 'must not start with a number'),
+    # valid in /, too long in its namespace: before, a traceback after the bag was made
+    ('t' * 200, ['--ros-args', '-r', '__ns:=/' + '/'.join(['n' * 40] * 5)],
+     "topic length should not exceed '255U - 8U'")])
+def test_record_refuses_a_topic_name_ros_does_not_allow(tmp_path, name, ros_args, reason):
     bag = tmp_path / 'run'
-    out = subprocess.run([str(EXES / 'record'), name, '-o', str(bag)], capture_output=True,
-                         text=True, timeout=60)
+    out = subprocess.run([str(EXES / 'record'), name, '-o', str(bag), *ros_args],
+                         capture_output=True, text=True, timeout=60)
     assert out.returncode == 2, out
-    assert out.stderr.strip().splitlines() == [
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
         f'record: error: topic {name!r}: not a ROS topic name (letters, digits and _ between '
-        "single '/'; a relative name is resolved in the recorder's namespace)"]
+        "single '/'; a relative name is resolved in the recorder's namespace): "), lines
+    assert reason in lines[0], lines         # rcl's own reason
     assert not bag.exists()
+
+
+def _wait_said(log, recorder, *words, timeout=180):
+    """Wait until the recorder's log has each of ``words`` (a condition, not a time)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        said = log.read_text()
+        if all(any(w in said for w in alternatives.split('|')) for alternatives in words):
+            return
+        if recorder.poll() is not None:
+            raise AssertionError(f'the recorder exited ({recorder.returncode}): {said}')
+        time.sleep(0.05)
+    raise AssertionError(f'not said within {timeout} s: {words}: {log.read_text()}')
+
+
+def test_record_resolves_a_substitution_in_its_own_namespace(tmp_path):
+    # before: names were checked in / whatever the namespace: {ns}/talk (/car_b/talk
+    # for this recorder, as rcl resolves it) was refused as not a ROS name
+    bag, log = tmp_path / 'run', tmp_path / 'run.log'
+    recorder = subprocess.Popen([str(EXES / 'record'), '{ns}/talk', '-o', str(bag),
+                                 '--ros-args', '-r', '__ns:=/car_b'], stderr=log.open('w'),
+                                text=True)
+    _wait_said(log, recorder, 'recording to')
+    recorder.send_signal(signal.SIGINT)
+    recorder.wait(timeout=30)
+    err = log.read_text()
+    assert recorder.returncode == 0, err
+    assert err.rstrip().endswith('; no publisher of /car_b/talk ever seen: not recorded'), err
+
+
+def test_record_never_writes_a_remapped_subscription_under_the_topics_name(tmp_path, talker):
+    # a remapping given to the recorder applies to its own subscriptions: before, its
+    # subscription to /talk with -r /talk:=/car_b/talk received /car_b/talk, and the bag
+    # had car b's messages under /talk (as a launch SetRemap of /clock would do)
+    other = subprocess.Popen([sys.executable, '-c', TALKER, '600', '--ros-args', '-r',
+                              '/talk:=/car_b/talk'], stdout=subprocess.PIPE, text=True)
+    try:
+        assert other.stdout.readline().strip() == 'up'
+        bag, log = tmp_path / 'run', tmp_path / 'run.log'
+        recorder = subprocess.Popen([str(EXES / 'record'), '-e', '/(car_b/)?talk', '-o',
+                                     str(bag), '--chunk-interval', '0.2', '--ros-args', '-r',
+                                     '/talk:=/car_b/talk'], stderr=log.open('w'), text=True)
+        _wait_said(log, recorder, 'subscribed to /car_b/talk',
+                   'subscribed to /talk|/talk: not recorded')
+        recorder.send_signal(signal.SIGINT)
+        recorder.wait(timeout=30)
+    finally:
+        other.kill()
+        other.wait()
+    err = log.read_text()
+    assert recorder.returncode == 0, err
+    assert list(bag_topics(bag)) == ['/car_b/talk'], err
+    assert ('/talk: not recorded: a remapping sends a subscription to it to /car_b/talk '
+            '(remap the nodes, not the recorder)') in err
+    assert err.rstrip().endswith('; not recorded, remapped: /talk -> /car_b/talk'), err
 
 
 def test_a_late_recorder_counts_what_it_missed_before_subscribing(tmp_path, talker):

@@ -392,3 +392,106 @@ def test_a_bad_recorded_parameter_names_its_node(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'bag parameters of /car_b/controller' in err, err
     assert 'stanley.gain' in err, err
+
+
+NAMES = ['~', '~/debug', '{node}/x', '{ns}/x', '{namespace}/x', 'steering', '/car_b/steering',
+         '_hidden/x', 'a/_b', '', '/', '~/', 'talk/', '/a//b', '//a', 'bad name', 'tälk',
+         'a.b', '1talk', 'a/1b', 'x/~', '~//x', '{bad}/x', 'x' * 248, 'x' * 246]
+
+
+@pytest.mark.parametrize('node', ['/controller', '/car_b/controller'])
+def test_resolve_name_resolves_and_refuses_as_rcl_does(node):
+    # before: resolve_name took any text: '{node}/x' was /car_b/{node}/x, 'bad name',
+    # '' and /a//b were names (no bag has them: the re-run compared nothing, exit 0)
+    from lookahead_control.bags.run_data import resolve_name
+    from lookahead_control.core.config import ConfigError
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    namespace, _, name = node.rpartition('/')
+    for topic in NAMES:
+        try:
+            expected = expand_topic_name(topic, name, namespace or '/')
+            validate_full_topic_name(expected)
+        except Exception:       # rcl refuses it (ValueError or its own exception types)
+            with pytest.raises(ConfigError, match='not a ROS topic name'):
+                resolve_name(topic, node)
+        else:
+            assert resolve_name(topic, node) == expected, topic
+
+
+@pytest.mark.parametrize('option,words', [
+    ('steering=stearing', '--topic steering=stearing: no /car_b/stearing in the bag (has: '),
+    ('yaw=', "--topic yaw=: '' (/car_b/controller resolves it as '/car_b/'): not a ROS "
+             'topic name'),
+    ('steering=/car_b//steering', "'/car_b//steering': not a ROS topic name")])
+def test_replay_and_analyze_refuse_a_topic_override_that_is_no_name_of_the_bag(
+        tmp_path, capsys, option, words):
+    # before: a misspelt or malformed --topic read as a topic without messages: replay
+    # compared 0 commands ('max |diff| nan rad') and exited 0
+    from lookahead_control.bags import replay_node
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    for main, args in ((replay_node.main, ['--offline']),
+                       (analyze_tool.main, ['--out', str(tmp_path / 'out'), '--no-plots'])):
+        assert run_tool(main, [str(bag), *args, '--node', '/car_b/controller',
+                               '--topic', option]) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and words in err, err
+    assert not (tmp_path / 'out').exists()
+
+
+def test_analyze_resolves_a_relative_topic_in_the_nodes_namespace(tmp_path, capsys):
+    # before: analyze refused it ('a topic name must be absolute') where replay took it
+    from lookahead_control.tools import analyze_tool
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS, scale={'/car_b/controller': 0.5})
+    out = tmp_path / 'out'
+    assert run_tool(analyze_tool.main, [str(bag), '--out', str(out), '--no-plots', '--node',
+                                        '/car_b/controller', '--topic', 'steering=steering',
+                                        '--topic', 'debug=~/debug']) == 0
+    assert 'Bags (controller /car_b/controller)' in (out / 'report.md').read_text()
+
+
+def test_the_recorder_counts_a_restarted_publisher_from_its_new_numbers():
+    # before: min/max of all sequence numbers: a publisher restarted (numbers from 1
+    # again) after 4..300 and publishing 1..600 was 'published: 600, dropped: 0' with
+    # 887 received (a real DDS run), and the one message its new writer lost was hidden
+    from lookahead_control.bags.recorder_node import TopicStats
+    stats = TopicStats(publishers=1)
+    for seq in [*range(4, 301), *range(1, 301), *range(302, 601)]:
+        stats.count(seq)
+    assert stats.received == 297 + 599
+    assert (stats.published(), stats.dropped(), stats.before_first()) == (900, 1, 3)
+    many = TopicStats(publishers=2)
+    many.count(5)
+    assert (many.published(), many.dropped(), many.before_first()) == (None, None, None)
+
+
+def test_record_names_a_topic_whose_type_is_not_installed(probe, tmp_path, capsys,
+                                                          monkeypatch):
+    # before: a warning in the log, and a summary without a word of the named topic
+    from conftest import spin_until
+    from lookahead_control.bags import recorder_node
+    from lookahead_control.bags.rosbag_io import BagWriter, bag_topics
+    from std_msgs.msg import Float64MultiArray
+
+    def missing(msgtype):
+        raise ImportError(f"No module named '{msgtype.split('/')[0]}'")
+
+    monkeypatch.setattr(recorder_node, 'message_class', missing)
+    node, executor = probe
+    publisher = node.create_publisher(Float64MultiArray, '/untyped', 10)
+    recorder = recorder_node.RecorderNode(BagWriter(tmp_path / 'bag'), ['untyped'],
+                                          describe=(), context=node.context)
+    try:
+        executor.add_node(recorder)
+        assert spin_until(executor, lambda: '/untyped' in recorder._subs, 60)
+    finally:
+        executor.remove_node(recorder)
+        recorder.destroy_node()
+        node.destroy_publisher(publisher)
+    err = capsys.readouterr().err
+    assert err.rstrip().endswith('; not recorded, type not installed: /untyped '
+                                 '(std_msgs/msg/Float64MultiArray)'), err
+    assert bag_topics(tmp_path / 'bag') == {}

@@ -32,47 +32,83 @@ import importlib
 from pathlib import Path
 import re
 import sys
-from typing import Any, Optional, Sequence
+from typing import Any, Callable, Optional, Sequence, Union
 
 from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAME,
                                               NODE_NAME_RULE, PARAMETERS_KEY, qos_from_ints,
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
-from lookahead_control.core.config import source_config_dir
-from lookahead_control.ros.node_main import now_ns, run_node
+from lookahead_control.core.config import ConfigError, source_config_dir
+from lookahead_control.ros.node_main import now_ns, RCLError, run_node
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import InvalidHandle, InvalidTopicNameException
-from rclpy.expand_topic_name import expand_topic_name
+from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
-from rclpy.validate_full_topic_name import validate_full_topic_name
 import yaml
 
 DEFAULT_DESCRIBE = ('/controller', '/sim_plant')
+_RCL_NOISE = re.compile(r'^failed to resolve name: |, at /\S+:\d+')
 
 
 @dataclass
 class TopicStats:
-    """What arrived on one topic, and the publishers' sequence numbers seen."""
+    """
+    What arrived on one topic, and the publishers' sequence numbers seen.
+
+    A writer numbers its messages from 1 and they arrive in order: a number that does
+    not grow is a new writer (a publisher restarted), whose count starts again. The
+    writers before the current one are summed in the ``earlier_*`` fields.
+    """
 
     received: int = 0
-    first_seq: Optional[int] = None
+    first_seq: Optional[int] = None     # of the current writer
     last_seq: Optional[int] = None
     publishers: int = 0
+    writer_received: int = 0            # from the current writer
+    earlier_published: int = 0
+    earlier_dropped: int = 0
+    earlier_before_first: int = 0
+
+    def count(self, seq: Optional[int]) -> None:
+        """
+        Count one message received.
+
+        :param seq: its publication sequence number (None if the middleware gives none).
+        """
+        self.received += 1
+        if seq is None:
+            return
+        if self.first_seq is None or self.last_seq is None:
+            self.first_seq = seq
+        elif seq <= self.last_seq:
+            # before: min/max over all, so a restarted publisher's 1..600 after 4..300
+            # said 600 published of 887 received, and hid its drops
+            self.earlier_published += self.last_seq
+            self.earlier_dropped += self._writer_dropped()
+            self.earlier_before_first += self.first_seq - 1
+            self.first_seq, self.writer_received = seq, 0
+        self.last_seq = seq
+        self.writer_received += 1
+
+    def _writer_dropped(self) -> int:
+        """Return the current writer's messages lost after its first one received."""
+        if self.first_seq is None or self.last_seq is None:
+            return 0
+        return max(0, self.last_seq - self.first_seq + 1 - self.writer_received)
 
     def dropped(self) -> Optional[int]:
         """Return the messages lost (None when the sequence cannot tell: many writers)."""
         if self.publishers != 1 or self.first_seq is None or self.last_seq is None:
             return None
-        return max(0, self.last_seq - self.first_seq + 1 - self.received)
+        return self.earlier_dropped + self._writer_dropped()
 
     def before_first(self) -> Optional[int]:
         """
-        Return the messages published before the first one received.
+        Return the messages published before the first one received (of each writer).
 
         A writer numbers its messages from 1; a recorder that subscribed (or matched)
         after the publisher started misses the first ``first_seq - 1`` of them. None when
@@ -80,7 +116,13 @@ class TopicStats:
         """
         if self.publishers != 1 or self.first_seq is None:
             return None
-        return self.first_seq - 1
+        return self.earlier_before_first + self.first_seq - 1
+
+    def published(self) -> Optional[int]:
+        """Return how many messages the writers numbered (None: the numbers cannot tell)."""
+        if self.dropped() is None or self.last_seq is None:
+            return None
+        return self.earlier_published + self.last_seq
 
 
 def message_class(msgtype: str) -> Any:
@@ -131,34 +173,49 @@ def matching_qos(offered: Sequence[QoSProfile]) -> QoSProfile:
 class RecorderNode(Node):
     """Records the selected topics into one bag."""
 
-    def __init__(self, bag: BagWriter, topics: Sequence[str] = (),
-                 regex: Optional[str] = None,
+    def __init__(self, bag: Union[BagWriter, Callable[[], BagWriter]],
+                 topics: Sequence[str] = (), regex: Optional[str] = None,
                  describe: Sequence[str] = DEFAULT_DESCRIBE, **kwargs: Any) -> None:
         """
         Start discovering topics.
 
-        :param bag: the bag to write.
+        :param bag: the bag to write, or what opens it once the topic names are resolved
+            (a name refused makes no bag).
         :param topics: topic names to record, relative ones in the node's namespace (with
             ``regex`` empty: all topics).
         :param regex: record topics whose full name matches it.
         :param describe: nodes whose parameters are stored in the bag.
         :param kwargs: passed to ``Node``.
+        :raises ConfigError: a topic name ROS refuses, in the node's namespace.
         """
         super().__init__('recorder', **kwargs)
-        self.bag = bag
         # relative names in the recorder's namespace, as ros2 bag record resolves them:
-        # before, `record talk` never matched /talk and recorded nothing, silently
-        self.topics = {self.resolve_topic_name(t) for t in topics}
+        # before, `record talk` never matched /talk and recorded nothing, silently.
+        # Resolved by rcl in the namespace the node has: before, names were checked in
+        # '/' (`{ns}/talk` under __ns:=/car_b was refused) and one too long in the real
+        # namespace was a traceback after the bag was made
+        self.topics: set[str] = set()
+        for topic in topics:
+            try:
+                self.topics.add(self.resolve_topic_name(topic))
+            except RCLError as err:
+                reason = _RCL_NOISE.sub('', str(err).strip())
+                raise ConfigError(f'topic {topic!r}: not a ROS topic name (letters, digits '
+                                  "and _ between single '/'; a relative name is resolved in "
+                                  f"the recorder's namespace): {reason}") from err
+        self.bag = bag if isinstance(bag, BagWriter) else bag()
         self.regex = re.compile(regex) if regex else None
         self.stats: dict[str, TopicStats] = {}
         self._subs: dict[str, Any] = {}
+        self.remapped: dict[str, str] = {}      # topic -> where a subscription to it goes
+        self.unrecordable: dict[str, str] = {}  # topic -> its type, not importable here
         self.parameters: dict[str, dict[str, Any]] = {}
         self._asked: set[str] = set()           # seen in the graph
         self._pending: set[str] = set()         # a request on its way
         self._param_clients: dict[str, tuple[Any, Any]] = {}
         self.to_describe = list(describe)
         self.create_timer(0.1, self.discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.get_logger().info(f'recording to {bag.path}')
+        self.get_logger().info(f'recording to {self.bag.path}')
 
     def wanted(self, topic: str) -> bool:
         """Return True if ``topic`` is selected."""
@@ -176,6 +233,17 @@ class RecorderNode(Node):
             infos = self.get_publishers_info_by_topic(topic)
             if not infos:
                 continue
+            target = self.resolve_topic_name(topic)
+            if target != topic:
+                # a remapping (--ros-args -r, a launch SetRemap) applies to the
+                # recorder's own subscriptions: before, one to /talk with -r
+                # /talk:=/car_b/talk received /car_b/talk's messages and wrote them as /talk
+                self.get_logger().warn(f'{topic}: not recorded: a remapping sends a '
+                                       f'subscription to it to {target} (remap the nodes, '
+                                       'not the recorder)')
+                self._subs[topic] = None
+                self.remapped[topic] = target
+                continue
             try:
                 cls = message_class(types[0])
                 self.bag.add_topic(topic, types[0],
@@ -185,6 +253,9 @@ class RecorderNode(Node):
                     return          # the bag failed: the node stops, main reports it
                 self.get_logger().warn(f'{topic}: not recorded: {err}')
                 self._subs[topic] = None
+                # before: in the log only; the summary said nothing of a named topic
+                # whose type is not installed here
+                self.unrecordable[topic] = types[0]
                 continue
             self.stats[topic] = TopicStats()
             # two arguments: rclpy passes the message info (publication sequence number)
@@ -207,12 +278,7 @@ class RecorderNode(Node):
             self.bag.write(topic, now_ns(self), data)
         except BagError:
             return              # the bag failed: the node stops, main reports it
-        stats = self.stats[topic]
-        stats.received += 1
-        seq = info.get('publication_sequence_number')
-        if seq is not None:
-            stats.first_seq = seq if stats.first_seq is None else min(stats.first_seq, seq)
-            stats.last_seq = seq if stats.last_seq is None else max(stats.last_seq, seq)
+        self.stats[topic].count(info.get('publication_sequence_number'))
 
     # -- run description ------------------------------------------------------------
 
@@ -295,7 +361,7 @@ class RecorderNode(Node):
             dropped = stats.dropped()
             out[topic] = {'received': stats.received, 'dropped': dropped,
                           'before_first': stats.before_first(),
-                          'published': None if dropped is None else stats.last_seq}
+                          'published': stats.published()}
         return out
 
     def drain(self) -> int:
@@ -350,6 +416,8 @@ class RecorderNode(Node):
             # a topic named on the command line that never had a publisher: misspelt, in
             # another namespace or domain, or its publisher never discovered
             absent = sorted(t for t in self.topics if t not in self._subs)
+            moved = [f'{t} -> {u}' for t, u in sorted(self.remapped.items())]
+            untyped = [f'{t} ({u})' for t, u in sorted(self.unrecordable.items())]
             print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
                   f'{dropped} dropped'
                   + (f'; subscribed late: missed the first {late}' if late else '')
@@ -357,7 +425,10 @@ class RecorderNode(Node):
                   + (f'; never saw {", ".join(unseen)} (--describe): no parameters'
                      if unseen else '')
                   + (f'; no publisher of {", ".join(absent)} ever seen: not recorded'
-                     if absent else ''),
+                     if absent else '')
+                  + (f'; not recorded, remapped: {", ".join(moved)}' if moved else '')
+                  + (f'; not recorded, type not installed: {", ".join(untyped)}'
+                     if untyped else ''),
                   file=sys.stderr)
         super().destroy_node()
 
@@ -412,29 +483,30 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             re.compile(args.regex)
         except re.error as err:
             raise ToolError(f'-e {args.regex!r}: not a regular expression: {err}') from err
-    for topic in args.topics:
-        try:
-            validate_full_topic_name(expand_topic_name(topic, 'recorder', '/'))
-        except (ValueError, InvalidTopicNameException) as err:
-            raise ToolError(f'topic {topic!r}: not a ROS topic name (letters, digits and _ '
-                            "between single '/'; a relative name is resolved in the "
-                            "recorder's namespace)") from err
     if args.describe and args.describe != list(DEFAULT_DESCRIBE):
         # before: only a leading / was checked; /car_b/controller/ (a typo) was never
         # matched by a node, and the bag silently lacked its parameters
         bad = [n for n in args.describe if not FULL_NODE_NAME.fullmatch(n)]
         if bad:
             raise ToolError(f'--describe {bad[0]!r}: {NODE_NAME_RULE}')
-    bag = BagWriter(args.output or Path(default_bag_name()),
-                    0.5 if args.chunk_interval is None else args.chunk_interval)
+    made: list[BagWriter] = []
+
+    def open_bag() -> BagWriter:
+        # made by the node once it has resolved the topic names (a refused one: no bag)
+        made.append(BagWriter(args.output or Path(default_bag_name()),
+                              0.5 if args.chunk_interval is None else args.chunk_interval))
+        return made[-1]
+
     try:
-        code = run_node('record', full, lambda: RecorderNode(bag, args.topics, args.regex,
-                                                             args.describe),
-                        lambda node: bag.error is not None)
+        code = run_node('record', full, lambda: RecorderNode(open_bag, args.topics,
+                                                             args.regex, args.describe),
+                        lambda node: node.bag.error is not None)
     finally:
-        bag.close()         # once; after a write error the bag is already aborted
-    if bag.error is not None:
-        raise bag.error
+        for bag in made:
+            bag.close()     # once; after a write error the bag is already aborted
+    for bag in made:
+        if bag.error is not None:
+            raise bag.error
     return code
 
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
+import re
 import struct
 from typing import Any, Callable, Mapping, Optional, Sequence
 
@@ -56,6 +57,9 @@ TOPICS = {'lateral_error': '/lateral_error', 'yaw': '/yaw', 'velocity': '/veloci
           'debug': '/controller/debug', 'ground_truth': '/sim_plant/ground_truth'}
 INPUTS = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
 CONTROLLER_NODE = '/controller'
+# rmw's longest topic name: 255 less the DDS prefix rcl keeps room for
+MAX_TOPIC_LENGTH = 247
+_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 MSGTYPES = {'lateral_error': 'geometry_msgs/msg/PointStamped',
             'yaw': 'sensor_msgs/msg/Imu', 'velocity': 'geometry_msgs/msg/TwistStamped',
             'road_curvature': 'geometry_msgs/msg/PolygonStamped',
@@ -96,16 +100,36 @@ def resolve_name(topic: str, node: str = CONTROLLER_NODE) -> str:
     """
     Resolve a topic name as the node ``node`` resolves it (ROS name rules).
 
+    As rcl expands a name: ``~`` is the node's fully qualified name, ``{node}`` its name,
+    ``{ns}`` and ``{namespace}`` its namespace; a name still relative is put in the
+    namespace. The result must be a full ROS topic name: tokens of letters, digits and
+    ``_`` (not starting with a digit) between single ``/``, at most
+    :data:`MAX_TOPIC_LENGTH` characters.
+
     :param topic: absolute (``/car_b/x``), private (``~/x``: under the node's name) or
         relative (``x``: in the node's namespace).
     :param node: the node's fully qualified name.
     :return: the absolute name.
+    :raises ConfigError: ``topic`` is no ROS topic name, or does not make one.
     """
-    if topic.startswith('/'):
-        return topic
-    if topic == '~' or topic.startswith('~/'):
-        return node + topic[1:]
-    return node.rpartition('/')[0] + '/' + topic
+    namespace, _, name = node.rpartition('/')
+    expanded = node + topic[1:] if topic == '~' or topic.startswith('~/') else topic
+    for key, value in (('{node}', name), ('{ns}', namespace or '/'),
+                       ('{namespace}', namespace or '/')):
+        expanded = expanded.replace(key, value)
+    if not expanded.startswith('/'):
+        expanded = namespace + '/' + expanded
+    # before: no check; 'bad name', '' or a typo read a topic no bag can hold and the
+    # re-run compared nothing, exit 0
+    if len(expanded) > MAX_TOPIC_LENGTH or not all(
+            _TOKEN.fullmatch(token) for token in expanded[1:].split('/')):
+        shown = repr(topic) + (f' ({node} resolves it as {expanded!r})'
+                               if expanded != topic else '')
+        raise ConfigError(f'{shown}: not a ROS topic name (letters, digits and _ between '
+                          "single '/', no token starting "
+                          f'with a digit, at most {MAX_TOPIC_LENGTH} characters; ~ is the '
+                          'node, a relative name is in its namespace)')
+    return expanded
 
 
 def plant_node(node: str = CONTROLLER_NODE) -> str:
@@ -296,11 +320,25 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         raise ConfigError(f'--topic {unknown[0]}=...: unknown role {unknown[0]!r}; roles: '
                           f'{", ".join(TOPICS)}')
     # a relative override is the node's, as the node resolves its own names: before,
-    # steering=steering on /car_b/controller read a /car_b-less name (absent: refused)
-    names = {**node_topics(node), **{role: resolve_name(topic, node)
-                                     for role, topic in (topics or {}).items()}}
+    # steering=steering on /car_b/controller read a /car_b-less name
+    defaults = node_topics(node)                # the node's name checked first
+    overrides: dict[str, str] = {}
+    for given_role, given in (topics or {}).items():
+        try:
+            overrides[given_role] = resolve_name(given, node)
+        except ConfigError as err:
+            raise ConfigError(f'--topic {given_role}={given}: {err}') from err
+    names = {**defaults, **overrides}
     role_of = {topic: role for role, topic in names.items()}
     available = bag_topics(bag)
+    absent = [role for role in overrides if overrides[role] not in available]
+    if absent:
+        # before: a named topic the bag lacks (a typo, the wrong namespace) was read as
+        # no message: steering=stearing compared 0 commands and exited 0
+        first = absent[0]
+        raise ConfigError(f'{bag}: --topic {first}={(topics or {})[first]}: no '
+                          f'{overrides[first]} in the bag (has: '
+                          f'{", ".join(sorted(available)) or "none"})')
     recorded = recorded_parameters(Path(bag))        # every node's, one read
     controller_params = recorded.get(node, {})
     if node != CONTROLLER_NODE and not controller_params and names['debug'] not in available:

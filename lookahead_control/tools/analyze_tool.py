@@ -43,20 +43,20 @@ COLUMNS = (*LABEL_COLUMNS, 'd_v_final_m', *METRIC_COLUMNS, 'latency_p50_ms',
 
 def topic_overrides(items: Sequence[str]) -> dict[str, str]:
     """
-    Parse ``--topic ROLE=TOPIC`` options, refusing unknown roles and bad topic names.
+    Parse ``--topic ROLE=TOPIC`` options, refusing unknown roles.
+
+    The names are resolved and checked by :func:`~lookahead_control.bags.run_data.load_run`
+    as the ``--node`` resolves them (a relative name in its namespace, ``~`` its name).
 
     :param items: the option's values.
     :return: role -> topic.
-    :raises ToolError: an unknown role or a topic name that is not absolute.
+    :raises ToolError: an unknown role.
     """
     out = assignments(items, '--topic')
     for role, topic in out.items():
         if role not in TOPICS:
             raise ToolError(f'--topic {role}={topic}: unknown role {role!r}; roles: '
                             f'{", ".join(TOPICS)}')
-        if not topic.startswith('/') or len(topic) < 2 or any(c.isspace() for c in topic):
-            raise ToolError(f'--topic {role}={topic!r}: a topic name must be absolute '
-                            '(start with /) and have no spaces, e.g. /lane/offset')
     return out
 
 
@@ -214,8 +214,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='write into a non-empty --out folder analyze did not write, '
                    'replacing files of its names there (nothing else is touched)')
     p.add_argument('--topic', action='append', default=[], metavar='ROLE=TOPIC',
-                   help='contract topic name in the bags, e.g. lateral_error=/lane/offset; '
-                   f'ROLE is one of {", ".join(TOPICS)}')
+                   help='contract topic name in the bags, e.g. lateral_error=/lane/offset (a '
+                   "relative name is in the --node's namespace, ~/x under its name); ROLE is "
+                   f'one of {", ".join(TOPICS)}')
     p.add_argument('--node', default=CONTROLLER_NODE, metavar='NAME',
                    help='the controller node whose run to analyze, in a bag of several '
                    'vehicles (default /controller): its recorded parameters, NAME/debug and '
