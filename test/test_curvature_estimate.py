@@ -206,7 +206,11 @@ def test_with_curvature_received_the_runs_are_those_of_the_old_code():
         result = run(scenario, VEHICLE, Told(), PlantParams(model='nonlinear'),
                      initial_speed=37.0, dt=0.001, delay=0.02, preview_distance=100.0,
                      noise=NoiseParams(), seed=0)
-        assert float(np.sum(result['steering'])) == total
+        # the same commands to the last bits a CPU's math kernels decide: numpy picks
+        # SIMD (SVML) kernels on AVX-512 machines whose tan / atan2 / cube root differ
+        # from the C library's in the last bit; any change of the law moves this sum by
+        # far more (a 1 % gain change: about 1e-3 of it)
+        assert float(np.sum(result['steering'])) == pytest.approx(total, rel=1e-12, abs=0.0)
 
 
 def test_a_batch_with_and_without_curvature_equals_its_single_runs():

@@ -74,7 +74,7 @@ def brush_shape(load: Real) -> tuple[Real, Real]:
     :return: ``(secant, tangent)`` factors [-].
     """
     n = xp.clip(xp.absolute(load), 0.0, MAX_LOAD)
-    root = (1.0 - n) ** (1.0 / 3.0)
+    root = xp.power(1.0 - n, 1.0 / 3.0)
     small = n < 1e-6
     secant = xp.where(small, 1.0 + n / 3.0,
                       3.0 * (1.0 - root) / xp.where(small, 1.0, n))

@@ -47,9 +47,27 @@ def cos(x: Real) -> Real:
     return np.cos(x) if isinstance(x, np.ndarray) else math.cos(x)
 
 
+# tan, atan2 and power of a float go through numpy's kernels too: on a CPU with AVX-512 numpy
+# dispatches SIMD (SVML) kernels that differ from the C library's in the last bit
+# (about 0.5 % of tan, 8 % of atan2, 5 % of cube-root arguments), and a float run then left its
+# one-element batch (the plants and laws are checked bit for bit against their batch
+# runs, and compare's seeded rows against single runs). sin, cos and sqrt agree.
+
+
 def tan(x: Real) -> Real:
-    """Tangent of a float or an array."""
-    return np.tan(x) if isinstance(x, np.ndarray) else math.tan(x)
+    """Tangent of a float or an array (numpy's kernel for both)."""
+    return np.tan(x) if isinstance(x, np.ndarray) else float(np.tan(x))
+
+
+def power(x: Real, exponent: float) -> Real:
+    """
+    Return ``x ** exponent`` of a float or an array (numpy's kernel for both).
+
+    :param x: the base.
+    :param exponent: the exponent.
+    :return: the power.
+    """
+    return np.power(x, exponent) if isinstance(x, np.ndarray) else float(np.power(x, exponent))
 
 
 def sqrt(x: Real) -> Real:
@@ -58,8 +76,8 @@ def sqrt(x: Real) -> Real:
 
 
 def atan2(y: Real, x: Real) -> Real:
-    """Four-quadrant arc tangent of floats or arrays."""
-    return np.arctan2(y, x) if _is_array(y, x) else math.atan2(y, x)
+    """Four-quadrant arc tangent of floats or arrays (numpy's kernel for both)."""
+    return np.arctan2(y, x) if _is_array(y, x) else float(np.arctan2(y, x))
 
 
 def absolute(x: Real) -> Real:
