@@ -643,6 +643,10 @@ def test_certificate_edge_settings():
     cert = stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(integral_gain=0.0),
                                  samples=11)
     assert cert.max_real_eig == 0.0 and cert.max_norm == math.inf and not cert.holds
+    # nor at low speed only (low_speed_integral_gain 0: no integral at and below 15 m/s)
+    cert = stability.certificate(VEHICLE, CONTROLLER,
+                                 LaneKeepingParams(low_speed_integral_gain=0.0), samples=11)
+    assert cert.max_real_eig == 0.0 and cert.max_norm == math.inf and not cert.holds
     # an envelope between two kinks
     cert = stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(), 36.99, 37.0,
                                  samples=3)

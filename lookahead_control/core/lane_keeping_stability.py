@@ -242,9 +242,9 @@ def schedule_kinks(vehicle: VehicleParams, controller: ControllerParams,
     Return the speeds in ``(v_min, v_max)`` where ``A`` is not differentiable.
 
     The w_n schedule's clamps (``low_speed_frequency`` and ``natural_frequency``), the
-    integral gain's (``low_speed_integral_gain`` and ``integral_gain``, where they
-    differ) and the d_v schedule's (its floor and clamp: where ``dd_v/dt`` at ``a_x = 1`` switches
-    between 0 and not, located by bisection to 1e-12 m/s).
+    integral gain's (``low_integral_speed`` and ``integral_speed``, where its two gains
+    differ) and the d_v schedule's (its floor and clamp: where ``dd_v/dt`` at
+    ``a_x = 1`` switches between 0 and not, located by bisection to 1e-12 m/s).
 
     :param vehicle: the design vehicle.
     :param controller: d_v schedule.
@@ -368,8 +368,9 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
                   - matrix(v_x + 2.0 * side * step)) / (2.0 * step)
     p = lyapunov(a_0, weight)
     p_v = lyapunov(a_0, a_v.T @ p + p @ a_v)
-    # the coordinates move with the true speed: z' = (T A T^-1 + v' T_v T^-1) z, and
-    # T_v T^-1 = diag(0, 0, 0, 0, s'/s) (one-sided, k_i is piecewise linear in v)
+    # the coordinates move with the true speed: u' = (S A S^-1 + v' G) u with
+    # G = S_v S^-1 = (s'/s) (E_55 - E_15), s'/s = k_i' / (2 k_i) (one-sided: k_i is
+    # piecewise linear in v)
     k_0 = float(integral_gain_at(settings, v_x))
     if k_0 > 0.0:
         k_step = float(integral_gain_at(settings, v_x + side * step))
@@ -427,7 +428,8 @@ def integral_scale(settings: LaneKeepingParams, v_x: float) -> float:
     Return ``s(v) = sqrt(k_i(v) / integral_gain)``, the certificate's integral coordinate.
 
     1 where ``k_i = integral_gain`` (a constant ``k_i``: the certificate's coordinates
-    are ``x``) and without the integral.
+    are ``x``) and without the integral; 0 where ``low_speed_integral_gain`` is 0 (no
+    coordinates: the loop has a zero eigenvalue there and the certificate does not hold).
 
     :param settings: the law's settings.
     :param v_x: speed [m/s].
