@@ -407,11 +407,12 @@ def integral_coordinates(settings: LaneKeepingParams, v_x: float) -> Matrix:
     Return ``S(v)``, the certificate's coordinates ``u = S(v) x``.
 
     ``u = [y_cg + (1 - s) I, eps_r, v_y, r, s I]`` with ``s`` :func:`integral_scale`:
-    the integral's slow root is ``about -k_i`` with the eigenvector ``y_cg = -I``, and in
+    the integral's slow root is about ``-k_i`` with the eigenvector ``y_cg = -I``, and in
     ``u`` its part of ``P`` (the integral state scaled by ``sqrt(k_i)``, the error from
     the shifted reference ``y_cg + I`` kept) does not grow as ``1 / k_i`` where ``k_i``
     falls with the speed, which the certificate's ``dP/dv`` would charge to every
-    acceleration: in ``x`` the scheduled default fails (value 2.9 at 10 m/s).
+    acceleration: in ``x`` the scheduled default fails (value 17.8 at 15 m/s with the
+    sharp ``Q``).
 
     :param settings: the law's settings.
     :param v_x: speed [m/s].
