@@ -22,8 +22,9 @@ from lookahead_control.core.control_law import LateralState, steering_law
 from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.estimator import brush_shape, GRAVITY
 from lookahead_control.core.lane_keeping import (cg_compensated_law, CgCompensatedLaw,
-                                                 LaneKeepingParams, loop_gains,
-                                                 preview_curvature, steady_relative_yaw)
+                                                 integral_gain_at, LaneKeepingParams,
+                                                 loop_gains, preview_curvature,
+                                                 steady_relative_yaw)
 from lookahead_control.core.laws import Preview
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.safety import SafetyParams
@@ -53,6 +54,58 @@ def test_loop_gains_scheduled_on_speed():
     assert loop_gains(settings, 15.0) == pytest.approx((3.5 ** 2, 7.0))
     assert loop_gains(settings, 5.0) == pytest.approx((9.0, 6.0))
     assert loop_gains(settings, np.array([5.0, 37.0]))[0] == pytest.approx([9.0, 49.0])
+
+
+def test_integral_gain_scheduled_on_speed():
+    # k_lo = 0.05 at and below 15 m/s, 0.3 at and above 30, linear between:
+    # 0.05 + 0.25 (v - 15) / 15
+    settings = LaneKeepingParams(integral_gain=0.3, integral_speed=30.0,
+                                 low_speed_integral_gain=0.05, low_integral_speed=15.0)
+    for v, k_i in ((3.0, 0.05), (10.0, 0.05), (15.0, 0.05), (18.0, 0.1),
+                   (20.0, 0.05 + 0.25 / 3), (22.5, 0.175), (27.0, 0.25), (30.0, 0.3),
+                   (37.0, 0.3)):
+        assert integral_gain_at(settings, v) == pytest.approx(k_i, rel=1e-12), v
+    assert integral_gain_at(settings, np.array([10.0, 22.5, 37.0])) == pytest.approx(
+        [0.05, 0.175, 0.3])
+    # another ramp: 0.2 at and below 10 m/s to 1.0 at and above 20 m/s
+    other = LaneKeepingParams(integral_gain=1.0, integral_speed=20.0,
+                              low_speed_integral_gain=0.2, low_integral_speed=10.0)
+    assert [integral_gain_at(other, v) for v in (5.0, 12.5, 15.0, 25.0)] == pytest.approx(
+        [0.2, 0.4, 0.6, 1.0])
+    # the low-speed gain is capped at integral_gain: 0 switches the integral off at
+    # every speed, a low-speed gain of integral_gain or more keeps k_i constant
+    off = LaneKeepingParams(integral_gain=0.0, low_speed_integral_gain=0.05)
+    assert [integral_gain_at(off, v) for v in (5.0, 20.0, 37.0)] == [0.0, 0.0, 0.0]
+    flat = LaneKeepingParams(integral_gain=0.3, low_speed_integral_gain=0.5)
+    assert [integral_gain_at(flat, v) for v in (5.0, 20.0, 37.0)] == pytest.approx([0.3] * 3)
+
+
+def test_the_default_integral_gain_falls_at_low_speed():
+    # measured: the S0 yaw rebound <= 50 % on 53 / 66 % of 32 noise seeds at 10 / 20 m/s
+    # with k_i 0.3 at every speed (docs/lane_keeping.md, Defaults)
+    settings = LaneKeepingParams()
+    assert integral_gain_at(settings, 37.0) == pytest.approx(0.3)
+    assert integral_gain_at(settings, 30.0) == pytest.approx(0.3)
+    assert integral_gain_at(settings, 10.0) < integral_gain_at(settings, 20.0) < 0.3
+
+
+def test_the_old_constant_integral_gain_is_one_setting_away():
+    # low_speed_integral_gain = integral_gain: k_i 0.3 at every speed, the law's integral
+    # and steering as before the schedule (k_i y_cg t) at 10, 20 and 37 m/s
+    old = LaneKeepingParams(state_filter='none', low_speed_integral_gain=0.3)
+    new = LaneKeepingParams(state_filter='none')
+    for v_x in (10.0, 20.0, 37.0):
+        laws = [CgCompensatedLaw(VEHICLE, CONTROLLER, s) for s in (old, new)]
+        for _ in range(100):
+            outs = [law.step(state(y_cg=0.2, v_x=v_x), EMPTY, 0.01) for law in laws]
+        assert laws[0].integral == pytest.approx(0.3 * 0.2 * 1.0), v_x
+        assert laws[1].integral == pytest.approx(
+            integral_gain_at(new, v_x) * 0.2 * 1.0), v_x
+        if v_x < new.integral_speed:
+            assert laws[1].integral < laws[0].integral
+            assert outs[0].steering != outs[1].steering
+        else:
+            assert outs[0].steering == pytest.approx(outs[1].steering, rel=1e-12)
 
 
 def test_steady_relative_yaw_matches_model_md():
@@ -288,19 +341,20 @@ def test_the_held_loop_of_the_stability_check_is_the_law_outside_the_band(v_x):
                    - steering(base[:i] + [base[i] - h] + base[i + 1:])) / (2 * h)
                   for i in range(4)]
         slopes.append((steering(base, h) - steering(base, -h)) / (2 * h))
-        # inside, the law integrates within the step: k_I k_i dt more on y_cg
-        extra = gains[4] * settings.integral_gain * 0.01 if y0 < 0.5 else 0.0
+        # inside, the law integrates within the step: k_I k_i dt more on y_cg (k_i at v_x)
+        extra = gains[4] * integral_gain_at(settings, v_x) * 0.01 if y0 < 0.5 else 0.0
         expected = np.asarray(gains, dtype=float).ravel() + np.array([extra, 0, 0, 0, 0])
         assert np.allclose(slopes, expected, rtol=1e-5, atol=1e-7)
     assert not np.allclose(held, running)
 
 
-def _engaged_off_centre(speed, band):
+def _engaged_off_centre(speed, band, **settings):
     """Engage the default law 1.75 m off the lane centre (goal plant, straight road)."""
     from lookahead_control.tools.compare import load_scenarios
     from sim_plant.sensors import NoiseParams
     scenario = load_scenarios(['s0_straight'])['s0_straight']
-    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(integral_band=band))
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER,
+                           LaneKeepingParams(integral_band=band, **settings))
     return run(scenario, VEHICLE, law, PlantParams(model='nonlinear'), initial_speed=speed,
                initial_error=1.75, dt=0.001, delay=0.02, preview_distance=100.0,
                noise=NoiseParams(), seed=1)['y_cg']
@@ -308,12 +362,14 @@ def _engaged_off_centre(speed, band):
 
 @pytest.mark.parametrize('speed, bound', [(20.0, 0.08), (37.0, 0.12)])
 def test_a_car_engaged_half_a_lane_off_does_not_overshoot_the_centre(speed, bound):
-    # measured: 4.3 / 8.3 cm past the centre at 20 / 37 m/s; integrating at any error
-    # (integral_band 0, the law before) 37.2 / 40.2 cm
+    # measured: 2.8 / 8.3 cm past the centre at 20 / 37 m/s (4.3 at 20 with k_i 0.3 at
+    # every speed, before dev-kisched); integrating at any error with k_i 0.3 at every
+    # speed (integral_band 0, the law before) 37.2 / 40.2 cm (with the k_i schedule
+    # 18.1 cm at 20 m/s)
     y = _engaged_off_centre(speed, 0.5)
     assert y[0] == pytest.approx(1.75) and abs(y[-100:]).max() < 0.05
     assert -y.min() < bound
-    assert -_engaged_off_centre(speed, 0.0).min() > 0.3
+    assert -_engaged_off_centre(speed, 0.0, low_speed_integral_gain=0.3).min() > 0.3
 
 
 def test_speed_from_37_to_3_freezes_learning_and_stays_finite():
@@ -381,6 +437,19 @@ def test_paper_reference_modes_unchanged():
 def test_settings_validate():
     with pytest.raises(ParameterError, match='integral_gain'):
         LaneKeepingParams(integral_gain=-1.0)
+    with pytest.raises(ParameterError, match=r'lane_keeping\.low_speed_integral_gain = -0\.1'):
+        LaneKeepingParams(low_speed_integral_gain=-0.1)
+    with pytest.raises(ParameterError, match=r'lane_keeping\.integral_speed = 0\.0'):
+        LaneKeepingParams(integral_speed=0.0)
+    with pytest.raises(ParameterError, match=r'lane_keeping\.low_integral_speed = -1\.0'):
+        LaneKeepingParams(low_integral_speed=-1.0)
+    for low, high in ((30.0, 30.0), (31.0, 30.0)):
+        with pytest.raises(ParameterError) as error:
+            LaneKeepingParams(low_integral_speed=low, integral_speed=high)
+        assert str(error.value) == (
+            f'lane_keeping.low_integral_speed = {low!r} m/s is not below '
+            f'lane_keeping.integral_speed = {high!r} m/s; the integral gain moves from '
+            'low_speed_integral_gain to integral_gain between them, so it must be lower')
     with pytest.raises(ParameterError, match='max_gap'):
         LaneKeepingParams(max_gap=0.0)
 
@@ -388,10 +457,13 @@ def test_settings_validate():
 def test_feedback_gain_is_the_law_with_its_acceleration_terms():
     # K(v, a) against the law itself on unit states (straight road, integral I as the
     # offset -I with rate -k_i y_cg): the old K ignored a_x, which the law's d_v rate
-    # and drift terms use (A(v, a) = A_0 + a A_1)
+    # and drift terms use (A(v, a) = A_0 + a A_1); k_i is the scheduled gain at v
+    # (0.05 at 10.5 and 12 m/s, 0.2167 at 25, 0.3 at 37)
     settings = LaneKeepingParams()
-    k_i = settings.integral_gain
     for v, a in ((12.0, 3.5), (25.0, -3.5), (37.0, 2.0), (10.5, 3.5)):
+        k_i = integral_gain_at(settings, v)
+        a_0 = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, v)
+        assert a_0[4, 0] == k_i and a_0[4, 1:].tolist() == [0.0] * 4
         gains = loop_gains(settings, v)
         k = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v, a)
         for i in range(5):
@@ -406,26 +478,52 @@ def test_feedback_gain_is_the_law_with_its_acceleration_terms():
 
 
 def test_schedule_kinks_by_hand():
-    # d_v leaves its floor where 4 eta v^2 - l_2 = d_s; w_n leaves 3 at 30 * 3 / 7, 7 at 30
+    # d_v leaves its floor where 4 eta v^2 - l_2 = d_s; w_n leaves 3 at 30 * 3 / 7, 7 at 30;
+    # k_i leaves 0.05 at 15 m/s and reaches 0.3 at 30 (one kink with w_n's)
     floor = math.sqrt((VEHICLE.d_s + VEHICLE.l2) / (4.0 * VEHICLE.eta))
     kinks = stability.schedule_kinks(VEHICLE, CONTROLLER, LaneKeepingParams(), 10.0, 37.0)
-    assert kinks == pytest.approx([floor, 90.0 / 7.0, 30.0], abs=1e-9)
+    assert kinks == pytest.approx([floor, 90.0 / 7.0, 15.0, 30.0], abs=1e-9)
     assert floor == pytest.approx(10.78, abs=0.005)
+    # a constant k_i has none; another ramp has its own two
+    flat = LaneKeepingParams(low_speed_integral_gain=0.3)
+    assert stability.schedule_kinks(VEHICLE, CONTROLLER, flat, 10.0, 37.0) == pytest.approx(
+        [floor, 90.0 / 7.0, 30.0], abs=1e-9)
+    ramp = LaneKeepingParams(low_integral_speed=20.0, integral_speed=25.0)
+    assert stability.schedule_kinks(VEHICLE, CONTROLLER, ramp, 10.0, 37.0) == pytest.approx(
+        [floor, 90.0 / 7.0, 20.0, 25.0, 30.0], abs=1e-9)
 
 
 def test_certificate_lyapunov_against_scipy():
     # P and dP/dv of the certificate against scipy's solver and a central difference of
-    # its solutions (away from kinks)
+    # its solutions (away from kinks), in the coordinates u = S x built here by hand:
+    # u = [y_cg + (1 - s) I, eps_r, v_y, r, s I], s = sqrt(k_i(v) / 0.3); S = I at 36 m/s,
+    # a constant S at 11.5 (k_i 0.05), and at 20 m/s (k_i 0.05 + 0.25 * 5 / 15 = 2 / 15,
+    # k_i' = 1 / 60) the coordinates move: dP/dv also has G^T P + P G with
+    # G = (k_i' / 2 k_i) (E_55 - E_15), k_i' / 2 k_i = 1 / 16
     weight = stability.lyapunov_weight()
     settings = LaneKeepingParams()
-    for v in (11.5, 20.0, 36.0):
-        p, p_v, n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, v, 1.0, weight)
 
-        def reference(speed):
-            a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, speed)
-            return solve_continuous_lyapunov(a.T, -weight)
+    def change(speed):
+        scale = math.sqrt(integral_gain_at(settings, speed) / 0.3)
+        matrix = np.eye(5)
+        matrix[0, 4], matrix[4, 4] = 1.0 - scale, scale
+        return matrix
+
+    def reference(speed):
+        a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, speed)
+        a_u = change(speed) @ a @ np.linalg.inv(change(speed))
+        return solve_continuous_lyapunov(a_u.T, -weight)
+    assert change(36.0) == pytest.approx(np.eye(5), abs=1e-15)
+    for v, rate in ((11.5, 0.0), (20.0, 1.0 / 16.0), (36.0, 0.0)):
+        p, p_v, n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, v, 1.0, weight)
+        assert stability.integral_coordinates(settings, v) == pytest.approx(change(v),
+                                                                            rel=1e-12)
         assert p == pytest.approx(reference(v), rel=1e-9, abs=1e-9)
-        central = (reference(v + 1e-3) - reference(v - 1e-3)) / 2e-3
+        assert stability.lyapunov_matrix(VEHICLE, CONTROLLER, settings, v, weight) == \
+            pytest.approx(change(v).T @ reference(v) @ change(v), rel=1e-9, abs=1e-9)
+        g = np.zeros((5, 5))
+        g[4, 4], g[0, 4] = rate, -rate
+        central = (reference(v + 1e-3) - reference(v - 1e-3)) / 2e-3 + g.T @ p + p @ g
         assert p_v == pytest.approx(central, rel=1e-5, abs=1e-6 * np.max(np.abs(p_v)))
         left = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, v, -1.0, weight)
         assert left[2] == pytest.approx(n, rel=1e-6, abs=1e-6 * np.max(np.abs(n)))
@@ -433,10 +531,33 @@ def test_certificate_lyapunov_against_scipy():
         stability.lyapunov_weight(((1.0,) * 5,) * 5)
 
 
+CONSTANT_K_I = LaneKeepingParams(low_speed_integral_gain=0.3)   # k_i 0.3 at every speed
+
+
+def test_certificate_holds_to_3_5_m_s2_with_the_scheduled_integral_gain():
+    # the default k_i falls to 0.05 1/s at and below 15 m/s: the integral's root is
+    # about -k_i there (-0.0504), the test runs in the coordinates u = S(v) x and holds
+    # with the same sharp Q: 0.730 at 37 m/s (where k_i is 0.3, as before), kinks at the
+    # schedule's 15 m/s too; it fails above 3.5 / 0.73 = 4.8 m/s^2 as before
+    settings = LaneKeepingParams()
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=136)
+    assert -0.06 < cert.max_real_eig < -0.04 and cert.holds and cert.weight == 'sharp'
+    assert cert.max_norm == pytest.approx(0.730, abs=0.005)
+    assert cert.max_norm_speed == 37.0 and 15.0 in cert.kinks
+    assert cert.max_norm < cert.between < 0.8 and cert.speeds == 138
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, a_max=4.8,
+                                     samples=136).holds
+    # the robust Q (found for a constant k_i) does not hold on the schedule
+    robust = stability.certificate(VEHICLE, CONTROLLER, settings, samples=136,
+                                   q=stability.CERTIFICATE_Q_ROBUST)
+    assert not robust.holds and robust.max_norm > 1.5
+
+
 def test_certificate_holds_to_3_5_m_s2():
     # the Section 4 test with A's acceleration terms and the optimized Q: 0.730 at
-    # 3.5 m/s^2 on the grid, at the w_n kink; bounded between grid points
-    settings = LaneKeepingParams()
+    # 3.5 m/s^2 on the grid, at the w_n kink; bounded between grid points (k_i constant:
+    # the figures of the law before the schedule, unchanged)
+    settings = CONSTANT_K_I
     cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=136)
     assert cert.max_real_eig < -0.3 and cert.holds
     assert cert.max_norm == pytest.approx(0.730, abs=0.005)
@@ -460,7 +581,8 @@ def test_certificate_holds_to_3_5_m_s2():
 def test_certificate_with_an_error_in_the_law_s_acceleration():
     # the law's a_x (IMU, grade, differentiated speed) off the true v' by up to
     # a_error: the vertices (+-a_max, a +- a_error); 0 gives the exact test's value
-    settings = LaneKeepingParams()
+    # (k_i constant: the figures before the schedule)
+    settings = CONSTANT_K_I
     sharp = stability.CERTIFICATE_Q
     exact = stability.certificate(VEHICLE, CONTROLLER, settings, samples=55, q=sharp)
     cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0,
@@ -489,14 +611,41 @@ def test_certificate_with_an_error_in_the_law_s_acceleration():
         stability.certificate(VEHICLE, CONTROLLER, settings, a_error=float('nan'))
 
 
+def test_certificate_with_an_acceleration_error_and_the_scheduled_integral_gain():
+    # the default schedule: the sharp Q holds to an error of 1.4 m/s^2 (1.5 fails);
+    # acceleration_source zero (a_error 3.5) holds with the Q searched for the schedule,
+    # value 0.861 (4.5 fails), not with the robust one
+    settings = LaneKeepingParams()
+    sharp = stability.CERTIFICATE_Q
+    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.4,
+                                 q=sharp).holds
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
+                                     a_error=1.5, q=sharp).holds
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=3.5)
+    assert cert.holds and cert.weight == 'scheduled'
+    assert cert.max_norm == pytest.approx(0.861, abs=0.005) and cert.between < 0.88
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
+                                     a_error=3.5, q=stability.CERTIFICATE_Q_ROBUST).holds
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
+                                     a_error=4.5).holds
+    # and the scheduled Q does not certify the constant k_i: both are needed
+    assert not stability.certificate(VEHICLE, CONTROLLER, CONSTANT_K_I, samples=55,
+                                     a_error=3.5,
+                                     q=stability.CERTIFICATE_Q_SCHEDULED).holds
+
+
 def test_certificate_edge_settings():
-    # w_n constant (low = natural frequency): its two kinks are one; no integral: a zero
-    # eigenvalue, so no P > 0: the value is infinite, not a pass
+    # w_n constant (low = natural frequency): its two kinks are one (with k_i's at 30
+    # m/s); no integral: a zero eigenvalue, so no P > 0: the value is infinite, not a pass
     flat = LaneKeepingParams(natural_frequency=3.0)
     assert stability.schedule_kinks(VEHICLE, CONTROLLER, flat, 10.0, 37.0) == pytest.approx(
-        [math.sqrt((VEHICLE.d_s + VEHICLE.l2) / (4.0 * VEHICLE.eta)), 30.0])
+        [math.sqrt((VEHICLE.d_s + VEHICLE.l2) / (4.0 * VEHICLE.eta)), 15.0, 30.0])
     cert = stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(integral_gain=0.0),
                                  samples=11)
+    assert cert.max_real_eig == 0.0 and cert.max_norm == math.inf and not cert.holds
+    # nor at low speed only (low_speed_integral_gain 0: no integral at and below 15 m/s)
+    cert = stability.certificate(VEHICLE, CONTROLLER,
+                                 LaneKeepingParams(low_speed_integral_gain=0.0), samples=11)
     assert cert.max_real_eig == 0.0 and cert.max_norm == math.inf and not cert.holds
     # an envelope between two kinks
     cert = stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(), 36.99, 37.0,
@@ -535,8 +684,12 @@ def _worst_case_run(weight, a_max=3.5, seconds=12.0, dt=0.002, seed=3, start=Non
         v, x = start
 
     def lyap(speed, state_):
+        # V = u^T P_u u in the certificate's coordinates u = S(v) x
+        change = stability.integral_coordinates(settings, speed)
         a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, speed)
-        return float(state_ @ solve_continuous_lyapunov(a.T, -weight) @ state_)
+        a_u = change @ a @ np.linalg.inv(change)
+        u = change @ state_
+        return float(u @ solve_continuous_lyapunov(a_u.T, -weight) @ u)
 
     def step(speed, acc, state_, law_acc):
         def f(t, z):
@@ -581,11 +734,12 @@ def test_lyapunov_function_decreases_under_the_worst_speed_profile():
 
 def test_lyapunov_function_decreases_with_an_acceleration_error():
     # the law's a_x off by up to 1 m/s^2 (certified with the sharp Q), and by up to
-    # 3.5 m/s^2 (a_hat = 0 among them; the robust Q): V decreases at every step
+    # 3.5 m/s^2 (a_hat = 0 among them; the Q of the default k_i schedule): V decreases
+    # at every step
     values, _ = _worst_case_run(stability.lyapunov_weight(), seconds=4.0, a_error=1.0,
                                 seed=5)
     assert np.all(np.diff(values) < 0.0)
-    robust = stability.lyapunov_weight(stability.CERTIFICATE_Q_ROBUST)
+    robust = stability.lyapunov_weight(stability.CERTIFICATE_Q_SCHEDULED)
     values, _ = _worst_case_run(robust, seconds=4.0, a_error=3.5, seed=6)
     assert np.all(np.diff(values) < 0.0)
 

@@ -51,6 +51,26 @@ def test_node_selects_the_lane_keeping_law_by_parameter(context):
         assert not refused.successful and 'low_speed_frequency' in refused.reason
         refused = node.set_parameters([Parameter('lane_keeping.max_gap', value=0.0)])[0]
         assert not refused.successful
+        # the integral gain's speed schedule: declared with its range, its two speeds
+        # checked together (the law keeps running on the old settings)
+        for name, low, high in (('integral_speed', 0.01, 100.0),
+                                ('low_speed_integral_gain', 0.0, 5.0),
+                                ('low_integral_speed', 0.0, 100.0)):
+            descriptor = node.describe_parameter(f'lane_keeping.{name}')
+            assert descriptor.description and descriptor.floating_point_range
+            assert (descriptor.floating_point_range[0].from_value,
+                    descriptor.floating_point_range[0].to_value) == (low, high), name
+        refused = node.set_parameters([Parameter('lane_keeping.low_integral_speed',
+                                                 value=35.0)])[0]
+        assert not refused.successful
+        assert ('lane_keeping.low_integral_speed = 35.0 m/s is not below '
+                'lane_keeping.integral_speed = 30.0 m/s') in refused.reason
+        assert node.core.law.settings.low_integral_speed == 15.0
+        ok = node.set_parameters_atomically([
+            Parameter('lane_keeping.integral_speed', value=40.0),
+            Parameter('lane_keeping.low_integral_speed', value=35.0)])
+        assert ok.successful
+        assert node.core.law.settings.low_integral_speed == 35.0
         ok = node.set_parameters([Parameter('law', value='paper')])[0]
         assert ok.successful
         _feed(node, 1200 * MS)             # applied between two control steps

@@ -84,7 +84,15 @@ class LaneKeepingParams:
         ``v_x T_ref`` ahead [s].
     :param feedforward_preview: ``T_ff``: the drift term uses the curvature ``v_x T_ff``
         ahead; about the actuator lag plus the transport delay [s].
-    :param integral_gain: ``k_i`` of the CG-error integral [1/s]; 0 switches it off.
+    :param integral_gain: ``k_i`` of the CG-error integral at and above
+        ``integral_speed`` [1/s]; 0 switches it off at every speed.
+    :param integral_speed: at and above this speed ``k_i`` is ``integral_gain`` [m/s].
+    :param low_speed_integral_gain: ``k_i`` at and below ``low_integral_speed``, linear
+        in the speed up to ``integral_speed`` [1/s]; capped at ``integral_gain``
+        (``integral_gain`` or more: ``k_i`` constant). At low speed the integral pulls
+        the yaw back after a disturbance (the S0 yaw rebound).
+    :param low_integral_speed: at and below this speed ``k_i`` is
+        ``low_speed_integral_gain`` [m/s]; below ``integral_speed``.
     :param integral_limit: clamp of the integral's shift of the reference [m].
     :param integral_min_speed: below this speed the integral is frozen [m/s].
     :param integral_band: the integral is frozen while ``|y_cg|`` is this or more [m];
@@ -130,6 +138,9 @@ class LaneKeepingParams:
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
     integral_gain: float = 0.3
+    integral_speed: float = 30.0
+    low_speed_integral_gain: float = 0.05
+    low_integral_speed: float = 15.0
     integral_limit: float = 0.5
     integral_min_speed: float = 5.0
     integral_band: float = 0.5
@@ -176,6 +187,18 @@ class LaneKeepingParams:
         check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
                     unit='s')
         check_range('lane_keeping.integral_gain', self.integral_gain, 0.0, 5.0, unit='1/s')
+        check_range('lane_keeping.integral_speed', self.integral_speed, 0.0, 100.0,
+                    low_open=True, unit='m/s')
+        check_range('lane_keeping.low_speed_integral_gain', self.low_speed_integral_gain,
+                    0.0, 5.0, unit='1/s')
+        check_range('lane_keeping.low_integral_speed', self.low_integral_speed, 0.0, 100.0,
+                    unit='m/s')
+        if self.low_integral_speed >= self.integral_speed:
+            raise ParameterError(
+                f'lane_keeping.low_integral_speed = {self.low_integral_speed!r} m/s is not '
+                f'below lane_keeping.integral_speed = {self.integral_speed!r} m/s; the '
+                'integral gain moves from low_speed_integral_gain to integral_gain '
+                'between them, so it must be lower')
         check_range('lane_keeping.integral_limit', self.integral_limit, 0.0, 5.0, unit='m')
         check_range('lane_keeping.integral_min_speed', self.integral_min_speed, 0.0, 50.0,
                     unit='m/s')
@@ -240,6 +263,26 @@ def loop_gains(settings: LaneKeepingParams, v_x: Real) -> tuple[Real, Real]:
     w_n = xp.clip(settings.natural_frequency * v_x / settings.frequency_speed,
                   settings.low_speed_frequency, settings.natural_frequency)
     return w_n * w_n, 2.0 * settings.damping_ratio * w_n
+
+
+def integral_gain_at(settings: LaneKeepingParams, v_x: Real) -> Real:
+    """
+    Return ``k_i`` of the CG-error integral at a speed (scheduled on speed).
+
+    ``k_i = k_lo + (integral_gain - k_lo) clip((v_x - low_integral_speed) /
+    (integral_speed - low_integral_speed), 0, 1)`` with ``k_lo =
+    min(low_speed_integral_gain, integral_gain)``: ``integral_gain`` 0 is 0 at every
+    speed, a ``low_speed_integral_gain`` of ``integral_gain`` or more a constant ``k_i``.
+
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :return: ``k_i`` [1/s].
+    """
+    top = settings.integral_gain
+    low = min(settings.low_speed_integral_gain, top)
+    share = xp.clip((v_x - settings.low_integral_speed)
+                    / (settings.integral_speed - settings.low_integral_speed), 0.0, 1.0)
+    return low + (top - low) * share
 
 
 def steady_relative_yaw(vehicle: VehicleParams, v_x: Real, rho: Real,
@@ -619,7 +662,7 @@ class CgCompensatedLaw:
                       else (not outside) or bool(standing))
         rate = xp.where(active & inside & ((xp.absolute(self.integral) < s.integral_limit)
                                            | (self.integral * state.y_cg < 0.0)),
-                        s.integral_gain * state.y_cg, zero)
+                        integral_gain_at(s, v_x) * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref)
         out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,

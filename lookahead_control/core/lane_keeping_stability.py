@@ -45,9 +45,16 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   the loop is stable if the test holds for one of several: two were found by a
   numerical search (Nelder-Mead over a Cholesky factor on a 55-speed grid), ``sharp``
   for the exact ``a_x``, ``robust`` for an error up to 3.5 m/s^2 in the law's ``a_x``,
-  and are then only checked; the tool reports the one with the smaller value.
+  ``scheduled`` for that error with the default speed schedule of ``k_i``, and are then
+  only checked; the tool reports the one with the smaller value.
+  The integral gain ``k_i(v)`` is scheduled on speed (``integral_gain_at``): the test
+  runs in the coordinates ``u = S(v) x`` of :func:`integral_coordinates` (the integral
+  scaled by ``sqrt(k_i(v) / integral_gain)``), ``u' = (S A S^-1 + v' S_v S^-1) u``, the
+  second term part of the true acceleration's ``dP/dv``; ``S = I`` with a constant
+  ``k_i``, so ``V = x^T S^T P S x`` is the same argument with a speed-dependent ``Q``.
 - ``A`` is continuous in ``v`` but has kinks where the d_v schedule leaves its floor
-  ``d_s`` (10.78 m/s) and where ``w_n`` leaves its clamps (12.86 and 30 m/s); there
+  ``d_s`` (10.78 m/s), where ``w_n`` leaves its clamps (12.86 and 30 m/s) and where
+  ``k_i`` leaves its own (``low_integral_speed``, ``integral_speed``); there
   ``P`` is Lipschitz and ``V`` absolutely continuous, so ``V' < 0`` almost everywhere
   suffices: the kinks are grid points and both one-sided derivatives are checked.
 - Between grid points the value is bounded by ``max_i value(v_i) + a_max L h / 2``
@@ -77,8 +84,8 @@ import itertools
 from typing import NamedTuple, Optional
 
 from lookahead_control.core.control_law import LateralState
-from lookahead_control.core.lane_keeping import (cg_compensated_law, LaneKeepingParams,
-                                                 loop_gains)
+from lookahead_control.core.lane_keeping import (cg_compensated_law, integral_gain_at,
+                                                 LaneKeepingParams, loop_gains)
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
@@ -106,7 +113,17 @@ CERTIFICATE_Q_ROBUST = ((0.87895, 3.0544, -0.0025397, 0.57093, 0.60389),
                         (-0.0025397, 2.1232, 0.16538, 0.23714, 0.045423),
                         (0.57093, 10.679, 0.23714, 6.5571, 0.15149),
                         (0.60389, 1.2228, 0.045423, 0.15149, 0.52951))
-CERTIFICATE_WEIGHTS = {'sharp': CERTIFICATE_Q, 'robust': CERTIFICATE_Q_ROBUST}
+# the same search as the robust one for the default speed schedule of k_i (0.05 1/s at
+# and below 15 m/s to 0.3 at and above 30; 55 speeds, in the coordinates of
+# integral_coordinates): the robust Q fails there (1.99 at 12.86 m/s), this one holds
+# (0.876); it does not certify a constant k_i = 0.3 (1.39), the robust one does
+CERTIFICATE_Q_SCHEDULED = ((1.0, 3.6356, -0.0083494, 0.45236, 0.78237),
+                           (3.6356, 165.68, 2.821, 16.239, 1.6071),
+                           (-0.0083494, 2.821, 0.16259, 0.38793, 0.036873),
+                           (0.45236, 16.239, 0.38793, 9.9568, 0.07583),
+                           (0.78237, 1.6071, 0.036873, 0.07583, 0.80895))
+CERTIFICATE_WEIGHTS = {'sharp': CERTIFICATE_Q, 'robust': CERTIFICATE_Q_ROBUST,
+                       'scheduled': CERTIFICATE_Q_SCHEDULED}
 # one-sided difference step of A in v [m/s] (second-order formula, error ~1e-8)
 _STEP = 1e-4
 
@@ -118,7 +135,8 @@ def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
 
     The law's ``y_v' = v_y + v_x eps_r + d_v r + d_v' eps_r`` and its drift term
     ``f_v = -(beta_1 (v_y + l_1 r) + beta_2 (v_y - l_2 r)) / v_x + a_x eps_r + 2 d_v' r``
-    (``d_v' = (dd_v/dv_x) a_x``); ``y_ref = -I``, ``y_ref' = -k_i y_cg``.
+    (``d_v' = (dd_v/dv_x) a_x``); ``y_ref = -I``, ``y_ref' = -k_i(v_x) y_cg`` (the
+    scheduled gain, :func:`~lookahead_control.core.lane_keeping.integral_gain_at`).
 
     :param vehicle: the design vehicle.
     :param controller: d_v schedule (its gains are not used: the settings' are).
@@ -132,7 +150,7 @@ def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
     beta_1 = vehicle.c_f * (1.0 / m + l1 * d_v / iz)
     beta_2 = vehicle.c_r * (1.0 / m - l2 * d_v / iz)
     k_p, k_d = (float(k) for k in loop_gains(settings, v_x))
-    k_i = settings.integral_gain
+    k_i = float(integral_gain_at(settings, v_x))
     y_v = np.array([1.0, d_v, 0.0, 0.0, 0.0])
     y_v_rate = np.array([0.0, v_x + d_v_rate, 1.0, d_v, 0.0])
     f_v = (-np.array([0.0, 0.0, beta_1 + beta_2, beta_1 * l1 - beta_2 * l2, 0.0]) / v_x
@@ -203,7 +221,7 @@ def closed_loop_matrix(vehicle: VehicleParams, controller: ControllerParams,
 
     :param vehicle: the design vehicle (the law's model).
     :param controller: gains and schedule.
-    :param settings: integral gain.
+    :param settings: gains and the integral gain's schedule.
     :param v_x: speed [m/s].
     :param plant: the plant's parameters (None: the design vehicle).
     :param a_x: acceleration [m/s^2] (the law's d_v rate and drift terms use it).
@@ -214,7 +232,7 @@ def closed_loop_matrix(vehicle: VehicleParams, controller: ControllerParams,
     a = np.zeros((5, 5))
     a[:4, :4] = a_p
     a[:4, :] += b_p @ k.reshape(1, 5)
-    a[4, 0] = settings.integral_gain
+    a[4, 0] = float(integral_gain_at(settings, v_x))
     return a
 
 
@@ -223,9 +241,10 @@ def schedule_kinks(vehicle: VehicleParams, controller: ControllerParams,
     """
     Return the speeds in ``(v_min, v_max)`` where ``A`` is not differentiable.
 
-    The w_n schedule's clamps (``low_speed_frequency`` and ``natural_frequency``) and the
-    d_v schedule's (its floor and clamp: where ``dd_v/dt`` at ``a_x = 1`` switches
-    between 0 and not, located by bisection to 1e-12 m/s).
+    The w_n schedule's clamps (``low_speed_frequency`` and ``natural_frequency``), the
+    integral gain's (``low_integral_speed`` and ``integral_speed``, where its two gains
+    differ) and the d_v schedule's (its floor and clamp: where ``dd_v/dt`` at
+    ``a_x = 1`` switches between 0 and not, located by bisection to 1e-12 m/s).
 
     :param vehicle: the design vehicle.
     :param controller: d_v schedule.
@@ -236,6 +255,8 @@ def schedule_kinks(vehicle: VehicleParams, controller: ControllerParams,
     """
     kinks = [settings.frequency_speed * settings.low_speed_frequency
              / settings.natural_frequency, settings.frequency_speed]
+    if settings.low_speed_integral_gain < settings.integral_gain:   # k_i scheduled
+        kinks += [settings.low_integral_speed, settings.integral_speed]
 
     def free(v: float) -> bool:
         return float(look_ahead(v, 1.0, vehicle, controller)[1]) != 0.0
@@ -317,6 +338,11 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
     ``A_1 = A(v, 1) - A(v, 0)`` exactly (``A`` is affine in ``a_x``), taken as its limit
     from the same side (it jumps where d_v leaves its floor).
 
+    All in the coordinates ``u = S(v) x`` (:func:`integral_coordinates`): ``A`` is
+    ``S A S^-1`` and ``u' = (S A S^-1 + v' S_v S^-1) u``, so ``dP/dv`` (the term of the
+    true ``v'``) also has ``G^T P + P G``, ``G = S_v S^-1 = (s'/s) (E_55 - E_15)``
+    (``s'/s = k_i' / (2 k_i)``, one-sided). With a constant ``k_i``, ``S = I``.
+
     :param vehicle: the design vehicle.
     :param controller: d_v schedule.
     :param settings: the law's settings.
@@ -324,10 +350,12 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
     :param side: +1 for the right derivative, -1 for the left one.
     :param weight: ``Q``.
     :param step: the difference step ``h`` [m/s].
-    :return: ``(P, dP/dv, N)``.
+    :return: ``(P, dP/dv, N)`` in ``u``.
     """
     def matrix(v: float, a: float = 0.0) -> Matrix:
-        return closed_loop_matrix(vehicle, controller, settings, v, a_x=a)
+        change = integral_coordinates(settings, v)
+        return change @ closed_loop_matrix(vehicle, controller, settings, v, a_x=a) \
+            @ np.linalg.inv(change)
 
     def slope(v: float) -> Matrix:
         return matrix(v, 1.0) - matrix(v)
@@ -340,7 +368,77 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
                   - matrix(v_x + 2.0 * side * step)) / (2.0 * step)
     p = lyapunov(a_0, weight)
     p_v = lyapunov(a_0, a_v.T @ p + p @ a_v)
+    # the coordinates move with the true speed: u' = (S A S^-1 + v' G) u with
+    # G = S_v S^-1 = (s'/s) (E_55 - E_15), s'/s = k_i' / (2 k_i) (one-sided: k_i is
+    # piecewise linear in v)
+    k_0 = float(integral_gain_at(settings, v_x))
+    if k_0 > 0.0:
+        k_step = float(integral_gain_at(settings, v_x + side * step))
+        log_rate = 0.5 * side * (k_step - k_0) / (step * k_0)
+        move = np.zeros((5, 5))
+        move[4, 4], move[0, 4] = log_rate, -log_rate
+        p_v = p_v + move.T @ p + p @ move
     return p, p_v, a_1.T @ p + p @ a_1 + p_v
+
+
+def lyapunov_matrix(vehicle: VehicleParams, controller: ControllerParams,
+                    settings: LaneKeepingParams, v_x: float, weight: Matrix) -> Matrix:
+    """
+    Return the certificate's ``P`` over ``x``: ``V = x^T S^T P_u S x``.
+
+    ``P_u`` solves the Lyapunov equation of ``S A_0 S^-1`` with ``Q`` (the coordinates
+    ``u = S(v) x`` of :func:`integral_coordinates`; ``S = I`` with a constant ``k_i``).
+
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :param weight: ``Q``.
+    :return: the 5x5 matrix.
+    """
+    change = integral_coordinates(settings, v_x)
+    a_u = change @ closed_loop_matrix(vehicle, controller, settings, v_x) \
+        @ np.linalg.inv(change)
+    return change.T @ lyapunov(a_u, weight) @ change
+
+
+def integral_coordinates(settings: LaneKeepingParams, v_x: float) -> Matrix:
+    """
+    Return ``S(v)``, the certificate's coordinates ``u = S(v) x``.
+
+    ``u = [y_cg + (1 - s) I, eps_r, v_y, r, s I]`` with ``s`` :func:`integral_scale`:
+    the integral's slow root is about ``-k_i`` with the eigenvector ``y_cg = -I``, and in
+    ``u`` its part of ``P`` (the integral state scaled by ``sqrt(k_i)``, the error from
+    the shifted reference ``y_cg + I`` kept) does not grow as ``1 / k_i`` where ``k_i``
+    falls with the speed, which the certificate's ``dP/dv`` would charge to every
+    acceleration: in ``x`` the scheduled default fails (value 17.8 at 15 m/s with the
+    sharp ``Q``).
+
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :return: the 5x5 matrix (the identity where ``s = 1``).
+    """
+    scale = integral_scale(settings, v_x)
+    change = np.eye(5)
+    change[0, 4], change[4, 4] = 1.0 - scale, scale
+    return change
+
+
+def integral_scale(settings: LaneKeepingParams, v_x: float) -> float:
+    """
+    Return ``s(v) = sqrt(k_i(v) / integral_gain)``, the certificate's integral coordinate.
+
+    1 where ``k_i = integral_gain`` (a constant ``k_i``: the certificate's coordinates
+    are ``x``) and without the integral; 0 where ``low_speed_integral_gain`` is 0 (no
+    coordinates: the loop has a zero eigenvalue there and the certificate does not hold).
+
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :return: ``s`` [-].
+    """
+    if settings.integral_gain <= 0.0:
+        return 1.0
+    return float(np.sqrt(float(integral_gain_at(settings, v_x)) / settings.integral_gain))
 
 
 def _certificate_for(vehicle: VehicleParams, controller: ControllerParams,
@@ -598,7 +696,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     m[:n, :n] = phi
     m[:n, :] += gamma @ command(delay_steps)
     m[i_int, i_int] = 1.0
-    m[i_int, i_est] = period * settings.integral_gain
+    m[i_int, i_est] = period * float(integral_gain_at(settings, v_x))
     # the true measurement H_plant x_k+1 (the plant's y_cg, eps_r, v_y, r) over s_k
     h_true = np.zeros((4, n))
     h_true[0, 0], h_true[0, 1] = 1.0, model.d_s
@@ -709,7 +807,7 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
         for j in range(1, delay_steps):
             m[n + 1 + j, n + j] = 1.0
     m[n, n] = 1.0
-    m[n, 0] = period * settings.integral_gain
+    m[n, 0] = period * float(integral_gain_at(settings, v_x))
     if integral_frozen:
         m = _without_integral(m, n)
     return float(np.max(np.abs(np.linalg.eigvals(m))))

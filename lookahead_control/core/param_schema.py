@@ -97,7 +97,15 @@ LANE_KEEPING_SPECS = tuple(
          0.0, 3.0),
         ('feedforward_preview', 'the drift term uses the curvature this long ahead: '
          'actuator lag + delay [s]', 0.0, 1.0),
-        ('integral_gain', 'gain of the CG-error integral, 0: off [1/s]', 0.0, 5.0),
+        ('integral_gain', 'gain k_i of the CG-error integral at and above integral_speed, '
+         '0: off at every speed [1/s]', 0.0, 5.0),
+        ('integral_speed', 'at and above this speed k_i is integral_gain [m/s]',
+         0.01, 100.0),
+        ('low_speed_integral_gain', 'k_i at and below low_integral_speed, linear in the '
+         'speed up to integral_speed; capped at integral_gain (integral_gain or more: k_i '
+         'constant) [1/s]', 0.0, 5.0),
+        ('low_integral_speed', 'at and below this speed k_i is low_speed_integral_gain; '
+         'below integral_speed [m/s]', 0.0, 100.0),
         ('integral_limit', 'clamp of the integral shift of the reference [m]', 0.0, 5.0),
         ('integral_min_speed', 'integral and estimate frozen below this speed [m/s]',
          0.0, 50.0),

@@ -56,7 +56,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                    '(IMU bias, road grade, a differentiated speed) [m/s^2]; >= --a-max covers '
                    'acceleration_source zero (default 0)')
     p.add_argument('--integral-gain', type=number(0.0, 5.0, unit='1/s'), default=None,
-                   help='k_i of the CG-error integral (default: that of the law)')
+                   help='k_i of the CG-error integral at and above '
+                   "lane_keeping.integral_speed (below, the law's schedule down to "
+                   'low_speed_integral_gain, capped at this; default: that of the law)')
     p.add_argument('--controller', type=Path, default=None, metavar='YAML',
                    help='check the law the controller node would run with this params '
                    'file: its controller.* (d_v schedule) and lane_keeping.*; '
