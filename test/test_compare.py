@@ -699,3 +699,32 @@ def test_many_seeds_make_the_noisy_plant_s_task_the_costliest():
     assert cost(noisy, 1) < cost(multi_body, 1) < cost(noisy, 1000)
     assert cost(noisy, 1000) / cost(noisy, 1) == pytest.approx(
         (1.0 + 4000 / compare.BATCH_RUNS) / (1.0 + 4 / compare.BATCH_RUNS))
+
+
+def test_a_low_speed_integral_gain_above_integral_gain_is_told_as_what_runs():
+    # before: "lane_keeping.low_speed_integral_gain = 0.5" in league.md, summary.md and
+    # lane_keeping_stability's settings line, while integral_gain_at capped it at 0.3:
+    # the law ran k_i 0.3 at every speed (the same rebound as low_speed_integral_gain 0.3)
+    from lookahead_control.core.lane_keeping import integral_gain_at, LaneKeepingParams
+    from lookahead_control.core.params import ControllerParams
+    from lookahead_control.tools import sweep
+    above = LaneKeepingParams(low_speed_integral_gain=0.5)
+    assert integral_gain_at(above, 10.0) == 0.3
+    note = 'k_i 0.3 1/s at every speed: low_speed_integral_gain is capped at integral_gain'
+    assert compare.settings_changes(compare.LawSettings(ControllerParams(), above)) == [
+        f'lane_keeping.low_speed_integral_gain = 0.5 ({note})']
+    # an integral gain below the default low-speed one: the same cap, on its line
+    low = LaneKeepingParams(integral_gain=0.04)
+    assert compare.settings_changes(compare.LawSettings(ControllerParams(), low)) == [
+        'lane_keeping.integral_gain = 0.04 (k_i 0.04 1/s at every speed: '
+        'low_speed_integral_gain is capped at integral_gain)']
+    # a gain that runs as set: no note
+    for runs in (LaneKeepingParams(low_speed_integral_gain=0.3),
+                 LaneKeepingParams(low_speed_integral_gain=0.1, integral_gain=0.2)):
+        assert 'capped' not in ' '.join(compare.settings_changes(
+            compare.LawSettings(ControllerParams(), runs)))
+    spec = sweep.SweepSpec(runs=1, scenarios=('s1_paper_step',), speeds=(10.0,),
+                           laws=('cg_compensated',))
+    assert sweep.settings_note(spec, None, above) == (
+        f' cg_compensated: lane_keeping.low_speed_integral_gain = 0.5 ({note}) (the rest '
+        'default).')

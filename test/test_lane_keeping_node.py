@@ -91,6 +91,13 @@ def test_the_applied_parameters_log_names_the_running_law_s_gains():
         in line, line
     line = applied_summary('paper', controller, lane_keeping)
     assert f'w_n={controller.natural_frequency:g}, zeta={controller.damping_ratio:g}' in line
+    assert 'capped' not in line + applied_summary('cg_compensated', controller, lane_keeping)
+    # a low-speed integral gain above integral_gain runs as integral_gain (before: the
+    # log said nothing of it, the parameter read 0.5)
+    above = LaneKeepingParams(low_speed_integral_gain=0.5)
+    assert applied_summary('cg_compensated', controller, above).endswith(
+        '; k_i 0.3 1/s at every speed: low_speed_integral_gain is capped at integral_gain')
+    assert 'capped' not in applied_summary('paper', controller, above)
 
 
 def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(context):

@@ -29,8 +29,8 @@ from dataclasses import replace
 import math
 from pathlib import Path
 
-from lookahead_control.bags.run_data import (controller_from_params, rerun, rerun_law,
-                                             RunData, Samples)
+from lookahead_control.bags.run_data import (as_it_ran, controller_from_params, load_run,
+                                             rerun, rerun_law, RunData, Samples)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
 import numpy as np
@@ -324,7 +324,7 @@ def _conv_sample(role, msg):
 
 
 def controllers_bag(path, params, description=None, recorded=None, steps=60, debug=True,
-                    scale=None):
+                    scale=None, unrecorded=()):
     """
     Write a bag of the controllers of ``params``, each its topics and its core's commands.
 
@@ -335,6 +335,8 @@ def controllers_bag(path, params, description=None, recorded=None, steps=60, deb
     :param steps: steps of each controller's run (:func:`_inputs`).
     :param debug: add each controller's debug topic (no message on it).
     :param scale: node -> a factor on its inputs (another curve, another error).
+    :param unrecorded: parameter names the controllers ran with but the bag does not
+        record (a bag from before they existed).
     """
     import yaml
 
@@ -382,8 +384,8 @@ def controllers_bag(path, params, description=None, recorded=None, steps=60, deb
     for topic, stamp, rank, msg in sorted(messages, key=lambda m: (m[1], m[2])):
         writer.write(topic, 10**12 + stamp + rank, serialize_cdr(msg, store))
     writer.describe(PARAMETERS_KEY, yaml.safe_dump(
-        {node: {'ros__parameters': own} for node, own in params.items()
-         if recorded is None or node in recorded}))
+        {node: {'ros__parameters': {k: v for k, v in own.items() if k not in unrecorded}}
+         for node, own in params.items() if recorded is None or node in recorded}))
     for key, text in (description or {}).items():
         writer.describe(key, text)
     writer.close()
@@ -476,3 +478,44 @@ def test_analyze_refuses_to_replace_a_file_of_its_names_it_did_not_write(tmp_pat
     assert '](fig_n_a.png)' in (out / 'report.md').read_text()
     assert analyze_tool.output_names([]) == ['metrics.csv', 'metrics.json', 'report.md',
                                              'overlay.png', 'look_ahead_vs_speed.png']
+
+
+def test_rerun_of_a_bag_from_before_the_integral_gain_schedule_keeps_its_constant_k_i(
+        tmp_path, capsys):
+    # before: a bag recorded before lane_keeping.low_speed_integral_gain existed (its law
+    # ran with k_i = integral_gain at every speed) was re-run with the schedule's
+    # defaults (0.05 1/s at and below 15 m/s): at 10 m/s the re-run differed from the
+    # recorded commands and replay --check failed on a bag it should reproduce
+    import json
+
+    from lookahead_control.bags import replay_node
+    from lookahead_control.core.cli import run_tool
+    low = 'lane_keeping.low_speed_integral_gain'
+    old = {'law': 'cg_compensated', 'lane_keeping.integral_gain': 0.3, low: 0.3}
+    bag = tmp_path / 'old'
+    # inputs scaled to 10 m/s; the old law's k_i (constant), the name not recorded
+    controllers_bag(bag, {'/controller': old}, steps=300, scale={'/controller': 1.0 / 3.0},
+                    unrecorded=(low,))
+    run = load_run(bag)
+    assert low not in run.controller_params
+    assert run.controller_params['lane_keeping.integral_gain'] == 0.3
+    result = rerun(run)
+    # 1e-9: the yaw goes through the Imu's quaternion (as in the two-vehicle bag's test)
+    assert result.compared == 300 and result.max_diff <= 1e-9, result.max_diff
+    # the schedule (the default for a bag that records it) is another law here
+    scheduled = rerun(run, {low: 0.05})
+    assert scheduled.max_diff > 1e-4, scheduled.max_diff
+    # an override of integral_gain is the old law with that constant k_i
+    pinned = rerun(run, {'lane_keeping.integral_gain': 0.5, low: 0.5})
+    assert rerun(run, {'lane_keeping.integral_gain': 0.5}).commands == pinned.commands
+    assert pinned.max_diff > 1e-4
+    # a bag that records the name keeps its value
+    assert as_it_ran({**old, low: 0.05}) == {}
+    report = tmp_path / 'old.json'
+    assert run_tool(replay_node.main, [str(bag), '--check', '1e-9', '--json',
+                                       str(report)]) == 0
+    out = capsys.readouterr().out
+    assert f'predates {low}' in out and f'{low}=0.3' in out, out
+    assert json.loads(report.read_text())['parameters_as_it_ran'] == {low: 0.3}
+    assert run_tool(replay_node.main, [str(bag), '--check', '1e-9', '-p', f'{low}=0.05']) == 1
+    assert 'predates' not in capsys.readouterr().out

@@ -193,18 +193,45 @@ def test_a_resume_with_another_vehicle_or_controller_is_refused(reference, tmp_p
         _sweep(old)
     # the version before this one recorded the models but not lane_keeping, and ran
     # cg_compensated at its defaults whatever the file said: resumed with those (before:
-    # refused), refused with another tuning
+    # refused), refused with another tuning. Its k_i was constant (before dev-kisched):
+    # the defaults' speed schedule is another law at 25 m/s (before dev-probe27: resumed
+    # with it, mixing the two laws' runs)
     (old / 'sweep.json').write_text(json.dumps(
         {k: v for k, v in manifest.items() if k != 'lane_keeping'}))
     before = (old / 'sweep.json').read_text()
     with pytest.raises(ToolError, match='options differ: lane_keeping'):
         _sweep(old, lane_keeping=LaneKeepingParams(integral_gain=1.0))
-    resumed, count = _sweep(old)
-    assert count == 4 and _same(resumed, table)
+    with pytest.raises(ToolError, match=r'options differ: lane_keeping\.low_speed_integral_'
+                       r'gain = 0\.3 in the folder, 0\.05 now'):
+        _sweep(old)
+    constant = LaneKeepingParams(low_speed_integral_gain=0.3)
+    resumed, count = _sweep(old, lane_keeping=constant)
+    assert count == 4 and _same(resumed, _sweep(tmp_path / 'constant', lane_keeping=constant)[0])
     assert (old / 'sweep.json').read_text() == before
     (old / 'sweep.json').write_text('[]')
     with pytest.raises(ToolError, match='not a sweep manifest'):
         _sweep(old)
+
+
+def test_a_sweep_from_before_the_integral_gain_schedule_resumes_with_its_constant_k_i(
+        reference, tmp_path):
+    # before: its manifest's lane_keeping lacks the schedule's three names, so every
+    # resume was refused ("options differ: lane_keeping", naming nothing), even with the
+    # settings that run its law (low_speed_integral_gain = integral_gain: k_i constant)
+    folder, _ = reference
+    manifest = json.loads((folder / 'sweep.json').read_text())
+    schedule = ('integral_speed', 'low_speed_integral_gain', 'low_integral_speed')
+    manifest['lane_keeping'] = {k: v for k, v in manifest['lane_keeping'].items()
+                                if k not in schedule}
+    old = tmp_path / 'old'
+    (old / 'parts').mkdir(parents=True)
+    (old / 'sweep.json').write_text(json.dumps(manifest))
+    with pytest.raises(ToolError, match=r'options differ: lane_keeping\.low_speed_integral_'
+                       r'gain = 0\.3 in the folder, 0\.05 now'):
+        _sweep(old)
+    resumed, count = _sweep(old, lane_keeping=LaneKeepingParams(low_speed_integral_gain=0.3,
+                                                                integral_speed=40.0))
+    assert count == 4 and resumed.num_rows == 6
 
 
 def test_the_controller_file_tunes_the_lane_keeping_law(tmp_path, capsys):

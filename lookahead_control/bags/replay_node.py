@@ -33,7 +33,7 @@ from typing import Any, Optional, Sequence
 
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
-from lookahead_control.bags.run_data import CONTROLLER_NODE, load_run, rerun
+from lookahead_control.bags.run_data import as_it_ran, CONTROLLER_NODE, load_run, rerun
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
                                         ToolError, write_json)
 from lookahead_control.ros import conversions as conv
@@ -68,6 +68,8 @@ def offline(args: argparse.Namespace) -> int:
     report['curvature_judged_otherwise_on_stamps'] = result.judged_otherwise
     report['law_switches_followed'] = result.law_switches
     report['parameters_recorded'] = bool(run.controller_params)
+    filled = as_it_ran(run.controller_params, overrides)
+    report['parameters_as_it_ran'] = filled
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
     if not run.controller_params:
@@ -77,6 +79,13 @@ def offline(args: argparse.Namespace) -> int:
               f'{", ".join(described_nodes(Path(args.bag))) or "no node"}): the re-run '
               'uses the default vehicle, law and safety parameters (-p NAME=VALUE sets '
               'one)')
+    if filled:
+        # a bag from before the integral gain's speed schedule: the law ran with k_i
+        # constant, which the schedule's defaults would not re-run
+        print(f'replay: the bag predates {", ".join(filled)} (the speed schedule of '
+              'lane_keeping.integral_gain): the re-run keeps k_i constant as it ran ('
+              f'{", ".join(f"{k}={v!r}" for k, v in filled.items())}; -p NAME=VALUE sets '
+              'another)')
     if result.estimated:
         print(f'replay: the law ran on its curvature estimate in {result.estimated} of '
               f'{len(result.commands)} answers (road_curvature not in the bag, or stamped '

@@ -440,11 +440,38 @@ LAW_SETS = ('vehicle', 'controller', 'safety', 'lane_keeping', 'pure_pursuit', '
             'lqr')
 
 
+def as_it_ran(params: Mapping[str, Any],
+              overrides: Optional[Mapping[str, Any]] = None) -> dict[str, Any]:
+    """
+    Return values for parameters a bag lacks because it predates them, as the law ran.
+
+    A bag that records ``lane_keeping.integral_gain`` but not
+    ``lane_keeping.low_speed_integral_gain`` was recorded before the integral gain was
+    scheduled on speed (dev-kisched): its law ran with the constant ``integral_gain`` at
+    every speed, and the schedule's defaults (0.05 1/s at and below 15 m/s) would re-run
+    another law. The low-speed gain is then ``integral_gain`` (the overridden one if
+    ``-p`` sets it): ``k_i`` constant. An override of the name itself wins.
+
+    :param params: the recorded parameters (empty: nothing is filled in).
+    :param overrides: ``name -> value`` replacing recorded values.
+    :return: ``name -> value`` to use where the bag has none (empty: nothing missing).
+    """
+    overrides = overrides or {}
+    low = 'lane_keeping.low_speed_integral_gain'
+    if ('lane_keeping.integral_gain' not in params or low in params or low in overrides):
+        return {}
+    return {low: overrides.get('lane_keeping.integral_gain',
+                               params['lane_keeping.integral_gain'])}
+
+
 def controller_from_params(params: Mapping[str, Any],
                            overrides: Optional[Mapping[str, Any]] = None,
                            node: str = CONTROLLER_NODE) -> tuple[SteeringController, bool]:
     """
     Build the controller core (law, input checks, output limits) from recorded parameters.
+
+    A parameter the bag predates is the value that reproduces the law it ran
+    (:func:`as_it_ran`), not the current default.
 
     :param params: flat ``/controller`` parameters (empty: defaults).
     :param overrides: ``name -> value`` replacing recorded values.
@@ -453,7 +480,7 @@ def controller_from_params(params: Mapping[str, Any],
     :raises ConfigError: an override names an unknown parameter, one the re-run does not
         model (:data:`NOT_MODELED`), or a bad value.
     """
-    merged = {**params, **(overrides or {})}
+    merged = {**params, **as_it_ran(params, overrides), **(overrides or {})}
     for name in overrides or {}:
         head = name.partition('.')[0]
         if name in NOT_MODELED:

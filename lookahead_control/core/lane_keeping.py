@@ -285,6 +285,24 @@ def integral_gain_at(settings: LaneKeepingParams, v_x: Real) -> Real:
     return low + (top - low) * share
 
 
+def integral_schedule_note(settings: LaneKeepingParams) -> str:
+    """
+    Return what runs instead of a ``low_speed_integral_gain`` above ``integral_gain``.
+
+    :func:`integral_gain_at` caps the low-speed gain at ``integral_gain``: a settings
+    line ``low_speed_integral_gain = 0.5`` with ``integral_gain`` 0.3 would tell of a gain
+    that never runs.
+
+    :param settings: the law's settings.
+    :return: e.g. ``k_i 0.3 1/s at every speed: low_speed_integral_gain is capped at
+        integral_gain`` ('' where the low-speed gain runs as set).
+    """
+    if settings.low_speed_integral_gain <= settings.integral_gain:
+        return ''
+    return (f'k_i {settings.integral_gain:g} 1/s at every speed: low_speed_integral_gain is '
+            'capped at integral_gain')
+
+
 def steady_relative_yaw(vehicle: VehicleParams, v_x: Real, rho: Real,
                         compliance: Optional[Real] = None) -> Real:
     """

@@ -31,7 +31,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.controller import (ACCELERATION_SOURCES, Command, LAW_NAMES,
                                                SteeringController)
-from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.core.lane_keeping import (CgCompensatedLaw, integral_schedule_note,
+                                                 LaneKeepingParams)
 from lookahead_control.core.params import ControllerParams, ParameterError, SCHEDULE_MODES
 from lookahead_control.core.safety import check_points
 from lookahead_control.core.samples import curvature_from_points
@@ -128,6 +129,9 @@ def applied_summary(law: str, controller: ControllerParams,
     """
     Return the log line of applied parameters, with the gains of the law that runs.
 
+    With ``cg_compensated`` and a ``lane_keeping.low_speed_integral_gain`` above
+    ``integral_gain`` (capped: ``k_i`` constant) also the ``k_i`` that runs.
+
     :param law: the running law.
     :param controller: the paper law's parameters (schedule, gains).
     :param lane_keeping: the default law's (its own gains, ``lane_keeping.*``).
@@ -135,8 +139,10 @@ def applied_summary(law: str, controller: ControllerParams,
     """
     gains: ControllerParams | LaneKeepingParams = (
         lane_keeping if law == 'cg_compensated' else controller)
+    note = integral_schedule_note(lane_keeping) if law == 'cg_compensated' else ''
     return (f'parameters applied: law={law}, schedule={controller.schedule}, '
-            f'w_n={gains.natural_frequency:g}, zeta={gains.damping_ratio:g}')
+            f'w_n={gains.natural_frequency:g}, zeta={gains.damping_ratio:g}'
+            + (f'; {note}' if note else ''))
 
 
 class ControllerNode(LifecycleNode):

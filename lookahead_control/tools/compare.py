@@ -158,8 +158,27 @@ def settings_changes(settings: LawSettings) -> list[str]:
                                     ('lane_keeping', settings.lane_keeping),
                                     *((name, getattr(settings.baselines, name))
                                       for name in ('pure_pursuit', 'stanley', 'lqr'))]
-    return [f'{space}.{name} = {value!r}' for space, params in parts
-            for name, value in changed_fields(params).items()]
+    lines = [f'{space}.{name} = {value!r}' for space, params in parts
+             for name, value in changed_fields(params).items()]
+    return with_schedule_note(lines, settings.lane_keeping)
+
+
+def with_schedule_note(lines: list[str], lane_keeping: LaneKeepingParams) -> list[str]:
+    """
+    Return the settings lines with what runs of a capped low-speed integral gain.
+
+    :param lines: ``namespace.name = value`` lines.
+    :param lane_keeping: the CG-compensated law's settings.
+    :return: the lines, the low-speed gain's (else the integral gain's) with the note of
+        :func:`~lookahead_control.core.lane_keeping.integral_schedule_note`.
+    """
+    from lookahead_control.core.lane_keeping import integral_schedule_note
+    note = integral_schedule_note(lane_keeping)
+    for name in ('low_speed_integral_gain', 'integral_gain'):
+        for i, line in enumerate(lines):
+            if note and line.startswith(f'lane_keeping.{name} = '):
+                return [*lines[:i], f'{line} ({note})', *lines[i + 1:]]
+    return lines
 
 
 @dataclass(frozen=True)

@@ -394,6 +394,29 @@ def manifest_data(spec: SweepSpec, vehicle: VehicleParams, controller: Controlle
     return dict(json.loads(json.dumps(data)))
 
 
+def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
+    """
+    Return what differs between two sweep manifests: a key, or ``key.field`` of a model.
+
+    :param old: the folder's manifest.
+    :param new: this sweep's.
+    :return: the names, a field's with both values.
+    """
+    out: list[str] = []
+    for key in set(old) | set(new):
+        before, now = old.get(key), new.get(key)
+        if before == now:
+            continue
+        if isinstance(before, dict) and isinstance(now, dict):
+            out += [f'{key}.{name} = {before.get(name)!r} in the folder, '
+                    f'{now.get(name)!r} now'
+                    for name in sorted(set(before) | set(now))
+                    if before.get(name) != now.get(name)]
+        else:
+            out.append(key)
+    return out
+
+
 def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
             controller: ControllerParams | None = None,
             lane_keeping: LaneKeepingParams | None = None) -> None:
@@ -426,11 +449,26 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
                             'or use another --out')
         if {'vehicle', 'controller'} <= set(old) and 'lane_keeping' not in old:
             # the version before lane_keeping was recorded ran cg_compensated at the
-            # package defaults whatever the file said: resumable with those, and only
+            # package defaults whatever the file said: resumable with those, and only;
+            # k_i was constant then (before dev-kisched: the default schedule, 0.05 1/s
+            # at and below 15 m/s, would mix runs of two laws)
+            gain = LaneKeepingParams().integral_gain
+            constant = LaneKeepingParams(low_speed_integral_gain=gain)
             old['lane_keeping'] = manifest_data(spec, vehicle or load_vehicle(None),
                                                 controller or load_controller(None),
-                                                LaneKeepingParams())['lane_keeping']
-        differ = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+                                                constant)['lane_keeping']
+        settled = old.get('lane_keeping')
+        if (isinstance(settled, dict) and 'integral_gain' in settled
+                and 'low_speed_integral_gain' not in settled):
+            # a sweep from before the integral gain's speed schedule (dev-kisched): its
+            # cg_compensated ran k_i = integral_gain at every speed, which a
+            # low_speed_integral_gain of integral_gain runs (the speeds then do nothing)
+            old['lane_keeping'] = {**settled,
+                                   'low_speed_integral_gain': settled['integral_gain'],
+                                   **{k: new['lane_keeping'][k] for k in (
+                                       'integral_speed', 'low_integral_speed')
+                                      if k not in settled}}
+        differ = sorted(_differences(old, new))
         if differ and not {'vehicle', 'controller', 'lane_keeping'} <= set(old):
             raise ToolError(f'{out} holds a sweep that did not record its vehicle, '
                             'controller and lane-keeping settings (an older version): it '
@@ -675,7 +713,9 @@ def settings_note(spec: SweepSpec, controller: ControllerParams | None,
     if 'cg_compensated' in spec.laws:
         shown = [f'controller.{k} = {v!r}' for k, v in control.items()
                  if k not in ('natural_frequency', 'damping_ratio', 'reference')]
-        shown += [f'lane_keeping.{k} = {v!r}' for k, v in mine.items()]
+        from lookahead_control.tools.compare import with_schedule_note
+        shown += with_schedule_note([f'lane_keeping.{k} = {v!r}' for k, v in mine.items()],
+                                    lane_keeping or LaneKeepingParams())
         text += ' cg_compensated: ' + (', '.join(shown) + ' (the rest default).' if shown
                                        else 'the default settings.')
     return text
