@@ -319,3 +319,13 @@ def test_paper_scenario_never_overwrites_a_report_it_did_not_write(tmp_path):
         assert _exe('paper_scenario', '--out', mine, '--speeds', '20', '--duration', '1',
                     '--no-plots', cwd=tmp_path).returncode == 0
     assert (mine / 'report.md').read_text().startswith('# Paper scenario')
+
+
+@pytest.mark.parametrize('module', ['compare', 'paper_scenario', 'lane_keeping_tool',
+                                    'sweep', 'analyze_tool', 'demo'])
+def test_each_tool_module_runs_with_python_m(module):
+    # before: `python -m lookahead_control.tools.compare ...` imported the module and
+    # exited 0 without running anything (no __main__ guard)
+    out = subprocess.run([sys.executable, '-m', f'lookahead_control.tools.{module}', '--help'],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.startswith('usage:'), out

@@ -1267,3 +1267,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def entry() -> int:
     """Entry point of ``compare``."""
     return run_tool(main)
+
+
+if __name__ == '__main__':
+    sys.exit(entry())

@@ -161,3 +161,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
 def stability_tool() -> int:
     """Entry point of ``lane_keeping_stability``."""
     return run_tool(stability_main)
+
+
+if __name__ == '__main__':
+    import sys
+    sys.exit(stability_tool())

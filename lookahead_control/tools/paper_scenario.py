@@ -208,3 +208,8 @@ def check_out(out: Path, overwrite: bool = False) -> None:
 def entry() -> int:
     """Entry point of ``paper_scenario``."""
     return run_tool(main)
+
+
+if __name__ == '__main__':
+    import sys
+    sys.exit(entry())
