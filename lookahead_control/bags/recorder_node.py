@@ -39,7 +39,7 @@ from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAM
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import ConfigError, source_config_dir
-from lookahead_control.ros.node_main import now_ns, RCLError, run_node
+from lookahead_control.ros.node_main import now_ns, rcl_reason, RCLError, run_node
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidHandle
@@ -51,7 +51,6 @@ from rclpy.utilities import remove_ros_args
 import yaml
 
 DEFAULT_DESCRIBE = ('/controller', '/sim_plant')
-_RCL_NOISE = re.compile(r'^failed to resolve name: |, at /\S+:\d+')
 
 
 @dataclass
@@ -199,7 +198,7 @@ class RecorderNode(Node):
             try:
                 self.topics.add(self.resolve_topic_name(topic))
             except RCLError as err:
-                reason = _RCL_NOISE.sub('', str(err).strip())
+                reason = rcl_reason(err).removeprefix('failed to resolve name: ')
                 raise ConfigError(f'topic {topic!r}: not a ROS topic name (letters, digits '
                                   "and _ between single '/'; a relative name is resolved in "
                                   f"the recorder's namespace): {reason}") from err

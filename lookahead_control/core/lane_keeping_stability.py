@@ -353,9 +353,7 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
     :return: ``(P, dP/dv, N)`` in ``u``.
     """
     def matrix(v: float, a: float = 0.0) -> Matrix:
-        change = integral_coordinates(settings, v)
-        return change @ closed_loop_matrix(vehicle, controller, settings, v, a_x=a) \
-            @ np.linalg.inv(change)
+        return loop_in_coordinates(vehicle, controller, settings, v, a)
 
     def slope(v: float) -> Matrix:
         return matrix(v, 1.0) - matrix(v)
@@ -397,9 +395,25 @@ def lyapunov_matrix(vehicle: VehicleParams, controller: ControllerParams,
     :return: the 5x5 matrix.
     """
     change = integral_coordinates(settings, v_x)
-    a_u = change @ closed_loop_matrix(vehicle, controller, settings, v_x) \
-        @ np.linalg.inv(change)
+    a_u = loop_in_coordinates(vehicle, controller, settings, v_x)
     return change.T @ lyapunov(a_u, weight) @ change
+
+
+def loop_in_coordinates(vehicle: VehicleParams, controller: ControllerParams,
+                        settings: LaneKeepingParams, v_x: float, a_x: float = 0.0) -> Matrix:
+    """
+    Return the closed loop's ``A`` in the certificate's coordinates: ``S A S^-1``.
+
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :param a_x: acceleration [m/s^2].
+    :return: the 5x5 matrix (:func:`closed_loop_matrix` where ``S = I``).
+    """
+    change = integral_coordinates(settings, v_x)
+    return (change @ closed_loop_matrix(vehicle, controller, settings, v_x, a_x=a_x)
+            @ np.linalg.inv(change))
 
 
 def integral_coordinates(settings: LaneKeepingParams, v_x: float) -> Matrix:

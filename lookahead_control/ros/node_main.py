@@ -50,6 +50,16 @@ RCLError = _rclpy.RCLError
 _RCL_LOCATION = re.compile(r', at /\S+:\d+')
 
 
+def rcl_reason(err: Exception) -> str:
+    """
+    Return rcl's message of an error without the C source locations it appends.
+
+    :param err: the error (an ``RCLError``).
+    :return: the message, stripped.
+    """
+    return _RCL_LOCATION.sub('', str(err)).strip()
+
+
 class Throttle:
     """
     Let a log line through at most once per period.
@@ -301,7 +311,7 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
     except RCLError as err:
         # a missing or malformed --params-file, a bad remapping: rcl's message, minus
         # the C source locations it appends
-        print(f'{name}: error: {one_line(_RCL_LOCATION.sub("", str(err)))}', file=sys.stderr)
+        print(f'{name}: error: {one_line(rcl_reason(err))}', file=sys.stderr)
         return 2
     node: Optional[N] = None
     try:

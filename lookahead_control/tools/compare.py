@@ -174,10 +174,13 @@ def with_schedule_note(lines: list[str], lane_keeping: LaneKeepingParams) -> lis
     """
     from lookahead_control.core.lane_keeping import integral_schedule_note
     note = integral_schedule_note(lane_keeping)
+    if not note:
+        return lines
     for name in ('low_speed_integral_gain', 'integral_gain'):
-        for i, line in enumerate(lines):
-            if note and line.startswith(f'lane_keeping.{name} = '):
-                return [*lines[:i], f'{line} ({note})', *lines[i + 1:]]
+        prefix = f'lane_keeping.{name} = '
+        if any(line.startswith(prefix) for line in lines):
+            return [f'{line} ({note})' if line.startswith(prefix) else line
+                    for line in lines]
     return lines
 
 
