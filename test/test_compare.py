@@ -728,3 +728,30 @@ def test_a_low_speed_integral_gain_above_integral_gain_is_told_as_what_runs():
     assert sweep.settings_note(spec, None, above) == (
         f' cg_compensated: lane_keeping.low_speed_integral_gain = 0.5 ({note}) (the rest '
         'default).')
+
+
+def test_the_independent_plant_runs_with_the_goal_plant_s_delay_and_noise(tmp_path):
+    # before: the CommonRoad multi-body plant ran only without delay and noise, so every
+    # figure under the goal's conditions was one of the package's own Fiala plant
+    case = next(c for c in compare.PLANTS if c.name == compare.INDEPENDENT_PLANT)
+    goal = next(c for c in compare.PLANTS if c.name == compare.GOAL_PLANT)
+    assert case.plant.model == 'commonroad_mb' and case.vehicle_id is not None
+    assert (case.delay, case.noisy) == (goal.delay, goal.noisy) == (compare.DELAY, True)
+    rows = compare.league(['cg_compensated'], ['s2_curve_entry'], [37.0], [case], VEHICLE,
+                          duration=3.0, seeds=2)
+    assert [r['noise_seed'] for r in rows] == [compare.run_seed(37.0, k) for k in (0, 1)]
+    assert rows[0]['peak_cg_error_m'] != rows[1]['peak_cg_error_m']     # the noise acts
+    assert all(r['goals'] == '' and r['plant'] == case.name for r in rows)  # reported only
+    clean = next(c for c in compare.PLANTS if c.name == 'commonroad_mb')
+    twin = compare.league(['cg_compensated'], ['s2_curve_entry'], [37.0], [clean], VEHICLE,
+                          duration=3.0)[0]
+    assert twin['peak_cg_error_m'] not in [r['peak_cg_error_m'] for r in rows]
+    text = compare.write_report(rows, ['cg_compensated'], tmp_path, plot=False,
+                                seeds=2).read_text()
+    section = text.split(f'## The same columns on `{case.name}`')[1].split('\n## ')[0]
+    line = next(s for s in section.splitlines() if s.startswith('| cg_compensated |'))
+    worst = 100.0 * max(r['peak_cg_error_m'] for r in rows)
+    assert f'{worst:.3g}' in line
+    # the goal plant's summary has no run of it
+    head = text.split('## The same columns on')[0]
+    assert '| cg_compensated | - | - |' in head
