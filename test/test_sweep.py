@@ -193,8 +193,8 @@ def test_a_resume_with_another_vehicle_or_controller_is_refused(reference, tmp_p
         _sweep(old)
     # the version before this one recorded the models but not lane_keeping, and ran
     # cg_compensated at its defaults whatever the file said: resumed with those (before:
-    # refused), refused with another tuning. Its k_i was constant (before dev-kisched):
-    # the defaults' speed schedule is another law at 25 m/s (before dev-probe27: resumed
+    # refused), refused with another tuning. Its k_i was constant (before dev-kisched), as
+    # the defaults' is again: the speed schedule is another law at 25 m/s (before dev-probe27: resumed
     # with it, mixing the two laws' runs)
     (old / 'sweep.json').write_text(json.dumps(
         {k: v for k, v in manifest.items() if k != 'lane_keeping'}))
@@ -203,9 +203,9 @@ def test_a_resume_with_another_vehicle_or_controller_is_refused(reference, tmp_p
         _sweep(old, lane_keeping=LaneKeepingParams(integral_gain=1.0))
     with pytest.raises(ToolError, match=r'options differ: lane_keeping\.low_speed_integral_'
                        r'gain = 0\.3 in the folder, 0\.05 now'):
-        _sweep(old)
-    constant = LaneKeepingParams(low_speed_integral_gain=0.3)
-    resumed, count = _sweep(old, lane_keeping=constant)
+        _sweep(old, lane_keeping=LaneKeepingParams(low_speed_integral_gain=0.05))
+    constant = LaneKeepingParams()
+    resumed, count = _sweep(old)
     assert count == 4 and _same(resumed, _sweep(tmp_path / 'constant', lane_keeping=constant)[0])
     assert (old / 'sweep.json').read_text() == before
     (old / 'sweep.json').write_text('[]')
@@ -228,9 +228,8 @@ def test_a_sweep_from_before_the_integral_gain_schedule_resumes_with_its_constan
     (old / 'sweep.json').write_text(json.dumps(manifest))
     with pytest.raises(ToolError, match=r'options differ: lane_keeping\.low_speed_integral_'
                        r'gain = 0\.3 in the folder, 0\.05 now'):
-        _sweep(old)
-    resumed, count = _sweep(old, lane_keeping=LaneKeepingParams(low_speed_integral_gain=0.3,
-                                                                integral_speed=40.0))
+        _sweep(old, lane_keeping=LaneKeepingParams(low_speed_integral_gain=0.05))
+    resumed, count = _sweep(old, lane_keeping=LaneKeepingParams(integral_speed=40.0))
     assert count == 4 and resumed.num_rows == 6
 
 

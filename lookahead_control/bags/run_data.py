@@ -448,9 +448,10 @@ def as_it_ran(params: Mapping[str, Any],
     A bag that records ``lane_keeping.integral_gain`` but not
     ``lane_keeping.low_speed_integral_gain`` was recorded before the integral gain was
     scheduled on speed (dev-kisched): its law ran with the constant ``integral_gain`` at
-    every speed, and the schedule's defaults (0.05 1/s at and below 15 m/s) would re-run
-    another law. The low-speed gain is then ``integral_gain`` (the overridden one if
-    ``-p`` sets it): ``k_i`` constant. An override of the name itself wins.
+    every speed. A bag's missing value is not taken from the current defaults (from
+    dev-kisched to dev-gate they were a schedule, 0.05 1/s at and below 15 m/s: another
+    law), but is ``integral_gain`` (the overridden one if ``-p`` sets it): ``k_i``
+    constant. An override of the name itself wins.
 
     :param params: the recorded parameters (empty: nothing is filled in).
     :param overrides: ``name -> value`` replacing recorded values.

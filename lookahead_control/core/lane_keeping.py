@@ -89,8 +89,9 @@ class LaneKeepingParams:
     :param integral_speed: at and above this speed ``k_i`` is ``integral_gain`` [m/s].
     :param low_speed_integral_gain: ``k_i`` at and below ``low_integral_speed``, linear
         in the speed up to ``integral_speed`` [1/s]; capped at ``integral_gain``
-        (``integral_gain`` or more: ``k_i`` constant). At low speed the integral pulls
-        the yaw back after a disturbance (the S0 yaw rebound).
+        (``integral_gain`` or more: ``k_i`` constant, the default). A lower gain at low
+        speed lessens the S0 yaw rebound on the package's plant but removes a side
+        force or a model error more slowly (docs/lane_keeping.md, Defaults).
     :param low_integral_speed: at and below this speed ``k_i`` is
         ``low_speed_integral_gain`` [m/s]; below ``integral_speed``.
     :param integral_limit: clamp of the integral's shift of the reference [m].
@@ -139,7 +140,7 @@ class LaneKeepingParams:
     feedforward_preview: float = 0.07
     integral_gain: float = 0.3
     integral_speed: float = 30.0
-    low_speed_integral_gain: float = 0.05
+    low_speed_integral_gain: float = 0.3
     low_integral_speed: float = 15.0
     integral_limit: float = 0.5
     integral_min_speed: float = 5.0
