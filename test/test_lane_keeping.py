@@ -96,7 +96,6 @@ def test_the_default_integral_gain_is_constant_and_the_schedule_one_setting_away
     assert integral_gain_at(SCHEDULED, 10.0) < integral_gain_at(SCHEDULED, 20.0) < 0.3
 
 
-
 def test_the_default_constant_integral_gain_against_the_schedule():
     # the default (low_speed_integral_gain = integral_gain): k_i 0.3 at every speed, the
     # law's integral and steering as before the schedule (k_i y_cg t) at 10, 20 and 37 m/s;

@@ -194,8 +194,8 @@ def test_a_resume_with_another_vehicle_or_controller_is_refused(reference, tmp_p
     # the version before this one recorded the models but not lane_keeping, and ran
     # cg_compensated at its defaults whatever the file said: resumed with those (before:
     # refused), refused with another tuning. Its k_i was constant (before dev-kisched), as
-    # the defaults' is again: the speed schedule is another law at 25 m/s (before dev-probe27: resumed
-    # with it, mixing the two laws' runs)
+    # the defaults' is again: the speed schedule is another law at 25 m/s (before
+    # dev-probe27: resumed with it, mixing the two laws' runs)
     (old / 'sweep.json').write_text(json.dumps(
         {k: v for k, v in manifest.items() if k != 'lane_keeping'}))
     before = (old / 'sweep.json').read_text()
