@@ -216,3 +216,45 @@ def test_a_lane_keeping_set_at_run_time_is_re_run_where_the_node_applied_it():
     # an override wins over a set at run time
     forced = rerun(run, {'lane_keeping.integral_gain': 0.3}, order='stamp')
     assert forced.parameter_sets == 2 and forced.max_diff > 1e-4
+
+
+def test_the_node_retunes_without_a_restart_and_counts_the_sets_on_debug(context):
+    # before: the set rebuilt the law (its integral back to 0, unlogged); now it is
+    # carried, the log names what, /diagnostics counts no law restart and ~/debug
+    # counts the sets applied before each answer
+    from conftest import feed
+    from lookahead_control.ros import conversions as conv
+    from lookahead_control.ros.controller_node import ControllerNode
+    from rclpy.parameter import Parameter
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated')])
+    sent, logged = [], []
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        node._debug_pub.get_subscription_count = lambda: 1
+        node._debug_pub.publish = sent.append
+        logger = node.get_logger()
+        info = logger.info
+        logger.info = lambda text, **kw: (logged.append(text), info(text, **kw))[1]
+        ms = 1_000_000
+        for k in range(200):
+            feed(node, (1000 + 10 * k) * ms, y=0.1, d=0.0, eps=0.0, r=0.0, v_x=30.0,
+                 v_y=0.0, rho=-0.0025)
+        node.diagnostics()
+        integral = float(node.core.law.integral)
+        assert integral > 0.0
+        assert conv.from_named_values(sent[-1])['parameter_sets'] == 0.0
+        assert node.set_parameters([Parameter('lane_keeping.integral_gain',
+                                              value=0.35)])[0].successful
+        assert float(node.core.law.integral) == integral
+        assert any(line.startswith('cg_compensated retuned without a restart: carried '
+                                   'integral, compliance estimate, actuator model, state '
+                                   'filter estimate') for line in logged), logged
+        feed(node, 3000 * ms, y=0.1, d=0.0, eps=0.0, r=0.0, v_x=30.0, v_y=0.0, rho=-0.0025)
+        assert conv.from_named_values(sent[-1])['parameter_sets'] == 1.0
+        status = node.diagnostics()
+        values = {kv.key: kv.value for kv in status.values}
+        assert values['law_restarts'] == '0' and 'law restarts' not in status.message
+    finally:
+        node.destroy_node()
