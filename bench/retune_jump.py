@@ -34,8 +34,8 @@ from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingPar
 from lookahead_control.core.params import ControllerParams, VehicleParams
 import numpy as np
 from sim_plant.closed_loop_sim import run
-from sim_plant.vehicle_model import PlantParams
 from sim_plant.sensors import NoiseParams
+from sim_plant.vehicle_model import PlantParams
 
 AT = 8.0            # [s] when the parameter is set (S2's arc starts at 3.5 s)
 AFTER = 3.0         # [s] the window measured after it

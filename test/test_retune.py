@@ -258,3 +258,91 @@ def test_the_node_retunes_without_a_restart_and_counts_the_sets_on_debug(context
         assert values['law_restarts'] == '0' and 'law restarts' not in status.message
     finally:
         node.destroy_node()
+
+
+@pytest.mark.process
+def test_a_dds_run_tuned_mid_arc_replays_offline_to_the_bit(tmp_path):
+    # closed_loop (lockstep, S2 at 37 m/s, nonlinear plant) with
+    # `ros2 param set /controller lane_keeping.integral_gain 0.35` on the arc: before,
+    # replay --offline ran 0.3 to the end (the bag's parameters are the start's); now it
+    # applies the recorded /parameter_events change at the answer ~/debug marks
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rcl_interfaces.srv import SetParameters
+    from sensor_msgs.msg import JointState
+    from lookahead_control.bags.run_data import load_run, rerun
+    from lookahead_control.ros import conversions as conv
+    root = Path(__file__).resolve().parent.parent
+    bag = tmp_path / 'bag'
+    loop = subprocess.Popen([
+        sys.executable, '-m', 'lookahead_control.ros.closed_loop', '--scenario',
+        str(root / 'config' / 'scenarios' / 's2_curve_entry.yaml'), '--speed', '37',
+        '--law', 'cg_compensated', '--plant', 'nonlinear', '--bag', str(bag)],
+        cwd=root, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = rclpy.create_node('retune_test', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    latest = {}
+    node.create_subscription(JointState, '/controller/debug',
+                             lambda msg: latest.update(stamp=conv.stamp_to_ns(
+                                 msg.header.stamp), **conv.from_named_values(msg)), 100)
+    client = node.create_client(SetParameters, '/controller/set_parameters')
+    try:
+        # on the arc (from 3.5 s) with the integral built up: wait on the run's own
+        # debug, then set it
+        on_arc = (lambda: latest.get('stamp', 0) >= 6_000_000_000
+                  and latest.get('integral', 0.0) != 0.0)
+        while loop.poll() is None and not on_arc():
+            executor.spin_once(timeout_sec=0.01)
+        assert on_arc(), 'the run ended before its arc'
+        request = SetParameters.Request()
+        request.parameters = [Parameter('lane_keeping.integral_gain',
+                                        value=0.35).to_parameter_msg()]
+        assert client.wait_for_service(timeout_sec=30.0)
+        future = client.call_async(request)
+        while not future.done():
+            executor.spin_once(timeout_sec=0.01)
+        assert future.result().results[0].successful
+        while loop.poll() is None:
+            executor.spin_once(timeout_sec=0.05)
+        output = loop.stdout.read()
+        assert loop.returncode == 0, output
+        assert 'cg_compensated retuned without a restart: carried integral' in output
+    finally:
+        if loop.poll() is None:
+            loop.terminate()
+            loop.wait(timeout=30)
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    run = load_run(bag)
+    assert run.parameter_events == [{'lane_keeping.integral_gain': 0.35}]
+    counts = run.debug.values['parameter_sets']
+    assert 0.0 in counts and 1.0 in counts       # answered before and after the set
+    assert run.controller_params['lane_keeping.integral_gain'] == 0.3
+    result = rerun(run)
+    assert result.order == 'stamp' and result.parameter_sets == 1
+    assert result.compared > 1100 and result.max_diff == 0.0, result.max_diff
+    # the integral went on through the set (the debug of the answers either side)
+    integral = run.debug.values['integral']
+    k = int(np.argmax(counts == 1.0))
+    assert abs(integral[k] - integral[k - 1]) < 0.01 * abs(integral[k - 1])
+    # the bag without the marker: the start-up value throughout, said, and not equal
+    blind = rerun(replace(run, debug=replace(run.debug, values={
+        name: v for name, v in run.debug.values.items() if name != 'parameter_sets'})))
+    assert blind.parameter_sets_unmarked == 1 and blind.max_diff > 1e-6, blind.max_diff
+    # the replay tool's check passes
+    report = tmp_path / 'replay.json'
+    done = subprocess.run([sys.executable, '-m', 'lookahead_control.bags.replay_node',
+                           str(bag), '--offline', '--check', '0', '--json', str(report)],
+                          cwd=root, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert json.loads(report.read_text())['parameter_sets_followed'] == 1
