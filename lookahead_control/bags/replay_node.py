@@ -67,6 +67,8 @@ def offline(args: argparse.Namespace) -> int:
     report['curvature_judgment_followed'] = result.followed
     report['curvature_judged_otherwise_on_stamps'] = result.judged_otherwise
     report['law_switches_followed'] = result.law_switches
+    report['parameter_sets_followed'] = result.parameter_sets
+    report['parameter_sets_unmarked'] = result.parameter_sets_unmarked
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
@@ -100,9 +102,17 @@ def offline(args: argparse.Namespace) -> int:
     if result.law_switches:
         print(f'replay: the law was set at run time: the re-run switched it where the '
               f'recorded controller did ({result.law_switches} switches, '
-              f'{run.controller_node}/debug '
-              "law:<name>); other parameters set at run time are not in the bag's record: "
-              'the re-run keeps the start-up values')
+              f'{run.controller_node}/debug law:<name>)')
+    if result.parameter_sets:
+        print(f'replay: {result.parameter_sets} parameter set(s) at run time (recorded '
+              f'/parameter_events of {run.controller_node}) applied where the recorded '
+              f'controller did ({run.controller_node}/debug parameter_sets)')
+    if result.parameter_sets_unmarked:
+        # a bag from before the marker: which answer a set preceded is not known
+        print(f'replay: {result.parameter_sets_unmarked} parameter set(s) at run time are '
+              f'on /parameter_events but {run.controller_node}/debug has no '
+              'parameter_sets (an older bag): the re-run keeps the start-up values but '
+              'the law (law:<name>)')
     if args.json:
         write_json(Path(args.json), report)         # NaN (nothing compared) as null
     if args.check is not None:

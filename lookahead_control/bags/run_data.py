@@ -57,6 +57,8 @@ TOPICS = {'lateral_error': '/lateral_error', 'yaw': '/yaw', 'velocity': '/veloci
           'debug': '/controller/debug', 'ground_truth': '/sim_plant/ground_truth'}
 INPUTS = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
 CONTROLLER_NODE = '/controller'
+#: where every node publishes its parameter changes (rcl's absolute name)
+PARAMETER_EVENTS = '/parameter_events'
 # rmw's longest topic name: 255 less the DDS prefix rcl keeps room for
 MAX_TOPIC_LENGTH = 247
 _TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
@@ -280,6 +282,9 @@ class RunData:
     :param controller_params: the recorded parameters of the controller node.
     :param plant_params: the recorded parameters of its ``sim_plant`` (empty: none).
     :param controller_node: the controller node's name (``/controller``).
+    :param parameter_events: the controller node's parameter sets at run time, in the
+        order received from ``/parameter_events`` (``{name: value}`` each; a deleted
+        parameter None); None: the bag has no ``/parameter_events``.
     """
 
     bag: Path
@@ -292,6 +297,7 @@ class RunData:
     controller_params: dict[str, Any] = field(default_factory=dict)
     plant_params: dict[str, Any] = field(default_factory=dict)
     controller_node: str = CONTROLLER_NODE
+    parameter_events: Optional[list[dict[str, Any]]] = None
 
 
 def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
@@ -383,7 +389,58 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
     run.controller_params = controller_params
     run.plant_params = recorded.get(plant_node(node), {})
     run.controller_node = node
+    if PARAMETER_EVENTS in available:
+        run.parameter_events = parameter_events(bag, node, store)
     return run
+
+
+def parameter_value(value: Any) -> Any:
+    """
+    Return the Python value of an ``rcl_interfaces/ParameterValue`` (None: not set).
+
+    :param value: the message (any object with its fields).
+    :return: the value.
+    """
+    field_of = {1: 'bool_value', 2: 'integer_value', 3: 'double_value', 4: 'string_value',
+                5: 'byte_array_value', 6: 'bool_array_value', 7: 'integer_array_value',
+                8: 'double_array_value', 9: 'string_array_value'}
+    name = field_of.get(int(value.type))
+    if name is None:
+        return None
+    out = getattr(value, name)
+    if int(value.type) >= 5:
+        return [x.item() if hasattr(x, 'item') else x for x in out]
+    return out.item() if hasattr(out, 'item') else out
+
+
+def parameter_events(bag: Path, node: str, store: Any = None) -> list[dict[str, Any]]:
+    """
+    Return a node's parameter sets recorded on ``/parameter_events``, in receive order.
+
+    One ``{name: value}`` per message that changed or deleted a parameter (the node
+    applies each as one set, and counts it: ``~/debug`` ``parameter_sets``); messages
+    that only declare parameters (a node starting) are left out.
+
+    :param bag: the bag.
+    :param node: the node's fully qualified name.
+    :param store: the type store (None: the Jazzy one).
+    :return: the sets.
+    :raises ConfigError: a message is corrupt.
+    """
+    store = store or typestore()
+    events: list[tuple[int, int, dict[str, Any]]] = []
+    for _, msgtype, raw in read_columns(bag, [PARAMETER_EVENTS]):
+        for i in range(raw.start.size):
+            try:
+                msg = store.deserialize_cdr(raw.data(i), msgtype)
+            except _CORRUPT as err:
+                raise ConfigError(f'{bag}: corrupt {PARAMETER_EVENTS} message: {err}') from err
+            if msg.node != node or not (msg.changed_parameters or msg.deleted_parameters):
+                continue
+            change = {p.name: parameter_value(p.value) for p in msg.changed_parameters}
+            change.update((p.name, None) for p in msg.deleted_parameters)
+            events.append((int(raw.recv_ns[i]), int(raw.order[i]), change))
+    return [change for _, _, change in sorted(events, key=lambda e: (e[0], e[1]))]
 
 
 def _fields(sample: Any) -> dict[str, float]:
@@ -495,6 +552,16 @@ def controller_from_params(params: Mapping[str, Any],
                               f'{", ".join(MODELED)})')
     # before: 'bag parameters', which in a bag of several vehicles did not say whose
     source = f'bag parameters of {node}'
+    args = _core_arguments(merged, source)
+    try:
+        core = SteeringController(*args)
+    except ParameterError as exc:
+        raise ConfigError(f'{source}: {exc}') from exc
+    return core, bool(merged.get('wait_for_matching_stamps', False))
+
+
+def _core_arguments(merged: Mapping[str, Any], source: str) -> tuple[Any, ...]:
+    """Return the controller core's arguments from flat parameters, in its order."""
     vehicle = dataclass_from_params(VehicleParams, merged, 'vehicle', source)
     controller = dataclass_from_params(ControllerParams, merged, 'controller', source)
     safety = dataclass_from_params(SafetyParams, merged, 'safety', source)
@@ -503,14 +570,32 @@ def controller_from_params(params: Mapping[str, Any],
         dataclass_from_params(StanleyParams, merged, 'stanley', source),
         dataclass_from_params(LqrParams, merged, 'lqr', source))
     lane_keeping = dataclass_from_params(LaneKeepingParams, merged, 'lane_keeping', source)
+    return (vehicle, controller, str(merged.get('acceleration_source', 'imu')),
+            bool(merged.get('use_curvature_preview', False)), safety,
+            str(merged.get('law', 'paper')), baselines, lane_keeping)
+
+
+def reconfigure(core: SteeringController, params: Mapping[str, Any],
+                overrides: Optional[Mapping[str, Any]] = None,
+                node: str = CONTROLLER_NODE) -> None:
+    """
+    Apply a controller's parameters as they stand after a set at run time (as the node).
+
+    :param core: the controller core of the re-run.
+    :param params: its flat parameters with the set applied.
+    :param overrides: ``name -> value`` that win over them (the re-run's ``-p``).
+    :param node: the node they are of, named in the message of a bad value.
+    :raises ConfigError: a bad value (the node would have refused the set).
+    """
+    merged = {**params, **as_it_ran(params, overrides), **(overrides or {})}
+    source = f'parameters of {node} set at run time'
+    vehicle, controller, accel, preview, safety, law, baselines, lane_keeping = (
+        _core_arguments(merged, source))
     try:
-        core = SteeringController(vehicle, controller,
-                                  str(merged.get('acceleration_source', 'imu')),
-                                  bool(merged.get('use_curvature_preview', False)), safety,
-                                  str(merged.get('law', 'paper')), baselines, lane_keeping)
+        core.configure(vehicle, controller, accel, preview, safety, law, baselines,
+                       lane_keeping)
     except ParameterError as exc:
         raise ConfigError(f'{source}: {exc}') from exc
-    return core, bool(merged.get('wait_for_matching_stamps', False))
 
 
 @dataclass(frozen=True)
@@ -534,6 +619,11 @@ class Rerun:
         bag that the controller did not receive, remapped or a QoS mismatch).
     :param law_switches: switches of the law at run time (``law`` set while running)
         that the re-run followed, from the debug topic's ``law:<name>``.
+    :param parameter_sets: parameter sets at run time (recorded ``/parameter_events``)
+        the re-run applied at the answer the debug topic's ``parameter_sets`` says.
+    :param parameter_sets_unmarked: None: the bag's debug marks where sets took effect
+        (or it had none); else the number of recorded sets the re-run could not place
+        (a bag from before the marker: it keeps the start-up values but the law).
     """
 
     commands: dict[int, Command]
@@ -546,6 +636,8 @@ class Rerun:
     followed: int = 0
     judged_otherwise: int = 0
     law_switches: int = 0
+    parameter_sets: int = 0
+    parameter_sets_unmarked: Optional[int] = None
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -628,12 +720,31 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     # a law set at run time: the node's debug names the law of each answer (an override
     # of ``law`` runs that law throughout)
     laws = {} if 'law' in (overrides or {}) else recorded_laws(run)
+    # other parameters set at run time: the recorded /parameter_events, each applied
+    # before the first answer whose debug parameter_sets counts it (bumpless as in the
+    # node: the core's configure)
+    sets = recorded_parameter_sets(run)
+    events = run.parameter_events or []
+    unmarked = len(events) if events and not sets else None
+    params, applied = dict(run.controller_params), 0
     followed = otherwise = switches = 0
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
         refused = core.accept(role, sample)
         if role == 'lateral_error' and refused is None:
+            due = min(sets.get(sample.stamp_ns, applied), len(events))
+            if due > applied:
+                for change in events[applied:due]:
+                    for name, value in change.items():
+                        if value is None:
+                            params.pop(name, None)
+                        else:
+                            params[name] = value
+                law_before = core.law_name
+                reconfigure(core, params, overrides, run.controller_node)
+                switches += core.law_name != law_before
+                applied = due
             law = laws.get(sample.stamp_ns, core.law_name)
             if law != core.law_name:    # as the node: a new law from its reset state
                 core.configure(core.vehicle, core.params, core.acceleration_source,
@@ -654,7 +765,24 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
-                 switches)
+                 switches, applied, unmarked)
+
+
+def recorded_parameter_sets(run: RunData) -> dict[int, int]:
+    """
+    Return, per answered stamp, the parameter sets the recorded controller had applied.
+
+    From its debug topic's ``parameter_sets`` (a count of the sets at run time, one per
+    ``/parameter_events`` message of the node).
+
+    :param run: the bag.
+    :return: stamp -> count (empty: the bag does not say; an older bag).
+    """
+    counts = run.debug.values.get('parameter_sets')
+    if counts is None:
+        return {}
+    return {int(t): int(c) for t, c in zip(run.debug.stamp_ns.tolist(), counts.tolist())
+            if math.isfinite(c)}
 
 
 def recorded_laws(run: RunData) -> dict[int, str]:

@@ -214,6 +214,10 @@ class SteeringController:
         self.baselines = baselines or BaselineParams()
         self.lane_keeping = lane_keeping or LaneKeepingParams()
         self.law: Law = PaperLaw(vehicle, controller)
+        #: what the last :meth:`configure` did to a law with state it kept by name but
+        #: retuned: ``(carried, restarted)`` parts (None: no retune, the law was kept
+        #: as it was or a new one started fresh)
+        self.retune: Optional[tuple[list[str], list[str]]] = None
         self._law_stamp: Optional[int] = None
         self._law_key: Optional[tuple[Any, ...]] = None
         self._select_law(law, vehicle, controller, self.baselines)
@@ -283,7 +287,8 @@ class SteeringController:
         Replace the parameters (between two control steps).
 
         A new law starts from its reset state; its first command moves from the last one
-        sent within the rate limit, like any other.
+        sent within the rate limit, like any other. A retune of the law running (its
+        name unchanged) is bumpless: ``retune`` says what it carried over.
 
         :param vehicle: vehicle parameters.
         :param controller: controller parameters.
@@ -311,16 +316,25 @@ class SteeringController:
 
         The same law with the same parameters is kept with its state: a change of
         another parameter (a limit, a diagnostics threshold) does not restart an
-        integral or an estimate.
+        integral or an estimate. The same law with other parameters (a retune) takes
+        over the old one's state where it has a ``take_over`` (``cg_compensated``); a
+        law of another name starts from its reset state.
         """
         key = law_key(name, vehicle, controller, baselines, self.lane_keeping)
+        self.retune = None
         if key == self._law_key:
             self.baselines = baselines
             return
         law = build_law(name, vehicle, controller, baselines, self.lane_keeping)
         law.reset()
+        take_over = getattr(law, 'take_over', None)
+        if name == self.law_name and take_over is not None and type(law) is type(self.law):
+            # a retune of the same law: bumpless, it continues from the old one's state
+            # (docs/lane_keeping.md, "Retuning at run time"); its time axis goes on
+            self.retune = take_over(self.law)
+        else:
+            self._law_stamp = None
         self.law, self.law_name, self.baselines = law, name, baselines
-        self._law_stamp = None
         self._law_key = key
 
     def preview(self, now_ns: Optional[int] = None) -> Preview:

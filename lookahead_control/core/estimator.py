@@ -158,6 +158,24 @@ class ComplianceEstimator:
         elif not isinstance(running, np.ndarray) and not running:
             self.filtered = None
 
+    def take_over(self, old: 'ComplianceEstimator') -> None:
+        """
+        Continue from another estimator's statistics (a retune).
+
+        The caller restarts instead where the settings that define the statistics
+        (forgetting time, signal filter, design friction) changed. The estimate is
+        carried as its scale over the model's ``eta``: with another design vehicle the
+        moment ``N`` is scaled by the ratio of the two ``eta`` (``c = (N + p^2 eta) /
+        (D + p^2)`` scales with it), and the signal filters restart at the next sample
+        (their rear slip and regressor are the other model's).
+
+        :param old: the estimator it replaces.
+        """
+        ratio = self.vehicle.eta / old.vehicle.eta
+        self.moment = old.moment * ratio if ratio != 1.0 else old.moment
+        self.energy = old.energy
+        self.filtered = old.filtered if self.vehicle == old.vehicle else None
+
     def forget(self, where: Any) -> None:
         """
         Reset the runs of a batch where ``where`` holds (after a non-finite input).

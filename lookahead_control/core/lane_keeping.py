@@ -528,6 +528,76 @@ class CgCompensatedLaw:
         self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self.resets += 1
 
+    def take_over(self, old: 'CgCompensatedLaw') -> tuple[list[str], list[str]]:
+        """
+        Continue from the law it replaces after a retune (bumpless transfer).
+
+        Called on a fresh law (after :meth:`reset`) with the same name, other settings or
+        design vehicle (``docs/lane_keeping.md``, "Retuning at run time"):
+
+        - the CG-error integral, clamped to the new ``integral_limit``, with its band
+          timer; restarted at 0 when the new ``integral_gain`` is 0 (switched off);
+        - the compliance estimate, as its scale over the model's ``eta``
+          (:meth:`ComplianceEstimator.take_over`); restarted when
+          ``compliance_time_constant``, ``compliance_filter`` or ``design_friction``
+          changed (they define its statistics) or the new time constant is 0 (the
+          model's ``eta``);
+        - the state filter's estimate, with its gains from the new settings; restarted
+          from the next measurement when the design vehicle changed (its force
+          disturbances were the old model's error) or the filter was off before;
+        - the actuator model and the commands on their way to it, the last command,
+          the anti-windup flag, the curvature judgment and its switch-over blend (the
+          car's and the road's, never restarted).
+
+        Works on floats and on a batch's arrays alike.
+
+        :param old: the law before the retune.
+        :return: ``(carried, restarted)``: the parts by name, for the node's log.
+        """
+        s, was = self.settings, old.settings
+        same_vehicle = self.vehicle == old.vehicle
+        carried: list[str] = []
+        restarted: list[str] = []
+        self.last_steering, self.cut = old.last_steering, old.cut
+        self.estimating, self._was_estimating = old.estimating, old._was_estimating
+        self._rho_used, self._changed = old._rho_used, old._changed
+        if s.curvature_blend > 0.0:
+            self._blend_offset, self._steer_offset = old._blend_offset, old._steer_offset
+            self._blend_left = xp.minimum(old._blend_left, s.curvature_blend)
+        self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
+        if s.integral_gain > 0.0:
+            self.integral = xp.clip(old.integral, -s.integral_limit, s.integral_limit)
+            self.outside_time = old.outside_time
+            clamped = bool(np.any(xp.absolute(old.integral) > s.integral_limit))
+            carried.append('integral' + (f' (clamped to {s.integral_limit:g} m)'
+                                         if clamped else ''))
+        else:
+            restarted.append('integral (integral_gain 0)')
+        statistics = ('compliance_time_constant', 'compliance_filter', 'design_friction')
+        if s.compliance_time_constant > 0.0 and all(
+                getattr(s, name) == getattr(was, name) for name in statistics):
+            self.estimator.take_over(old.estimator)
+            carried.append('compliance estimate' + ('' if same_vehicle else
+                                                    ' (as its scale over eta)'))
+        else:
+            restarted.append('compliance estimate')
+        source = old.state_filter or old.curvature_filter
+        if self.state_filter is not None:
+            if source is not None:
+                keep = same_vehicle and old.state_filter is not None
+                self.state_filter.take_over(source, keep)
+                carried.append('actuator model')
+                (carried if keep else restarted).append('state filter estimate')
+            else:
+                self.state_filter.held = self.state_filter.wheel = old.last_steering
+                restarted.append('state filter estimate')
+        elif old.curvature_filter is not None:
+            # state_filter none: the curvature's own filter, from the old law's
+            self.curvature_filter = KalmanStateFilter(self.vehicle, s.filter_settings())
+            self.curvature_filter.take_over(old.curvature_filter, same_vehicle)
+            carried.append('curvature filter')
+        return carried, restarted
+
     def start(self) -> None:
         """
         Restart for a new run from rest (the offline runner, before each run).

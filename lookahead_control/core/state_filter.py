@@ -570,6 +570,31 @@ class KalmanStateFilter:
         self.rho = 0.0
         self.innovation = ()
 
+    def take_over(self, old: 'KalmanStateFilter', estimate: bool = True) -> None:
+        """
+        Continue from another filter's state (a retune: new settings, the same car).
+
+        The actuator model and the commands on their way to it (the car's) are always
+        carried, with the diagnostics counters; the gains are this filter's (its
+        settings' covariances). With ``estimate`` the state estimate is carried too
+        (the lateral states, the force disturbances, the curvature estimator's states);
+        without it the estimate restarts from the next measurement.
+
+        :param old: the filter it replaces.
+        :param estimate: carry the state estimate (False: the design vehicle changed,
+            so its force disturbances are another model's error).
+        """
+        self.wheel, self.held = old.wheel, old.held
+        self.history = list(old.history)
+        self.time, self.rho, self.innovation = old.time, old.rho, old.innovation
+        self.restarts, self.long_steps = old.restarts, old.long_steps
+        self.unmeasured_v_y_steps = old.unmeasured_v_y_steps
+        self.curvature_estimated_steps = old.curvature_estimated_steps
+        if estimate:
+            self.x = None if old.x is None else list(old.x)
+            self.kinematic = None if old.kinematic is None else list(old.kinematic)
+            self.held_rho = old.held_rho
+
     def forget(self, where: Any) -> None:
         """
         Restart the runs of a batch where ``where`` holds (a non-finite input).

@@ -183,6 +183,8 @@ class ControllerNode(LifecycleNode):
         self.configured = False
         self.active = False
         self.published = 0
+        #: parameter sets applied at run time (each a /parameter_events message)
+        self.parameter_sets = 0
         self._last_publish: Optional[int] = None
         self._refusal_log = Throttle(1.0)
         self._cache_input_parameters()
@@ -219,6 +221,15 @@ class ControllerNode(LifecycleNode):
         # or rate limit counts for the watchdog too, not only from the next answer on
         self._cache_input_parameters()
         self._apply_parameters()
+        # one set applied (one /parameter_events message): ~/debug parameter_sets tells
+        # the offline re-run the first answer computed after it
+        self.parameter_sets += 1
+        if self.core.retune is not None:
+            carried, restarted = self.core.retune
+            self.get_logger().info(
+                f'{self.core.law_name} retuned without a restart: carried '
+                f'{", ".join(carried) or "nothing"}'
+                + (f'; restarted {", ".join(restarted)}' if restarted else ''))
 
     def _cache_input_parameters(self) -> None:
         # read on every message: plain attributes, not a parameter lookup each time
@@ -559,6 +570,9 @@ class ControllerNode(LifecycleNode):
         # any law: whether it had the curvature (judged on this node's clock, which no
         # stamp holds: the offline re-run takes it)
         debug.append(('curvature_received', float(self.core.curvature_in)))
+        # the parameter sets applied before this answer (the re-run applies the recorded
+        # /parameter_events at the answer where this count reaches them)
+        debug.append(('parameter_sets', float(self.parameter_sets)))
         state = getattr(self.core.law, 'debug_values', None)
         if state is not None:       # a law with a state: cg_compensated (its estimate ...)
             debug += state()
