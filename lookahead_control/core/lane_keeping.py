@@ -562,7 +562,8 @@ class CgCompensatedLaw:
 
         Without one (never received, or lost) the state filter estimates it and the law
         uses the estimate at the CG where it would use the received curvature (the
-        feed-forward and the reference; no preview). With ``state_filter: none`` a filter
+        feed-forward and the reference), previewed along its rate (``estimate_rate_time``;
+        0: no preview). With ``state_filter: none`` a filter
         runs for that estimate alone while none is received (the law keeps the
         measurements of the rest).
 

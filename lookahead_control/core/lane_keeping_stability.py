@@ -169,7 +169,7 @@ def curvature_gain(vehicle: VehicleParams, controller: ControllerParams,
 
     The curvature at the CG enters ``y_v'`` (``-d_v v_x rho``), the drift term's road
     terms and the reference ``d_v eps_ss(v_x, rho)`` (the model's ``eta``); with an
-    estimated curvature all three take the estimate (no preview, no rate). Evaluated on
+    estimated curvature all three take the estimate (its rate: :func:`rate_gain`). Evaluated on
     the law itself (it is linear in ``rho`` at a constant compliance).
 
     :param vehicle: the design vehicle.
