@@ -23,6 +23,7 @@ before (which took the curvature as 0: S2 at 37 m/s 2.92 m); bit-identity with a
 curvature received (sums of the old code's run).
 """
 
+from dataclasses import replace
 import math
 
 from lookahead_control.core.control_law import LateralState
@@ -289,11 +290,16 @@ def test_the_curvature_estimating_loop_passes_the_filtered_robust_check(v_y_meas
                         v_y_measured=v_y_measured, curvature_estimated=True,
                         integral_frozen=True)
     assert held.cases == 486 and held.holds
-    # the loop is the one with the curvature estimator: two states more (eps_r, rho)
+    # the loop is the one with the curvature estimator: three states more (eps_r, rho
+    # and the law's rate of the estimate; two with estimate_rate_time 0)
     plain = filtered_loop(VEHICLE, ControllerParams(), settings, 37.0)
     augmented = filtered_loop(VEHICLE, ControllerParams(), settings, 37.0,
                               curvature_estimated=True)
-    assert augmented.shape[0] == plain.shape[0] + 2
+    assert augmented.shape[0] == plain.shape[0] + 3
+    unrated = filtered_loop(VEHICLE, ControllerParams(),
+                            replace(settings, estimate_rate_time=0.0), 37.0,
+                            curvature_estimated=True)
+    assert unrated.shape[0] == plain.shape[0] + 2
 
 
 def test_the_node_estimates_a_curvature_never_received_or_lost_and_says_so(context):
@@ -518,3 +524,107 @@ def test_a_non_finite_speed_while_estimating_does_not_crash_the_filter(speed):
     law.step(state, None, 0.02)
     law.step(state._replace(v_x=speed), None, 0.02)
     assert all(math.isfinite(law.step(state, None, 0.02).steering) for _ in range(3))
+
+
+def _clothoid_rates(settings, v_x=37.0, jerk=0.5, seconds=8.0, dt=0.01):
+    """Drive the law along a noise-free clothoid without road_curvature: its rates."""
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+    rate = -jerk / v_x ** 2                 # a right clothoid, lateral jerk `jerk`
+    rates = []
+    for k in range(int(round(seconds / dt))):
+        rho = rate * k * dt
+        v_y, r, eps_r = _turn(v_x, rho)     # quasi-steady on the lane
+        law.note_curvature(False)
+        law.step(LateralState(0.0, eps_r, v_y, r, v_x, 0.0, 0.0, 0.0), None, dt)
+        rates.append(float(law.curvature_rate()))
+    return np.array(rates), rate
+
+
+def test_on_a_clothoid_without_curvature_the_rate_estimate_converges_to_the_true_rate():
+    # a 0.5 m/s^3 clothoid at 37 m/s (rho' = -3.65e-4 1/(m s), R 400 m after 6.8 s):
+    # the estimate's filtered difference (estimate_rate_time 0.5 s) is within 1 % of the
+    # true rate after 3 s (0.07 % after 4 s); the code before took it as 0
+    rates, true = _clothoid_rates(LaneKeepingParams())
+    assert np.all(np.abs(rates[300:] - true) < 0.01 * abs(true))
+    assert abs(rates[-1] - true) < 1e-3 * abs(true)
+    # clipped to the lateral jerk max_lateral_jerk (10 m/s^3 at 37 m/s: 7.3e-3)
+    clipped, _ = _clothoid_rates(LaneKeepingParams(max_lateral_jerk=0.25))
+    most = 0.25 / 37.0 ** 2
+    assert np.max(np.abs(clipped)) <= most * (1.0 + 1e-12)
+    assert clipped[-1] == pytest.approx(-most, rel=1e-3)
+    # estimate_rate_time 0: the rate is not estimated (the code before)
+    off, _ = _clothoid_rates(LaneKeepingParams(estimate_rate_time=0.0))
+    assert np.all(off == 0.0)
+
+
+def test_the_estimate_rate_previews_the_curve_without_curvature():
+    # goal plant, seed 0, without road_curvature (peak cm, measured by bench.rho_preview
+    # over 16 seeds in docs/lane_keeping.md): S2 at 37 m/s 38.4 with the estimate's
+    # rate taken as 0 (the code before), 30.2 with it; S3 at 37 m/s 98.2 -> 71.6
+    old = LaneKeepingParams(estimate_rate_time=0.0)
+    s2_old = np.max(np.abs(_run('s2_curve_entry', 37.0, settings=old)['y_cg']))
+    s2_new = np.max(np.abs(_run('s2_curve_entry', 37.0)['y_cg']))
+    assert s2_old > 0.36 and s2_new < 0.33
+    s3_new = np.max(np.abs(_run('s3_s_bend', 37.0)['y_cg']))
+    assert s3_new < 0.8
+
+
+def test_the_estimate_rate_costs_less_than_a_third_more_steering_noise():
+    # S0 at 37 m/s, seed 0: the command less that of the noise-free run, std after 1 s
+    def noise(settings):
+        from lookahead_control.tools.compare import load_scenarios
+        from sim_plant.closed_loop_sim import run
+        from sim_plant.vehicle_model import PlantParams
+
+        noisy = _run('s0_straight', 37.0, settings=settings)
+
+        class Off:
+
+            def __init__(self):
+                self.law = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+
+            def reset(self):
+                self.law.reset()
+
+            def step(self, state, preview, dt):
+                self.law.note_curvature(False)
+                return self.law.step(state._replace(rho=0.0, rho_rate=0.0), None, dt)
+
+        clean = run(load_scenarios(['s0_straight'])['s0_straight'], VEHICLE, Off(),
+                    PlantParams(model='nonlinear'), initial_speed=37.0, dt=0.001,
+                    delay=0.02, preview_distance=100.0)
+        late = noisy.time > 1.0
+        return np.std((noisy['steering_cmd'] - clean['steering_cmd'])[late])
+
+    before = noise(LaneKeepingParams(estimate_rate_time=0.0))
+    now = noise(LaneKeepingParams())
+    assert before < now < 1.3 * before
+
+
+def test_a_negative_estimate_rate_time_is_refused():
+    from lookahead_control.core.params import ParameterError
+    with pytest.raises(ParameterError, match='estimate_rate_time = -0.1'):
+        LaneKeepingParams(estimate_rate_time=-0.1)
+
+
+@pytest.mark.parametrize('v_x', [10.0, 37.0])
+def test_the_rate_gain_is_the_law_s_terms_in_the_estimated_rate_by_hand(v_x):
+    # with the estimate's rate q: the drift term's curvature T_ff ahead (q T_ff) and its
+    # rate (q), the rate feedforward d_v lead q in the reference, its rate d_v gain q
+    from lookahead_control.core.lane_keeping import loop_gains
+    from lookahead_control.core.lane_keeping_stability import rate_gain
+    from lookahead_control.core.schedule import look_ahead
+    settings = LaneKeepingParams()
+    m, iz, l1, l2, eta = (VEHICLE.mass, VEHICLE.yaw_inertia, VEHICLE.l1, VEHICLE.l2,
+                          VEHICLE.eta)
+    d_v = float(look_ahead(v_x, 0.0, VEHICLE, ControllerParams())[0])
+    k_p, k_d = (float(k) for k in loop_gains(settings, v_x))
+    beta_1 = VEHICLE.c_f * (1.0 / m + l1 * d_v / iz)
+    gain = eta * v_x ** 2 - l2
+    lead = -(v_x * iz * eta / (m * l1) + gain * l2 / v_x)
+    expected = (v_x ** 2 * settings.feedforward_preview + d_v * v_x + k_p * d_v * lead
+                + k_d * d_v * gain) / beta_1
+    assert rate_gain(VEHICLE, ControllerParams(), settings, v_x) == pytest.approx(
+        expected, rel=1e-9)
+    assert rate_gain(VEHICLE, ControllerParams(),
+                     LaneKeepingParams(estimate_rate_time=0.0), v_x) == 0.0

@@ -64,7 +64,7 @@ from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import (check_range, ControllerParams, ParameterError,
                                            VehicleParams)
 from lookahead_control.core.schedule import look_ahead
-from lookahead_control.core.state_filter import (FILTER_MODES, KalmanStateFilter,
+from lookahead_control.core.state_filter import (_bounded, FILTER_MODES, KalmanStateFilter,
                                                  MAX_PERIOD, StateFilterParams)
 import numpy as np
 
@@ -127,6 +127,11 @@ class LaneKeepingParams:
     :param curvature_blend: when the curvature starts or stops arriving, the law moves
         from the curvature it used to the new one (received or estimated) linearly over
         this time [s]; 0: at once.
+    :param estimate_rate_time: while the curvature is estimated, its rate is the
+        backward difference of the estimate through ``1 / (T s + 1)`` with this ``T``,
+        clipped to ``max_lateral_jerk``, and the law previews ``rho_hat + rho_hat' t``
+        (its rate feedforward and the drift term's ``T_ff`` ahead) [s]; 0: the
+        estimate's rate is taken as 0 (no preview without a curvature).
     :param filter_min_speed: ... (and the ``filter_*`` below): the filter's settings,
         :class:`~lookahead_control.core.state_filter.StateFilterParams` without the
         ``filter_`` prefix.
@@ -157,6 +162,7 @@ class LaneKeepingParams:
     max_lateral_jerk: float = 10.0
     state_filter: str = 'kalman'
     curvature_blend: float = 0.5
+    estimate_rate_time: float = 0.5
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
     filter_delay: float = 0.02
@@ -221,6 +227,8 @@ class LaneKeepingParams:
         check_range('lane_keeping.max_lateral_jerk', self.max_lateral_jerk, 0.0, 1000.0,
                     unit='m/s^3')
         check_range('lane_keeping.curvature_blend', self.curvature_blend, 0.0, 10.0,
+                    unit='s')
+        check_range('lane_keeping.estimate_rate_time', self.estimate_rate_time, 0.0, 10.0,
                     unit='s')
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
@@ -508,6 +516,8 @@ class CgCompensatedLaw:
         self._blending: Optional[Real] = None   # the offset the present step adds
         self._changed: Any = False              # the runs that switched at this step
         self._steer_offset: Real = 0.0          # command jump to blend out at the switch
+        self._rate_last: Optional[Real] = None  # the curvature of the last step (rate)
+        self._rate: Real = 0.0                  # the estimate's filtered rate [1/(m s)]
         self.resets = 0
         #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
         #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
@@ -526,6 +536,7 @@ class CgCompensatedLaw:
         self.curvature_filter = None
         self._was_estimating = None
         self._blend_offset = self._blend_left = self._steer_offset = 0.0
+        self._rate_last, self._rate = None, 0.0
         self.resets += 1
 
     def take_over(self, old: 'CgCompensatedLaw') -> tuple[list[str], list[str]]:
@@ -622,7 +633,8 @@ class CgCompensatedLaw:
 
         Without one (never received, or lost) the state filter estimates it and the law
         uses the estimate at the CG where it would use the received curvature (the
-        feed-forward and the reference; no preview). With ``state_filter: none`` a filter
+        feed-forward and the reference), previewed along its rate (``estimate_rate_time``;
+        0: no preview). With ``state_filter: none`` a filter
         runs for that estimate alone while none is received (the law keeps the
         measurements of the rest).
 
@@ -638,6 +650,18 @@ class CgCompensatedLaw:
         :return: whether it does (for any run of a batch).
         """
         return bool(np.count_nonzero(self.estimating))
+
+    def curvature_rate(self) -> Real:
+        """
+        Return the curvature rate of the last step [1/(m s)].
+
+        While the curvature is estimated: the estimate's rate the law previewed along
+        (``estimate_rate_time``); while one is received: its rate. 0 before a step, after
+        a restart and with ``estimate_rate_time`` 0 (not tracked).
+
+        :return: the rate (an array over a batch).
+        """
+        return self._rate
 
     def debug_values(self) -> list[tuple[str, float]]:
         """
@@ -715,6 +739,9 @@ class CgCompensatedLaw:
         if estimating is True:          # no preview without a curvature
             preview = None
         v_x = xp.maximum(state.v_x, self.controller.min_speed)
+        rated = s.estimate_rate_time > 0.0
+        if rated:
+            state = self._estimate_rate(state, dt, estimating, v_x)
         state = self._blend(state, estimating, dt)
         slope = state.rho_rate / v_x
         distances = getattr(preview, 'distances', None)
@@ -723,7 +750,16 @@ class CgCompensatedLaw:
                                                v_x * s.reference_preview, state.rho, slope)
         rho_ff, slope_ff = preview_curvature(distances, curvatures,
                                              v_x * s.feedforward_preview, state.rho, slope)
-        if isinstance(estimating, np.ndarray) and np.count_nonzero(estimating):
+        if rated and estimating is True:
+            # the estimate extrapolated along its rate (preview_curvature's fallback)
+            rho_ref, rho_ff = _bounded(rho_ref), _bounded(rho_ff)
+        elif rated and isinstance(estimating, np.ndarray) and np.count_nonzero(estimating):
+            est_ref = _bounded(state.rho + slope * (v_x * s.reference_preview))
+            est_ff = _bounded(state.rho + slope * (v_x * s.feedforward_preview))
+            rho_ref, slope_ref, rho_ff, slope_ff = (
+                xp.where(estimating, est_ref, rho_ref), xp.where(estimating, slope, slope_ref),
+                xp.where(estimating, est_ff, rho_ff), xp.where(estimating, slope, slope_ff))
+        elif isinstance(estimating, np.ndarray) and np.count_nonzero(estimating):
             rho_ref, slope_ref, rho_ff, slope_ff = (
                 xp.where(estimating, state.rho, rho_ref), xp.where(estimating, 0.0, slope_ref),
                 xp.where(estimating, state.rho, rho_ff), xp.where(estimating, 0.0, slope_ff))
@@ -781,6 +817,9 @@ class CgCompensatedLaw:
             if self._blending is not None:
                 self._blend_left = np.where(finite, self._blend_left, 0.0)
             self.estimator.forget(~finite)
+            if self._rate_last is not None:     # restarted: the rate from 0
+                self._rate = np.where(finite, self._rate, 0.0)
+                self._rate_last = np.where(finite, self._rate_last, math.nan)
             if self.state_filter is not None:
                 self.state_filter.forget(~finite)
             if self.curvature_filter is not None:
@@ -809,6 +848,42 @@ class CgCompensatedLaw:
             self.curvature_filter.wheel = self.last_steering
         estimate = self.curvature_filter.step(state, dt, estimating)
         return state._replace(rho=estimate.rho, rho_rate=estimate.rho_rate)
+
+    def _estimate_rate(self, state: LateralState, dt: float, estimating: Any,
+                       v_x: Real) -> LateralState:
+        """
+        Return the state with, where the curvature is estimated, its rate estimated.
+
+        The backward difference of the estimate, clipped to ``max_lateral_jerk`` (a jump
+        of the estimate, its restart to ``r / v_x``, is no rate), through ``1 / (T s +
+        1)``, ``T = estimate_rate_time``; where a curvature is received its rate is
+        followed (an estimate's rate starts from the last one). At a switch-over the
+        estimate is not differenced against the curvature received.
+        """
+        rho = state.rho
+        before = self._was_estimating
+        last = rho if self._rate_last is None else self._rate_last
+        if before is not None:
+            last = xp.where(estimating != before, rho, last)
+        limited = self.settings.max_lateral_jerk > 0.0
+        most = self.settings.max_lateral_jerk / (v_x * v_x)
+        if dt > 0.0:
+            weight = dt / (self.settings.estimate_rate_time + dt)
+            step = (rho - last) / dt
+            if limited:
+                step = xp.clip(step, -most, most)
+            rate = self._rate + weight * (step - self._rate)
+            self._rate_last = rho
+        else:                           # the same instant again: nothing advances
+            rate, self._rate_last = self._rate, last
+        if limited:
+            rate = xp.clip(rate, -most, most)
+        received = xp.where(_finite(state.rho_rate), state.rho_rate, 0.0)
+        rate = xp.where(estimating, rate, received)
+        # a non-finite curvature (a restart) starts the rate from 0
+        rate = xp.where(_finite(rate), rate, 0.0)
+        self._rate = rate
+        return state._replace(rho_rate=xp.where(estimating, rate, state.rho_rate))
 
     def _blend(self, state: LateralState, estimating: Any, dt: float) -> LateralState:
         """

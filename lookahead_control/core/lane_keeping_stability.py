@@ -71,7 +71,9 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   without ``v_y``, a bridge that sends 0; with ``curvature_estimated=True`` the
   curvature estimator (``eps_r' = r - v_x rho`` on the measured ``eps_r`` and ``r``)
   feeding the filter's curvature input and the law, ``delta = K x_hat + k_rho
-  rho_hat`` (:func:`curvature_gain`), no ``road_curvature`` received), and
+  rho_hat + k_rate rho_hat'`` (:func:`curvature_gain`, :func:`rate_gain`; the rate
+  the law's filtered difference of the estimate, ``estimate_rate_time``), no
+  ``road_curvature`` received), and
   :func:`robust_check` takes either.
 - The varying-speed certificate covers the law on exact states only; the filter is
   covered by the sampled check, at frozen speeds.
@@ -167,7 +169,7 @@ def curvature_gain(vehicle: VehicleParams, controller: ControllerParams,
 
     The curvature at the CG enters ``y_v'`` (``-d_v v_x rho``), the drift term's road
     terms and the reference ``d_v eps_ss(v_x, rho)`` (the model's ``eta``); with an
-    estimated curvature all three take the estimate (no preview, no rate). Evaluated on
+    estimated curvature all three take the estimate (its rate: :func:`rate_gain`). Evaluated on
     the law itself (it is linear in ``rho`` at a constant compliance).
 
     :param vehicle: the design vehicle.
@@ -184,6 +186,41 @@ def curvature_gain(vehicle: VehicleParams, controller: ControllerParams,
         state = LateralState(0.0, 0.0, 0.0, 0.0, v_x, 0.0, rho, 0.0)
         out = cg_compensated_law(state, vehicle, law_controller, rho, 0.0, rho, 0.0,
                                  gains=gains)
+        return float(out.steering)
+
+    return steering(1.0) - steering(0.0)
+
+
+def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
+              settings: LaneKeepingParams, v_x: float) -> float:
+    """
+    Return ``k_rate`` with ``delta = K x + k_rho rho + k_rate rho'`` (estimated curvature).
+
+    While the curvature is estimated the law previews it along its estimated rate
+    ``rho'`` (``estimate_rate_time``): the reference ``T_ref`` and the drift term
+    ``T_ff`` ahead take ``rho + rho' T``, their rates, the rate feedforward and the
+    reference's rate take ``rho'`` (small signals: the clip to ``max_lateral_jerk`` does
+    not act). Evaluated on the law itself (linear in ``rho'`` at a constant compliance);
+    0 with ``estimate_rate_time`` 0.
+
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the law's gains and previews.
+    :param v_x: speed [m/s].
+    :return: the gain [rad m s].
+    """
+    if settings.estimate_rate_time <= 0.0:
+        return 0.0
+    law_controller = replace(controller, natural_frequency=settings.natural_frequency,
+                             damping_ratio=settings.damping_ratio)
+    gains = loop_gains(settings, v_x)
+
+    def steering(rate: float) -> float:
+        state = LateralState(0.0, 0.0, 0.0, 0.0, v_x, 0.0, 0.0, rate)
+        out = cg_compensated_law(state, vehicle, law_controller,
+                                 rate * settings.reference_preview, rate,
+                                 rate * settings.feedforward_preview, rate, gains=gains,
+                                 rate_feedforward=settings.rate_feedforward)
         return float(out.steering)
 
     return steering(1.0) - steering(0.0)
@@ -641,7 +678,10 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         rate) runs on the exact measurements, its estimate is the filter's curvature
         input (constant over each substep at its middle value, the estimate moving
         linearly from the last to the new one; the node's RK4 samples the same line)
-        and the law's (:func:`curvature_gain`); the true road is straight.
+        and the law's (:func:`curvature_gain`); with ``estimate_rate_time`` > 0 one
+        state more, the law's rate of the estimate (its backward difference through
+        ``1 / (T s + 1)``, as the law), through :func:`rate_gain`; the true road is
+        straight.
     :param integral_frozen: the integral held (the CG error outside ``integral_band``):
         a constant input, not a state, and no ``k_i y_cg`` in the reference's rate; the
         matrix without it.
@@ -687,7 +727,9 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     i_int = n
     i_est = n + 1
     i_kin = i_est + nf                  # the curvature estimator's eps_r, rho
-    i_buf = i_kin + (2 if curvature_estimated else 0)
+    rated = curvature_estimated and settings.estimate_rate_time > 0.0
+    i_rate = i_kin + 2                  # ... and the law's rate of the estimate
+    i_buf = i_kin + (2 if curvature_estimated else 0) + (1 if rated else 0)
     size = i_buf + depth
     gain = steady_gain(model, fs, v_x, period, v_y_measured)
     h_model = measurement_matrix(model)
@@ -697,6 +739,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     law[0, i_int] = k[4]
     if curvature_estimated:
         law[0, i_kin + 1] = curvature_gain(vehicle, controller, settings, v_x)
+    if rated:
+        law[0, i_rate] = rate_gain(vehicle, controller, settings, v_x)
 
     def command(age: int) -> Matrix:
         """Return u_k-age as a row over s_k."""
@@ -727,6 +771,11 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         m[i_kin, :] = e_prior + g_kin[0, 0] * innovation
         m[i_kin + 1, :] = unit[i_kin + 1] + g_kin[1, 0] * innovation
         rho_now[0], rho_next[0] = unit[i_kin + 1], m[i_kin + 1]
+    if rated:
+        # the law's rate at k+1: (1 - w) rate_k + w (rho_k+1 - rho_k) / h
+        weight = period / (settings.estimate_rate_time + period)
+        m[i_rate, :] = ((1.0 - weight) * unit[i_rate]
+                        + weight * (rho_next[0] - rho_now[0]) / period)
     # the prior, substep by substep, over s_k
     prior = np.zeros((nf, size))
     prior[:, i_est:i_est + nf] = np.eye(nf)

@@ -133,6 +133,9 @@ LANE_KEEPING_SPECS = tuple(
         ('curvature_blend', 'when road_curvature starts or stops arriving, the curvature '
          'used moves to the new one (received or estimated) over this time; 0: at once '
          '[s]', 0.0, 10.0),
+        ('estimate_rate_time', 'while the curvature is estimated (no road_curvature), its '
+         'rate is the derivative of the estimate through a low pass of this time constant, and '
+         'the law previews the estimate along it; 0: rate 0, no preview [s]', 0.0, 10.0),
     )) + (
     Spec('lane_keeping.state_filter', LaneKeepingParams().state_filter,
          'kalman: the law uses the estimate of y_cg, eps_r, v_y, r of the Kalman filter, '

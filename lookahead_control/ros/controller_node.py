@@ -649,7 +649,7 @@ class ControllerNode(LifecycleNode):
         if turning['turning_without_curvature'] >= TURNING_WARN:
             level = max(level, DiagnosticStatus.WARN)
             what = ('the curvature is estimated from the yaw rate and the relative yaw by law '
-                    'cg_compensated (R 400 m at 37 m/s: about 40 cm peak, no preview)'
+                    'cg_compensated (R 400 m at 37 m/s: about 30 cm peak)'
                     if estimates else
                     f'law {self.core.law_name} takes the road as straight (R 400 m at 37 '
                     'm/s: the CG settles metres outside the curve; law cg_compensated '
