@@ -346,3 +346,23 @@ def test_a_dds_run_tuned_mid_arc_replays_offline_to_the_bit(tmp_path):
                           cwd=root, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
     assert json.loads(report.read_text())['parameter_sets_followed'] == 1
+
+
+def test_a_retune_without_road_curvature_keeps_the_estimated_curvature_s_rate():
+    # dev-livetune and dev-rhopreview were merged together: take_over did not carry the
+    # rate the curvature estimate is previewed along, so a retune on a clothoid without
+    # road_curvature restarted it at 0 (the preview lost until the 0.5 s filter refilled)
+    vehicle, controller = VehicleParams(), ControllerParams()
+    law = CgCompensatedLaw(vehicle, controller, LaneKeepingParams())
+    law.estimating = True
+    rho_rate = 37.0 * 1.0e-5                 # d rho / dt on a clothoid at 37 m/s
+    for k in range(300):
+        rho = 1.0e-5 * 37.0 * 0.01 * k
+        state = LateralState(0.0, 0.0, 0.0, 37.0 * rho, 37.0, 0.0, rho, math.nan)
+        law.step(state, None, 0.01)
+    assert law._rate == pytest.approx(rho_rate, rel=0.05)
+    new = CgCompensatedLaw(vehicle, controller, LaneKeepingParams(integral_gain=0.35))
+    new.reset()
+    carried, _ = new.take_over(law)
+    assert 'curvature rate' in carried
+    assert new._rate == law._rate and new._rate_last == law._rate_last

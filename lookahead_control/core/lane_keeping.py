@@ -557,8 +557,9 @@ class CgCompensatedLaw:
           from the next measurement when the design vehicle changed (its force
           disturbances were the old model's error) or the filter was off before;
         - the actuator model and the commands on their way to it, the last command,
-          the anti-windup flag, the curvature judgment and its switch-over blend (the
-          car's and the road's, never restarted).
+          the anti-windup flag, the curvature judgment and its switch-over blend, and
+          the estimated curvature's rate (``estimate_rate_time``; the car's and the
+          road's, never restarted).
 
         Works on floats and on a batch's arrays alike.
 
@@ -575,6 +576,12 @@ class CgCompensatedLaw:
         if s.curvature_blend > 0.0:
             self._blend_offset, self._steer_offset = old._blend_offset, old._steer_offset
             self._blend_left = xp.minimum(old._blend_left, s.curvature_blend)
+        if s.estimate_rate_time > 0.0 and old.settings.estimate_rate_time > 0.0:
+            # the estimated curvature's rate is the road's: a retune without
+            # road_curvature does not lose the preview along it
+            self._rate, self._rate_last = old._rate, old._rate_last
+            if bool(np.any(old.estimating)):
+                carried.append('curvature rate')
         self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
         if s.integral_gain > 0.0:
             self.integral = xp.clip(old.integral, -s.integral_limit, s.integral_limit)
