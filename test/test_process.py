@@ -98,19 +98,24 @@ def test_remapped_bridge_drives_the_controller(probe):
            '-p', 'qos_reliability:=best_effort']
     controller = subprocess.Popen(cmd)
     try:
-        assert spin_until(executor, lambda: node.count_subscribers('/bridge/imu') > 0
-                          and node.count_publishers('/vehicle/steering_cmd') > 0, 30)
+        assert spin_until(executor, lambda: all(
+            node.count_subscribers(t) > 0 for t in ('/bridge/imu', '/bridge/twist',
+                                                    '/bridge/lane_offset'))
+            and node.count_publishers('/vehicle/steering_cmd') > 0, 30)
         # stamped with the bridge's clock, as a vehicle's would be (stamps older than
-        # input_timeout are refused), on a 10 ms grid
+        # input_timeout are refused), on a 10 ms grid; sent until 20 answers came (a
+        # loaded machine activates the node later or drops best-effort samples: before,
+        # 39 sets were sent once and a slow start left fewer than 20 answers)
         stamp = 0
-        for _ in range(1, 40):
+        deadline = time.monotonic() + 60.0
+        while len(answers) < 20 and time.monotonic() < deadline:
             now = node.get_clock().now().nanoseconds // 10_000_000 * 10_000_000
             stamp = max(stamp + 10_000_000, now)
             pubs['yaw'].publish(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
             pubs['vel'].publish(conv.to_velocity(stamp, 'base_link', 20.0, 0.0, 0.0))
             pubs['lat'].publish(conv.to_lateral_error(stamp, 'base_link', 0.0, 0.5))
             spin_until(executor, lambda: False, 0.02)
-        assert spin_until(executor, lambda: len(answers) >= 20, 10)
+        assert len(answers) >= 20
         # a left offset is answered with right steering, stamped with its measurement
         assert all(angle < 0.0 for _, angle in answers)
         assert all(stamp % 10_000_000 == 0 for stamp, _ in answers)
