@@ -755,3 +755,20 @@ def test_the_independent_plant_runs_with_the_goal_plant_s_delay_and_noise(tmp_pa
     # the goal plant's summary has no run of it
     head = text.split('## The same columns on')[0]
     assert '| cg_compensated | - | - |' in head
+
+
+def test_the_independent_plant_s_table_counts_its_own_runs_and_no_goal():
+    # before: its runs off the road, diverged and failed were counted over every plant and
+    # its row repeated the goal plants' goal count, in a table "on" that plant
+    rows = [_row(law='x', off_road=True, diverged_at_s=1.0, notes='diverged at t = 1.000 s',
+                 peak_wheel_rate_rad_per_s=0.1,
+                 goals='S1 peak <= 6 cm at 37', goals_missed='S1 peak <= 6 cm at 37'),
+            _row(law='x', plant=compare.INDEPENDENT_PLANT, diverged_at_s=math.nan, notes='',
+                 peak_wheel_rate_rad_per_s=0.1,
+                 goals='', goals_missed='')]
+    goal = compare.summary(rows, ['x'])[0]
+    assert (goal['runs off the road'], goal['diverged runs'], goal['goals met']) == (1, 1, '0/1')
+    mine = compare.summary(rows, ['x'], compare.INDEPENDENT_PLANT)[0]
+    assert (mine['runs off the road'], mine['diverged runs'], mine['failed runs']) == (0, 0, 0)
+    assert 'goals met' not in mine
+    assert mine['S1 peak cg 37 [cm]'] == pytest.approx(5.0)
