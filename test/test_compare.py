@@ -772,3 +772,18 @@ def test_the_independent_plant_s_table_counts_its_own_runs_and_no_goal():
     assert (mine['runs off the road'], mine['diverged runs'], mine['failed runs']) == (0, 0, 0)
     assert 'goals met' not in mine
     assert mine['S1 peak cg 37 [cm]'] == pytest.approx(5.0)
+
+
+def test_the_json_has_the_independent_plant_s_table(tmp_path):
+    # before: --json had only the goal plant's summary, not league.md's second table
+    import json
+    path = tmp_path / 'x.json'
+    assert compare.main(['--laws', 'cg_compensated', '--scenarios', 's0_straight',
+                         '--speeds', '37', '--duration', '1', '--no-plots', '--no-progress',
+                         '--workers', '1', '--plants', compare.INDEPENDENT_PLANT,
+                         '--out', str(tmp_path / 'out'), '--json', str(path)]) == 0
+    data = json.loads(path.read_text())
+    (entry,) = data['independent_summary']
+    assert entry['law'] == 'cg_compensated' and 'goals met' not in entry
+    assert entry['S0 noise 37 [mrad]'] == pytest.approx(
+        1000.0 * data['runs'][0]['steering_noise_rms_rad'])

@@ -1279,7 +1279,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     table = summary(rows, args.laws)
     print(markdown_table(table, digits=3))
     if args.json:
-        write_json(args.json, {'summary': table, 'runs': rows,
+        # the independent plant's table of league.md too (before: only the goal plant's)
+        independent = ({'independent_summary': summary(rows, args.laws, INDEPENDENT_PLANT)}
+                       if INDEPENDENT_PLANT in args.plants else {})
+        write_json(args.json, {'summary': table, **independent, 'runs': rows,
                                'goals_over_seeds': goals_over_seeds(goal_cells(rows,
                                                                                args.laws))})
     print(f'wrote {report} ({len(rows)} runs in {time.monotonic() - start:.0f} s)')
