@@ -787,3 +787,18 @@ def test_the_json_has_the_independent_plant_s_table(tmp_path):
     assert entry['law'] == 'cg_compensated' and 'goals met' not in entry
     assert entry['S0 noise 37 [mrad]'] == pytest.approx(
         1000.0 * data['runs'][0]['steering_noise_rms_rad'])
+
+
+def test_one_seed_on_the_independent_plant_alone_warns_of_no_goal(tmp_path):
+    # before: "a goal met here may be missed with another seed" over a league of the
+    # independent plant, where no goal is judged
+    case = next(c for c in compare.PLANTS if c.name == compare.INDEPENDENT_PLANT)
+    goal = next(c for c in compare.PLANTS if c.name == compare.GOAL_PLANT)
+    rows = compare.league(['cg_compensated'], ['s0_straight'], [37.0], [case], VEHICLE,
+                          duration=1.0)
+    text = compare.write_report(rows, ['cg_compensated'], tmp_path, plot=False).read_text()
+    assert rows[0]['noise_seed'] is not None and 'One noise seed per speed' not in text
+    rows += compare.league(['cg_compensated'], ['s0_straight'], [37.0], [goal], VEHICLE,
+                           duration=1.0)
+    text = compare.write_report(rows, ['cg_compensated'], tmp_path, plot=False).read_text()
+    assert 'One noise seed per speed' in text

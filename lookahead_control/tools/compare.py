@@ -1037,7 +1037,9 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         *([] if seeds == 1 else [
             f'**{seeds} noise seeds per speed on the noisy plants (`--seeds`): every worst '
             'case below is over them, and the goal count counts runs.**', '']),
-        *([] if seeds != 1 or not any(r['noise_seed'] is not None for r in rows) else [
+        # a noisy run a goal applies to (the independent plant's runs: none)
+        *([] if seeds != 1 or not any(r['noise_seed'] is not None and r['goals']
+                                      for r in rows) else [
             '**One noise seed per speed on the noisy plants: a goal met here may be missed '
             "with another seed (`--seeds N`: each goal's share of N runs).**", '']),
         markdown_table(summary(rows, laws), digits=3), '']
