@@ -802,3 +802,16 @@ def test_one_seed_on_the_independent_plant_alone_warns_of_no_goal(tmp_path):
                            duration=1.0)
     text = compare.write_report(rows, ['cg_compensated'], tmp_path, plot=False).read_text()
     assert 'One noise seed per speed' in text
+
+
+def test_a_noisy_plant_s_cost_counts_its_noise_free_twins():
+    # before: a noisy plant's task was costed as its noisy runs alone, but it also runs
+    # the noise-free twin of each speed: at one seed twice the cost, so the independent
+    # plant under noise tied with the noise-free one instead of starting first
+    speeds = [10.0, 20.0, 30.0, 37.0]
+    cost = {c.name: compare.plant_cost(c, speeds, 1, 10.0, compare.DT) for c in compare.PLANTS}
+    assert cost['commonroad_mb_delay_noise'] == pytest.approx(2.0 * cost['commonroad_mb'])
+    assert cost['nonlinear_delay_noise'] == pytest.approx(2.0 * cost['nonlinear'])
+    case = next(c for c in compare.PLANTS if c.name == compare.INDEPENDENT_PLANT)
+    assert compare.plant_cost(case, speeds, 16, 10.0, compare.DT) == pytest.approx(
+        (64 + 4) / 4 * cost['commonroad_mb'])
