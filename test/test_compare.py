@@ -755,3 +755,63 @@ def test_the_independent_plant_runs_with_the_goal_plant_s_delay_and_noise(tmp_pa
     # the goal plant's summary has no run of it
     head = text.split('## The same columns on')[0]
     assert '| cg_compensated | - | - |' in head
+
+
+def test_the_independent_plant_s_table_counts_its_own_runs_and_no_goal():
+    # before: its runs off the road, diverged and failed were counted over every plant and
+    # its row repeated the goal plants' goal count, in a table "on" that plant
+    rows = [_row(law='x', off_road=True, diverged_at_s=1.0, notes='diverged at t = 1.000 s',
+                 peak_wheel_rate_rad_per_s=0.1,
+                 goals='S1 peak <= 6 cm at 37', goals_missed='S1 peak <= 6 cm at 37'),
+            _row(law='x', plant=compare.INDEPENDENT_PLANT, diverged_at_s=math.nan, notes='',
+                 peak_wheel_rate_rad_per_s=0.1,
+                 goals='', goals_missed='')]
+    goal = compare.summary(rows, ['x'])[0]
+    assert (goal['runs off the road'], goal['diverged runs'], goal['goals met']) == (1, 1, '0/1')
+    mine = compare.summary(rows, ['x'], compare.INDEPENDENT_PLANT)[0]
+    assert (mine['runs off the road'], mine['diverged runs'], mine['failed runs']) == (0, 0, 0)
+    assert 'goals met' not in mine
+    assert mine['S1 peak cg 37 [cm]'] == pytest.approx(5.0)
+
+
+def test_the_json_has_the_independent_plant_s_table(tmp_path):
+    # before: --json had only the goal plant's summary, not league.md's second table
+    import json
+    path = tmp_path / 'x.json'
+    assert compare.main(['--laws', 'cg_compensated', '--scenarios', 's0_straight',
+                         '--speeds', '37', '--duration', '1', '--no-plots', '--no-progress',
+                         '--workers', '1', '--plants', compare.INDEPENDENT_PLANT,
+                         '--out', str(tmp_path / 'out'), '--json', str(path)]) == 0
+    data = json.loads(path.read_text())
+    (entry,) = data['independent_summary']
+    assert entry['law'] == 'cg_compensated' and 'goals met' not in entry
+    assert entry['S0 noise 37 [mrad]'] == pytest.approx(
+        1000.0 * data['runs'][0]['steering_noise_rms_rad'])
+
+
+def test_one_seed_on_the_independent_plant_alone_warns_of_no_goal(tmp_path):
+    # before: "a goal met here may be missed with another seed" over a league of the
+    # independent plant, where no goal is judged
+    case = next(c for c in compare.PLANTS if c.name == compare.INDEPENDENT_PLANT)
+    goal = next(c for c in compare.PLANTS if c.name == compare.GOAL_PLANT)
+    rows = compare.league(['cg_compensated'], ['s0_straight'], [37.0], [case], VEHICLE,
+                          duration=1.0)
+    text = compare.write_report(rows, ['cg_compensated'], tmp_path, plot=False).read_text()
+    assert rows[0]['noise_seed'] is not None and 'One noise seed per speed' not in text
+    rows += compare.league(['cg_compensated'], ['s0_straight'], [37.0], [goal], VEHICLE,
+                           duration=1.0)
+    text = compare.write_report(rows, ['cg_compensated'], tmp_path, plot=False).read_text()
+    assert 'One noise seed per speed' in text
+
+
+def test_a_noisy_plant_s_cost_counts_its_noise_free_twins():
+    # before: a noisy plant's task was costed as its noisy runs alone, but it also runs
+    # the noise-free twin of each speed: at one seed twice the cost, so the independent
+    # plant under noise tied with the noise-free one instead of starting first
+    speeds = [10.0, 20.0, 30.0, 37.0]
+    cost = {c.name: compare.plant_cost(c, speeds, 1, 10.0, compare.DT) for c in compare.PLANTS}
+    assert cost['commonroad_mb_delay_noise'] == pytest.approx(2.0 * cost['commonroad_mb'])
+    assert cost['nonlinear_delay_noise'] == pytest.approx(2.0 * cost['nonlinear'])
+    case = next(c for c in compare.PLANTS if c.name == compare.INDEPENDENT_PLANT)
+    assert compare.plant_cost(case, speeds, 16, 10.0, compare.DT) == pytest.approx(
+        (64 + 4) / 4 * cost['commonroad_mb'])

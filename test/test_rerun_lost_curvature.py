@@ -502,7 +502,8 @@ def test_rerun_of_a_bag_from_before_the_integral_gain_schedule_keeps_its_constan
     result = rerun(run)
     # 1e-9: the yaw goes through the Imu's quaternion (as in the two-vehicle bag's test)
     assert result.compared == 300 and result.max_diff <= 1e-9, result.max_diff
-    # the schedule (the default for a bag that records it) is another law here
+    # the schedule (low_speed_integral_gain 0.05, the default from dev-kisched to dev-gate)
+    # is another law here
     scheduled = rerun(run, {low: 0.05})
     assert scheduled.max_diff > 1e-4, scheduled.max_diff
     # an override of integral_gain is the old law with that constant k_i
@@ -519,3 +520,20 @@ def test_rerun_of_a_bag_from_before_the_integral_gain_schedule_keeps_its_constan
     assert json.loads(report.read_text())['parameters_as_it_ran'] == {low: 0.3}
     assert run_tool(replay_node.main, [str(bag), '--check', '1e-9', '-p', f'{low}=0.05']) == 1
     assert 'predates' not in capsys.readouterr().out
+
+
+def test_rerun_of_a_bag_recorded_with_the_schedule_keeps_it(tmp_path):
+    # a bag recorded while the schedule was the default (low_speed_integral_gain 0.05,
+    # dev-kisched to dev-gate) re-runs its 0.05 as recorded, not today's default (0.3)
+    from lookahead_control.core.lane_keeping import LaneKeepingParams
+    low = 'lane_keeping.low_speed_integral_gain'
+    assert LaneKeepingParams().low_speed_integral_gain == 0.3
+    recorded = {'law': 'cg_compensated', 'lane_keeping.integral_gain': 0.3, low: 0.05}
+    bag = tmp_path / 'scheduled'
+    controllers_bag(bag, {'/controller': recorded}, steps=300,
+                    scale={'/controller': 1.0 / 3.0})      # 10 m/s: the schedule's 0.05
+    run = load_run(bag)
+    assert run.controller_params[low] == 0.05 and as_it_ran(run.controller_params) == {}
+    result = rerun(run)
+    assert result.compared == 300 and result.max_diff <= 1e-9, result.max_diff
+    assert rerun(run, {low: 0.3}).max_diff > 1e-4      # today's default is another law here

@@ -233,6 +233,24 @@ def test_a_sweep_from_before_the_integral_gain_schedule_resumes_with_its_constan
     assert count == 4 and resumed.num_rows == 6
 
 
+def test_a_sweep_written_with_the_schedule_default_resumes_only_with_the_schedule(
+        reference, tmp_path):
+    # a folder written from dev-kisched to dev-gate records low_speed_integral_gain 0.05
+    # (then the default): resumed with today's default (k_i constant) it would mix two
+    # laws' runs, so it is refused naming the setting, and resumes with it given
+    folder, _ = reference
+    manifest = json.loads((folder / 'sweep.json').read_text())
+    manifest['lane_keeping']['low_speed_integral_gain'] = 0.05
+    old = tmp_path / 'old'
+    (old / 'parts').mkdir(parents=True)
+    (old / 'sweep.json').write_text(json.dumps(manifest))
+    with pytest.raises(ToolError, match=r'options differ: lane_keeping\.low_speed_integral_'
+                       r'gain = 0\.05 in the folder, 0\.3 now'):
+        _sweep(old)
+    resumed, count = _sweep(old, lane_keeping=LaneKeepingParams(low_speed_integral_gain=0.05))
+    assert count == 4 and resumed.num_rows == 6
+
+
 def test_the_controller_file_tunes_the_lane_keeping_law(tmp_path, capsys):
     # before, --controller gave the paper laws their parameters and cg_compensated ran its
     # defaults whatever the file said: a tuning of the node's lane_keeping.* was never

@@ -45,7 +45,8 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   the loop is stable if the test holds for one of several: two were found by a
   numerical search (Nelder-Mead over a Cholesky factor on a 55-speed grid), ``sharp``
   for the exact ``a_x``, ``robust`` for an error up to 3.5 m/s^2 in the law's ``a_x``,
-  ``scheduled`` for that error with the default speed schedule of ``k_i``, and are then
+  ``scheduled`` for that error with the speed schedule of ``k_i`` (``low_speed_integral_gain``
+  0.05; the default is ``k_i`` constant), and are then
   only checked; the tool reports the one with the smaller value.
   The integral gain ``k_i(v)`` is scheduled on speed (``integral_gain_at``): the test
   runs in the coordinates ``u = S(v) x`` of :func:`integral_coordinates` (the integral
@@ -115,7 +116,7 @@ CERTIFICATE_Q_ROBUST = ((0.87895, 3.0544, -0.0025397, 0.57093, 0.60389),
                         (-0.0025397, 2.1232, 0.16538, 0.23714, 0.045423),
                         (0.57093, 10.679, 0.23714, 6.5571, 0.15149),
                         (0.60389, 1.2228, 0.045423, 0.15149, 0.52951))
-# the same search as the robust one for the default speed schedule of k_i (0.05 1/s at
+# the same search as the robust one for the speed schedule of k_i (an option; 0.05 1/s at
 # and below 15 m/s to 0.3 at and above 30; 55 speeds, in the coordinates of
 # integral_coordinates): the robust Q fails there (1.99 at 12.86 m/s), this one holds
 # (0.876); it does not certify a constant k_i = 0.3 (1.39), the robust one does
@@ -462,8 +463,8 @@ def integral_coordinates(settings: LaneKeepingParams, v_x: float) -> Matrix:
     ``u`` its part of ``P`` (the integral state scaled by ``sqrt(k_i)``, the error from
     the shifted reference ``y_cg + I`` kept) does not grow as ``1 / k_i`` where ``k_i``
     falls with the speed, which the certificate's ``dP/dv`` would charge to every
-    acceleration: in ``x`` the scheduled default fails (value 17.8 at 15 m/s with the
-    sharp ``Q``).
+    acceleration: in ``x`` the schedule (``low_speed_integral_gain`` 0.05) fails (value
+    17.8 at 15 m/s with the sharp ``Q``).
 
     :param settings: the law's settings.
     :param v_x: speed [m/s].
