@@ -131,12 +131,14 @@ def test_the_compliance_estimate_is_kept_as_a_scale_or_restarted_by_its_statisti
     assert abs(scale - 1.0) > 1e-3             # something was learned
     _retune(core, integral_gain=0.35)
     assert float(core.law.compliance()) / core.vehicle.eta == pytest.approx(scale, rel=1e-12)
-    # another design vehicle: the same scale over its eta, the filter estimate restarts
+    # another design vehicle: the same scale over its eta; the filter's estimate goes
+    # on (before, it restarted from the raw measurement: a bump, test below)
+    before = list(core.law.state_filter.x)
     heavier = replace(core.vehicle, mass=core.vehicle.mass * 1.1)
     core.configure(heavier, core.params, core.acceleration_source, core.use_preview)
     assert float(core.law.compliance()) / heavier.eta == pytest.approx(scale, rel=1e-12)
-    assert 'state filter estimate' in core.retune[1]
-    assert core.law.state_filter.x is None and core.law.state_filter.history
+    assert 'state filter estimate' in core.retune[0]
+    assert core.law.state_filter.x == before and core.law.state_filter.history
     _retune(core, compliance_filter=0.4)
     assert float(core.law.compliance()) == heavier.eta
     assert 'compliance estimate' in core.retune[1]
@@ -406,3 +408,27 @@ def test_a_recorder_started_after_a_set_numbers_the_recorded_sets_from_the_node_
                   order='stamp')
     assert first.max_diff == 0.0 and first.parameter_sets == 2, first.max_diff
     assert first.parameter_sets_before_bag == 0
+
+
+def test_a_vehicle_set_on_the_arc_does_not_restart_the_lateral_states():
+    # vehicle.mass +5 % set on a R 400 m arc at 37 m/s with a noisy yaw rate (the
+    # curvature received): before, the filter's estimate restarted from the raw
+    # measurement and the command jumped 16.9 mrad at the next answer against the same
+    # run without the set; carried, 1.35 mrad at most (the model's own change)
+    def commands(change):
+        core = _core()
+        out = []
+        for k in range(1, 460):
+            stamp = k * PERIOD_NS
+            core.update_yaw(YawSample(stamp, 0.002, SPEED * RHO + 0.002 * math.sin(0.7 * k),
+                                      0.0))
+            core.update_velocity(VelocitySample(stamp, SPEED, 0.0))
+            core.update_curvature(CurvatureSample(stamp, RHO, 0.0))
+            core.update_lateral_error(LateralErrorSample(stamp, 0.0, 0.1))
+            if k == 400 and change:
+                core.configure(replace(core.vehicle, mass=core.vehicle.mass * 1.05),
+                               core.params, core.acceleration_source, core.use_preview)
+            out.append(core.compute().steering)
+        return np.array(out)
+    jump = np.max(np.abs(commands(True) - commands(False)))
+    assert jump < 0.002, jump
