@@ -21,6 +21,8 @@ seeds 0-7) and on the nonlinear plant with the cornering stiffnesses x0.7 (the l
 model unchanged). Per plant: the largest ``|y_cg|`` difference from the run without the
 set over the 3 s after it, for the retune (the new law takes over the old one's state,
 as the node now does) and for a rebuild (a fresh law, as the node did before).
+``--mass FACTOR``: the law's model mass times FACTOR is set instead (a ``vehicle.*``
+set; its settings unchanged).
 """
 
 from __future__ import annotations
@@ -46,7 +48,8 @@ class SetAt:
     """A ``cg_compensated`` law whose settings are set at ``AT``: retuned or rebuilt."""
 
     def __init__(self, vehicle: VehicleParams, settings: LaneKeepingParams,
-                 new: Optional[LaneKeepingParams], carry: bool) -> None:
+                 new: Optional[LaneKeepingParams], carry: bool,
+                 new_vehicle: Optional[VehicleParams] = None) -> None:
         """
         Create the law.
 
@@ -55,8 +58,10 @@ class SetAt:
         :param new: the settings set at ``AT`` (None: never set).
         :param carry: take over the old law's state (else a fresh law, the dt of its
             first step 0, as the node's rebuild was).
+        :param new_vehicle: the law's model set at ``AT`` with ``new`` (None: unchanged).
         """
         self.vehicle, self.new, self.carry = vehicle, new, carry
+        self.new_vehicle = new_vehicle or vehicle
         self.controller = ControllerParams()
         self.law = CgCompensatedLaw(vehicle, self.controller, settings)
         self.time = 0.0
@@ -85,7 +90,7 @@ class SetAt:
         if not self.done and self.time >= AT - 1e-9:
             self.integral = float(self.law.integral)
         if self.new is not None and not self.done and self.time >= AT - 1e-9:
-            law = CgCompensatedLaw(self.vehicle, self.controller, self.new)
+            law = CgCompensatedLaw(self.new_vehicle, self.controller, self.new)
             law.reset()
             if self.carry:
                 law.take_over(self.law)
@@ -98,7 +103,8 @@ class SetAt:
 
 
 def jumps(plant: PlantParams, plant_vehicle: Optional[VehicleParams], delay: float,
-          noise: Optional[NoiseParams], seeds: Sequence[int]) -> dict[str, list[float]]:
+          noise: Optional[NoiseParams], seeds: Sequence[int],
+          mass: Optional[float] = None) -> dict[str, list[float]]:
     """
     Return the CG's largest move from the run without the set, per seed.
 
@@ -107,6 +113,7 @@ def jumps(plant: PlantParams, plant_vehicle: Optional[VehicleParams], delay: flo
     :param delay: transport delay [s].
     :param noise: sensor noise (None: ideal).
     :param seeds: noise seeds.
+    :param mass: set the law's model mass times this instead of ``integral_gain``.
     :return: ``retune`` and ``rebuild``: one value per seed [m]; ``integral``: the
         integral at the set [m].
     """
@@ -114,13 +121,14 @@ def jumps(plant: PlantParams, plant_vehicle: Optional[VehicleParams], delay: flo
     scenario = load_scenarios(['s2_curve_entry'])['s2_curve_entry']
     vehicle = VehicleParams()
     base = LaneKeepingParams()
-    tuned = replace(base, integral_gain=0.35)
+    tuned = replace(base, integral_gain=0.35) if mass is None else base
+    new_vehicle = None if mass is None else replace(vehicle, mass=vehicle.mass * mass)
     out: dict[str, list[float]] = {'retune': [], 'rebuild': [], 'integral': []}
     for seed in seeds:
         series = {}
         for name, new, carry in (('none', None, True), ('retune', tuned, True),
                                  ('rebuild', tuned, False)):
-            law = SetAt(vehicle, base, new, carry)
+            law = SetAt(vehicle, base, new, carry, new_vehicle)
             result = run(scenario, vehicle, law, plant, initial_speed=37.0, delay=delay,
                          noise=noise, seed=seed, plant_vehicle=plant_vehicle,
                          preview_distance=50.0)
@@ -138,9 +146,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """
     Print the table.
 
-    :param argv: unused.
+    :param argv: command line (``--mass FACTOR``; None: the process's).
     :return: 0.
     """
+    import argparse
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    p.add_argument('--mass', type=float, default=None, metavar='FACTOR')
+    args = p.parse_args(argv)
     nonlinear = PlantParams(model='nonlinear')
     soft = replace(VehicleParams(), c_f=VehicleParams().c_f * 0.7,
                    c_r=VehicleParams().c_r * 0.7)
@@ -151,7 +163,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
           'CG move, retune (now) [cm] |')
     print('|---|---|---|---|')
     for name, plant, plant_vehicle, delay, noise, seeds in cases:
-        got = jumps(plant, plant_vehicle, delay, noise, seeds)
+        got = jumps(plant, plant_vehicle, delay, noise, seeds, args.mass)
 
         def text(values: list[float]) -> str:
             if len(values) == 1:
@@ -164,4 +176,4 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 
 if __name__ == '__main__':
-    sys.exit(main(sys.argv))
+    sys.exit(main())

@@ -628,3 +628,18 @@ def test_the_rate_gain_is_the_law_s_terms_in_the_estimated_rate_by_hand(v_x):
         expected, rel=1e-9)
     assert rate_gain(VEHICLE, ControllerParams(),
                      LaneKeepingParams(estimate_rate_time=0.0), v_x) == 0.0
+
+
+def test_the_estimate_rate_previews_the_curve_on_the_independent_plant_too():
+    # bench.rho_preview --plant commonroad_mb (dev-probe29; before, the goal plant only):
+    # the CommonRoad multi-body plant (vehicle 2, its single-track mapping as the law's
+    # model, 20 ms delay, default noise), seed 0, S2 at 37 m/s without road_curvature:
+    # peak 18.4 cm with the estimate's rate taken as 0, 14.9 cm with it
+    from bench.rho_preview import main, measure
+    old = measure('s2_curve_entry', [37.0], 1, LaneKeepingParams(estimate_rate_time=0.0),
+                  plant='commonroad_mb')[0]
+    new = measure('s2_curve_entry', [37.0], 1, LaneKeepingParams(), plant='commonroad_mb')[0]
+    assert old['peak'][0] > 17.5 and new['peak'][0] < 16.0, (old, new)
+    # --tyres scales the package plant only: refused with the CommonRoad one
+    with pytest.raises(SystemExit):
+        main(['--plant', 'commonroad_mb', '--tyres', '0.7'])

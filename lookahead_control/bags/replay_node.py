@@ -69,6 +69,7 @@ def offline(args: argparse.Namespace) -> int:
     report['law_switches_followed'] = result.law_switches
     report['parameter_sets_followed'] = result.parameter_sets
     report['parameter_sets_unmarked'] = result.parameter_sets_unmarked
+    report['parameter_sets_before_bag'] = result.parameter_sets_before_bag
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
@@ -107,6 +108,12 @@ def offline(args: argparse.Namespace) -> int:
         print(f'replay: {result.parameter_sets} parameter set(s) at run time (recorded '
               f'/parameter_events of {run.controller_node}) applied where the recorded '
               f'controller did ({run.controller_node}/debug parameter_sets)')
+    if result.parameter_sets_before_bag:
+        # a recorder started after a set: its values are the bag's parameters
+        print(f'replay: {run.controller_node} had applied '
+              f'{result.parameter_sets_before_bag} parameter set(s) before the recorded '
+              '/parameter_events begin (a recorder started after them): the re-run '
+              "starts from the bag's parameters and numbers the recorded sets after them")
     if result.parameter_sets_unmarked:
         # a bag from before the marker: which answer a set preceded is not known
         print(f'replay: {result.parameter_sets_unmarked} parameter set(s) at run time are '

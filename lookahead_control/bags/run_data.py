@@ -285,6 +285,9 @@ class RunData:
     :param parameter_events: the controller node's parameter sets at run time, in the
         order received from ``/parameter_events`` (``{name: value}`` each; a deleted
         parameter None); None: the bag has no ``/parameter_events``.
+    :param parameter_events_recv_ns: when each of them was received (the recorder's
+        clock, as the debug topic's ``recv_ns``); None: not known (taken as received
+        after the first recorded answer).
     """
 
     bag: Path
@@ -298,6 +301,7 @@ class RunData:
     plant_params: dict[str, Any] = field(default_factory=dict)
     controller_node: str = CONTROLLER_NODE
     parameter_events: Optional[list[dict[str, Any]]] = None
+    parameter_events_recv_ns: Optional[list[int]] = None
 
 
 def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
@@ -390,7 +394,9 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
     run.plant_params = recorded.get(plant_node(node), {})
     run.controller_node = node
     if PARAMETER_EVENTS in available:
-        run.parameter_events = parameter_events(bag, node, store)
+        received = parameter_events(bag, node, store, with_recv_ns=True)
+        run.parameter_events = [change for _, change in received]
+        run.parameter_events_recv_ns = [recv for recv, _ in received]
     return run
 
 
@@ -413,7 +419,8 @@ def parameter_value(value: Any) -> Any:
     return out.item() if hasattr(out, 'item') else out
 
 
-def parameter_events(bag: Path, node: str, store: Any = None) -> list[dict[str, Any]]:
+def parameter_events(bag: Path, node: str, store: Any = None,
+                     with_recv_ns: bool = False) -> list[Any]:
     """
     Return a node's parameter sets recorded on ``/parameter_events``, in receive order.
 
@@ -424,6 +431,7 @@ def parameter_events(bag: Path, node: str, store: Any = None) -> list[dict[str, 
     :param bag: the bag.
     :param node: the node's fully qualified name.
     :param store: the type store (None: the Jazzy one).
+    :param with_recv_ns: return ``(receive time [ns], set)`` pairs.
     :return: the sets.
     :raises ConfigError: a message is corrupt.
     """
@@ -440,7 +448,10 @@ def parameter_events(bag: Path, node: str, store: Any = None) -> list[dict[str, 
             change = {p.name: parameter_value(p.value) for p in msg.changed_parameters}
             change.update((p.name, None) for p in msg.deleted_parameters)
             events.append((int(raw.recv_ns[i]), int(raw.order[i]), change))
-    return [change for _, _, change in sorted(events, key=lambda e: (e[0], e[1]))]
+    ordered = sorted(events, key=lambda e: (e[0], e[1]))
+    if with_recv_ns:
+        return [(recv, change) for recv, _, change in ordered]
+    return [change for _, _, change in ordered]
 
 
 def _fields(sample: Any) -> dict[str, float]:
@@ -624,6 +635,9 @@ class Rerun:
     :param parameter_sets_unmarked: None: the bag's debug marks where sets took effect
         (or it had none); else the number of recorded sets the re-run could not place
         (a bag from before the marker: it keeps the start-up values but the law).
+    :param parameter_sets_before_bag: sets the recorded controller had applied before
+        its recorded ``/parameter_events`` begin (a recorder started after them: their
+        values are in the bag's parameters); the recorded sets are numbered after them.
     """
 
     commands: dict[int, Command]
@@ -638,6 +652,7 @@ class Rerun:
     law_switches: int = 0
     parameter_sets: int = 0
     parameter_sets_unmarked: Optional[int] = None
+    parameter_sets_before_bag: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -726,6 +741,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     sets = recorded_parameter_sets(run)
     events = run.parameter_events or []
     unmarked = len(events) if events and not sets else None
+    # the node counts its sets from its start, the bag's from the recorder's: a set
+    # before the recorder subscribed is in the bag's parameters, not on its events
+    before_bag = sets_before_bag(run)
     params, applied = dict(run.controller_params), 0
     followed = otherwise = switches = 0
     for _, role, sample in feed:
@@ -733,7 +751,8 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
         # the low-speed hand-over and the output limits in compute()
         refused = core.accept(role, sample)
         if role == 'lateral_error' and refused is None:
-            due = min(sets.get(sample.stamp_ns, applied), len(events))
+            due = min(sets.get(sample.stamp_ns, applied + before_bag) - before_bag,
+                      len(events))
             if due > applied:
                 for change in events[applied:due]:
                     for name, value in change.items():
@@ -765,7 +784,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
-                 switches, applied, unmarked)
+                 switches, applied, unmarked, before_bag)
 
 
 def recorded_parameter_sets(run: RunData) -> dict[int, int]:
@@ -783,6 +802,31 @@ def recorded_parameter_sets(run: RunData) -> dict[int, int]:
         return {}
     return {int(t): int(c) for t, c in zip(run.debug.stamp_ns.tolist(), counts.tolist())
             if math.isfinite(c)}
+
+
+def sets_before_bag(run: RunData) -> int:
+    """
+    Return how many parameter sets the recorded controller applied before the bag's.
+
+    The node's debug counts its sets from its start; the bag's ``/parameter_events``
+    hold those received once the recorder subscribed. The count on the first recorded
+    answer less the sets received before that answer were never recorded (before, the
+    re-run numbered the recorded sets from 1 and applied them too early).
+
+    :param run: the bag.
+    :return: the number (0: the bag has every set, or does not mark them).
+    """
+    counts = run.debug.values.get('parameter_sets')
+    if counts is None:
+        return 0
+    marked = np.nonzero(np.isfinite(counts))[0]
+    if not marked.size:
+        return 0
+    first = marked[np.argmin(run.debug.recv_ns[marked])]
+    received = run.parameter_events_recv_ns
+    got = 0 if received is None else sum(1 for t in received
+                                         if t < int(run.debug.recv_ns[first]))
+    return max(0, int(counts[first]) - got)
 
 
 def recorded_laws(run: RunData) -> dict[int, str]:

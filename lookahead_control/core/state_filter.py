@@ -581,8 +581,10 @@ class KalmanStateFilter:
         without it the estimate restarts from the next measurement.
 
         :param old: the filter it replaces.
-        :param estimate: carry the state estimate (False: the design vehicle changed,
-            so its force disturbances are another model's error).
+        :param estimate: carry the state estimate (False: it restarts from the next
+            measurement). With another design vehicle it is carried too: its force
+            disturbances, the old model's error, are nearer the new one's than a restart
+            from the raw measurement, which was a bump (``take_over`` of the law).
         """
         self.wheel, self.held = old.wheel, old.held
         self.history = list(old.history)
