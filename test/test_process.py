@@ -40,18 +40,25 @@ def test_lockstep_matches_offline_runner(probe):
     node, executor = probe
     truth, steering = {}, {}
     # the controller is up before the simulator starts, so its topics are matched from
-    # the first step on (the simulator waits for the controller, not for this probe)
-    node.create_subscription(JointState, '/controller/debug',
-                             lambda m: truth.__setitem__(conv.stamp_to_ns(m.header.stamp),
-                                                         conv.from_named_values(m)), 100)
-    node.create_subscription(JointState, '/steering',
-                             lambda m: steering.__setitem__(*conv.from_steering(m)), 100)
+    # the first step on (the simulator waits for the controller, not for this probe).
+    # The lockstep run goes as fast as the machine allows and does not wait for this
+    # probe either: its readers hold the whole run (1000 steps), so a probe that a loaded
+    # machine lets fall behind loses nothing (before: 100; a probe held up for 5 s kept
+    # 100 of the 1001 steps)
+    depth = 1000
+    subs = [node.create_subscription(JointState, '/controller/debug',
+                                     lambda m: truth.__setitem__(
+                                         conv.stamp_to_ns(m.header.stamp),
+                                         conv.from_named_values(m)), depth),
+            node.create_subscription(JointState, '/steering',
+                                     lambda m: steering.__setitem__(*conv.from_steering(m)),
+                                     depth)]
     spin_until(executor, lambda: False, 0.5)
     sim_cmd, ctl_cmd = node_commands(LoopConfig(SCENARIO, speed=37.0))
     controller = subprocess.Popen(ctl_cmd)
-    # the probe must see the controller's outputs before the simulator starts the loop
-    assert spin_until(executor, lambda: node.count_publishers('/controller/debug') > 0
-                      and node.count_publishers('/steering') > 0, 30)
+    # the probe's readers must be matched with the controller's outputs (not only see
+    # them in the graph) before the simulator starts the loop
+    assert spin_until(executor, lambda: all(s.get_publisher_count() > 0 for s in subs), 60)
     spin_until(executor, lambda: False, 0.5)
     sim = subprocess.Popen(sim_cmd)
     try:
