@@ -105,10 +105,9 @@ def test_remapped_bridge_drives_the_controller(probe):
            '-p', 'qos_reliability:=best_effort']
     controller = subprocess.Popen(cmd)
     try:
-        assert spin_until(executor, lambda: all(
-            node.count_subscribers(t) > 0 for t in ('/bridge/imu', '/bridge/twist',
-                                                    '/bridge/lane_offset'))
-            and node.count_publishers('/vehicle/steering_cmd') > 0, 30)
+        inputs = ('/bridge/imu', '/bridge/twist', '/bridge/lane_offset')
+        assert spin_until(executor, lambda: all(node.count_subscribers(t) > 0 for t in inputs)
+                          and node.count_publishers('/vehicle/steering_cmd') > 0, 30)
         # stamped with the bridge's clock, as a vehicle's would be (stamps older than
         # input_timeout are refused), on a 10 ms grid; sent until 20 answers came (a
         # loaded machine activates the node later or drops best-effort samples: before,
