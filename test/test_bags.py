@@ -228,17 +228,23 @@ def test_truncated_bag_is_recovered(loop_bag, tmp_path, fraction):
 def _publisher(topic_count, rate_hz, seconds):
     code = f"""
 import time, rclpy
+from rclpy.duration import Duration
 from rclpy.node import Node
 from std_msgs.msg import Float64
 rclpy.init()
 node = Node('talker')
-pub = node.create_publisher(Float64, '/talk', 100)
+# a history for every message (a reliable keep-last writer may drop what a late reader
+# has not acknowledged; before: 100 for up to 400 messages)
+pub = node.create_publisher(Float64, '/talk', {topic_count})
 while pub.get_subscription_count() == 0:
     rclpy.spin_once(node, timeout_sec=0.05)
 time.sleep(0.3)
 for k in range({topic_count}):
     pub.publish(Float64(data=float(k)))
     time.sleep({1.0 / rate_hz})
+# every message in the recorder's subscription (acknowledged), however late a loaded
+# machine delivers them: the test stops the recorder after this line
+assert pub.wait_for_all_acked(Duration(seconds=120))
 print('published', {topic_count}, flush=True)
 time.sleep({seconds})
 """

@@ -82,8 +82,10 @@ def test_a_bridge_joining_a_running_stack(probe):
            '-r', 'odometry:=/odom', '-r', 'path:=/plan', '-p', 'odometry_timeout:=0.3']
     bridge = subprocess.Popen(cmd)
     try:
-        assert spin_until(executor, lambda: node.count_subscribers('/odom') > 0
-                          and node.count_publishers('/lateral_error') > 0, 30)
+        # both inputs matched (the path's too: before, only /odom was awaited in the graph)
+        assert spin_until(executor, lambda: odom_pub.get_subscription_count() > 0
+                          and path_pub.get_subscription_count() > 0
+                          and node.count_publishers('/lateral_error') > 0, 60)
         spin_until(executor, lambda: False, 0.5)
 
         def drive(first, count, frame='map'):

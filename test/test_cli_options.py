@@ -36,7 +36,8 @@ import sys
 import time
 
 from conftest import entry_points
-from lookahead_control.bags.rosbag_io import bag_topics, node_parameters
+from lookahead_control.bags.rosbag_io import (bag_topics, DESCRIPTION_FILE, node_parameters,
+                                              PARAMETERS_KEY)
 import pytest
 import yaml
 
@@ -580,8 +581,12 @@ def _record():
               'while True:\n    p.publish(Float64(data=1.0))\n'
               '    q.publish(Float64(data=2.0))\n    rclpy.spin_once(n, timeout_sec=0.01)\n')
 
-    def record(c, name, *args, flushed=True):
-        """Record the talker; with ``flushed``, until a chunk with messages is written."""
+    def record(c, name, *args, flushed=True, ready=None):
+        """
+        Record the talker; with ``flushed``, until a chunk with messages is written.
+
+        ``ready(bag)``, if given, is awaited too (up to 60 s, a condition, not a time).
+        """
         bag = c.tmp / name
         if bag.exists():
             return bag
@@ -592,7 +597,8 @@ def _record():
             end = time.monotonic() + 60
             mcap = bag / f'{bag.name}.mcap'
             while time.monotonic() < end and not (mcap.is_file() and (
-                    not flushed or mcap.stat().st_size > 2000)):
+                    not flushed or mcap.stat().st_size > 2000) and (
+                    ready is None or ready(bag))):
                 time.sleep(0.05)
             time.sleep(1.0 if flushed else 3.0)
             proc.send_signal(signal.SIGINT)
@@ -610,8 +616,15 @@ def _record():
         assert set(bag_topics(record(c, 'rec_regex', '/talk', '-e', '/oth.*'))) == {
             '/talk', '/other'}
 
+    def described(bag):
+        # the recorder's side file gets the parameters when the talker answered: before,
+        # 1 s after the first chunk was taken to be enough for the two service calls
+        side = bag / DESCRIPTION_FILE
+        return side.is_file() and '/talker' in (yaml.safe_load(side.read_text()) or {}).get(
+            PARAMETERS_KEY, '')
+
     def describe(c):
-        bag = record(c, 'rec_describe', '/talk', '--describe', '/talker')
+        bag = record(c, 'rec_describe', '/talk', '--describe', '/talker', ready=described)
         assert 'use_sim_time' in node_parameters(bag, '/talker')
         assert node_parameters(record(c, 'rec_talk', '/talk'), '/talker') == {}
 
