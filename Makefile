@@ -42,7 +42,7 @@ fuzz: $(STAMP)
 bench: $(STAMP)
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-$$(( $$$$ % 100 + 1 ))} $(PY) -m bench.run $(BENCH_ARGS)
 
-# League table of every law (docs/baselines.md): bags/compare/league.{md,csv,png}; 8-9 min on an idle 2-core machine.
+# League table of every law (docs/baselines.md): bags/compare/league.{md,csv,png}; about 8-9 min on an idle 2-core machine (estimated).
 compare: $(STAMP)
 	$(VENV)/bin/compare --out bags/compare $(COMPARE_ARGS)
 
