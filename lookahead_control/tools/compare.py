@@ -1047,7 +1047,9 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         f'curvature preview {PREVIEW_DISTANCE:g} m, the same plant and actuator for every '
         f'law. Goal plant: `{GOAL_PLANT}` (Fiala tyres, 50 ms actuator lag, 0.8 rad/s, '
         f'{1000 * DELAY:g} ms transport delay, default sensor noise). Worst case over the '
-        'runs of each column; goals as in issue 14 (a NaN metric counts as missed). '
+        'runs of each column; goals as in issue 14 (a NaN metric counts as missed). In the '
+        "first table the metric columns are the goal plant's runs; the runs off the road, "
+        'diverged and failed, and the goals met, count every plant of the league. '
         'Definitions: docs/baselines.md.', '',
         *([] if duration is None else [
             f'**Every scenario cut to {duration:g} s of simulated time (`--duration`): a '
