@@ -22,7 +22,8 @@ Publishes the controller's input contract (``lateral_error``, ``yaw``, ``velocit
 scenario's road as a ``path`` (``nav_msgs/Path``, transient local, once), for
 ``path_bridge`` to turn into the contract. ``lockstep``: publish step k, wait for the
 command stamped k, integrate, repeat (a missed ``deadline`` holds the last command and is
-counted). ``realtime``: one step per wall-clock period with the latest command.
+counted; a good answer arriving after it is logged as late, with its delay). ``realtime``:
+one step per wall-clock period with the latest command.
 """
 
 from __future__ import annotations
@@ -187,6 +188,8 @@ class SimPlantNode(Node):
         self.command = 0.0
         self.missed = 0
         self.rejected = 0
+        self.late = 0               # lockstep: good answers after their step's deadline
+        self._missed_sent: dict[int, float] = {}    # lockstep: missed stamp -> sent at
         self.answered_stamp: Optional[int] = None
         self.waiting_stamp: Optional[int] = None
         self.sent_at = 0.0
@@ -426,7 +429,8 @@ class SimPlantNode(Node):
             self.get_logger().info(
                 f'scenario {self.scenario.name!r} finished at t = '
                 f'{self.k * self.period:g} s: {self.k} steps, {self.missed} missed '
-                f'deadlines, {self.rejected} rejected commands; {wall:.3f} s wall '
+                f'deadlines, {self.rejected} rejected commands, {self.late} late '
+                f'answers; {wall:.3f} s wall '
                 f'({self.k / max(wall, 1e-9):.0f} steps/s)')
             self.done.set_result(True)
         return True
@@ -469,6 +473,14 @@ class SimPlantNode(Node):
             self.answered_stamp = stamp
             self.waiting_stamp = None
             self.lockstep_advance()
+        elif stamp in self._missed_sent:
+            # the miss was the answer's lateness, not its absence: say so (a loaded
+            # controller or probe), with the delay measured on this node's clock
+            self.late += 1
+            delay = time.monotonic() - self._missed_sent.pop(stamp)
+            self.get_logger().warn(f'late steering for t = {stamp * 1e-9:g} s: '
+                                   f'{delay:.3f} s after the step (deadline '
+                                   f'{self.params["deadline"]:g} s), not applied')
 
     # -- lockstep -------------------------------------------------------------------
 
@@ -553,6 +565,7 @@ class SimPlantNode(Node):
         if (self.waiting_stamp is not None
                 and time.monotonic() - self.sent_at > deadline):
             self.missed += 1
+            self._missed_sent[self.waiting_stamp] = self.sent_at
             self.get_logger().warn(f'no steering for t = {self.waiting_stamp * 1e-9:g} s '
                                    f'within {self.params["deadline"]:g} s: holding '
                                    f'{self.command:+.4f} rad')

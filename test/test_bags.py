@@ -271,6 +271,10 @@ def test_signals_finalize_the_bag(tmp_path, sig):
 
 
 def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
+    # The loss is judged on what the recorder wrote and on its own clock, not on the
+    # wall clock of this test: a recorder stalled (SIGSTOP from message 300 until the
+    # talker finished) writes its backlog into the chunk the kill loses, which the
+    # old bound (400 - 0.2 s * 200 Hz - 1) took for a defect.
     bag = tmp_path / 'bag'
     recorder = subprocess.Popen([sys.executable, '-m', 'lookahead_control.bags.recorder_node',
                                  '/talk', '-o', str(bag), '--chunk-interval', '0.2'])
@@ -284,11 +288,48 @@ def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
         talker.kill()
         talker.wait()
     assert not (bag / 'metadata.yaml').exists()
+    chunks = _complete_chunks(bag / 'bag.mcap')
     result = recover(bag)
-    # the last chunk closes on the first write after 0.2 s: at most that much is lost
-    assert 400 - 0.2 * 200 - 1 <= result.messages <= 400
     values = load_floats(bag)
+    # everything in the chunks the recorder had closed is back, in order, from the
+    # first message: only the chunk still open at the kill is lost
+    assert result.messages == len(values) == sum(map(len, chunks))
     assert values == list(range(len(values)))
+    # and it closed them by its rule: on the first write more than 0.2 s (its clock)
+    # after the previous close, so every message of a chunk but its last was received
+    # within 0.2 s of the previous chunk's last (of the chunk's first, for the first
+    # chunk); 1 ms for the rates of its system and steady clocks. 400 messages over 2 s
+    # close several chunks
+    assert len(chunks) >= 2
+    before = chunks[0][0]
+    for times in chunks:
+        assert max(times[:-1], default=before) - before <= 0.2e9 + 1e6, (before, times)
+        before = times[-1]
+
+
+def _complete_chunks(path):
+    """Return the log times [ns] of the messages of each whole chunk of a cut MCAP file."""
+    data = path.read_bytes()
+    pos, chunks = 8, []                             # after the magic
+    while pos + 9 <= len(data):
+        opcode, length = data[pos], int.from_bytes(data[pos + 1:pos + 9], 'little')
+        end = pos + 9 + length
+        if end > len(data):
+            break                                   # the record the kill cut
+        if opcode == 0x06:                          # Chunk, uncompressed
+            body = data[pos + 9:end]
+            compression = int.from_bytes(body[28:32], 'little')
+            assert body[32:32 + compression] == b''
+            size = int.from_bytes(body[32 + compression:40 + compression], 'little')
+            records, inner, times = body[40 + compression:40 + compression + size], 0, []
+            while inner < len(records):
+                if records[inner] == 0x05:          # Message: channel, sequence, log time
+                    times.append(int.from_bytes(records[inner + 15:inner + 23], 'little'))
+                inner += 9 + int.from_bytes(records[inner + 1:inner + 9], 'little')
+            if times:
+                chunks.append(times)
+        pos = end
+    return chunks
 
 
 def test_stopping_writes_what_the_subscriptions_hold_but_callbacks_did_not_take(probe,

@@ -18,6 +18,7 @@ import ctypes
 import os
 from pathlib import Path
 import random
+import re
 import resource
 import signal
 import subprocess
@@ -512,9 +513,9 @@ def test_sim_plant_ignores_bad_commands_and_holds_on_missing_answers(probe, tmp_
                        ('/velocity', conv.to_velocity(0, '', 0, 0, 0)),
                        ('/road_curvature', conv.to_curvature(0, '', [(0.0, 0.0)]))):
         node.create_subscription(type(msg), topic, lambda m: None, 10)
-    # The deadline is 100x the time a loaded 2-core machine takes to answer (the
-    # answering callback is a few lines), so only the refused and silent steps miss:
-    # at 0.05 s a loaded run once counted a late good answer as a 12th miss.
+    # A good answer the probe sends after the deadline (the probe starved for 0.5 s; it
+    # once made a 12th miss) is a miss the simulator reports as late, with the delay on
+    # its own clock: only the refused, the silent and those late steps may miss.
     sim = subprocess.Popen([str(EXES / 'sim_plant'), '--ros-args', '-p',
                             f'scenario_file:={scenario}', '-p', 'deadline:=0.5'],
                            stderr=subprocess.PIPE, text=True)
@@ -525,9 +526,17 @@ def test_sim_plant_ignores_bad_commands_and_holds_on_missing_answers(probe, tmp_
             sim.kill()
         _, err = sim.communicate()
     assert sim.returncode == 0, err
+    missed = [round(float(t) * 100) for t in
+              re.findall(r'no steering for t = ([-\d.e]+) s within 0.5 s', err)]
+    late = {round(float(t) * 100): float(delay) for t, delay in
+            re.findall(r'late steering for t = ([-\d.e]+) s: ([\d.]+) s after', err)}
+    refused = set(nan) | set(huge) | set(skip)
+    assert not refused & set(late), err
+    assert all(delay > 0.5 for delay in late.values()), err
+    assert sorted(missed) == sorted(refused | set(late)), err
     # NaN and 50 rad are refused (6), and those steps and the silent ones time out (11)
-    assert 'finished at t = 1 s: 100 steps, 11 missed deadlines, 6 rejected commands' \
-        in err, err
+    assert (f'finished at t = 1 s: 100 steps, {11 + len(late)} missed deadlines, '
+            f'6 rejected commands, {len(late)} late answers') in err, err
     assert sorted(set(seen)) == list(range(100))
 
 
