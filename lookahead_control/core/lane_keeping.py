@@ -57,6 +57,7 @@ from dataclasses import dataclass, fields, replace
 import math
 from typing import Any, Optional
 
+from lookahead_control.core import cg_reference
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.control_law import drift_term, LateralState, LawOutput
 from lookahead_control.core.estimator import ComplianceEstimator
@@ -113,6 +114,14 @@ class LaneKeepingParams:
     :param compliance_range: the estimate stays within ``eta / r`` and ``eta r`` [-].
     :param rate_feedforward: add the curvature-rate term that makes the CG stay on the
         lane on a clothoid (first-order inverse of the zero dynamics).
+    :param exact_inverse: share of the exact inverse of the zero dynamics in the
+        reference's relative yaw (``core/cg_reference.py``: the relative yaw that keeps
+        the CG on the lane, integrated along the reference's curvature, with its yaw
+        acceleration at the drift term's curvature as the reference's acceleration);
+        0: the first-order inverse (``rate_feedforward``) alone, 1: the exact one [-].
+    :param exact_inverse_damping: the exact inverse's own mode (the CG zero dynamics,
+        damping ratio 0.18 at 37 m/s) damped to this ratio, the first-order inverse kept;
+        0: its own damping [-].
     :param design_friction: friction of the design tyre for the load-dependent rear
         compliance ``c(a) = c_hat s(|a| / (mu g))`` (brush shape, evaluated at the
         reference curvature's lateral acceleration; the estimate learns ``c_hat``);
@@ -158,6 +167,8 @@ class LaneKeepingParams:
     compliance_prior: float = 0.5
     compliance_range: float = 3.0
     rate_feedforward: bool = True
+    exact_inverse: float = 0.0
+    exact_inverse_damping: float = 0.0
     design_friction: float = 1.0
     max_lateral_jerk: float = 10.0
     state_filter: str = 'kalman'
@@ -223,6 +234,9 @@ class LaneKeepingParams:
         check_range('lane_keeping.compliance_prior', self.compliance_prior, 0.0, 20.0,
                     low_open=True, unit='m/s^2')
         check_range('lane_keeping.compliance_range', self.compliance_range, 1.0, 100.0)
+        check_range('lane_keeping.exact_inverse', self.exact_inverse, 0.0, 1.0)
+        check_range('lane_keeping.exact_inverse_damping', self.exact_inverse_damping, 0.0,
+                    2.0)
         check_range('lane_keeping.design_friction', self.design_friction, 0.0, 2.0)
         check_range('lane_keeping.max_lateral_jerk', self.max_lateral_jerk, 0.0, 1000.0,
                     unit='m/s^3')
@@ -518,6 +532,11 @@ class CgCompensatedLaw:
         self._steer_offset: Real = 0.0          # command jump to blend out at the switch
         self._rate_last: Optional[Real] = None  # the curvature of the last step (rate)
         self._rate: Real = 0.0                  # the estimate's filtered rate [1/(m s)]
+        #: the exact inverse's model (``exact_inverse > 0``): ``(eps, r)`` along the
+        #: reference's and along the drift term's curvature; None: at the next step's
+        #: equilibrium
+        self._inverse: Optional[tuple[Real, Real]] = None
+        self._inverse_ff: Optional[tuple[Real, Real]] = None
         self.resets = 0
         #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
         #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
@@ -537,6 +556,7 @@ class CgCompensatedLaw:
         self._was_estimating = None
         self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self._rate_last, self._rate = None, 0.0
+        self._inverse = self._inverse_ff = None
         self.resets += 1
 
     def take_over(self, old: 'CgCompensatedLaw') -> tuple[list[str], list[str]]:
@@ -583,6 +603,10 @@ class CgCompensatedLaw:
             if bool(np.any(old.estimating)):
                 carried.append('curvature rate')
         self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
+        if s.exact_inverse > 0.0 and old._inverse is not None:
+            # the road's trajectory: kept (its next step runs with the new settings)
+            self._inverse, self._inverse_ff = old._inverse, old._inverse_ff
+            carried.append('exact inverse')
         if s.integral_gain > 0.0:
             self.integral = xp.clip(old.integral, -s.integral_limit, s.integral_limit)
             self.outside_time = old.outside_time
@@ -802,11 +826,8 @@ class CgCompensatedLaw:
                         integral_gain_at(s, v_x) * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref)
-        out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref,
-                                 v_x * slope_ref, rho_ff, v_x * slope_ff, integral, rate,
-                                 compliance=secant, rate_feedforward=s.rate_feedforward,
-                                 tangent_compliance=tangent, gains=loop_gains(s, v_x),
-                                 lead_rate=lead_rate)
+        out = self.evaluate(state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
+                            integral, rate, secant, tangent, lead_rate)
         if self._blending is not None:
             # what the curvature does not carry (its rate, the preview) blends on the
             # command: the jump at the switch-over taken out over the same time
@@ -829,6 +850,11 @@ class CgCompensatedLaw:
             if self._blending is not None:
                 self._blend_left = np.where(finite, self._blend_left, 0.0)
             self.estimator.forget(~finite)
+            if self._inverse is not None and self._inverse_ff is not None:
+                # restarted: at the next step's equilibrium (a NaN starts it there)
+                self._inverse = tuple(np.where(finite, v, math.nan) for v in self._inverse)
+                self._inverse_ff = tuple(np.where(finite, v, math.nan)
+                                         for v in self._inverse_ff)
             if self._rate_last is not None:     # restarted: the rate from 0
                 self._rate = np.where(finite, self._rate, 0.0)
                 self._rate_last = np.where(finite, self._rate_last, math.nan)
@@ -844,6 +870,63 @@ class CgCompensatedLaw:
             self.integral, self.last_steering = integral, out.steering
             self.outside_time = outside_time
         return out
+
+    def evaluate(self, state: LateralState, dt: float, rho_ref: Real, rho_ref_rate: Real,
+                 rho_ff: Real, rho_ff_rate: Real, offset: Real, offset_rate: Real,
+                 secant: Real, tangent: Real, lead_rate: Optional[Real]) -> LawOutput:
+        """
+        Return the law's output at this step from the values :meth:`step` worked out.
+
+        The stateless part, :func:`cg_compensated_law`, with the settings' gains; a
+        subclass may shape the reference otherwise (``bench.exact_inverse`` measures one).
+
+        :param state: the (filtered) vehicle and road state.
+        :param dt: time since the previous step [s] (0 after a restart).
+        :param rho_ref: the reference's curvature [1/m].
+        :param rho_ref_rate: its time derivative [1/(m s)].
+        :param rho_ff: the drift term's curvature [1/m].
+        :param rho_ff_rate: its time derivative [1/(m s)].
+        :param offset: the integral's shift of the reference [m].
+        :param offset_rate: its rate [m/s].
+        :param secant: rear compliance at the reference's lateral acceleration [s^2/m].
+        :param tangent: its tangent compliance [s^2/m].
+        :param lead_rate: the rate feedforward's (clipped) curvature rate, None: unclipped.
+        :return: the steering angle and the intermediate values.
+        """
+        s = self.settings
+        v_x = xp.maximum(state.v_x, self.controller.min_speed)
+        gains = loop_gains(s, v_x)
+        out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref, rho_ref_rate,
+                                 rho_ff, rho_ff_rate, offset, offset_rate,
+                                 compliance=secant, rate_feedforward=s.rate_feedforward,
+                                 tangent_compliance=tangent, gains=gains,
+                                 lead_rate=lead_rate)
+        if s.exact_inverse <= 0.0:
+            return out
+        # the exact inverse of the zero dynamics (core/cg_reference.py): its relative yaw
+        # along the reference's curvature, its yaw acceleration along the drift term's
+        # (the actuator lag and delay ahead), both with the secant compliance
+        vehicle, share, damping = self.vehicle, s.exact_inverse, s.exact_inverse_damping
+        gain = secant * v_x * v_x - vehicle.l2
+        ref_rate = gain * (rho_ref_rate if lead_rate is None else lead_rate)
+        ff_rate = gain * (rho_ff_rate if lead_rate is None else lead_rate)
+        self._inverse = _advanced(self._inverse, vehicle, v_x, rho_ref, secant, dt, damping,
+                                  ref_rate)
+        self._inverse_ff = _advanced(self._inverse_ff, vehicle, v_x, rho_ff, secant, dt,
+                                     damping, ff_rate)
+        eps, r = self._inverse
+        acceleration = cg_reference.rates(vehicle, v_x, rho_ff, secant, *self._inverse_ff,
+                                          damping, ff_rate)[1]
+        y_ref_rate = out.y_v_rate - out.error_rate
+        y_ref = out.y_ref + share * (out.d_v * eps - offset - out.y_ref)
+        y_ref_rate = y_ref_rate + share * (out.d_v_rate * eps + out.d_v * (r - v_x * rho_ref)
+                                           - offset_rate - y_ref_rate)
+        error, error_rate = out.y_v - y_ref, out.y_v_rate - y_ref_rate
+        k_p, k_d = gains
+        steering = (-out.f_v + share * out.d_v * acceleration - k_p * error
+                    - k_d * error_rate) / out.beta_1
+        return out._replace(steering=steering, y_ref=y_ref, error=error,
+                            error_rate=error_rate)
 
     def _estimate_curvature(self, state: LateralState, dt: float,
                             estimating: Any) -> LateralState:
@@ -924,6 +1007,31 @@ class CgCompensatedLaw:
         left = self._blend_left
         self._blending = xp.where(left > 0.0, self._blend_offset * (left / span), 0.0)
         return state._replace(rho=state.rho + self._blending)
+
+
+def _advanced(state: Optional[tuple[Real, Real]], vehicle: VehicleParams, v_x: Real,
+              rho: Real, compliance: Real, dt: float, damping: float,
+              eps_ss_rate: Real) -> tuple[Real, Real]:
+    """
+    Return the exact inverse's model advanced by ``dt`` (at equilibrium where it had none).
+
+    :param state: ``(eps, r)``, None or non-finite where restarted.
+    :param vehicle: the law's model.
+    :param v_x: speed [m/s].
+    :param rho: curvature [1/m].
+    :param compliance: rear compliance [s^2/m].
+    :param dt: the step [s].
+    :param damping: ``exact_inverse_damping``.
+    :param eps_ss_rate: ``eps_ss'`` [rad/s].
+    :return: the new ``(eps, r)``.
+    """
+    start = cg_reference.equilibrium(vehicle, v_x, rho, compliance)
+    if state is None:
+        return start
+    eps, r = cg_reference.advance(vehicle, v_x, rho, compliance, state, dt, damping,
+                                  eps_ss_rate)
+    ok = _finite(eps) & _finite(r)
+    return xp.where(ok, eps, start[0]), xp.where(ok, r, start[1])
 
 
 def _finite(x: Real) -> Any:

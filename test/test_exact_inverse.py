@@ -1,0 +1,226 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The exact inverse of the CG zero dynamics (core/cg_reference.py, lane_keeping.exact_*)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from lookahead_control.core import cg_reference
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.lane_keeping import (cg_compensated_law, CgCompensatedLaw,
+                                                 LaneKeepingParams)
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.tools.compare import (DELAY, DT, load_scenarios, NONLINEAR,
+                                             PREVIEW_DISTANCE)
+import numpy as np
+import pytest
+import scipy.linalg
+from sim_plant.closed_loop_sim import run
+
+VEHICLE = VehicleParams()
+
+
+def _state(v=37.0, rho=0.0, y_cg=0.0):
+    return LateralState(y_cg=y_cg, eps_r=0.0, v_y=0.0, r=0.0, v_x=v, rho=rho, rho_rate=0.0,
+                        a_x=0.0)
+
+
+def test_the_model_is_the_yaw_equation_with_the_cg_on_the_lane():
+    # written again from the single-track model: y_cg = 0 at all times gives v_y =
+    # -v eps and a_y = v^2 rho; the rear force C_r (l_2 r - v_y) / v, the front force
+    # m a_y - F_r; I_z r' = l_1 F_f - l_2 F_r
+    rng = np.random.default_rng(3)
+    m, iz, l1, l2, c_r = (VEHICLE.mass, VEHICLE.yaw_inertia, VEHICLE.l1, VEHICLE.l2,
+                          VEHICLE.c_r)
+    for _ in range(200):
+        v, rho = rng.uniform(5, 60), rng.normal(0, 0.01)
+        eps, r = rng.normal(0, 0.05), rng.normal(0, 0.3)
+        f_r = c_r * (l2 * r + v * eps) / v
+        f_f = m * v * v * rho - f_r
+        eps_rate, r_rate = cg_reference.rates(VEHICLE, v, rho, VEHICLE.eta, eps, r)
+        assert eps_rate == pytest.approx(r - v * rho, abs=1e-12)
+        assert r_rate == pytest.approx((l1 * f_f - l2 * f_r) / iz, rel=1e-9, abs=1e-9)
+
+
+def test_its_equilibrium_is_the_law_s_steady_relative_yaw():
+    for v in (10.0, 37.0):
+        rho = 1.0 / 400.0
+        eps, r = cg_reference.equilibrium(VEHICLE, v, rho, VEHICLE.eta)
+        assert eps == pytest.approx((VEHICLE.eta * v * v - VEHICLE.l2) * rho, rel=1e-15)
+        for damping in (0.0, 0.7):
+            assert cg_reference.rates(VEHICLE, v, rho, VEHICLE.eta, eps, r, damping) == \
+                pytest.approx((0.0, 0.0), abs=1e-15)
+
+
+@pytest.mark.parametrize('v,damping', [(37.0, 0.0), (37.0, 0.7), (10.0, 1.0), (1.0, 0.0)])
+def test_the_trapezoidal_step_against_the_exact_solution(v, damping, monkeypatch):
+    # scipy's matrix exponential of the linear model with its inputs held: the exact
+    # solution over 10 and 50 ms; the trapezoidal rule's 2 ms sub-steps within 2e-5 of
+    # it (0.1 % of the state's change) and second order (half the sub-step, a quarter of the error); at 1 m/s the
+    # model is stiff (a pole at -118 1/s) and the rule still accurate
+    c, rho, q = VEHICLE.eta * 1.3, 1.0 / 300.0, 2e-3
+    tau2, coeff, u = cg_reference.model_terms(VEHICLE, v, rho, c, damping, q)
+    a = np.array([[0.0, 1.0], [-1.0 / tau2, -coeff / tau2]])
+    w = np.array([-v * rho, u / tau2])
+    x0 = np.array([0.01, -0.02])
+    for dt in (0.01, 0.05):
+        big = np.zeros((3, 3))
+        big[:2, :2], big[:2, 2] = a * dt, w * dt
+        exact = (scipy.linalg.expm(big) @ np.append(x0, 1.0))[:2]
+        errors = []
+        for substep in (0.002, 0.001):
+            monkeypatch.setattr(cg_reference, 'SUBSTEP', substep)
+            got = cg_reference.advance(VEHICLE, v, rho, c, tuple(x0), dt, damping, q)
+            errors.append(float(np.max(np.abs(np.array(got) - exact))))
+        assert errors[0] < 2e-5, (dt, errors)
+        assert 3.5 < errors[0] / errors[1] < 4.5, errors
+    assert cg_reference.advance(VEHICLE, v, rho, c, (0.1, 0.2), 0.0) == (0.1, 0.2)
+
+
+@pytest.mark.parametrize('damping', [0.0, 0.7, 1.0])
+def test_on_a_slow_clothoid_it_is_the_law_s_first_order_inverse(damping):
+    # the rate feedforward is the first-order truncation of this model: on a clothoid
+    # slow against its 8.6 rad/s, after its transient, the two relative yaws agree to
+    # the second-order term (the added damping acts on eps' - eps_ss' and leaves the
+    # first order as it is)
+    v, jerk, dt = 37.0, 0.5, 0.01                    # lateral jerk [m/s^3]
+    rho_rate = jerk / (v * v)
+    gain = VEHICLE.eta * v * v - VEHICLE.l2
+    state, rho = (0.0, 0.0), 0.0
+    for _ in range(400):
+        state = cg_reference.advance(VEHICLE, v, rho, VEHICLE.eta, state, dt, damping,
+                                     gain * rho_rate)
+        rho += rho_rate * dt
+    rho -= rho_rate * dt / 2.0                       # the curvature held over each step
+    out = cg_compensated_law(_state(v, rho), VEHICLE, ControllerParams(), rho, rho_rate,
+                             rho, rho_rate, rate_feedforward=True)
+    first_order = out.y_ref / out.d_v
+    assert state[0] == pytest.approx(first_order, abs=2e-6)
+    assert abs(first_order - gain * rho) > 1e-4     # the rate term is in it
+
+
+def _run(settings, scenario='s2_curve_entry', speed=37.0, **options):
+    scen = load_scenarios([scenario])[scenario]
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+    return run(scen, VEHICLE, law, NONLINEAR, dt=DT, preview_distance=PREVIEW_DISTANCE,
+               delay=DELAY, initial_speed=speed, **options)
+
+
+def test_share_0_is_the_law_without_it_to_the_bit():
+    base = _run(LaneKeepingParams())
+    same = _run(LaneKeepingParams(exact_inverse=0.0, exact_inverse_damping=0.7))
+    assert np.array_equal(base['steering_cmd'], same['steering_cmd'])
+
+
+def test_a_one_run_batch_is_the_float_run_to_the_bit():
+    settings = LaneKeepingParams(exact_inverse=0.5, exact_inverse_damping=0.7)
+    one = _run(settings)
+    batch = _run(settings, speed=np.array([37.0]))
+    assert np.array_equal(one['steering_cmd'], batch['steering_cmd'][:, 0])
+
+
+def test_the_measured_setting_lowers_the_clothoid_peaks():
+    # docs/lane_keeping.md, "The exact inverse of the CG zero dynamics" (bench.exact_inverse):
+    # noise-free goal plant at 37 m/s, S2 and S4 peak CG error [m]
+    candidate = LaneKeepingParams(exact_inverse=0.5, exact_inverse_damping=0.7)
+    for scenario, before, after in (('s2_curve_entry', 0.0267, 0.0150),
+                                    ('s4_lane_change', 0.0570, 0.0356)):
+        base = float(np.max(np.abs(_run(LaneKeepingParams(), scenario)['y_cg'])))
+        cand = float(np.max(np.abs(_run(candidate, scenario)['y_cg'])))
+        assert base == pytest.approx(before, abs=5e-4), scenario
+        assert cand == pytest.approx(after, abs=5e-4), scenario
+
+
+def test_a_restart_starts_the_model_at_the_curve_s_equilibrium():
+    settings = LaneKeepingParams(exact_inverse=1.0, state_filter='none',
+                                 compliance_time_constant=0.0, integral_gain=0.0)
+    rho, v = 1.0 / 400.0, 37.0
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+    # the secant compliance of the design tyre at the arc's lateral acceleration
+    at_rest = cg_reference.equilibrium(VEHICLE, v, rho, law.estimator.at(v * v * rho)[0])
+    assert at_rest[0] > (VEHICLE.eta * v * v - VEHICLE.l2) * rho
+    law.step(_state(v, rho), None, 0.01)
+    assert law._inverse == pytest.approx(at_rest, abs=1e-15)
+    law.step(_state(v, rho), None, 0.01)            # at rest on the arc: stays there
+    assert law._inverse == pytest.approx(at_rest, abs=1e-12)
+    law._inverse = (0.5, 0.5)
+    law.step(_state(v, rho), None, 0.5)             # a time jump: restarted
+    assert law.restart_causes['gap'] == 1
+    assert law._inverse == pytest.approx(at_rest, abs=1e-15)
+    law.step(_state(v, rho, y_cg=math.nan), None, 0.01)     # non-finite: restarted
+    assert law._inverse is None
+
+
+def test_a_nan_in_one_run_of_a_batch_restarts_that_run_alone():
+    settings = LaneKeepingParams(exact_inverse=1.0, state_filter='none',
+                                 compliance_time_constant=0.0)
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+    v = np.array([37.0, 37.0])
+    for k in range(50):
+        rho = np.full(2, 0.0025 * min(1.0, k / 20))
+        y = np.array([0.0, math.nan if k == 30 else 0.0])
+        out = law.step(_state(v, rho, y), None, 0.01)
+        if k == 30:
+            assert math.isfinite(out.steering[0]) and math.isnan(out.steering[1])
+            assert math.isfinite(law._inverse[0][0]) and math.isnan(law._inverse[0][1])
+    # the second run restarted at the arc's equilibrium and stayed there; the first
+    # still moves from the ramp
+    at_rest = np.broadcast_to(cg_reference.equilibrium(
+        VEHICLE, 37.0, 0.0025, law.estimator.at(37.0 ** 2 * 0.0025)[0])[0], (2,))
+    assert law._inverse[0][1] == pytest.approx(at_rest[1], abs=1e-12)
+    assert abs(law._inverse[0][0] - at_rest[0]) > 1e-6
+    assert np.all(np.isfinite(law._inverse[0]))
+
+
+def test_a_retune_carries_the_model():
+    settings = LaneKeepingParams(exact_inverse=0.5)
+    old = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+    for k in range(30):
+        old.step(_state(37.0, 0.0025 * min(1.0, k / 20)), None, 0.01)
+    new = CgCompensatedLaw(VEHICLE, ControllerParams(),
+                           dataclasses.replace(settings, exact_inverse=0.6))
+    carried, _ = new.take_over(old)
+    assert 'exact inverse' in carried and new._inverse == old._inverse
+    off = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    carried, _ = off.take_over(old)
+    assert 'exact inverse' not in carried and off._inverse is None
+
+
+@pytest.mark.parametrize('name,value', [('exact_inverse', 1.5), ('exact_inverse', -0.1),
+                                        ('exact_inverse_damping', 3.0),
+                                        ('exact_inverse', math.nan)])
+def test_a_bad_setting_is_refused_naming_it(name, value):
+    with pytest.raises(ParameterError, match=f'lane_keeping.{name}'):
+        LaneKeepingParams(**{name: value})
+
+
+def test_the_node_takes_it_at_run_time_and_refuses_it_out_of_range(context):
+    from lookahead_control.ros.controller_node import ControllerNode
+    from rclpy.parameter import Parameter
+    node = ControllerNode(context=context)
+    try:
+        descriptor = node.describe_parameters(['lane_keeping.exact_inverse'])[0]
+        assert descriptor.floating_point_range[0].to_value == 1.0
+        assert 'exact inverse' in descriptor.description
+        ok = node.set_parameters([Parameter('lane_keeping.exact_inverse', value=0.5)])[0]
+        assert ok.successful, ok.reason
+        assert node.core.lane_keeping.exact_inverse == 0.5
+        refused = node.set_parameters([Parameter('lane_keeping.exact_inverse_damping',
+                                                 value=2.5)])[0]
+        assert not refused.successful
+    finally:
+        node.destroy_node()
