@@ -225,3 +225,29 @@ def test_the_node_takes_it_at_run_time_and_refuses_it_out_of_range(context):
         assert not refused.successful
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize('batch', [False, True])
+def test_a_lost_curvature_restarts_the_model_at_the_estimate_s_equilibrium(batch):
+    # docs/safety.md: a lost road_curvature leaves no trace of the road it described;
+    # found with the share on: with curvature_blend 0 the model still rang from a
+    # R = 100 m arc 0.5 s after the curvature was lost (6 mrad of steering on a
+    # straight); it now restarts where the curvature source changes
+    settings = LaneKeepingParams(exact_inverse=0.3, exact_inverse_damping=0.7,
+                                 curvature_blend=0.0, compliance_time_constant=0.0,
+                                 integral_gain=0.0)
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+    v = np.array([30.0]) if batch else 30.0
+    for k in range(30):
+        rho = -0.01 * min(1.0, k / 10)
+        law.note_curvature(np.array([True]) if batch else True)
+        law.step(_state(v, rho + 0.0 * v), None, 0.01)
+    assert abs(float(np.asarray(law._inverse[0]).ravel()[0])) > 1e-3
+    law.note_curvature(np.array([False]) if batch else False)
+    law.step(_state(v, 0.0 * v), None, 0.01)
+    eps, r = (float(np.asarray(x).ravel()[0]) for x in law._inverse)
+    rho_hat = float(np.asarray(law._rho_used).ravel()[0])
+    at_rest = cg_reference.equilibrium(VEHICLE, 30.0, rho_hat,
+                                       float(np.asarray(law.estimator.at(
+                                           900.0 * rho_hat)[0]).ravel()[0]))
+    assert (eps, r) == pytest.approx(at_rest, abs=1e-12)

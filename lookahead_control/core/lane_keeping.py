@@ -529,6 +529,7 @@ class CgCompensatedLaw:
         self._rho_used: Real = 0.0          # the curvature at the CG the last step used
         self._blending: Optional[Real] = None   # the offset the present step adds
         self._changed: Any = False              # the runs that switched at this step
+        self._switched: Any = False             # ... whatever curvature_blend says
         self._steer_offset: Real = 0.0          # command jump to blend out at the switch
         self._rate_last: Optional[Real] = None  # the curvature of the last step (rate)
         self._rate: Real = 0.0                  # the estimate's filtered rate [1/(m s)]
@@ -603,10 +604,6 @@ class CgCompensatedLaw:
             if bool(np.any(old.estimating)):
                 carried.append('curvature rate')
         self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
-        if s.exact_inverse > 0.0 and old._inverse is not None:
-            # the road's trajectory: kept (its next step runs with the new settings)
-            self._inverse, self._inverse_ff = old._inverse, old._inverse_ff
-            carried.append('exact inverse')
         if s.integral_gain > 0.0:
             self.integral = xp.clip(old.integral, -s.integral_limit, s.integral_limit)
             self.outside_time = old.outside_time
@@ -643,6 +640,10 @@ class CgCompensatedLaw:
             self.curvature_filter = KalmanStateFilter(self.vehicle, s.filter_settings())
             self.curvature_filter.take_over(old.curvature_filter, same_vehicle)
             carried.append('curvature filter')
+        if s.exact_inverse > 0.0 and old._inverse is not None:
+            # the road's trajectory: kept (its next step runs with the new settings)
+            self._inverse, self._inverse_ff = old._inverse, old._inverse_ff
+            carried.append('exact inverse')
         return carried, restarted
 
     def start(self) -> None:
@@ -852,9 +853,8 @@ class CgCompensatedLaw:
             self.estimator.forget(~finite)
             if self._inverse is not None and self._inverse_ff is not None:
                 # restarted: at the next step's equilibrium (a NaN starts it there)
-                self._inverse = tuple(np.where(finite, v, math.nan) for v in self._inverse)
-                self._inverse_ff = tuple(np.where(finite, v, math.nan)
-                                         for v in self._inverse_ff)
+                self._inverse = _forget(self._inverse, ~finite)
+                self._inverse_ff = _forget(self._inverse_ff, ~finite)
             if self._rate_last is not None:     # restarted: the rate from 0
                 self._rate = np.where(finite, self._rate, 0.0)
                 self._rate_last = np.where(finite, self._rate_last, math.nan)
@@ -907,6 +907,15 @@ class CgCompensatedLaw:
         # along the reference's curvature, its yaw acceleration along the drift term's
         # (the actuator lag and delay ahead), both with the secant compliance
         vehicle, share, damping = self.vehicle, s.exact_inverse, s.exact_inverse_damping
+        if np.count_nonzero(self._switched) and self._inverse is not None \
+                and self._inverse_ff is not None:
+            # road_curvature started or stopped arriving: the model's past was the other
+            # source's road; it restarts at the new curvature's equilibrium
+            if isinstance(self._switched, np.ndarray):
+                self._inverse = _forget(self._inverse, self._switched)
+                self._inverse_ff = _forget(self._inverse_ff, self._switched)
+            else:
+                self._inverse = self._inverse_ff = None
         gain = secant * v_x * v_x - vehicle.l2
         ref_rate = gain * (rho_ref_rate if lead_rate is None else lead_rate)
         ff_rate = gain * (rho_ff_rate if lead_rate is None else lead_rate)
@@ -992,10 +1001,11 @@ class CgCompensatedLaw:
         self._blending = None
         before = self._was_estimating
         self._was_estimating = estimating
+        self._switched = False if before is None else estimating != before
         span = self.settings.curvature_blend
         if before is None or span <= 0.0:
             return state
-        changed = estimating != before
+        changed = self._switched
         self._changed = changed
         if not np.count_nonzero(changed) and not np.count_nonzero(self._blend_left):
             return state
@@ -1007,6 +1017,17 @@ class CgCompensatedLaw:
         left = self._blend_left
         self._blending = xp.where(left > 0.0, self._blend_offset * (left / span), 0.0)
         return state._replace(rho=state.rho + self._blending)
+
+
+def _forget(state: tuple[Real, Real], runs: Any) -> tuple[Real, Real]:
+    """
+    Return the exact inverse's model with ``runs`` marked to restart (NaN).
+
+    :param state: ``(eps, r)``, arrays of a batch (or floats: every run).
+    :param runs: the runs to restart (a boolean array, or True).
+    :return: the model, NaN where restarted (``_advanced`` starts it at equilibrium).
+    """
+    return xp.where(runs, math.nan, state[0]), xp.where(runs, math.nan, state[1])
 
 
 def _advanced(state: Optional[tuple[Real, Real]], vehicle: VehicleParams, v_x: Real,
