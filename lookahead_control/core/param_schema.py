@@ -128,7 +128,7 @@ LANE_KEEPING_SPECS = tuple(
         ('exact_inverse', 'share of the exact inverse of the zero dynamics in the '
          'reference (the relative yaw that keeps the CG on the lane); 0: the first-order '
          'inverse alone [-]', 0.0, 1.0),
-        ('exact_inverse_damping', 'the exact inverse\'s own mode damped to this ratio, '
+        ('exact_inverse_damping', "the exact inverse's own mode damped to this ratio, "
          'the first-order inverse kept; 0: its own damping [-]', 0.0, 2.0),
         ('design_friction', 'friction of the design tyre for the load-dependent rear '
          'compliance (brush shape); 0: constant compliance [-]', 0.0, 2.0),
