@@ -569,14 +569,22 @@ def test_analyze_rows_and_legends_tell_runs_apart(loop_bag, tmp_path):
 def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
     # The bag is replayed over DDS with its own /clock into a controller on sim time (as
     # `ros2 bag play` with the recorded /clock). The controller runs in this process so
-    # that the test knows what it actually received: a loaded machine drops messages
-    # from the controller's depth-10 queues, and the check must not depend on how many.
-    # What must hold for every answer: it answers a step of the bag, and an answer
-    # computed from exactly that step's inputs, at that step's time, is the recorded one.
+    # that the test knows what it actually received and on which clock reading: a loaded
+    # machine drops messages from the controller's depth-10 queues, delays one input
+    # behind the others (a reliable topic held back while the best-effort /clock goes
+    # on), and makes /clock lag or jump, and the check must not depend on how much.
+    # What must hold for every command: the law answers a step of the bag only from
+    # inputs fresh on the node's clock, and a step whose inputs all came at its stamp
+    # (the curvature in too) is the recorded answer; a hold or ramp comes only while a
+    # required input is stale on that clock (received or stamped more than
+    # input_timeout before it: the safety layer's rule, judged here from what the node
+    # received), never moving away from the safe angle; the rate limit holds; no step
+    # is answered twice.
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
+    from lookahead_control.core.controller import REQUIRED_INPUTS
     from lookahead_control.ros.controller_node import ControllerNode
     ctx = Context()
     rclpy.init(context=ctx)
@@ -587,15 +595,35 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
         Parameter('law', value='paper')])
     executor = SingleThreadedExecutor(context=ctx)
     executor.add_node(controller)
-    core, answers = controller.core, []
-    publish = controller._publish
+    core, answers, received, source = controller.core, [], {}, ['answer']
+    publish, accept, watchdog = controller._publish, core.accept, controller.on_watchdog
+    timeout = core.safety.input_timeout * 1e9
+
+    def spy_accept(name, sample, now_ns=None):
+        refused = accept(name, sample, now_ns)
+        if refused is None:     # what the node took: its clock then, and the stamp
+            received[name] = (now_ns, sample.stamp_ns)
+        return refused
+
+    def spy_watchdog():
+        source[0] = 'watchdog'
+        try:
+            watchdog()
+        finally:
+            source[0] = 'answer'
+
+    def fresh(name, now):
+        got = received.get(name)
+        return got is not None and now - got[0] <= timeout and now - got[1] <= timeout
 
     def spy(command, now=None):
         used = [core.lateral, core.yaw, core.velocity, core.curvature]
-        answers.append((command, now, [s.stamp_ns if s else None for s in used]))
+        answers.append((command, now, [s.stamp_ns if s else None for s in used], source[0],
+                        [n for n in REQUIRED_INPUTS if not fresh(n, now)],
+                        fresh('road_curvature', now), core.curvature_in))
         publish(command, now)
 
-    controller._publish = spy
+    core.accept, controller.on_watchdog, controller._publish = spy_accept, spy_watchdog, spy
     try:
         controller.trigger_configure()
         controller.trigger_activate()
@@ -615,16 +643,28 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
         controller.destroy_node()
         rclpy.try_shutdown(context=ctx)
     recorded = {s: v['angle'] for s, v in load_run(loop_bag).steering.by_stamp().items()}
-    # sim time stops with the bag: no watchdog command after it, every command answers
-    # a step of the bag (none is invented, none answers an input it did not get)
-    assert answers and all(c.stamp_ns in recorded and c.law is not None
-                           for c, _, _ in answers)
+    safe = core.safety.safe_angle
+    assert answers
+    for i, (c, now, stamps, by, stale, curvature, curvature_in) in enumerate(answers):
+        if c.law is not None:
+            # the law answered a lateral error of the bag (none is invented), with every
+            # required input fresh on the node's clock, and took the curvature as in
+            # exactly when it was fresh there
+            assert by == 'answer' and c.stamp_ns == stamps[0] and c.stamp_ns in recorded, i
+            assert not stale, (i, stale, now)
+            assert curvature_in == curvature, (i, now)
+        else:
+            # a hold or ramp only while the node had a stale input: sim time stops with
+            # the bag, so none after it either; it never moves away from the safe angle
+            assert stale and c.status == 'stale', (i, now)
+            assert i and abs(c.steering - safe) <= abs(answers[i - 1][0].steering - safe), i
     # an answer from the step's own inputs is the recorded one, unless the rate limit
-    # cut it: a backlog makes the replayed /clock (depth 1) run ahead of the inputs, and
-    # the rate limit counts the node's clock; the recorded run, in lockstep, was never
-    # rate limited
-    same = [(c, recorded[c.stamp_ns]) for c, _, stamps in answers
-            if stamps == [c.stamp_ns] * 4 and not c.rate_limited]
+    # cut it: a backlog makes the replayed /clock (depth 1) run ahead of the inputs or
+    # lag behind them, and the rate limit counts the node's clock; the recorded run, in
+    # lockstep, was never rate limited
+    same = [(c, recorded[c.stamp_ns]) for c, _, stamps, _, _, curvature, _ in answers
+            if c.law is not None and stamps == [c.stamp_ns] * 4 and curvature
+            and not c.rate_limited]
     assert same, 'no step was delivered whole'
     assert max(abs(c.steering - angle) for c, angle in same) < 1e-15
     # and the rate limit holds on the node's clock from the last command at an earlier
@@ -632,7 +672,7 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
     # (the newest so far) from the previous command
     rate = core.safety.max_steering_rate
     ref, newest = None, answers[0][0].stamp_ns
-    for (c0, t0, _), (c1, t1, _) in zip(answers, answers[1:]):
+    for (c0, t0, *_), (c1, t1, *_) in zip(answers, answers[1:]):
         if t1 != t0:
             ref = (t0, c0.steering) if t1 > t0 else (t1, c0.steering)
         if ref is not None:
@@ -640,8 +680,11 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
         assert abs(c1.steering - c0.steering) <= rate * max(c1.stamp_ns - newest, 0) * 1e-9 \
             + 1e-12
         newest = max(newest, c1.stamp_ns)
-    stamps = [c.stamp_ns for c, _, _ in answers]
-    assert stamps == sorted(set(stamps))        # one answer per step, in order
+    # one answer per step, in order, whether the law's or a hold (the watchdog's commands,
+    # and a hold given once the lateral error went stale, carry the node's time instead)
+    stamps = [c.stamp_ns for c, _, used, by, *_ in answers
+              if by == 'answer' and c.stamp_ns == used[0]]
+    assert stamps == sorted(set(stamps))
 
 
 def test_forward_fill_carries_the_last_value_and_zero_before_the_first():
