@@ -116,8 +116,8 @@ class LaneKeepingParams:
         lane on a clothoid (first-order inverse of the zero dynamics).
     :param exact_inverse: share of the exact inverse of the zero dynamics in the
         reference's relative yaw (``core/cg_reference.py``: the relative yaw that keeps
-        the CG on the lane, integrated along the reference's curvature, with its yaw
-        acceleration at the drift term's curvature as the reference's acceleration);
+        the CG on the lane, integrated along the reference's curvature; its acceleration
+        along the drift term's curvature is the reference's acceleration);
         0: the first-order inverse (``rate_feedforward``) alone, 1: the exact one [-].
     :param exact_inverse_damping: the exact inverse's own mode (the CG zero dynamics,
         damping ratio 0.18 at 37 m/s) damped to this ratio, the first-order inverse kept;
@@ -927,8 +927,12 @@ class CgCompensatedLaw:
         self._inverse_ff = _advanced(self._inverse_ff, vehicle, v_x, rho_ff, secant, dt,
                                      damping, ff_rate)
         eps, r = self._inverse
-        acceleration = cg_reference.rates(vehicle, v_x, rho_ff, secant, *self._inverse_ff,
-                                          damping, ff_rate)[1]
+        # the reference's acceleration d_v eps*'' (70 ms ahead), eps*'' = r*' - v_x rho'
+        # - a_x rho: f_v already carries the lane's d_v (v_x rho' + a_x rho) (before
+        # dev-probe30 it was counted again: an extra curvature-rate lead, see the docs)
+        acceleration = (cg_reference.rates(vehicle, v_x, rho_ff, secant, *self._inverse_ff,
+                                           damping, ff_rate)[1]
+                        - v_x * rho_ff_rate - state.a_x * rho_ff)
         y_ref_rate = out.y_v_rate - out.error_rate
         y_ref = out.y_ref + share * (out.d_v * eps - offset - out.y_ref)
         y_ref_rate = y_ref_rate + share * (out.d_v_rate * eps + out.d_v * (r - v_x * rho_ref)
