@@ -877,8 +877,9 @@ class CgCompensatedLaw:
         """
         Return the law's output at this step from the values :meth:`step` worked out.
 
-        The stateless part, :func:`cg_compensated_law`, with the settings' gains; a
-        subclass may shape the reference otherwise (``bench.exact_inverse`` measures one).
+        The stateless part, :func:`cg_compensated_law`, with the settings' gains, and with
+        ``exact_inverse > 0`` the reference moved toward the exact inverse of the zero
+        dynamics (``core/cg_reference.py``; its model advanced here by ``dt``).
 
         :param state: the (filtered) vehicle and road state.
         :param dt: time since the previous step [s] (0 after a restart).
