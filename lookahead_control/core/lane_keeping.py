@@ -905,8 +905,8 @@ class CgCompensatedLaw:
         if s.exact_inverse <= 0.0:
             return out
         # the exact inverse of the zero dynamics (core/cg_reference.py): its relative yaw
-        # along the reference's curvature, its yaw acceleration along the drift term's
-        # (the actuator lag and delay ahead), both with the secant compliance
+        # along the reference's curvature, its relative-yaw acceleration along the drift
+        # term's (the actuator lag and delay ahead), both with the secant compliance
         vehicle, share, damping = self.vehicle, s.exact_inverse, s.exact_inverse_damping
         if np.count_nonzero(self._switched) and self._inverse is not None \
                 and self._inverse_ff is not None:
