@@ -33,17 +33,16 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
-from typing import Any, Optional, Sequence
+from typing import Any, Sequence
 
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
-from lookahead_control.core.params import ControllerParams, VehicleParams
-from lookahead_control.tools.compare import (DELAY, DT, GOAL_PLANT, load_scenarios,
-                                             NONLINEAR, PlantCase, PLANTS, PREVIEW_DISTANCE,
-                                             run_row, run_seed)
+from lookahead_control.core.params import ControllerParams
+from lookahead_control.tools.compare import (DELAY, DT, GOAL_PLANT, LawSettings,
+                                             load_scenarios, NONLINEAR, PlantCase, PLANTS,
+                                             PREVIEW_DISTANCE, run_case)
 import numpy as np
 from sim_plant.closed_loop_sim import run
-from sim_plant.sensors import NoiseParams
 from sim_plant.vehicle_model import PlantParams
 
 SCENARIOS = ('s1_paper_step', 's2_curve_entry', 's3_s_bend', 's4_lane_change')
@@ -54,27 +53,14 @@ BOUNDS = {'s1_paper_step': 0.06, 's2_curve_entry': 0.03, 's3_s_bend': 0.06,
 CORNERS = ((0.7, 1.2, 0.7, 0.05), (0.7, 1.0, 1.0, 0.0), (1.3, 0.8, 1.0, 0.05))
 
 
-def _row(law: CgCompensatedLaw, scenario: str, speed: float, case: PlantCase,
-         vehicle: VehicleParams, seed: Optional[int] = None,
-         plant_vehicle: Optional[VehicleParams] = None) -> dict[str, Any]:
-    scen = load_scenarios([scenario])[scenario]
-    common: dict[str, Any] = {'dt': DT, 'preview_distance': PREVIEW_DISTANCE,
-                              'delay': case.delay, 'plant_vehicle': plant_vehicle}
-    twin = run(scen, vehicle, law, case.plant, initial_speed=np.array([speed]), **common)
-    result = twin
-    if seed is not None:
-        result = run(scen, vehicle, law, case.plant, initial_speed=np.array([speed]),
-                     noise=NoiseParams(), seed=[seed], **common)
-    return run_row(result, 0, vehicle,
-                   twin['steering_cmd'][:, 0] if scenario == 's0_straight' else None,
-                   {'yaw_overshoot': twin['eps_r'][:, 0],
-                    'yaw_rate_overshoot': twin['r'][:, 0]})
-
-
 def measure(blend: float, speeds: Sequence[float] = (30.0, 37.0), seeds: int = 0,
             corners: bool = True, damping: float = 0.0) -> dict[str, Any]:
     """
     Return the figures of one blend (0: the default law).
+
+    The noise-free and the goal plant's rows are ``compare``'s (:func:`run_case`); the
+    corners' plants are the law's model scaled (``plant_vehicle``), which ``compare``
+    has no case for.
 
     :param blend: ``lane_keeping.exact_inverse``.
     :param speeds: the speeds [m/s].
@@ -85,32 +71,33 @@ def measure(blend: float, speeds: Sequence[float] = (30.0, 37.0), seeds: int = 0
         [rows]}, 'corners': {corner: [peak per scenario]}}``.
     """
     vehicle = load_vehicle(None)
-
     settings = LaneKeepingParams(exact_inverse=blend, exact_inverse_damping=damping)
-
-    def law() -> CgCompensatedLaw:
-        return CgCompensatedLaw(vehicle, ControllerParams(), settings)
-
     quiet = PlantCase('nonlinear_delay', NONLINEAR, DELAY)
-    out: dict[str, Any] = {'noise_free': {}, 'goal': {}, 'corners': {}}
-    for speed in speeds:
-        for scenario in SCENARIOS:
-            out['noise_free'][scenario, speed] = _row(law(), scenario, speed, quiet, vehicle)
     goal = next(case for case in PLANTS if case.name == GOAL_PLANT)
-    for speed in speeds if seeds else ():
-        for scenario in ('s0_straight',) + SCENARIOS:
-            out['goal'][scenario, speed] = [
-                _row(law(), scenario, speed, goal, vehicle, run_seed(speed, k))
-                for k in range(seeds)]
+    out: dict[str, Any] = {'noise_free': {}, 'goal': {}, 'corners': {}}
+    for scenario in (('s0_straight',) if seeds else ()) + SCENARIOS:
+        plants = [quiet] + ([goal] if seeds else [])
+        for row in run_case(('cg_compensated', scenario, list(speeds), plants, vehicle, DT,
+                             None, LawSettings(lane_keeping=settings), max(seeds, 1))):
+            key = scenario, row['speed_mps']
+            if row['plant'] == quiet.name:
+                out['noise_free'][key] = row
+            else:
+                out['goal'].setdefault(key, []).append(row)
+    scenarios = load_scenarios(SCENARIOS[:3])
     for corner in CORNERS if corners else ():
         stiffness, mass, friction, delay = corner
         body = dataclasses.replace(vehicle, c_f=vehicle.c_f * stiffness,
                                    c_r=vehicle.c_r * stiffness, mass=vehicle.mass * mass,
                                    yaw_inertia=vehicle.yaw_inertia * mass)
-        case = PlantCase('corner', PlantParams(model='nonlinear', friction=friction), delay)
         out['corners'][corner] = [
-            _row(law(), scenario, 37.0, case, vehicle, plant_vehicle=body)['peak_cg_error_m']
-            for scenario in SCENARIOS[:3]]
+            float(np.max(np.abs(run(
+                scenarios[name], vehicle, CgCompensatedLaw(vehicle, ControllerParams(),
+                                                           settings),
+                PlantParams(model='nonlinear', friction=friction), dt=DT,
+                preview_distance=PREVIEW_DISTANCE, delay=delay, initial_speed=37.0,
+                plant_vehicle=body)['y_cg'])))
+            for name in SCENARIOS[:3]]
     return out
 
 

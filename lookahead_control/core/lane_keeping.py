@@ -529,7 +529,6 @@ class CgCompensatedLaw:
         self._rho_used: Real = 0.0          # the curvature at the CG the last step used
         self._blending: Optional[Real] = None   # the offset the present step adds
         self._changed: Any = False              # the runs that switched at this step
-        self._switched: Any = False             # ... whatever curvature_blend says
         self._steer_offset: Real = 0.0          # command jump to blend out at the switch
         self._rate_last: Optional[Real] = None  # the curvature of the last step (rate)
         self._rate: Real = 0.0                  # the estimate's filtered rate [1/(m s)]
@@ -908,15 +907,12 @@ class CgCompensatedLaw:
         # along the reference's curvature, its relative-yaw acceleration along the drift
         # term's (the actuator lag and delay ahead), both with the secant compliance
         vehicle, share, damping = self.vehicle, s.exact_inverse, s.exact_inverse_damping
-        if np.count_nonzero(self._switched) and self._inverse is not None \
+        if np.count_nonzero(self._changed) and self._inverse is not None \
                 and self._inverse_ff is not None:
             # road_curvature started or stopped arriving: the model's past was the other
             # source's road; it restarts at the new curvature's equilibrium
-            if isinstance(self._switched, np.ndarray):
-                self._inverse = _forget(self._inverse, self._switched)
-                self._inverse_ff = _forget(self._inverse_ff, self._switched)
-            else:
-                self._inverse = self._inverse_ff = None
+            self._inverse = _forget(self._inverse, self._changed)
+            self._inverse_ff = _forget(self._inverse_ff, self._changed)
         # eps_ss' for the added damping: the model's forcing (c(a) v_x^2 - l_2) rho moves
         # with the tangent compliance (d alpha_r / d a); the secant's slope left the
         # damped model 0.34 mrad off the undamped one 5 s into a 1 m/s^3 clothoid
@@ -1009,12 +1005,12 @@ class CgCompensatedLaw:
         self._blending = None
         before = self._was_estimating
         self._was_estimating = estimating
-        self._switched = False if before is None else estimating != before
+        # the runs whose curvature source switched (the exact inverse restarts them too,
+        # whatever curvature_blend says)
+        changed = self._changed = False if before is None else estimating != before
         span = self.settings.curvature_blend
         if before is None or span <= 0.0:
             return state
-        changed = self._switched
-        self._changed = changed
         if not np.count_nonzero(changed) and not np.count_nonzero(self._blend_left):
             return state
         if np.count_nonzero(changed):
@@ -1031,8 +1027,8 @@ def _forget(state: tuple[Real, Real], runs: Any) -> tuple[Real, Real]:
     """
     Return the exact inverse's model with ``runs`` marked to restart (NaN).
 
-    :param state: ``(eps, r)``, arrays of a batch (or floats: every run).
-    :param runs: the runs to restart (a boolean array, or True).
+    :param state: ``(eps, r)``, arrays of a batch or floats.
+    :param runs: the runs to restart (a boolean array, or a bool for floats).
     :return: the model, NaN where restarted (``_advanced`` starts it at equilibrium).
     """
     return xp.where(runs, math.nan, state[0]), xp.where(runs, math.nan, state[1])
