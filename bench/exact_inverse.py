@@ -53,25 +53,23 @@ BOUNDS = {'s1_paper_step': 0.06, 's2_curve_entry': 0.03, 's3_s_bend': 0.06,
 CORNERS = ((0.7, 1.2, 0.7, 0.05), (0.7, 1.0, 1.0, 0.0), (1.3, 0.8, 1.0, 0.05))
 
 
-def measure(blend: float, speeds: Sequence[float] = (30.0, 37.0), seeds: int = 0,
-            corners: bool = True, damping: float = 0.0) -> dict[str, Any]:
+def measure(settings: LaneKeepingParams, speeds: Sequence[float] = (30.0, 37.0),
+            seeds: int = 0, corners: bool = True) -> dict[str, Any]:
     """
-    Return the figures of one blend (0: the default law).
+    Return the figures of one setting of the law.
 
     The noise-free and the goal plant's rows are ``compare``'s (:func:`run_case`); the
     corners' plants are the law's model scaled (``plant_vehicle``), which ``compare``
     has no case for.
 
-    :param blend: ``lane_keeping.exact_inverse``.
+    :param settings: the law's settings.
     :param speeds: the speeds [m/s].
     :param seeds: noise seeds of the goal plant per speed (0: none).
     :param corners: also the mismatch corners of :data:`CORNERS` at 37 m/s.
-    :param damping: ``lane_keeping.exact_inverse_damping``.
     :return: ``{'noise_free': {(scenario, speed): row}, 'goal': {(scenario, speed):
         [rows]}, 'corners': {corner: [peak per scenario]}}``.
     """
     vehicle = load_vehicle(None)
-    settings = LaneKeepingParams(exact_inverse=blend, exact_inverse_damping=damping)
     quiet = PlantCase('nonlinear_delay', NONLINEAR, DELAY)
     goal = next(case for case in PLANTS if case.name == GOAL_PLANT)
     out: dict[str, Any] = {'noise_free': {}, 'goal': {}, 'corners': {}}
@@ -121,24 +119,42 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--damping', type=float, default=0.0)
     p.add_argument('--no-corners', action='store_true')
     args = p.parse_args(argv)
-    print('| blend | speed | S1 / S2 / S3 / S4 peak [cm] | S1 / S2 / S3 yaw overshoot [%] |')
-    print('|---|---|---|---|')
-    results = {b: measure(b, args.speeds, args.seeds, not args.no_corners, args.damping)
+    results = {f'{b:g}': measure(LaneKeepingParams(exact_inverse=b,
+                                                   exact_inverse_damping=args.damping),
+                                 args.speeds, args.seeds, not args.no_corners)
                for b in args.blend}
+    print_tables('blend', results, args.speeds, args.seeds, not args.no_corners)
+    return 0
+
+
+def print_tables(label: str, results: dict[str, dict[str, Any]], speeds: Sequence[float],
+                 seeds: int, corners: bool) -> None:
+    """
+    Print the tables of :func:`measure`'s results (markdown).
+
+    :param label: the first column's title.
+    :param results: ``{row label: measure(...)}``.
+    :param speeds: the speeds measured [m/s].
+    :param seeds: the noise seeds measured (0: no goal-plant table).
+    :param corners: the corners were measured.
+    """
+    print(f'| {label} | speed | S1 / S2 / S3 / S4 peak [cm] | S1 / S2 / S3 yaw overshoot '
+          '[%] |')
+    print('|---|---|---|---|')
     for b, res in results.items():
-        for speed in args.speeds:
+        for speed in speeds:
             rows = [res['noise_free'][s, speed] for s in SCENARIOS]
             peaks = ' / '.join(_cm(r['peak_cg_error_m']) for r in rows)
             over = ' / '.join(f"{100.0 * r['yaw_overshoot']:.1f}" for r in rows[:3])
-            print(f'| {b:g} | {speed:g} m/s | {peaks} | {over} |')
-    if args.seeds:
-        print(f'\nGoal plant, {args.seeds} noise seeds per speed: mean (max) peak [cm], '
+            print(f'| {b} | {speed:g} m/s | {peaks} | {over} |')
+    if seeds:
+        print(f'\nGoal plant, {seeds} noise seeds per speed: mean (max) peak [cm], '
               'share of runs within the bound; S0 steering noise [mrad] and yaw rebound '
               '[%] (mean)')
-        print('| blend | speed | S1 | S2 | S3 | S4 | S0 noise | S0 rebound |')
+        print(f'| {label} | speed | S1 | S2 | S3 | S4 | S0 noise | S0 rebound |')
         print('|---|---|---|---|---|---|---|---|')
         for b, res in results.items():
-            for speed in args.speeds:
+            for speed in speeds:
                 cells = []
                 for s in SCENARIOS:
                     peaks = [r['peak_cg_error_m'] for r in res['goal'][s, speed]]
@@ -148,18 +164,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                 s0 = res['goal']['s0_straight', speed]
                 noise = np.mean([r['steering_noise_rms_rad'] for r in s0]) * 1e3
                 rebound = np.mean([r['yaw_rebound'] for r in s0]) * 100.0
-                print(f"| {b:g} | {speed:g} m/s | {' | '.join(cells)} | {noise:.2f} | "
+                print(f"| {b} | {speed:g} m/s | {' | '.join(cells)} | {noise:.2f} | "
                       f'{rebound:.1f} |')
-    if not args.no_corners:
+    if corners:
         print('\nMismatch corners at 37 m/s (nonlinear plant, no noise): S1 / S2 / S3 peak '
               '[cm]')
-        print('| blend | ' + ' | '.join(
+        print(f'| {label} | ' + ' | '.join(
             f'C x{c}, m x{m}, mu {mu}, {1000 * d:g} ms' for c, m, mu, d in CORNERS) + ' |')
         print('|---|' + '---|' * len(CORNERS))
         for b, res in results.items():
-            print(f'| {b:g} | ' + ' | '.join(
+            print(f'| {b} | ' + ' | '.join(
                 ' / '.join(_cm(v) for v in res['corners'][c]) for c in CORNERS) + ' |')
-    return 0
 
 
 if __name__ == '__main__':

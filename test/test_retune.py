@@ -337,10 +337,13 @@ def test_a_dds_run_tuned_mid_arc_replays_offline_to_the_bit(tmp_path):
     result = rerun(run)
     assert result.order == 'stamp' and result.parameter_sets == 1
     assert result.compared > 1100 and result.max_diff == 0.0, result.max_diff
-    # the integral went on through the set (the debug of the answers either side)
+    # the integral went on through the set (the debug of the answers either side): a
+    # restart would take all of it; one step's k_i y_cg dt is about 2 % of it on this arc
+    # (1.7 mm; the rate lead leaves the CG nearer the lane than before dev-ratelead)
     integral = run.debug.values['integral']
     k = int(np.argmax(counts == 1.0))
-    assert abs(integral[k] - integral[k - 1]) < 0.01 * abs(integral[k - 1])
+    assert abs(integral[k - 1]) > 5e-4
+    assert abs(integral[k] - integral[k - 1]) < 0.1 * abs(integral[k - 1])
     # the bag without the marker: the start-up value throughout, said, and not equal
     blind = rerun(replace(run, debug=replace(run.debug, values={
         name: v for name, v in run.debug.values.items() if name != 'parameter_sets'})))

@@ -122,6 +122,10 @@ class LaneKeepingParams:
     :param exact_inverse_damping: the exact inverse's own mode (the CG zero dynamics,
         damping ratio 0.18 at 37 m/s) damped to this ratio, the first-order inverse kept;
         0: its own damping [-].
+    :param rate_lead: extra share of the drift term's road terms
+        ``d_v (v_x rho' + a_x rho)`` (the curvature ``T_ff`` ahead, its rate clipped to
+        ``max_lateral_jerk``): a lead on the curvature rate for the actuator lag and delay
+        that the preview of the curvature alone leaves; 0: the model's term [-].
     :param design_friction: friction of the design tyre for the load-dependent rear
         compliance ``c(a) = c_hat s(|a| / (mu g))`` (brush shape, evaluated at the
         reference curvature's lateral acceleration; the estimate learns ``c_hat``);
@@ -169,6 +173,7 @@ class LaneKeepingParams:
     rate_feedforward: bool = True
     exact_inverse: float = 0.0
     exact_inverse_damping: float = 0.0
+    rate_lead: float = 0.35
     design_friction: float = 1.0
     max_lateral_jerk: float = 10.0
     state_filter: str = 'kalman'
@@ -237,6 +242,7 @@ class LaneKeepingParams:
         check_range('lane_keeping.exact_inverse', self.exact_inverse, 0.0, 1.0)
         check_range('lane_keeping.exact_inverse_damping', self.exact_inverse_damping, 0.0,
                     2.0)
+        check_range('lane_keeping.rate_lead', self.rate_lead, 0.0, 2.0)
         check_range('lane_keeping.design_friction', self.design_friction, 0.0, 2.0)
         check_range('lane_keeping.max_lateral_jerk', self.max_lateral_jerk, 0.0, 1000.0,
                     unit='m/s^3')
@@ -401,7 +407,8 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        rate_feedforward: bool = False,
                        tangent_compliance: Optional[Real] = None,
                        lead_rate: Optional[Real] = None,
-
+                       rate_lead: Real = 0.0,
+                       lead_ff_rate: Optional[Real] = None,
                        gains: Optional[tuple[Real, Real]] = None) -> LawOutput:
     """
     Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
@@ -427,6 +434,10 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         acceleration, for the reference's rate [s^2/m] (None: ``compliance``).
     :param lead_rate: the curvature rate the rate feedforward uses [1/(m s)] (None:
         ``rho_ref_rate``).
+    :param rate_lead: extra share ``g`` of the drift term's road terms: ``f_v`` (returned
+        with it) less ``g d_v (v_x rho_ff' + a_x rho_ff)`` [-].
+    :param lead_ff_rate: the curvature rate that extra share uses [1/(m s)] (None:
+        ``rho_ff_rate``).
     :param gains: ``(k_p, k_d)`` (None: the controller's).
     :return: the steering angle and the intermediate values.
     """
@@ -453,6 +464,12 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     y_ref_rate = d_v_rate * eps_ss + d_v * eps_ss_rate - offset_rate
     f_v, beta_1 = drift_term(state._replace(rho=rho_ff, rho_rate=rho_ff_rate), vehicle,
                              d_v, d_v_rate, v_x)
+    if rate_lead:
+        # a lead on the lane's kinematics d_v (v_x rho' + a_x rho) beyond the model's:
+        # the actuator lag and delay the curvature's preview does not cover
+        # (docs/lane_keeping.md, "The curvature-rate lead")
+        ff_rate = rho_ff_rate if lead_ff_rate is None else lead_ff_rate
+        f_v = f_v - rate_lead * d_v * (v_x * ff_rate + state.a_x * rho_ff)
     error = y_v - y_ref
     error_rate = y_v_rate - y_ref_rate
     k_p, k_d = gains if gains is not None else (controller.k_p, controller.k_d)
@@ -801,12 +818,13 @@ class CgCompensatedLaw:
                 xp.where(estimating, state.rho, rho_ff), xp.where(estimating, 0.0, slope_ff))
         if self._blending is not None:  # the preview moves with the curvature at the CG
             rho_ref, rho_ff = rho_ref + self._blending, rho_ff + self._blending
-        lead_rate = None
+        lead_rate = lead_ff_rate = None
         if s.max_lateral_jerk > 0.0:
             # a curvature step in the map is an impulse of curvature rate no steering can
-            # follow: the rate feedforward sees at most this lateral jerk
+            # follow: the rate feedforward (and the rate lead) see at most this lateral jerk
             most = s.max_lateral_jerk / (v_x * v_x)
             lead_rate = xp.clip(v_x * slope_ref, -most, most)
+            lead_ff_rate = xp.clip(v_x * slope_ff, -most, most)
         # learning and integrating only above the speed floor and off the steering limit
         active = ((state.v_x >= s.integral_min_speed)
                   & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut))
@@ -827,7 +845,7 @@ class CgCompensatedLaw:
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref)
         out = self.evaluate(state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
-                            integral, rate, secant, tangent, lead_rate)
+                            integral, rate, secant, tangent, lead_rate, lead_ff_rate)
         if self._blending is not None:
             # what the curvature does not carry (its rate, the preview) blends on the
             # command: the jump at the switch-over taken out over the same time
@@ -872,7 +890,8 @@ class CgCompensatedLaw:
 
     def evaluate(self, state: LateralState, dt: float, rho_ref: Real, rho_ref_rate: Real,
                  rho_ff: Real, rho_ff_rate: Real, offset: Real, offset_rate: Real,
-                 secant: Real, tangent: Real, lead_rate: Optional[Real]) -> LawOutput:
+                 secant: Real, tangent: Real, lead_rate: Optional[Real],
+                 lead_ff_rate: Optional[Real] = None) -> LawOutput:
         """
         Return the law's output at this step from the values :meth:`step` worked out.
 
@@ -891,6 +910,7 @@ class CgCompensatedLaw:
         :param secant: rear compliance at the reference's lateral acceleration [s^2/m].
         :param tangent: its tangent compliance [s^2/m].
         :param lead_rate: the rate feedforward's (clipped) curvature rate, None: unclipped.
+        :param lead_ff_rate: the rate lead's (clipped) curvature rate, None: unclipped.
         :return: the steering angle and the intermediate values.
         """
         s = self.settings
@@ -900,7 +920,8 @@ class CgCompensatedLaw:
                                  rho_ff, rho_ff_rate, offset, offset_rate,
                                  compliance=secant, rate_feedforward=s.rate_feedforward,
                                  tangent_compliance=tangent, gains=gains,
-                                 lead_rate=lead_rate)
+                                 lead_rate=lead_rate, rate_lead=s.rate_lead,
+                                 lead_ff_rate=lead_ff_rate)
         if s.exact_inverse <= 0.0:
             return out
         # the exact inverse of the zero dynamics (core/cg_reference.py): its relative yaw

@@ -199,10 +199,10 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
 
     While the curvature is estimated the law previews it along its estimated rate
     ``rho'`` (``estimate_rate_time``): the reference ``T_ref`` and the drift term
-    ``T_ff`` ahead take ``rho + rho' T``, their rates, the rate feedforward and the
-    reference's rate take ``rho'`` (small signals: the clip to ``max_lateral_jerk`` does
-    not act). Evaluated on the law itself (linear in ``rho'`` at a constant compliance);
-    0 with ``estimate_rate_time`` 0.
+    ``T_ff`` ahead take ``rho + rho' T``, their rates, the rate feedforward, the rate
+    lead and the reference's rate take ``rho'`` (small signals: the clip to
+    ``max_lateral_jerk`` does not act). Evaluated on the law itself (linear in
+    ``rho'`` at a constant compliance); 0 with ``estimate_rate_time`` 0.
 
     :param vehicle: the design vehicle.
     :param controller: d_v schedule.
@@ -221,7 +221,8 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
         out = cg_compensated_law(state, vehicle, law_controller,
                                  rate * settings.reference_preview, rate,
                                  rate * settings.feedforward_preview, rate, gains=gains,
-                                 rate_feedforward=settings.rate_feedforward)
+                                 rate_feedforward=settings.rate_feedforward,
+                                 rate_lead=settings.rate_lead)
         return float(out.steering)
 
     return steering(1.0) - steering(0.0)

@@ -130,6 +130,9 @@ LANE_KEEPING_SPECS = tuple(
          'inverse alone [-]', 0.0, 1.0),
         ('exact_inverse_damping', "the exact inverse's own mode damped to this ratio, "
          'the first-order inverse kept; 0: its own damping [-]', 0.0, 2.0),
+        ('rate_lead', "extra share of the drift term's road terms d_v (v_x rho' + a_x rho) "
+         '(the curvature feedforward_preview ahead): a lead for the actuator lag and delay; '
+         "0: the model's term [-]", 0.0, 2.0),
         ('design_friction', 'friction of the design tyre for the load-dependent rear '
          'compliance (brush shape); 0: constant compliance [-]', 0.0, 2.0),
         ('max_lateral_jerk', 'the rate feedforward sees at most this lateral jerk '
