@@ -183,8 +183,8 @@ def test_a_curvature_flapping_on_and_off_does_not_jump_the_command():
 
 def test_with_curvature_received_the_runs_are_those_of_the_old_code():
     # the sums of the old code's (main 3cdb363) commands, S2 and S0 at 37 m/s with the
-    # curvature received, bit for bit; S2 without the rate lead (dev-ratelead: 0 is the
-    # law before it), S0 with the defaults (a straight: the lead adds nothing)
+    # curvature received, bit for bit; S2 without the state preview (0 is the law before
+    # it), S0 with the defaults (a straight: the preview adds nothing)
     from lookahead_control.tools.compare import load_scenarios
     from sim_plant.closed_loop_sim import run
     from sim_plant.sensors import NoiseParams
@@ -203,7 +203,7 @@ def test_with_curvature_received_the_runs_are_those_of_the_old_code():
             return self.law.step(state, preview, dt)
 
     for name, total, settings in (
-            ('s2_curve_entry', -18.67866522659203, LaneKeepingParams(rate_lead=0.0)),
+            ('s2_curve_entry', -18.67866522659203, LaneKeepingParams(state_preview=0.0)),
             ('s0_straight', -0.1944498962871857, LaneKeepingParams())):
         scenario = load_scenarios([name])[name]
         result = run(scenario, VEHICLE, Told(settings), PlantParams(model='nonlinear'),
@@ -624,11 +624,14 @@ def test_the_rate_gain_is_the_law_s_terms_in_the_estimated_rate_by_hand(v_x):
     beta_1 = VEHICLE.c_f * (1.0 / m + l1 * d_v / iz)
     gain = eta * v_x ** 2 - l2
     lead = -(v_x * iz * eta / (m * l1) + gain * l2 / v_x)
-    # the drift term's d_v v_x q once and the rate lead's share of it once more
-    expected = (v_x ** 2 * settings.feedforward_preview
-                + (1.0 + settings.rate_lead) * d_v * v_x + k_p * d_v * lead
-                + k_d * d_v * gain) / beta_1
-    assert settings.rate_lead > 0.0
+    # the state preview: the drift term's state terms on the lane, F_rho = beta_1 (gain -
+    # l_1) + beta_2 (gain + l_2) per unit curvature, T_ff q ahead
+    beta_2 = VEHICLE.c_r * (1.0 / m - l2 * d_v / iz)
+    f_rho = beta_1 * (gain - l1) + beta_2 * (gain + l2)
+    expected = (v_x ** 2 * settings.feedforward_preview + d_v * v_x + k_p * d_v * lead
+                + k_d * d_v * gain
+                - settings.state_preview * settings.feedforward_preview * f_rho) / beta_1
+    assert settings.state_preview > 0.0
     assert rate_gain(VEHICLE, ControllerParams(), settings, v_x) == pytest.approx(
         expected, rel=1e-9)
     assert rate_gain(VEHICLE, ControllerParams(),

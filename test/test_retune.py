@@ -339,7 +339,7 @@ def test_a_dds_run_tuned_mid_arc_replays_offline_to_the_bit(tmp_path):
     assert result.compared > 1100 and result.max_diff == 0.0, result.max_diff
     # the integral went on through the set (the debug of the answers either side): a
     # restart would take all of it; one step's k_i y_cg dt is about 2 % of it on this arc
-    # (1.7 mm; the rate lead leaves the CG nearer the lane than before dev-ratelead)
+    # (1.7 mm; the state preview leaves the CG nearer the lane than before it)
     integral = run.debug.values['integral']
     k = int(np.argmax(counts == 1.0))
     assert abs(integral[k - 1]) > 5e-4

@@ -199,8 +199,8 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
 
     While the curvature is estimated the law previews it along its estimated rate
     ``rho'`` (``estimate_rate_time``): the reference ``T_ref`` and the drift term
-    ``T_ff`` ahead take ``rho + rho' T``, their rates, the rate feedforward, the rate
-    lead and the reference's rate take ``rho'`` (small signals: the clip to
+    ``T_ff`` ahead take ``rho + rho' T``, their rates, the rate feedforward, the state
+    preview and the reference's rate take ``rho'`` (small signals: the clip to
     ``max_lateral_jerk`` does not act). Evaluated on the law itself (linear in
     ``rho'`` at a constant compliance); 0 with ``estimate_rate_time`` 0.
 
@@ -222,7 +222,8 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
                                  rate * settings.reference_preview, rate,
                                  rate * settings.feedforward_preview, rate, gains=gains,
                                  rate_feedforward=settings.rate_feedforward,
-                                 rate_lead=settings.rate_lead)
+                                 state_preview=settings.state_preview,
+                                 lead_time=settings.feedforward_preview)
         return float(out.steering)
 
     return steering(1.0) - steering(0.0)

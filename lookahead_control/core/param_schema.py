@@ -130,9 +130,10 @@ LANE_KEEPING_SPECS = tuple(
          'inverse alone [-]', 0.0, 1.0),
         ('exact_inverse_damping', "the exact inverse's own mode damped to this ratio, "
          'the first-order inverse kept; 0: its own damping [-]', 0.0, 2.0),
-        ('rate_lead', "extra share of the drift term's road terms d_v (v_x rho' + a_x rho) "
-         '(the curvature feedforward_preview ahead): a lead for the actuator lag and delay; '
-         "0: the model's term [-]", 0.0, 2.0),
+        ('state_preview', "share of the drift term's state terms previewed "
+         'feedforward_preview along the lane (a lead on the curvature rate for the actuator '
+         'lag and delay; 0 with feedforward_preview 0); 1: the whole preview, 0: none [-]',
+         0.0, 3.0),
         ('design_friction', 'friction of the design tyre for the load-dependent rear '
          'compliance (brush shape); 0: constant compliance [-]', 0.0, 2.0),
         ('max_lateral_jerk', 'the rate feedforward sees at most this lateral jerk '

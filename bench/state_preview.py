@@ -13,14 +13,14 @@
 # limitations under the License.
 
 """
-The CG-compensated law with a lead on the curvature rate (``lane_keeping.rate_lead``).
+The CG-compensated law with a share of its state terms' preview (``state_preview``).
 
-``python -m bench.rate_lead [--lead G ...] [--seeds N] [--speeds V ...] [--no-corners]``:
-the figures of docs/lane_keeping.md, "The curvature-rate lead". Each ``G`` is a value of
-``lane_keeping.rate_lead``; every other setting is the package default. The tables are
-those of :mod:`bench.exact_inverse`: the noise-free goal plant (nonlinear, 20 ms delay),
-with ``--seeds N`` the goal plant with N noise seeds per speed, and the mismatch corners
-at 37 m/s.
+``python -m bench.state_preview [--share G ...] [--seeds N] [--speeds V ...]
+[--no-corners]``: the figures of docs/lane_keeping.md, "Preview of the drift term's
+state terms". Each ``G`` is a value of ``lane_keeping.state_preview``; every other
+setting is the package default. The tables are those of :mod:`bench.exact_inverse`: the
+noise-free goal plant (nonlinear, 20 ms delay), with ``--seeds N`` the goal plant with N
+noise seeds per speed, and the mismatch corners at 37 m/s.
 """
 
 from __future__ import annotations
@@ -38,23 +38,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     Print the tables (markdown).
 
-    :param argv: ``--lead G ...`` (default 0 and the package default), ``--seeds N``
+    :param argv: ``--share G ...`` (default 0 and the package default), ``--seeds N``
         (goal plant, default 0), ``--speeds V ...``, ``--no-corners``.
     :return: 0.
     """
     default = LaneKeepingParams()
-    p = argparse.ArgumentParser(prog='python -m bench.rate_lead',
+    p = argparse.ArgumentParser(prog='python -m bench.state_preview',
                                 description=__doc__.split('\n\n')[0].strip())
-    p.add_argument('--lead', type=float, nargs='+',
-                   default=sorted({0.0, default.rate_lead}))
+    p.add_argument('--share', type=float, nargs='+',
+                   default=sorted({0.0, default.state_preview}))
     p.add_argument('--seeds', type=int, default=0)
     p.add_argument('--speeds', type=float, nargs='+', default=[30.0, 37.0])
     p.add_argument('--no-corners', action='store_true')
     args = p.parse_args(argv)
-    results = {f'{g:g}': measure(dataclasses.replace(default, rate_lead=g), args.speeds,
+    results = {f'{g:g}': measure(dataclasses.replace(default, state_preview=g), args.speeds,
                                  args.seeds, not args.no_corners)
-               for g in args.lead}
-    print_tables('rate_lead', results, args.speeds, args.seeds, not args.no_corners)
+               for g in args.share}
+    print_tables('state_preview', results, args.speeds, args.seeds, not args.no_corners)
     return 0
 
 
