@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from lane_keeping_node_checks import check_run_time_parameter
 from lookahead_control.core import cg_reference
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.lane_keeping import (cg_compensated_law, CgCompensatedLaw,
@@ -223,21 +224,8 @@ def test_a_bad_setting_is_refused_naming_it(name, value):
 
 
 def test_the_node_takes_it_at_run_time_and_refuses_it_out_of_range(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    from rclpy.parameter import Parameter
-    node = ControllerNode(context=context)
-    try:
-        descriptor = node.describe_parameters(['lane_keeping.exact_inverse'])[0]
-        assert descriptor.floating_point_range[0].to_value == 1.0
-        assert 'exact inverse' in descriptor.description
-        ok = node.set_parameters([Parameter('lane_keeping.exact_inverse', value=0.5)])[0]
-        assert ok.successful, ok.reason
-        assert node.core.lane_keeping.exact_inverse == 0.5
-        refused = node.set_parameters([Parameter('lane_keeping.exact_inverse_damping',
-                                                 value=2.5)])[0]
-        assert not refused.successful
-    finally:
-        node.destroy_node()
+    check_run_time_parameter(context, 'exact_inverse', 1.0, 'exact inverse', 0.5, 1.5)
+    check_run_time_parameter(context, 'exact_inverse_damping', 2.0, 'damped', 0.7, 2.5)
 
 
 @pytest.mark.parametrize('batch', [False, True])

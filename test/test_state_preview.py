@@ -20,6 +20,7 @@ import dataclasses
 import math
 from types import SimpleNamespace
 
+from lane_keeping_node_checks import check_run_time_parameter
 from lookahead_control.core.control_law import drift_term, LateralState
 from lookahead_control.core.lane_keeping import (cg_compensated_law, CgCompensatedLaw,
                                                  LaneKeepingParams)
@@ -76,13 +77,30 @@ def test_the_preview_is_the_state_terms_taken_t_ahead_along_the_lane():
                                      lead_time=0.07, lead_ff_rate=1e-4)
         assert clipped.steering - base.steering == pytest.approx(
             -g * 0.07 * f_rho * 1e-4 / beta_1, rel=1e-9)
-    # the law's compliance (a loaded curve's secant) is the one of the states it previews
-    soft = cg_compensated_law(*args, rate_feedforward=True, compliance=1.2 * VEHICLE.eta)
-    led = cg_compensated_law(*args, rate_feedforward=True, compliance=1.2 * VEHICLE.eta,
-                             state_preview=1.0, lead_time=0.07)
-    f_soft = _on_the_lane(30.0, 1.2 * VEHICLE.eta)[0]
-    assert led.steering - soft.steering == pytest.approx(-0.07 * f_soft * 3e-4 / beta_1,
-                                                         rel=1e-9)
+    # on a loaded curve the rear slip alpha_r(a) is not linear: the states move along the
+    # lane with its slope, the tangent compliance, not the secant (dev-probe32: the secant
+    # left F_rho 10 % short at 37 m/s on R 400 m); by a numeric derivative of drift_term
+    # on the lane's states with alpha_r(a) = eta a (1 + k a)
+    k, rho0, v = 0.05, 0.0025, 30.0
+    d_v = look_ahead(v, 0.0, VEHICLE, CONTROLLER)[0]
+
+    def state_terms(rho):
+        a = v * v * rho
+        alpha = VEHICLE.eta * a * (1.0 + k * a)
+        lane = LateralState(0.0, 0.0, VEHICLE.l2 * v * rho - v * alpha, v * rho, v, 0.0,
+                            0.0, 0.0)
+        return drift_term(lane, VEHICLE, d_v, 0.0, v)[0]
+
+    h = 1e-6
+    f_rho = (state_terms(rho0 + h) - state_terms(rho0 - h)) / (2.0 * h)
+    a0 = v * v * rho0
+    secant, tangent = VEHICLE.eta * (1.0 + k * a0), VEHICLE.eta * (1.0 + 2.0 * k * a0)
+    loaded = {'rate_feedforward': True, 'compliance': secant,
+              'tangent_compliance': tangent}
+    soft = cg_compensated_law(*args, **loaded)
+    led = cg_compensated_law(*args, **loaded, state_preview=1.0, lead_time=0.07)
+    assert led.steering - soft.steering == pytest.approx(-0.07 * f_rho * 3e-4 / beta_1,
+                                                         rel=1e-6)
     # arrays (a batch) as floats
     batch = cg_compensated_law(state._replace(v_x=np.array([30.0, 30.0])), VEHICLE,
                                CONTROLLER, 0.0021, 2e-4, 0.0023, np.array([3e-4, 3e-4]),
@@ -184,7 +202,7 @@ def test_on_the_design_plant_with_a_70_ms_delay_the_whole_preview_is_the_best(sc
 def test_on_the_noise_free_goal_plant_the_default_takes_a_third_off_the_clothoids():
     # nonlinear plant, 50 ms actuator, 20 ms delay, 37 m/s (docs/lane_keeping.md,
     # "Preview of the drift term's state terms"): without it 2.67 / 5.89 / 5.70 cm on
-    # S2-S4, with the default 1.64 / 3.45 / 4.48 cm
+    # S2-S4, with the default 1.59 / 3.35 / 4.52 cm
     peaks = {(g, s): _peak(LaneKeepingParams(state_preview=g), s, 37.0)
              for g in (0.0, 1.0) for s in ('s2_curve_entry', 's3_s_bend', 's4_lane_change')}
     assert LaneKeepingParams().state_preview == 1.0
@@ -200,19 +218,4 @@ def test_a_bad_setting_is_refused_naming_it(value):
 
 
 def test_the_node_takes_it_at_run_time_and_refuses_it_out_of_range(context):
-    from lookahead_control.ros.controller_node import ControllerNode
-    from rclpy.parameter import Parameter
-    node = ControllerNode(context=context)
-    try:
-        descriptor = node.describe_parameters(['lane_keeping.state_preview'])[0]
-        assert descriptor.floating_point_range[0].to_value == 3.0
-        assert 'previewed' in descriptor.description
-        ok = node.set_parameters([Parameter('lane_keeping.state_preview', value=0.8)])[0]
-        assert ok.successful, ok.reason
-        assert node.core.lane_keeping.state_preview == 0.8
-        refused = node.set_parameters([Parameter('lane_keeping.state_preview',
-                                                 value=3.5)])[0]
-        assert not refused.successful
-        assert node.core.lane_keeping.state_preview == 0.8
-    finally:
-        node.destroy_node()
+    check_run_time_parameter(context, 'state_preview', 3.0, 'previewed', 0.8, 3.5)

@@ -438,9 +438,10 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     :param lead_rate: the curvature rate the rate feedforward uses [1/(m s)] (None:
         ``rho_ref_rate``).
     :param state_preview: share ``g`` of the state terms' preview: ``f_v`` (returned
-        with it) plus ``g T F_rho rho_ff'``, ``F_rho = beta_1 (e - l_1) + beta_2 (e +
-        l_2)``, ``e = c v_x^2 - l_2`` (the drift term's state terms on the lane, per unit
-        curvature: ``r = v_x rho``, ``v_y = -v_x e rho``) [-].
+        with it) plus ``g T F_rho rho_ff'``, ``F_rho = beta_1 (e' - l_1) + beta_2 (e' +
+        l_2)``, ``e' = c_t v_x^2 - l_2`` with the tangent compliance ``c_t``: the slope
+        in the curvature of the drift term's state terms on the lane (``r = v_x rho``,
+        ``v_y = l_2 r - v_x alpha_r(v_x^2 rho)``) [-].
     :param lead_time: ``T``, how far ahead the state terms are previewed [s].
     :param lead_ff_rate: the curvature rate the preview uses [1/(m s)] (None:
         ``rho_ff_rate``).
@@ -473,11 +474,15 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     if state_preview > 0.0 and lead_time > 0.0:
         # the drift term's road terms are rho_ff, T ahead; its state terms are the states
         # of now, which on the lane move with the curvature: F(x(t + T)) = F(x) + T F_rho
-        # rho' (docs/lane_keeping.md, "Preview of the drift term's state terms"; the
-        # speed's part, T F_rho' a_x rho, about 50 urad at 2 m/s^2 on R 400 m, is left out)
+        # rho', F_rho = dF/drho along the lane, so with the tangent compliance (d alpha_r
+        # / d a; the secant left it 10 % short at 37 m/s on R 400 m, dev-probe32). Left
+        # out (docs/lane_keeping.md, "Preview of the drift term's state terms"): the
+        # speed's part T (dF_rho/dv) a_x rho and the a_x-dependent terms a_x eps_r,
+        # 2 d_v' r (about 0.1-0.2 mrad at 2 m/s^2 on R 400 m)
         m, iz = vehicle.mass, vehicle.yaw_inertia
         beta_2 = vehicle.c_r * (1.0 / m - vehicle.l2 * d_v / iz)
-        f_rho = beta_1 * (gain - vehicle.l1) + beta_2 * (gain + vehicle.l2)
+        slope = tangent * v_x * v_x - vehicle.l2
+        f_rho = beta_1 * (slope - vehicle.l1) + beta_2 * (slope + vehicle.l2)
         ff_rate = rho_ff_rate if lead_ff_rate is None else lead_ff_rate
         f_v = f_v + state_preview * lead_time * f_rho * ff_rate
     error = y_v - y_ref
