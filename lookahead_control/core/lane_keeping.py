@@ -124,9 +124,10 @@ class LaneKeepingParams:
         0: its own damping [-].
     :param state_preview: share of the drift term's state terms previewed
         ``feedforward_preview`` along the lane: held on the lane the states move with the
-        curvature, so the law adds ``T_ff F_rho rho_ff'`` to ``f_v`` (``F_rho`` the state
-        terms per curvature on the lane, ``rho_ff'`` clipped to ``max_lateral_jerk``), a
-        lead on the curvature rate for the actuator lag and delay; 1: the whole preview,
+        curvature, so the law adds ``T_ff F_rho rho_ff'`` to ``f_v`` (``F_rho`` the slope
+        of the state terms in the curvature along the lane, with the tangent compliance;
+        ``rho_ff'`` clipped to ``max_lateral_jerk``), a lead on the curvature rate for the
+        actuator lag and delay; 0 with ``feedforward_preview`` 0; 1: the whole preview,
         0: none [-].
     :param design_friction: friction of the design tyre for the load-dependent rear
         compliance ``c(a) = c_hat s(|a| / (mu g))`` (brush shape, evaluated at the
