@@ -219,3 +219,14 @@ def test_a_bad_setting_is_refused_naming_it(value):
 
 def test_the_node_takes_it_at_run_time_and_refuses_it_out_of_range(context):
     check_run_time_parameter(context, 'state_preview', 3.0, 'previewed', 0.8, 3.5)
+
+
+def test_the_bench_prints_the_law_s_runs(capsys):
+    # python -m bench.state_preview: its noise-free row is the offline runner's run
+    from bench.state_preview import main
+    assert main(['--share', '0.5', '--speeds', '37', '--no-corners']) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines()
+               if line.startswith('| 0.5 | 37 m/s |'))
+    peaks = [float(v) for v in row.split('|')[3].split('/')]
+    direct = _peak(LaneKeepingParams(state_preview=0.5), 's2_curve_entry', 37.0)
+    assert peaks[1] == pytest.approx(100.0 * direct, abs=0.005)
