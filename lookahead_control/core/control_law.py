@@ -137,6 +137,20 @@ def arc_offset(rho: Real, d_v: Real, eps_r: Real, exact: bool) -> Real:
     return rho * x * x / (1.0 + xp.sqrt(xp.maximum(1.0 - rho * rho * x * x, 0.0 * x)))
 
 
+def axle_gains(vehicle: VehicleParams, d_v: Real) -> tuple[Real, Real]:
+    """
+    Return ``(beta_1, beta_2)``: each axle's cornering stiffness as ``y_v''`` per slip.
+
+    :param vehicle: vehicle parameters.
+    :param d_v: look-ahead distance [m].
+    :return: ``beta_1 = C_f (1/m + l_1 d_v / I_z)``, ``beta_2 = C_r (1/m - l_2 d_v / I_z)``
+        [m/(s^2 rad)].
+    """
+    m, iz = vehicle.mass, vehicle.yaw_inertia
+    return (vehicle.c_f * (1.0 / m + vehicle.l1 * d_v / iz),
+            vehicle.c_r * (1.0 / m - vehicle.l2 * d_v / iz))
+
+
 def drift_term(state: LateralState, vehicle: VehicleParams, d_v: Real, d_v_rate: Real,
                v_x: Real) -> tuple[Real, Real]:
     """
@@ -149,9 +163,7 @@ def drift_term(state: LateralState, vehicle: VehicleParams, d_v: Real, d_v_rate:
     :param v_x: the (floored) speed to divide by [m/s].
     :return: ``(f_v [m/s^2], beta_1 [m/(s^2 rad)])``.
     """
-    m, iz = vehicle.mass, vehicle.yaw_inertia
-    beta_1 = vehicle.c_f * (1.0 / m + vehicle.l1 * d_v / iz)
-    beta_2 = vehicle.c_r * (1.0 / m - vehicle.l2 * d_v / iz)
+    beta_1, beta_2 = axle_gains(vehicle, d_v)
     v_y, r, eps_r, rho = state.v_y, state.r, state.eps_r, state.rho
     a_x = state.a_x
     f_v = (-(beta_1 * (v_y + vehicle.l1 * r) + beta_2 * (v_y - vehicle.l2 * r)) / v_x

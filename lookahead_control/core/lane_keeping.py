@@ -59,7 +59,8 @@ from typing import Any, Optional
 
 from lookahead_control.core import cg_reference
 from lookahead_control.core import numeric as xp
-from lookahead_control.core.control_law import drift_term, LateralState, LawOutput
+from lookahead_control.core.control_law import (axle_gains, drift_term, LateralState,
+                                                LawOutput)
 from lookahead_control.core.estimator import ComplianceEstimator
 from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import (check_range, ControllerParams, ParameterError,
@@ -480,8 +481,7 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         # out (docs/lane_keeping.md, "Preview of the drift term's state terms"): the
         # speed's part T (dF_rho/dv) a_x rho and the a_x-dependent terms a_x eps_r,
         # 2 d_v' r (about 0.1-0.2 mrad at 2 m/s^2 on R 400 m)
-        m, iz = vehicle.mass, vehicle.yaw_inertia
-        beta_2 = vehicle.c_r * (1.0 / m - vehicle.l2 * d_v / iz)
+        beta_2 = axle_gains(vehicle, d_v)[1]
         slope = tangent * v_x * v_x - vehicle.l2
         f_rho = beta_1 * (slope - vehicle.l1) + beta_2 * (slope + vehicle.l2)
         ff_rate = rho_ff_rate if lead_ff_rate is None else lead_ff_rate
@@ -908,7 +908,7 @@ class CgCompensatedLaw:
     def evaluate(self, state: LateralState, dt: float, rho_ref: Real, rho_ref_rate: Real,
                  rho_ff: Real, rho_ff_rate: Real, offset: Real, offset_rate: Real,
                  secant: Real, tangent: Real, lead_rate: Optional[Real],
-                 lead_ff_rate: Optional[Real] = None) -> LawOutput:
+                 lead_ff_rate: Optional[Real]) -> LawOutput:
         """
         Return the law's output at this step from the values :meth:`step` worked out.
 
