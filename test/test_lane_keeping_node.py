@@ -18,7 +18,7 @@
 import math
 
 from conftest import feed
-from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams, loop_gains
 import pytest
 from rclpy.parameter import Parameter
 
@@ -46,8 +46,14 @@ def test_node_selects_the_lane_keeping_law_by_parameter(context):
         for k in range(11):
             _feed(node, (1000 + 10 * k) * MS)
         assert law.integral == pytest.approx(0.5 * 0.1 * 0.1)
+        # a low-speed w_n above natural_frequency is capped (w_n constant), as
+        # low_speed_integral_gain is at integral_gain; outside its range it is refused
+        taken = node.set_parameters([Parameter('lane_keeping.low_speed_frequency',
+                                               value=50.0)])[0]
+        assert taken.successful
+        assert loop_gains(node.core.law.settings, 5.0) == pytest.approx((49.0, 14.0))
         refused = node.set_parameters([Parameter('lane_keeping.low_speed_frequency',
-                                                 value=50.0)])[0]
+                                                 value=500.0)])[0]
         assert not refused.successful and 'low_speed_frequency' in refused.reason
         refused = node.set_parameters([Parameter('lane_keeping.max_gap', value=0.0)])[0]
         assert not refused.successful
@@ -98,6 +104,16 @@ def test_the_applied_parameters_log_names_the_running_law_s_gains():
     assert applied_summary('cg_compensated', controller, above).endswith(
         '; k_i 0.3 1/s at every speed: low_speed_integral_gain is capped at integral_gain')
     assert 'capped' not in applied_summary('paper', controller, above)
+    # dev-wnflat: natural_frequency lowered alone (the defaults' low_speed_frequency is
+    # equal to it) runs w_n 5 at every speed and says so; before, the file was refused
+    lower = LaneKeepingParams(natural_frequency=5.0)
+    assert loop_gains(lower, 10.0) == loop_gains(lower, 37.0) == pytest.approx((25.0, 10.0))
+    assert applied_summary('cg_compensated', controller, lower).endswith(
+        '; w_n 5 rad/s at every speed: low_speed_frequency is capped at natural_frequency')
+    both = LaneKeepingParams(natural_frequency=5.0, low_speed_integral_gain=0.5)
+    assert applied_summary('cg_compensated', controller, both).endswith(
+        'low_speed_frequency is capped at natural_frequency; k_i 0.3 1/s at every speed: '
+        'low_speed_integral_gain is capped at integral_gain')
 
 
 def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(context):

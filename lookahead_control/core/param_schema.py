@@ -92,7 +92,8 @@ LANE_KEEPING_SPECS = tuple(
          0.01, 100.0),
         ('damping_ratio', 'zeta of the y_v loop [-]', 0.01, 10.0),
         ('frequency_speed', 'below this speed w_n falls with the speed [m/s]', 0.01, 100.0),
-        ('low_speed_frequency', 'lowest w_n of the y_v loop [rad/s]', 0.01, 100.0),
+        ('low_speed_frequency', 'lowest w_n of the y_v loop, capped at natural_frequency '
+         '(equal or above: w_n constant) [rad/s]', 0.01, 100.0),
         ('reference_preview', 'the reference uses the curvature this long ahead [s]',
          0.0, 3.0),
         ('feedforward_preview', 'the drift term uses the curvature this long ahead: '

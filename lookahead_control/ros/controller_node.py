@@ -31,8 +31,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.controller import (ACCELERATION_SOURCES, Command, LAW_NAMES,
                                                SteeringController)
-from lookahead_control.core.lane_keeping import (CgCompensatedLaw, integral_schedule_note,
-                                                 LaneKeepingParams)
+from lookahead_control.core.lane_keeping import (CgCompensatedLaw, frequency_schedule_note,
+                                                 integral_schedule_note, LaneKeepingParams)
 from lookahead_control.core.params import ControllerParams, ParameterError, SCHEDULE_MODES
 from lookahead_control.core.safety import check_points
 from lookahead_control.core.samples import curvature_from_points
@@ -129,8 +129,9 @@ def applied_summary(law: str, controller: ControllerParams,
     """
     Return the log line of applied parameters, with the gains of the law that runs.
 
-    With ``cg_compensated`` and a ``lane_keeping.low_speed_integral_gain`` above
-    ``integral_gain`` (capped: ``k_i`` constant) also the ``k_i`` that runs.
+    With ``cg_compensated`` and a ``lane_keeping.low_speed_frequency`` above
+    ``natural_frequency`` or a ``low_speed_integral_gain`` above ``integral_gain``
+    (capped: w_n or ``k_i`` constant) also the w_n or ``k_i`` that runs.
 
     :param law: the running law.
     :param controller: the paper law's parameters (schedule, gains).
@@ -139,7 +140,9 @@ def applied_summary(law: str, controller: ControllerParams,
     """
     gains: ControllerParams | LaneKeepingParams = (
         lane_keeping if law == 'cg_compensated' else controller)
-    note = integral_schedule_note(lane_keeping) if law == 'cg_compensated' else ''
+    note = ('; '.join(n for n in (frequency_schedule_note(lane_keeping),
+                                  integral_schedule_note(lane_keeping)) if n)
+            if law == 'cg_compensated' else '')
     return (f'parameters applied: law={law}, schedule={controller.schedule}, '
             f'w_n={gains.natural_frequency:g}, zeta={gains.damping_ratio:g}'
             + (f'; {note}' if note else ''))

@@ -165,22 +165,28 @@ def settings_changes(settings: LawSettings) -> list[str]:
 
 def with_schedule_note(lines: list[str], lane_keeping: LaneKeepingParams) -> list[str]:
     """
-    Return the settings lines with what runs of a capped low-speed integral gain.
+    Return the settings lines with what runs of a capped low-speed w_n or integral gain.
 
     :param lines: ``namespace.name = value`` lines.
     :param lane_keeping: the CG-compensated law's settings.
-    :return: the lines, the low-speed gain's (else the integral gain's) with the note of
+    :return: the lines, the low-speed value's (else the capping value's) with the note of
+        :func:`~lookahead_control.core.lane_keeping.frequency_schedule_note` or
         :func:`~lookahead_control.core.lane_keeping.integral_schedule_note`.
     """
-    from lookahead_control.core.lane_keeping import integral_schedule_note
-    note = integral_schedule_note(lane_keeping)
-    if not note:
-        return lines
-    for name in ('low_speed_integral_gain', 'integral_gain'):
-        prefix = f'lane_keeping.{name} = '
-        if any(line.startswith(prefix) for line in lines):
-            return [f'{line} ({note})' if line.startswith(prefix) else line
-                    for line in lines]
+    from lookahead_control.core.lane_keeping import (frequency_schedule_note,
+                                                     integral_schedule_note)
+    for note, names in ((frequency_schedule_note(lane_keeping),
+                         ('low_speed_frequency', 'natural_frequency')),
+                        (integral_schedule_note(lane_keeping),
+                         ('low_speed_integral_gain', 'integral_gain'))):
+        if not note:
+            continue
+        for name in names:
+            prefix = f'lane_keeping.{name} = '
+            if any(line.startswith(prefix) for line in lines):
+                lines = [f'{line} ({note})' if line.startswith(prefix) else line
+                         for line in lines]
+                break
     return lines
 
 
