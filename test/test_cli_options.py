@@ -450,9 +450,7 @@ def _lane_keeping():
         assert from_file == rows('--natural-frequency', '5', '--integral-gain', '0.6')[0]
         assert from_file != rows()[0]
         assert said == (f'settings: {tuned}; differing from the defaults: '
-                        'lane_keeping.natural_frequency = 5.0 (w_n 5 rad/s at every speed: '
-                        'low_speed_frequency is capped at natural_frequency), '
-                        'lane_keeping.integral_gain = 0.6')
+                        'lane_keeping.natural_frequency = 5.0, lane_keeping.integral_gain = 0.6')
         assert rows('--controller', tuned, '--integral-gain', '0.3')[0] == rows(
             '--natural-frequency', '5')[0]
         tuned.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
@@ -468,9 +466,8 @@ def _lane_keeping():
             bad = run(exe, *base, '--controller', tuned, cwd=folder)
             assert bad.returncode == 2 and blamed in bad.stderr, bad.stderr
             assert bad.stderr.count('\n') == 1 and not bad.stdout, bad.stderr
-        # a w_n below the default low-speed one (equal to natural_frequency: w_n
-        # constant) runs at every speed and is told so (before dev-wnflat a w_n below the
-        # low-speed 3 rad/s was refused)
+        # a w_n below the default low-speed 3 rad/s runs at every speed and is told so
+        # (before dev-wnflat it was refused)
         low = run(exe, *base, '--natural-frequency', '2', cwd=folder)
         assert low.returncode in (0, 1) and not low.stderr, low.stderr
         assert low.stdout.splitlines()[0] == (

@@ -282,9 +282,8 @@ def test_the_controller_file_sets_what_each_law_runs(tmp_path, capsys):
     settings = compare.load_law_settings(tuned)
     assert settings.lane_keeping.natural_frequency == 4.0
     assert settings.baselines.stanley.gain == 2.5
-    assert compare.settings_changes(settings) == [
-        'lane_keeping.natural_frequency = 4.0 (w_n 4 rad/s at every speed: '
-        'low_speed_frequency is capped at natural_frequency)', 'stanley.gain = 2.5']
+    assert compare.settings_changes(settings) == ['lane_keeping.natural_frequency = 4.0',
+                                                  'stanley.gain = 2.5']
     assert compare.settings_changes(compare.load_law_settings(
         compare.ROOT / 'config' / 'controller.yaml')) == []
     args = ['--laws', 'cg_compensated', 'stanley', 'paper_eq26', '--scenarios',
@@ -315,9 +314,7 @@ def test_the_controller_file_sets_what_each_law_runs(tmp_path, capsys):
     assert mine['paper_eq26'] == default['paper_eq26']       # nothing of its changed
     head = (tmp_path / 't' / 'league.md').read_text()
     assert (f"The laws' settings are those of `{tuned}` (`--controller`)" in head
-            and '`lane_keeping.natural_frequency = 4.0 (w_n 4 rad/s at every speed: '
-            'low_speed_frequency is capped at natural_frequency)`; `stanley.gain = 2.5`'
-            in head)
+            and '`lane_keeping.natural_frequency = 4.0`; `stanley.gain = 2.5`' in head)
     assert '--controller' not in (tmp_path / 'd' / 'league.md').read_text()
     # a value no law accepts is one line naming it, before any run or output
     tuned.write_text(text.replace('      natural_frequency: 7.0 ',
@@ -731,18 +728,20 @@ def test_a_low_speed_integral_gain_above_integral_gain_is_told_as_what_runs():
     assert sweep.settings_note(spec, None, above) == (
         f' cg_compensated: lane_keeping.low_speed_integral_gain = 0.5 ({note}) (the rest '
         'default).')
-    # the same for w_n (dev-wnflat): natural_frequency lowered alone caps the default
-    # low_speed_frequency, equal to it, and the line says what runs
+    # the same for w_n (dev-wnflat): a low_speed_frequency above natural_frequency is
+    # capped (before: refused), and the line says what runs; a natural_frequency below
+    # the default low-speed 3 rad/s caps that
     w_n = 'w_n 5 rad/s at every speed: low_speed_frequency is capped at natural_frequency'
-    lower = LaneKeepingParams(natural_frequency=5.0)
-    assert compare.settings_changes(compare.LawSettings(ControllerParams(), lower)) == [
-        f'lane_keeping.natural_frequency = 5.0 ({w_n})']
     both = LaneKeepingParams(natural_frequency=5.0, low_speed_frequency=6.0,
                              low_speed_integral_gain=0.5)
     assert compare.settings_changes(compare.LawSettings(ControllerParams(), both)) == [
         'lane_keeping.natural_frequency = 5.0', 'lane_keeping.low_speed_frequency = 6.0 '
         f'({w_n})', f'lane_keeping.low_speed_integral_gain = 0.5 ({note})']
-    runs = LaneKeepingParams(natural_frequency=5.0, low_speed_frequency=3.0)
+    lower = LaneKeepingParams(natural_frequency=2.0)
+    assert compare.settings_changes(compare.LawSettings(ControllerParams(), lower)) == [
+        'lane_keeping.natural_frequency = 2.0 (w_n 2 rad/s at every speed: '
+        'low_speed_frequency is capped at natural_frequency)']
+    runs = LaneKeepingParams(natural_frequency=5.0)
     assert 'capped' not in ' '.join(compare.settings_changes(
         compare.LawSettings(ControllerParams(), runs)))
 

@@ -104,13 +104,13 @@ def test_the_applied_parameters_log_names_the_running_law_s_gains():
     assert applied_summary('cg_compensated', controller, above).endswith(
         '; k_i 0.3 1/s at every speed: low_speed_integral_gain is capped at integral_gain')
     assert 'capped' not in applied_summary('paper', controller, above)
-    # dev-wnflat: natural_frequency lowered alone (the defaults' low_speed_frequency is
-    # equal to it) runs w_n 5 at every speed and says so; before, the file was refused
-    lower = LaneKeepingParams(natural_frequency=5.0)
-    assert loop_gains(lower, 10.0) == loop_gains(lower, 37.0) == pytest.approx((25.0, 10.0))
+    # dev-wnflat: a natural_frequency below the low-speed 3 rad/s caps it: w_n 2 at every
+    # speed, and the line says so; before, the file was refused
+    lower = LaneKeepingParams(natural_frequency=2.0)
+    assert loop_gains(lower, 10.0) == loop_gains(lower, 37.0) == pytest.approx((4.0, 4.0))
     assert applied_summary('cg_compensated', controller, lower).endswith(
-        '; w_n 5 rad/s at every speed: low_speed_frequency is capped at natural_frequency')
-    both = LaneKeepingParams(natural_frequency=5.0, low_speed_integral_gain=0.5)
+        '; w_n 2 rad/s at every speed: low_speed_frequency is capped at natural_frequency')
+    both = LaneKeepingParams(natural_frequency=2.0, low_speed_integral_gain=0.5)
     assert applied_summary('cg_compensated', controller, both).endswith(
         'low_speed_frequency is capped at natural_frequency; k_i 0.3 1/s at every speed: '
         'low_speed_integral_gain is capped at integral_gain')
@@ -159,3 +159,31 @@ def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(contex
         assert dict(zip(sent[-1].name, sent[-1].position))['curvature_received'] == 0.0
     finally:
         node.destroy_node()
+
+
+def test_a_capped_low_speed_w_n_is_told_at_startup(context):
+    # dev-probe33: a params file lowering natural_frequency below the low-speed w_n (or
+    # raising low_speed_frequency above it) ran capped with nothing in the startup log;
+    # only a run-time set logged the note. The configure line now carries it
+    from lookahead_control.ros.controller_node import ControllerNode
+    for overrides, note in (
+            ([Parameter('lane_keeping.natural_frequency', value=2.0)],
+             'w_n 2 rad/s at every speed: low_speed_frequency is capped at natural_frequency'),
+            ([Parameter('lane_keeping.low_speed_frequency', value=9.0)],
+             'w_n 7 rad/s at every speed: low_speed_frequency is capped at natural_frequency'),
+            ([], None)):
+        node = ControllerNode(context=context, parameter_overrides=[
+            Parameter('use_sim_time', value=True), *overrides])
+        logged = []
+        try:
+            logger = node.get_logger()
+            info = logger.info
+            logger.info = lambda text, **kw: (logged.append(text), info(text, **kw))[1]
+            node.trigger_configure()
+            line = next(text for text in logged if text.startswith('configured: '))
+            if note is None:
+                assert 'capped' not in line, line
+            else:
+                assert line.endswith(f'; {note}'), line
+        finally:
+            node.destroy_node()

@@ -289,8 +289,7 @@ def test_the_controller_file_tunes_the_lane_keeping_law(tmp_path, capsys):
         assert default['peak_cg_error_m'][i] == pytest.approx(peaks[1], rel=1e-9)
         assert abs(peaks[0] - peaks[1]) > 0.05 * peaks[1]
     summary = (tmp_path / 't' / 'summary.md').read_text()
-    assert ('cg_compensated: lane_keeping.natural_frequency = 4.0 (w_n 4 rad/s at every '
-            'speed: low_speed_frequency is capped at natural_frequency), '
+    assert ('cg_compensated: lane_keeping.natural_frequency = 4.0, '
             'lane_keeping.integral_gain = 2.0 (the rest default).') in summary
     assert 'cg_compensated: the default settings.' in (tmp_path / 'd' / 'summary.md').read_text()
     # a bad value in the file is one line naming it, before any run

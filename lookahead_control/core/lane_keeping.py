@@ -79,13 +79,15 @@ class LaneKeepingParams:
     :param natural_frequency: w_n of the y_v loop at and above ``frequency_speed``
         [rad/s] (``k_p = w_n^2``).
     :param damping_ratio: zeta of the y_v loop (``k_d = 2 zeta w_n``).
-    :param frequency_speed: below this speed w_n falls in proportion to the speed [m/s].
+    :param frequency_speed: below this speed w_n falls in proportion to the speed [m/s]:
+        20 (30 until dev-wnflat) takes the S-bend and the lane change at 20 m/s from 6.9 /
+        8.5 to 3.3 / 4.9 cm; w_n 7 further down lost the lane from a metre or two off
+        at 4-15 m/s once the wheel's rate limit saturates.
     :param low_speed_frequency: ... but not below this [rad/s]; capped at
-        ``natural_frequency`` (equal or above, the default: w_n constant). At low speed
-        ``beta_1`` is small, so a lower w_n puts less of the sensor noise on the
-        steering, but the state filter already keeps it low (2.8 mrad rms at 10 m/s with
-        w_n 7), and 3 rad/s left the CG 14-20 cm off an S-bend or a lane change at
-        10 m/s.
+        ``natural_frequency`` (equal or above: w_n constant). At low speed ``beta_1`` is
+        small: a high w_n asks for large steering angles, which the wheel's rate limit
+        cannot follow from a metre or two off the lane (w_n 7 then loses the lane at
+        4-15 m/s; docs/lane_keeping.md, "The loop's w_n at low speed").
     :param reference_preview: ``T_ref``: the reference uses the curvature
         ``v_x T_ref`` ahead [s].
     :param feedforward_preview: ``T_ff``: the drift term uses the curvature ``v_x T_ff``
@@ -160,8 +162,8 @@ class LaneKeepingParams:
 
     natural_frequency: float = 7.0
     damping_ratio: float = 1.0
-    frequency_speed: float = 30.0
-    low_speed_frequency: float = 7.0
+    frequency_speed: float = 20.0
+    low_speed_frequency: float = 3.0
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
     integral_gain: float = 0.3

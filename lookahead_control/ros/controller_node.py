@@ -140,12 +140,24 @@ def applied_summary(law: str, controller: ControllerParams,
     """
     gains: ControllerParams | LaneKeepingParams = (
         lane_keeping if law == 'cg_compensated' else controller)
-    note = ('; '.join(n for n in (frequency_schedule_note(lane_keeping),
-                                  integral_schedule_note(lane_keeping)) if n)
-            if law == 'cg_compensated' else '')
+    note = capped_notes(law, lane_keeping)
     return (f'parameters applied: law={law}, schedule={controller.schedule}, '
             f'w_n={gains.natural_frequency:g}, zeta={gains.damping_ratio:g}'
             + (f'; {note}' if note else ''))
+
+
+def capped_notes(law: str, lane_keeping: LaneKeepingParams) -> str:
+    """
+    Return what runs of a capped low-speed w_n or integral gain ('' if none is capped).
+
+    :param law: the running law (only ``cg_compensated`` has the two schedules).
+    :param lane_keeping: its settings.
+    :return: the notes, joined by ``'; '``.
+    """
+    if law != 'cg_compensated':
+        return ''
+    return '; '.join(n for n in (frequency_schedule_note(lane_keeping),
+                                 integral_schedule_note(lane_keeping)) if n)
 
 
 class ControllerNode(LifecycleNode):
@@ -292,9 +304,13 @@ class ControllerNode(LifecycleNode):
                           on_clock_change=False),
             post_callback=lambda jump: self._maybe_release())
         self.configured = True
+        # a capped low-speed w_n or k_i is told at startup too (dev-probe33: only a
+        # run-time change said so, and a file lowering natural_frequency alone ran silently)
+        notes = capped_notes(self.param('law'), lane_keeping_params(values(self, ALL_SPECS)))
         self.get_logger().info(
             f'configured: mode={self.param("mode")}, law={self.core.law_name}, schedule='
-            f'{self.core.params.schedule}, inputs {self.param("qos_reliability")}')
+            f'{self.core.params.schedule}, inputs {self.param("qos_reliability")}'
+            + (f'; {notes}' if notes else ''))
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
