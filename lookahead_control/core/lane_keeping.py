@@ -342,10 +342,10 @@ def frequency_schedule_note(settings: LaneKeepingParams) -> str:
     """
     Return what runs instead of a ``low_speed_frequency`` above ``natural_frequency``.
 
-    :func:`loop_gains` caps the low-speed w_n at ``natural_frequency`` (the defaults are
-    equal: w_n constant), so a file that lowers ``natural_frequency`` alone lowers w_n at
-    every speed; a settings line ``low_speed_frequency = 7.0`` with ``natural_frequency``
-    5 would tell of a w_n that never runs.
+    :func:`loop_gains` caps the low-speed w_n at ``natural_frequency``, so a file that
+    lowers ``natural_frequency`` below ``low_speed_frequency`` (3 rad/s by default) runs
+    that w_n at every speed; a settings line ``low_speed_frequency = 7.0`` with
+    ``natural_frequency`` 5 would tell of a w_n that never runs.
 
     :param settings: the law's settings.
     :return: e.g. ``w_n 5 rad/s at every speed: low_speed_frequency is capped at

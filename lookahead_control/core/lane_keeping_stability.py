@@ -56,9 +56,9 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   second term part of the true acceleration's ``dP/dv``; ``S = I`` with a constant
   ``k_i``, so ``V = x^T S^T P S x`` is the same argument with a speed-dependent ``Q``.
 - ``A`` is continuous in ``v`` but has kinks where the d_v schedule leaves its floor
-  ``d_s`` (10.78 m/s), where ``w_n`` leaves its clamps (``frequency_speed``
-  ``low_speed_frequency / natural_frequency`` and ``frequency_speed``: 8.57, below the
-  default envelope, and 20 m/s) and where
+  ``d_s`` (10.78 m/s), where ``w_n`` leaves its clamps (at ``frequency_speed
+  min(low_speed_frequency / natural_frequency, 1)`` and at ``frequency_speed``: 8.57 m/s,
+  below the default envelope, and 20 m/s) and where
   ``k_i`` leaves its own (``low_integral_speed``, ``integral_speed``); there
   ``P`` is Lipschitz and ``V`` absolutely continuous, so ``V' < 0`` almost everywhere
   suffices: the kinks are grid points and both one-sided derivatives are checked.
