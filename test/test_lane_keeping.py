@@ -43,13 +43,14 @@ from sim_plant.vehicle_model import PlantParams
 VEHICLE = VehicleParams()
 CONTROLLER = ControllerParams()
 EMPTY = Preview(np.zeros(0), np.zeros(0))
-#: the w_n schedule of the law before dev-wnflat (3 rad/s at and below 90 / 7 m/s, 7 at
-#: and above 30, linear in the speed between; the default reaches 7 at 20 m/s): the
-#: certificate's three Qs were searched for it, and its tests keep their figures
+#: the default w_n schedule (3 rad/s at and below 90 / 7 m/s, 7 at and above 30, linear
+#: in the speed between), named where a test is about it
 W_N_SCHEDULE = LaneKeepingParams(frequency_speed=30.0)
-#: the k_i speed schedule (0.05 1/s at and below 15 m/s; the default is k_i constant),
-#: with that w_n schedule
-SCHEDULED = LaneKeepingParams(low_speed_integral_gain=0.05, frequency_speed=30.0)
+#: w_n 7 reached at 20 m/s (an option of dev-wnflat, not the default: it loses the lane
+#: from 2.5-3 m off at 15-25 m/s on the CommonRoad car)
+WN20 = LaneKeepingParams(frequency_speed=20.0)
+#: the k_i speed schedule (0.05 1/s at and below 15 m/s; the default is k_i constant)
+SCHEDULED = LaneKeepingParams(low_speed_integral_gain=0.05)
 
 
 def state(y_cg=0.0, eps_r=0.0, v_y=0.0, r=0.0, v_x=37.0, a_x=0.0, rho=0.0, rho_rate=0.0):
@@ -57,12 +58,11 @@ def state(y_cg=0.0, eps_r=0.0, v_y=0.0, r=0.0, v_x=37.0, a_x=0.0, rho=0.0, rho_r
 
 
 def test_loop_gains_scheduled_on_speed():
-    # the default: w_n 7 at and above 20 m/s, 7 v / 20 below, not below 3 (k_d = 2 w_n)
-    default = LaneKeepingParams()
-    assert loop_gains(default, 20.0) == loop_gains(default, 37.0) == pytest.approx(
-        (49.0, 14.0))
-    assert loop_gains(default, 10.0) == pytest.approx((3.5 ** 2, 7.0))
-    assert loop_gains(default, 5.0) == pytest.approx((9.0, 6.0))
+    # frequency_speed 20: w_n 7 at and above 20 m/s, 7 v / 20 below, not below 3
+    assert loop_gains(WN20, 20.0) == loop_gains(WN20, 37.0) == pytest.approx((49.0, 14.0))
+    assert loop_gains(WN20, 10.0) == pytest.approx((3.5 ** 2, 7.0))
+    assert loop_gains(WN20, 5.0) == pytest.approx((9.0, 6.0))
+    assert LaneKeepingParams() == W_N_SCHEDULE
     # a low-speed w_n above natural_frequency is capped: w_n constant
     assert loop_gains(LaneKeepingParams(low_speed_frequency=9.0), 5.0) == pytest.approx(
         (49.0, 14.0))
@@ -510,13 +510,13 @@ def test_schedule_kinks_by_hand():
     flat = W_N_SCHEDULE
     assert stability.schedule_kinks(VEHICLE, CONTROLLER, flat, 10.0, 37.0) == pytest.approx(
         [floor, 90.0 / 7.0, 30.0], abs=1e-9)
-    # the default w_n leaves 3 at 20 * 3 / 7 = 8.6 m/s, below the envelope, and 7 at 20;
-    # a constant w_n (the low-speed one capped) has its two clamps at one speed
-    assert stability.schedule_kinks(VEHICLE, CONTROLLER, LaneKeepingParams(), 10.0,
+    # frequency_speed 20: w_n leaves 3 at 20 * 3 / 7 = 8.6 m/s, below the envelope, and 7
+    # at 20; a constant w_n (the low-speed one capped) has its two clamps at one speed
+    assert stability.schedule_kinks(VEHICLE, CONTROLLER, WN20, 10.0,
                                     37.0) == pytest.approx([floor, 20.0], abs=1e-9)
     capped = LaneKeepingParams(low_speed_frequency=9.0)
     assert stability.schedule_kinks(VEHICLE, CONTROLLER, capped, 10.0,
-                                    37.0) == pytest.approx([floor, 20.0], abs=1e-9)
+                                    37.0) == pytest.approx([floor, 30.0], abs=1e-9)
     ramp = replace(SCHEDULED, low_integral_speed=20.0, integral_speed=25.0)
     assert stability.schedule_kinks(VEHICLE, CONTROLLER, ramp, 10.0, 37.0) == pytest.approx(
         [floor, 90.0 / 7.0, 20.0, 25.0, 30.0], abs=1e-9)
@@ -663,11 +663,12 @@ def test_certificate_with_an_acceleration_error_and_the_scheduled_integral_gain(
                                      q=stability.CERTIFICATE_Q_SCHEDULED).holds
 
 
-def test_certificate_of_the_default_w_n_schedule():
-    # dev-wnflat: w_n reaches 7 at 20 m/s (was 30). The sharp Q certifies it as the old
-    # schedule, 0.730 at 37 m/s (bound 0.743: 4.7 m/s^2); an a_x error up to 1 m/s^2
-    # (robust_wn20: 0.871; sharp 0.914; the old schedule 0.957 with sharp)
-    settings = LaneKeepingParams()
+def test_certificate_of_w_n_7_from_20_mps():
+    # dev-wnflat's option frequency_speed 20 (w_n 7 from 20 m/s, not the default): the
+    # sharp Q certifies it as the default schedule, 0.730 at 37 m/s (bound 0.743:
+    # 4.7 m/s^2); an a_x error up to 1 m/s^2 (robust_wn20: 0.871; sharp 0.914; the
+    # default schedule 0.957 with sharp)
+    settings = WN20
     cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271)
     assert cert.holds and cert.weight == 'sharp' and cert.max_real_eig < -0.3
     assert cert.max_norm == pytest.approx(0.730, abs=0.005) and cert.max_norm_speed == 37.0
@@ -677,8 +678,8 @@ def test_certificate_of_the_default_w_n_schedule():
     cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0)
     assert cert.holds and cert.between == pytest.approx(0.871, abs=0.005)
     assert cert.weight == 'robust_wn20'
-    # the law's a_x off by up to 3.5 m/s^2 (acceleration_source zero): the old robust Q
-    # fails (1.066 at 10 m/s, where w_n is now 3.5); the one searched for the schedule
+    # the law's a_x off by up to 3.5 m/s^2 (acceleration_source zero): the robust Q
+    # fails (1.066 at 10 m/s, where w_n is 3.5 here); the one searched for this schedule
     # holds (0.903, at the d_v floor's kink)
     assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
                                      a_error=3.5, q=stability.CERTIFICATE_Q_ROBUST).holds
@@ -803,11 +804,11 @@ def test_lyapunov_function_decreases_with_an_acceleration_error():
     assert np.all(np.diff(values) < 0.0)
 
 
-def test_lyapunov_function_decreases_on_the_default_schedule_with_an_acceleration_error():
-    # the default w_n schedule (7 from 20 m/s) with its robust Q: the adversary choosing
+def test_lyapunov_function_decreases_for_w_n_7_from_20_mps_with_an_acceleration_error():
+    # frequency_speed 20 (w_n 7 from 20 m/s) with its robust Q: the adversary choosing
     # the acceleration and the law's a_x within 3.5 m/s^2 of it at every step, started
     # at 10.8 m/s on the state where x^T N x is largest: V falls at every step
-    settings = LaneKeepingParams()
+    settings = WN20
     weight = stability.lyapunov_weight(stability.CERTIFICATE_Q_ROBUST_WN20)
     n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, 10.8, 1.0, weight)[2]
     eig, vec = np.linalg.eigh(n)

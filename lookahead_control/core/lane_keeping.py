@@ -79,15 +79,15 @@ class LaneKeepingParams:
     :param natural_frequency: w_n of the y_v loop at and above ``frequency_speed``
         [rad/s] (``k_p = w_n^2``).
     :param damping_ratio: zeta of the y_v loop (``k_d = 2 zeta w_n``).
-    :param frequency_speed: below this speed w_n falls in proportion to the speed [m/s]:
-        20 (30 until dev-wnflat) takes the S-bend and the lane change at 20 m/s from 6.9 /
-        8.5 to 3.3 / 4.9 cm; w_n 7 further down lost the lane from a metre or two off
-        at 4-15 m/s once the wheel's rate limit saturates.
+    :param frequency_speed: below this speed w_n falls in proportion to the speed [m/s].
+        20 takes the S-bend and the lane change at 20 m/s from 6.9 / 8.5 to 3.3 / 4.9 cm
+        but loses the lane from 2.5-3 m off at 15-25 m/s on the CommonRoad car (30: from
+        none up to 6 m; docs/lane_keeping.md, "The loop's w_n below 30 m/s").
     :param low_speed_frequency: ... but not below this [rad/s]; capped at
         ``natural_frequency`` (equal or above: w_n constant). At low speed ``beta_1`` is
         small: a high w_n asks for large steering angles, which the wheel's rate limit
         cannot follow from a metre or two off the lane (w_n 7 then loses the lane at
-        4-15 m/s; docs/lane_keeping.md, "The loop's w_n at low speed").
+        4-15 m/s; docs/lane_keeping.md, "The loop's w_n below 30 m/s").
     :param reference_preview: ``T_ref``: the reference uses the curvature
         ``v_x T_ref`` ahead [s].
     :param feedforward_preview: ``T_ff``: the drift term uses the curvature ``v_x T_ff``
@@ -162,7 +162,7 @@ class LaneKeepingParams:
 
     natural_frequency: float = 7.0
     damping_ratio: float = 1.0
-    frequency_speed: float = 20.0
+    frequency_speed: float = 30.0
     low_speed_frequency: float = 3.0
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07

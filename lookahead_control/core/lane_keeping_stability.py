@@ -46,10 +46,10 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   (Nelder-Mead over a Cholesky factor on a 55-speed grid): ``sharp`` for the exact
   ``a_x``, ``robust`` for an error up to 3.5 m/s^2 in the law's ``a_x``, ``scheduled``
   for that error with the speed schedule of ``k_i`` (``low_speed_integral_gain`` 0.05;
-  the default is ``k_i`` constant), all three for the w_n schedule before dev-wnflat
-  (``frequency_speed`` 30 m/s), and ``robust_wn20`` for that error with the default
-  ``frequency_speed`` 20 m/s. They are only checked here; the tool reports the one with
-  the smaller value.
+  the default is ``k_i`` constant), all three for the default w_n schedule
+  (``frequency_speed`` 30 m/s), and ``robust_wn20`` for that error with
+  ``frequency_speed`` 20 m/s (an option, dev-wnflat). They are only checked here; the
+  tool reports the one with the smaller value.
   The integral gain ``k_i(v)`` is scheduled on speed (``integral_gain_at``): the test
   runs in the coordinates ``u = S(v) x`` of :func:`integral_coordinates` (the integral
   scaled by ``sqrt(k_i(v) / integral_gain)``), ``u' = (S A S^-1 + v' S_v S^-1) u``, the
@@ -57,8 +57,8 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   ``k_i``, so ``V = x^T S^T P S x`` is the same argument with a speed-dependent ``Q``.
 - ``A`` is continuous in ``v`` but has kinks where the d_v schedule leaves its floor
   ``d_s`` (10.78 m/s), where ``w_n`` leaves its clamps (at ``frequency_speed
-  min(low_speed_frequency / natural_frequency, 1)`` and at ``frequency_speed``: 8.57 m/s,
-  below the default envelope, and 20 m/s) and where
+  min(low_speed_frequency / natural_frequency, 1)`` and at ``frequency_speed``: 12.86
+  and 30 m/s by default) and where
   ``k_i`` leaves its own (``low_integral_speed``, ``integral_speed``); there
   ``P`` is Lipschitz and ``V`` absolutely continuous, so ``V' < 0`` almost everywhere
   suffices: the kinks are grid points and both one-sided derivatives are checked.
@@ -129,10 +129,10 @@ CERTIFICATE_Q_SCHEDULED = ((1.0, 3.6356, -0.0083494, 0.45236, 0.78237),
                            (-0.0083494, 2.821, 0.16259, 0.38793, 0.036873),
                            (0.45236, 16.239, 0.38793, 9.9568, 0.07583),
                            (0.78237, 1.6071, 0.036873, 0.07583, 0.80895))
-# the robust search again for the default w_n schedule of dev-wnflat (7 rad/s reached
-# at frequency_speed 20 m/s, was 30): the robust Q gives 1.066 there (at 10 m/s), this
-# one 0.903 (at the d_v floor's kink, 10.78 m/s; 271 speeds), and 0.860 for the exact
-# a_x, where sharp (0.743) stays the better
+# the robust search again for frequency_speed 20 m/s (w_n 7 reached at 20, an option of
+# dev-wnflat; the default is 30): the robust Q gives 1.066 there (at 10 m/s), this one
+# 0.903 (at the d_v floor's kink, 10.78 m/s; 271 speeds), and 0.860 for the exact a_x,
+# where sharp (0.743) stays the better
 CERTIFICATE_Q_ROBUST_WN20 = ((1.0, 3.5518, -0.0013959, 0.34501, 0.66441),
                              (3.5518, 140.08, 1.9541, 8.4233, 1.3986),
                              (-0.0013959, 1.9541, 0.17616, 0.19373, -0.0027256),
