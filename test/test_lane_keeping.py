@@ -560,7 +560,7 @@ def test_certificate_lyapunov_against_scipy():
         stability.lyapunov_weight(((1.0,) * 5,) * 5)
 
 
-CONSTANT_K_I = W_N_SCHEDULE   # k_i 0.3 at every speed (the default), the old w_n schedule
+CONSTANT_K_I = W_N_SCHEDULE   # k_i 0.3 at every speed (the default)
 
 
 def test_certificate_holds_to_3_5_m_s2_with_the_scheduled_integral_gain():

@@ -81,8 +81,8 @@ class LaneKeepingParams:
     :param damping_ratio: zeta of the y_v loop (``k_d = 2 zeta w_n``).
     :param frequency_speed: below this speed w_n falls in proportion to the speed [m/s].
         20 takes the S-bend and the lane change at 20 m/s from 6.9 / 8.5 to 3.3 / 4.9 cm
-        but loses the lane from 2.5-3 m off at 15-25 m/s on the CommonRoad car (30: from
-        none up to 6 m; docs/lane_keeping.md, "The loop's w_n below 30 m/s").
+        but loses the lane from 2.5-3 m off at 15-25 m/s on the CommonRoad car, where 30
+        brings it back (docs/lane_keeping.md, "The loop's w_n below 30 m/s").
     :param low_speed_frequency: ... but not below this [rad/s]; capped at
         ``natural_frequency`` (equal or above: w_n constant). At low speed ``beta_1`` is
         small: a high w_n asks for large steering angles, which the wheel's rate limit
