@@ -306,7 +306,7 @@ class ControllerNode(LifecycleNode):
         self.configured = True
         # a capped low-speed w_n or k_i is told at startup too (dev-probe33: only a
         # run-time change said so, and a file lowering natural_frequency alone ran silently)
-        notes = capped_notes(self.param('law'), lane_keeping_params(values(self, ALL_SPECS)))
+        notes = capped_notes(self.core.law_name, self.core.lane_keeping)
         self.get_logger().info(
             f'configured: mode={self.param("mode")}, law={self.core.law_name}, schedule='
             f'{self.core.params.schedule}, inputs {self.param("qos_reliability")}'
