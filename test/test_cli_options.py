@@ -466,14 +466,14 @@ def _lane_keeping():
             bad = run(exe, *base, '--controller', tuned, cwd=folder)
             assert bad.returncode == 2 and blamed in bad.stderr, bad.stderr
             assert bad.stderr.count('\n') == 1 and not bad.stdout, bad.stderr
-        # a w_n below the default low-speed 3 rad/s runs at every speed and is told so
+        # a w_n below the default low-speed one (7 rad/s since dev-approach: w_n constant)
+        # runs at every speed: that is the default's constant w_n, not told as a cap
         # (before dev-wnflat it was refused)
         low = run(exe, *base, '--natural-frequency', '2', cwd=folder)
         assert low.returncode in (0, 1) and not low.stderr, low.stderr
         assert low.stdout.splitlines()[0] == (
             'settings: the package defaults; differing from the defaults: '
-            'lane_keeping.natural_frequency = 2.0 (w_n 2 rad/s at every speed: '
-            'low_speed_frequency is capped at natural_frequency)'), low.stdout
+            'lane_keeping.natural_frequency = 2.0'), low.stdout
     return {
         '--vehicle': ((), lambda c: changes('--vehicle', str(c.vehicle))(c)),
         '--controller': ((), controller),

@@ -729,18 +729,22 @@ def test_a_low_speed_integral_gain_above_integral_gain_is_told_as_what_runs():
         f' cg_compensated: lane_keeping.low_speed_integral_gain = 0.5 ({note}) (the rest '
         'default).')
     # the same for w_n (dev-wnflat): a low_speed_frequency above natural_frequency is
-    # capped (before: refused), and the line says what runs; a natural_frequency below
-    # the default low-speed 3 rad/s caps that
+    # capped (before: refused), and the line says what runs; a natural_frequency below a
+    # set low-speed w_n caps that (below the default low-speed w_n, 7 rad/s since
+    # dev-approach, it is the default's constant w_n: not told)
     w_n = 'w_n 5 rad/s at every speed: low_speed_frequency is capped at natural_frequency'
     both = LaneKeepingParams(natural_frequency=5.0, low_speed_frequency=6.0,
                              low_speed_integral_gain=0.5)
     assert compare.settings_changes(compare.LawSettings(ControllerParams(), both)) == [
         'lane_keeping.natural_frequency = 5.0', 'lane_keeping.low_speed_frequency = 6.0 '
         f'({w_n})', f'lane_keeping.low_speed_integral_gain = 0.5 ({note})']
-    lower = LaneKeepingParams(natural_frequency=2.0)
+    lower = LaneKeepingParams(natural_frequency=2.0, low_speed_frequency=3.0)
     assert compare.settings_changes(compare.LawSettings(ControllerParams(), lower)) == [
-        'lane_keeping.natural_frequency = 2.0 (w_n 2 rad/s at every speed: '
-        'low_speed_frequency is capped at natural_frequency)']
+        'lane_keeping.natural_frequency = 2.0', 'lane_keeping.low_speed_frequency = 3.0 '
+        '(w_n 2 rad/s at every speed: low_speed_frequency is capped at natural_frequency)']
+    alone = LaneKeepingParams(natural_frequency=2.0)
+    assert compare.settings_changes(compare.LawSettings(ControllerParams(), alone)) == [
+        'lane_keeping.natural_frequency = 2.0']
     runs = LaneKeepingParams(natural_frequency=5.0)
     assert 'capped' not in ' '.join(compare.settings_changes(
         compare.LawSettings(ControllerParams(), runs)))

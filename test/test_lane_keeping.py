@@ -43,14 +43,17 @@ from sim_plant.vehicle_model import PlantParams
 VEHICLE = VehicleParams()
 CONTROLLER = ControllerParams()
 EMPTY = Preview(np.zeros(0), np.zeros(0))
-#: the default w_n schedule (3 rad/s at and below 90 / 7 m/s, 7 at and above 30, linear
-#: in the speed between), named where a test is about it
-W_N_SCHEDULE = LaneKeepingParams(frequency_speed=30.0)
-#: w_n 7 reached at 20 m/s (an option of dev-wnflat, not the default: it loses the lane
-#: from 2.5-3 m off at 15-25 m/s on the CommonRoad car)
-WN20 = LaneKeepingParams(frequency_speed=20.0)
-#: the k_i speed schedule (0.05 1/s at and below 15 m/s; the default is k_i constant)
-SCHEDULED = LaneKeepingParams(low_speed_integral_gain=0.05)
+#: the w_n schedule that was the default until dev-approach (3 rad/s at and below 90 / 7
+#: m/s, 7 at and above 30, linear in the speed between; the default is now w_n 7 at every
+#: speed), named where a test is about it; the certificate's sharp, robust and scheduled
+#: Q were searched for it
+W_N_SCHEDULE = LaneKeepingParams(frequency_speed=30.0, low_speed_frequency=3.0)
+#: w_n 7 reached at 20 m/s (an option of dev-wnflat: without the approach heading it
+#: lost the lane from 2.5-3 m off at 15-25 m/s on the CommonRoad car)
+WN20 = LaneKeepingParams(frequency_speed=20.0, low_speed_frequency=3.0)
+#: the k_i speed schedule (0.05 1/s at and below 15 m/s; the default is k_i constant),
+#: with the w_n schedule it was searched for
+SCHEDULED = LaneKeepingParams(low_speed_integral_gain=0.05, low_speed_frequency=3.0)
 
 
 def state(y_cg=0.0, eps_r=0.0, v_y=0.0, r=0.0, v_x=37.0, a_x=0.0, rho=0.0, rho_rate=0.0):
@@ -62,7 +65,8 @@ def test_loop_gains_scheduled_on_speed():
     assert loop_gains(WN20, 20.0) == loop_gains(WN20, 37.0) == pytest.approx((49.0, 14.0))
     assert loop_gains(WN20, 10.0) == pytest.approx((3.5 ** 2, 7.0))
     assert loop_gains(WN20, 5.0) == pytest.approx((9.0, 6.0))
-    assert LaneKeepingParams() == W_N_SCHEDULE
+    # the default: w_n 7 at every speed (low_speed_frequency = natural_frequency)
+    assert loop_gains(LaneKeepingParams(), 5.0) == pytest.approx((49.0, 14.0))
     # a low-speed w_n above natural_frequency is capped: w_n constant
     assert loop_gains(LaneKeepingParams(low_speed_frequency=9.0), 5.0) == pytest.approx(
         (49.0, 14.0))
@@ -231,8 +235,9 @@ def test_integral_anti_windup():
     for _ in range(2000):                                      # 20 s at 0.4 m: clamped
         law.step(state(y_cg=0.4), EMPTY, 0.01)
     assert law.integral == pytest.approx(0.2)
-    law = CgCompensatedLaw(VEHICLE, CONTROLLER)
-    law.step(state(y_cg=-30.0), EMPTY, 0.01)                  # saturating command
+    # saturating command (without the approach heading, which would clip the offset)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(approach_heading=0.0))
+    law.step(state(y_cg=-30.0), EMPTY, 0.01)
     assert abs(law.last_steering) >= law.settings.steering_limit
     frozen = law.integral
     for _ in range(100):
@@ -344,7 +349,10 @@ def test_the_held_loop_of_the_stability_check_is_the_law_outside_the_band(v_x):
     # (feedback_gain with k_i = 0); inside (0.2 m) it has the k_i k_d term
     import copy
     import dataclasses
-    settings = LaneKeepingParams(state_filter='none', compliance_time_constant=0.0)
+    # (without the approach heading: at 10 m/s its clip, 0.48 m, is inside 0.8 m; the
+    # approach loop has its own test in test_approach.py)
+    settings = LaneKeepingParams(state_filter='none', compliance_time_constant=0.0,
+                                 approach_heading=0.0)
     held = stability.feedback_gain(VEHICLE, CONTROLLER,
                                    dataclasses.replace(settings, integral_gain=0.0), v_x)
     running = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v_x)
@@ -391,7 +399,9 @@ def test_a_car_engaged_half_a_lane_off_does_not_overshoot_the_centre(speed, boun
     y = _engaged_off_centre(speed, 0.5)
     assert y[0] == pytest.approx(1.75) and abs(y[-100:]).max() < 0.05
     assert -y.min() < bound
-    assert -_engaged_off_centre(speed, 0.0, low_speed_integral_gain=0.3).min() > 0.3
+    # (the law before: no approach heading, whose clip holds the integral too)
+    assert -_engaged_off_centre(speed, 0.0, low_speed_integral_gain=0.3,
+                                approach_heading=0.0).min() > 0.3
 
 
 def test_speed_from_37_to_3_freezes_learning_and_stays_finite():
@@ -689,10 +699,14 @@ def test_certificate_of_w_n_7_from_20_mps():
     assert cert.max_norm_speed == pytest.approx(10.7777, abs=1e-3)
     assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
                                      a_max=4.0, a_error=4.0).holds
-    # w_n 7 down to 10 m/s (low_speed_frequency 7, an option) is certified by none of
-    # the three Qs (sharp: 2.28 at the d_v floor's kink, 10.78 m/s)
+    # w_n 7 down to 10 m/s (low_speed_frequency 7, the default since dev-approach) is
+    # certified by none of those Qs (sharp: 2.28 at the d_v floor's kink, 10.78 m/s),
+    # only by the one searched for it
     flat = LaneKeepingParams(low_speed_frequency=7.0)
-    assert not stability.certificate(VEHICLE, CONTROLLER, flat, samples=55).holds
+    for name in ('sharp', 'robust', 'scheduled', 'robust_wn20'):
+        assert not stability.certificate(VEHICLE, CONTROLLER, flat, samples=55,
+                                         q=stability.CERTIFICATE_WEIGHTS[name]).holds
+    assert stability.certificate(VEHICLE, CONTROLLER, flat, samples=55).weight == 'flat'
 
 
 def test_certificate_edge_settings():
@@ -716,7 +730,7 @@ def test_certificate_edge_settings():
 
 def test_certificate_between_grid_points():
     # the bound from 28 speeds covers every value on a grid 100 times denser
-    settings = LaneKeepingParams()
+    settings = W_N_SCHEDULE
     coarse = stability.certificate(VEHICLE, CONTROLLER, settings, samples=28,
                                    q=stability.CERTIFICATE_Q)
     weight = stability.lyapunov_weight()
@@ -818,6 +832,46 @@ def test_lyapunov_function_decreases_for_w_n_7_from_20_mps_with_an_acceleration_
     assert switches > 2 and np.all(np.diff(values) < 0.0) and values[-1] < 0.5 * values[0]
 
 
+def test_certificate_of_the_default_w_n_7_at_every_speed():
+    # the default since dev-approach: the Q searched for it (flat) gives 0.829 (bound;
+    # 4.2 m/s^2), at 37 m/s; with the law's a_x off by up to 1 m/s^2 (a 10 % grade) the
+    # Q searched for that (flat_grade) 0.913, holding to 1.2 m/s^2 (1.4 fails); the
+    # law's a_x 0 (acceleration_source zero): |a_x| <= 3.09 m/s^2 only (flat_robust 1.134
+    # at 3.5 m/s^2)
+    settings = LaneKeepingParams()
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271)
+    assert cert.holds and cert.weight == 'flat' and cert.max_real_eig < -0.3
+    assert cert.between == pytest.approx(0.829, abs=0.003) and cert.max_norm_speed == 37.0
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
+                                     a_max=4.3).holds
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0)
+    assert cert.holds and cert.weight == 'flat_grade'
+    assert cert.between == pytest.approx(0.913, abs=0.003)
+    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
+                                 a_error=1.2).holds
+    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
+                                     a_error=1.4).holds
+    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=3.5)
+    assert not cert.holds and cert.weight == 'flat_robust'
+    assert cert.between == pytest.approx(1.134, abs=0.003)
+    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_max=3.05,
+                                 a_error=3.05).holds
+
+
+def test_lyapunov_function_decreases_for_the_default_with_a_grade():
+    # the default with flat_grade: the adversary choosing the acceleration and the law's
+    # a_x within 1 m/s^2 of it, started at 10.8 m/s (where the value peaks) on the state
+    # where x^T N x is largest: V falls at every step
+    settings = LaneKeepingParams()
+    weight = stability.lyapunov_weight(stability.CERTIFICATE_Q_FLAT_GRADE)
+    n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, 10.8, 1.0, weight)[2]
+    eig, vec = np.linalg.eigh(n)
+    x = vec[:, int(np.argmax(np.abs(eig)))]
+    values, switches = _worst_case_run(weight, seconds=4.0, a_error=1.0, start=(10.8, x),
+                                       settings=settings)
+    assert switches > 2 and np.all(np.diff(values) < 0.0) and values[-1] < 0.5 * values[0]
+
+
 def test_robust_over_the_sweep_ranges():
     result = stability.robust_check(VEHICLE, CONTROLLER, LaneKeepingParams())
     assert result.holds and result.cases == 486
@@ -909,11 +963,12 @@ def test_controller_paper_law_unchanged():
 
 def test_stability_tool_verdicts(capsys, tmp_path):
     from lookahead_control.tools.lane_keeping_tool import stability_main
-    # the paper's 3.5 m/s^2 holds (exit 0); 4.8 m/s^2 fails (exit 1)
+    # the paper's 3.5 m/s^2 holds (exit 0); 4.8 m/s^2 fails (exit 1) (the default w_n 7
+    # at every speed with its flat Q)
     assert stability_main(['--samples', '55', '--json', str(tmp_path / 's.json')]) == 0
     out = capsys.readouterr().out
     assert 'certificate HOLDS; robust check HOLDS' in out
-    assert '| largest certified \\|a_x\\| [m/s^2] | 4.4' in out    # 4.7 on 271 speeds
+    assert '| largest certified \\|a_x\\| [m/s^2] | 3.96' in out    # 4.22 on 271 speeds
     assert stability_main(['--samples', '55', '--a-max', '4.8']) == 1
     assert 'certificate DOES NOT HOLD' in capsys.readouterr().out
     assert (tmp_path / 's.json').stat().st_size > 100

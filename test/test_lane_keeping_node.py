@@ -104,13 +104,19 @@ def test_the_applied_parameters_log_names_the_running_law_s_gains():
     assert applied_summary('cg_compensated', controller, above).endswith(
         '; k_i 0.3 1/s at every speed: low_speed_integral_gain is capped at integral_gain')
     assert 'capped' not in applied_summary('paper', controller, above)
-    # dev-wnflat: a natural_frequency below the low-speed 3 rad/s caps it: w_n 2 at every
-    # speed, and the line says so; before, the file was refused
-    lower = LaneKeepingParams(natural_frequency=2.0)
+    # dev-wnflat: a natural_frequency below a set low-speed w_n (3 rad/s) caps it: w_n 2
+    # at every speed, and the line says so; before, the file was refused
+    lower = LaneKeepingParams(natural_frequency=2.0, low_speed_frequency=3.0)
     assert loop_gains(lower, 10.0) == loop_gains(lower, 37.0) == pytest.approx((4.0, 4.0))
     assert applied_summary('cg_compensated', controller, lower).endswith(
         '; w_n 2 rad/s at every speed: low_speed_frequency is capped at natural_frequency')
-    both = LaneKeepingParams(natural_frequency=2.0, low_speed_integral_gain=0.5)
+    # dev-approach: the default low-speed w_n is the default natural_frequency (w_n
+    # constant): a lowered natural_frequency alone is that constant w_n, not told
+    alone = LaneKeepingParams(natural_frequency=2.0)
+    assert loop_gains(alone, 10.0) == pytest.approx((4.0, 4.0))
+    assert 'capped' not in applied_summary('cg_compensated', controller, alone)
+    both = LaneKeepingParams(natural_frequency=2.0, low_speed_frequency=3.0,
+                             low_speed_integral_gain=0.5)
     assert applied_summary('cg_compensated', controller, both).endswith(
         'low_speed_frequency is capped at natural_frequency; k_i 0.3 1/s at every speed: '
         'low_speed_integral_gain is capped at integral_gain')
@@ -167,8 +173,10 @@ def test_a_capped_low_speed_w_n_is_told_at_startup(context):
     # only a run-time set logged the note. The configure line now carries it
     from lookahead_control.ros.controller_node import ControllerNode
     for overrides, note in (
-            ([Parameter('lane_keeping.natural_frequency', value=2.0)],
+            ([Parameter('lane_keeping.natural_frequency', value=2.0),
+              Parameter('lane_keeping.low_speed_frequency', value=3.0)],
              'w_n 2 rad/s at every speed: low_speed_frequency is capped at natural_frequency'),
+            ([Parameter('lane_keeping.natural_frequency', value=2.0)], None),
             ([Parameter('lane_keeping.low_speed_frequency', value=9.0)],
              'w_n 7 rad/s at every speed: low_speed_frequency is capped at natural_frequency'),
             ([], None)):

@@ -163,7 +163,8 @@ class LaneKeepingParams:
     natural_frequency: float = 7.0
     damping_ratio: float = 1.0
     frequency_speed: float = 30.0
-    low_speed_frequency: float = 3.0
+    low_speed_frequency: float = 7.0
+    approach_heading: float = 0.1
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
     integral_gain: float = 0.3
@@ -210,6 +211,8 @@ class LaneKeepingParams:
                     low_open=True, unit='m/s')
         check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0, 100.0,
                     low_open=True, unit='rad/s')
+        check_range('lane_keeping.approach_heading', self.approach_heading, 0.0, 1.0,
+                    unit='rad')
         check_range('lane_keeping.reference_preview', self.reference_preview, 0.0, 3.0,
                     unit='s')
         check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
@@ -342,19 +345,65 @@ def frequency_schedule_note(settings: LaneKeepingParams) -> str:
     """
     Return what runs instead of a ``low_speed_frequency`` above ``natural_frequency``.
 
-    :func:`loop_gains` caps the low-speed w_n at ``natural_frequency``, so a file that
-    lowers ``natural_frequency`` below ``low_speed_frequency`` (3 rad/s by default) runs
-    that w_n at every speed; a settings line ``low_speed_frequency = 7.0`` with
-    ``natural_frequency`` 5 would tell of a w_n that never runs.
+    :func:`loop_gains` caps the low-speed w_n at ``natural_frequency``: a settings line
+    ``low_speed_frequency = 9.0`` with ``natural_frequency`` 5 would tell of a w_n that
+    never runs. The default ``low_speed_frequency`` (7 rad/s, equal to the default
+    ``natural_frequency``: w_n constant) is not told: a file that only lowers
+    ``natural_frequency`` asks for that constant w_n, and gets it.
 
     :param settings: the law's settings.
     :return: e.g. ``w_n 5 rad/s at every speed: low_speed_frequency is capped at
-        natural_frequency`` ('' where the low-speed w_n runs as set).
+        natural_frequency`` ('' where the low-speed w_n runs as set, or is the default).
     """
-    if settings.low_speed_frequency <= settings.natural_frequency:
+    if (settings.low_speed_frequency <= settings.natural_frequency
+            or settings.low_speed_frequency == LaneKeepingParams.low_speed_frequency):
         return ''
     return (f'w_n {settings.natural_frequency:g} rad/s at every speed: low_speed_frequency '
             'is capped at natural_frequency')
+
+
+def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -> Real:
+    """
+    Return the clip of the CG's offset that makes the car close at ``heading``.
+
+    With the offset part of the y_v error held at ``+-b`` the loop settles (straight road,
+    constant speed, ``r = v_y = 0``) where the steering is 0: ``k_p (b + d_v eps_r) + k_d
+    v_x eps_r = 0``, so ``eps_r = -k_p b / (k_p d_v + k_d v_x)``; the relative heading
+    ``heading`` needs ``b = heading (d_v + k_d v_x / k_p)``. With ``w_n`` 7 and ``zeta`` 1:
+    0.48 m at 10 m/s, 1.63 m at 20, 5.07 m at 37 m/s for the default 0.1 rad (Table 1
+    ``d_v``).
+
+    :param heading: the approach heading [rad]; 0: no clip.
+    :param d_v: the look-ahead distance [m].
+    :param v_x: speed [m/s].
+    :param k_p: the loop's proportional gain [1/s^2].
+    :param k_d: its derivative gain [1/s].
+    :return: the clip [m] (inf with ``heading`` 0).
+    """
+    if heading <= 0.0:
+        return math.inf
+    return heading * (d_v + k_d * v_x / k_p)
+
+
+def approach_error(error: Real, offset: Real, limit: Real) -> Real:
+    """
+    Return the y_v error the proportional term sees, the CG's offset in it clipped.
+
+    ``error = offset + d_v (eps_r - eps_ref)`` with ``offset = y_cg + I``, the CG's
+    distance from where the integral ``I`` wants it; the proportional term sees ``offset``
+    clipped to ``+-limit`` (:func:`approach_limit`). Far off the lane the car then closes
+    on its target at the approach heading instead of being asked for the steering of the
+    whole offset times ``w_n^2``, which a rate-limited wheel cannot follow
+    (docs/lane_keeping.md, "Engaged off the lane"). Within the clip the law is unchanged.
+
+    :param error: the y_v error [m].
+    :param offset: ``y_cg + I`` [m].
+    :param limit: the clip [m] (inf: unclipped).
+    :return: the error with its offset part clipped [m].
+    """
+    if isinstance(limit, float) and math.isinf(limit):
+        return error
+    return error - offset + xp.clip(offset, -limit, limit)
 
 
 def steady_relative_yaw(vehicle: VehicleParams, v_x: Real, rho: Real,
@@ -435,7 +484,8 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        state_preview: float = 0.0,
                        lead_time: float = 0.0,
                        lead_ff_rate: Optional[Real] = None,
-                       gains: Optional[tuple[Real, Real]] = None) -> LawOutput:
+                       gains: Optional[tuple[Real, Real]] = None,
+                       approach_heading: float = 0.0) -> LawOutput:
     """
     Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
 
@@ -469,6 +519,9 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     :param lead_ff_rate: the curvature rate the preview uses [1/(m s)] (None:
         ``rho_ff_rate``).
     :param gains: ``(k_p, k_d)`` (None: the controller's).
+    :param approach_heading: far off the lane the car closes on its target at this
+        relative heading: the proportional term sees the CG's offset ``y_cg + offset``
+        clipped to :func:`approach_limit` (:func:`approach_error`) [rad]; 0: unclipped.
     :return: the steering angle and the intermediate values.
     """
     eta = vehicle.eta if compliance is None else compliance
@@ -510,7 +563,9 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     error = y_v - y_ref
     error_rate = y_v_rate - y_ref_rate
     k_p, k_d = gains if gains is not None else (controller.k_p, controller.k_d)
-    steering = (-f_v - k_p * error - k_d * error_rate) / beta_1
+    limit = approach_limit(approach_heading, d_v, v_x, k_p, k_d)
+    used = approach_error(error, state.y_cg + offset, limit)
+    steering = (-f_v - k_p * used - k_d * error_rate) / beta_1
     return LawOutput(steering, d_v, d_v_rate, y_v, y_v_rate, y_ref, error, error_rate,
                      f_v, beta_1)
 
@@ -564,6 +619,8 @@ class CgCompensatedLaw:
         #: how long ``|y_cg|`` has been outside ``integral_band`` [s]
         self.outside_time: Real = 0.0
         self.last_steering: Real = 0.0
+        #: the last step's CG offset was clipped (``approach_heading``)
+        self.clipped: Any = False
         self.cut = False        # the last command sent was cut outside the law
         st = self.settings
         self.estimator = ComplianceEstimator(
@@ -602,6 +659,7 @@ class CgCompensatedLaw:
         self.integral = 0.0
         self.outside_time = 0.0
         self.last_steering = 0.0
+        self.clipped = False
         self.cut = False
         self.estimator.reset()
         if self.state_filter is not None:
@@ -657,6 +715,7 @@ class CgCompensatedLaw:
             if bool(np.any(old.estimating)):
                 carried.append('curvature rate')
         self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
+        self.clipped = old.clipped      # recomputed at the next step, as after any step
         if s.integral_gain > 0.0:
             self.integral = xp.clip(old.integral, -s.integral_limit, s.integral_limit)
             self.outside_time = old.outside_time
@@ -864,13 +923,21 @@ class CgCompensatedLaw:
             lead_rate = xp.clip(v_x * slope_ref, -most, most)
             lead_ff_rate = xp.clip(v_x * slope_ff, -most, most)
         # learning and integrating only above the speed floor and off the steering limit
+        # and while the CG closes on the lane at the approach heading (approach_heading):
+        # that error is the clip's pace, not the model's
+        unclipped = (~self.clipped if isinstance(self.clipped, np.ndarray)
+                     else not self.clipped)
         active = ((state.v_x >= s.integral_min_speed)
-                  & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut))
+                  & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut)
+                  & unclipped)
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
             self.estimator.update(state, dt, active, state.v_x >= s.integral_min_speed)
         outside = xp.absolute(state.y_cg) >= s.integral_band
-        outside_time = xp.where(outside, self.outside_time + dt, 0.0)
+        # the band's clock stands while the offset is clipped: an error closing at the
+        # approach heading does not stand
+        outside_time = xp.where(outside, self.outside_time + xp.where(unclipped, dt, 0.0),
+                                0.0)
         # an error that has stood outside integral_band_time is the model's: integrated
         standing = (outside_time >= s.integral_band_time) if s.integral_band_time > 0.0 else False
         inside: Any = True
@@ -894,6 +961,11 @@ class CgCompensatedLaw:
             out = out._replace(steering=out.steering + xp.where(
                 left > 0.0, self._steer_offset * (left / s.curvature_blend), 0.0))
         finite = _finite(out.steering)
+        clipped: Any = False
+        if s.approach_heading > 0.0:
+            k_p, k_d = loop_gains(s, v_x)
+            clipped = xp.absolute(state.y_cg + integral) > approach_limit(
+                s.approach_heading, out.d_v, v_x, k_p, k_d)
         if self.state_filter is not None:
             self.state_filter.command(out.steering)
         if self.curvature_filter is not None:
@@ -903,6 +975,7 @@ class CgCompensatedLaw:
             self.integral = np.where(finite, integral, 0.0)
             self.outside_time = np.where(finite, outside_time, 0.0)
             self.last_steering = np.where(finite, out.steering, 0.0)
+            self.clipped = np.where(finite, clipped, False)
             if self._blending is not None:
                 self._blend_left = np.where(finite, self._blend_left, 0.0)
             self.estimator.forget(~finite)
@@ -923,7 +996,7 @@ class CgCompensatedLaw:
             self.restart_causes['non_finite'] += 1
         else:
             self.integral, self.last_steering = integral, out.steering
-            self.outside_time = outside_time
+            self.outside_time, self.clipped = outside_time, bool(clipped)
         return out
 
     def evaluate(self, state: LateralState, dt: float, rho_ref: Real, rho_ref_rate: Real,
@@ -960,7 +1033,8 @@ class CgCompensatedLaw:
                                  tangent_compliance=tangent, gains=gains,
                                  lead_rate=lead_rate, state_preview=s.state_preview,
                                  lead_time=s.feedforward_preview,
-                                 lead_ff_rate=lead_ff_rate)
+                                 lead_ff_rate=lead_ff_rate,
+                                 approach_heading=s.approach_heading)
         if s.exact_inverse <= 0.0:
             return out
         # the exact inverse of the zero dynamics (core/cg_reference.py): its relative yaw
@@ -996,7 +1070,9 @@ class CgCompensatedLaw:
                                            - offset_rate - y_ref_rate)
         error, error_rate = out.y_v - y_ref, out.y_v_rate - y_ref_rate
         k_p, k_d = gains
-        steering = (-out.f_v + share * out.d_v * acceleration - k_p * error
+        used = approach_error(error, state.y_cg + offset,
+                              approach_limit(s.approach_heading, out.d_v, v_x, k_p, k_d))
+        steering = (-out.f_v + share * out.d_v * acceleration - k_p * used
                     - k_d * error_rate) / out.beta_1
         return out._replace(steering=steering, y_ref=y_ref, error=error,
                             error_rate=error_rate)

@@ -138,8 +138,32 @@ CERTIFICATE_Q_ROBUST_WN20 = ((1.0, 3.5518, -0.0013959, 0.34501, 0.66441),
                              (-0.0013959, 1.9541, 0.17616, 0.19373, -0.0027256),
                              (0.34501, 8.4233, 0.19373, 5.3264, 0.053243),
                              (0.66441, 1.3986, -0.0027256, 0.053243, 0.5784))
-CERTIFICATE_WEIGHTS = {'sharp': CERTIFICATE_Q, 'robust': CERTIFICATE_Q_ROBUST,
-                       'scheduled': CERTIFICATE_Q_SCHEDULED,
+# the search for the sharp Q again with w_n 7 at every speed (the default since
+# dev-approach: low_speed_frequency = natural_frequency): the sharp Q gives 2.28 there (at
+# the d_v floor's kink, 10.78 m/s), this one 0.829 for the exact a_x (4.2 m/s^2)
+CERTIFICATE_Q_FLAT = ((1.0, 0.47941, 0.00050088, -0.037128, 0.78257),
+                      (0.47941, 92.908, 1.7284, -4.4352, -0.28592),
+                      (0.00050088, 1.7284, 0.089485, -0.16777, 0.062503),
+                      (-0.037128, -4.4352, -0.16777, 0.71231, -0.096121),
+                      (0.78257, -0.28592, 0.062503, -0.096121, 0.8015))
+# ... and for w_n 7 at every speed with the law's a_x off by up to 1 m/s^2 (a 10 % grade):
+# 0.913 there (0.908 for the exact a_x), holds to an error of 1.2 m/s^2
+CERTIFICATE_Q_FLAT_GRADE = ((1.0, 1.2175, 0.0068929, 0.0081125, 0.80492),
+                            (1.2175, 98.079, 1.5003, -2.5233, -0.048438),
+                            (0.0068929, 1.5003, 0.085314, -0.15864, 0.042545),
+                            (0.0081125, -2.5233, -0.15864, 0.78398, -0.057531),
+                            (0.80492, -0.048438, 0.042545, -0.057531, 0.76832))
+# ... and with the law's a_x off by up to 3.5 m/s^2 (acceleration_source zero): the best
+# found, 1.134 (at 10.78 m/s), does not hold; it certifies |a_x| <= 3.09 m/s^2 with the
+# law's a_x off by as much
+CERTIFICATE_Q_FLAT_ROBUST = ((1.0, 2.3554, 0.0003617, 0.10669, 0.83525),
+                             (2.3554, 113.89, 1.263, 1.6103, 0.77034),
+                             (0.0003617, 1.263, 0.1111, -0.14438, -0.0022527),
+                             (0.10669, 1.6103, -0.14438, 0.83847, 0.0804),
+                             (0.83525, 0.77034, -0.0022527, 0.0804, 0.76362))
+CERTIFICATE_WEIGHTS = {'flat': CERTIFICATE_Q_FLAT, 'flat_grade': CERTIFICATE_Q_FLAT_GRADE,
+                       'flat_robust': CERTIFICATE_Q_FLAT_ROBUST, 'sharp': CERTIFICATE_Q,
+                       'robust': CERTIFICATE_Q_ROBUST, 'scheduled': CERTIFICATE_Q_SCHEDULED,
                        'robust_wn20': CERTIFICATE_Q_ROBUST_WN20}
 # one-sided difference step of A in v [m/s] (second-order formula, error ~1e-8)
 _STEP = 1e-4
@@ -662,7 +686,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
                   filter_settings: Optional[StateFilterParams] = None,
                   filter_vehicle: Optional[VehicleParams] = None,
                   v_y_measured: bool = True, curvature_estimated: bool = False,
-                  integral_frozen: bool = False) -> Matrix:
+                  integral_frozen: bool = False, approach: bool = False,
+                  closing_mode: bool = False) -> Matrix:
     """
     Return the one-period matrix of the sampled loop with the law on the filter's estimate.
 
@@ -703,9 +728,17 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     :param integral_frozen: the integral held (the CG error outside ``integral_band``):
         a constant input, not a state, and no ``k_i y_cg`` in the reference's rate; the
         matrix without it.
+    :param approach: the approach phase (``approach_heading``: the CG's offset clipped,
+        the integral held): the law without its ``y_cg`` gain, the integral frozen, and
+        the matrix without the plant's ``y_cg`` (in the coordinates where the estimate's
+        ``y_cg`` is its error, the plant's ``y_cg`` drives nothing: its eigenvalue is
+        exactly 1, the car closing on the lane) and without the integral.
+    :param closing_mode: with ``approach``, keep the plant's ``y_cg`` and the integral
+        (in those coordinates: their columns are unit vectors, their eigenvalues 1).
     :return: the square one-step matrix.
     """
     fs = filter_settings or settings.filter_settings()
+    integral_frozen = integral_frozen or approach
     if integral_frozen:                 # the law's rate term: k_i y_cg only while it runs
         settings = replace(settings, integral_gain=0.0)
     model = filter_vehicle or vehicle
@@ -755,6 +788,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     law = np.zeros((1, size))                   # u_k over s_k
     law[0, i_est:i_est + 4] = k[:4]
     law[0, i_int] = k[4]
+    if approach:                        # the clipped offset is a constant input
+        law[0, i_est] = 0.0
     if curvature_estimated:
         law[0, i_kin + 1] = curvature_gain(vehicle, controller, settings, v_x)
     if rated:
@@ -807,7 +842,27 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     m[i_buf, :] = law[0]
     for j in range(1, depth):
         m[i_buf + j, i_buf + j - 1] = 1.0
+    if approach:
+        # s' = T s with the estimate's y_cg replaced by its error (y_cg_hat - y_cg): a
+        # shift of the plant's and the estimate's y_cg together leaves every innovation
+        # and the law unchanged, so in s' the plant's y_cg column is e_0
+        shift = np.eye(size)
+        shift[i_est, 0] = -1.0
+        m = shift @ m @ np.linalg.inv(shift)
+        return m if closing_mode else _without_states(m, (0, i_int))
     return _without_integral(m, i_int) if integral_frozen else m
+
+
+def _without_states(m: Matrix, indices: tuple[int, ...]) -> Matrix:
+    """
+    Return the loop matrix without states that drive nothing (their columns unit vectors).
+
+    :param m: the loop matrix.
+    :param indices: the states to take out.
+    :return: the matrix without them.
+    """
+    keep = [i for i in range(m.shape[0]) if i not in indices]
+    return m[np.ix_(keep, keep)]
 
 
 def _without_integral(m: Matrix, index: int) -> Matrix:
@@ -845,7 +900,7 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_x: float, *,
                     plant: Optional[VehicleParams] = None, period: float = 0.01,
                     lag: float = 0.05, delay_steps: int = 2,
-                    integral_frozen: bool = False) -> float:
+                    integral_frozen: bool = False, approach: bool = False) -> float:
     """
     Return the spectral radius of the sampled closed loop (stable if < 1).
 
@@ -864,9 +919,12 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     :param delay_steps: transport delay in control periods.
     :param integral_frozen: the integral held (the CG error outside ``integral_band``):
         the loop without it and without ``k_i y_cg`` in the reference's rate.
+    :param approach: the approach phase (``approach_heading``): the integral held and the
+        law without its ``y_cg`` gain; the loop without the integral and the ``y_cg``
+        (which then drives nothing: the car closing on the lane).
     :return: the spectral radius.
     """
-    if integral_frozen:
+    if integral_frozen or approach:
         settings = replace(settings, integral_gain=0.0)
     # actuator state: delta' = (u - delta) / lag
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
@@ -880,6 +938,8 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     gain = np.zeros((1, size))
     gain[0, :4] = k[:4]
     gain[0, n] = k[4]
+    if approach:
+        gain[0, 0] = 0.0
     if delay_steps == 0:
         m[:n, :] += gamma @ gain
     else:
@@ -889,7 +949,9 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
             m[n + 1 + j, n + j] = 1.0
     m[n, n] = 1.0
     m[n, 0] = period * float(integral_gain_at(settings, v_x))
-    if integral_frozen:
+    if approach:
+        m = _without_states(m, (0, n))
+    elif integral_frozen:
         m = _without_integral(m, n)
     return float(np.max(np.abs(np.linalg.eigvals(m))))
 
@@ -921,7 +983,7 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                  filter_settings: Optional[StateFilterParams] = None,
                  v_y_measured: bool = True,
                  curvature_estimated: bool = False,
-                 integral_frozen: bool = False) -> RobustResult:
+                 integral_frozen: bool = False, approach: bool = False) -> RobustResult:
     """
     Check the sampled loop over a grid of plant mismatch, speed and delay.
 
@@ -950,6 +1012,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
         estimates it and the law uses the estimate (:func:`filtered_loop`).
     :param integral_frozen: True: the integral held (the CG error outside
         ``integral_band``), the loop without it.
+    :param approach: True: the approach phase (the CG's offset clipped by
+        ``approach_heading``, the integral held; :func:`discrete_radius`).
     :return: the worst case.
     """
     worst, where, cases = -np.inf, {}, 0
@@ -966,11 +1030,11 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                                      filter_settings=filter_settings,
                                      v_y_measured=v_y_measured,
                                      curvature_estimated=curvature_estimated,
-                                     integral_frozen=integral_frozen)
+                                     integral_frozen=integral_frozen, approach=approach)
         else:
             radius = discrete_radius(vehicle, controller, settings, v, plant=plant,
                                      period=period, lag=lag, delay_steps=steps,
-                                     integral_frozen=integral_frozen)
+                                     integral_frozen=integral_frozen, approach=approach)
         cases += 1
         if radius > worst:
             worst = radius

@@ -100,6 +100,10 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # ... and without road_curvature, where the CG is metres off (the held case there)
     frozen_estimated = robust_check(vehicle, controller, settings, filtered=True,
                                     curvature_estimated=True, integral_frozen=True)
+    # engaged far off the lane (approach_heading): the CG's offset clipped, the integral
+    # held, the car closing at the approach heading; that loop without y_cg must hold
+    approach = (robust_check(vehicle, controller, settings, filtered=True, approach=True)
+                if settings.approach_heading > 0.0 else None)
     # the test's value is proportional to (a_max, a_error): the largest factor on both
     # that it certifies (with a_error = 0: the largest |a_x|)
     factor = 1.0 / cert.between if cert.between > 0.0 else float('inf')
@@ -129,6 +133,11 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
          'value': frozen_estimated.max_radius, 'passes if': '< 1',
          'holds': frozen_estimated.holds},
     ]
+    if approach is not None:
+        rows.append({'check': f'max spectral radius, {approach.cases} mismatch cases, Kalman '
+                              'estimate, approach (CG offset clipped, integral held)',
+                     'value': approach.max_radius, 'passes if': '< 1',
+                     'holds': approach.holds})
     kinks = (f'kinks at {", ".join(f"{k:.2f}" for k in cert.kinks)} m/s, both sides'
              if cert.kinks else 'no kinks')
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
@@ -143,7 +152,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         print(note)
     print(markdown_table(rows))
     verdict = (cert.holds and robust.holds and filtered.holds and estimated.holds
-               and frozen.holds and frozen_estimated.holds)
+               and frozen.holds and frozen_estimated.holds
+               and (approach is None or approach.holds))
     print(f'certificate {"HOLDS" if cert.holds else "DOES NOT HOLD"}; robust check '
           f'{"HOLDS" if robust.holds else "DOES NOT HOLD"}; robust check with the filter '
           f'{"HOLDS" if filtered.holds else "DOES NOT HOLD"}; with the curvature '
@@ -151,7 +161,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
           f'{" (without the exact inverse)" if notes else ""}; with the integral '
           f'held {"HOLDS" if frozen.holds else "DOES NOT HOLD"}, and with the curvature '
           f'estimated {"HOLDS" if frozen_estimated.holds else "DOES NOT HOLD"}'
-          f'{" (without the exact inverse)" if notes else ""}')
+          f'{" (without the exact inverse)" if notes else ""}'
+          + ('' if approach is None else
+             f'; in the approach {"HOLDS" if approach.holds else "DOES NOT HOLD"}'))
     if args.json:
         write_json(args.json, {'certificate': cert._asdict(), 'robust': robust._asdict(),
                                'robust_filtered': filtered._asdict(),
@@ -159,6 +171,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                                'robust_integral_held': frozen._asdict(),
                                'robust_integral_held_curvature_estimated':
                                    frozen_estimated._asdict(),
+                               'robust_approach': (None if approach is None
+                                                   else approach._asdict()),
                                'rows': rows, 'notes': notes})
     return 0 if verdict else 1
 
