@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from engaged_runs import engaged_off_the_lane as _lost
 from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.control_law import LateralState
@@ -27,8 +28,7 @@ from lookahead_control.core.lane_keeping import (approach_error, approach_limit,
                                                  LaneKeepingParams, loop_gains)
 from lookahead_control.core.params import ControllerParams
 from lookahead_control.core.schedule import look_ahead
-from lookahead_control.tools.compare import (DELAY, DT, load_scenarios, NONLINEAR,
-                                             PREVIEW_DISTANCE)
+from lookahead_control.tools.compare import load_scenarios, NONLINEAR
 import numpy as np
 import pytest
 from sim_plant.closed_loop_sim import run
@@ -89,21 +89,6 @@ def test_far_off_the_lane_the_car_closes_at_the_approach_heading():
             assert np.all((heading > lo) & (heading < hi)), heading
         else:
             assert np.min(result['eps_r'][:at], axis=0)[0] < hi
-
-
-def _lost(settings, plant, speeds, offset, vehicle=VEHICLE, law_vehicle=VEHICLE, dt=DT,
-          seconds=20.0, delay=DELAY):
-    # engaged offset metres off on a straight (no noise): the speeds where the CG is not
-    # within 5 cm in the last 5 s (or the run diverged), and the overshoot [m] per speed
-    scenario = replace(load_scenarios(['s0_straight'])['s0_straight'], duration=seconds)
-    law = CgCompensatedLaw(law_vehicle, ControllerParams(), settings)
-    result = run(scenario, vehicle, law, plant, initial_speed=np.array(speeds),
-                 initial_error=offset, dt=dt, preview_distance=PREVIEW_DISTANCE,
-                 delay=delay)
-    late = np.abs(result['y_cg'][result.time >= seconds - 5.0])
-    lost = [float(v) for i, v in enumerate(speeds)
-            if not np.all(np.isfinite(late[:, i])) or not np.max(late[:, i]) < 0.05]
-    return lost, -np.min(result['y_cg'], axis=0)
 
 
 @pytest.mark.parametrize('offset', [1.2, 2.0, 4.0])

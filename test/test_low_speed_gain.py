@@ -17,18 +17,12 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
+from engaged_runs import engaged_off_the_lane
 from lookahead_control.core.config import load_vehicle
-from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingParams,
-                                                 loop_gains)
-from lookahead_control.core.params import ControllerParams
-from lookahead_control.tools.compare import (DELAY, DT, LawSettings, load_scenarios,
-                                             NONLINEAR, PlantCase, PREVIEW_DISTANCE,
+from lookahead_control.core.lane_keeping import LaneKeepingParams, loop_gains
+from lookahead_control.tools.compare import (DELAY, DT, LawSettings, NONLINEAR, PlantCase,
                                              run_case)
-import numpy as np
 import pytest
-from sim_plant.closed_loop_sim import run
 from sim_plant.vehicle_model import PlantParams
 
 VEHICLE = load_vehicle(None)
@@ -96,16 +90,9 @@ def test_the_steering_noise_at_10_and_20_mps():
 
 
 def _lost(settings, plant, speeds, offset, vehicle=VEHICLE, dt=DT, seconds=20.0):
-    # engaged offset metres off on a straight (20 ms delay, no noise): the speeds where
-    # the CG is not within 5 cm in the last 5 s (or the run diverged)
-    scenario = replace(load_scenarios(['s0_straight'])['s0_straight'], duration=seconds)
-    law = CgCompensatedLaw(vehicle, ControllerParams(), settings)
-    result = run(scenario, vehicle, law, plant, initial_speed=np.array(speeds),
-                 initial_error=offset, dt=dt, preview_distance=PREVIEW_DISTANCE,
-                 delay=DELAY)
-    late = np.abs(result['y_cg'][result.time >= seconds - 5.0])
-    return [float(v) for i, v in enumerate(speeds)
-            if not np.all(np.isfinite(late[:, i])) or not np.max(late[:, i]) < 0.05]
+    # the speeds where the car engaged offset metres off did not come back (20 ms)
+    return engaged_off_the_lane(settings, plant, speeds, offset, vehicle, vehicle, dt,
+                                seconds)[0]
 
 
 def test_engaged_a_lane_off_at_15_to_20_mps_on_the_independent_car():
