@@ -31,30 +31,34 @@ VEHICLE = load_vehicle(None)
 
 
 def engaged_off_the_lane(settings: LaneKeepingParams, plant: PlantParams,
-                         speeds: list[float], offset: float,
+                         speeds: list[float], offset: float | list[float],
                          vehicle: VehicleParams = VEHICLE,
                          law_vehicle: VehicleParams = VEHICLE, dt: float = DT,
-                         seconds: float = 20.0,
-                         delay: float = DELAY) -> tuple[list[float], np.ndarray]:
+                         seconds: float = 20.0, delay: float = DELAY,
+                         heading: float = 0.0) -> tuple[list[float], np.ndarray]:
     """
     Run the default law engaged ``offset`` metres off a straight lane (no noise).
 
     :param settings: the law's settings.
     :param plant: the plant.
     :param speeds: one run per speed [m/s].
-    :param offset: the CG's initial lateral error [m].
+    :param offset: the CG's initial lateral error [m] (a list: one per speed).
     :param vehicle: the plant's vehicle.
     :param law_vehicle: the law's model.
     :param dt: the plant's step [s].
     :param seconds: the run's length [s].
     :param delay: transport delay [s].
+    :param heading: the initial relative yaw [rad] (toward positive y_cg: away from the
+        lane for a positive offset).
     :return: the speeds where the CG is not within 5 cm in the last 5 s (or the run
         diverged), and the overshoot past the centre per speed [m].
     """
-    scenario = replace(load_scenarios(['s0_straight'])['s0_straight'], duration=seconds)
+    scenario = load_scenarios(['s0_straight'])['s0_straight']
+    scenario = replace(scenario, duration=seconds,
+                       initial=replace(scenario.initial, relative_yaw=heading))
     law = CgCompensatedLaw(law_vehicle, ControllerParams(), settings)
     result = run(scenario, vehicle, law, plant, initial_speed=np.array(speeds),
-                 initial_error=offset, dt=dt, preview_distance=PREVIEW_DISTANCE,
+                 initial_error=np.asarray(offset, dtype=float), dt=dt, preview_distance=PREVIEW_DISTANCE,
                  delay=delay)
     late = np.abs(result['y_cg'][result.time >= seconds - 5.0])
     lost = [float(v) for i, v in enumerate(speeds)

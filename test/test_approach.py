@@ -38,17 +38,30 @@ VEHICLE = load_vehicle(None)
 CONTROLLER = ControllerParams()
 #: the previous default (dev-wnflat): w_n falling to 3 rad/s below 12.9 m/s, no clip
 OLD = LaneKeepingParams(low_speed_frequency=3.0, approach_heading=0.0)
-#: the default's w_n 7 at every speed without the clip (f8dd7e1, withdrawn: it lost the
-#: lane from 1.2-2 m off at 4-12 m/s, dev-probe33)
-UNCLIPPED = LaneKeepingParams(approach_heading=0.0)
+#: w_n 7 at every speed without the clip (f8dd7e1, withdrawn: it lost the lane from
+#: 1.2-2 m off at 4-12 m/s, dev-probe33)
+UNCLIPPED = LaneKeepingParams(low_speed_frequency=7.0, approach_heading=0.0)
 SPEEDS = [5.0, 7.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0]
 
 
-def test_the_default_is_w_n_7_at_every_speed_with_a_0_1_rad_approach():
+def test_the_default_w_n_is_5_up_to_21_mps_with_a_0_1_rad_approach():
     settings = LaneKeepingParams()
-    assert (settings.low_speed_frequency, settings.approach_heading) == (7.0, 0.1)
-    for v in (4.0, 10.0, 20.0, 37.0):
-        assert loop_gains(settings, v) == pytest.approx((49.0, 14.0))
+    assert (settings.low_speed_frequency, settings.approach_heading) == (5.0, 0.1)
+    for v in (4.0, 10.0, 20.0):
+        assert loop_gains(settings, v) == pytest.approx((25.0, 10.0))
+    assert loop_gains(settings, 37.0) == pytest.approx((49.0, 14.0))
+
+
+def test_an_approach_heading_that_would_crawl_or_not_clip_is_refused():
+    # dev-probe35: 1e-6 rad left the car 1 m off after 30 s; 1.0 rad is no clip at all
+    # (w_n 7 without it lost the lane); 0.2 rad lost the CommonRoad car from 2 m with 50 ms
+    from lookahead_control.core.params import ParameterError
+    for bad, said in ((1e-6, 'crawling'), (0.01, '0.02-0.15 rad'), (0.16, 'out of range'),
+                      (1.0, 'out of range')):
+        with pytest.raises(ParameterError, match=said):
+            LaneKeepingParams(approach_heading=bad)
+    for good in (0.0, 0.02, 0.15):
+        assert LaneKeepingParams(approach_heading=good).approach_heading == good
 
 
 @pytest.mark.parametrize('speed,clip', [(10.0, 0.482), (20.0, 1.632), (37.0, 5.071)])
@@ -95,7 +108,8 @@ def test_far_off_the_lane_the_car_closes_at_the_approach_heading():
 def test_engaged_metres_off_the_default_comes_back_where_the_unclipped_w_n_7_did_not(offset):
     # goal plant without noise, 20 ms: the default recovers from 1.2-4 m at 5-30 m/s with
     # at most 6.2 cm of overshoot (the previous default: 7.3 cm, 4 m at 5 m/s); w_n 7
-    # without the clip slewed the wheel into a growing oscillation (dev-probe33)
+    # without the clip slewed the wheel into a growing oscillation (dev-probe33), w_n 5
+    # without it from 3 m at 10 m/s
     lost, over = _lost(LaneKeepingParams(), NONLINEAR, SPEEDS, offset)
     assert lost == [] and np.max(over) < 0.07, over
     lost, _ = _lost(UNCLIPPED, NONLINEAR, [10.0], offset)
@@ -119,6 +133,35 @@ def test_engaged_4_m_off_at_30_mps_with_100_ms_of_delay():
     assert lost == [30.0]
 
 
+def test_100_ms_of_delay_near_the_lane_with_a_heading_error():
+    # dev-probe35: w_n 7 at every speed (with the approach heading, 78625d8) went into a
+    # limit cycle at the wheel's limits or off the road with 100 ms of delay from small
+    # offsets and a 0.1 rad heading error (10 m/s 0.3 m: +-2.2 m; 20 m/s 0.6 m: 355 m);
+    # the default (w_n 5 below 21.4 m/s) comes back, as the previous default did
+    speeds, offsets = [10.0, 13.0, 20.0, 25.0], [0.3, 1.0, 0.6, 2.0]
+    lost, _ = _lost(LaneKeepingParams(), NONLINEAR, speeds, offsets, seconds=30.0,
+                    delay=0.1, heading=0.1)
+    assert lost == []
+    lost, _ = _lost(replace(UNCLIPPED, approach_heading=0.1), NONLINEAR, speeds, offsets,
+                    seconds=30.0, delay=0.1, heading=0.1)
+    assert lost == speeds
+
+
+def test_the_independent_car_near_the_lane_with_a_heading_error_and_50_ms():
+    # dev-probe35: on the CommonRoad car with 50 ms and a 0.1 rad heading error w_n 7 at
+    # every speed spun from 0.3-1 m at 10-20 m/s; the default comes back
+    from sim_plant.commonroad_plant import controller_vehicle
+    car = controller_vehicle(2)
+    plant = PlantParams(model='commonroad_mb', vehicle_id=2)
+    speeds, offsets = [10.0, 15.0, 20.0], [0.3, 1.0, 1.0]
+    lost, _ = _lost(LaneKeepingParams(), plant, speeds, offsets, car, car, 0.002, 25.0,
+                    0.05, heading=0.1)
+    assert lost == []
+    lost, _ = _lost(replace(UNCLIPPED, approach_heading=0.1), plant, speeds, offsets, car,
+                    car, 0.002, 25.0, 0.05, heading=0.1)
+    assert lost != []
+
+
 def test_engaged_4_m_off_on_softer_tyres_low_friction_and_50_ms():
     # C x0.7, mass x1.2, mu 0.7, 50 ms: overshoot at most 14.4 cm (30 m/s); the previous
     # default 48 cm at 15 m/s
@@ -133,14 +176,14 @@ def test_engaged_4_m_off_on_softer_tyres_low_friction_and_50_ms():
 
 @pytest.mark.parametrize('delay', [0.02, 0.05])
 def test_engaged_3_m_off_on_the_independent_car(delay):
-    # the CommonRoad multi-body BMW at 5-25 m/s: back with at most 5.4 cm of overshoot;
+    # the CommonRoad multi-body BMW at 5-25 m/s: back with at most 7.6 cm of overshoot;
     # without the clip w_n 7 spun it (dev-probe33; 2.5 m at 15-20 m/s, dev-probe34)
     from sim_plant.commonroad_plant import controller_vehicle
     car = controller_vehicle(2)
     plant = PlantParams(model='commonroad_mb', vehicle_id=2)
     speeds = [5.0, 7.0, 10.0, 15.0, 20.0, 25.0]
     lost, over = _lost(LaneKeepingParams(), plant, speeds, 3.0, car, car, 0.002, 15.0, delay)
-    assert lost == [] and np.max(over) < 0.06, over
+    assert lost == [] and np.max(over) < 0.085, over
     if delay == 0.05:
         lost, _ = _lost(UNCLIPPED, plant, [10.0], 1.0, car, car, 0.002, 15.0, delay)
         assert lost == [10.0]
@@ -170,7 +213,7 @@ def test_the_integral_and_its_band_clock_stand_while_the_offset_is_clipped():
 
 @pytest.mark.parametrize('v_x', [10.0, 37.0])
 def test_the_approach_loop_of_the_stability_check_is_the_law_far_off_the_lane(v_x):
-    # the law's steering differentiated numerically 8 m off the lane (clipped at 0.48 /
+    # the law's steering differentiated numerically 8 m off the lane (clipped at 0.60 /
     # 5.07 m): the gains the check uses, feedback_gain with k_i = 0 and no y_cg gain;
     # 0.2 m off (inside the clip) the y_cg gain is back
     import copy
@@ -242,4 +285,4 @@ def test_the_stability_tool_reports_the_approach_row(capsys):
     out = capsys.readouterr().out
     assert 'approach (CG offset clipped, integral held) | 0.99' in out
     assert 'in the approach HOLDS' in out
-    assert 'with Q flat' in out
+    assert 'with Q wn5' in out

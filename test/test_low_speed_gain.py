@@ -51,14 +51,14 @@ def test_the_previous_w_n_schedule_reaches_7_at_30_mps():
     assert loop_gains(OLD, 20.0) == pytest.approx(((7.0 * 20 / 30) ** 2, 2 * 7.0 * 20 / 30))
     assert loop_gains(OLD, 10.0) == pytest.approx((9.0, 6.0))
     assert loop_gains(WN20, 20.0) == pytest.approx((49.0, 14.0))
-    assert loop_gains(LaneKeepingParams(), 10.0) == pytest.approx((49.0, 14.0))
+    assert loop_gains(LaneKeepingParams(), 10.0) == pytest.approx((25.0, 10.0))
 
 
 @pytest.mark.parametrize('scenario,bounds,old', [
-    # peak CG error at 10 / 15 / 20 m/s [m]: the default (w_n 7) 2.7 / 2.7 / 3.3 and 3.5 /
-    # 3.7 / 4.9 cm; the previous schedule 14.0 / 8.6 / 6.9 and 19.5 / 11.0 / 8.5
-    ('s3_s_bend', (0.03, 0.03, 0.036), (0.13, 0.08, 0.06)),
-    ('s4_lane_change', (0.04, 0.04, 0.052), (0.18, 0.10, 0.075))])
+    # peak CG error at 10 / 15 / 20 m/s [m]: the default (w_n 5) 5.6 / 5.7 / 6.1 and 7.4 /
+    # 7.5 / 7.8 cm; the previous schedule 14.0 / 8.6 / 6.9 and 19.5 / 11.0 / 8.5
+    ('s3_s_bend', (0.06, 0.06, 0.065), (0.13, 0.08, 0.06)),
+    ('s4_lane_change', (0.08, 0.08, 0.082), (0.18, 0.10, 0.075))])
 def test_the_s_bend_and_the_lane_change_at_10_to_20_mps(scenario, bounds, old):
     speeds = (10.0, 15.0, 20.0)
     new = [r['peak_cg_error_m'] for r in _rows(LaneKeepingParams(), scenario, speeds, QUIET)]
@@ -68,25 +68,26 @@ def test_the_s_bend_and_the_lane_change_at_10_to_20_mps(scenario, bounds, old):
 
 
 def test_the_independent_car_at_10_and_20_mps():
-    # the CommonRoad multi-body car with the 20 ms delay, S4: 6.8 / 2.3 cm with the
+    # the CommonRoad multi-body car with the 20 ms delay, S4: 11.4 / 3.9 cm with the
     # default, 35.8 / 4.4 cm with the previous schedule (10 / 20 m/s)
     speeds = (10.0, 20.0)
     new = [r['peak_cg_error_m']
            for r in _rows(LaneKeepingParams(), 's4_lane_change', speeds, INDEPENDENT)]
     before = [r['peak_cg_error_m'] for r in _rows(OLD, 's4_lane_change', speeds, INDEPENDENT)]
-    assert new[0] < 0.08 and new[1] < 0.03, new
-    assert before[0] > 0.33 and before[1] > 0.04, before
+    assert new[0] < 0.12 and new[1] < 0.042, new
+    assert before[0] > 0.33 and before[1] > 0.042, before
 
 
 def test_the_steering_noise_at_10_and_20_mps():
-    # the price of w_n 7 at low speed: S0 steering noise on the goal plant, 4 seeds,
-    # 2.6-3.3 mrad rms at 10 m/s and 1.1-1.6 at 20 (the previous schedule 0.75-0.94 and
-    # 0.60-0.87), under the 5 mrad the issue allows at 37 m/s
+    # the price of w_n 5 at low speed: S0 steering noise on the goal plant, 4 seeds,
+    # 1.6-2.0 mrad rms at 10 m/s and 0.7-1.0 at 20 (the previous schedule 0.75-0.94 and
+    # 0.60-0.87; w_n 7 at every speed 2.6-3.3 and 1.1-1.6), under the 5 mrad the issue
+    # allows at 37 m/s
     rows = _rows(LaneKeepingParams(), 's0_straight', (10.0, 20.0), GOAL, seeds=4)
     noise = {(r['speed_mps'], r['noise_seed']): r['steering_noise_rms_rad'] for r in rows}
     assert len(noise) == 8
-    assert max(n for (v, _), n in noise.items() if v == 10.0) < 0.0038, noise
-    assert max(n for (v, _), n in noise.items() if v == 20.0) < 0.002, noise
+    assert max(n for (v, _), n in noise.items() if v == 10.0) < 0.0025, noise
+    assert max(n for (v, _), n in noise.items() if v == 20.0) < 0.0012, noise
 
 
 def _lost(settings, plant, speeds, offset, vehicle=VEHICLE, dt=DT, seconds=20.0):
@@ -98,7 +99,7 @@ def _lost(settings, plant, speeds, offset, vehicle=VEHICLE, dt=DT, seconds=20.0)
 def test_engaged_a_lane_off_at_15_to_20_mps_on_the_independent_car():
     # dev-probe34: w_n 7 from 20 m/s (cb360b4's default) spun the CommonRoad car engaged
     # 2.5 m off at 15 and 20 m/s (the wheel at its rate and angle limits); the default
-    # (w_n 7 with the approach heading) brings it back
+    # (w_n 5 below 21.4 m/s, with the approach heading) brings it back
     from sim_plant.commonroad_plant import controller_vehicle
     car = controller_vehicle(2)
     plant = PlantParams(model='commonroad_mb', vehicle_id=2)

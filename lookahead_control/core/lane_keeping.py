@@ -163,7 +163,7 @@ class LaneKeepingParams:
     natural_frequency: float = 7.0
     damping_ratio: float = 1.0
     frequency_speed: float = 30.0
-    low_speed_frequency: float = 7.0
+    low_speed_frequency: float = 5.0
     approach_heading: float = 0.1
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
@@ -211,8 +211,13 @@ class LaneKeepingParams:
                     low_open=True, unit='m/s')
         check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0, 100.0,
                     low_open=True, unit='rad/s')
-        check_range('lane_keeping.approach_heading', self.approach_heading, 0.0, 1.0,
+        check_range('lane_keeping.approach_heading', self.approach_heading, 0.0, 0.15,
                     unit='rad')
+        if 0.0 < self.approach_heading < 0.02:
+            raise ParameterError(
+                f'lane_keeping.approach_heading = {self.approach_heading!r} rad would leave '
+                'a car engaged off the lane crawling back (1 m at 0.01 rad and 10 m/s takes '
+                '10 s); allowed: 0 (no clip) or 0.02-0.15 rad')
         check_range('lane_keeping.reference_preview', self.reference_preview, 0.0, 3.0,
                     unit='s')
         check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
@@ -347,9 +352,9 @@ def frequency_schedule_note(settings: LaneKeepingParams) -> str:
 
     :func:`loop_gains` caps the low-speed w_n at ``natural_frequency``: a settings line
     ``low_speed_frequency = 9.0`` with ``natural_frequency`` 5 would tell of a w_n that
-    never runs. The default ``low_speed_frequency`` (7 rad/s, equal to the default
-    ``natural_frequency``: w_n constant) is not told: a file that only lowers
-    ``natural_frequency`` asks for that constant w_n, and gets it.
+    never runs. The default ``low_speed_frequency`` (5 rad/s) is not told: no settings
+    line names it, and a file that only lowers ``natural_frequency`` below it asks for
+    that w_n at every speed, and gets it.
 
     :param settings: the law's settings.
     :return: e.g. ``w_n 5 rad/s at every speed: low_speed_frequency is capped at
@@ -369,9 +374,9 @@ def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -
     With the offset part of the y_v error held at ``+-b`` the loop settles (straight road,
     constant speed, ``r = v_y = 0``) where the steering is 0: ``k_p (b + d_v eps_r) + k_d
     v_x eps_r = 0``, so ``eps_r = -k_p b / (k_p d_v + k_d v_x)``; the relative heading
-    ``heading`` needs ``b = heading (d_v + k_d v_x / k_p)``. With ``w_n`` 7 and ``zeta`` 1:
-    0.48 m at 10 m/s, 1.63 m at 20, 5.07 m at 37 m/s for the default 0.1 rad (Table 1
-    ``d_v``).
+    ``heading`` needs ``b = heading (d_v + k_d v_x / k_p)``. With the default gains
+    (``zeta`` 1, ``w_n`` 5 up to 21.4 m/s, 7 from 30) and 0.1 rad: 0.60 m at 10 m/s,
+    1.86 m at 20, 5.07 m at 37 m/s (Table 1 ``d_v``).
 
     :param heading: the approach heading [rad]; 0: no clip.
     :param d_v: the look-ahead distance [m].

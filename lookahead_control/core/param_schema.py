@@ -94,9 +94,9 @@ LANE_KEEPING_SPECS = tuple(
         ('frequency_speed', 'below this speed w_n falls with the speed [m/s]', 0.01, 100.0),
         ('low_speed_frequency', 'lowest w_n of the y_v loop, capped at natural_frequency '
          '(equal or above: w_n constant) [rad/s]', 0.01, 100.0),
-        ('approach_heading', 'far off the lane the proportional term sees the CG offset '
-         'clipped to this times d_v: the car closes at about this relative heading; the '
-         'integral and its band clock hold while clipped; 0: unclipped [rad]', 0.0, 1.0),
+        ('approach_heading', 'far off the lane the car closes on it at this relative '
+         'heading (the CG offset in the proportional term clipped); the integral and its '
+         'band clock hold while clipped; 0: unclipped, else 0.02-0.15 [rad]', 0.0, 0.15),
         ('reference_preview', 'the reference uses the curvature this long ahead [s]',
          0.0, 3.0),
         ('feedforward_preview', 'the drift term uses the curvature this long ahead: '
