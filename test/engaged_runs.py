@@ -58,8 +58,8 @@ def engaged_off_the_lane(settings: LaneKeepingParams, plant: PlantParams,
                        initial=replace(scenario.initial, relative_yaw=heading))
     law = CgCompensatedLaw(law_vehicle, ControllerParams(), settings)
     result = run(scenario, vehicle, law, plant, initial_speed=np.array(speeds),
-                 initial_error=np.asarray(offset, dtype=float), dt=dt, preview_distance=PREVIEW_DISTANCE,
-                 delay=delay)
+                 initial_error=np.asarray(offset, dtype=float), dt=dt,
+                 preview_distance=PREVIEW_DISTANCE, delay=delay)
     late = np.abs(result['y_cg'][result.time >= seconds - 5.0])
     lost = [float(v) for i, v in enumerate(speeds)
             if not np.all(np.isfinite(late[:, i])) or not np.max(late[:, i]) < 0.05]
