@@ -43,13 +43,16 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   and the loop is exponentially stable. With ``Q = I`` and ``A_1 = 0`` this is the
   paper's test ``a_max ||dP/dv||_2 < 1``. Any fixed ``Q > 0`` gives a valid test, so
   the loop is stable if the test holds for one of several, found by a numerical search
-  (Nelder-Mead over a Cholesky factor on a 55-speed grid): ``sharp`` for the exact
-  ``a_x``, ``robust`` for an error up to 3.5 m/s^2 in the law's ``a_x``, ``scheduled``
-  for that error with the speed schedule of ``k_i`` (``low_speed_integral_gain`` 0.05;
-  the default is ``k_i`` constant), all three for the default w_n schedule
-  (``frequency_speed`` 30 m/s), and ``robust_wn20`` for that error with
-  ``frequency_speed`` 20 m/s (an option, dev-wnflat). They are only checked here; the
-  tool reports the one with the smaller value.
+  (Nelder-Mead over a Cholesky factor on a 55-speed grid): ``wn5`` and ``wn5_robust``
+  for the default w_n schedule (5 rad/s up to 21.4 m/s since dev-approach; the exact
+  ``a_x`` and an error to 1 m/s^2, and an error of 3.5 m/s^2, which the best found does
+  not certify); ``flat``, ``flat_grade``, ``flat_robust`` the same for w_n 7 at every
+  speed (an option); for the schedule before dev-approach (3 rad/s below 12.86 m/s)
+  ``sharp`` for the exact ``a_x``, ``robust`` for an error up to 3.5 m/s^2 in the law's
+  ``a_x``, ``scheduled`` for that error with the speed schedule of ``k_i``
+  (``low_speed_integral_gain`` 0.05; the default is ``k_i`` constant); ``robust_wn20``
+  for that error with ``frequency_speed`` 20 m/s (an option, dev-wnflat). They are only
+  checked here; the tool reports the one with the smaller value.
   The integral gain ``k_i(v)`` is scheduled on speed (``integral_gain_at``): the test
   runs in the coordinates ``u = S(v) x`` of :func:`integral_coordinates` (the integral
   scaled by ``sqrt(k_i(v) / integral_gain)``), ``u' = (S A S^-1 + v' S_v S^-1) u``, the
@@ -57,7 +60,7 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   ``k_i``, so ``V = x^T S^T P S x`` is the same argument with a speed-dependent ``Q``.
 - ``A`` is continuous in ``v`` but has kinks where the d_v schedule leaves its floor
   ``d_s`` (10.78 m/s), where ``w_n`` leaves its clamps (at ``frequency_speed
-  min(low_speed_frequency / natural_frequency, 1)`` and at ``frequency_speed``: 12.86
+  min(low_speed_frequency / natural_frequency, 1)`` and at ``frequency_speed``: 21.43
   and 30 m/s by default) and where
   ``k_i`` leaves its own (``low_integral_speed``, ``integral_speed``); there
   ``P`` is Lipschitz and ``V`` absolutely continuous, so ``V' < 0`` almost everywhere
@@ -751,7 +754,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         ``y_cg`` is its error, the plant's ``y_cg`` drives nothing: its eigenvalue is
         exactly 1, the car closing on the lane) and without the integral.
     :param closing_mode: with ``approach``, keep the plant's ``y_cg`` and the integral
-        (in those coordinates: their columns are unit vectors, their eigenvalues 1).
+        (in those coordinates the ``y_cg`` column and the integral's row are unit
+        vectors, their eigenvalues 1).
     :return: the square one-step matrix.
     """
     fs = filter_settings or settings.filter_settings()
@@ -872,7 +876,11 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
 
 def _without_states(m: Matrix, indices: tuple[int, ...]) -> Matrix:
     """
-    Return the loop matrix without states that drive nothing (their columns unit vectors).
+    Return the loop matrix without states that drive nothing or that nothing drives.
+
+    A state whose column is a unit vector (it drives nothing: the approach's ``y_cg``) or
+    whose row is one (nothing drives it: the held integral) has the eigenvalue 1; the
+    rest of the spectrum is that of the matrix without it.
 
     :param m: the loop matrix.
     :param indices: the states to take out.
