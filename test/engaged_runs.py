@@ -35,7 +35,7 @@ def engaged_off_the_lane(settings: LaneKeepingParams, plant: PlantParams,
                          vehicle: VehicleParams = VEHICLE,
                          law_vehicle: VehicleParams = VEHICLE, dt: float = DT,
                          seconds: float = 20.0, delay: float = DELAY,
-                         heading: float = 0.0) -> tuple[list[float], np.ndarray]:
+                         heading: float | None = None) -> tuple[list[float], np.ndarray]:
     """
     Run the default law engaged ``offset`` metres off a straight lane (no noise).
 
@@ -49,13 +49,14 @@ def engaged_off_the_lane(settings: LaneKeepingParams, plant: PlantParams,
     :param seconds: the run's length [s].
     :param delay: transport delay [s].
     :param heading: the initial relative yaw [rad] (toward positive y_cg: away from the
-        lane for a positive offset).
+        lane for a positive offset); None: the scenario's (0.01 rad).
     :return: the speeds where the CG is not within 5 cm in the last 5 s (or the run
         diverged), and the overshoot past the centre per speed [m].
     """
     scenario = load_scenarios(['s0_straight'])['s0_straight']
-    scenario = replace(scenario, duration=seconds,
-                       initial=replace(scenario.initial, relative_yaw=heading))
+    scenario = replace(scenario, duration=seconds)
+    if heading is not None:
+        scenario = replace(scenario, initial=replace(scenario.initial, relative_yaw=heading))
     law = CgCompensatedLaw(law_vehicle, ControllerParams(), settings)
     result = run(scenario, vehicle, law, plant, initial_speed=np.array(speeds),
                  initial_error=np.asarray(offset, dtype=float), dt=dt,
