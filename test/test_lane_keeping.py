@@ -839,55 +839,39 @@ def test_lyapunov_function_decreases_for_w_n_7_from_20_mps_with_an_acceleration_
     _worst_case_from_the_peak(WN20, stability.CERTIFICATE_Q_ROBUST_WN20, 3.5)
 
 
-def test_certificate_of_the_default_w_n_5_below_21_mps():
-    # the default since dev-approach: the Q searched for it (wn5) gives 0.757 (bound;
-    # 4.6 m/s^2), worst at the d_v floor's kink; with the law's a_x off by up to 1 m/s^2
-    # (a 10 % grade) 0.981 (1.1 fails); the law's a_x 0 (acceleration_source zero):
-    # |a_x| <= 3.37 m/s^2 only (wn5_robust: 1.038 at 3.5 m/s^2)
-    settings = LaneKeepingParams()
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271)
-    assert cert.holds and cert.weight == 'wn5' and cert.max_real_eig < -0.3
-    assert cert.between == pytest.approx(0.757, abs=0.003)
-    assert cert.max_norm_speed == pytest.approx(10.7777, abs=1e-3)
-    assert cert.kinks[1] == pytest.approx(30.0 * 5.0 / 7.0)
-    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
-                                     a_max=4.7).holds
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0)
-    assert cert.holds and cert.weight == 'wn5'
-    assert cert.between == pytest.approx(0.981, abs=0.003)
-    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
-                                     a_error=1.1).holds
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=3.5)
-    assert not cert.holds and cert.weight == 'wn5_robust'
-    assert cert.between == pytest.approx(1.038, abs=0.003)
-    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_max=3.37,
-                                 a_error=3.37).holds
+@pytest.mark.parametrize(
+    'low,names,exact,worst_speed,fails,grade,holds_to,fails_at,robust,certified', [
+        # the default since dev-approach (w_n 5 up to 21.4 m/s): wn5 0.757 (4.6 m/s^2),
+        # worst at the d_v floor's kink; the law's a_x off by up to 1 m/s^2 (a 10 %
+        # grade) 0.981 (1.1 fails); the law's a_x 0 (acceleration_source zero): |a_x| <=
+        # 3.37 m/s^2 only (wn5_robust 1.038 at 3.5 m/s^2)
+        (5.0, ('wn5', 'wn5', 'wn5_robust'), 0.757, 10.7777, 4.7, 0.981, 1.0, 1.1, 1.038,
+         3.37),
+        # w_n 7 at every speed (an option): flat 0.829 (4.2 m/s^2) at 37 m/s; flat_grade
+        # 0.913 at 1 m/s^2, to 1.2 (1.4 fails); flat_robust 1.134: 3.05 m/s^2
+        (7.0, ('flat', 'flat_grade', 'flat_robust'), 0.829, 37.0, 4.3, 0.913, 1.2, 1.4,
+         1.134, 3.05)])
+def test_certificate_of_the_low_speed_w_n_since_dev_approach(
+        low, names, exact, worst_speed, fails, grade, holds_to, fails_at, robust, certified):
+    settings = LaneKeepingParams(low_speed_frequency=low)
 
-
-def test_certificate_of_w_n_7_at_every_speed():
-    # low_speed_frequency 7 (an option since dev-approach; the default is 5): the Q
-    # searched for it (flat) gives 0.829 (bound; 4.2 m/s^2), at 37 m/s; with the law's
-    # a_x off by up to 1 m/s^2 (a 10 % grade) the Q searched for that (flat_grade) 0.913,
-    # holding to 1.2 m/s^2 (1.4 fails); the law's a_x 0 (acceleration_source zero):
-    # |a_x| <= 3.09 m/s^2 only (flat_robust 1.134 at 3.5 m/s^2)
-    settings = LaneKeepingParams(low_speed_frequency=7.0)
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271)
-    assert cert.holds and cert.weight == 'flat' and cert.max_real_eig < -0.3
-    assert cert.between == pytest.approx(0.829, abs=0.003) and cert.max_norm_speed == 37.0
-    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
-                                     a_max=4.3).holds
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=1.0)
-    assert cert.holds and cert.weight == 'flat_grade'
-    assert cert.between == pytest.approx(0.913, abs=0.003)
-    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
-                                 a_error=1.2).holds
-    assert not stability.certificate(VEHICLE, CONTROLLER, settings, samples=271,
-                                     a_error=1.4).holds
-    cert = stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_error=3.5)
-    assert not cert.holds and cert.weight == 'flat_robust'
-    assert cert.between == pytest.approx(1.134, abs=0.003)
-    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, a_max=3.05,
-                                 a_error=3.05).holds
+    def check(**kwargs):
+        return stability.certificate(VEHICLE, CONTROLLER, settings, samples=271, **kwargs)
+    cert = check()
+    assert cert.holds and cert.weight == names[0] and cert.max_real_eig < -0.3
+    assert cert.between == pytest.approx(exact, abs=0.003)
+    assert cert.max_norm_speed == pytest.approx(worst_speed, abs=1e-3)
+    assert not check(a_max=fails).holds
+    cert = check(a_error=1.0)
+    assert cert.holds and cert.weight == names[1]
+    assert cert.between == pytest.approx(grade, abs=0.003)
+    assert check(a_error=holds_to).holds and not check(a_error=fails_at).holds
+    cert = check(a_error=3.5)
+    assert not cert.holds and cert.weight == names[2]
+    assert cert.between == pytest.approx(robust, abs=0.003)
+    assert check(a_max=certified, a_error=certified).holds
+    if low < 7.0:       # w_n leaves 5 rad/s at 30 * 5 / 7 m/s
+        assert check().kinks[1] == pytest.approx(30.0 * 5.0 / 7.0)
 
 
 def test_lyapunov_function_decreases_for_the_default_with_a_grade():
