@@ -125,7 +125,7 @@ def test_engaged_6_m_off_at_4_mps_the_car_arrives_at_0_4_mps():
 
 def test_engaged_4_m_off_at_30_mps_with_100_ms_of_delay():
     # found in dev-approach: the previous default diverged here (the CG 500 m off); the
-    # approach heading brings it back with 7.2 cm of overshoot (6.4 at 1.2-2 m)
+    # approach heading brings it back with 6.4 cm of overshoot
     speeds = [10.0, 20.0, 25.0, 30.0]
     lost, over = _lost(LaneKeepingParams(), NONLINEAR, speeds, 4.0, delay=0.1)
     assert lost == [] and np.max(over) < 0.09, over
