@@ -80,6 +80,29 @@ def _live(core, now, stamp=None, y=0.5, v_x=25.0, names=('yaw', 'velocity', 'lat
     return (core.compute(now, steady) if answered else None), refused
 
 
+
+def test_an_input_that_stops_after_a_refusal_is_not_blamed_on_the_refusal():
+    # dev-probe37: yaw stamps refused (0.5 s late), then taken again for a second, then
+    # yaw stopped: /diagnostics said "stale inputs: yaw (last refused: yaw: stamp 0.500 s
+    # behind ...)", a cause a second old; now the input is just stale
+    core = _core()
+    for k in range(20):                 # 100 Hz from 1000 s, yaw stamped 0.5 s late
+        now = (1000_000 + 10 * k) * MS
+        _live(core, now, names=('velocity', 'lateral_error'))
+        assert 'behind the node clock' in core.accept(
+            'yaw', YawSample(now - 500 * MS, 0.0, 0.0, 0.0), now)
+    assert 'last refused: yaw: stamp 0.500 s behind' in core.describe_stale(['yaw'])
+    for k in range(20, 120):            # a second of good inputs
+        _live(core, (1000_000 + 10 * k) * MS)
+    for k in range(120, 160):           # yaw stops
+        _live(core, (1000_000 + 10 * k) * MS, names=('velocity', 'lateral_error'))
+    now = 1001_590 * MS
+    assert core.stale(now) == ['yaw']
+    assert core.describe_stale(['yaw']) == 'yaw'
+    # refused again after the last one taken: the refusal is the cause, and is told
+    core.accept('yaw', YawSample(now - 500 * MS, 0.0, 0.0, 0.0), now)
+    assert 'last refused: yaw: stamp 0.500 s behind' in core.describe_stale(['yaw'])
+
 def test_stamps_are_judged_on_both_sides_of_the_node_clock():
     params = SafetyParams()                 # input_timeout 0.2 s, max_future 0.1 s
     now = 50_000 * MS

@@ -224,7 +224,8 @@ class SteeringController:
         self.safety = safety or SafetyParams()
         self.rejected: dict[str, int] = {}
         self.last_rejection = ''
-        self.refusals: dict[str, str] = {}      # input -> why its last refused sample was
+        # input -> why its samples since the last one taken were refused
+        self.refusals: dict[str, str] = {}
         self.time_jumps = 0
         #: restarts of a stateful law inside its own step (a gap between lateral errors
         #: beyond its ``max_gap``, a non-finite output): its integral and estimate start
@@ -448,6 +449,10 @@ class SteeringController:
         if clock is not None:
             self.timing.note_age(name, (clock - sample.stamp_ns) * 1e-9)
         self._received[name] = received
+        # why its samples were refused is told only while it is why the input is stale:
+        # once one is taken, an older refusal is history (dev-probe37: a yaw input that
+        # simply stopped was reported stale with a refusal a second older)
+        self.refusals.pop(name, None)
         self._voided.discard(name)
         if self._first_received is None:
             self._first_received = received
