@@ -80,7 +80,6 @@ def _live(core, now, stamp=None, y=0.5, v_x=25.0, names=('yaw', 'velocity', 'lat
     return (core.compute(now, steady) if answered else None), refused
 
 
-
 def test_an_input_that_stops_after_a_refusal_is_not_blamed_on_the_refusal():
     # dev-probe37: yaw stamps refused (0.5 s late), then taken again for a second, then
     # yaw stopped: /diagnostics said "stale inputs: yaw (last refused: yaw: stamp 0.500 s
@@ -102,6 +101,7 @@ def test_an_input_that_stops_after_a_refusal_is_not_blamed_on_the_refusal():
     # refused again after the last one taken: the refusal is the cause, and is told
     core.accept('yaw', YawSample(now - 500 * MS, 0.0, 0.0, 0.0), now)
     assert 'last refused: yaw: stamp 0.500 s behind' in core.describe_stale(['yaw'])
+
 
 def test_stamps_are_judged_on_both_sides_of_the_node_clock():
     params = SafetyParams()                 # input_timeout 0.2 s, max_future 0.1 s
