@@ -17,6 +17,7 @@
 
 from dataclasses import replace
 import math
+import re
 
 from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.control_law import LateralState, steering_law
@@ -573,9 +574,9 @@ def test_certificate_lyapunov_against_scipy():
 
 
 def test_every_q_on_one_grid_is_each_q_on_its_own():
-    # certificate() makes the loop's matrices on the grid once for all its Q (4.5 times
-    # faster than one grid per Q): each Q's result is the one of certificate(q=Q) alone,
-    # and the one returned is the smallest bound
+    # certificate() makes the loop's matrices at a grid point once for all its Q (3.7
+    # times faster than once per Q): each Q's result is the one of certificate(q=Q)
+    # alone to the bit, and the one returned is the smallest bound
     for settings, a_error in ((LaneKeepingParams(), 1.0), (SCHEDULED, 3.5)):
         alone = {name: stability.certificate(VEHICLE, CONTROLLER, settings, samples=21,
                                              q=weight, a_error=a_error)
@@ -587,6 +588,28 @@ def test_every_q_on_one_grid_is_each_q_on_its_own():
     with pytest.raises(ValueError, match='positive definite'):
         stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(), samples=21,
                               q=((1.0,) * 5,) * 5)
+
+
+def test_certificate_refusals_and_edges_do_not_depend_on_the_calls_before():
+    # dev-probe37, against a first version that kept each envelope's grid (lru_cache):
+    # samples 2.0 after a call with 2 returned a result (the same cache key) where a
+    # fresh process raised, and the memory grew with samples (12 KB a point, 8 grids
+    # kept); now nothing is kept
+    settings = LaneKeepingParams()
+    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=2).speeds == 5
+    with pytest.raises(TypeError):
+        stability.certificate(VEHICLE, CONTROLLER, settings, samples=2.0)
+    # infinite bounds are refused in one line (were numpy's LinAlgError)
+    for kwargs, blamed in (({'a_max': math.inf}, 'a_max = inf'),
+                           ({'v_max': math.inf}, 'speed envelope [10.0, inf]')):
+        with pytest.raises(ValueError, match=re.escape(blamed)):
+            stability.certificate(VEHICLE, CONTROLLER, settings, samples=3, **kwargs)
+    # an envelope within 1e-6 m/s of a kink is the kink, both sides (was numpy's
+    # "zero-size array to reduction operation maximum")
+    narrow = stability.certificate(VEHICLE, CONTROLLER, settings, 29.9999999, 30.0000001,
+                                   samples=3)
+    assert narrow.speeds == 1 and narrow.kinks == (30.0,) and narrow.holds
+    assert narrow.between == narrow.max_norm < 1.0
 
 
 CONSTANT_K_I = W_N_SCHEDULE   # k_i 0.3 at every speed (the default)

@@ -452,64 +452,29 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
     :param step: the difference step ``h`` [m/s].
     :return: ``(P, dP/dv, N)`` in ``u``.
     """
-    return _rate_terms(vehicle, controller, settings, v_x, side, step).rate(weight)
+    p, p_v, n = _lyapunov_rates(vehicle, controller, settings, v_x, side,
+                                np.asarray(weight, dtype=float)[np.newaxis], step)
+    return p[0], p_v[0], n[0]
 
 
-class _RateTerms(NamedTuple):
+def _lyapunov_rates(vehicle: VehicleParams, controller: ControllerParams,
+                    settings: LaneKeepingParams, v_x: float, side: float,
+                    weights: npt.NDArray[np.float64],
+                    step: float) -> tuple[npt.NDArray[np.float64], ...]:
     """
-    What :func:`lyapunov_rate` needs at one speed and side that does not depend on ``Q``.
+    Return :func:`lyapunov_rate` for several ``Q`` at once (the loop's matrices once).
 
-    The certificate tries several ``Q`` on the same grid: the loop's matrices and the
-    factored Lyapunov operator of ``A_0`` are made once for all of them.
-
-    :param a_1: ``A_1``, the loop's slope in ``a_x`` (this side's limit).
-    :param a_v: ``dA_0/dv`` (one-sided).
-    :param move: ``G = S_v S^-1`` of the integral coordinates (zeros: ``S`` constant).
-    :param inverse: the inverse of the Kronecker form of ``P -> A_0^T P + P A_0``.
-    """
-
-    a_1: Matrix
-    a_v: Matrix
-    move: Matrix
-    inverse: Matrix
-
-    def solve(self, right: Matrix) -> Matrix:
-        """
-        Return the symmetric ``P`` with ``A_0^T P + P A_0 = -right``.
-
-        :param right: a symmetric 5x5 matrix.
-        :return: ``P`` (as :func:`stability.lyapunov`).
-        """
-        n = right.shape[0]
-        p = (self.inverse @ -right.reshape(-1, order='F')).reshape(n, n, order='F')
-        return 0.5 * (p + p.T)
-
-    def rate(self, weight: Matrix) -> tuple[Matrix, Matrix, Matrix]:
-        """
-        Return ``(P, dP/dv, N)`` with this ``Q`` (:func:`lyapunov_rate`).
-
-        :param weight: ``Q``.
-        :return: the three 5x5 matrices.
-        """
-        p = self.solve(weight)
-        p_v = self.solve(self.a_v.T @ p + p @ self.a_v)
-        p_v = p_v + self.move.T @ p + p @ self.move
-        return p, p_v, self.a_1.T @ p + p @ self.a_1 + p_v
-
-
-def _rate_terms(vehicle: VehicleParams, controller: ControllerParams,
-                settings: LaneKeepingParams, v_x: float, side: float,
-                step: float) -> _RateTerms:
-    """
-    Return the ``Q``-free terms of :func:`lyapunov_rate` at a speed and side.
+    The Lyapunov equations of all ``Q`` share ``A_0``: its Kronecker form is made once
+    and solved for each ``Q`` as :func:`stability.lyapunov` does.
 
     :param vehicle: the design vehicle.
     :param controller: d_v schedule.
     :param settings: the law's settings.
     :param v_x: speed [m/s].
     :param side: +1 for the right derivative, -1 for the left one.
+    :param weights: the ``Q``, stacked (k x 5 x 5).
     :param step: the difference step ``h`` [m/s].
-    :return: the terms.
+    :return: ``(P, dP/dv, N)``, each stacked as ``weights``.
     """
     def matrix(v: float, a: float = 0.0) -> Matrix:
         return loop_in_coordinates(vehicle, controller, settings, v, a)
@@ -523,19 +488,31 @@ def _rate_terms(vehicle: VehicleParams, controller: ControllerParams,
     a_1 = 2.0 * slope(v_x + side * step) - slope(v_x + 2.0 * side * step)
     a_v = side * (-3.0 * a_0 + 4.0 * matrix(v_x + side * step)
                   - matrix(v_x + 2.0 * side * step)) / (2.0 * step)
+    size = a_0.shape[0]
+    eye = np.eye(size)
+    operator = np.kron(eye, a_0.T) + np.kron(a_0.T, eye)
+
+    def solve(right: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        # A_0^T P + P A_0 = -R for each stacked R, one solve each exactly as lyapunov()
+        # (a solve with many right-hand sides rounds otherwise: 1e-5 apart on a loop
+        # with a condition number of 1e11, dev-probe37)
+        p = np.array([np.linalg.solve(operator, -r.reshape(-1, order='F')).reshape(
+            size, size, order='F') for r in right])
+        return 0.5 * (p + np.swapaxes(p, 1, 2))
+
+    p = solve(weights)
+    p_v = solve(a_v.T @ p + p @ a_v)
     # the coordinates move with the true speed: u' = (S A S^-1 + v' G) u with
     # G = S_v S^-1 = (s'/s) (E_55 - E_15), s'/s = k_i' / (2 k_i) (one-sided: k_i is
     # piecewise linear in v)
-    move = np.zeros((5, 5))
     k_0 = float(integral_gain_at(settings, v_x))
     if k_0 > 0.0:
         k_step = float(integral_gain_at(settings, v_x + side * step))
         log_rate = 0.5 * side * (k_step - k_0) / (step * k_0)
+        move = np.zeros((5, 5))
         move[4, 4], move[0, 4] = log_rate, -log_rate
-    eye = np.eye(5)
-    # the Kronecker form of stability.lyapunov, inverted once for every Q
-    inverse = np.linalg.inv(np.kron(eye, a_0.T) + np.kron(a_0.T, eye))
-    return _RateTerms(a_1, a_v, move, inverse)
+        p_v = p_v + move.T @ p + p @ move
+    return p, p_v, a_1.T @ p + p @ a_1 + p_v
 
 
 def lyapunov_matrix(vehicle: VehicleParams, controller: ControllerParams,
@@ -614,75 +591,19 @@ def integral_scale(settings: LaneKeepingParams, v_x: float) -> float:
     return float(np.sqrt(float(integral_gain_at(settings, v_x)) / settings.integral_gain))
 
 
-class _Grid(NamedTuple):
+def _certificates(vehicle: VehicleParams, controller: ControllerParams,
+                  settings: LaneKeepingParams, v_min: float, v_max: float, a_max: float,
+                  samples: int, weights: dict[str, Matrix],
+                  a_error: float) -> list[Certificate]:
     """
-    The certificate's speed grid with what every ``Q`` needs there (made once).
-
-    :param speeds: the grid and the kinks [m/s].
-    :param kinks: the kinks of the schedules [m/s].
-    :param max_real_eig: the largest real part of ``A_0``'s eigenvalues over the speeds
-        checked (the first where it is >= 0 ends the check).
-    :param points: each speed checked with its one-sided terms ``(side, terms)``
-        (:func:`_rate_terms`), a side only where a step fits before the next kink.
-    """
-
-    speeds: npt.NDArray[np.float64]
-    kinks: list[float]
-    max_real_eig: float
-    points: list[tuple[float, list[tuple[float, _RateTerms]]]]
-
-
-@functools.lru_cache(maxsize=8)
-def _grid(vehicle: VehicleParams, controller: ControllerParams,
-          settings: LaneKeepingParams, v_min: float, v_max: float, samples: int) -> _Grid:
-    """
-    Return the certificate's speed grid and its ``Q``-free terms (see :func:`certificate`).
-
-    Kept for the last few envelopes (its inputs are frozen): another ``a_max`` or
-    ``a_error`` on the same envelope, as the tool and the tests check, reuses it.
+    Evaluate the Section 4 test with each of several ``Q`` (see :func:`certificate`).
 
     The grid is ``samples`` speeds from ``v_min`` to ``v_max`` and the kinks of the
     schedules; at each speed the left and the right derivative of ``P`` are used
-    (the same number away from the kinks); a one-sided step never crosses a kink.
-
-    :param vehicle: the design vehicle.
-    :param controller: gains and schedule.
-    :param settings: the law's settings.
-    :param v_min: lower speed [m/s].
-    :param v_max: upper speed [m/s].
-    :param samples: number of speeds of the uniform grid (>= 2).
-    :return: the grid.
-    """
-    kinks = schedule_kinks(vehicle, controller, settings, v_min, v_max)
-    uniform = np.linspace(v_min, v_max, samples)
-    # a grid point within 1e-6 m/s of a kink is the kink (no one-sided step that short)
-    near = np.array([min((abs(u - k) for k in kinks), default=1.0) < 1e-6 for u in uniform])
-    speeds = np.unique(np.concatenate([uniform[~near], kinks]))
-    breaks = np.array([v_min] + kinks + [v_max])
-    worst_eig = -np.inf
-    points: list[tuple[float, list[tuple[float, _RateTerms]]]] = []
-    for v in (float(s) for s in speeds):
-        eig = float(np.max(np.linalg.eigvals(
-            closed_loop_matrix(vehicle, controller, settings, v)).real))
-        worst_eig = max(worst_eig, eig)
-        if worst_eig >= 0.0:
-            break
-        sides = []
-        for side in (-1.0, 1.0):
-            room = (v - breaks[breaks < v].max() if side < 0 and v > v_min else
-                    breaks[breaks > v].min() - v if side > 0 and v < v_max else 0.0)
-            if room > 0.0:
-                sides.append((side, _rate_terms(vehicle, controller, settings, v, side,
-                                                min(_STEP, room / 2.0))))
-        points.append((v, sides))
-    return _Grid(speeds, kinks, worst_eig, points)
-
-
-def _certificate_for(grid: _Grid, v_min: float, v_max: float, a_max: float,
-                     q: Optional[tuple[tuple[float, ...], ...]], a_error: float,
-                     name: str = 'given') -> Certificate:
-    """
-    Evaluate the Section 4 test with one ``Q`` on a grid (see :func:`certificate`).
+    (the same number away from the kinks); a one-sided step never crosses a kink. The
+    loop's matrices at a grid point are made once for every ``Q`` (before, once per
+    ``Q``: nine times the work), one point at a time (the memory does not grow with
+    ``samples``).
 
     The law's ``a_x`` (``a_hat``, from the IMU or a differentiated speed) may differ from
     the true ``v'`` by up to ``a_error``: ``V' = x^T (-Q + a P_v + a_hat M) x`` with
@@ -690,46 +611,72 @@ def _certificate_for(grid: _Grid, v_min: float, v_max: float, a_max: float,
     ``a = +-a_max``, ``a_hat = a +- a_error`` suffice. ``a_error >= a_max`` covers the
     node's ``acceleration_source: zero`` (``a_hat = 0``).
 
-    :param grid: the speeds and their ``Q``-free terms (:func:`_grid`).
+    :param vehicle: the design vehicle.
+    :param controller: gains and schedule.
+    :param settings: the law's settings.
     :param v_min: lower speed [m/s].
     :param v_max: upper speed [m/s].
     :param a_max: acceleration bound [m/s^2].
-    :param q: the Lyapunov equation's right-hand side (None: :data:`CERTIFICATE_Q`).
+    :param samples: number of speeds of the uniform grid (>= 2).
+    :param weights: the ``Q`` by name (each checked by :func:`lyapunov_weight`).
     :param a_error: bound on the law's acceleration error [m/s^2].
-    :param name: the name of ``q`` for the result.
-    :return: the worst cases and whether the test holds.
+    :return: one result per ``Q``, in the order of ``weights``.
     """
-    weight = lyapunov_weight(q)
+    names = list(weights)
+    stack = np.array([weights[name] for name in names])
     # Q^-1/2 in the Cholesky form: eig(Q^-1 N) = eig(C^-1 N C^-T), Q = C C^T
-    inverse = np.linalg.inv(np.linalg.cholesky(weight))
-    worst, worst_speed, lipschitz = -np.inf, v_min, 0.0
+    inverse = np.linalg.inv(np.linalg.cholesky(stack))
+    kinks = schedule_kinks(vehicle, controller, settings, v_min, v_max)
+    uniform = np.linspace(v_min, v_max, samples)
+    # a grid point within 1e-6 m/s of a kink is the kink (no one-sided step that short)
+    near = np.array([min((abs(u - k) for k in kinks), default=1.0) < 1e-6 for u in uniform])
+    speeds = np.unique(np.concatenate([uniform[~near], kinks]))
+    breaks = np.array([v_min] + kinks + [v_max])
+    worst_eig = -np.inf
+    worst = np.full(len(names), -np.inf)
+    worst_speed = np.full(len(names), v_min)
+    lipschitz = np.zeros(len(names))
     previous: Optional[tuple[float, npt.NDArray[np.float64]]] = None
-    for v, sides in grid.points:
-        for side, terms in sides:
-            _, p_v, n = terms.rate(weight)
+    for v in (float(s) for s in speeds):
+        eig = float(np.max(np.linalg.eigvals(
+            closed_loop_matrix(vehicle, controller, settings, v)).real))
+        worst_eig = max(worst_eig, eig)
+        if worst_eig >= 0.0:
+            break
+        for side in (-1.0, 1.0):
+            room = (v - breaks[breaks < v].max() if side < 0 and v > v_min else
+                    breaks[breaks > v].min() - v if side > 0 and v < v_max else 0.0)
+            if room <= 0.0:
+                continue
+            _, p_v, n = _lyapunov_rates(vehicle, controller, settings, v, side, stack,
+                                        min(_STEP, room / 2.0))
             # a P_v + a_hat M = a N + (a_hat - a) M in Q's coordinates, at the vertices
-            rate = inverse @ n @ inverse.T
-            drift = inverse @ (n - p_v) @ inverse.T
-            scaled = np.array([a * rate + e * drift for a in (-a_max, a_max)
-                               for e in (-a_error, a_error)])
-            value = float(np.max(np.linalg.eigvalsh(scaled)))
-            if value > worst:
-                worst, worst_speed = value, v
+            rate = inverse @ n @ np.swapaxes(inverse, 1, 2)
+            drift = inverse @ (n - p_v) @ np.swapaxes(inverse, 1, 2)
+            scaled = np.stack([a * rate + e * drift for a in (-a_max, a_max)
+                               for e in (-a_error, a_error)], axis=1)
+            value = np.max(np.linalg.eigvalsh(scaled), axis=(1, 2))
+            worst_speed = np.where(value > worst, v, worst_speed)
+            worst = np.maximum(worst, value)
             # the difference quotient within one smooth piece (left side: the piece
             # that ends here, as the previous point's right side)
             if side < 0 and previous is not None:
                 gap = v - previous[0]
-                jump = float(np.max(np.abs(np.linalg.eigvalsh(scaled - previous[1]))))
-                lipschitz = max(lipschitz, jump / gap)
+                jump = np.max(np.abs(np.linalg.eigvalsh(scaled - previous[1])), axis=(1, 2))
+                lipschitz = np.maximum(lipschitz, jump / gap)
             if side > 0:
                 previous = (v, scaled)
-    spacing = float(np.max(np.diff(grid.speeds)))
-    between = worst + lipschitz * spacing / 2.0
-    if grid.max_real_eig >= 0.0:     # no P(v) > 0 from the Lyapunov equation: no test value
-        worst = between = float('inf')
-    holds = grid.max_real_eig < 0.0 and between < 1.0
-    return Certificate(v_min, v_max, a_max, a_error, grid.max_real_eig, worst, worst_speed,
-                       between, tuple(grid.kinks), int(grid.speeds.size), name, holds)
+    # an envelope within 1e-6 m/s of one kink is that one speed
+    spacing = float(np.max(np.diff(speeds))) if speeds.size > 1 else 0.0
+    results = []
+    for i, name in enumerate(names):
+        top, between = float(worst[i]), float(worst[i] + lipschitz[i] * spacing / 2.0)
+        if worst_eig >= 0.0:     # no P(v) > 0 from the Lyapunov equation: no test value
+            top = between = float('inf')
+        results.append(Certificate(v_min, v_max, a_max, a_error, worst_eig, top,
+                                   float(worst_speed[i]), between, tuple(kinks),
+                                   int(speeds.size), name, worst_eig < 0.0 and between < 1.0))
+    return results
 
 
 def certificate(vehicle: VehicleParams, controller: ControllerParams,
@@ -742,11 +689,8 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
 
     Each ``Q`` gives a sufficient condition: without ``q`` every one of
     :data:`CERTIFICATE_WEIGHTS` is tried and the result with the smallest bound is
-    returned (the loop is stable if one holds). The grid is ``samples`` speeds from
-    ``v_min`` to ``v_max`` and the kinks of the schedules; at each speed the left and
-    the right derivative of ``P`` are used (the same number away from the kinks); a
-    one-sided step never crosses a kink. The loop's matrices on the grid are made once
-    for every ``Q``.
+    returned (the loop is stable if one holds). The grid and the test:
+    :func:`_certificates`.
 
     :param vehicle: the design vehicle.
     :param controller: gains and schedule.
@@ -761,22 +705,21 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     :raises ValueError: an envelope, bound or sample count outside its range, or a ``Q``
         that is not symmetric positive definite.
     """
-    if not 0.0 < v_min < v_max:
+    if not 0.0 < v_min < v_max < float('inf'):
         raise ValueError(f'speed envelope [{v_min!r}, {v_max!r}] m/s must satisfy '
-                         '0 < v_min < v_max')
-    if not a_max >= 0.0:
-        raise ValueError(f'a_max = {a_max!r} m/s^2 must be >= 0')
+                         '0 < v_min < v_max, finite')
+    if not 0.0 <= a_max < float('inf'):
+        raise ValueError(f'a_max = {a_max!r} m/s^2 must be >= 0 and finite')
     if not 0.0 <= a_error < float('inf'):
         raise ValueError(f'a_error = {a_error!r} m/s^2 must be >= 0 and finite')
     if samples < 2:
         raise ValueError(f'samples = {samples!r} must be >= 2')
     if q is not None:
-        lyapunov_weight(q)          # a bad Q is refused before the grid is made
-    grid = _grid(vehicle, controller, settings, v_min, v_max, samples)
-    if q is not None:
-        return _certificate_for(grid, v_min, v_max, a_max, q, a_error)
-    results = [_certificate_for(grid, v_min, v_max, a_max, weight, a_error, name)
-               for name, weight in CERTIFICATE_WEIGHTS.items()]
+        return _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
+                             {'given': lyapunov_weight(q)}, a_error)[0]
+    results = _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
+                            {name: lyapunov_weight(weight)
+                             for name, weight in CERTIFICATE_WEIGHTS.items()}, a_error)
     return min(results, key=lambda c: (c.between, list(CERTIFICATE_WEIGHTS).index(
         c.weight)))
 
