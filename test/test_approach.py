@@ -36,11 +36,13 @@ from sim_plant.vehicle_model import PlantParams
 
 VEHICLE = load_vehicle(None)
 CONTROLLER = ControllerParams()
-#: the previous default (dev-wnflat): w_n falling to 3 rad/s below 12.9 m/s, no clip
-OLD = LaneKeepingParams(low_speed_frequency=3.0, approach_heading=0.0)
+#: the previous default (dev-wnflat): w_n falling to 3 rad/s below 12.9 m/s, no clip,
+#: no demand limit
+OLD = LaneKeepingParams(low_speed_frequency=3.0, approach_heading=0.0, demand_limit=0.0)
 #: w_n 7 at every speed without the clip (f8dd7e1, withdrawn: it lost the lane from
-#: 1.2-2 m off at 4-12 m/s, dev-probe33)
-UNCLIPPED = LaneKeepingParams(low_speed_frequency=7.0, approach_heading=0.0)
+#: 1.2-2 m off at 4-12 m/s, dev-probe33), as it was: no demand limit
+UNCLIPPED = LaneKeepingParams(low_speed_frequency=7.0, approach_heading=0.0,
+                              demand_limit=0.0)
 SPEEDS = [5.0, 7.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0]
 
 
@@ -217,7 +219,10 @@ def test_the_approach_loop_of_the_stability_check_is_the_law_far_off_the_lane(v_
     # 5.07 m): the gains the check uses, feedback_gain with k_i = 0 and no y_cg gain;
     # 0.2 m off (inside the clip) the y_cg gain is back
     import copy
-    settings = LaneKeepingParams(state_filter='none', compliance_time_constant=0.0)
+    # (the demand limit off: 8 m off at 37 m/s the law's command is beyond it, a
+    # saturation the linear check does not model)
+    settings = LaneKeepingParams(state_filter='none', compliance_time_constant=0.0,
+                                 demand_limit=0.0)
     gains = stability.feedback_gain(VEHICLE, CONTROLLER, replace(settings, integral_gain=0.0),
                                     v_x)
     running = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v_x)

@@ -110,6 +110,12 @@ class LaneKeepingParams:
         a steady error outside the band is the model's, integrated [s]; 0: held for as
         long as it is outside.
     :param steering_limit: the integral is frozen while ``|delta|`` reaches this [rad].
+    :param demand_limit: the command stays within the steady steering of the lane's
+        curvature (at the CG and ahead) plus or minus that of this lateral acceleration
+        (:func:`demand_band`) [m/s^2]; 0: unlimited. Engaged metres off the lane with
+        a heading error at 25-30 m/s the loop otherwise asked for several g and spun
+        the CommonRoad cars (dev-demand). The integral and the compliance estimate
+        hold while the command is held at the band (as at ``steering_limit``).
     :param max_gap: a step longer than this (or negative) is a time jump: the
         integral restarts at 0 [s].
     :param compliance_time_constant: forgetting time of the rear-compliance estimate
@@ -165,6 +171,7 @@ class LaneKeepingParams:
     frequency_speed: float = 30.0
     low_speed_frequency: float = 5.0
     approach_heading: float = 0.1
+    demand_limit: float = 14.0
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
     integral_gain: float = 0.3
@@ -218,6 +225,13 @@ class LaneKeepingParams:
                 f'lane_keeping.approach_heading = {self.approach_heading!r} rad would leave '
                 'a car engaged off the lane crawling back (1 m at 0.01 rad and 10 m/s takes '
                 '10 s); allowed: 0 (no clip) or 0.02-0.15 rad')
+        check_range('lane_keeping.demand_limit', self.demand_limit, 0.0, 50.0,
+                    unit='m/s^2')
+        if 0.0 < self.demand_limit < 5.0:
+            raise ParameterError(
+                f'lane_keeping.demand_limit = {self.demand_limit!r} m/s^2 would hold the '
+                'car back from the lane in ordinary driving (S1 at 37 m/s: 8.5 cm off at '
+                '6 m/s^2 instead of 2.9); allowed: 0 (unlimited) or 5-50 m/s^2')
         check_range('lane_keeping.reference_preview', self.reference_preview, 0.0, 3.0,
                     unit='s')
         check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
@@ -388,6 +402,37 @@ def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -
     if heading <= 0.0:
         return math.inf
     return heading * (d_v + k_d * v_x / k_p)
+
+
+def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
+                limit: float) -> tuple[Real, Real]:
+    """
+    Return the steering band of ``demand_limit``: the lane's steady steering +- a margin.
+
+    The single-track model's steady steering is ``delta = (L / v_x^2 + K) a`` for a
+    lateral acceleration ``a`` (``K = m (l_2 / C_f - l_1 / C_r) / L`` the understeer
+    gradient, taken as 0 if negative), and ``a = v_x^2 rho`` on the lane. The band is
+    that of the curvatures between ``rho_a`` and ``rho_b`` (at the CG and ahead: the
+    law steers into a curve before the CG reaches it), widened by ``limit``'s steady
+    steering. With 14 m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s:
+    2.91 -> 2.92 cm), and caps the loop's demand engaged metres off the lane with a
+    heading error (dev-demand).
+
+    :param vehicle: the design vehicle.
+    :param v_x: speed [m/s] (> 0).
+    :param rho_a: one curvature [1/m].
+    :param rho_b: the other [1/m].
+    :param limit: the margin's lateral acceleration [m/s^2].
+    :return: ``(low, high)`` [rad].
+    """
+    length = vehicle.l1 + vehicle.l2
+    understeer = max(vehicle.mass * (vehicle.l2 / vehicle.c_f - vehicle.l1 / vehicle.c_r)
+                     / length, 0.0)
+    per_accel = length / (v_x * v_x) + understeer
+    per_curvature = per_accel * v_x * v_x
+    margin = limit * per_accel
+    return (xp.minimum(rho_a, rho_b) * per_curvature - margin,
+            xp.maximum(rho_a, rho_b) * per_curvature + margin)
 
 
 def approach_error(error: Real, offset: Real, limit: Real) -> Real:
@@ -626,6 +671,8 @@ class CgCompensatedLaw:
         self.last_steering: Real = 0.0
         #: the last step's CG offset was clipped (``approach_heading``)
         self.clipped: Any = False
+        #: the last step's command was held at the demand band (``demand_limit``)
+        self.capped: Any = False
         self.cut = False        # the last command sent was cut outside the law
         st = self.settings
         self.estimator = ComplianceEstimator(
@@ -665,6 +712,7 @@ class CgCompensatedLaw:
         self.outside_time = 0.0
         self.last_steering = 0.0
         self.clipped = False
+        self.capped = False
         self.cut = False
         self.estimator.reset()
         if self.state_filter is not None:
@@ -721,6 +769,7 @@ class CgCompensatedLaw:
                 carried.append('curvature rate')
         self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
         self.clipped = old.clipped      # recomputed at the next step, as after any step
+        self.capped = old.capped
         if s.integral_gain > 0.0:
             self.integral = xp.clip(old.integral, -s.integral_limit, s.integral_limit)
             self.outside_time = old.outside_time
@@ -928,13 +977,15 @@ class CgCompensatedLaw:
             lead_rate = xp.clip(v_x * slope_ref, -most, most)
             lead_ff_rate = xp.clip(v_x * slope_ff, -most, most)
         # learning and integrating only above the speed floor and off the steering limit
-        # and while the CG closes on the lane at the approach heading (approach_heading):
-        # that error is the clip's pace, not the model's
+        # and the demand band (demand_limit), and while the CG closes on the lane at the
+        # approach heading (approach_heading): that error is the clip's pace, not the
+        # model's
         unclipped = (~self.clipped if isinstance(self.clipped, np.ndarray)
                      else not self.clipped)
+        uncapped = ~self.capped if isinstance(self.capped, np.ndarray) else not self.capped
         active = ((state.v_x >= s.integral_min_speed)
                   & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut)
-                  & unclipped)
+                  & unclipped & uncapped)
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
             self.estimator.update(state, dt, active, state.v_x >= s.integral_min_speed)
@@ -965,6 +1016,11 @@ class CgCompensatedLaw:
             left = self._blend_left
             out = out._replace(steering=out.steering + xp.where(
                 left > 0.0, self._steer_offset * (left / s.curvature_blend), 0.0))
+        capped: Any = False
+        if s.demand_limit > 0.0:
+            low, high = demand_band(self.vehicle, v_x, state.rho, rho_ff, s.demand_limit)
+            capped = (out.steering < low) | (out.steering > high)
+            out = out._replace(steering=xp.clip(out.steering, low, high))
         finite = _finite(out.steering)
         clipped: Any = False
         if s.approach_heading > 0.0:
@@ -981,6 +1037,7 @@ class CgCompensatedLaw:
             self.outside_time = np.where(finite, outside_time, 0.0)
             self.last_steering = np.where(finite, out.steering, 0.0)
             self.clipped = np.where(finite, clipped, False)
+            self.capped = np.where(finite, capped, False)
             if self._blending is not None:
                 self._blend_left = np.where(finite, self._blend_left, 0.0)
             self.estimator.forget(~finite)
@@ -1002,6 +1059,7 @@ class CgCompensatedLaw:
         else:
             self.integral, self.last_steering = integral, out.steering
             self.outside_time, self.clipped = outside_time, bool(clipped)
+            self.capped = bool(capped)
         return out
 
     def evaluate(self, state: LateralState, dt: float, rho_ref: Real, rho_ref_rate: Real,

@@ -1,0 +1,112 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""The law's demand limit (lane_keeping.demand_limit, dev-demand)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from engaged_runs import engaged_off_the_lane
+from lookahead_control.core.config import load_vehicle
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.lane_keeping import (CgCompensatedLaw, demand_band,
+                                                 LaneKeepingParams)
+from lookahead_control.core.params import ControllerParams, ParameterError
+from lookahead_control.tools.compare import (DELAY, DT, load_scenarios, NONLINEAR,
+                                             PREVIEW_DISTANCE)
+import numpy as np
+import pytest
+from sim_plant.closed_loop_sim import run
+from sim_plant.vehicle_model import PlantParams
+
+VEHICLE = load_vehicle(None)
+CONTROLLER = ControllerParams()
+UNLIMITED = LaneKeepingParams(demand_limit=0.0)
+
+
+def test_the_band_is_the_lane_s_steady_steering_plus_minus_the_margin():
+    # Table 1 car: L 2.68 m, understeer gradient m (l_2 / C_f - l_1 / C_r) / L = 3.32
+    # mrad per m/s^2; at 30 m/s a lateral acceleration costs 2.68 / 900 + 0.00332 =
+    # 6.30 mrad per m/s^2: 14 m/s^2 is 88.2 mrad either side of the lane's steering
+    assert demand_band(VEHICLE, 30.0, 0.0, 0.0, 14.0) == pytest.approx(
+        (-0.088234, 0.088234), abs=1e-6)
+    # between the curvature at the CG and ahead (here 0 and R 400 m: 14.2 mrad)
+    assert demand_band(VEHICLE, 30.0, 0.0, 0.0025, 14.0) == pytest.approx(
+        (-0.088234, 0.102414), abs=1e-6)
+    assert demand_band(VEHICLE, 30.0, 0.0025, 0.0, 14.0) == demand_band(
+        VEHICLE, 30.0, 0.0, 0.0025, 14.0)
+    # an oversteering model: no understeer term (the kinematic steering alone)
+    over = replace(VEHICLE, c_f=2.0 * VEHICLE.c_f)
+    assert demand_band(over, 30.0, 0.0, 0.0, 10.0)[1] == pytest.approx(10.0 * 2.68 / 900.0)
+    arrays = demand_band(VEHICLE, np.array([30.0, 10.0]), np.zeros(2), np.zeros(2), 14.0)
+    assert arrays[1] == pytest.approx([0.088234, 14.0 * (2.68 / 100.0 + 0.0033246)],
+                                      abs=1e-6)
+
+
+def test_a_limit_that_would_hold_the_car_back_is_refused():
+    assert LaneKeepingParams().demand_limit == 14.0
+    assert LaneKeepingParams(demand_limit=0.0).demand_limit == 0.0
+    for bad in (3.0, -1.0, 51.0, float('nan')):
+        with pytest.raises(ParameterError, match='lane_keeping.demand_limit'):
+            LaneKeepingParams(demand_limit=bad)
+    with pytest.raises(ParameterError, match=r'allowed: 0 \(unlimited\) or 5-50 m/s\^2'):
+        LaneKeepingParams(demand_limit=3.0)
+
+
+def test_far_off_the_lane_the_command_is_held_at_the_band():
+    # 3 m off, heading 0.1 rad away at 30 m/s: the loop asks for -0.167 rad (the
+    # steady steering of 27 m/s^2); the command is the band's edge, -88 mrad, and the
+    # filter's wheel model is told that command
+    state = LateralState(3.0, 0.1, 0.0, 0.0, 30.0, 0.0, 0.0, 0.0)
+    limited = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
+    free = CgCompensatedLaw(VEHICLE, CONTROLLER, UNLIMITED)
+    asked = float(free.step(state, None, 0.01).steering)
+    got = float(limited.step(state, None, 0.01).steering)
+    assert asked < -0.15
+    assert got == pytest.approx(-0.088234, abs=1e-6)
+    assert limited.last_steering == got
+
+
+def test_ordinary_driving_never_reaches_it():
+    # S1-S4 at 10-37 m/s on the nonlinear plant with the goal's 20 ms: the peaks with the
+    # limit are those without it (S1 at 37 m/s reaches it: 2.91 -> 2.92 cm)
+    speeds = np.array([10.0, 20.0, 30.0, 37.0])
+    scenarios = load_scenarios(['s1_paper_step', 's2_curve_entry', 's3_s_bend',
+                                's4_lane_change'])
+    for name, scenario in scenarios.items():
+        peaks = [np.max(np.abs(run(scenario, VEHICLE,
+                                   CgCompensatedLaw(VEHICLE, CONTROLLER, settings),
+                                   NONLINEAR, initial_speed=speeds, dt=DT,
+                                   preview_distance=PREVIEW_DISTANCE,
+                                   delay=DELAY)['y_cg']), axis=0)
+                 for settings in (LaneKeepingParams(), UNLIMITED)]
+        assert peaks[0] == pytest.approx(peaks[1], abs=2e-4), name
+
+
+def test_the_independent_cars_engaged_off_the_lane_with_a_heading_error():
+    # dev-demand: the CommonRoad multi-body cars 2 and 3 engaged 2-3 m off the lane with
+    # 0.1 rad heading away from it at 25-30 m/s spun without the limit (20 and 50 ms, the
+    # Fiala goal plant did not); with it they are back, overshoot <= 5.4 cm
+    from sim_plant.commonroad_plant import controller_vehicle
+    car = controller_vehicle(2)
+    plant = PlantParams(model='commonroad_mb', vehicle_id=2)
+    speeds = [28.0, 30.0]
+    lost, over = engaged_off_the_lane(LaneKeepingParams(), plant, speeds, 3.0, car, car,
+                                      0.002, 12.0, DELAY, heading=0.1)
+    assert lost == [] and np.max(over) < 0.06, over
+    lost, _ = engaged_off_the_lane(UNLIMITED, plant, speeds, 3.0, car, car, 0.002, 12.0,
+                                   DELAY, heading=0.1)
+    assert lost == speeds
