@@ -71,6 +71,26 @@ from lookahead_control.core.state_filter import (_bounded, FILTER_MODES, KalmanS
 import numpy as np
 
 
+def _check_off_or_range(name: str, value: float, allowed: tuple[float, float], unit: str,
+                        off: str, why: str) -> None:
+    """
+    Refuse a setting that is neither 0 (off) nor within ``allowed``.
+
+    :param name: the parameter's name.
+    :param value: its value.
+    :param allowed: the range of values other than 0.
+    :param unit: its unit.
+    :param off: what 0 means, for the message.
+    :param why: what a value between 0 and ``allowed[0]`` would do, for the message.
+    :raises ParameterError: naming the value and what is allowed.
+    """
+    low, high = allowed
+    check_range(name, value, 0.0, high, unit=unit)
+    if 0.0 < value < low:
+        raise ParameterError(f'{name} = {value!r} {unit} {why}; allowed: 0 ({off}) or '
+                             f'{low:g}-{high:g} {unit}')
+
+
 @dataclass(frozen=True)
 class LaneKeepingParams:
     """
@@ -218,20 +238,14 @@ class LaneKeepingParams:
                     low_open=True, unit='m/s')
         check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0, 100.0,
                     low_open=True, unit='rad/s')
-        check_range('lane_keeping.approach_heading', self.approach_heading, 0.0, 0.15,
-                    unit='rad')
-        if 0.0 < self.approach_heading < 0.02:
-            raise ParameterError(
-                f'lane_keeping.approach_heading = {self.approach_heading!r} rad would leave '
-                'a car engaged off the lane crawling back (1 m at 0.01 rad and 10 m/s takes '
-                '10 s); allowed: 0 (no clip) or 0.02-0.15 rad')
-        check_range('lane_keeping.demand_limit', self.demand_limit, 0.0, 50.0,
-                    unit='m/s^2')
-        if 0.0 < self.demand_limit < 5.0:
-            raise ParameterError(
-                f'lane_keeping.demand_limit = {self.demand_limit!r} m/s^2 would hold the '
-                'car back from the lane in ordinary driving (S1 at 37 m/s: 8.5 cm off at '
-                '6 m/s^2 instead of 2.9); allowed: 0 (unlimited) or 5-50 m/s^2')
+        _check_off_or_range('lane_keeping.approach_heading', self.approach_heading,
+                            (0.02, 0.15), 'rad', 'no clip',
+                            'would leave a car engaged off the lane crawling back (1 m at '
+                            '0.01 rad and 10 m/s takes 10 s)')
+        _check_off_or_range('lane_keeping.demand_limit', self.demand_limit, (5.0, 50.0),
+                            'm/s^2', 'unlimited',
+                            'would hold the car back from the lane in ordinary driving '
+                            '(S1 at 37 m/s: 8.5 cm off at 6 m/s^2 instead of 2.9)')
         check_range('lane_keeping.reference_preview', self.reference_preview, 0.0, 3.0,
                     unit='s')
         check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
