@@ -239,9 +239,10 @@ def test_integral_anti_windup():
         law.step(state(y_cg=0.4), EMPTY, 0.01)
     assert law.integral == pytest.approx(0.2)
     # saturating command (without the approach heading, which would clip the offset):
-    # at steering_limit (the demand limit off), and at the demand band (dev-demand)
-    for settings in (LaneKeepingParams(approach_heading=0.0, demand_limit=0.0),
-                     LaneKeepingParams(approach_heading=0.0)):
+    # at steering_limit (the demand limit off, the default), and at the demand band
+    # (demand_limit 14 m/s^2, dev-demand)
+    for settings in (LaneKeepingParams(approach_heading=0.0),
+                     LaneKeepingParams(approach_heading=0.0, demand_limit=14.0)):
         law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
         law.step(state(y_cg=-30.0), EMPTY, 0.01)
         assert (abs(law.last_steering) >= law.settings.steering_limit) != law.capped
@@ -268,9 +269,7 @@ def test_the_integral_is_frozen_while_the_cg_error_is_outside_its_band():
         assert law.integral == 0.0
     for _ in range(100):
         law.step(state(y_cg=0.4), EMPTY, 0.01)
-    # 99 steps: the first one follows the 3 m error's command, held at the demand band
-    # (demand_limit), which holds the integral for that step too
-    assert law.integral == pytest.approx(0.3 * 0.4 * 0.99)
+    assert law.integral == pytest.approx(0.3 * 0.4 * 1.0)
     # 0: integrates at any error (the law before the band)
     law = CgCompensatedLaw(VEHICLE, CONTROLLER,
                            LaneKeepingParams(state_filter='none', integral_band=0.0))

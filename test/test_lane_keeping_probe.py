@@ -380,8 +380,7 @@ def test_integral_is_frozen_while_the_safety_layer_cuts_the_command():
             command = core.compute(stamp)
         return core, command
     core, command = run(3.0)
-    # (the law's own demand band, 74 mrad at 37 m/s, is wider than the node's limit)
-    assert command.saturated and abs(float(command.law.steering)) > 0.07
+    assert command.saturated and abs(float(command.law.steering)) > 0.1
     assert core.law.integral == 0.0
     core, command = run(0.3)                  # within the limits: integrates as before
     assert not command.saturated

@@ -144,9 +144,7 @@ def test_a_curvature_step_in_the_map_leads_by_at_most_the_jerk_limit():
     preview = SimpleNamespace(distances=distances,
                               curvatures=np.where(distances >= 5.0, 0.01, 0.0))
     state = LateralState(0.0, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0)
-    # (the demand limit off: this 9 m/s^2 curve 5 m ahead, past the drift term's 2.1 m,
-    # puts both commands at its band's edge)
-    settings = LaneKeepingParams(state_filter='none', demand_limit=0.0)
+    settings = LaneKeepingParams(state_filter='none')
     steer = {}
     for g in (0.0, 1.0):
         law = CgCompensatedLaw(VEHICLE, CONTROLLER,

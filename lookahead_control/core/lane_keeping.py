@@ -132,10 +132,12 @@ class LaneKeepingParams:
     :param steering_limit: the integral is frozen while ``|delta|`` reaches this [rad].
     :param demand_limit: the command stays within the steady steering of the lane's
         curvature (at the CG and ahead) plus or minus that of this lateral acceleration
-        (:func:`demand_band`) [m/s^2]; 0: unlimited. Engaged metres off the lane with
-        a heading error at 25-30 m/s the loop otherwise asked for several g and spun
-        the CommonRoad cars (dev-demand). The integral and the compliance estimate
-        hold while the command is held at the band (as at ``steering_limit``).
+        (:func:`demand_band`) [m/s^2]; 0: unlimited (the default). 14 m/s^2 keeps the
+        CommonRoad cars engaged metres off a straight lane with a heading error at
+        25-30 m/s from spinning, but it also blocks the counter-steer that catches a
+        slide on a curve or on a slippery road (dev-probe38): an option, not the
+        default (dev-demand). The integral and the compliance estimate hold while the
+        command is held at the band (as at ``steering_limit``).
     :param max_gap: a step longer than this (or negative) is a time jump: the
         integral restarts at 0 [s].
     :param compliance_time_constant: forgetting time of the rear-compliance estimate
@@ -191,7 +193,7 @@ class LaneKeepingParams:
     frequency_speed: float = 30.0
     low_speed_frequency: float = 5.0
     approach_heading: float = 0.1
-    demand_limit: float = 14.0
+    demand_limit: float = 0.0
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
     integral_gain: float = 0.3
@@ -429,8 +431,9 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     that of the curvatures between ``rho_a`` and ``rho_b`` (at the CG and ahead: the
     law steers into a curve before the CG reaches it), widened by ``limit``'s steady
     steering. With 14 m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s:
-    2.91 -> 2.92 cm), and caps the loop's demand engaged metres off the lane with a
-    heading error (dev-demand).
+    2.91 -> 2.92 cm) and caps the loop's demand engaged metres off the lane with a
+    heading error; centred on the lane, it also caps the counter-steer a sliding car
+    needs (dev-probe38; docs/lane_keeping.md, "The demand limit").
 
     :param vehicle: the design vehicle.
     :param v_x: speed [m/s] (> 0).
