@@ -563,8 +563,7 @@ def lqr_feedforward(vehicle: VehicleParams, v_x: Real, rho: Real, k_heading: Rea
     :param k_heading: K_3, the gain on e_2 [-].
     :return: the feedforward angle [rad].
     """
-    wheelbase, m = vehicle.wheelbase, vehicle.mass
-    k_v = m * vehicle.l2 / (vehicle.c_f * wheelbase) - m * vehicle.l1 / (vehicle.c_r * wheelbase)
+    wheelbase, k_v = vehicle.wheelbase, vehicle.understeer_gradient
     e2_ss = (vehicle.eta * v_x * v_x - vehicle.l2) * rho
     return wheelbase * rho + k_v * v_x * v_x * rho + k_heading * e2_ss
 

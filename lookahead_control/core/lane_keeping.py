@@ -426,8 +426,8 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     Return the steering band of ``demand_limit``: the lane's steady steering +- a margin.
 
     The single-track model's steady steering is ``delta = (L / v_x^2 + K) a`` for a
-    lateral acceleration ``a`` (``K = m (l_2 / C_f - l_1 / C_r) / L`` the understeer
-    gradient, taken as 0 if negative), and ``a = v_x^2 rho`` on the lane. The band is
+    lateral acceleration ``a`` (``K = VehicleParams.understeer_gradient``, taken as 0
+    if negative), and ``a = v_x^2 rho`` on the lane. The band is
     that of the curvatures between ``rho_a`` and ``rho_b`` (at the CG and ahead: the
     law steers into a curve before the CG reaches it), widened by ``limit``'s steady
     steering. With 14 m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s:
@@ -442,10 +442,7 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     :param limit: the margin's lateral acceleration [m/s^2].
     :return: ``(low, high)`` [rad].
     """
-    length = vehicle.l1 + vehicle.l2
-    understeer = max(vehicle.mass * (vehicle.l2 / vehicle.c_f - vehicle.l1 / vehicle.c_r)
-                     / length, 0.0)
-    per_accel = length / (v_x * v_x) + understeer
+    per_accel = vehicle.wheelbase / (v_x * v_x) + max(vehicle.understeer_gradient, 0.0)
     per_curvature = per_accel * v_x * v_x
     margin = limit * per_accel
     return (xp.minimum(rho_a, rho_b) * per_curvature - margin,

@@ -142,6 +142,12 @@ class VehicleParams:
         """Zero-dynamics constant eta = m l_1 / (C_r (l_1 + l_2)) [s^2/m]."""
         return self.mass * self.l1 / (self.c_r * self.wheelbase)
 
+    @cached_property
+    def understeer_gradient(self) -> float:
+        """Understeer gradient K = m l_2 / (C_f L) - m l_1 / (C_r L) [rad s^2/m]."""
+        return (self.mass * self.l2 / (self.c_f * self.wheelbase)
+                - self.mass * self.l1 / (self.c_r * self.wheelbase))
+
 
 @dataclass(frozen=True)
 class ControllerParams:
