@@ -219,7 +219,9 @@ def test_the_approach_loop_of_the_stability_check_is_the_law_far_off_the_lane(v_
     # 5.07 m): the gains the check uses, feedback_gain with k_i = 0 and no y_cg gain;
     # 0.2 m off (inside the clip) the y_cg gain is back
     import copy
-    settings = LaneKeepingParams(state_filter='none', compliance_time_constant=0.0)
+    # (the demand band off: 8 m off it holds the command, and the check is the loop's)
+    settings = LaneKeepingParams(state_filter='none', compliance_time_constant=0.0,
+                                 demand_limit=0.0)
     gains = stability.feedback_gain(VEHICLE, CONTROLLER, replace(settings, integral_gain=0.0),
                                     v_x)
     running = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v_x)

@@ -255,11 +255,14 @@ def test_integral_anti_windup():
 def test_the_integral_is_frozen_while_the_cg_error_is_outside_its_band():
     # a metre-sized error is a transient for the feedback: integrated, it overshot the
     # lane by 15-45 cm for seconds (dev-probe16)
-    # (integral_band_time 0: held for as long as the error is outside)
+    # (integral_band_time 0: held for as long as the error is outside; the demand band
+    # off: 3 m off it holds the command, and the integral with it, a step longer)
     law = CgCompensatedLaw(VEHICLE, CONTROLLER,
-                           LaneKeepingParams(state_filter='none', integral_band_time=0.0))
+                           LaneKeepingParams(state_filter='none', integral_band_time=0.0,
+                                             demand_limit=0.0))
     off = CgCompensatedLaw(VEHICLE, CONTROLLER,
-                           LaneKeepingParams(state_filter='none', integral_gain=0.0))
+                           LaneKeepingParams(state_filter='none', integral_gain=0.0,
+                                             demand_limit=0.0))
     assert law.settings.integral_band == 0.5
     for y in (0.6, -0.5, 3.0):
         for _ in range(100):

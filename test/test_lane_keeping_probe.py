@@ -368,9 +368,10 @@ def test_timer_mode_node_integrates_between_measurements(context):
 def test_integral_is_frozen_while_the_safety_layer_cuts_the_command():
     # at 37 m/s the node's angle limit is atan(30 m/s^2 L / v^2) = 0.059 rad, far below
     # lane_keeping.steering_limit (0.5 rad): old code integrated on while the command
-    # was cut (1.5 m off for 1 s: 0.45 m of the 0.5 m clamp, wound up)
+    # was cut (1.5 m off for 1 s: 0.45 m of the 0.5 m clamp, wound up). (The demand band
+    # off: it holds the law's command at 74 mrad, and the cut is what is tested.)
     def run(y):
-        core = _core()
+        core = _core(lane_keeping=dataclasses.replace(RAW, demand_limit=0.0))
         for k in range(100):
             stamp = (1000 + 10 * k) * MS
             for name, sample in (('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),

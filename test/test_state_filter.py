@@ -697,14 +697,14 @@ def test_the_node_filter_models_the_command_the_safety_layer_sent():
     # 0.4 rad/s); the actuator gets the cut one. Old code: the filter's model was fed
     # the law's uncut command, so its prediction steered harder than the car did.
     # (4 m off: with the integral held outside integral_band, 1.5 m no longer reached
-    # the limits)
+    # the limits; the demand band off: it holds the command inside the cut)
     from lookahead_control.core.controller import SteeringController
     from lookahead_control.core.safety import SafetyParams
     from lookahead_control.core.samples import (LateralErrorSample, VelocitySample,
                                                 YawSample)
     core = SteeringController(VehicleParams(), ControllerParams(), 'zero', False,
                               SafetyParams(), 'cg_compensated',
-                              lane_keeping=LaneKeepingParams())
+                              lane_keeping=LaneKeepingParams(demand_limit=0.0))
     ms = 1_000_000
     cut = 0
     for k in range(40):

@@ -131,12 +131,12 @@ class LaneKeepingParams:
         long as it is outside.
     :param steering_limit: the integral is frozen while ``|delta|`` reaches this [rad].
     :param demand_limit: the command stays within the steady steering of the lane's
-        curvature (at the CG and ahead) plus or minus that of this lateral acceleration
-        (:func:`demand_band`) [m/s^2]; 0: unlimited (the default). 14 m/s^2 keeps the
+        curvature (at the CG and ahead) plus or minus that of this lateral acceleration,
+        widened to the front axle's course (:func:`demand_band`: the band never stops
+        the wheels from pointing where the front axle goes, the counter-steer of a
+        slide) [m/s^2]; 0: unlimited. 14 m/s^2 (the default since dev-course) keeps the
         CommonRoad cars engaged metres off a straight lane with a heading error at
-        25-30 m/s from spinning, but it also blocks the counter-steer that catches a
-        slide on a curve or on a slippery road (dev-probe38): an option, not the
-        default (dev-demand). The integral and the compliance estimate hold while the
+        25-37 m/s from spinning. The integral and the compliance estimate hold while the
         command is held at the band (as at ``steering_limit``).
     :param max_gap: a step longer than this (or negative) is a time jump: the
         integral restarts at 0 [s].
@@ -193,7 +193,7 @@ class LaneKeepingParams:
     frequency_speed: float = 30.0
     low_speed_frequency: float = 5.0
     approach_heading: float = 0.1
-    demand_limit: float = 0.0
+    demand_limit: float = 14.0
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
     integral_gain: float = 0.3
@@ -420,8 +420,24 @@ def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -
     return heading * (d_v + k_d * v_x / k_p)
 
 
+def front_axle_course(vehicle: VehicleParams, v_y: Real, r: Real, v_x: Real) -> Real:
+    """
+    Return ``(v_y + l_1 r) / v_x``, where the front axle goes relative to the body.
+
+    Steering there leaves the front tyres without slip: in a slide, when the rear has let
+    go (``v_y`` large), it is the counter-steer that catches the car.
+
+    :param vehicle: the design vehicle (``l_1``).
+    :param v_y: lateral velocity of the CG [m/s].
+    :param r: yaw rate [rad/s].
+    :param v_x: speed [m/s] (> 0).
+    :return: the front axle's course [rad] (small-angle, as the model's slip angles).
+    """
+    return (v_y + vehicle.l1 * r) / v_x
+
+
 def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
-                limit: float) -> tuple[Real, Real]:
+                limit: float, course: Optional[Real] = None) -> tuple[Real, Real]:
     """
     Return the steering band of ``demand_limit``: the lane's steady steering +- a margin.
 
@@ -430,23 +446,31 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     if negative), and ``a = v_x^2 rho`` on the lane. The band is
     that of the curvatures between ``rho_a`` and ``rho_b`` (at the CG and ahead: the
     law steers into a curve before the CG reaches it), widened by ``limit``'s steady
-    steering. With 14 m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s:
+    steering, and then to ``course`` (:func:`front_axle_course`) where that lies
+    outside. With 14 m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s:
     2.91 -> 2.92 cm) and caps the loop's demand engaged metres off the lane with a
-    heading error; centred on the lane, it also caps the counter-steer a sliding car
-    needs (dev-probe38; docs/lane_keeping.md, "The demand limit").
+    heading error. Centred on the lane alone it also capped the counter-steer a sliding
+    car needs (dev-probe38); the course lets it through (dev-course; docs/lane_keeping.md,
+    "The demand limit").
 
     :param vehicle: the design vehicle.
     :param v_x: speed [m/s] (> 0).
     :param rho_a: one curvature [1/m].
     :param rho_b: the other [1/m].
     :param limit: the margin's lateral acceleration [m/s^2].
+    :param course: the front axle's course [rad]; None or not finite: the lane's band
+        alone.
     :return: ``(low, high)`` [rad].
     """
     per_accel = vehicle.wheelbase / (v_x * v_x) + max(vehicle.understeer_gradient, 0.0)
     per_curvature = per_accel * v_x * v_x
     margin = limit * per_accel
-    return (xp.minimum(rho_a, rho_b) * per_curvature - margin,
-            xp.maximum(rho_a, rho_b) * per_curvature + margin)
+    low = xp.minimum(rho_a, rho_b) * per_curvature - margin
+    high = xp.maximum(rho_a, rho_b) * per_curvature + margin
+    if course is None:
+        return low, high
+    course = xp.where(_finite(course), course, low)
+    return xp.minimum(low, course), xp.maximum(high, course)
 
 
 def approach_error(error: Real, offset: Real, limit: Real) -> Real:
@@ -1032,7 +1056,8 @@ class CgCompensatedLaw:
                 left > 0.0, self._steer_offset * (left / s.curvature_blend), 0.0))
         capped: Any = False
         if s.demand_limit > 0.0:
-            low, high = demand_band(self.vehicle, v_x, state.rho, rho_ff, s.demand_limit)
+            low, high = demand_band(self.vehicle, v_x, state.rho, rho_ff, s.demand_limit,
+                                    front_axle_course(self.vehicle, state.v_y, state.r, v_x))
             capped = (out.steering < low) | (out.steering > high)
             out = out._replace(steering=xp.clip(out.steering, low, high))
         finite = _finite(out.steering)

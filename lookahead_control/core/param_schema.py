@@ -98,7 +98,8 @@ LANE_KEEPING_SPECS = tuple(
          'heading (the CG offset in the proportional term clipped); the integral and its '
          'band clock hold while clipped; 0: unclipped, else 0.02-0.15 [rad]', 0.0, 0.15),
         ('demand_limit', 'the command stays within the steady steering of the lane +- that of '
-         'this lateral acceleration; 0: unlimited, else 5-50 [m/s^2]', 0.0, 50.0),
+         "this lateral acceleration, or between it and the front axle's course (the "
+         'counter-steer of a slide); 0: unlimited, else 5-50 [m/s^2]', 0.0, 50.0),
         ('reference_preview', 'the reference uses the curvature this long ahead [s]',
          0.0, 3.0),
         ('feedforward_preview', 'the drift term uses the curvature this long ahead: '
