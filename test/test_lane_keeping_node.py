@@ -195,3 +195,58 @@ def test_a_capped_low_speed_w_n_is_told_at_startup(context):
                 assert line.endswith(f'; {note}'), line
         finally:
             node.destroy_node()
+
+
+def test_the_law_s_own_clips_are_counted_and_told(context):
+    # dev-course: with the demand band on by default, a run where the law's command was
+    # held at the band (or the CG's offset clipped to the approach heading) said so
+    # nowhere: now ~/debug carries both flags per answer and /diagnostics counts them
+    # (told at OK: they are the law's design, not a fault)
+    from lookahead_control.ros import conversions as conv
+    from lookahead_control.ros.controller_node import ControllerNode
+    from rclpy.time import Time
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    sent = []
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        node._debug_pub.get_subscription_count = lambda: 1
+        node._debug_pub.publish = sent.append
+
+        def answer(stamp: int, y_cg: float, eps_r: float) -> None:
+            node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
+            node.on_yaw(conv.to_yaw(stamp, 'base_link', eps_r, 0.0, 0.0))
+            node.on_velocity(conv.to_velocity(stamp, 'base_link', 30.0, 0.0, 0.0))
+            node.on_curvature(conv.to_curvature(stamp, 'base_link', [(0.0, 0.0), (5.0, 0.0)]))
+            node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 1.96,
+                                                        y_cg + 1.96 * eps_r))
+        # on the lane: neither clip
+        for k in range(1, 11):
+            answer(k * 10 * MS, 0.0, 0.0)
+        quiet = node.diagnostics()
+        assert 'capped' not in quiet.message and 'clipped' not in quiet.message
+        # 4.5 m off (the safety layer refuses lateral errors beyond 5 m), heading 0.1 rad
+        # away at 30 m/s: beyond the approach clip (0.1 rad: 4.1 m at 30 m/s) and the
+        # loop asks for more than the band's -88 mrad
+        for k in range(11, 71):
+            answer(k * 10 * MS, 4.5, 0.1)
+        values = [dict(zip(m.name, m.position)) for m in sent]
+        assert [v['demand_capped'] for v in values[:10]] == [0.0] * 10
+        assert [v['approach_clipped'] for v in values[:10]] == [0.0] * 10
+        assert values[-1]['demand_capped'] == 1.0
+        assert values[-1]['approach_clipped'] == 1.0
+        capped = sum(v['demand_capped'] for v in values)
+        clipped = sum(v['approach_clipped'] for v in values)
+        status = node.diagnostics()
+        assert f'demand capped: {capped:.0f} (lane_keeping.demand_limit)' in status.message
+        assert (f'approach clipped: {clipped:.0f} (lane_keeping.approach_heading)'
+                in status.message)
+        counts = {kv.key: kv.value for kv in status.values}
+        assert counts['demand_capped'] == f'{capped:.0f}'
+        # counted since the last report: the next one, with no answer between, is quiet
+        again = node.diagnostics()
+        assert 'demand capped' not in again.message and 'approach' not in again.message
+        assert {kv.key: kv.value for kv in again.values}['demand_capped'] == f'{capped:.0f}'
+    finally:
+        node.destroy_node()

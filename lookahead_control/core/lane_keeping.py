@@ -911,7 +911,9 @@ class CgCompensatedLaw:
         ``curvature_estimated`` (1: it ran on its own estimate, no curvature received),
         ``rho_used`` (the curvature at the CG it used [1/m]), ``integral`` (the CG-error
         integral's shift of the reference [m]), ``compliance_scale`` (the rear-compliance
-        estimate over the model's ``eta``). One run (not a batch).
+        estimate over the model's ``eta``), ``demand_capped`` (1: the command was held at
+        the demand band, ``demand_limit``), ``approach_clipped`` (1: the CG's offset was
+        clipped, ``approach_heading``). One run (not a batch).
 
         :return: ``(name, value)`` pairs.
         """
@@ -919,7 +921,8 @@ class CgCompensatedLaw:
             return float(np.asarray(value, dtype=float).reshape(-1)[0])
         return [('curvature_estimated', float(self.curvature_estimated())),
                 ('rho_used', one(self._rho_used)), ('integral', one(self.integral)),
-                ('compliance_scale', one(self.estimator.compliance()) / self.vehicle.eta)]
+                ('compliance_scale', one(self.estimator.compliance()) / self.vehicle.eta),
+                ('demand_capped', one(self.capped)), ('approach_clipped', one(self.clipped))]
 
     def note_limited(self, cut: bool) -> None:
         """

@@ -178,7 +178,8 @@ class ControllerNode(LifecycleNode):
                                        params['law'], baseline_params(params),
                                        lane_keeping_params(params))
         self.counters = {'saturated': 0, 'rate_limited': 0, 'low_speed': 0,
-                         'd_v_clamped': 0, 'stale_commands': 0}
+                         'd_v_clamped': 0, 'stale_commands': 0, 'demand_capped': 0,
+                         'approach_clipped': 0}
         self._reported: dict[str, int] = {}
         self._reported_turning: dict[str, float] = {}
         # the sim clock as last seen by a report, and the steady clock when it last moved
@@ -580,6 +581,10 @@ class ControllerNode(LifecycleNode):
             return
         if self.core.law_name == 'paper':
             self.counters['d_v_clamped'] += int(float(law.d_v) >= self.core.params.max_look_ahead)
+        # the law's own clips (cg_compensated): counted, told, not warned (they are its
+        # design: docs/lane_keeping.md)
+        for flag, name in (('demand_capped', 'capped'), ('approach_clipped', 'clipped')):
+            self.counters[flag] += int(bool(getattr(self.core.law, name, False)))
         if self._debug_pub.get_subscription_count() == 0:
             return                  # nobody listens: do not build the debug message
         mode = self.core.params.schedule
@@ -607,7 +612,8 @@ class ControllerNode(LifecycleNode):
 
         ERROR on stale inputs (named, with why their last message was refused); WARN on
         a lost curvature, refused messages, saturation, low-speed hand-over, clamped
-        d_v, time jumps or law restarts since the last report, a sim clock that has
+        d_v, time jumps or law restarts since the last report (the law's own clips since
+        then, the demand band and the approach clip, are told at OK), a sim clock that has
         not moved for :data:`SIM_CLOCK_STOPPED` (``use_sim_time``), answers while turning
         without a curvature or with a ``v_y`` of exactly 0 (:data:`TURNING_WARN`), or an
         input age or answer latency above ``safety.latency_warn``; else OK.
@@ -651,6 +657,10 @@ class ControllerNode(LifecycleNode):
                             if new[f'law_restarts_{cause}'] > 0]
                     text += f' ({"; ".join(each)}; integral and estimate start again)'
                 reasons.append(text)
+        for key, setting in (('demand_capped', 'lane_keeping.demand_limit'),
+                             ('approach_clipped', 'lane_keeping.approach_heading')):
+            if new[key] > 0:
+                reasons.append(f'{key.replace("_", " ")}: {new[key]} ({setting})')
         # under sim time a dead simulator stops the clock: nothing goes stale on it
         sim_ns = now_ns(self) if self.sim_time() else None
         steady = time.monotonic_ns()
