@@ -1029,6 +1029,12 @@ def test_stability_tool_verdicts(capsys, tmp_path):
     assert stability_main(['--samples', '55', '--a-max', '4.8']) == 1
     assert 'certificate DOES NOT HOLD' in capsys.readouterr().out
     assert (tmp_path / 's.json').stat().st_size > 100
+    # an envelope within 1e-6 m/s of a kink (w_n's at 30 m/s) is that one speed: "1
+    # speed" (before: "1 speeds")
+    assert stability_main(['--samples', '2', '--v-min', '29.9999999',
+                           '--v-max', '30.0000001']) == 0
+    out = capsys.readouterr().out
+    assert 'checked at 1 speed (' in out and '1 speeds' not in out
 
 
 def test_reference_rate_uses_the_tangent_compliance():

@@ -140,9 +140,10 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                      'holds': approach.holds})
     kinks = (f'kinks at {", ".join(f"{k:.2f}" for k in cert.kinks)} m/s, both sides'
              if cert.kinks else 'no kinks')
+    speeds = f'{cert.speeds} speed' + ('' if cert.speeds == 1 else 's')
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
           f'{cert.a_max:g} m/s^2, error of the law a_x <= {cert.a_error:g} m/s^2; '
-          f'checked at {cert.speeds} speeds ({kinks}) with Q {cert.weight}; worst value at '
+          f'checked at {speeds} ({kinks}) with Q {cert.weight}; worst value at '
           f'{cert.max_norm_speed:.2f} m/s; worst mismatch case {robust.worst} (exact '
           f'states), {filtered.worst} (Kalman estimate)')
     print('the certificate covers the law on exact states at varying speed; the sampled '
