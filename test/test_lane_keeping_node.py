@@ -122,22 +122,28 @@ def test_the_applied_parameters_log_names_the_running_law_s_gains():
         'low_speed_integral_gain is capped at integral_gain')
 
 
+def _active_node_keeping_debug(context):
+    """Return an active controller node on sim time and the list its ~/debug goes to."""
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    sent = []
+    node.trigger_configure()
+    node.trigger_activate()
+    node._debug_pub.get_subscription_count = lambda: 1
+    node._debug_pub.publish = sent.append
+    return node, sent
+
+
 def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(context):
     # before, nothing recorded told whether the default law received the curvature or
     # estimated it: a bag holding a curvature the controller never got (remapped) was
     # re-run on it, 20 mrad off, unexplained
     from lookahead_control.ros import conversions as conv
-    from lookahead_control.ros.controller_node import ControllerNode
     from rclpy.time import Time
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True)])
-    sent = []
+    node, sent = _active_node_keeping_debug(context)
     try:
-        node.trigger_configure()
-        node.trigger_activate()
         assert node.core.law_name == 'cg_compensated'
-        node._debug_pub.get_subscription_count = lambda: 1
-        node._debug_pub.publish = sent.append
         for k in range(1, 101):             # 1 s with the curvature, 1 s without
             stamp = k * 10 * MS
             node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
@@ -203,16 +209,9 @@ def test_the_law_s_own_clips_are_counted_and_told(context):
     # nowhere: now ~/debug carries both flags per answer and /diagnostics counts them
     # (told at OK: they are the law's design, not a fault)
     from lookahead_control.ros import conversions as conv
-    from lookahead_control.ros.controller_node import ControllerNode
     from rclpy.time import Time
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True)])
-    sent = []
+    node, sent = _active_node_keeping_debug(context)
     try:
-        node.trigger_configure()
-        node.trigger_activate()
-        node._debug_pub.get_subscription_count = lambda: 1
-        node._debug_pub.publish = sent.append
 
         def answer(stamp: int, y_cg: float, eps_r: float) -> None:
             node.get_clock().set_ros_time_override(Time(nanoseconds=stamp))
