@@ -24,8 +24,9 @@ from engaged_runs import engaged_off_the_lane
 from lookahead_control.core import lane_keeping
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.control_law import LateralState
-from lookahead_control.core.lane_keeping import (CgCompensatedLaw, demand_band,
-                                                 front_axle_course, LaneKeepingParams)
+from lookahead_control.core.lane_keeping import (CgCompensatedLaw, COUNTER_STEER,
+                                                 demand_band, front_axle_course,
+                                                 LaneKeepingParams)
 from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.compare import (DELAY, DT, load_scenarios, NONLINEAR,
                                              PREVIEW_DISTANCE)
@@ -76,27 +77,55 @@ def test_the_band_reaches_out_to_the_front_axle_s_course():
         (-0.088234, 0.122333), abs=1e-6)
     assert demand_band(VEHICLE, 30.0, 0.0, 0.0, 14.0, -course) == pytest.approx(
         (-0.122333, 0.088234), abs=1e-6)
-    # within the band, or not known: the lane's band
+    # within the band, or not known: the lane's band (and no margin past an unknown
+    # course, whatever the rotation)
     for inside in (0.05, math.nan, math.inf, None):
         assert demand_band(VEHICLE, 30.0, 0.0, 0.0, 14.0, inside) == pytest.approx(
             (-0.088234, 0.088234), abs=1e-6)
+    for unknown in (math.nan, math.inf):
+        for rotation in (0.2, -0.2):
+            assert demand_band(VEHICLE, 30.0, 0.0, 0.0, 14.0, unknown,
+                               rotation) == pytest.approx((-0.088234, 0.088234), abs=1e-6)
     arrays = demand_band(VEHICLE, np.full(3, 30.0), np.zeros(3), np.zeros(3), 14.0,
                          np.array([0.1223, math.nan, -0.2]))
     assert arrays[0] == pytest.approx([-0.088234, -0.088234, -0.2], abs=1e-6)
     assert arrays[1] == pytest.approx([0.1223, 0.088234, 0.088234], abs=1e-6)
 
 
+def test_against_the_car_s_rotation_the_band_reaches_past_the_course():
+    # dev-probe39: a yaw disturbance turns the car left of the lane (r - v_x rho > 0);
+    # the counter-steer is to the right, against the rotation: the band reaches 0.1 rad
+    # right of the course there, and not past it on the side of the rotation
+    assert COUNTER_STEER == 0.1
+    for course in (0.0, -0.03, 0.05):
+        assert demand_band(VEHICLE, 30.0, 0.0, 0.0, 14.0, course, 0.2) == pytest.approx(
+            (min(-0.088234, course - 0.1), max(0.088234, course)), abs=1e-6)
+        assert demand_band(VEHICLE, 30.0, 0.0, 0.0, 14.0, course, -0.2) == pytest.approx(
+            (min(-0.088234, course), max(0.088234, course + 0.1)), abs=1e-6)
+    # on a left arc at its yaw rate (no rotation relative to the lane), or the rotation
+    # not known: the course alone
+    rho = 1.0 / 400.0
+    lane = demand_band(VEHICLE, 30.0, rho, rho, 14.0)
+    for rotation in (0.0, math.nan):
+        assert demand_band(VEHICLE, 30.0, rho, rho, 14.0, 0.0, rotation) == lane
+    arrays = demand_band(VEHICLE, np.full(3, 30.0), np.zeros(3), np.zeros(3), 14.0,
+                         np.zeros(3), np.array([0.2, -0.2, math.nan]))
+    assert arrays[0] == pytest.approx([-0.1, -0.088234, -0.088234], abs=1e-6)
+    assert arrays[1] == pytest.approx([0.088234, 0.1, 0.088234], abs=1e-6)
+
+
 def test_a_slide_s_counter_steer_passes_the_band():
     # the law in a slide (the state of the test above, 1 m left of the lane): the loop
     # asks for counter-steer to the left past the lane's band; it gets it up to the
-    # front axle's course
+    # front axle's course and, against the rotation (r < 0: to the left), COUNTER_STEER
+    # past it
     state = LateralState(1.0, -0.2, 4.0, -0.3, 30.0, 0.0, 0.0, 0.0)
     asked = float(CgCompensatedLaw(VEHICLE, CONTROLLER, UNLIMITED).step(
         state, None, 0.01).steering)
     limited = CgCompensatedLaw(VEHICLE, CONTROLLER, LIMITED)
     got = float(limited.step(state, None, 0.01).steering)
     assert asked > 0.0882
-    assert got == pytest.approx(min(asked, 0.122333), abs=1e-6)
+    assert got == pytest.approx(min(asked, 0.122333 + COUNTER_STEER), abs=1e-6)
 
 
 def test_a_limit_that_would_hold_the_car_back_is_refused():
@@ -184,6 +213,29 @@ def test_the_default_leaves_the_counter_steer_a_slide_needs():
         assert _outside_of_an_arc(settings) < 0.05
         lost, _ = engaged_off_the_lane(settings, SLIPPERY, [30.0, 37.0], 3.0, heading=0.1)
         assert lost == []
+
+
+def _yaw_gust_on_ice(speeds: list[float]) -> np.ndarray:
+    """Return the CG's peak distance from the lane after a 6 kN m, 0.5 s yaw gust."""
+    scenario = replace(load_scenarios(['s0_straight'])['s0_straight'], duration=12.0)
+    scenario = replace(scenario, initial=replace(scenario.initial, relative_yaw=0.0))
+    result = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER, LIMITED),
+                 SLIPPERY, initial_speed=np.array(speeds), initial_error=np.zeros(len(speeds)),
+                 dt=DT, preview_distance=PREVIEW_DISTANCE, delay=DELAY,
+                 disturbance=lambda t: (0.0, 6000.0 if 3.0 <= t < 3.5 else 0.0))
+    return np.max(np.abs(np.asarray(result['y_cg'])), axis=0)
+
+
+def test_the_counter_steer_against_a_yaw_gust_passes_the_band(monkeypatch):
+    # dev-probe39: a 6 kN m yaw gust for 0.5 s on mu 0.4 at 30 / 37 m/s. Without the
+    # limit the CG peaks 0.18 / 0.24 m off; the band with the course alone held the
+    # counter-steer (to the right, against the rotation; the course points with it) at
+    # its edge, -88 mrad, where the law asked for -0.13 to -0.20: 0.42 / 1.14 m. With
+    # COUNTER_STEER: 0.18 / 0.24 m
+    speeds = [30.0, 37.0]
+    assert np.all(_yaw_gust_on_ice(speeds) < 0.25)
+    monkeypatch.setattr(lane_keeping, 'COUNTER_STEER', 0.0)
+    assert np.all(_yaw_gust_on_ice(speeds) > 0.4)
 
 
 def test_the_lane_s_band_alone_blocked_that_counter_steer(lane_band_only):

@@ -420,6 +420,15 @@ def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -
     return heading * (d_v + k_d * v_x / k_p)
 
 
+#: how far past the front axle's course the demand band lets the command go against the
+#: car's rotation relative to the lane (the counter-steer of a yaw disturbance) [rad]:
+#: 0.05 left half of what the band cost against a 6 kN m yaw gust on mu 0.4 at 30-37 m/s,
+#: 0.1 none of it (dev-probe39); with the rotation there is no margin (a margin on both
+#: sides spun 7 of 96 CommonRoad runs engaged off the lane with 0.05, with 0.1 all 19
+#: that spin without the band; against the rotation alone none)
+COUNTER_STEER = 0.1
+
+
 def front_axle_course(vehicle: VehicleParams, v_y: Real, r: Real, v_x: Real) -> Real:
     """
     Return ``(v_y + l_1 r) / v_x``, where the front axle goes relative to the body.
@@ -437,7 +446,8 @@ def front_axle_course(vehicle: VehicleParams, v_y: Real, r: Real, v_x: Real) -> 
 
 
 def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
-                limit: float, course: Optional[Real] = None) -> tuple[Real, Real]:
+                limit: float, course: Optional[Real] = None,
+                rotation: Real = 0.0) -> tuple[Real, Real]:
     """
     Return the steering band of ``demand_limit``: the lane's steady steering +- a margin.
 
@@ -447,11 +457,13 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     that of the curvatures between ``rho_a`` and ``rho_b`` (at the CG and ahead: the
     law steers into a curve before the CG reaches it), widened by ``limit``'s steady
     steering, and then to ``course`` (:func:`front_axle_course`) where that lies
-    outside. With 14 m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s:
+    outside, and on the side against ``rotation`` to :data:`COUNTER_STEER` past the
+    course. With 14 m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s:
     2.91 -> 2.92 cm) and caps the loop's demand engaged metres off the lane with a
     heading error. Centred on the lane alone it also capped the counter-steer a sliding
-    car needs (dev-probe38); the course lets it through (dev-course; docs/lane_keeping.md,
-    "The demand limit").
+    car needs (dev-probe38) and the counter-steer against a yaw disturbance
+    (dev-probe39); the course and the margin against the rotation let them through
+    (dev-course; docs/lane_keeping.md, "The demand limit").
 
     :param vehicle: the design vehicle.
     :param v_x: speed [m/s] (> 0).
@@ -459,7 +471,10 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     :param rho_b: the other [1/m].
     :param limit: the margin's lateral acceleration [m/s^2].
     :param course: the front axle's course [rad]; None or not finite: the lane's band
-        alone.
+        alone (no margin either).
+    :param rotation: the car's yaw rate relative to the lane, ``r - v_x rho`` [rad/s]:
+        positive (turning left of the lane), the band reaches :data:`COUNTER_STEER` right
+        of the course, negative left of it; 0 or not finite: the course alone.
     :return: ``(low, high)`` [rad].
     """
     per_accel = vehicle.wheelbase / (v_x * v_x) + max(vehicle.understeer_gradient, 0.0)
@@ -469,8 +484,12 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     high = xp.maximum(rho_a, rho_b) * per_curvature + margin
     if course is None:
         return low, high
-    course = xp.where(_finite(course), course, low)
-    return xp.minimum(low, course), xp.maximum(high, course)
+    known = _finite(course)
+    course = xp.where(known, course, low)
+    against_left = xp.where(known & (rotation > 0.0), COUNTER_STEER, 0.0)
+    against_right = xp.where(known & (rotation < 0.0), COUNTER_STEER, 0.0)
+    return (xp.minimum(low, course - against_left),
+            xp.maximum(high, course + against_right))
 
 
 def approach_error(error: Real, offset: Real, limit: Real) -> Real:
@@ -1060,7 +1079,8 @@ class CgCompensatedLaw:
         capped: Any = False
         if s.demand_limit > 0.0:
             low, high = demand_band(self.vehicle, v_x, state.rho, rho_ff, s.demand_limit,
-                                    front_axle_course(self.vehicle, state.v_y, state.r, v_x))
+                                    front_axle_course(self.vehicle, state.v_y, state.r, v_x),
+                                    state.r - v_x * state.rho)
             capped = (out.steering < low) | (out.steering > high)
             out = out._replace(steering=xp.clip(out.steering, low, high))
         finite = _finite(out.steering)
