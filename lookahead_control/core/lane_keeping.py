@@ -427,6 +427,12 @@ def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -
 #: sides spun 7 of 96 CommonRoad runs engaged off the lane with 0.05, with 0.1 all 19
 #: that spin without the band; against the rotation alone none)
 COUNTER_STEER = 0.1
+#: ... once the rotation is that of a turn of this lateral acceleration, ``|r - v_x rho|
+#: v_x`` [m/s^2]: from 0 the margin let an evasive double lane change's reversal through
+#: and lost the car at 37 m/s (3.5 m in 1.6 s, mu 1: 43 m off); from 4 it keeps it (1.9 m)
+#: and the gust's counter-steer (0.21-0.26 m against 0.18-0.24 without a limit); 8 left
+#: 0.42 / 0.52 m at 30 / 37 m/s (dev-course)
+COUNTER_STEER_ROTATION = 4.0
 
 
 def front_axle_course(vehicle: VehicleParams, v_y: Real, r: Real, v_x: Real) -> Real:
@@ -457,13 +463,14 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     that of the curvatures between ``rho_a`` and ``rho_b`` (at the CG and ahead: the
     law steers into a curve before the CG reaches it), widened by ``limit``'s steady
     steering, and then to ``course`` (:func:`front_axle_course`) where that lies
-    outside, and on the side against ``rotation`` to :data:`COUNTER_STEER` past the
-    course. With 14 m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s:
-    2.91 -> 2.92 cm) and caps the loop's demand engaged metres off the lane with a
-    heading error. Centred on the lane alone it also capped the counter-steer a sliding
-    car needs (dev-probe38) and the counter-steer against a yaw disturbance
-    (dev-probe39); the course and the margin against the rotation let them through
-    (dev-course; docs/lane_keeping.md, "The demand limit").
+    outside, and on the side against ``rotation`` (once it is that of a turn of
+    :data:`COUNTER_STEER_ROTATION`) to :data:`COUNTER_STEER` past the course. With 14
+    m/s^2 it is never reached in S1-S4 at 10-37 m/s (S1 at 37 m/s: 2.91 -> 2.92 cm) and
+    caps the loop's demand engaged metres off the lane with a heading error. Centred on
+    the lane alone it also capped the counter-steer a sliding car needs (dev-probe38)
+    and the counter-steer against a yaw disturbance (dev-probe39); the course and the
+    margin against the rotation let them through (dev-course; docs/lane_keeping.md,
+    "The demand limit").
 
     :param vehicle: the design vehicle.
     :param v_x: speed [m/s] (> 0).
@@ -473,8 +480,9 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
     :param course: the front axle's course [rad]; None or not finite: the lane's band
         alone (no margin either).
     :param rotation: the car's yaw rate relative to the lane, ``r - v_x rho`` [rad/s]:
-        positive (turning left of the lane), the band reaches :data:`COUNTER_STEER` right
-        of the course, negative left of it; 0 or not finite: the course alone.
+        above :data:`COUNTER_STEER_ROTATION` ``/ v_x`` (turning left of the lane) the band
+        reaches :data:`COUNTER_STEER` right of the course, below minus that left of it;
+        else, or not finite: the course alone.
     :return: ``(low, high)`` [rad].
     """
     per_accel = vehicle.wheelbase / (v_x * v_x) + max(vehicle.understeer_gradient, 0.0)
@@ -486,8 +494,10 @@ def demand_band(vehicle: VehicleParams, v_x: Real, rho_a: Real, rho_b: Real,
         return low, high
     known = _finite(course)
     course = xp.where(known, course, low)
-    against_left = xp.where(known & (rotation > 0.0), COUNTER_STEER, 0.0)
-    against_right = xp.where(known & (rotation < 0.0), COUNTER_STEER, 0.0)
+    fast = COUNTER_STEER_ROTATION / v_x
+    turning = known & _finite(rotation)
+    against_left = xp.where(turning & (rotation > fast), COUNTER_STEER, 0.0)
+    against_right = xp.where(turning & (rotation < -fast), COUNTER_STEER, 0.0)
     return (xp.minimum(low, course - against_left),
             xp.maximum(high, course + against_right))
 
