@@ -134,10 +134,12 @@ class LaneKeepingParams:
         curvature (at the CG and ahead) plus or minus that of this lateral acceleration,
         widened to the front axle's course (:func:`demand_band`: the band never stops
         the wheels from pointing where the front axle goes, the counter-steer of a
-        slide) [m/s^2]; 0: unlimited. 14 m/s^2 (the default since dev-course) keeps the
-        CommonRoad cars engaged metres off a straight lane with a heading error at
-        25-37 m/s from spinning. The integral and the compliance estimate hold while the
-        command is held at the band (as at ``steering_limit``).
+        slide) and, against a fast rotation relative to the lane, :data:`COUNTER_STEER`
+        past it (the counter-steer of a yaw disturbance) [m/s^2]; 0: unlimited. 14 m/s^2
+        (the default since dev-course) keeps the CommonRoad cars engaged metres off a
+        straight lane with a heading error at 25-37 m/s from spinning. The integral and
+        the compliance estimate hold while the command is held at the band (as at
+        ``steering_limit``).
     :param max_gap: a step longer than this (or negative) is a time jump: the
         integral restarts at 0 [s].
     :param compliance_time_constant: forgetting time of the rear-compliance estimate
