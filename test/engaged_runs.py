@@ -25,9 +25,24 @@ from lookahead_control.core.params import ControllerParams, VehicleParams
 from lookahead_control.tools.compare import DELAY, DT, load_scenarios, PREVIEW_DISTANCE
 import numpy as np
 from sim_plant.closed_loop_sim import run
+from sim_plant.scenario import Scenario
 from sim_plant.vehicle_model import PlantParams
 
 VEHICLE = load_vehicle(None)
+
+
+def straight_lane(seconds: float, heading: float | None = None) -> Scenario:
+    """
+    Return S0 (a straight lane) cut to ``seconds``, with its initial relative yaw replaced.
+
+    :param seconds: the run's length [s].
+    :param heading: the initial relative yaw [rad]; None: the scenario's (0.01 rad).
+    :return: the scenario.
+    """
+    scenario = replace(load_scenarios(['s0_straight'])['s0_straight'], duration=seconds)
+    if heading is None:
+        return scenario
+    return replace(scenario, initial=replace(scenario.initial, relative_yaw=heading))
 
 
 def engaged_off_the_lane(settings: LaneKeepingParams, plant: PlantParams,
@@ -53,10 +68,7 @@ def engaged_off_the_lane(settings: LaneKeepingParams, plant: PlantParams,
     :return: the speeds where the CG is not within 5 cm in the last 5 s (or the run
         diverged), and the overshoot past the centre per speed [m].
     """
-    scenario = load_scenarios(['s0_straight'])['s0_straight']
-    scenario = replace(scenario, duration=seconds)
-    if heading is not None:
-        scenario = replace(scenario, initial=replace(scenario.initial, relative_yaw=heading))
+    scenario = straight_lane(seconds, heading)
     law = CgCompensatedLaw(law_vehicle, ControllerParams(), settings)
     result = run(scenario, vehicle, law, plant, initial_speed=np.array(speeds),
                  initial_error=np.asarray(offset, dtype=float), dt=dt,

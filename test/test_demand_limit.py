@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import replace
 import math
 
-from engaged_runs import engaged_off_the_lane
+from engaged_runs import engaged_off_the_lane, straight_lane
 from lookahead_control.core import lane_keeping
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.control_law import LateralState
@@ -225,9 +225,7 @@ def test_the_default_leaves_the_counter_steer_a_slide_needs():
 
 def _yaw_gust_on_ice(speeds: list[float]) -> np.ndarray:
     """Return the CG's peak distance from the lane after a 6 kN m, 0.5 s yaw gust."""
-    scenario = replace(load_scenarios(['s0_straight'])['s0_straight'], duration=12.0)
-    scenario = replace(scenario, initial=replace(scenario.initial, relative_yaw=0.0))
-    result = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER, LIMITED),
+    result = run(straight_lane(12.0, 0.0), VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER, LIMITED),
                  SLIPPERY, initial_speed=np.array(speeds), initial_error=np.zeros(len(speeds)),
                  dt=DT, preview_distance=PREVIEW_DISTANCE, delay=DELAY,
                  disturbance=lambda t: (0.0, 6000.0 if 3.0 <= t < 3.5 else 0.0))
