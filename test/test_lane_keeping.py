@@ -434,7 +434,8 @@ def test_compliance_estimate_recovers_a_softer_rear_axle():
     r = a_y / v
     alpha = VEHICLE.mass * VEHICLE.l1 / (soft * VEHICLE.wheelbase) * a_y
     v_y = VEHICLE.l2 * r - v * alpha
-    law = CgCompensatedLaw(VEHICLE, CONTROLLER)
+    # the fast estimate's own fit (the memory it falls back to: test_estimator.py)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(compliance_memory=0.0))
     for _ in range(1000):
         law.step(state(v_y=v_y, r=r, v_x=v, rho=r / v), EMPTY, 0.01)
     prior = law.settings.compliance_prior ** 2
@@ -445,7 +446,8 @@ def test_compliance_estimate_recovers_a_softer_rear_axle():
     expected = (truth * a_y * phi + prior * VEHICLE.eta) / (phi * phi + prior)
     assert law.compliance() == pytest.approx(expected, rel=1e-3)
     # a linear-tyre design (design_friction 0): the secant compliance itself
-    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(design_friction=0.0))
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(design_friction=0.0,
+                                                                  compliance_memory=0.0))
     for _ in range(1000):
         law.step(state(v_y=v_y, r=r, v_x=v, rho=r / v), EMPTY, 0.01)
     expected = (a_y * a_y * truth + prior * VEHICLE.eta) / (a_y * a_y + prior)
@@ -1087,7 +1089,7 @@ def test_curve_entry_on_the_fiala_plant_at_37_mps():
                  preview_distance=100.0)
     assert np.max(np.abs(result['y_cg'])) < 0.03
     assert abs(result['y_cg'][-1]) < 0.005
-    old = LaneKeepingParams(design_friction=0.0, rate_feedforward=False)
+    old = LaneKeepingParams(design_friction=0.0, rate_feedforward=False, compliance_memory=0.0)
     before = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER, old),
                  PlantParams(model='nonlinear'), initial_speed=37.0, dt=0.005,
                  preview_distance=100.0)

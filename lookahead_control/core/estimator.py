@@ -28,6 +28,12 @@ forgetting ``T``:
 - ``c = (N + p^2 eta) / (D + p^2)`` with ``N' = (F alpha_r F phi - N) / T`` and
   ``D' = ((F phi)^2 - D) / T``: the model's ``eta`` holds until the lateral
   acceleration exceeds ``p``; clipped to ``[eta / k, eta k]``.
+- memory (``memory_time`` ``T_m`` > 0): the same statistics ``N_m``, ``D_m`` with the
+  slower ``T_m``, counted only while the tyres are loaded (each sample weighted by
+  ``phi^2 / (phi^2 + p^2)``), give ``c_m = (N_m + p^2 eta) / (D_m + p^2)``, and the
+  estimate falls back to ``c_m`` instead of ``eta``: ``c = (N + p^2 c_m) / (D + p^2)``. A
+  straight does not erase what the last curves taught (the tyres do not change
+  between two curves), so a second curve is not driven on the model's compliance again.
 
 Load-dependent compliance (``friction > 0``): a brush tyre's secant compliance grows
 with its load, ``c(a) = c_hat s(|a| / (mu g))`` with the design friction ``mu`` and
@@ -85,7 +91,8 @@ class ComplianceEstimator:
     """Rear-compliance estimate (rear slip per lateral acceleration) from v_y and r."""
 
     def __init__(self, vehicle: VehicleParams, time_constant: float, filter_time: float,
-                 prior: float, ratio: float, friction: float = 0.0) -> None:
+                 prior: float, ratio: float, friction: float = 0.0,
+                 memory_time: float = 0.0) -> None:
         """
         Create the estimator.
 
@@ -96,6 +103,8 @@ class ComplianceEstimator:
         :param ratio: ``k``: the estimate stays in ``[eta / k, eta k]``.
         :param friction: design friction ``mu`` of the load-dependent shape; 0: constant
             compliance (the estimate is the secant compliance itself).
+        :param memory_time: ``T_m`` of the memory the estimate falls back to [s]; 0: it
+            falls back to ``eta``.
         """
         self.vehicle = vehicle
         self.time_constant = time_constant
@@ -103,15 +112,20 @@ class ComplianceEstimator:
         self.prior = prior
         self.ratio = ratio
         self.friction = friction
+        self.memory_time = memory_time
         self.filtered: Optional[tuple[Real, Real, Real]] = None
         self.moment: Real = 0.0          # N [rad m/s^2]
         self.energy: Real = 0.0          # D [m^2/s^4]
+        self.memory_moment: Real = 0.0   # N_m [rad m/s^2]
+        self.memory_energy: Real = 0.0   # D_m [m^2/s^4]
 
     def reset(self) -> None:
-        """Forget everything learned (back to the model's ``eta``)."""
+        """Forget everything learned, the memory too (back to the model's ``eta``)."""
         self.filtered = None
         self.moment = 0.0
         self.energy = 0.0
+        self.memory_moment = 0.0
+        self.memory_energy = 0.0
 
     def update(self, state: LateralState, dt: float, active: Any,
                running: Any = True) -> None:
@@ -152,6 +166,14 @@ class ComplianceEstimator:
         g = xp.where(active, min(dt / self.time_constant, 1.0) + zero, zero)
         self.moment = self.moment + g * (f_slip * phi - self.moment)
         self.energy = self.energy + g * (phi * phi - self.energy)
+        if self.memory_time > 0.0:
+            # the memory moves only while the tyres are loaded: a straight keeps it
+            square = phi * phi
+            g_m = xp.where(active, min(dt / self.memory_time, 1.0) + zero, zero) * (
+                square / (square + self.prior * self.prior))
+            self.memory_moment = self.memory_moment + g_m * (f_slip * phi
+                                                             - self.memory_moment)
+            self.memory_energy = self.memory_energy + g_m * (square - self.memory_energy)
         if isinstance(running, np.ndarray) and not running.all():
             self.filtered = tuple(np.where(running, x, math.nan)     # type: ignore[assignment]
                                   for x in self.filtered)
@@ -174,6 +196,10 @@ class ComplianceEstimator:
         ratio = self.vehicle.eta / old.vehicle.eta
         self.moment = old.moment * ratio if ratio != 1.0 else old.moment
         self.energy = old.energy
+        if self.memory_time > 0.0:
+            self.memory_moment = (old.memory_moment * ratio if ratio != 1.0
+                                  else old.memory_moment)
+            self.memory_energy = old.memory_energy
         self.filtered = old.filtered if self.vehicle == old.vehicle else None
 
     def forget(self, where: Any) -> None:
@@ -189,19 +215,35 @@ class ComplianceEstimator:
                              xp.where(where, math.nan, self.filtered[2]))
         self.moment = xp.where(where, 0.0, self.moment)
         self.energy = xp.where(where, 0.0, self.energy)
+        self.memory_moment = xp.where(where, 0.0, self.memory_moment)
+        self.memory_energy = xp.where(where, 0.0, self.memory_energy)
 
     def compliance(self) -> Real:
         """
         Return the estimate [s^2/m] (``eta`` before anything is learned).
 
         With the load-dependent shape it is the scale ``c_hat`` (the compliance at zero
-        load); :meth:`at` gives the compliance at a lateral acceleration.
+        load); :meth:`at` gives the compliance at a lateral acceleration. It falls back
+        to :meth:`memory` where the last second taught little.
 
         :return: the estimate, clipped to ``[eta / k, eta k]``.
         """
         eta = self.vehicle.eta
         prior = self.prior * self.prior
-        estimate = (self.moment + prior * eta) / (self.energy + prior)
+        estimate = (self.moment + prior * self.memory()) / (self.energy + prior)
+        return xp.clip(estimate, eta / self.ratio, eta * self.ratio)
+
+    def memory(self) -> Real:
+        """
+        Return the memory the estimate falls back to [s^2/m] (``eta`` without one).
+
+        :return: ``(N_m + p^2 eta) / (D_m + p^2)``, clipped to ``[eta / k, eta k]``.
+        """
+        eta = self.vehicle.eta
+        if self.memory_time <= 0.0:
+            return eta
+        prior = self.prior * self.prior
+        estimate = (self.memory_moment + prior * eta) / (self.memory_energy + prior)
         return xp.clip(estimate, eta / self.ratio, eta * self.ratio)
 
     def at(self, accel: Real) -> tuple[Real, Real]:

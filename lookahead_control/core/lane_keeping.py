@@ -149,6 +149,10 @@ class LaneKeepingParams:
     :param compliance_prior: weight of the model's compliance in the estimate, as a
         lateral acceleration [m/s^2]: below it the estimate stays near ``eta``.
     :param compliance_range: the estimate stays within ``eta / r`` and ``eta r`` [-].
+    :param compliance_memory: time constant of the estimate's memory, counted while the
+        tyres are loaded (beyond ``compliance_prior``) [s]: along a straight the estimate
+        falls back to what the last curves taught instead of to ``eta``, so every curve
+        after the first is driven on the learned compliance. 0: back to ``eta``.
     :param rate_feedforward: add the curvature-rate term that makes the CG stay on the
         lane on a clothoid (first-order inverse of the zero dynamics).
     :param exact_inverse: share of the exact inverse of the zero dynamics in the
@@ -212,6 +216,7 @@ class LaneKeepingParams:
     compliance_filter: float = 0.3
     compliance_prior: float = 0.5
     compliance_range: float = 3.0
+    compliance_memory: float = 10.0
     rate_feedforward: bool = True
     exact_inverse: float = 0.0
     exact_inverse_damping: float = 0.0
@@ -284,6 +289,8 @@ class LaneKeepingParams:
         check_range('lane_keeping.compliance_prior', self.compliance_prior, 0.0, 20.0,
                     low_open=True, unit='m/s^2')
         check_range('lane_keeping.compliance_range', self.compliance_range, 1.0, 100.0)
+        check_range('lane_keeping.compliance_memory', self.compliance_memory, 0.0, 1000.0,
+                    unit='s')
         check_range('lane_keeping.exact_inverse', self.exact_inverse, 0.0, 1.0)
         check_range('lane_keeping.exact_inverse_damping', self.exact_inverse_damping, 0.0,
                     2.0)
@@ -746,7 +753,8 @@ class CgCompensatedLaw:
         st = self.settings
         self.estimator = ComplianceEstimator(
             vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
-            st.compliance_prior, st.compliance_range, st.design_friction)
+            st.compliance_prior, st.compliance_range, st.design_friction,
+            st.compliance_memory)
         self.state_filter = (KalmanStateFilter(vehicle, st.filter_settings())
                              if st.state_filter == 'kalman' else None)
         #: no curvature received (set by :meth:`note_curvature`; an array over a batch)
@@ -806,7 +814,8 @@ class CgCompensatedLaw:
           (:meth:`ComplianceEstimator.take_over`); restarted when
           ``compliance_time_constant``, ``compliance_filter`` or ``design_friction``
           changed (they define its statistics) or the new time constant is 0 (the
-          model's ``eta``);
+          model's ``eta``); its memory with it, dropped when the new
+          ``compliance_memory`` is 0;
         - the state filter's estimate, with its gains from the new settings (with
           another design vehicle too: the filter corrects its force disturbances);
           restarted from the next measurement when the filter was off before;
@@ -942,7 +951,8 @@ class CgCompensatedLaw:
         ``curvature_estimated`` (1: it ran on its own estimate, no curvature received),
         ``rho_used`` (the curvature at the CG it used [1/m]), ``integral`` (the CG-error
         integral's shift of the reference [m]), ``compliance_scale`` (the rear-compliance
-        estimate over the model's ``eta``), ``demand_capped`` (1: the command was held at
+        estimate over the model's ``eta``), ``compliance_memory`` (the memory it falls back
+        to, over ``eta``), ``demand_capped`` (1: the command was held at
         the demand band, ``demand_limit``), ``approach_clipped`` (1: the CG's offset was
         clipped, ``approach_heading``). One run (not a batch).
 
@@ -953,6 +963,7 @@ class CgCompensatedLaw:
         return [('curvature_estimated', float(self.curvature_estimated())),
                 ('rho_used', one(self._rho_used)), ('integral', one(self.integral)),
                 ('compliance_scale', one(self.estimator.compliance()) / self.vehicle.eta),
+                ('compliance_memory', one(self.estimator.memory()) / self.vehicle.eta),
                 ('demand_capped', one(self.capped)), ('approach_clipped', one(self.clipped))]
 
     def note_limited(self, cut: bool) -> None:
