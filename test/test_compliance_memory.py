@@ -98,6 +98,45 @@ def test_a_straight_keeps_the_memory_and_the_estimate_falls_back_to_it():
     assert plain.compliance() == pytest.approx(VEHICLE.eta, rel=1e-9)
 
 
+def test_the_memory_s_own_range_and_what_it_is_told_not_to_remember():
+    # a rear axle 5 times softer than the model (a tyre past its grip): the fast
+    # estimate goes to its range (3), the memory only to its own (1.75)
+    v_y, r = cornering(0.2, 30.0, 3.0)
+    est = ComplianceEstimator(VEHICLE, 0.5, 0.3, PRIOR, 3.0, 0.0, 10.0, 1.75)
+    for _ in range(3000):
+        est.update(state(v_y, r), DT, True)
+    assert est.memory() == pytest.approx(1.75 * VEHICLE.eta, rel=1e-12)
+    assert est.compliance() == pytest.approx(3.0 * VEHICLE.eta, rel=1e-12)
+    # never wider than the estimate's range
+    assert ComplianceEstimator(VEHICLE, 0.5, 0.3, PRIOR, 1.5, 0.0, 10.0, 1.75).memory_ratio \
+        == 1.5
+    # remember=False: the estimate learns, the memory does not
+    told = estimator(10.0)
+    for _ in range(300):
+        told.update(state(v_y, r), DT, True, True, False)
+    assert told.memory() == VEHICLE.eta and told.memory_energy == 0.0
+    assert told.compliance() > 2.0 * VEHICLE.eta
+
+
+def test_the_law_remembers_only_near_the_lane():
+    # the same steady curve of a softer axle, the CG 5 cm / 20 cm off the lane: only the
+    # first is remembered (MEMORY_BAND 0.1 m); the estimate learns both
+    v_y, r = cornering(0.7, 30.0, 3.0)
+    laws = []
+    for y_cg in (0.05, 0.2):
+        law = CgCompensatedLaw(VEHICLE, ControllerParams(),
+                               LaneKeepingParams(state_filter='none'))
+        turn = LateralState(y_cg, -v_y / 30.0, v_y, r, 30.0, 0.0, r / 30.0, 0.0)
+        for k in range(300):
+            law.step(turn, None, 0.0 if k == 0 else DT)
+        laws.append(law.estimator)
+    near, far = laws
+    # the same fast statistics; the memory only near the lane
+    assert near.moment == far.moment and near.energy == far.energy > 0.0
+    assert near.memory() / VEHICLE.eta > 1.2 and far.memory() == VEHICLE.eta
+    assert far.memory_energy == 0.0
+
+
 def test_inactive_samples_teach_the_memory_nothing_and_the_range_clips_it():
     v_y, r = cornering(0.2, 30.0, 3.0)     # a rear axle 5 times softer than the model
     est = estimator(10.0, ratio=2.0)
@@ -151,8 +190,14 @@ def test_the_law_reports_and_restarts_its_memory():
     # a NaN input restarts the law, the memory with it
     law.step(turn._replace(v_y=float('nan')), None, DT)
     assert dict(law.debug_values())['compliance_memory'] == 1.0
-    with pytest.raises(ValueError, match='compliance_memory'):
-        LaneKeepingParams(compliance_memory=-1.0)
+    for bad in (-1.0, 0.5, float('nan'), 1001.0):
+        with pytest.raises(ValueError, match='compliance_memory'):
+            LaneKeepingParams(compliance_memory=bad)
+    # dev-probe41: 0.001 s was allowed, a memory that follows the noise
+    with pytest.raises(ValueError, match=r'compliance_memory = 0.001 s would forget'):
+        LaneKeepingParams(compliance_memory=0.001)
+    with pytest.raises(ValueError, match='compliance_memory_range'):
+        LaneKeepingParams(compliance_memory_range=0.5)
 
 
 # -- closed loop: a second curve after a straight, on tyres softer than the model -------
@@ -198,3 +243,38 @@ def test_a_second_curve_on_softer_tyres_is_driven_on_what_the_first_taught():
     assert peaks[10.0][1] < 0.5 * peaks[0.0][1]
     # the first curve is not made worse
     assert peaks[10.0][0] < peaks[0.0][0] + 0.005
+
+
+def test_a_slide_on_a_wet_road_does_not_spoil_the_next_curve():
+    # dev-probe41: a first curve past the grip (4.8 m/s^2 on mu 0.5 at 30 m/s: the CG
+    # a metre off), 20 s of straight, a gentle curve (2 m/s^2). The memory learned the
+    # slide's compliance (2.9 x eta) and the gentle curve peaked 16.8 cm (2.7 cm without
+    # a memory). With the memory's own range (1.75) and its band (learning only with the
+    # CG within 0.1 m of the lane): 4.2 cm
+    vehicle = load_vehicle(None)
+
+    def curve(accel, arc):
+        return [{'type': 'clothoid', 'time': 1.5, 'lateral_acceleration_start': 0.0,
+                 'lateral_acceleration_end': accel},
+                {'type': 'arc', 'time': arc, 'lateral_acceleration': accel}]
+    road = ([{'type': 'straight', 'time': 2.0}] + curve(-4.8, 4.0)
+            + [{'type': 'clothoid', 'time': 1.5, 'lateral_acceleration_start': -4.8,
+                'lateral_acceleration_end': 0.0}, {'type': 'straight', 'time': 20.0}]
+            + curve(-2.0, 30.0))
+    scenario = scenario_from_dict({'scenario': {
+        'name': 'wet', 'duration': 29.0 + 10.0, 'speed': {'initial': 30.0},
+        'initial': {'lateral_error': 0.0, 'relative_yaw': 0.0}, 'road': road}}, 'wet')
+    memory = []
+
+    class Watched(CgCompensatedLaw):
+
+        def step(self, state, preview, dt):
+            memory.append(float(self.estimator.memory()) / vehicle.eta)
+            return super().step(state, preview, dt)
+    law = Watched(vehicle, ControllerParams())
+    result = run(scenario, vehicle, law, PlantParams(model='nonlinear', friction=0.5),
+                 dt=0.005, initial_speed=30.0, delay=0.02, preview_distance=100.0)
+    t, y = np.asarray(result.time), np.abs(np.asarray(result['y_cg']))
+    assert np.max(y[t < 29.0]) > 0.5         # the first curve was past the grip
+    assert max(memory) <= 1.75
+    assert np.max(y[t >= 29.0]) < 0.05

@@ -30,10 +30,13 @@ forgetting ``T``:
   acceleration exceeds ``p``; clipped to ``[eta / k, eta k]``.
 - memory (``memory_time`` ``T_m`` > 0): the same statistics ``N_m``, ``D_m`` with the
   slower ``T_m``, counted only while the tyres are loaded (each sample weighted by
-  ``phi^2 / (phi^2 + p^2)``), give ``c_m = (N_m + p^2 eta) / (D_m + p^2)``, and the
-  estimate falls back to ``c_m`` instead of ``eta``: ``c = (N + p^2 c_m) / (D + p^2)``. A
-  straight does not erase what the last curves taught (the tyres do not change
-  between two curves), so a second curve is not driven on the model's compliance again.
+  ``phi^2 / (phi^2 + p^2)``) and where the caller says (``remember``), give ``c_m = (N_m
+  + p^2 eta) / (D_m + p^2)`` clipped to ``[eta / k_m, eta k_m]``, and the estimate falls
+  back to ``c_m`` instead of ``eta``: ``c = (N + p^2 c_m) / (D + p^2)``. A straight does
+  not erase what the last curves taught (the tyres do not change between two curves),
+  so a second curve is not driven on the model's compliance again. ``k_m`` is narrower
+  than ``k``: the memory holds what a car's tyres and load can be, not a slide's
+  compliance (a tyre past its grip on a wet road) or a gust's.
 
 Load-dependent compliance (``friction > 0``): a brush tyre's secant compliance grows
 with its load, ``c(a) = c_hat s(|a| / (mu g))`` with the design friction ``mu`` and
@@ -92,7 +95,7 @@ class ComplianceEstimator:
 
     def __init__(self, vehicle: VehicleParams, time_constant: float, filter_time: float,
                  prior: float, ratio: float, friction: float = 0.0,
-                 memory_time: float = 0.0) -> None:
+                 memory_time: float = 0.0, memory_ratio: float = math.inf) -> None:
         """
         Create the estimator.
 
@@ -105,6 +108,8 @@ class ComplianceEstimator:
             compliance (the estimate is the secant compliance itself).
         :param memory_time: ``T_m`` of the memory the estimate falls back to [s]; 0: it
             falls back to ``eta``.
+        :param memory_ratio: ``k_m``: the memory stays in ``[eta / k_m, eta k_m]``
+            (at most ``k``; inf: ``k``).
         """
         self.vehicle = vehicle
         self.time_constant = time_constant
@@ -113,6 +118,7 @@ class ComplianceEstimator:
         self.ratio = ratio
         self.friction = friction
         self.memory_time = memory_time
+        self.memory_ratio = min(memory_ratio, ratio)
         self.filtered: Optional[tuple[Real, Real, Real]] = None
         self.moment: Real = 0.0          # N [rad m/s^2]
         self.energy: Real = 0.0          # D [m^2/s^4]
@@ -128,7 +134,7 @@ class ComplianceEstimator:
         self.memory_energy = 0.0
 
     def update(self, state: LateralState, dt: float, active: Any,
-               running: Any = True) -> None:
+               running: Any = True, remember: Any = None) -> None:
         """
         Take one measurement.
 
@@ -140,6 +146,8 @@ class ComplianceEstimator:
             moment), the signal filters restart at the next sample where it holds,
             instead of carrying this sample into the first ones learned from after it;
             what was learned is kept.
+        :param remember: where false (per run), the memory learns nothing from this
+            sample (None: where ``active``).
         """
         veh = self.vehicle
         v_x = xp.maximum(state.v_x, 1.0)
@@ -169,7 +177,8 @@ class ComplianceEstimator:
         if self.memory_time > 0.0:
             # the memory moves only while the tyres are loaded: a straight keeps it
             square = phi * phi
-            g_m = xp.where(active, min(dt / self.memory_time, 1.0) + zero, zero) * (
+            learn = active if remember is None else remember
+            g_m = xp.where(learn, min(dt / self.memory_time, 1.0) + zero, zero) * (
                 square / (square + self.prior * self.prior))
             self.memory_moment = self.memory_moment + g_m * (f_slip * phi
                                                              - self.memory_moment)
@@ -237,14 +246,14 @@ class ComplianceEstimator:
         """
         Return the memory the estimate falls back to [s^2/m] (``eta`` without one).
 
-        :return: ``(N_m + p^2 eta) / (D_m + p^2)``, clipped to ``[eta / k, eta k]``.
+        :return: ``(N_m + p^2 eta) / (D_m + p^2)``, clipped to ``[eta / k_m, eta k_m]``.
         """
         eta = self.vehicle.eta
         if self.memory_time <= 0.0:
             return eta
         prior = self.prior * self.prior
         estimate = (self.memory_moment + prior * eta) / (self.memory_energy + prior)
-        return xp.clip(estimate, eta / self.ratio, eta * self.ratio)
+        return xp.clip(estimate, eta / self.memory_ratio, eta * self.memory_ratio)
 
     def at(self, accel: Real) -> tuple[Real, Real]:
         """

@@ -131,8 +131,10 @@ LANE_KEEPING_SPECS = tuple(
         ('compliance_range', 'the estimate stays within 1/k and k times the model value [-]',
          1.0, 100.0),
         ('compliance_memory', 'time constant of the memory the estimate falls back to on '
-         'straights, counted while the tyres are loaded; 0: back to the model value [s]',
-         0.0, 1000.0),
+         'straights, counted while the tyres are loaded and the CG is within 0.1 m of the '
+         'lane; 0: back to the model value, else at least 1 [s]', 0.0, 1000.0),
+        ('compliance_memory_range', 'the memory stays within 1/k and k times the model '
+         'value (at most compliance_range) [-]', 1.0, 100.0),
         ('rate_feedforward', 'add the curvature-rate term of the inverse zero dynamics '
          'to the reference', 0.0, 1.0),
         ('exact_inverse', 'share of the exact inverse of the zero dynamics in the '
