@@ -165,6 +165,10 @@ def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(contex
         assert values[-1]['compliance_scale'] == pytest.approx(law.compliance() / law.vehicle.eta)
         assert values[-1]['compliance_memory'] == pytest.approx(
             law.estimator.memory() / law.vehicle.eta)
+        # and in /diagnostics, for the operator: what the car taught the law
+        told = {kv.key: kv.value for kv in node.diagnostics().values}
+        assert told['compliance scale [x model]'] == f"{values[-1]['compliance_scale']:.3f}"
+        assert told['compliance memory [x model]'] == f"{values[-1]['compliance_memory']:.3f}"
         # the memory learns only while the tyres are loaded: it has moved off 1, less
         # than the estimate, inside the estimate's range
         assert 1 / 3 < values[-1]['compliance_scale'] < values[-1]['compliance_memory'] < 1.0
@@ -174,6 +178,7 @@ def test_the_debug_topic_says_when_the_law_runs_on_its_curvature_estimate(contex
         assert node.set_parameters([Parameter('law', value='paper')])[0].successful
         node.on_lateral_error(conv.to_lateral_error(101 * 10 * MS, 'base_link', 1.96, 0.05))
         assert 'curvature_estimated' not in sent[-1].name and 'd_v' in sent[-1].name
+        assert not any(kv.key.startswith('compliance') for kv in node.diagnostics().values)
         assert dict(zip(sent[-1].name, sent[-1].position))['curvature_received'] == 0.0
     finally:
         node.destroy_node()

@@ -714,6 +714,11 @@ class ControllerNode(LifecycleNode):
             values.append(KeyValue(key='answer latency max [s]', value=f'{latency:.6f}'))
         values += [KeyValue(key=f'rejected {k}', value=str(v))
                    for k, v in sorted(self.core.rejected.items())]
+        # what the car taught the law's compliance estimate, over the model's (a memory
+        # far from 1 run after run says vehicle.yaml's tyres or mass are not the car's)
+        learned = dict(getattr(self.core.law, 'debug_values', list)())
+        values += [KeyValue(key=f'{key.replace("_", " ")} [x model]', value=f'{learned[key]:.3f}')
+                   for key in ('compliance_scale', 'compliance_memory') if key in learned]
         return DiagnosticStatus(level=level, name='lookahead_control: controller',
                                 message='; '.join(reasons) or 'ok',
                                 hardware_id='lookahead_control', values=values)
