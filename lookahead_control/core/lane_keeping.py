@@ -155,7 +155,7 @@ class LaneKeepingParams:
         what the last curves taught instead of to ``eta``, so every curve after the first
         is driven on the learned compliance. 0: back to ``eta`` (else at least 1 s).
     :param compliance_memory_range: the memory stays within ``eta / r`` and ``eta r``
-        (at most ``compliance_range``) [-]: what tyres and load can make of a car's
+        (at most ``compliance_range``): what tyres and load can make of a car's
         compliance (the sweep's C x0.7 and mass x1.2: 1.71), not a slide's [-].
     :param rate_feedforward: add the curvature-rate term that makes the CG stay on the
         lane on a clothoid (first-order inverse of the zero dynamics).
