@@ -184,7 +184,8 @@ def test_a_curvature_flapping_on_and_off_does_not_jump_the_command():
 def test_with_curvature_received_the_runs_are_those_of_the_old_code():
     # the sums of the old code's (main 3cdb363) commands, S2 and S0 at 37 m/s with the
     # curvature received, bit for bit; S2 without the state preview (0 is the law before
-    # it), S0 with the defaults (a straight: the preview adds nothing)
+    # it), S0 with the defaults (a straight: the preview adds nothing); both without the
+    # compliance memory (0 is the estimator before it, dev-memory)
     from lookahead_control.tools.compare import load_scenarios
     from sim_plant.closed_loop_sim import run
     from sim_plant.sensors import NoiseParams
@@ -203,8 +204,9 @@ def test_with_curvature_received_the_runs_are_those_of_the_old_code():
             return self.law.step(state, preview, dt)
 
     for name, total, settings in (
-            ('s2_curve_entry', -18.67866522659203, LaneKeepingParams(state_preview=0.0)),
-            ('s0_straight', -0.1944498962871857, LaneKeepingParams())):
+            ('s2_curve_entry', -18.67866522659203,
+             LaneKeepingParams(state_preview=0.0, compliance_memory=0.0)),
+            ('s0_straight', -0.1944498962871857, LaneKeepingParams(compliance_memory=0.0))):
         scenario = load_scenarios([name])[name]
         result = run(scenario, VEHICLE, Told(settings), PlantParams(model='nonlinear'),
                      initial_speed=37.0, dt=0.001, delay=0.02, preview_distance=100.0,

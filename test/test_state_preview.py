@@ -117,9 +117,10 @@ def test_it_is_a_third_of_the_road_rate_term_at_highway_speed(v):
 def test_share_0_is_the_law_before_it():
     # S3 at 30 m/s on the noise-free goal plant, every other setting the default: the
     # figures of the code before the lead (2dfcd0d), to 1e-12 (a reduction's rounding
-    # may differ between CPUs); likewise with the preview but no feedforward_preview
+    # may differ between CPUs); likewise with the preview but no feedforward_preview.
+    # Without the compliance memory (0 is the estimator before it, dev-memory)
     scen = load_scenarios(['s3_s_bend'])['s3_s_bend']
-    for settings in (LaneKeepingParams(state_preview=0.0),
+    for settings in (LaneKeepingParams(state_preview=0.0, compliance_memory=0.0),
                      LaneKeepingParams(feedforward_preview=0.0, state_preview=3.0)):
         law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
         result = run(scen, VEHICLE, law, NONLINEAR, dt=DT, preview_distance=PREVIEW_DISTANCE,
