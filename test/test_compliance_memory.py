@@ -200,6 +200,34 @@ def test_the_law_reports_and_restarts_its_memory():
         LaneKeepingParams(compliance_memory_range=0.5)
 
 
+def test_a_retune_carries_the_memory_and_setting_it_to_0_drops_it():
+    v_y, r = cornering(0.7, 30.0, 3.0)
+    old = CgCompensatedLaw(VEHICLE, ControllerParams())
+    turn = LateralState(0.0, -v_y / 30.0, v_y, r, 30.0, 0.0, r / 30.0, 0.0)
+    for k in range(300):
+        old.step(turn, None, 0.0 if k == 0 else DT)
+    learned = old.estimator.memory()
+    assert learned / VEHICLE.eta > 1.2
+    longer = CgCompensatedLaw(VEHICLE, ControllerParams(),
+                              LaneKeepingParams(compliance_memory=30.0))
+    longer.reset()
+    carried, _ = longer.take_over(old)
+    assert 'compliance estimate' in carried
+    assert longer.estimator.memory() == learned
+    # a narrower range clips it from the next step on
+    narrow = CgCompensatedLaw(VEHICLE, ControllerParams(),
+                              LaneKeepingParams(compliance_memory_range=1.1))
+    narrow.reset()
+    narrow.take_over(old)
+    assert narrow.estimator.memory() == pytest.approx(1.1 * VEHICLE.eta, rel=1e-12)
+    off = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams(compliance_memory=0.0))
+    off.reset()
+    off.take_over(old)
+    assert off.estimator.memory() == VEHICLE.eta and off.estimator.memory_energy == 0.0
+    # the estimate itself is carried either way (its fallback is then eta)
+    assert off.estimator.moment == old.estimator.moment
+
+
 # -- closed loop: a second curve after a straight, on tyres softer than the model -------
 
 def two_curves(gap):
