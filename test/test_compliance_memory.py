@@ -48,6 +48,16 @@ def state(v_y, r, v_x=30.0):
     return LateralState(0.0, 0.0, v_y, r, v_x, 0.0, 0.0, 0.0)
 
 
+def law_after_a_curve(settings=None, y_cg=0.0):
+    """Return a law after 3 s of steady 3 m/s^2 cornering at 30 m/s, rear axle 30 % softer."""
+    v_y, r = cornering(0.7, 30.0, 3.0)
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+    turn = LateralState(y_cg, -v_y / 30.0, v_y, r, 30.0, 0.0, r / 30.0, 0.0)
+    for k in range(300):
+        law.step(turn, None, 0.0 if k == 0 else DT)
+    return law, turn
+
+
 def test_the_memory_and_the_estimate_by_hand_in_a_steady_curve():
     # constant signals from the first sample: the filters hold them, phi = v_x r and
     # the rear slip (l_2 r - v_y) / v_x exactly; each sample moves the memory by g =
@@ -121,16 +131,8 @@ def test_the_memory_s_own_range_and_what_it_is_told_not_to_remember():
 def test_the_law_remembers_only_near_the_lane():
     # the same steady curve of a softer axle, the CG 5 cm / 20 cm off the lane: only the
     # first is remembered (MEMORY_BAND 0.1 m); the estimate learns both
-    v_y, r = cornering(0.7, 30.0, 3.0)
-    laws = []
-    for y_cg in (0.05, 0.2):
-        law = CgCompensatedLaw(VEHICLE, ControllerParams(),
-                               LaneKeepingParams(state_filter='none'))
-        turn = LateralState(y_cg, -v_y / 30.0, v_y, r, 30.0, 0.0, r / 30.0, 0.0)
-        for k in range(300):
-            law.step(turn, None, 0.0 if k == 0 else DT)
-        laws.append(law.estimator)
-    near, far = laws
+    near, far = (law_after_a_curve(LaneKeepingParams(state_filter='none'), y_cg)[0].estimator
+                 for y_cg in (0.05, 0.2))
     # the same fast statistics; the memory only near the lane
     assert near.moment == far.moment and near.energy == far.energy > 0.0
     assert near.memory() / VEHICLE.eta > 1.2 and far.memory() == VEHICLE.eta
@@ -179,11 +181,7 @@ def test_forget_reset_and_take_over_carry_the_memory():
 
 
 def test_the_law_reports_and_restarts_its_memory():
-    v_y, r = cornering(0.7, 30.0, 3.0)
-    law = CgCompensatedLaw(VEHICLE, ControllerParams())
-    turn = LateralState(0.0, -v_y / 30.0, v_y, r, 30.0, 0.0, r / 30.0, 0.0)
-    for k in range(300):
-        law.step(turn, None, 0.0 if k == 0 else DT)
+    law, turn = law_after_a_curve()
     values = dict(law.debug_values())
     assert values['compliance_memory'] == pytest.approx(law.estimator.memory() / VEHICLE.eta)
     assert values['compliance_memory'] > 1.1
@@ -201,11 +199,7 @@ def test_the_law_reports_and_restarts_its_memory():
 
 
 def test_a_retune_carries_the_memory_and_setting_it_to_0_drops_it():
-    v_y, r = cornering(0.7, 30.0, 3.0)
-    old = CgCompensatedLaw(VEHICLE, ControllerParams())
-    turn = LateralState(0.0, -v_y / 30.0, v_y, r, 30.0, 0.0, r / 30.0, 0.0)
-    for k in range(300):
-        old.step(turn, None, 0.0 if k == 0 else DT)
+    old, _ = law_after_a_curve()
     learned = old.estimator.memory()
     assert learned / VEHICLE.eta > 1.2
     longer = CgCompensatedLaw(VEHICLE, ControllerParams(),
