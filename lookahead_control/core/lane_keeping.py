@@ -55,7 +55,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 import math
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 from lookahead_control.core import cg_reference
 from lookahead_control.core import numeric as xp
@@ -193,6 +193,14 @@ class LaneKeepingParams:
         clipped to ``max_lateral_jerk``, and the law previews ``rho_hat + rho_hat' t``
         (its rate feedforward and the drift term's ``T_ff`` ahead) [s]; 0: the
         estimate's rate is taken as 0 (no preview without a curvature).
+    :param delay_prediction: the law acts on the state filter's estimate predicted
+        across the transport delay ``filter_delay`` (the filter's model under the
+        commands already sent, :meth:`KalmanStateFilter.ahead`), on the road there: the
+        curvature at the CG and the reference's ``v_x filter_delay`` further ahead, the
+        state terms previewed ``feedforward_preview - filter_delay`` (the drift term's
+        road is ``feedforward_preview`` ahead of now either way). The integral and the
+        compliance estimate stay on the present estimate. Needs ``state_filter:
+        kalman``.
     :param filter_min_speed: ... (and the ``filter_*`` below): the filter's settings,
         :class:`~lookahead_control.core.state_filter.StateFilterParams` without the
         ``filter_`` prefix.
@@ -231,6 +239,7 @@ class LaneKeepingParams:
     state_filter: str = 'kalman'
     curvature_blend: float = 0.5
     estimate_rate_time: float = 0.5
+    delay_prediction: bool = False
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
     filter_delay: float = 0.02
@@ -314,6 +323,9 @@ class LaneKeepingParams:
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
+        if not isinstance(self.delay_prediction, bool):
+            raise ParameterError(f'lane_keeping.delay_prediction = {self.delay_prediction!r} '
+                                 'must be true or false')
         if self.state_filter not in FILTER_MODES:
             raise ParameterError(f'lane_keeping.state_filter = {self.state_filter!r} is not '
                                  f'allowed; choose one of {", ".join(FILTER_MODES)}')
@@ -322,8 +334,12 @@ class LaneKeepingParams:
             raise ParameterError(f'lane_keeping.max_gap = {self.max_gap!r} s is above '
                                  f'{MAX_PERIOD:g} s, the longest step the state filter runs; '
                                  'lower it or set lane_keeping.state_filter: none')
+        if self.delay_prediction and self.state_filter != 'kalman':
+            raise ParameterError('lane_keeping.delay_prediction = true needs '
+                                 'lane_keeping.state_filter: kalman (the prediction runs the '
+                                 f"filter's model), not {self.state_filter!r}")
         for item in fields(self):
-            if item.name in ('rate_feedforward', 'state_filter'):
+            if item.name in ('rate_feedforward', 'state_filter', 'delay_prediction'):
                 continue
             object.__setattr__(self, item.name, float(getattr(self, item.name)))
         self.filter_settings()
@@ -1048,25 +1064,30 @@ class CgCompensatedLaw:
         slope = state.rho_rate / v_x
         distances = getattr(preview, 'distances', None)
         curvatures = getattr(preview, 'curvatures', None)
-        rho_ref, slope_ref = preview_curvature(distances, curvatures,
-                                               v_x * s.reference_preview, state.rho, slope)
-        rho_ff, slope_ff = preview_curvature(distances, curvatures,
-                                             v_x * s.feedforward_preview, state.rho, slope)
-        if rated and estimating is True:
-            # the estimate extrapolated along its rate (preview_curvature's fallback)
-            rho_ref, rho_ff = _bounded(rho_ref), _bounded(rho_ff)
-        elif rated and isinstance(estimating, np.ndarray) and np.count_nonzero(estimating):
-            est_ref = _bounded(state.rho + slope * (v_x * s.reference_preview))
-            est_ff = _bounded(state.rho + slope * (v_x * s.feedforward_preview))
-            rho_ref, slope_ref, rho_ff, slope_ff = (
-                xp.where(estimating, est_ref, rho_ref), xp.where(estimating, slope, slope_ref),
-                xp.where(estimating, est_ff, rho_ff), xp.where(estimating, slope, slope_ff))
-        elif isinstance(estimating, np.ndarray) and np.count_nonzero(estimating):
-            rho_ref, slope_ref, rho_ff, slope_ff = (
-                xp.where(estimating, state.rho, rho_ref), xp.where(estimating, 0.0, slope_ref),
-                xp.where(estimating, state.rho, rho_ff), xp.where(estimating, 0.0, slope_ff))
-        if self._blending is not None:  # the preview moves with the curvature at the CG
-            rho_ref, rho_ff = rho_ref + self._blending, rho_ff + self._blending
+        blending = self._blending
+
+        def road(time: float) -> tuple[Real, Real]:
+            """Return the curvature ``v_x time`` ahead and its slope."""
+            rho_t, slope_t = preview_curvature(distances, curvatures, v_x * time, state.rho,
+                                               slope)
+            if rated and estimating is True:
+                # the estimate extrapolated along its rate (preview_curvature's fallback)
+                rho_t = _bounded(rho_t)
+            elif isinstance(estimating, np.ndarray) and np.count_nonzero(estimating):
+                est = _bounded(state.rho + slope * (v_x * time)) if rated else state.rho
+                rho_t = xp.where(estimating, est, rho_t)
+                slope_t = xp.where(estimating, slope if rated else 0.0, slope_t)
+            if blending is not None:    # the preview moves with the curvature at the CG
+                rho_t = rho_t + blending
+            return rho_t, slope_t
+
+        ahead = s.filter_delay if s.delay_prediction else 0.0
+        rho_ref, slope_ref = road(s.reference_preview + ahead)
+        rho_ff, slope_ff = road(s.feedforward_preview)
+        # the state the law acts on: the estimate where the command it sends now reaches
+        # the actuator (delay_prediction), on the road there; the integral and the
+        # estimate stay on the present one
+        law_state = self._predicted(state, ahead, v_x, road) if ahead > 0.0 else state
         lead_rate = lead_ff_rate = None
         if s.max_lateral_jerk > 0.0:
             # a curvature step in the map is an impulse of curvature rate no steering can
@@ -1107,8 +1128,9 @@ class CgCompensatedLaw:
                         integral_gain_at(s, v_x) * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref)
-        out = self.evaluate(state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
-                            integral, rate, secant, tangent, lead_rate, lead_ff_rate)
+        out = self.evaluate(law_state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
+                            integral, rate, secant, tangent, lead_rate, lead_ff_rate,
+                            max(s.feedforward_preview - ahead, 0.0))
         if self._blending is not None:
             # what the curvature does not carry (its rate, the preview) blends on the
             # command: the jump at the switch-over taken out over the same time
@@ -1120,16 +1142,17 @@ class CgCompensatedLaw:
                 left > 0.0, self._steer_offset * (left / s.curvature_blend), 0.0))
         capped: Any = False
         if s.demand_limit > 0.0:
-            low, high = demand_band(self.vehicle, v_x, state.rho, rho_ff, s.demand_limit,
-                                    front_axle_course(self.vehicle, state.v_y, state.r, v_x),
-                                    state.r - v_x * state.rho)
+            low, high = demand_band(self.vehicle, v_x, law_state.rho, rho_ff, s.demand_limit,
+                                    front_axle_course(self.vehicle, law_state.v_y,
+                                                      law_state.r, v_x),
+                                    law_state.r - v_x * law_state.rho)
             capped = (out.steering < low) | (out.steering > high)
             out = out._replace(steering=xp.clip(out.steering, low, high))
         finite = _finite(out.steering)
         clipped: Any = False
         if s.approach_heading > 0.0:
             k_p, k_d = loop_gains(s, v_x)
-            clipped = xp.absolute(state.y_cg + integral) > approach_limit(
+            clipped = xp.absolute(law_state.y_cg + integral) > approach_limit(
                 s.approach_heading, out.d_v, v_x, k_p, k_d)
         if self.state_filter is not None:
             self.state_filter.command(out.steering)
@@ -1169,7 +1192,8 @@ class CgCompensatedLaw:
     def evaluate(self, state: LateralState, dt: float, rho_ref: Real, rho_ref_rate: Real,
                  rho_ff: Real, rho_ff_rate: Real, offset: Real, offset_rate: Real,
                  secant: Real, tangent: Real, lead_rate: Optional[Real],
-                 lead_ff_rate: Optional[Real]) -> LawOutput:
+                 lead_ff_rate: Optional[Real], lead_time: Optional[float] = None
+                 ) -> LawOutput:
         """
         Return the law's output at this step from the values :meth:`step` worked out.
 
@@ -1189,6 +1213,8 @@ class CgCompensatedLaw:
         :param tangent: its tangent compliance [s^2/m].
         :param lead_rate: the rate feedforward's (clipped) curvature rate, None: unclipped.
         :param lead_ff_rate: the state preview's (clipped) curvature rate, None: unclipped.
+        :param lead_time: how far ahead the state terms are previewed [s] (None:
+            ``feedforward_preview``).
         :return: the steering angle and the intermediate values.
         """
         s = self.settings
@@ -1199,7 +1225,8 @@ class CgCompensatedLaw:
                                  compliance=secant, rate_feedforward=s.rate_feedforward,
                                  tangent_compliance=tangent, gains=gains,
                                  lead_rate=lead_rate, state_preview=s.state_preview,
-                                 lead_time=s.feedforward_preview,
+                                 lead_time=(s.feedforward_preview if lead_time is None
+                                            else lead_time),
                                  lead_ff_rate=lead_ff_rate,
                                  approach_heading=s.approach_heading)
         if s.exact_inverse <= 0.0:
@@ -1243,6 +1270,36 @@ class CgCompensatedLaw:
                     - k_d * error_rate) / out.beta_1
         return out._replace(steering=steering, y_ref=y_ref, error=error,
                             error_rate=error_rate)
+
+    def _predicted(self, state: LateralState, ahead: float, v_x: Real,
+                   road: Callable[[float], tuple[Real, Real]]) -> LateralState:
+        """
+        Return the filter's estimate ``ahead`` seconds on, on the road there.
+
+        The state filter's model under the commands already sent
+        (:meth:`KalmanStateFilter.ahead`), the curvature from the CG's now to ``road``'s
+        ``ahead``; where the filter passes the measurement (below its ``min_speed``, a
+        restart) the present state, with the road at the CG.
+
+        :param state: the filter's present estimate.
+        :param ahead: the prediction time, ``filter_delay`` [s].
+        :param v_x: speed (at least the law's ``min_speed``) [m/s].
+        :param road: the curvature and its slope a time ahead (:meth:`step`'s).
+        :return: the state the law acts on.
+        """
+        rho_at, slope_at = road(ahead)
+        here = state._replace(rho=rho_at, rho_rate=v_x * slope_at)
+        assert self.state_filter is not None
+        low = self.state_filter.settings.min_speed
+        speed = xp.where(state.v_x >= low, v_x, low)
+        x = self.state_filter.ahead(ahead, speed, rho_at, state.rho)
+        if x is None:
+            return here
+        use = _finite(x[0]) & _finite(x[1]) & _finite(x[2]) & _finite(x[3]) \
+            & (state.v_x >= low)
+        y, e, v, r = (xp.where(use, new, old) for new, old in
+                      zip(x, (state.y_cg, state.eps_r, state.v_y, state.r)))
+        return here._replace(y_cg=y, eps_r=e, v_y=v, r=r)
 
     def _estimate_curvature(self, state: LateralState, dt: float,
                             estimating: Any) -> LateralState:

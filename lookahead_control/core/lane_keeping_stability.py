@@ -190,6 +190,10 @@ CERTIFICATE_WEIGHTS = {'wn5': CERTIFICATE_Q_WN5, 'wn5_robust': CERTIFICATE_Q_WN5
 _STEP = 1e-4
 
 
+#: the plant's transport delays of :func:`robust_check` [s] (the sweep's range)
+DELAYS = (0.0, 0.02, 0.05)
+
+
 def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_x: float, a_x: float = 0.0) -> Matrix:
     """
@@ -252,7 +256,7 @@ def curvature_gain(vehicle: VehicleParams, controller: ControllerParams,
 
 
 def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
-              settings: LaneKeepingParams, v_x: float) -> float:
+              settings: LaneKeepingParams, v_x: float, ahead: float = 0.0) -> float:
     """
     Return ``k_rate`` with ``delta = K x + k_rho rho + k_rate rho'`` (estimated curvature).
 
@@ -261,12 +265,16 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
     ``T_ff`` ahead take ``rho + rho' T``, their rates, the rate feedforward, the state
     preview and the reference's rate take ``rho'`` (small signals: the clip to
     ``max_lateral_jerk`` does not act). Evaluated on the law itself (linear in
-    ``rho'`` at a constant compliance); 0 with ``estimate_rate_time`` 0.
+    ``rho'`` at a constant compliance); 0 with ``estimate_rate_time`` 0. With the
+    delay-aware law (``ahead`` > 0) the curvature at the CG is taken ``ahead`` on, the
+    reference's ``T_ref + ahead``, the state terms previewed ``T_ff - ahead``.
 
     :param vehicle: the design vehicle.
     :param controller: d_v schedule.
     :param settings: the law's gains and previews.
     :param v_x: speed [m/s].
+    :param ahead: the law's prediction time (``filter_delay`` with
+        ``delay_prediction``, else 0) [s].
     :return: the gain [rad m s].
     """
     if settings.estimate_rate_time <= 0.0:
@@ -276,13 +284,13 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
     gains = loop_gains(settings, v_x)
 
     def steering(rate: float) -> float:
-        state = LateralState(0.0, 0.0, 0.0, 0.0, v_x, 0.0, 0.0, rate)
+        state = LateralState(0.0, 0.0, 0.0, 0.0, v_x, 0.0, rate * ahead, rate)
         out = cg_compensated_law(state, vehicle, law_controller,
-                                 rate * settings.reference_preview, rate,
+                                 rate * (settings.reference_preview + ahead), rate,
                                  rate * settings.feedforward_preview, rate, gains=gains,
                                  rate_feedforward=settings.rate_feedforward,
                                  state_preview=settings.state_preview,
-                                 lead_time=settings.feedforward_preview)
+                                 lead_time=max(settings.feedforward_preview - ahead, 0.0))
         return float(out.steering)
 
     return steering(1.0) - steering(0.0)
@@ -843,7 +851,18 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     # such that t_k - i h <= t_k + (j + 1/2) sub - delay
     ages = [max(0, int(np.ceil((fs.delay - (j + 0.5) * sub) / period - 1e-9)))
             for j in range(count)]
-    depth = max(delay_steps, max(ages) + 1, 1)
+    # the delay-aware law (delay_prediction): the estimate predicted across the filter's
+    # delay under the commands already sent (KalmanStateFilter.ahead), its substeps and
+    # the ages of their commands as the filter's own prediction (all >= 1: sent before)
+    ahead = fs.delay if settings.delay_prediction else 0.0
+    ages_ahead: list[int] = []
+    if ahead > 0.0:
+        count_ahead = max(1, int(np.ceil(ahead / min(MAX_SUBSTEP, 1.0 / fastest) - 1e-9)))
+        h_ahead = ahead / count_ahead
+        phi_a, gamma_a = _zoh(a_w, b_w, h_ahead)
+        ages_ahead = [max(1, int(np.ceil((fs.delay - (j + 0.5) * h_ahead) / period - 1e-9)))
+                      for j in range(count_ahead)]
+    depth = max(delay_steps, max(ages) + 1, max(ages_ahead, default=0), 1)
     # indices in s_k
     i_int = n
     i_est = n + 1
@@ -855,15 +874,24 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     gain = _filter_gain(model, fs, v_x, period, v_y_measured)
     h_model = measurement_matrix(model)
     k = feedback_gain(vehicle, controller, settings, v_x)
-    law = np.zeros((1, size))                   # u_k over s_k
-    law[0, i_est:i_est + 4] = k[:4]
-    law[0, i_int] = k[4]
+    unit = np.eye(size)
+    acted = np.zeros((nf, size))                # the estimate the law acts on, over s_k
+    acted[:, i_est:i_est + nf] = np.eye(nf)
+    for j, age in enumerate(ages_ahead):
+        acted = phi_a @ acted + gamma_a[:, :1] @ unit[i_buf + age - 1:i_buf + age]
+        if curvature_estimated:
+            # from the estimate now to it previewed along its rate, at the substep's middle
+            rho_path = unit[i_kin + 1] + (unit[i_rate] * ((j + 0.5) * h_ahead) if rated
+                                          else 0.0)
+            acted += gamma_a[:, 1:] @ rho_path.reshape(1, size)
+    law = k[:4].reshape(1, 4) @ acted[:4]       # u_k over s_k
+    law[0, i_int] += k[4]
     if approach:                        # the clipped offset is a constant input
-        law[0, i_est] = 0.0
+        law -= k[0] * acted[0]
     if curvature_estimated:
-        law[0, i_kin + 1] = curvature_gain(vehicle, controller, settings, v_x)
+        law[0, i_kin + 1] += curvature_gain(vehicle, controller, settings, v_x)
     if rated:
-        law[0, i_rate] = rate_gain(vehicle, controller, settings, v_x)
+        law[0, i_rate] += rate_gain(vehicle, controller, settings, v_x, ahead)
 
     def command(age: int) -> Matrix:
         """Return u_k-age as a row over s_k."""
@@ -886,7 +914,6 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     rho_now = np.zeros((1, size))               # the curvature input at t_k
     rho_next = np.zeros((1, size))              # ... and at t_k+1
     if curvature_estimated:
-        unit = np.eye(size)
         g_kin = _curvature_filter_gain(fs, v_x, period)
         e_prior = (unit[i_kin] + period * (0.5 * (unit[3] + measured[3])
                                            - v_x * unit[i_kin + 1]))
@@ -1084,7 +1111,7 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                  speeds: tuple[float, ...] = (10.0, 15.0, 20.0, 25.0, 30.0, 37.0),
                  stiffness: tuple[float, ...] = (0.7, 1.0, 1.3),
                  mass: tuple[float, ...] = (0.8, 1.0, 1.2),
-                 delays: tuple[float, ...] = (0.0, 0.02, 0.05), period: float = 0.01,
+                 delays: tuple[float, ...] = DELAYS, period: float = 0.01,
                  lag: float = 0.05, filtered: bool = False,
                  filter_vehicle: Optional[VehicleParams] = None,
                  filter_settings: Optional[StateFilterParams] = None,

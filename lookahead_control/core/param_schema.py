@@ -157,6 +157,9 @@ LANE_KEEPING_SPECS = tuple(
         ('estimate_rate_time', 'while the curvature is estimated (no road_curvature), its '
          'rate is the derivative of the estimate through a low pass of this time constant, and '
          'the law previews the estimate along it; 0: rate 0, no preview [s]', 0.0, 10.0),
+        ('delay_prediction', "act on the state filter's estimate predicted across "
+         'filter_delay under the commands already sent, on the road there (for a long '
+         'transport delay); needs state_filter kalman', 0.0, 1.0),
     )) + (
     Spec('lane_keeping.state_filter', LaneKeepingParams().state_filter,
          'kalman: the law uses the estimate of y_cg, eps_r, v_y, r of the Kalman filter, '

@@ -779,6 +779,36 @@ class KalmanStateFilter:
             self.wheel = wheel[2]
         return [y, e, v, r, f_f, f_r, x[6]]
 
+    def ahead(self, time: float, v_x: Real, rho: Real, rho_start: Real) -> Optional[list[Real]]:
+        """
+        Return the present estimate predicted ``time`` ahead, the filter left as it was.
+
+        The model integrated under the commands already sent (the actuator's input
+        ``delay`` behind: over ``time <= delay`` none of them is still to be decided), its
+        force disturbances held, the curvature going linearly from ``rho_start`` to
+        ``rho`` (the road at the CG now and ``v_x time`` ahead). The delay-aware law
+        (``delay_prediction``) acts on it: the command it sends now reaches the actuator
+        when the car is there.
+
+        :param time: how far ahead [s], at most the filter's ``delay``.
+        :param v_x: speed [m/s] (at least ``min_speed``; per run for a batch).
+        :param rho: the curvature at the end [1/m].
+        :param rho_start: the curvature now [1/m].
+        :return: ``[y_cg, eps_r, v_y, r]`` ahead (NaN where the filter restarts), or None
+            before the first step.
+        """
+        if self.x is None:
+            return None
+        if not 0.0 < time <= self.settings.delay:
+            raise ValueError(f'the prediction time {time!r} s must be above 0 and at most '
+                             f"the filter's delay {self.settings.delay!r} s: further ahead "
+                             'the commands not yet sent would act')
+        saved = (self.wheel, self.held, list(self.history), self.steps_cache)
+        try:
+            return self._predict(list(self.x), time, v_x, rho, rho_start)[:4]
+        finally:
+            self.wheel, self.held, self.history, self.steps_cache = saved
+
     def step(self, state: LateralState, dt: float, estimating: Any = False) -> LateralState:
         """
         Take one measurement and return the estimated state.

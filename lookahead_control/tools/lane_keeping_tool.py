@@ -25,7 +25,7 @@ from lookahead_control.core.cli import (markdown_table, number, parser, run_tool
                                         write_json)
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
-from lookahead_control.core.lane_keeping_stability import certificate, robust_check
+from lookahead_control.core.lane_keeping_stability import certificate, DELAYS, robust_check
 from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 
@@ -59,6 +59,12 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                    help='k_i of the CG-error integral at and above '
                    "lane_keeping.integral_speed (below, the law's schedule down to "
                    'low_speed_integral_gain, capped at this; default: that of the law)')
+    p.add_argument('--delays', type=number(0.0, 1.0, unit='s'), nargs='+',
+                   default=list(DELAYS), metavar='S',
+                   help="the plant's transport delays of the sampled checks, rounded to the "
+                   '0.01 s period; a car with a long delay: the delay and around it, with '
+                   'lane_keeping.filter_delay (and delay_prediction) in --controller '
+                   f'(default {" ".join(f"{d:g}" for d in DELAYS)})')
     p.add_argument('--controller', type=Path, default=None, metavar='YAML',
                    help='check the law the controller node would run with this params '
                    'file: its controller.* (d_v schedule) and lane_keeping.*; '
@@ -91,18 +97,22 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
           + (f'; differing from the defaults: {", ".join(changed)}' if changed else ''))
     cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
                        args.samples, a_error=args.a_error)
-    robust = robust_check(vehicle, controller, settings)
-    filtered = robust_check(vehicle, controller, settings, filtered=True)
-    estimated = robust_check(vehicle, controller, settings, filtered=True,
+    delays = tuple(sorted(set(args.delays)))
+    robust = robust_check(vehicle, controller, settings, delays=delays)
+    filtered = robust_check(vehicle, controller, settings, delays=delays, filtered=True)
+    estimated = robust_check(vehicle, controller, settings, delays=delays, filtered=True,
                              curvature_estimated=True)
     # outside integral_band the integral is held: the loop without it must hold too
-    frozen = robust_check(vehicle, controller, settings, filtered=True, integral_frozen=True)
+    frozen = robust_check(vehicle, controller, settings, delays=delays, filtered=True,
+                          integral_frozen=True)
     # ... and without road_curvature, where the CG is metres off (the held case there)
-    frozen_estimated = robust_check(vehicle, controller, settings, filtered=True,
-                                    curvature_estimated=True, integral_frozen=True)
+    frozen_estimated = robust_check(vehicle, controller, settings, delays=delays,
+                                    filtered=True, curvature_estimated=True,
+                                    integral_frozen=True)
     # engaged far off the lane (approach_heading): the CG's offset clipped, the integral
     # held, the car closing at the approach heading; that loop without y_cg must hold
-    approach = (robust_check(vehicle, controller, settings, filtered=True, approach=True)
+    approach = (robust_check(vehicle, controller, settings, delays=delays, filtered=True,
+                             approach=True)
                 if settings.approach_heading > 0.0 else None)
     # the test's value is proportional to (a_max, a_error): the largest factor on both
     # that it certifies (with a_error = 0: the largest |a_x|)
@@ -144,25 +154,35 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
           f'{cert.a_max:g} m/s^2, error of the law a_x <= {cert.a_error:g} m/s^2; '
           f'checked at {speeds} ({kinks}) with Q {cert.weight}; worst value at '
-          f'{cert.max_norm_speed:.2f} m/s; worst mismatch case {robust.worst} (exact '
+          f'{cert.max_norm_speed:.2f} m/s; plant delays {", ".join(f"{d:g}" for d in delays)}'
+          f' s; worst mismatch case {robust.worst} (exact '
           f'states), {filtered.worst} (Kalman estimate)')
     print('the certificate covers the law on exact states at varying speed; the sampled '
           'check covers the law on the estimate of the Kalman filter at frozen speeds')
     notes = exact_inverse_notes(settings)
+    if settings.delay_prediction:
+        notes.append("lane_keeping.delay_prediction: the law acts on the filter's estimate "
+                     'predicted across filter_delay; the row "exact states" is the law '
+                     'without the filter and its prediction: reported, not counted in the '
+                     'verdict')
     for note in notes:
         print(note)
     print(markdown_table(rows))
-    verdict = (cert.holds and robust.holds and filtered.holds and estimated.holds
+    verdict = (cert.holds and (robust.holds or settings.delay_prediction) and filtered.holds
+               and estimated.holds
                and frozen.holds and frozen_estimated.holds
                and (approach is None or approach.holds))
     print(f'certificate {"HOLDS" if cert.holds else "DOES NOT HOLD"}; robust check '
-          f'{"HOLDS" if robust.holds else "DOES NOT HOLD"}; robust check with the filter '
+          f'{"HOLDS" if robust.holds else "DOES NOT HOLD"}'
+          f'{" (not counted: delay_prediction)" if settings.delay_prediction else ""}; '
+          'robust check with the filter '
           f'{"HOLDS" if filtered.holds else "DOES NOT HOLD"}; with the curvature '
           f'estimated {"HOLDS" if estimated.holds else "DOES NOT HOLD"}'
-          f'{" (without the exact inverse)" if notes else ""}; with the integral '
+          f'{" (without the exact inverse)" if settings.exact_inverse > 0.0 else ""}; '
+          'with the integral '
           f'held {"HOLDS" if frozen.holds else "DOES NOT HOLD"}, and with the curvature '
           f'estimated {"HOLDS" if frozen_estimated.holds else "DOES NOT HOLD"}'
-          f'{" (without the exact inverse)" if notes else ""}'
+          f'{" (without the exact inverse)" if settings.exact_inverse > 0.0 else ""}'
           + ('' if approach is None else
              f'; in the approach {"HOLDS" if approach.holds else "DOES NOT HOLD"}'))
     if args.json:
