@@ -21,8 +21,7 @@ import math
 
 from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.control_law import LateralState
-from lookahead_control.core.lane_keeping import (CgCompensatedLaw, integral_gain_at,
-                                                 LaneKeepingParams)
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.state_filter import KalmanStateFilter
 from lookahead_control.tools.compare import load_scenarios, NONLINEAR, PREVIEW_DISTANCE
@@ -42,22 +41,22 @@ def _long_delay(delay, prediction=True, **more):
                              delay_prediction=prediction, **more)
 
 
-def _filter_after_commands(delay):
-    """Return a filter run 60 steps at 30 m/s on a 200 m arc with a varying command."""
+def _filter_after_commands(delay, period=PERIOD, jitter=0.0):
+    """Return a filter run 0.6 s at 30 m/s on a 200 m arc with a varying command."""
     settings = dataclasses.replace(LaneKeepingParams().filter_settings(), delay=delay)
     kalman = KalmanStateFilter(VEHICLE, settings)
     commands = []
-    for k in range(60):
-        t = k * PERIOD
+    for k in range(int(round(0.6 / period))):
+        t = k * period
         kalman.step(LateralState(0.1 * math.sin(3 * t), 0.01 * math.cos(2 * t),
                                  -0.2 + 0.1 * math.sin(t), 0.15 + 0.02 * math.cos(4 * t),
-                                 30.0, 0.0, 1 / 200.0, 0.0), PERIOD)
-        commands.append(0.02 + 0.01 * math.sin(5 * t))
+                                 30.0, 0.0, 1 / 200.0, 0.0), period)
+        commands.append(0.02 + 0.01 * math.sin(5 * t) + jitter * (-1) ** k)
         kalman.command(commands[-1])
     return kalman, commands
 
 
-def _by_hand(kalman, commands, delay, v_x, rho):
+def _by_hand(kalman, commands, delay, v_x, rho, period=PERIOD):
     """
     Integrate the single-track model with the filter's wheel by matrix exponentials.
 
@@ -71,7 +70,7 @@ def _by_hand(kalman, commands, delay, v_x, rho):
     lag = kalman.settings.actuator_lag
     y, e, v, r, f_f, f_r = (float(x) for x in kalman.x[:6])
     state = np.array([y, e, v, r, float(kalman.wheel), 1.0])
-    steps = int(round(delay / PERIOD))
+    steps = int(round(delay / period))
     for j in range(steps):
         command = commands[len(commands) - 1 - steps + j]
         a = np.zeros((6, 6))
@@ -84,7 +83,7 @@ def _by_hand(kalman, commands, delay, v_x, rho):
         a[3, 3] = -(c_f * l1 * l1 + c_r * l2 * l2) / (iz * v_x)
         a[3, 4], a[3, 5] = c_f * l1 / iz, (l1 * f_f - l2 * f_r) / iz
         a[4, 4], a[4, 5] = -1.0 / lag, command / lag
-        state = expm(a * PERIOD) @ state
+        state = expm(a * period) @ state
     return state[:4]
 
 
@@ -103,6 +102,34 @@ def test_ahead_is_the_model_integrated_by_hand_and_leaves_the_filter_as_it_was()
     assert kalman.step(measurement, PERIOD) == twin.step(measurement, PERIOD)
 
 
+@pytest.mark.parametrize('period', [0.005, 0.0025])
+def test_ahead_at_a_control_period_under_its_substep_takes_every_command(period):
+    # dev-probe43: 10 ms substeps read one command each at their middle; at 5 ms the
+    # middle fell on a command boundary and half the commands were skipped (10 % of the
+    # predicted motion off with a 2 mrad command jitter)
+    kalman, commands = _filter_after_commands(0.1, period, jitter=0.002)
+    got = kalman.ahead(0.1, 30.0, 1 / 200.0, 1 / 200.0)
+    want = _by_hand(kalman, commands, 0.1, 30.0, 1 / 200.0, period)
+    motion = np.abs(want - np.asarray(kalman.x[:4]))
+    assert np.all(np.abs(np.asarray(got) - want) <= 1e-5 * motion + 1e-9)
+
+
+def test_ahead_after_a_microsecond_step_is_not_a_hundred_thousand_substeps():
+    kalman, _ = _filter_after_commands(0.1)
+    kalman.step(LateralState(0.0, 0.0, -0.2, 0.15, 30.0, 0.0, 1 / 200.0, 0.0), 1e-6)
+    counts = []
+    predict = kalman._predict
+
+    def counted(*args):
+        out = predict(*args)
+        counts.append(kalman.steps_cache[1])
+        return out
+
+    kalman._predict = counted
+    kalman.ahead(0.1, 30.0, 1 / 200.0, 1 / 200.0)
+    assert counts == [50]                       # 2 ms substeps at most (MIN_AHEAD_SUBSTEP)
+
+
 def test_ahead_refuses_a_time_past_the_delay_and_is_none_before_a_step():
     kalman = KalmanStateFilter(VEHICLE)
     assert kalman.ahead(0.02, 30.0, 0.0, 0.0) is None
@@ -118,6 +145,9 @@ def test_settings_refuse_it_without_the_filter_or_as_a_number():
     with pytest.raises(ParameterError, match='delay_prediction = 1 must be true or false'):
         LaneKeepingParams(delay_prediction=1)
     assert LaneKeepingParams().delay_prediction is False
+    # dev-probe43: with filter_delay 0 it was taken and predicted nothing
+    with pytest.raises(ParameterError, match='filter_delay, which is 0'):
+        LaneKeepingParams(delay_prediction=True, filter_delay=0.0)
 
 
 def _arc_state(v_x, rho):
@@ -187,30 +217,30 @@ def test_the_robust_check_holds_with_it_where_it_fails_without(delay):
     assert radius[True] < 0.997
 
 
-def test_the_matrix_with_the_prediction_matches_the_node_filter_in_time():
-    # the linear loop with the law on KalmanStateFilter.ahead (RK4 inside), the plant by
-    # ZOH and its delay as a list, against filtered_loop's matrix
-    delay, v_x = 0.08, 30.0
-    settings = _long_delay(delay)
+@pytest.mark.parametrize('prediction, delay, v_x', [(True, 0.08, 30.0), (True, 0.02, 10.0),
+                                                    (False, 0.02, 37.0)])
+def test_the_robust_check_s_matrix_is_the_real_law_in_time(prediction, delay, v_x):
+    # the real CgCompensatedLaw (its limits and the estimate off, straight road) in the
+    # linear loop, the plant by ZOH and its delay as a list, against filtered_loop's
+    # matrix. dev-probe43: the matrix put the integral's rate term on the predicted
+    # y_cg and used the integral of the step before: 5e-3 / 1e-3 off with / without
+    settings = _long_delay(delay, prediction, demand_limit=0.0, approach_heading=0.0,
+                           compliance_time_constant=0.0, integral_band=0.0)
     plant = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * 0.8, mass=VEHICLE.mass * 1.2,
                                 yaw_inertia=VEHICLE.yaw_inertia * 1.2)
     steps = int(round(delay / PERIOD))
-    k = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v_x)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
     a_c, b_c = stability._actuated_plant(plant, v_x, 0.05)
     phi, gamma = stability._zoh(a_c, b_c, PERIOD)
-    start = np.array([0.5, 0.02, -0.1, 0.03])
+    start = np.array([0.3, 0.02, -0.1, 0.03])
     x = np.zeros(a_c.shape[0])
     x[:4] = start
-    kalman = KalmanStateFilter(VEHICLE, settings.filter_settings())
-    integral, sent, sim = 0.0, [0.0] * steps, []
+    sent, sim = [0.0] * steps, []
     for _ in range(300):
         sim.append(x[:5].copy())
-        est = kalman.step(LateralState(x[0], x[1], x[2], x[3], v_x, 0.0, 0.0, 0.0), PERIOD)
-        y, e, v, r = kalman.ahead(delay, v_x, 0.0, 0.0)
-        u = float(k[0] * y + k[1] * e + k[2] * v + k[3] * r + k[4] * integral)
-        kalman.command(u)
-        integral += PERIOD * integral_gain_at(settings, v_x) * est.y_cg
-        sent.append(u)
+        out = law.step(LateralState(x[0], x[1], x[2], x[3], v_x, 0.0, 0.0, 0.0), None,
+                       PERIOD)
+        sent.append(float(out.steering))
         x = phi @ x + gamma[:, 0] * sent.pop(0)
     m = stability.filtered_loop(VEHICLE, CONTROLLER, settings, v_x, plant=plant,
                                 delay_steps=steps)
@@ -223,10 +253,11 @@ def test_the_matrix_with_the_prediction_matches_the_node_filter_in_time():
         s = m @ s
     sim_a, mat_a = np.array(sim), np.array(mat)
     assert np.max(np.abs(sim_a - mat_a)) < 1e-6 * np.max(np.abs(sim_a))
-    without = stability.filtered_loop(VEHICLE, CONTROLLER,
-                                      dataclasses.replace(settings, delay_prediction=False),
-                                      v_x, plant=plant, delay_steps=steps)
-    assert not np.allclose(without, m)
+    other = stability.filtered_loop(VEHICLE, CONTROLLER,
+                                    dataclasses.replace(settings,
+                                                        delay_prediction=not prediction),
+                                    v_x, plant=plant, delay_steps=steps)
+    assert not np.allclose(other, m)
 
 
 def test_a_batch_with_it_equals_its_single_runs():
@@ -299,6 +330,9 @@ def test_the_node_takes_it_and_refuses_it_without_the_filter(context):
         assert not refused.successful
         assert 'delay_prediction' in refused.reason
         assert node.core.lane_keeping.state_filter == 'kalman'
+        refused = node.set_parameters([Parameter('lane_keeping.filter_delay', value=0.0)])[0]
+        assert not refused.successful and 'filter_delay, which is 0' in refused.reason
+        assert node.core.lane_keeping.filter_delay == 0.02
     finally:
         node.destroy_node()
 
@@ -329,3 +363,38 @@ def test_the_stability_tool_checks_a_long_delay_with_and_without_it(tmp_path, ca
         with pytest.raises(SystemExit):
             stability_main(['--delays', bad])
         assert 'allowed: [0, 1] s' in capsys.readouterr().err or bad == 'nan'
+
+
+def test_the_tool_checks_and_prints_the_delays_it_rounded_once_each(tmp_path, capsys):
+    # dev-probe43: 0.095 and 0.105 were printed as checked, both checked at 0.1 (banker's
+    # rounding), and 0.1 given three ways counted 486 cases of 162
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    on = _params(tmp_path, 'on.yaml', delay_prediction=True, filter_delay=0.1,
+                 feedforward_preview=0.15)
+    stability_main(['--samples', '28', '--controller', on, '--delays', '0.095', '0.105',
+                    '0.1000001', '0.1'])
+    text = capsys.readouterr().out
+    assert ('--delays 0.095 0.105 0.1000001 rounded to the 0.01 s period of the sampled '
+            'check: 0.1, 0.11 s') in text
+    assert 'plant delays 0.1, 0.11 s' in text
+    assert 'max spectral radius, 324 mismatch cases, Kalman estimate |' in text
+
+
+def test_one_run_s_bad_preview_in_a_batch_falls_back_for_that_run_alone():
+    # dev-probe43 (before this feature): a NaN in one run's preview column made every run
+    # of the batch fall back to the curvature at the CG; each run is now its single run
+    from lookahead_control.core.lane_keeping import preview_curvature
+    distances = np.array([0.0, 20.0, 60.0])
+    columns = np.array([[0.001, 0.002, 0.004], [0.001, math.nan, 0.0],
+                        [-0.002, -0.002, math.inf]]).T
+    rho, slope = np.array([0.001, 0.0015, -0.002]), np.array([1e-5, 2e-5, 0.0])
+    for ahead in (0.0, 10.0, np.array([5.0, 30.0, 80.0])):
+        value, rate = preview_curvature(distances, columns, ahead, rho, slope)
+        for i in range(3):
+            at = float(np.asarray(ahead)[i]) if np.ndim(ahead) else ahead
+            one = preview_curvature(distances, columns[:, i], at, float(rho[i]),
+                                    float(slope[i]))
+            assert (value[i], rate[i]) == pytest.approx(one, abs=1e-15)
+    # the good run is read from its polygon, the bad ones extrapolate
+    value, _ = preview_curvature(distances, columns, 10.0, rho, slope)
+    assert value[0] == pytest.approx(0.0015) and value[1] == pytest.approx(0.0017)

@@ -338,6 +338,11 @@ class LaneKeepingParams:
             raise ParameterError('lane_keeping.delay_prediction = true needs '
                                  'lane_keeping.state_filter: kalman (the prediction runs the '
                                  f"filter's model), not {self.state_filter!r}")
+        if self.delay_prediction and self.filter_delay <= 0.0:
+            # (accepted before dev-probe43, and then it predicted nothing)
+            raise ParameterError('lane_keeping.delay_prediction = true predicts across '
+                                 'lane_keeping.filter_delay, which is 0: set it to the '
+                                 "car's command-to-actuator delay (> 0 s)")
         for item in fields(self):
             if item.name in ('rate_feedforward', 'state_filter', 'delay_prediction'):
                 continue
@@ -590,7 +595,8 @@ def preview_curvature(distances: Any, curvatures: Any, ahead: Real, rho: Real,
     Linear interpolation in the polygon ``(distances, curvatures)`` (distances ahead of
     the CG, increasing; ``curvatures`` of shape ``(K,)`` or ``(K, N)`` for a batch),
     held constant beyond its ends. Without a usable polygon (empty, not increasing, or a
-    non-finite value) the curvature at the CG is extrapolated along its slope.
+    non-finite value; in a batch a run's non-finite column for that run alone) the
+    curvature at the CG is extrapolated along its slope.
 
     :param distances: preview distances [m].
     :param curvatures: curvatures there [1/m].
@@ -605,8 +611,17 @@ def preview_curvature(distances: Any, curvatures: Any, ahead: Real, rho: Real,
     d = np.asarray(distances, dtype=float)
     k = np.asarray(curvatures, dtype=float)
     if (d.ndim != 1 or d.size == 0 or k.shape[:1] != d.shape or not np.all(np.isfinite(d))
-            or not np.all(np.isfinite(k)) or np.any(np.diff(d) <= 0.0)):
+            or np.any(np.diff(d) <= 0.0)):
         return fallback
+    usable = np.all(np.isfinite(k), axis=0)
+    if not np.all(usable):
+        if k.ndim == 1:
+            return fallback
+        # a batch: the runs whose column is not finite fall back, the others are read
+        # (dev-probe43: one run's NaN made every run of the batch fall back)
+        value, slope = preview_curvature(d, np.where(usable, k, 0.0), ahead, rho, rho_slope)
+        return (_like(np.where(usable, value, fallback[0]), ahead, rho),
+                _like(np.where(usable, slope, fallback[1]), ahead, rho))
     if d.size == 1:
         value = k[0] + 0.0 * np.asarray(ahead)
         return _like(value, ahead, rho), _like(0.0 * value, ahead, rho)
@@ -1279,7 +1294,7 @@ class CgCompensatedLaw:
         The state filter's model under the commands already sent
         (:meth:`KalmanStateFilter.ahead`), the curvature from the CG's now to ``road``'s
         ``ahead``; where the filter passes the measurement (below its ``min_speed``, a
-        restart) the present state, with the road at the CG.
+        restart) the present state, on the road ``ahead`` as well.
 
         :param state: the filter's present estimate.
         :param ahead: the prediction time, ``filter_delay`` [s].

@@ -102,7 +102,8 @@ from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
 from lookahead_control.core.state_filter import (continuous_model, expm, kinematic_gain,
                                                  MAX_SUBSTEP, measurement_matrix,
-                                                 StateFilterParams, steady_gain)
+                                                 MIN_AHEAD_SUBSTEP, StateFilterParams,
+                                                 steady_gain)
 import numpy as np
 import numpy.typing as npt
 
@@ -857,7 +858,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     ahead = fs.delay if settings.delay_prediction else 0.0
     ages_ahead: list[int] = []
     if ahead > 0.0:
-        count_ahead = max(1, int(np.ceil(ahead / min(MAX_SUBSTEP, 1.0 / fastest) - 1e-9)))
+        longest = min(MAX_SUBSTEP, 1.0 / fastest, max(period, MIN_AHEAD_SUBSTEP))
+        count_ahead = max(1, int(np.ceil(ahead / longest - 1e-9)))
         h_ahead = ahead / count_ahead
         phi_a, gamma_a = _zoh(a_w, b_w, h_ahead)
         ages_ahead = [max(1, int(np.ceil((fs.delay - (j + 0.5) * h_ahead) / period - 1e-9)))
@@ -885,9 +887,18 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
                                           else 0.0)
             acted += gamma_a[:, 1:] @ rho_path.reshape(1, size)
     law = k[:4].reshape(1, 4) @ acted[:4]       # u_k over s_k
+    # the law integrates the present estimate (not the predicted one) and uses the
+    # integral updated by this step, I_k + h k_i y_k; its reference's rate -k_i y_cg
+    # (K's y_cg gain less that of the law without an integral) is on the present one too
+    k_i = float(integral_gain_at(settings, v_x))
+    without = feedback_gain(vehicle, controller,
+                            replace(settings, integral_gain=0.0, low_speed_integral_gain=0.0),
+                            v_x)
+    law += (k[0] - without[0]) * (unit[i_est] - acted[0])
     law[0, i_int] += k[4]
+    law[0, i_est] += k[4] * period * k_i
     if approach:                        # the clipped offset is a constant input
-        law -= k[0] * acted[0]
+        law -= without[0] * acted[0]
     if curvature_estimated:
         law[0, i_kin + 1] += curvature_gain(vehicle, controller, settings, v_x)
     if rated:
@@ -905,7 +916,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     m[:n, :n] = phi
     m[:n, :] += gamma @ command(delay_steps)
     m[i_int, i_int] = 1.0
-    m[i_int, i_est] = period * float(integral_gain_at(settings, v_x))
+    m[i_int, i_est] = period * k_i
     # the true measurement H_plant x_k+1 (the plant's y_cg, eps_r, v_y, r) over s_k
     h_true = np.zeros((4, n))
     h_true[0, 0], h_true[0, 1] = 1.0, model.d_s
@@ -1072,6 +1083,8 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     gain = np.zeros((1, size))
     gain[0, :4] = k[:4]
     gain[0, n] = k[4]
+    # the law uses the integral updated by this step, I_k + h k_i y_cg
+    gain[0, 0] += k[4] * period * float(integral_gain_at(settings, v_x))
     if approach:
         gain[0, 0] = 0.0
     if delay_steps == 0:

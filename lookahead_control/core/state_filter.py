@@ -106,6 +106,9 @@ MAX_PERIOD = 0.5
 CACHED_PERIODS = 128
 #: longest RK4 substep of the prediction [s]
 MAX_SUBSTEP = 0.01
+#: the substeps of :meth:`KalmanStateFilter.ahead` follow the control period down to this
+#: [s] (a 1 us step between two messages must not make 1e5 substeps)
+MIN_AHEAD_SUBSTEP = 0.002
 #: speed grid of the gain table [m/s] (above its end the last gain is used)
 SPEED_STEP = 1.0
 TOP_SPEED = 80.0
@@ -517,8 +520,10 @@ class KalmanStateFilter:
         #: the curvature estimator's states ``[eps_r, rho]`` and the yaw rate measured at
         #: the last step (NaN where it restarts; None before the first step)
         self.kinematic: Optional[list[Real]] = None
-        self.steps_cache: tuple[float, int, float, float, float] = (
-            math.nan, 1, 0.0, 0.0, 0.0)
+        self.steps_cache: tuple[float, int, float, float, float, float] = (
+            math.nan, 1, 0.0, 0.0, 0.0, math.nan)
+        #: the last step's period (the longest substep of :meth:`ahead`) [s]
+        self.period = math.inf
         veh, low = vehicle, self.settings.min_speed
         fastest = max((veh.c_f + veh.c_r) / (veh.mass * low),
                       (veh.c_f * veh.l1 ** 2 + veh.c_r * veh.l2 ** 2) / (veh.yaw_inertia * low))
@@ -725,7 +730,7 @@ class KalmanStateFilter:
         return gains
 
     def _predict(self, x: list[Real], dt: float, v_x: Real, rho: Real,
-                 rho_start: Real) -> list[Real]:
+                 rho_start: Real, longest: float = math.inf) -> list[Real]:
         """
         Integrate the model over ``dt`` (RK4 substeps), the wheel angle exact in between.
 
@@ -736,17 +741,19 @@ class KalmanStateFilter:
         tyre mode at ``min_speed`` (RK4 is unstable beyond ``2.8 / lambda``): a long step
         (lost messages, a slow sensor) at low speed is integrated, not amplified. The
         count depends only on ``dt`` and the settings: the same for every run of a batch.
+        A substep is at most ``longest`` too (:meth:`ahead`: the control period, so that
+        no command in flight falls between two substeps' middles).
         """
         veh, s = self.vehicle, self.settings
         m, iz, l1, l2, cf, cr = (veh.mass, veh.yaw_inertia, veh.l1, veh.l2, veh.c_f,
                                  veh.c_r)
-        if self.steps_cache[0] != dt:
-            count = max(1, math.ceil(dt / self.max_substep - 1e-9))
+        if self.steps_cache[0] != dt or self.steps_cache[5] != longest:
+            count = max(1, math.ceil(dt / min(self.max_substep, longest) - 1e-9))
             h = dt / count
             lag = s.actuator_lag
             self.steps_cache = (dt, count, h, math.exp(-h / lag) if lag > 0.0 else 0.0,
-                                math.exp(-0.5 * h / lag) if lag > 0.0 else 0.0)
-        _, count, h, decay, half = self.steps_cache
+                                math.exp(-0.5 * h / lag) if lag > 0.0 else 0.0, longest)
+        _, count, h, decay, half, _ = self.steps_cache
         a_vv = -(cf + cr) / (m * v_x)
         a_vr = -(cf * l1 - cr * l2) / (m * v_x) - v_x
         a_rv = -(cf * l1 - cr * l2) / (iz * v_x)
@@ -786,7 +793,9 @@ class KalmanStateFilter:
         The model integrated under the commands already sent (the actuator's input
         ``delay`` behind: over ``time <= delay`` none of them is still to be decided), its
         force disturbances held, the curvature going linearly from ``rho_start`` to
-        ``rho`` (the road at the CG now and ``v_x time`` ahead). The delay-aware law
+        ``rho`` (the road at the CG now and ``v_x time`` ahead); substeps no longer than
+        the last step's period (each command in flight acts on its own substeps; not
+        shorter than ``MIN_AHEAD_SUBSTEP``). The delay-aware law
         (``delay_prediction``) acts on it: the command it sends now reaches the actuator
         when the car is there.
 
@@ -805,7 +814,8 @@ class KalmanStateFilter:
                              'the commands not yet sent would act')
         saved = (self.wheel, self.held, list(self.history), self.steps_cache)
         try:
-            return self._predict(list(self.x), time, v_x, rho, rho_start)[:4]
+            return self._predict(list(self.x), time, v_x, rho, rho_start,
+                                 max(self.period, MIN_AHEAD_SUBSTEP))[:4]
         finally:
             self.wheel, self.held, self.history, self.steps_cache = saved
 
@@ -854,6 +864,7 @@ class KalmanStateFilter:
             innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
                           e - prior[1], v - prior[2], r - prior[3])
             self.innovation = innovation
+            self.period = dt
             posterior = [prior[i] + (gain[i][0] * innovation[0] + gain[i][1] * innovation[1]
                                      + gain[i][2] * innovation[2]
                                      + gain[i][3] * innovation[3])

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+import math
 from pathlib import Path
 from typing import Sequence
 
@@ -28,6 +29,9 @@ from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingPar
 from lookahead_control.core.lane_keeping_stability import certificate, DELAYS, robust_check
 from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
+
+#: the sampled checks' control period (robust_check's default) [s]
+PERIOD = 0.01
 
 
 def stability_main(argv: Sequence[str] | None = None) -> int:
@@ -97,7 +101,13 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
           + (f'; differing from the defaults: {", ".join(changed)}' if changed else ''))
     cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
                        args.samples, a_error=args.a_error)
-    delays = tuple(sorted(set(args.delays)))
+    # the sampled loop's delay is whole periods (0.01 s): checked and printed as rounded
+    # (half up), each once (dev-probe43: 0.095 and 0.105 were printed, 0.1 checked twice)
+    delays = tuple(sorted({math.floor(d / PERIOD + 0.5 + 1e-9) * PERIOD for d in args.delays}))
+    moved = [d for d in args.delays if all(abs(d - c) > 1e-12 for c in delays)]
+    if moved:
+        print(f'--delays {" ".join(f"{d:.10g}" for d in moved)} rounded to the {PERIOD:g} s '
+              f'period of the sampled check: {", ".join(f"{d:g}" for d in delays)} s')
     robust = robust_check(vehicle, controller, settings, delays=delays)
     filtered = robust_check(vehicle, controller, settings, delays=delays, filtered=True)
     estimated = robust_check(vehicle, controller, settings, delays=delays, filtered=True,
