@@ -486,6 +486,7 @@ def _lane_keeping():
                                 changes('--natural-frequency', '5')),
         '--integral-gain': (NON_NUMBERS + ('-1', '1e3'), changes('--integral-gain', '0')),
         '--a-error': (NON_NUMBERS + ('-1', '1e300'), changes('--a-error', '1')),
+        '--delays': (NON_NUMBERS + ('-0.01', '1.5'), changes('--delays', '0.1')),
     }
 
 

@@ -42,37 +42,46 @@ def _long_delay(delay, prediction=True, **more):
 
 
 def _filter_after_commands(delay, period=PERIOD, jitter=0.0):
-    """Return a filter run 0.6 s at 30 m/s on a 200 m arc with a varying command."""
+    """
+    Return a filter run 0.6 s at 30 m/s on a 200 m arc with a varying command.
+
+    :return: the filter, the commands sent and the filter's time at each (their issue).
+    """
     settings = dataclasses.replace(LaneKeepingParams().filter_settings(), delay=delay)
     kalman = KalmanStateFilter(VEHICLE, settings)
-    commands = []
+    commands, issued = [], []
     for k in range(int(round(0.6 / period))):
         t = k * period
         kalman.step(LateralState(0.1 * math.sin(3 * t), 0.01 * math.cos(2 * t),
                                  -0.2 + 0.1 * math.sin(t), 0.15 + 0.02 * math.cos(4 * t),
                                  30.0, 0.0, 1 / 200.0, 0.0), period)
         commands.append(0.02 + 0.01 * math.sin(5 * t) + jitter * (-1) ** k)
+        issued.append(kalman.time)
         kalman.command(commands[-1])
-    return kalman, commands
+    return kalman, commands, issued
 
 
-def _by_hand(kalman, commands, delay, v_x, rho, period=PERIOD):
+def _by_hand(kalman, commands, issued, delay, v_x, rho):
     """
     Integrate the single-track model with the filter's wheel by matrix exponentials.
 
     States ``[y, eps_r, v_y, r, wheel, 1]``, the force disturbances and the curvature in
-    the constant column; the wheel's input over the ``j``-th period of the prediction is
-    the command sent ``delay`` before its start, ``steps - j`` periods before the last one
-    (written out here, not the filter's lookup).
+    the constant column. Over the prediction the wheel's input at ``now + s`` is the
+    last command issued at or before ``now + s - delay``: the pieces between the
+    instants ``issued + delay - now`` are worked out here from the issue times, not
+    with the filter's lookup.
     """
     m, iz, l1, l2, c_f, c_r = (VEHICLE.mass, VEHICLE.yaw_inertia, VEHICLE.l1, VEHICLE.l2,
                                VEHICLE.c_f, VEHICLE.c_r)
     lag = kalman.settings.actuator_lag
     y, e, v, r, f_f, f_r = (float(x) for x in kalman.x[:6])
     state = np.array([y, e, v, r, float(kalman.wheel), 1.0])
-    steps = int(round(delay / period))
-    for j in range(steps):
-        command = commands[len(commands) - 1 - steps + j]
+    now = issued[-1]
+    changes = [(t + delay - now, c) for t, c in zip(issued, commands)]
+    before = [c for at, c in changes if at <= 1e-12]
+    edges = [0.0] + [at for at, _ in changes if 1e-12 < at < delay - 1e-12] + [delay]
+    inputs = [before[-1]] + [c for at, c in changes if 1e-12 < at < delay - 1e-12]
+    for (start, end), command in zip(zip(edges, edges[1:]), inputs):
         a = np.zeros((6, 6))
         a[0, 1], a[0, 2] = v_x, 1.0
         a[1, 3], a[1, 5] = 1.0, -v_x * rho
@@ -83,16 +92,16 @@ def _by_hand(kalman, commands, delay, v_x, rho, period=PERIOD):
         a[3, 3] = -(c_f * l1 * l1 + c_r * l2 * l2) / (iz * v_x)
         a[3, 4], a[3, 5] = c_f * l1 / iz, (l1 * f_f - l2 * f_r) / iz
         a[4, 4], a[4, 5] = -1.0 / lag, command / lag
-        state = expm(a * period) @ state
+        state = expm(a * (end - start)) @ state
     return state[:4]
 
 
 def test_ahead_is_the_model_integrated_by_hand_and_leaves_the_filter_as_it_was():
-    kalman, commands = _filter_after_commands(0.1)
-    twin, _ = _filter_after_commands(0.1)
+    kalman, commands, issued = _filter_after_commands(0.1)
+    twin, _, _ = _filter_after_commands(0.1)
     got = kalman.ahead(0.1, 30.0, 1 / 200.0, 1 / 200.0)
     assert got is not None
-    want = _by_hand(kalman, commands, 0.1, 30.0, 1 / 200.0)
+    want = _by_hand(kalman, commands, issued, 0.1, 30.0, 1 / 200.0)
     assert np.allclose(got, want, rtol=1e-6, atol=1e-9)     # RK4 against the exact solution
     # it moved: across 100 ms the states are not the present ones
     assert abs(got[0] - kalman.x[0]) > 1e-3
@@ -102,21 +111,26 @@ def test_ahead_is_the_model_integrated_by_hand_and_leaves_the_filter_as_it_was()
     assert kalman.step(measurement, PERIOD) == twin.step(measurement, PERIOD)
 
 
-@pytest.mark.parametrize('period', [0.005, 0.0025])
-def test_ahead_at_a_control_period_under_its_substep_takes_every_command(period):
-    # dev-probe43: 10 ms substeps read one command each at their middle; at 5 ms the
-    # middle fell on a command boundary and half the commands were skipped (10 % of the
-    # predicted motion off with a 2 mrad command jitter)
-    kalman, commands = _filter_after_commands(0.1, period, jitter=0.002)
-    got = kalman.ahead(0.1, 30.0, 1 / 200.0, 1 / 200.0)
-    want = _by_hand(kalman, commands, 0.1, 30.0, 1 / 200.0, period)
+@pytest.mark.parametrize('delay, period', [(0.1, 0.005), (0.1, 0.0025), (0.025, 0.01),
+                                           (0.1, 0.015), (0.1, 1 / 30), (0.105, 0.01)])
+def test_ahead_takes_every_command_in_flight_over_its_own_interval(delay, period):
+    # dev-probe43/44: 10 ms substeps read one command each at their middle; at a 5 ms
+    # period half the commands were skipped, and at a delay or a period that is not a
+    # whole number of 10 ms the substeps straddled command changes (3-10 % of the
+    # predicted motion off with a 2 mrad command jitter); at n + 1/2 periods of delay
+    # the filter took one command or the next at random
+    kalman, commands, issued = _filter_after_commands(delay, period, jitter=0.002)
+    got = kalman.ahead(delay, 30.0, 1 / 200.0, 1 / 200.0)
+    want = _by_hand(kalman, commands, issued, delay, 30.0, 1 / 200.0)
     motion = np.abs(want - np.asarray(kalman.x[:4]))
     assert np.all(np.abs(np.asarray(got) - want) <= 1e-5 * motion + 1e-9)
 
 
-def test_ahead_after_a_microsecond_step_is_not_a_hundred_thousand_substeps():
-    kalman, _ = _filter_after_commands(0.1)
-    kalman.step(LateralState(0.0, 0.0, -0.2, 0.15, 30.0, 0.0, 1 / 200.0, 0.0), 1e-6)
+def test_ahead_after_a_flood_of_microsecond_steps_is_not_thousands_of_substeps():
+    kalman, _, _ = _filter_after_commands(0.1)
+    for _ in range(3000):
+        kalman.step(LateralState(0.0, 0.0, -0.2, 0.15, 30.0, 0.0, 1 / 200.0, 0.0), 1e-6)
+        kalman.command(0.02)
     counts = []
     predict = kalman._predict
 
@@ -126,14 +140,15 @@ def test_ahead_after_a_microsecond_step_is_not_a_hundred_thousand_substeps():
         return out
 
     kalman._predict = counted
-    kalman.ahead(0.1, 30.0, 1 / 200.0, 1 / 200.0)
-    assert counts == [50]                       # 2 ms substeps at most (MIN_AHEAD_SUBSTEP)
+    got = kalman.ahead(0.1, 30.0, 1 / 200.0, 1 / 200.0)
+    assert sum(counts) <= 51                    # MIN_AHEAD_SUBSTEP, 2 ms
+    assert all(math.isfinite(v) for v in got)
 
 
 def test_ahead_refuses_a_time_past_the_delay_and_is_none_before_a_step():
     kalman = KalmanStateFilter(VEHICLE)
     assert kalman.ahead(0.02, 30.0, 0.0, 0.0) is None
-    kalman, _ = _filter_after_commands(0.02)
+    kalman, _, _ = _filter_after_commands(0.02)
     for bad in (0.05, 0.0, -0.01, math.nan):
         with pytest.raises(ValueError, match='prediction time'):
             kalman.ahead(bad, 30.0, 0.0, 0.0)
@@ -217,21 +232,24 @@ def test_the_robust_check_holds_with_it_where_it_fails_without(delay):
     assert radius[True] < 0.997
 
 
-@pytest.mark.parametrize('prediction, delay, v_x', [(True, 0.08, 30.0), (True, 0.02, 10.0),
-                                                    (False, 0.02, 37.0)])
-def test_the_robust_check_s_matrix_is_the_real_law_in_time(prediction, delay, v_x):
+@pytest.mark.parametrize('prediction, delay, v_x, period', [
+    (True, 0.08, 30.0, 0.01), (True, 0.02, 10.0, 0.01), (False, 0.02, 37.0, 0.01),
+    (True, 0.025, 37.0, 0.01), (False, 0.025, 30.0, 0.01), (True, 0.05, 30.0, 0.02)])
+def test_the_robust_check_s_matrix_is_the_real_law_in_time(prediction, delay, v_x, period):
     # the real CgCompensatedLaw (its limits and the estimate off, straight road) in the
     # linear loop, the plant by ZOH and its delay as a list, against filtered_loop's
     # matrix. dev-probe43: the matrix put the integral's rate term on the predicted
-    # y_cg and used the integral of the step before: 5e-3 / 1e-3 off with / without
+    # y_cg and used the integral of the step before: 5e-3 / 1e-3 off with / without.
+    # dev-probe44: at a delay of n + 1/2 periods the filter took one command or the next
+    # at random (4e-3 - 2e-2 off with the prediction, 5e-4 without)
     settings = _long_delay(delay, prediction, demand_limit=0.0, approach_heading=0.0,
                            compliance_time_constant=0.0, integral_band=0.0)
     plant = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * 0.8, mass=VEHICLE.mass * 1.2,
                                 yaw_inertia=VEHICLE.yaw_inertia * 1.2)
-    steps = int(round(delay / PERIOD))
+    steps = int(round(delay / period))
     law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
     a_c, b_c = stability._actuated_plant(plant, v_x, 0.05)
-    phi, gamma = stability._zoh(a_c, b_c, PERIOD)
+    phi, gamma = stability._zoh(a_c, b_c, period)
     start = np.array([0.3, 0.02, -0.1, 0.03])
     x = np.zeros(a_c.shape[0])
     x[:4] = start
@@ -239,11 +257,11 @@ def test_the_robust_check_s_matrix_is_the_real_law_in_time(prediction, delay, v_
     for _ in range(300):
         sim.append(x[:5].copy())
         out = law.step(LateralState(x[0], x[1], x[2], x[3], v_x, 0.0, 0.0, 0.0), None,
-                       PERIOD)
+                       period)
         sent.append(float(out.steering))
         x = phi @ x + gamma[:, 0] * sent.pop(0)
     m = stability.filtered_loop(VEHICLE, CONTROLLER, settings, v_x, plant=plant,
-                                delay_steps=steps)
+                                delay_steps=steps, period=period)
     s = np.zeros(m.shape[0])
     s[:4] = start
     s[6:10] = start                     # the filter starts at the measurement
@@ -256,7 +274,7 @@ def test_the_robust_check_s_matrix_is_the_real_law_in_time(prediction, delay, v_
     other = stability.filtered_loop(VEHICLE, CONTROLLER,
                                     dataclasses.replace(settings,
                                                         delay_prediction=not prediction),
-                                    v_x, plant=plant, delay_steps=steps)
+                                    v_x, plant=plant, delay_steps=steps, period=period)
     assert not np.allclose(other, m)
 
 
@@ -313,6 +331,39 @@ def test_bad_inputs_give_no_nan_after_them():
     # the prediction: below the filter's floor the measurement passes)
     assert all(abs(v) < 0.1 for k, v in enumerate(out) if k not in (100, 150, 151, 200))
     assert abs(out[-1] - out[99]) < 2e-3
+
+
+def test_after_stale_inputs_the_filter_s_wheel_is_the_safe_command_sent():
+    # dev-probe44: the safety layer's hold and ramp to the safe angle were not recorded:
+    # after 2 s of stale inputs the filter still had the law's last commands in flight
+    # (4.9 mrad, the wheel at 0 by then) and the prediction ran on them
+    from lookahead_control.core.controller import SteeringController
+    from lookahead_control.core.safety import SafetyParams
+    from lookahead_control.core.samples import (LateralErrorSample, VelocitySample,
+                                                YawSample)
+    core = SteeringController(VEHICLE, CONTROLLER, 'imu', False, SafetyParams(),
+                              'cg_compensated', None, _long_delay(0.1))
+    ms = 1_000_000
+
+    def fresh(t_ms):
+        stamp = t_ms * ms
+        for name, sample in (('yaw', YawSample(stamp, 0.0, 0.03, 0.0)),
+                             ('velocity', VelocitySample(stamp, 25.0, 0.0)),
+                             ('lateral_error', LateralErrorSample(stamp, 0.0, 0.02))):
+            core.accept(name, sample, stamp)
+        return core.compute(stamp)
+
+    for k in range(100):
+        before = fresh(10 * k)
+    assert before.status == 'ok' and abs(before.steering) > 1e-3
+    kalman = core.law.state_filter
+    for t in range(1000, 3000, 50):     # the watchdog, inputs stale
+        sent = core.safe_command(t * ms)
+    assert sent.status == 'stale' and abs(sent.steering) < abs(before.steering)
+    assert kalman.wheel == kalman.held == sent.steering and kalman.history == []
+    after = fresh(3000)
+    assert after.status == 'ok' and math.isfinite(after.steering)
+    assert kalman.history[-1][1] == after.steering
 
 
 def test_the_node_takes_it_and_refuses_it_without_the_filter(context):

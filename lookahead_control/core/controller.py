@@ -595,6 +595,9 @@ class SteeringController:
         v_x = self.velocity.v_x if self.velocity else 0.0
         stamp = self._measurement_time(now_ns) if stamp_ns is None else stamp_ns
         self.last = self._limited(wanted, stamp, now_ns, steady_ns, v_x, None, 'stale')
+        note = getattr(self.law, 'note_safe_command', None)
+        if note is not None:                # a state filter models the command sent
+            note(self.last.steering)
         return self.last
 
     def _measurement_time(self, now_ns: int) -> int:

@@ -1036,6 +1036,25 @@ class CgCompensatedLaw:
         if self.curvature_filter is not None:
             self.curvature_filter.correct(angle)
 
+    def note_safe_command(self, angle: float) -> None:
+        """
+        Take a command the safety layer sent while the law did not run (stale inputs).
+
+        The state filter's actuator model goes to it with no command in flight: the hold
+        and the ramp to the safe angle reached the wheel, not the law's last commands
+        (dev-probe44: after 2 s of stale inputs the prediction ran on the 4.9 mrad sent
+        before them, the wheel at 0: r predicted 0.028 instead of 0.015 rad/s). The
+        ramp is slow against the actuator's lag: the wheel is taken at the angle sent.
+
+        :param angle: the command sent [rad]; a non-finite one is ignored.
+        """
+        if not math.isfinite(angle):
+            return
+        for kalman in (self.state_filter, self.curvature_filter):
+            if kalman is not None:
+                kalman.held = kalman.wheel = angle
+                kalman.history = []
+
     def compliance(self) -> Real:
         """
         Return the rear-compliance estimate [s^2/m] (eta before anything is learned).

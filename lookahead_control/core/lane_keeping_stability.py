@@ -103,7 +103,7 @@ from lookahead_control.core.stability import lyapunov
 from lookahead_control.core.state_filter import (continuous_model, expm, kinematic_gain,
                                                  MAX_SUBSTEP, measurement_matrix,
                                                  MIN_AHEAD_SUBSTEP, StateFilterParams,
-                                                 steady_gain)
+                                                 steady_gain, TIE)
 import numpy as np
 import numpy.typing as npt
 
@@ -856,14 +856,29 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     # delay under the commands already sent (KalmanStateFilter.ahead), its substeps and
     # the ages of their commands as the filter's own prediction (all >= 1: sent before)
     ahead = fs.delay if settings.delay_prediction else 0.0
-    ages_ahead: list[int] = []
+    substeps_ahead: list[tuple[float, float, int]] = []   # (length, middle, age)
     if ahead > 0.0:
-        longest = min(MAX_SUBSTEP, 1.0 / fastest, max(period, MIN_AHEAD_SUBSTEP))
-        count_ahead = max(1, int(np.ceil(ahead / longest - 1e-9)))
-        h_ahead = ahead / count_ahead
-        phi_a, gamma_a = _zoh(a_w, b_w, h_ahead)
-        ages_ahead = [max(1, int(np.ceil((fs.delay - (j + 0.5) * h_ahead) / period - 1e-9)))
-                      for j in range(count_ahead)]
+        # as KalmanStateFilter.ahead: pieces between the instants the actuator's input
+        # changes (the command issued i periods ago from delay - i period on), each in
+        # RK4-length substeps; where they change more often than MIN_AHEAD_SUBSTEP,
+        # substeps of that reading the command at their middle
+        longest = min(MAX_SUBSTEP, 1.0 / fastest)
+        edges = [0.0]
+        for i in range(int(np.ceil(ahead / period)) + 1, 0, -1):
+            change = fs.delay - i * period
+            if edges[-1] + TIE < change < ahead - TIE:
+                edges.append(change)
+        edges.append(ahead)
+        if len(edges) - 1 > ahead / MIN_AHEAD_SUBSTEP + 1.0:
+            edges, longest = [0.0, ahead], min(longest, MIN_AHEAD_SUBSTEP)
+        for start, end in zip(edges, edges[1:]):
+            count_piece = max(1, int(np.ceil((end - start) / longest - 1e-9)))
+            h_piece = (end - start) / count_piece
+            for j in range(count_piece):
+                middle = start + (j + 0.5) * h_piece
+                substeps_ahead.append((h_piece, middle, max(1, int(np.ceil(
+                    (fs.delay - middle) / period - 1e-9)))))
+    ages_ahead = [age for _, _, age in substeps_ahead]
     depth = max(delay_steps, max(ages) + 1, max(ages_ahead, default=0), 1)
     # indices in s_k
     i_int = n
@@ -879,12 +894,15 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     unit = np.eye(size)
     acted = np.zeros((nf, size))                # the estimate the law acts on, over s_k
     acted[:, i_est:i_est + nf] = np.eye(nf)
-    for j, age in enumerate(ages_ahead):
+    steps_of: dict[float, tuple[Matrix, Matrix]] = {}
+    for h_piece, middle, age in substeps_ahead:
+        if h_piece not in steps_of:
+            steps_of[h_piece] = _zoh(a_w, b_w, h_piece)
+        phi_a, gamma_a = steps_of[h_piece]
         acted = phi_a @ acted + gamma_a[:, :1] @ unit[i_buf + age - 1:i_buf + age]
         if curvature_estimated:
             # from the estimate now to it previewed along its rate, at the substep's middle
-            rho_path = unit[i_kin + 1] + (unit[i_rate] * ((j + 0.5) * h_ahead) if rated
-                                          else 0.0)
+            rho_path = unit[i_kin + 1] + (unit[i_rate] * middle if rated else 0.0)
             acted += gamma_a[:, 1:] @ rho_path.reshape(1, size)
     law = k[:4].reshape(1, 4) @ acted[:4]       # u_k over s_k
     # the law integrates the present estimate (not the predicted one) and uses the

@@ -106,9 +106,14 @@ MAX_PERIOD = 0.5
 CACHED_PERIODS = 128
 #: longest RK4 substep of the prediction [s]
 MAX_SUBSTEP = 0.01
-#: the substeps of :meth:`KalmanStateFilter.ahead` follow the control period down to this
-#: [s] (a 1 us step between two messages must not make 1e5 substeps)
+#: :meth:`KalmanStateFilter.ahead` integrates between the instants its commands in flight
+#: change, unless they change more often than this: then in substeps of it [s] (a flood
+#: of 1 us steps must not make 1e5 substeps)
 MIN_AHEAD_SUBSTEP = 0.002
+#: a command issued within this of an instant is in effect at it [s] (the sum of the
+#: steps' dt is not exact: at a delay of n + 1/2 periods the filter took one command or
+#: the next at random, dev-probe44)
+TIE = 1e-9
 #: speed grid of the gain table [m/s] (above its end the last gain is used)
 SPEED_STEP = 1.0
 TOP_SPEED = 80.0
@@ -522,8 +527,6 @@ class KalmanStateFilter:
         self.kinematic: Optional[list[Real]] = None
         self.steps_cache: tuple[float, int, float, float, float, float] = (
             math.nan, 1, 0.0, 0.0, 0.0, math.nan)
-        #: the last step's period (the longest substep of :meth:`ahead`) [s]
-        self.period = math.inf
         veh, low = vehicle, self.settings.min_speed
         fastest = max((veh.c_f + veh.c_r) / (veh.mass * low),
                       (veh.c_f * veh.l1 ** 2 + veh.c_r * veh.l2 ** 2) / (veh.yaw_inertia * low))
@@ -649,7 +652,7 @@ class KalmanStateFilter:
         value = self.held
         keep = 0
         for i, (issued, command) in enumerate(self.history):
-            if issued <= when:
+            if issued <= when + TIE:
                 value, keep = command, i
             else:
                 break
@@ -741,8 +744,7 @@ class KalmanStateFilter:
         tyre mode at ``min_speed`` (RK4 is unstable beyond ``2.8 / lambda``): a long step
         (lost messages, a slow sensor) at low speed is integrated, not amplified. The
         count depends only on ``dt`` and the settings: the same for every run of a batch.
-        A substep is at most ``longest`` too (:meth:`ahead`: the control period, so that
-        no command in flight falls between two substeps' middles).
+        A substep is at most ``longest`` too.
         """
         veh, s = self.vehicle, self.settings
         m, iz, l1, l2, cf, cr = (veh.mass, veh.yaw_inertia, veh.l1, veh.l2, veh.c_f,
@@ -793,9 +795,11 @@ class KalmanStateFilter:
         The model integrated under the commands already sent (the actuator's input
         ``delay`` behind: over ``time <= delay`` none of them is still to be decided), its
         force disturbances held, the curvature going linearly from ``rho_start`` to
-        ``rho`` (the road at the CG now and ``v_x time`` ahead); substeps no longer than
-        the last step's period (each command in flight acts on its own substeps; not
-        shorter than ``MIN_AHEAD_SUBSTEP``). The delay-aware law
+        ``rho`` (the road at the CG now and ``v_x time`` ahead). It integrates piece by
+        piece between the instants the actuator's input changes (each command in flight
+        over its own interval, whatever the control period and the delay), or, where the
+        commands change more often than ``MIN_AHEAD_SUBSTEP``, in substeps of that
+        reading one command each at their middle. The delay-aware law
         (``delay_prediction``) acts on it: the command it sends now reaches the actuator
         when the car is there.
 
@@ -812,12 +816,27 @@ class KalmanStateFilter:
             raise ValueError(f'the prediction time {time!r} s must be above 0 and at most '
                              f"the filter's delay {self.settings.delay!r} s: further ahead "
                              'the commands not yet sent would act')
+        now, delay = self.time, self.settings.delay
+        edges = [0.0]
+        for issued, _ in self.history:
+            change = issued + delay - now
+            if edges[-1] + TIE < change < time - TIE:
+                edges.append(change)
+        edges.append(time)
         saved = (self.wheel, self.held, list(self.history), self.steps_cache)
         try:
-            return self._predict(list(self.x), time, v_x, rho, rho_start,
-                                 max(self.period, MIN_AHEAD_SUBSTEP))[:4]
+            x = list(self.x)
+            if len(edges) - 1 > time / MIN_AHEAD_SUBSTEP + 1.0:
+                return self._predict(x, time, v_x, rho, rho_start, MIN_AHEAD_SUBSTEP)[:4]
+            for start, end in zip(edges, edges[1:]):
+                self.time = now + start
+                x = self._predict(x, end - start, v_x,
+                                  rho_start + (rho - rho_start) * (end / time),
+                                  rho_start + (rho - rho_start) * (start / time))
+            return x[:4]
         finally:
             self.wheel, self.held, self.history, self.steps_cache = saved
+            self.time = now
 
     def step(self, state: LateralState, dt: float, estimating: Any = False) -> LateralState:
         """
@@ -864,7 +883,6 @@ class KalmanStateFilter:
             innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
                           e - prior[1], v - prior[2], r - prior[3])
             self.innovation = innovation
-            self.period = dt
             posterior = [prior[i] + (gain[i][0] * innovation[0] + gain[i][1] * innovation[1]
                                      + gain[i][2] * innovation[2]
                                      + gain[i][3] * innovation[3])
