@@ -270,6 +270,9 @@ class SteeringController:
         # actuator is still there), the node's clock and the steady clock when it was
         # sent, and the newest command stamp so far
         self._rate_angle: Optional[float] = None
+        #: the node's clock when the last command was sent (the law's or a safe one; the
+        #: stamp where there is no clock): the safe commands' spacing for the law's filter
+        self._sent_at: Optional[int] = None
         self._rate_now: Optional[int] = None
         self._rate_steady: Optional[int] = None
         self._rate_time: Optional[int] = None
@@ -595,9 +598,12 @@ class SteeringController:
         v_x = self.velocity.v_x if self.velocity else 0.0
         stamp = self._measurement_time(now_ns) if stamp_ns is None else stamp_ns
         self.last = self._limited(wanted, stamp, now_ns, steady_ns, v_x, None, 'stale')
+        since = (max(0, now_ns - self._sent_at) * 1e-9 if self._sent_at is not None
+                 else 0.0)
+        self._sent_at = now_ns
         note = getattr(self.law, 'note_safe_command', None)
         if note is not None:                # a state filter models the command sent
-            note(self.last.steering)
+            note(self.last.steering, since)
         return self.last
 
     def _measurement_time(self, now_ns: int) -> int:
@@ -823,4 +829,5 @@ class SteeringController:
         note_sent = getattr(self.law, 'note_sent', None)
         if note_sent is not None:           # a state filter models the command sent
             note_sent(self.last.steering)
+        self._sent_at = now_ns if now_ns is not None else self.lateral.stamp_ns
         return self.last

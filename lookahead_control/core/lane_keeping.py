@@ -1036,24 +1036,27 @@ class CgCompensatedLaw:
         if self.curvature_filter is not None:
             self.curvature_filter.correct(angle)
 
-    def note_safe_command(self, angle: float) -> None:
+    def note_safe_command(self, angle: float, since: float) -> None:
         """
         Take a command the safety layer sent while the law did not run (stale inputs).
 
-        The state filter's actuator model goes to it with no command in flight: the hold
-        and the ramp to the safe angle reached the wheel, not the law's last commands
-        (dev-probe44: after 2 s of stale inputs the prediction ran on the 4.9 mrad sent
-        before them, the wheel at 0: r predicted 0.028 instead of 0.015 rad/s). The
-        ramp is slow against the actuator's lag: the wheel is taken at the angle sent.
+        The hold and the ramp to the safe angle reach the wheel, not the law's last
+        commands: the state filter's actuator model moves on by ``since`` under the
+        commands in flight and records this one
+        (:meth:`KalmanStateFilter.advance_actuator`). Before dev-probe44 the filter kept
+        the law's last commands in flight through stale inputs (2 s stale: the
+        prediction ran on the 4.9 mrad sent before them, the wheel at 0); a first fix
+        put the wheel at the safe angle at once, 26 mrad off the first commands after a
+        ramp (dev-probe45: the wheel follows the ramp through the delay and the lag).
 
         :param angle: the command sent [rad]; a non-finite one is ignored.
+        :param since: time since the command sent before it [s].
         """
         if not math.isfinite(angle):
             return
         for kalman in (self.state_filter, self.curvature_filter):
             if kalman is not None:
-                kalman.held = kalman.wheel = angle
-                kalman.history = []
+                kalman.advance_actuator(since, angle)
 
     def compliance(self) -> Real:
         """

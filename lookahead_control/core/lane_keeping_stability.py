@@ -856,12 +856,13 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     # delay under the commands already sent (KalmanStateFilter.ahead), its substeps and
     # the ages of their commands as the filter's own prediction (all >= 1: sent before)
     ahead = fs.delay if settings.delay_prediction else 0.0
-    substeps_ahead: list[tuple[float, float, int]] = []   # (length, middle, age)
+    # (length, middle, {age: share of the substep's input})
+    substeps_ahead: list[tuple[float, float, dict[int, float]]] = []
     if ahead > 0.0:
         # as KalmanStateFilter.ahead: pieces between the instants the actuator's input
         # changes (the command issued i periods ago from delay - i period on), each in
         # RK4-length substeps; where they change more often than MIN_AHEAD_SUBSTEP,
-        # substeps of that reading the command at their middle
+        # substeps of that under the mean of the commands over each
         longest = min(MAX_SUBSTEP, 1.0 / fastest)
         edges = [0.0]
         for i in range(int(np.ceil(ahead / period)) + 1, 0, -1):
@@ -869,16 +870,28 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
             if edges[-1] + TIE < change < ahead - TIE:
                 edges.append(change)
         edges.append(ahead)
-        if len(edges) - 1 > ahead / MIN_AHEAD_SUBSTEP + 1.0:
-            edges, longest = [0.0, ahead], min(longest, MIN_AHEAD_SUBSTEP)
-        for start, end in zip(edges, edges[1:]):
+        pieces = [(start, end,
+                   max(1, int(np.ceil((fs.delay - 0.5 * (start + end)) / period - 1e-9))))
+                  for start, end in zip(edges, edges[1:])]
+        if len(pieces) > ahead / MIN_AHEAD_SUBSTEP + 1.0:
+            count = int(np.ceil(ahead / MIN_AHEAD_SUBSTEP - 1e-9))
+            cuts = [ahead * j / count for j in range(count + 1)]
+            pieces_mean = []
+            for start, end in zip(cuts, cuts[1:]):
+                shares: dict[int, float] = {}
+                for a, b, age in pieces:
+                    overlap = min(b, end) - max(a, start)
+                    if overlap > 0.0:
+                        shares[age] = shares.get(age, 0.0) + overlap / (end - start)
+                pieces_mean.append((start, end, shares))
+        else:
+            pieces_mean = [(start, end, {age: 1.0}) for start, end, age in pieces]
+        for start, end, shares in pieces_mean:
             count_piece = max(1, int(np.ceil((end - start) / longest - 1e-9)))
             h_piece = (end - start) / count_piece
             for j in range(count_piece):
-                middle = start + (j + 0.5) * h_piece
-                substeps_ahead.append((h_piece, middle, max(1, int(np.ceil(
-                    (fs.delay - middle) / period - 1e-9)))))
-    ages_ahead = [age for _, _, age in substeps_ahead]
+                substeps_ahead.append((h_piece, start + (j + 0.5) * h_piece, shares))
+    ages_ahead = [age for _, _, shares in substeps_ahead for age in shares]
     depth = max(delay_steps, max(ages) + 1, max(ages_ahead, default=0), 1)
     # indices in s_k
     i_int = n
@@ -895,11 +908,12 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     acted = np.zeros((nf, size))                # the estimate the law acts on, over s_k
     acted[:, i_est:i_est + nf] = np.eye(nf)
     steps_of: dict[float, tuple[Matrix, Matrix]] = {}
-    for h_piece, middle, age in substeps_ahead:
+    for h_piece, middle, shares in substeps_ahead:
         if h_piece not in steps_of:
             steps_of[h_piece] = _zoh(a_w, b_w, h_piece)
         phi_a, gamma_a = steps_of[h_piece]
-        acted = phi_a @ acted + gamma_a[:, :1] @ unit[i_buf + age - 1:i_buf + age]
+        applied = sum(share * unit[i_buf + age - 1] for age, share in shares.items())
+        acted = phi_a @ acted + gamma_a[:, :1] @ np.reshape(applied, (1, size))
         if curvature_estimated:
             # from the estimate now to it previewed along its rate, at the substep's middle
             rho_path = unit[i_kin + 1] + (unit[i_rate] * middle if rated else 0.0)

@@ -497,6 +497,17 @@ def _select(mask: Any, a: Real, b: Real) -> Real:
     return a if mask else b
 
 
+def _mean_input(edges: list[float], commands: list[Real], start: float,
+                end: float) -> Real:
+    """Return the mean over ``[start, end]`` of the piecewise constant input."""
+    total: Real = 0.0
+    for a, b, command in zip(edges, edges[1:], commands):
+        overlap = min(b, end) - max(a, start)
+        if overlap > 0.0:
+            total = total + overlap * command
+    return total / (end - start)
+
+
 class KalmanStateFilter:
     """
     The steady-state Kalman filter of the lateral states, one step per measurement.
@@ -797,9 +808,10 @@ class KalmanStateFilter:
         force disturbances held, the curvature going linearly from ``rho_start`` to
         ``rho`` (the road at the CG now and ``v_x time`` ahead). It integrates piece by
         piece between the instants the actuator's input changes (each command in flight
-        over its own interval, whatever the control period and the delay), or, where the
-        commands change more often than ``MIN_AHEAD_SUBSTEP``, in substeps of that
-        reading one command each at their middle. The delay-aware law
+        over its own interval, whatever the control period and the delay); where the
+        commands change more often than every ``MIN_AHEAD_SUBSTEP``, in substeps of that
+        length under the mean of the commands over each (the wheel's lag is exact for a
+        constant input: the mean is its first-order equivalent). The delay-aware law
         (``delay_prediction``) acts on it: the command it sends now reaches the actuator
         when the car is there.
 
@@ -816,20 +828,19 @@ class KalmanStateFilter:
             raise ValueError(f'the prediction time {time!r} s must be above 0 and at most '
                              f"the filter's delay {self.settings.delay!r} s: further ahead "
                              'the commands not yet sent would act')
-        now, delay = self.time, self.settings.delay
-        edges = [0.0]
-        for issued, _ in self.history:
-            change = issued + delay - now
-            if edges[-1] + TIE < change < time - TIE:
-                edges.append(change)
-        edges.append(time)
+        now = self.time
+        edges, commands = self._inputs(time)
+        if len(commands) > time / MIN_AHEAD_SUBSTEP + 1.0:
+            count = math.ceil(time / MIN_AHEAD_SUBSTEP - 1e-9)
+            cuts = [time * j / count for j in range(count + 1)]
+            edges, commands = cuts, [_mean_input(edges, commands, a, b)
+                                     for a, b in zip(cuts, cuts[1:])]
         saved = (self.wheel, self.held, list(self.history), self.steps_cache)
         try:
             x = list(self.x)
-            if len(edges) - 1 > time / MIN_AHEAD_SUBSTEP + 1.0:
-                return self._predict(x, time, v_x, rho, rho_start, MIN_AHEAD_SUBSTEP)[:4]
-            for start, end in zip(edges, edges[1:]):
-                self.time = now + start
+            for start, end, command in zip(edges, edges[1:], commands):
+                # one constant input over the piece: no lookup in the history
+                self.time, self.held, self.history = now + start, command, []
                 x = self._predict(x, end - start, v_x,
                                   rho_start + (rho - rho_start) * (end / time),
                                   rho_start + (rho - rho_start) * (start / time))
@@ -837,6 +848,53 @@ class KalmanStateFilter:
         finally:
             self.wheel, self.held, self.history, self.steps_cache = saved
             self.time = now
+
+    def _inputs(self, time: float) -> tuple[list[float], list[Real]]:
+        """
+        Return the actuator's input over the next ``time``: piece edges and commands.
+
+        The command in effect from ``edges[i]`` to ``edges[i + 1]`` (seconds from now)
+        is ``commands[i]``: the last one issued at or before ``delay`` earlier (within
+        ``TIE``), the one held before the history where none is.
+        """
+        now, delay = self.time, self.settings.delay
+        first: Real = self.held
+        changes: list[tuple[float, Real]] = []
+        for issued, command in self.history:
+            at = issued + delay - now
+            if at <= TIE:
+                first = command
+            elif at < time - TIE:
+                if changes and at - changes[-1][0] <= TIE:
+                    changes[-1] = (changes[-1][0], command)
+                else:
+                    changes.append((at, command))
+        return ([0.0] + [at for at, _ in changes] + [time],
+                [first] + [command for _, command in changes])
+
+    def advance_actuator(self, dt: float, command: Real) -> None:
+        """
+        Move the actuator model ``dt`` on without a measurement, then record ``command``.
+
+        While the inputs are stale the law does not run, but the safety layer's hold and
+        ramp to the safe angle reach the wheel: the controller reports each of them with
+        the time since the command before, so that the commands in flight and the wheel
+        are the car's when the law starts again (the estimate itself restarts then).
+
+        :param dt: time since the last command recorded [s] (not finite or < 0: 0).
+        :param command: the command sent now [rad].
+        """
+        if math.isfinite(dt) and dt > 0.0:
+            edges, commands = self._inputs(dt)
+            lag = self.settings.actuator_lag
+            wheel = self.wheel
+            for start, end, applied in zip(edges, edges[1:], commands):
+                wheel = (applied + (wheel - applied) * math.exp(-(end - start) / lag)
+                         if lag > 0.0 else applied)
+            self.wheel = wheel
+            self._applied(self.time + dt - self.settings.delay)   # drops what has acted
+            self.time += dt
+        self.command(command)
 
     def step(self, state: LateralState, dt: float, estimating: Any = False) -> LateralState:
         """
