@@ -536,8 +536,8 @@ class KalmanStateFilter:
         #: the curvature estimator's states ``[eps_r, rho]`` and the yaw rate measured at
         #: the last step (NaN where it restarts; None before the first step)
         self.kinematic: Optional[list[Real]] = None
-        self.steps_cache: tuple[float, int, float, float, float, float] = (
-            math.nan, 1, 0.0, 0.0, 0.0, math.nan)
+        self.steps_cache: tuple[float, int, float, float, float] = (
+            math.nan, 1, 0.0, 0.0, 0.0)
         veh, low = vehicle, self.settings.min_speed
         fastest = max((veh.c_f + veh.c_r) / (veh.mass * low),
                       (veh.c_f * veh.l1 ** 2 + veh.c_r * veh.l2 ** 2) / (veh.yaw_inertia * low))
@@ -744,7 +744,7 @@ class KalmanStateFilter:
         return gains
 
     def _predict(self, x: list[Real], dt: float, v_x: Real, rho: Real,
-                 rho_start: Real, longest: float = math.inf) -> list[Real]:
+                 rho_start: Real) -> list[Real]:
         """
         Integrate the model over ``dt`` (RK4 substeps), the wheel angle exact in between.
 
@@ -755,18 +755,17 @@ class KalmanStateFilter:
         tyre mode at ``min_speed`` (RK4 is unstable beyond ``2.8 / lambda``): a long step
         (lost messages, a slow sensor) at low speed is integrated, not amplified. The
         count depends only on ``dt`` and the settings: the same for every run of a batch.
-        A substep is at most ``longest`` too.
         """
         veh, s = self.vehicle, self.settings
         m, iz, l1, l2, cf, cr = (veh.mass, veh.yaw_inertia, veh.l1, veh.l2, veh.c_f,
                                  veh.c_r)
-        if self.steps_cache[0] != dt or self.steps_cache[5] != longest:
-            count = max(1, math.ceil(dt / min(self.max_substep, longest) - 1e-9))
+        if self.steps_cache[0] != dt:
+            count = max(1, math.ceil(dt / self.max_substep - 1e-9))
             h = dt / count
             lag = s.actuator_lag
             self.steps_cache = (dt, count, h, math.exp(-h / lag) if lag > 0.0 else 0.0,
-                                math.exp(-0.5 * h / lag) if lag > 0.0 else 0.0, longest)
-        _, count, h, decay, half, _ = self.steps_cache
+                                math.exp(-0.5 * h / lag) if lag > 0.0 else 0.0)
+        _, count, h, decay, half = self.steps_cache
         a_vv = -(cf + cr) / (m * v_x)
         a_vr = -(cf * l1 - cr * l2) / (m * v_x) - v_x
         a_rv = -(cf * l1 - cr * l2) / (iz * v_x)
