@@ -841,56 +841,20 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         b_w[ns, 0] = 1.0 / fs.actuator_lag
     else:
         b_w[:ns, 0] = b_f[:, 0]
-    count = max(1, int(np.ceil(period / MAX_SUBSTEP - 1e-9)))
     fastest = max((model.c_f + model.c_r) / (model.mass * fs.min_speed),
                   (model.c_f * model.l1 ** 2 + model.c_r * model.l2 ** 2)
                   / (model.yaw_inertia * fs.min_speed))
-    count = max(count, int(np.ceil(period / min(MAX_SUBSTEP, 1.0 / fastest) - 1e-9)))
-    sub = period / count
-    phi_s, gamma_s = _zoh(a_w, b_w, sub)
-    # the command at substep j's middle: issued at t_k - i h with i >= 0 the smallest
-    # such that t_k - i h <= t_k + (j + 1/2) sub - delay
-    ages = [max(0, int(np.ceil((fs.delay - (j + 0.5) * sub) / period - 1e-9)))
-            for j in range(count)]
+    longest = min(MAX_SUBSTEP, 1.0 / fastest)   # the filter's max_substep
+    # the filter's prior over the period, as KalmanStateFilter._integrate: pieces between
+    # the instants the actuator's input changes (the command issued i periods before t_k,
+    # i >= 0, from delay - i period on), each in substeps of at most `longest`
+    substeps_prior = _input_substeps(period, period, fs.delay, longest)
+    ages = [age for _, _, shares in substeps_prior for age in shares]
     # the delay-aware law (delay_prediction): the estimate predicted across the filter's
     # delay under the commands already sent (KalmanStateFilter.ahead), its substeps and
     # the ages of their commands as the filter's own prediction (all >= 1: sent before)
     ahead = fs.delay if settings.delay_prediction else 0.0
-    # (length, middle, {age: share of the substep's input})
-    substeps_ahead: list[tuple[float, float, dict[int, float]]] = []
-    if ahead > 0.0:
-        # as KalmanStateFilter.ahead: pieces between the instants the actuator's input
-        # changes (the command issued i periods ago from delay - i period on), each in
-        # RK4-length substeps; where they change more often than MIN_AHEAD_SUBSTEP,
-        # substeps of that under the mean of the commands over each
-        longest = min(MAX_SUBSTEP, 1.0 / fastest)
-        edges = [0.0]
-        for i in range(int(np.ceil(ahead / period)) + 1, 0, -1):
-            change = fs.delay - i * period
-            if edges[-1] + TIE < change < ahead - TIE:
-                edges.append(change)
-        edges.append(ahead)
-        pieces = [(start, end,
-                   max(1, int(np.ceil((fs.delay - 0.5 * (start + end)) / period - 1e-9))))
-                  for start, end in zip(edges, edges[1:])]
-        if len(pieces) > ahead / MIN_AHEAD_SUBSTEP + 1.0:
-            count = int(np.ceil(ahead / MIN_AHEAD_SUBSTEP - 1e-9))
-            cuts = [ahead * j / count for j in range(count + 1)]
-            pieces_mean = []
-            for start, end in zip(cuts, cuts[1:]):
-                shares: dict[int, float] = {}
-                for a, b, age in pieces:
-                    overlap = min(b, end) - max(a, start)
-                    if overlap > 0.0:
-                        shares[age] = shares.get(age, 0.0) + overlap / (end - start)
-                pieces_mean.append((start, end, shares))
-        else:
-            pieces_mean = [(start, end, {age: 1.0}) for start, end, age in pieces]
-        for start, end, shares in pieces_mean:
-            count_piece = max(1, int(np.ceil((end - start) / longest - 1e-9)))
-            h_piece = (end - start) / count_piece
-            for j in range(count_piece):
-                substeps_ahead.append((h_piece, start + (j + 0.5) * h_piece, shares))
+    substeps_ahead = _input_substeps(ahead, period, fs.delay, longest) if ahead > 0.0 else []
     ages_ahead = [age for _, _, shares in substeps_ahead for age in shares]
     depth = max(delay_steps, max(ages) + 1, max(ages_ahead, default=0), 1)
     # indices in s_k
@@ -908,10 +872,14 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     acted = np.zeros((nf, size))                # the estimate the law acts on, over s_k
     acted[:, i_est:i_est + nf] = np.eye(nf)
     steps_of: dict[float, tuple[Matrix, Matrix]] = {}
-    for h_piece, middle, shares in substeps_ahead:
+
+    def substep(h_piece: float) -> tuple[Matrix, Matrix]:
         if h_piece not in steps_of:
             steps_of[h_piece] = _zoh(a_w, b_w, h_piece)
-        phi_a, gamma_a = steps_of[h_piece]
+        return steps_of[h_piece]
+
+    for h_piece, middle, shares in substeps_ahead:
+        phi_a, gamma_a = substep(h_piece)
         applied = sum(share * unit[i_buf + age - 1] for age, share in shares.items())
         acted = phi_a @ acted + gamma_a[:, :1] @ np.reshape(applied, (1, size))
         if curvature_estimated:
@@ -972,10 +940,12 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     # the prior, substep by substep, over s_k
     prior = np.zeros((nf, size))
     prior[:, i_est:i_est + nf] = np.eye(nf)
-    for j, age in enumerate(ages):
-        prior = phi_s @ prior + gamma_s[:, :1] @ command(age)
+    for h_piece, middle, shares in substeps_prior:
+        phi_s, gamma_s = substep(h_piece)
+        applied_prior = sum(share * command(age) for age, share in shares.items())
+        prior = phi_s @ prior + gamma_s[:, :1] @ applied_prior
         if curvature_estimated:
-            prior += gamma_s[:, 1:] @ (rho_now + (rho_next - rho_now) * ((j + 0.5) / count))
+            prior += gamma_s[:, 1:] @ (rho_now + (rho_next - rho_now) * (middle / period))
     posterior = prior.copy()
     posterior[:ns] = prior[:ns] + gain @ (measured - h_model @ prior[:ns])
     m[i_est:i_est + nf, :] = posterior
@@ -991,6 +961,51 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         m = shift @ m @ np.linalg.inv(shift)
         return m if closing_mode else _without_states(m, (0, i_int))
     return _without_integral(m, i_int) if integral_frozen else m
+
+
+def _input_substeps(horizon: float, period: float, delay: float,
+                    longest: float) -> list[tuple[float, float, dict[int, float]]]:
+    """
+    Return the substeps of the filter's model over ``horizon`` from ``t_k`` and their input.
+
+    As ``KalmanStateFilter._integrate``: pieces between the instants the actuator's input
+    changes (the command issued ``i`` periods before ``t_k``, ``i >= 0``, acts from
+    ``delay - i period`` on; a change within ``TIE`` of an instant is in effect at it),
+    each cut into substeps of at most ``longest``; where there are more pieces than
+    ``horizon / MIN_AHEAD_SUBSTEP + 1``, substeps of ``MIN_AHEAD_SUBSTEP`` under the mean
+    of the commands over each.
+
+    :return: ``(length, middle, {age: share of the substep's input})`` per substep.
+    """
+    edges = [0.0]
+    for i in range(int(np.ceil(max(delay, horizon) / period)) + 1, -1, -1):
+        change = delay - i * period
+        if edges[-1] + TIE < change < horizon - TIE:
+            edges.append(change)
+    edges.append(horizon)
+    pieces = [(start, end, max(0, int(np.ceil((delay - 0.5 * (start + end)) / period
+                                              - 1e-9))))
+              for start, end in zip(edges, edges[1:])]
+    if len(pieces) > horizon / MIN_AHEAD_SUBSTEP + 1.0:
+        count = int(np.ceil(horizon / MIN_AHEAD_SUBSTEP - 1e-9))
+        cuts = [horizon * j / count for j in range(count + 1)]
+        means = []
+        for start, end in zip(cuts, cuts[1:]):
+            shares: dict[int, float] = {}
+            for a, b, age in pieces:
+                overlap = min(b, end) - max(a, start)
+                if overlap > 0.0:
+                    shares[age] = shares.get(age, 0.0) + overlap / (end - start)
+            means.append((start, end, shares))
+    else:
+        means = [(start, end, {age: 1.0}) for start, end, age in pieces]
+    substeps = []
+    for start, end, shares in means:
+        count_piece = max(1, int(np.ceil((end - start) / longest - 1e-9)))
+        h_piece = (end - start) / count_piece
+        for j in range(count_piece):
+            substeps.append((h_piece, start + (j + 0.5) * h_piece, shares))
+    return substeps
 
 
 @functools.lru_cache(maxsize=256)

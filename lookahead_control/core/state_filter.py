@@ -827,26 +827,39 @@ class KalmanStateFilter:
             raise ValueError(f'the prediction time {time!r} s must be above 0 and at most '
                              f"the filter's delay {self.settings.delay!r} s: further ahead "
                              'the commands not yet sent would act')
-        now = self.time
-        edges, commands = self._inputs(time)
-        if len(commands) > time / MIN_AHEAD_SUBSTEP + 1.0:
-            count = math.ceil(time / MIN_AHEAD_SUBSTEP - 1e-9)
-            cuts = [time * j / count for j in range(count + 1)]
+        saved = (self.wheel, self.steps_cache)
+        try:
+            return self._integrate(list(self.x), time, v_x, rho, rho_start)[:4]
+        finally:
+            self.wheel, self.steps_cache = saved
+
+    def _integrate(self, x: list[Real], dt: float, v_x: Real, rho: Real,
+                   rho_start: Real) -> list[Real]:
+        """
+        Integrate the model over ``dt`` from now, piece by piece under the commands.
+
+        :meth:`_predict` over each piece of constant input (:meth:`_inputs`); where the
+        input changes more often than every ``MIN_AHEAD_SUBSTEP``, over substeps of that
+        length under the mean of the commands over each. The wheel moves on; the time,
+        the commands and the one held are left as they were (the caller prunes).
+        """
+        now, history, held = self.time, self.history, self.held
+        edges, commands = self._inputs(dt)
+        if len(commands) > dt / MIN_AHEAD_SUBSTEP + 1.0:
+            count = math.ceil(dt / MIN_AHEAD_SUBSTEP - 1e-9)
+            cuts = [dt * j / count for j in range(count + 1)]
             edges, commands = cuts, [_mean_input(edges, commands, a, b)
                                      for a, b in zip(cuts, cuts[1:])]
-        saved = (self.wheel, self.held, list(self.history), self.steps_cache)
         try:
-            x = list(self.x)
             for start, end, command in zip(edges, edges[1:], commands):
                 # one constant input over the piece: no lookup in the history
                 self.time, self.held, self.history = now + start, command, []
                 x = self._predict(x, end - start, v_x,
-                                  rho_start + (rho - rho_start) * (end / time),
-                                  rho_start + (rho - rho_start) * (start / time))
-            return x[:4]
+                                  rho_start + (rho - rho_start) * (end / dt),
+                                  rho_start + (rho - rho_start) * (start / dt))
+            return x
         finally:
-            self.wheel, self.held, self.history, self.steps_cache = saved
-            self.time = now
+            self.time, self.history, self.held = now, history, held
 
     def _inputs(self, time: float) -> tuple[list[float], list[Real]]:
         """
@@ -934,7 +947,8 @@ class KalmanStateFilter:
             self.long_steps += 1
         if MAX_PERIOD >= dt > 0.0:
             v_x = _select(fast, state.v_x, self.settings.min_speed)
-            prior = self._predict(self.x, dt, v_x, state.rho, self.rho)
+            prior = self._integrate(self.x, dt, v_x, state.rho, self.rho)
+            self._applied(self.time + dt - self.settings.delay)   # drops what has acted
             gain = self._gain(v_x, dt, blind)
             y, e, v, r = measured[:4]
             innovation = (y + self.vehicle.d_s * e - (prior[0] + self.vehicle.d_s * prior[1]),
