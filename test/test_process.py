@@ -117,17 +117,25 @@ def test_remapped_bridge_drives_the_controller(probe):
         # 39 sets were sent once and a slow start left fewer than 20 answers)
         stamp = 0
         deadline = time.monotonic() + 60.0
-        while len(answers) < 20 and time.monotonic() < deadline:
+
+        def on_grid():
+            return [a for a in answers if a[0] % 10_000_000 == 0]
+
+        while len(on_grid()) < 20 and time.monotonic() < deadline:
             now = node.get_clock().now().nanoseconds // 10_000_000 * 10_000_000
             stamp = max(stamp + 10_000_000, now)
             pubs['yaw'].publish(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
             pubs['vel'].publish(conv.to_velocity(stamp, 'base_link', 20.0, 0.0, 0.0))
             pubs['lat'].publish(conv.to_lateral_error(stamp, 'base_link', 0.0, 0.5))
             spin_until(executor, lambda: False, 0.02)
-        assert len(answers) >= 20
         # a left offset is answered with right steering, stamped with its measurement
+        # (20 of them on the grid). A test process starved past input_timeout lets the
+        # inputs go stale for a moment, and the watchdog's hold (the last angle, then the
+        # ramp toward 0) is stamped on the node's clock, off the grid: an idle full run in
+        # session 22 had one such moment, and the old check that every answer is on the
+        # grid failed on the watchdog doing its job
+        assert len(on_grid()) >= 20
         assert all(angle < 0.0 for _, angle in answers)
-        assert all(stamp % 10_000_000 == 0 for stamp, _ in answers)
     finally:
         assert stop(controller, 'controller') == 0
 
