@@ -96,14 +96,26 @@ def test_a_stateful_law_is_recorded_re_run_and_agrees_with_the_offline_runner(la
     # the ROS loop and the offline runner (same law, same polygon preview) agree; the
     # polygon crosses DDS as float32
     vehicle, controller = VehicleParams(), ControllerParams()
-    offline = run(load_scenario(scenario, 30.0), vehicle,
-                  build_law('cg_compensated', vehicle, controller, BaselineParams()))
+    law = build_law('cg_compensated', vehicle, controller, BaselineParams())
+    memory, step = [], law.step
+
+    def traced(*args):
+        answer = step(*args)
+        memory.append(float(law.estimator.memory() / vehicle.eta))
+        return answer
+    law.step = traced
+    offline = run(load_scenario(scenario, 30.0), vehicle, law)
     index = np.round(series.time / 0.01).astype(int)
     gap = np.abs(offline['steering_cmd'][index] - series.channels['steering_cmd'])
     assert np.abs(series.channels['steering_cmd']).max() > 0.01
     assert gap.max() < 1e-6, gap.max()
     row = bag_row(recorded, series)
     assert (row['law'], row['schedule']) == ('cg_compensated', 'paper')
+    # the memory the law ended with: the next run's lane_keeping.compliance_memory_seed
+    # (the offline runner takes one step more, at the scenario's end)
+    learned = memory[series.time.size - 1]
+    assert learned != 1.0
+    assert row['compliance_memory_final_ratio'] == pytest.approx(learned, rel=1e-8)
 
 
 def test_bag_reads_with_rosbags_and_mcap_and_counts_match(loop_bag):
@@ -557,6 +569,8 @@ def test_analyze_rows_and_legends_tell_runs_apart(loop_bag, tmp_path):
     assert (row['bag'], row['scenario'], row['plant'], row['mode'], row['rate_hz'],
             row['schedule']) == ('bag', 'paper_r400', 'linear', 'lockstep', 100.0, 'paper')
     assert run_label(row) == 'bag (paper_r400, linear, lockstep 100 Hz, paper)'
+    # the paper's law keeps no compliance memory
+    assert math.isnan(row['compliance_memory_final_ratio'])
     # the plant reports its wheel angle: both command and wheel angle are columns
     assert row['peak_steering_rad'] == pytest.approx(row['peak_steering_cmd_rad'])
     units = ('_m', '_rad', '_s', '_ms', '_mps', '_hz', '_rad_per_s', '_ratio', 'overshoot')

@@ -375,6 +375,24 @@ def _assumptions(run: RunData) -> list[str]:
             if missing else [])
 
 
+def last_debug_value(run: RunData, name: str) -> float:
+    """
+    Return the last finite value of a debug field (by stamp, then file order).
+
+    :param run: the run.
+    :param name: the field of the controller's ``~/debug``.
+    :return: the value; NaN where never recorded (another law, no debug topic).
+    """
+    values = run.debug.values.get(name)
+    if values is None or values.dtype == object:
+        return math.nan
+    finite = np.flatnonzero(np.isfinite(values))
+    if not finite.size:
+        return math.nan
+    last = finite[np.lexsort((run.debug.order[finite], run.debug.stamp_ns[finite]))[-1]]
+    return float(values[last])
+
+
 def bag_row(run: RunData, series: RunSeries,
             label: Optional[str] = None) -> dict[str, Any]:
     """
@@ -385,8 +403,10 @@ def bag_row(run: RunData, series: RunSeries,
     :param label: the row's ``run`` label (default: the bag's name).
     :return: labels (:func:`run_labels`), errors at the CG, look-down and look-ahead
         point, relative-yaw step response, steering command and wheel angle, latency
-        p50/p99, counts, the largest input gap, and ``notes``: assumptions and why a
-        metric is empty.
+        p50/p99, counts, the largest input gap, ``compliance_memory_final_ratio`` (the
+        default law's memory of the rear compliance over the model's at its last answer:
+        the ``lane_keeping.compliance_memory_seed`` of the car's next run; NaN for other
+        laws), and ``notes``: assumptions and why a metric is empty.
     """
     params = run.controller_params
     d_s = float(params.get('vehicle.d_s', VehicleParams().d_s))
@@ -419,6 +439,7 @@ def bag_row(run: RunData, series: RunSeries,
             notes.append(f'latency: {early} of {lat.size} answers were recorded before '
                          'their lateral error (the recorder receives them in its own '
                          'order): latency is as the recorder saw it')
+    row['compliance_memory_final_ratio'] = last_debug_value(run, 'compliance_memory')
     row['steps'] = int(series.time.size)
     row['unanswered'] = series.unanswered
     drops = recorder_drops(run)

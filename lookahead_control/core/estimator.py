@@ -36,7 +36,10 @@ forgetting ``T``:
   not erase what the last curves taught (the tyres do not change between two curves),
   so a second curve is not driven on the model's compliance again. ``k_m`` is narrower
   than ``k``: the memory holds what a car's tyres and load can be, not a slide's
-  compliance (a tyre past its grip on a wet road) or a gust's.
+  compliance (a tyre past its grip on a wet road) or a gust's. ``memory_seed`` ``s``
+  replaces ``eta`` in the memory's prior, ``c_m = (N_m + p^2 s eta) / (D_m + p^2)``: a
+  car whose compliance an earlier run learned starts (and restarts) from it, and its
+  first curve is not driven on the model's compliance.
 
 Load-dependent compliance (``friction > 0``): a brush tyre's secant compliance grows
 with its load, ``c(a) = c_hat s(|a| / (mu g))`` with the design friction ``mu`` and
@@ -95,7 +98,8 @@ class ComplianceEstimator:
 
     def __init__(self, vehicle: VehicleParams, time_constant: float, filter_time: float,
                  prior: float, ratio: float, friction: float = 0.0,
-                 memory_time: float = 0.0, memory_ratio: float = math.inf) -> None:
+                 memory_time: float = 0.0, memory_ratio: float = math.inf,
+                 memory_seed: float = 1.0) -> None:
         """
         Create the estimator.
 
@@ -110,6 +114,8 @@ class ComplianceEstimator:
             falls back to ``eta``.
         :param memory_ratio: ``k_m``: the memory stays in ``[eta / k_m, eta k_m]``
             (at most ``k``; inf: ``k``).
+        :param memory_seed: ``s``: the memory's prior is ``s eta`` instead of ``eta``
+            (what it starts from and returns to after a reset) [-].
         """
         self.vehicle = vehicle
         self.time_constant = time_constant
@@ -119,6 +125,7 @@ class ComplianceEstimator:
         self.friction = friction
         self.memory_time = memory_time
         self.memory_ratio = min(memory_ratio, ratio)
+        self.memory_seed = memory_seed
         self.filtered: Optional[tuple[Real, Real, Real]] = None
         self.moment: Real = 0.0          # N [rad m/s^2]
         self.energy: Real = 0.0          # D [m^2/s^4]
@@ -126,7 +133,7 @@ class ComplianceEstimator:
         self.memory_energy: Real = 0.0   # D_m [m^2/s^4]
 
     def reset(self) -> None:
-        """Forget everything learned, the memory too (back to the model's ``eta``)."""
+        """Forget everything learned, the memory too (back to its seed, ``s eta``)."""
         self.filtered = None
         self.moment = 0.0
         self.energy = 0.0
@@ -246,13 +253,15 @@ class ComplianceEstimator:
         """
         Return the memory the estimate falls back to [s^2/m] (``eta`` without one).
 
-        :return: ``(N_m + p^2 eta) / (D_m + p^2)``, clipped to ``[eta / k_m, eta k_m]``.
+        :return: ``(N_m + p^2 s eta) / (D_m + p^2)`` with the seed ``s``, clipped to
+            ``[eta / k_m, eta k_m]``.
         """
         eta = self.vehicle.eta
         if self.memory_time <= 0.0:
             return eta
         prior = self.prior * self.prior
-        estimate = (self.memory_moment + prior * eta) / (self.memory_energy + prior)
+        estimate = (self.memory_moment + prior * self.memory_seed * eta) / (
+            self.memory_energy + prior)
         return xp.clip(estimate, eta / self.memory_ratio, eta * self.memory_ratio)
 
     def at(self, accel: Real) -> tuple[Real, Real]:

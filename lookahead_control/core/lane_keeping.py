@@ -157,6 +157,13 @@ class LaneKeepingParams:
     :param compliance_memory_range: the memory stays within ``eta / r`` and ``eta r``
         (at most ``compliance_range``): what tyres and load can make of a car's
         compliance (the sweep's C x0.7 and mass x1.2: 1.71), not a slide's [-].
+    :param compliance_memory_seed: the memory's starting value over the model's ``eta``:
+        what it starts from and returns to after a restart, until loaded driving teaches
+        it (about a second of a 3.4 m/s^2 curve outweighs it). 1: the model. Set it to
+        the ``compliance_memory`` an earlier run of the car ended with (``~/debug``;
+        ``analyze``'s ``compliance_memory_final_ratio``) and the first curve is driven on it.
+        Within ``1 / r`` and ``r`` of ``compliance_memory_range`` (and
+        ``compliance_range``); other than 1 only with the memory and the estimate on [-].
     :param rate_feedforward: add the curvature-rate term that makes the CG stay on the
         lane on a clothoid (first-order inverse of the zero dynamics).
     :param exact_inverse: share of the exact inverse of the zero dynamics in the
@@ -230,6 +237,7 @@ class LaneKeepingParams:
     compliance_range: float = 3.0
     compliance_memory: float = 10.0
     compliance_memory_range: float = 1.75
+    compliance_memory_seed: float = 1.0
     rate_feedforward: bool = True
     exact_inverse: float = 0.0
     exact_inverse_damping: float = 0.0
@@ -309,6 +317,17 @@ class LaneKeepingParams:
                             '(compliance_time_constant) and follow the noise')
         check_range('lane_keeping.compliance_memory_range', self.compliance_memory_range,
                     1.0, 100.0)
+        reach = min(self.compliance_memory_range, self.compliance_range)
+        check_range('lane_keeping.compliance_memory_seed', self.compliance_memory_seed,
+                    1.0 / reach, reach)
+        if self.compliance_memory_seed != 1.0 and (self.compliance_memory == 0.0
+                                                   or self.compliance_time_constant == 0.0):
+            off = ('compliance_memory' if self.compliance_memory == 0.0
+                   else 'compliance_time_constant')
+            raise ParameterError(
+                f'lane_keeping.compliance_memory_seed = {self.compliance_memory_seed!r} '
+                f'has nothing to seed with lane_keeping.{off} = 0 (the law uses the '
+                "model's eta); set it to 1, or turn the memory and the estimate on")
         check_range('lane_keeping.exact_inverse', self.exact_inverse, 0.0, 1.0)
         check_range('lane_keeping.exact_inverse_damping', self.exact_inverse_damping, 0.0,
                     2.0)
@@ -801,7 +820,7 @@ class CgCompensatedLaw:
         self.estimator = ComplianceEstimator(
             vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
             st.compliance_prior, st.compliance_range, st.design_friction,
-            st.compliance_memory, st.compliance_memory_range)
+            st.compliance_memory, st.compliance_memory_range, st.compliance_memory_seed)
         self.state_filter = (KalmanStateFilter(vehicle, st.filter_settings())
                              if st.state_filter == 'kalman' else None)
         #: no curvature received (set by :meth:`note_curvature`; an array over a batch)

@@ -135,6 +135,9 @@ LANE_KEEPING_SPECS = tuple(
          'lane; 0: back to the model value, else at least 1 [s]', 0.0, 1000.0),
         ('compliance_memory_range', 'the memory stays within 1/k and k times the model '
          'value (at most compliance_range) [-]', 1.0, 100.0),
+        ('compliance_memory_seed', "the memory's starting value over the model value, "
+         'e.g. the compliance_memory an earlier run ended with; within 1/k and k of '
+         'compliance_memory_range; 1: the model [-]', 0.01, 100.0),
         ('rate_feedforward', 'add the curvature-rate term of the inverse zero dynamics '
          'to the reference', 0.0, 1.0),
         ('exact_inverse', 'share of the exact inverse of the zero dynamics in the '

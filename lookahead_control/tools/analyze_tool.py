@@ -38,7 +38,8 @@ LAW_TITLES = {'fixed': 'fixed d_v', 'paper': 'd_v of eq. 26', 'exact': 'd_v of e
 LABEL_COLUMNS = ('bag', 'scenario', 'plant', 'mode', 'rate_hz', 'law', 'schedule',
                  'speed_mps')
 COLUMNS = (*LABEL_COLUMNS, 'd_v_final_m', *METRIC_COLUMNS, 'latency_p50_ms',
-           'latency_p99_ms', 'steps', 'unanswered', 'dropped', 'max_gap_s')
+           'latency_p99_ms', 'steps', 'unanswered', 'dropped', 'max_gap_s',
+           'compliance_memory_final_ratio')
 
 
 def topic_overrides(items: Sequence[str]) -> dict[str, str]:
@@ -161,7 +162,10 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
             + ' Latency [ms]: steering receive time minus lateral-error receive time, as '
             'the recorder saw them; `dropped`: messages the recorder counted as lost '
             '(-1: not counted); `max_gap_s`: the longest gap between stamps, or between '
-            'receive times (not in lockstep), of any input or of the steering (0: none).',
+            'receive times (not in lockstep), of any input or of the steering (0: none); '
+            "`compliance_memory_final_ratio`: the default law's memory of the rear "
+            "compliance over the model's at its last answer (start the car's next run "
+            'from it: `lane_keeping.compliance_memory_seed`; empty for other laws).',
             '',
             markdown_table(rows, COLUMNS, digits=3), '',
             *notes_list(rows, ('bag',)),

@@ -1,0 +1,215 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The memory's seed (``compliance_memory_seed``): a car's next run starts from its last."""
+
+from dataclasses import replace
+import math
+
+from lookahead_control.core.config import load_vehicle
+from lookahead_control.core.estimator import ComplianceEstimator
+from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.core.params import ControllerParams, VehicleParams
+import numpy as np
+import pytest
+from sim_plant.closed_loop_sim import run
+from sim_plant.vehicle_model import PlantParams
+from test_compliance_memory import cornering, law_after_a_curve, state, two_curves
+
+VEHICLE = VehicleParams()
+DT = 0.01
+PRIOR = 0.5
+
+
+def seeded(seed, memory_time=10.0):
+    return ComplianceEstimator(VEHICLE, 0.5, 0.3, PRIOR, 3.0, 0.0, memory_time, 1.75, seed)
+
+
+def test_the_seed_is_the_memory_s_prior_by_hand():
+    eta, p2 = VEHICLE.eta, PRIOR * PRIOR
+    est = seeded(1.4)
+    # before anything is learned the memory, and the estimate falling back to it, are it
+    assert est.memory() == pytest.approx(1.4 * eta, rel=1e-12)
+    assert est.compliance() == pytest.approx(1.4 * eta, rel=1e-12)
+    # 3 s of a steady curve on a rear axle 30 % softer: the memory's prior is s eta
+    v_y, r = cornering(0.7, 30.0, 3.0)
+    n = 300
+    for _ in range(n):
+        est.update(state(v_y, r), DT, True)
+    phi = 30.0 * r
+    slip = (VEHICLE.l2 * r - v_y) / 30.0
+    share_m = 1.0 - (1.0 - DT / 10.0 * phi * phi / (phi * phi + p2)) ** n
+    memory = (share_m * slip * phi + p2 * 1.4 * eta) / (share_m * phi * phi + p2)
+    assert est.memory() == pytest.approx(memory, rel=1e-12)
+    # a reset (time jump, stale inputs) goes back to the seed, not to the model
+    est.reset()
+    assert est.memory() == pytest.approx(1.4 * eta, rel=1e-12)
+    # so does a run of a batch after a bad input; the other run keeps what it learned
+    batch = seeded(0.8)
+    for _ in range(n):
+        batch.update(state(np.array([v_y, v_y]), np.array([r, r])), DT, True)
+    learned = batch.memory()[0]
+    batch.forget(np.array([False, True]))
+    assert batch.memory()[0] == learned
+    assert batch.memory()[1] == pytest.approx(0.8 * eta, rel=1e-12)
+    # the memory's range clips a seed beyond it (the parameters refuse one)
+    assert seeded(2.5).memory() == pytest.approx(1.75 * eta, rel=1e-12)
+    # without a memory there is nothing to seed
+    assert seeded(1.4, memory_time=0.0).memory() == eta
+
+
+def test_a_seed_of_1_is_the_estimator_without_one_to_the_bit():
+    v_y, r = cornering(0.7, 30.0, 3.0)
+    one = seeded(1.0)
+    plain = ComplianceEstimator(VEHICLE, 0.5, 0.3, PRIOR, 3.0, 0.0, 10.0, 1.75)
+    for k in range(400):
+        for est in (one, plain):
+            est.update(state(v_y if k < 300 else 0.0, r if k < 300 else 0.0), DT, True)
+        assert one.memory() == plain.memory() and one.compliance() == plain.compliance()
+
+
+def test_a_curve_outweighs_a_wrong_seed():
+    # the seed is a prior: a car other than the seed says (tyres changed since the last
+    # run) teaches the memory its own compliance within its first curve
+    v_y, r = cornering(0.7, 30.0, 3.0)
+    truth = VEHICLE.mass * VEHICLE.l1 / (0.7 * VEHICLE.c_r * VEHICLE.wheelbase)
+    low, high = seeded(0.6), seeded(1.7)
+    for _ in range(300):
+        for est in (low, high):
+            est.update(state(v_y, r), DT, True)
+    for est, seed in ((low, 0.6), (high, 1.7)):
+        assert abs(est.memory() - truth) < 0.25 * abs(seed * VEHICLE.eta - truth)
+        # and the estimate in the curve is the curve's own, whatever the seed
+        assert est.compliance() == pytest.approx(truth, rel=0.03)
+
+
+@pytest.mark.parametrize('settings, match', [
+    ({'compliance_memory_seed': 0.0},
+     r'compliance_memory_seed = 0.0 is out of range; allowed: \[0.571429, 1.75\]'),
+    ({'compliance_memory_seed': -1.2}, 'compliance_memory_seed = -1.2 is out of range'),
+    ({'compliance_memory_seed': math.nan}, 'compliance_memory_seed'),
+    ({'compliance_memory_seed': math.inf}, 'compliance_memory_seed'),
+    ({'compliance_memory_seed': 1.8}, r'compliance_memory_seed = 1.8 is out of range'),
+    # the memory's range, and the estimate's when that is narrower, bound the seed
+    ({'compliance_memory_seed': 1.3, 'compliance_memory_range': 1.2},
+     r'compliance_memory_seed = 1.3 is out of range; allowed: \[0.833333, 1.2\]'),
+    ({'compliance_memory_seed': 1.3, 'compliance_range': 1.25},
+     r'compliance_memory_seed = 1.3 is out of range; allowed: \[0.8, 1.25\]'),
+    # a seed with nothing to seed is refused, not ignored
+    ({'compliance_memory_seed': 1.3, 'compliance_memory': 0.0},
+     'compliance_memory_seed = 1.3 has nothing to seed with '
+     'lane_keeping.compliance_memory = 0'),
+    ({'compliance_memory_seed': 0.9, 'compliance_time_constant': 0.0},
+     'compliance_memory_seed = 0.9 has nothing to seed with '
+     'lane_keeping.compliance_time_constant = 0'),
+])
+def test_a_seed_is_refused_outside_what_the_memory_can_hold(settings, match):
+    with pytest.raises(ValueError, match=match):
+        LaneKeepingParams(**settings)
+
+
+def test_the_allowed_seeds():
+    for seed in (1.0 / 1.75, 1.75, 1.0):
+        LaneKeepingParams(compliance_memory_seed=seed)
+    LaneKeepingParams(compliance_memory_seed=1.0, compliance_memory=0.0)
+    LaneKeepingParams(compliance_memory_seed=1.0, compliance_time_constant=0.0)
+
+
+def test_the_law_starts_and_restarts_from_its_seed_and_a_retune_takes_a_new_one():
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(),
+                           LaneKeepingParams(compliance_memory_seed=1.5))
+    turn = law_after_a_curve()[1]
+    law.step(turn._replace(y_cg=0.3), None, 0.0)       # outside the band: learns nothing
+    assert dict(law.debug_values())['compliance_memory'] == pytest.approx(1.5, rel=1e-12)
+    # a NaN input restarts the law: back to the seed, not to the model
+    law.step(turn._replace(v_y=math.nan), None, DT)
+    assert dict(law.debug_values())['compliance_memory'] == pytest.approx(1.5, rel=1e-12)
+    # a retune to another seed: the learned statistics are carried, the new seed is the
+    # prior from now on (before learning: the memory is the new seed at once)
+    fresh = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    fresh.step(turn._replace(y_cg=0.3), None, 0.0)
+    retuned = CgCompensatedLaw(VEHICLE, ControllerParams(),
+                               LaneKeepingParams(compliance_memory_seed=1.3))
+    retuned.reset()
+    carried, _ = retuned.take_over(fresh)
+    assert 'compliance estimate' in carried
+    assert retuned.estimator.memory() == pytest.approx(1.3 * VEHICLE.eta, rel=1e-12)
+    # after a curve the statistics dominate the seed
+    learned, _ = law_after_a_curve()
+    again = CgCompensatedLaw(VEHICLE, ControllerParams(),
+                             LaneKeepingParams(compliance_memory_seed=0.6))
+    again.reset()
+    again.take_over(learned)
+    assert again.estimator.memory_energy == learned.estimator.memory_energy > 0.0
+    assert again.estimator.memory() < learned.estimator.memory()
+    assert again.estimator.memory() / VEHICLE.eta > 1.1
+
+
+def test_a_first_curve_on_softer_tyres_driven_on_what_the_last_run_learned():
+    # the goal plant's Fiala tyres 30 % softer than the model, 20 ms of delay, 37 m/s:
+    # a first run's memory ends at 1.42 x eta; the next run seeded with it drives its
+    # first curve at 5.4 cm instead of 13.5 (the second curve: 5.2 instead of 5.5)
+    vehicle = load_vehicle(None)
+    soft = replace(vehicle, c_f=0.7 * vehicle.c_f, c_r=0.7 * vehicle.c_r)
+    gap = 6.0
+    scenario, second = two_curves(gap), 9.0 + gap
+    peaks, learned = {}, {}
+    for name, seed in (('first run', 1.0), ('seeded', None)):
+        law = CgCompensatedLaw(vehicle, ControllerParams(), LaneKeepingParams(
+            compliance_memory_seed=learned['first run'] if seed is None else seed))
+        result = run(scenario, vehicle, law, PlantParams(model='nonlinear'), dt=0.005,
+                     initial_speed=37.0, plant_vehicle=soft, delay=0.02,
+                     preview_distance=100.0)
+        t, y = np.asarray(result.time), np.abs(np.asarray(result['y_cg']))
+        peaks[name] = (np.max(y[t < second]), np.max(y[t >= second]))
+        learned[name] = round(float(law.estimator.memory() / vehicle.eta), 2)
+    assert 1.35 < learned['first run'] < 1.5
+    assert peaks['first run'][0] > 0.12
+    assert peaks['seeded'][0] < 0.5 * peaks['first run'][0]
+    assert peaks['seeded'][1] < peaks['first run'][1] + 0.002
+
+
+def test_the_node_takes_the_seed_as_a_parameter_and_checks_it_with_the_memory(context):
+    from conftest import feed
+    from lookahead_control.ros.controller_node import ControllerNode
+    from rclpy.parameter import Parameter
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated'),
+        Parameter('lane_keeping.compliance_memory_seed', value=1.4)])
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        descriptor = node.describe_parameter('lane_keeping.compliance_memory_seed')
+        assert 'compliance_memory an earlier run ended with' in descriptor.description
+        feed(node, 1_000_000_000, y=0.3, d=0.0, eps=0.0, r=0.0, v_x=30.0, v_y=0.0,
+             rho=0.0)
+        law = node.core.law
+        assert law.settings.compliance_memory_seed == 1.4
+        assert law.estimator.memory() == pytest.approx(1.4 * VEHICLE.eta, rel=1e-12)
+        # the cross-checks run on a set at run time; the law runs on meanwhile
+        for bad, why in (([('compliance_memory_seed', 1.9)], 'is out of range'),
+                         ([('compliance_memory', 0.0)], 'has nothing to seed'),
+                         ([('compliance_memory_range', 1.3)], 'is out of range')):
+            result = node.set_parameters_atomically(
+                [Parameter(f'lane_keeping.{name}', value=value) for name, value in bad])
+            assert not result.successful and why in result.reason, result.reason
+            assert 'compliance_memory_seed = 1.4' in result.reason or '1.9' in result.reason
+        assert node.core.law.settings.compliance_memory_seed == 1.4
+        # memory off and the seed back to 1 together: taken
+        assert node.set_parameters_atomically([
+            Parameter('lane_keeping.compliance_memory', value=0.0),
+            Parameter('lane_keeping.compliance_memory_seed', value=1.0)]).successful
+        assert node.core.law.settings.compliance_memory == 0.0
+    finally:
+        node.destroy_node()
