@@ -318,7 +318,8 @@ def _closed_loop():
             out = run('closed_loop', '--scenario', c.scenario, '--speed', '15',
                       '--schedule', 'fixed', '--law', 'cg_compensated', '--mode', 'realtime',
                       '--plant', 'nonlinear', '--rate', '50', '--timeout', '120', '--bag', bag,
-                      cwd=c.tmp)
+                      '--controller', c.controller,
+                      '--param', 'lane_keeping.compliance_memory_seed:=1.3', cwd=c.tmp)
             assert out.returncode == 0, out.stderr
             assert f'recorded {bag}' in out.stdout
         return node_parameters(bag, '/sim_plant'), node_parameters(bag, '/controller')
@@ -368,6 +369,13 @@ def _closed_loop():
         '--bag': ((), check(lambda s, ctl, c: None)),
         '--no-record': ((), no_record),
         '--via-bridge': ((), via_bridge),
+        '--controller': (('no_such.yaml',),
+                         check(lambda s, ctl, c: ctl['controller.natural_frequency'] == 1.5
+                               or pytest.fail(ctl['controller.natural_frequency']))),
+        '--param': (('lane_keeping.compliance_memory_seed:=9', 'law:=paper', 'nonsense',
+                     'lane_keeping.nonsense:=1'),
+                    check(lambda s, ctl, c: ctl['lane_keeping.compliance_memory_seed'] == 1.3
+                          or pytest.fail(ctl['lane_keeping.compliance_memory_seed']))),
     }
 
 

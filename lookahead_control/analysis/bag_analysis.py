@@ -375,22 +375,42 @@ def _assumptions(run: RunData) -> list[str]:
             if missing else [])
 
 
-def last_debug_value(run: RunData, name: str) -> float:
+def final_compliance_memory(run: RunData) -> tuple[float, str]:
     """
-    Return the last finite value of a debug field (by stamp, then file order).
+    Return the default law's compliance memory at the end of a run, to seed the next.
+
+    The memory (``~/debug`` ``compliance_memory``, over the model's ``eta``) at the law's
+    last answer. A law that restarts (a time jump, stale inputs, a bad input, a switch of
+    ``law`` and back) goes back to its seed, the value it started the run with, exactly;
+    where it ended there after it had learned, the value is the one it held before that
+    restart, and the note says so.
 
     :param run: the run.
-    :param name: the field of the controller's ``~/debug``.
-    :return: the value; NaN where never recorded (another law, no debug topic).
+    :return: the value (NaN where the law kept no memory: another law, no debug topic)
+        and a note ('' if none).
     """
-    values = run.debug.values.get(name)
+    values = run.debug.values.get('compliance_memory')
     if values is None or values.dtype == object:
-        return math.nan
+        return math.nan, ''
     finite = np.flatnonzero(np.isfinite(values))
     if not finite.size:
-        return math.nan
-    last = finite[np.lexsort((run.debug.order[finite], run.debug.stamp_ns[finite]))[-1]]
-    return float(values[last])
+        return math.nan, ''
+    ordered = finite[np.lexsort((run.debug.order[finite], run.debug.stamp_ns[finite]))]
+    memory, stamps = values[ordered], run.debug.stamp_ns[ordered]
+    start = memory[0]
+    restarts = np.flatnonzero((memory[1:] == start) & (memory[:-1] != start)) + 1
+    if not restarts.size:
+        return float(memory[-1]), ''
+    back = int(restarts[-1])
+    when = f'{(int(stamps[back]) - int(stamps[0])) * 1e-9:.3g} s after its first answer'
+    if np.all(memory[back:] == start):
+        return float(memory[back - 1]), (
+            f'compliance_memory_final_ratio: the law restarted (back to its seed, '
+            f'{start:.6g}) {when} and learned nothing after it; the value is its memory '
+            'before that restart')
+    return float(memory[-1]), (
+        f'compliance_memory_final_ratio: the law restarted (back to its seed, {start:.6g}) '
+        f'{when}; the value is what it learned after that restart')
 
 
 def bag_row(run: RunData, series: RunSeries,
@@ -404,9 +424,10 @@ def bag_row(run: RunData, series: RunSeries,
     :return: labels (:func:`run_labels`), errors at the CG, look-down and look-ahead
         point, relative-yaw step response, steering command and wheel angle, latency
         p50/p99, counts, the largest input gap, ``compliance_memory_final_ratio`` (the
-        default law's memory of the rear compliance over the model's at its last answer:
-        the ``lane_keeping.compliance_memory_seed`` of the car's next run; NaN for other
-        laws), and ``notes``: assumptions and why a metric is empty.
+        default law's memory of the rear compliance over the model's at its end, the
+        ``lane_keeping.compliance_memory_seed`` of the car's next run:
+        :func:`final_compliance_memory`; NaN for other laws), and ``notes``: assumptions
+        and why a metric is empty.
     """
     params = run.controller_params
     d_s = float(params.get('vehicle.d_s', VehicleParams().d_s))
@@ -439,7 +460,9 @@ def bag_row(run: RunData, series: RunSeries,
             notes.append(f'latency: {early} of {lat.size} answers were recorded before '
                          'their lateral error (the recorder receives them in its own '
                          'order): latency is as the recorder saw it')
-    row['compliance_memory_final_ratio'] = last_debug_value(run, 'compliance_memory')
+    row['compliance_memory_final_ratio'], said = final_compliance_memory(run)
+    if said:
+        notes.append(said)
     row['steps'] = int(series.time.size)
     row['unanswered'] = series.unanswered
     drops = recorder_drops(run)

@@ -318,8 +318,16 @@ class LaneKeepingParams:
         check_range('lane_keeping.compliance_memory_range', self.compliance_memory_range,
                     1.0, 100.0)
         reach = min(self.compliance_memory_range, self.compliance_range)
-        check_range('lane_keeping.compliance_memory_seed', self.compliance_memory_seed,
-                    1.0 / reach, reach)
+        seed = check_range('lane_keeping.compliance_memory_seed', self.compliance_memory_seed,
+                           0.0, math.inf, low_open=True)
+        if not (1.0 - SEED_TOLERANCE) / reach <= seed <= reach * (1.0 + SEED_TOLERANCE):
+            ranges = ('compliance_memory_range' if reach == self.compliance_memory_range
+                      else 'compliance_range')
+            raise ParameterError(
+                f'lane_keeping.compliance_memory_seed = {seed!r} is out of range; allowed: '
+                f'[{1.0 / reach:.6g}, {reach:.6g}] (1 / lane_keeping.{ranges} to it: the '
+                f'range the memory holds; up to {SEED_TOLERANCE:.1%} beyond an end, a '
+                'rounded value, is taken as that end)')
         if self.compliance_memory_seed != 1.0 and (self.compliance_memory == 0.0
                                                    or self.compliance_time_constant == 0.0):
             off = ('compliance_memory' if self.compliance_memory == 0.0
@@ -478,6 +486,9 @@ def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -
     return heading * (d_v + k_d * v_x / k_p)
 
 
+#: how far beyond the memory's range a ``compliance_memory_seed`` is taken (as the
+#: range's end): ``analyze`` prints a memory at the end rounded (0.571 for 1 / 1.75)
+SEED_TOLERANCE = 1e-3
 #: the compliance estimate's memory learns only while ``|y_cg|`` is below this [m]: a
 #: CG further off says something the model does not know acts. Against the memory
 #: learned without it (dev-probe41: a first curve past the grip on mu 0.5 / 0.7, then a
@@ -829,12 +840,18 @@ class CgCompensatedLaw:
         #: first step without one, then run on: a curvature going and coming again finds
         #: it converged; its estimate is used only while none is received)
         self.curvature_filter: Optional[KalmanStateFilter] = None
+        #: the runs of a batch the curvature filter has estimated for since their (re)start
+        #: (a single run's filter is made at its first step without a curvature)
+        self._curvature_runs: Any = False
         self._was_estimating: Any = None
         self._blend_offset: Real = 0.0      # curvature left to blend out at the switch
         self._blend_left: Real = 0.0        # its time left [s]
         self._rho_used: Real = 0.0          # the curvature at the CG the last step used
         self._blending: Optional[Real] = None   # the offset the present step adds
         self._changed: Any = False              # the runs that switched at this step
+        #: the runs of a batch restarted at the last step (a non-finite output): their
+        #: next step has no curvature source before it, as a single run's after reset()
+        self._restarted: Any = False
         self._steer_offset: Real = 0.0          # command jump to blend out at the switch
         self._rate_last: Optional[Real] = None  # the curvature of the last step (rate)
         self._rate: Real = 0.0                  # the estimate's filtered rate [1/(m s)]
@@ -862,6 +879,7 @@ class CgCompensatedLaw:
             self.state_filter.reset()
         self.curvature_filter = None
         self._was_estimating = None
+        self._restarted = False
         self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self._rate_last, self._rate = None, 0.0
         self._inverse = self._inverse_ff = None
@@ -901,6 +919,7 @@ class CgCompensatedLaw:
         restarted: list[str] = []
         self.last_steering, self.cut = old.last_steering, old.cut
         self.estimating, self._was_estimating = old.estimating, old._was_estimating
+        self._restarted = old._restarted
         self._rho_used, self._changed = old._rho_used, old._changed
         if s.curvature_blend > 0.0:
             self._blend_offset, self._steer_offset = old._blend_offset, old._steer_offset
@@ -949,6 +968,7 @@ class CgCompensatedLaw:
             # state_filter none: the curvature's own filter, from the old law's
             self.curvature_filter = KalmanStateFilter(self.vehicle, s.filter_settings())
             self.curvature_filter.take_over(old.curvature_filter, same_vehicle)
+            self._curvature_runs = old._curvature_runs
             carried.append('curvature filter')
         if s.exact_inverse > 0.0 and old._inverse is not None:
             # the road's trajectory: kept (its next step runs with the new settings)
@@ -1221,6 +1241,7 @@ class CgCompensatedLaw:
             self.last_steering = np.where(finite, out.steering, 0.0)
             self.clipped = np.where(finite, clipped, False)
             self.capped = np.where(finite, capped, False)
+            self._restarted = ~finite
             if self._blending is not None:
                 self._blend_left = np.where(finite, self._blend_left, 0.0)
             self.estimator.forget(~finite)
@@ -1235,6 +1256,7 @@ class CgCompensatedLaw:
                 self.state_filter.forget(~finite)
             if self.curvature_filter is not None:
                 self.curvature_filter.forget(~finite)
+                self._curvature_runs = self._curvature_runs & finite
             self.restart_causes['non_finite'] += int(np.count_nonzero(~finite))
         elif not finite:
             self.reset()
@@ -1363,13 +1385,23 @@ class CgCompensatedLaw:
         Return the measured state with the curvature estimated (``state_filter: none``).
 
         The filter starts with its actuator at the last command (the commands before it
-        were not recorded) and from the next measurement.
+        were not recorded) and from the next measurement. In a batch it is made for
+        every run at the first step any run estimates; a run that has not estimated
+        since its (re)start starts its estimate at its own first such step (from the
+        path ``r / v_x``), as its single run's filter, made there, does.
         """
         if self.curvature_filter is None:
             self.curvature_filter = KalmanStateFilter(self.vehicle,
                                                       self.settings.filter_settings())
             self.curvature_filter.held = self.last_steering
             self.curvature_filter.wheel = self.last_steering
+            self._curvature_runs = (estimating.copy() if isinstance(estimating, np.ndarray)
+                                    else estimating)
+        elif isinstance(estimating, np.ndarray):
+            first = estimating & ~self._curvature_runs
+            if np.count_nonzero(first):
+                self.curvature_filter.forget(first)
+            self._curvature_runs = self._curvature_runs | estimating
         estimate = self.curvature_filter.step(state, dt, estimating)
         return state._replace(rho=estimate.rho, rho_rate=estimate.rho_rate)
 
@@ -1389,6 +1421,9 @@ class CgCompensatedLaw:
         last = rho if self._rate_last is None else self._rate_last
         if before is not None:
             last = xp.where(estimating != before, rho, last)
+        if np.count_nonzero(self._restarted):
+            # restarted at the last step: differenced from here on, as after reset()
+            last = xp.where(self._restarted, rho, last)
         limited = self.settings.max_lateral_jerk > 0.0
         most = self.settings.max_lateral_jerk / (v_x * v_x)
         if dt > 0.0:
@@ -1423,7 +1458,11 @@ class CgCompensatedLaw:
         self._was_estimating = estimating
         # the runs whose curvature source switched (the exact inverse restarts them too,
         # whatever curvature_blend says)
-        changed = self._changed = False if before is None else estimating != before
+        changed = False if before is None else estimating != before
+        if np.count_nonzero(self._restarted):
+            # a run restarted at the last step starts without a source before it
+            changed = changed & ~self._restarted
+        self._changed, self._restarted = changed, False
         span = self.settings.curvature_blend
         if before is None or span <= 0.0:
             return state

@@ -553,6 +553,10 @@ class KalmanStateFilter:
         #: bound of the estimate below it (a speed read as 0 for a moment must not make
         #: ``r / min_speed``)
         self.held_rho: Real = math.nan
+        #: the runs of a batch restarted by :meth:`forget` since the last step: their
+        #: next step starts them as :meth:`reset` starts a single run (the model's
+        #: curvature from that step's)
+        self.forgotten: Any = False
         self.restarts = 0
         #: steps longer than ``MAX_PERIOD`` (restarts from the measurement)
         self.long_steps = 0
@@ -571,6 +575,7 @@ class KalmanStateFilter:
         self.x = None
         self.kinematic = None
         self.held_rho = math.nan
+        self.forgotten = False
         self.restarts += 1
 
     def start(self) -> None:
@@ -614,7 +619,7 @@ class KalmanStateFilter:
         if estimate:
             self.x = None if old.x is None else list(old.x)
             self.kinematic = None if old.kinematic is None else list(old.kinematic)
-            self.held_rho = old.held_rho
+            self.held_rho, self.forgotten = old.held_rho, old.forgotten
 
     def forget(self, where: Any) -> None:
         """
@@ -626,6 +631,9 @@ class KalmanStateFilter:
             self.x = [np.where(where, math.nan, v) for v in self.x]
         if self.kinematic is not None:
             self.kinematic = [np.where(where, math.nan, v) for v in self.kinematic]
+        # as reset() does for a single run
+        self.held_rho = np.where(where, math.nan, self.held_rho)
+        self.forgotten = where | self.forgotten
 
     def command(self, steering: Real) -> None:
         """
@@ -940,6 +948,11 @@ class KalmanStateFilter:
         if self.x is None:              # (re)start: every run from its next measurement
             self.x = [math.nan + 0.0 * mv for mv in measured]
             self.rho = state.rho
+        elif np.count_nonzero(self.forgotten):
+            # runs restarted by forget(): the same start (a step of dt 0 next would
+            # otherwise leave them the curvature from before the restart)
+            self.rho = _select(self.forgotten, state.rho, self.rho)
+        self.forgotten = False
         fresh = np.isnan(self.x[0])
         if dt > MAX_PERIOD:
             # beyond the longest period with a well-conditioned gain

@@ -66,6 +66,8 @@ class LoopConfig:
     :param extra_bridge_args: more ROS arguments for the bridge.
     :param law: the controller's steering law (``law`` parameter; ``schedule`` is the
         paper law's d_v schedule).
+    :param controller_params: the controller's own params file, read after
+        ``config/controller.yaml`` and before this run's settings (``law``, ...).
     """
 
     scenario: Path
@@ -81,6 +83,67 @@ class LoopConfig:
     via_bridge: bool = False
     extra_bridge_args: list[str] = field(default_factory=list)
     law: str = 'paper'
+    controller_params: Optional[Path] = None
+
+
+#: the controller parameters ``closed_loop`` sets itself (its options say them)
+OWN_CONTROLLER_PARAMS = ('law', 'controller.schedule', 'wait_for_matching_stamps',
+                         'use_sim_time')
+
+
+def controller_arguments(params_file: Optional[Path], settings: Sequence[str]) -> list[str]:
+    """
+    Check the controller's own params file and ``NAME:=VALUE`` settings before any start.
+
+    Read as the node reads them: ``config/controller.yaml``, then the file, then the
+    settings. A name the node does not have, a value out of its range and settings the
+    law refuses together are one line here, before any process starts.
+
+    :param params_file: the controller's params file (None: none).
+    :param settings: ``NAME:=VALUE`` items (``--param``).
+    :return: the controller's ``-p`` arguments for the settings.
+    :raises ToolError: naming the file or setting and what is allowed.
+    """
+    import yaml
+
+    from lookahead_control.core.config import (check_params_file, ConfigError,
+                                               dataclass_from_params, load_ros_params)
+    from lookahead_control.core.lane_keeping import LaneKeepingParams
+    from lookahead_control.core.param_schema import check_params
+    from lookahead_control.core.params import ControllerParams, ParameterError
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    merged = load_ros_params(source_config_dir() / 'controller.yaml', 'controller')
+    if params_file is not None:
+        if not params_file.is_file():
+            raise ToolError(f'--controller {params_file}: no such file')
+        try:
+            check_params_file(params_file, 'controller', ALL_SPECS)
+            merged.update(load_ros_params(params_file, 'controller'))
+        except ConfigError as err:
+            raise ToolError(f'--controller {err}') from err
+    args: list[str] = []
+    for item in settings:
+        name, sep, text = item.partition(':=')
+        if not sep or not name or not text:
+            raise ToolError(f'--param {item}: expected NAME:=VALUE, e.g. '
+                            'lane_keeping.compliance_memory_seed:=1.42')
+        if name in OWN_CONTROLLER_PARAMS:
+            raise ToolError(f'--param {item}: closed_loop sets {name} itself (--law, '
+                            '--schedule, --mode); use its option')
+        try:
+            merged[name] = check_params({name: yaml.safe_load(text)}, ALL_SPECS)[name]
+        except (ParameterError, yaml.YAMLError) as err:
+            raise ToolError(f'--param {item}: {err}') from err
+        args += ['-p', item]
+    given = ' and '.join([*([f'--controller {params_file}'] if params_file else []),
+                          *(['--param'] if settings else [])])
+    try:
+        for cls, prefix in ((ControllerParams, 'controller'),
+                            (LaneKeepingParams, 'lane_keeping')):
+            dataclass_from_params(cls, merged, prefix, given or 'config/controller.yaml')
+    except ConfigError as err:
+        raise ToolError(str(err)) from err
+    return args
 
 
 def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
@@ -100,6 +163,8 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
            *(['-p', 'output:=vehicle'] if cfg.via_bridge else []), *cfg.extra_sim_args]
     controller = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
                   *common, '--params-file', str(config / 'controller.yaml'),
+                  *(['--params-file', str(cfg.controller_params)]
+                    if cfg.controller_params is not None else []),
                   '-p', f'controller.schedule:={cfg.schedule}', '-p', f'law:={cfg.law}',
                   '-p', f'wait_for_matching_stamps:={str(cfg.mode == "lockstep").lower()}',
                   '-p', 'use_sim_time:=true', *cfg.extra_controller_args]
@@ -299,6 +364,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--via-bridge', action='store_true',
                    help='sim_plant publishes odometry and the road as a path; path_bridge '
                    'turns them into the contract (as on a real vehicle)')
+    p.add_argument('--controller', type=Path, default=None, metavar='YAML',
+                   help="the controller node's own params file, read after "
+                   'config/controller.yaml (--law and --schedule still apply)')
+    p.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
+                   help='a controller parameter, after the files (repeatable), e.g. '
+                   "--param lane_keeping.compliance_memory_seed:=1.42 (a run's "
+                   'compliance_memory_final_ratio from analyze)')
     args = p.parse_args(argv)
     if args.no_record and args.bag is not None:
         raise ToolError('--bag and --no-record contradict each other: give one')
@@ -306,6 +378,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.scenario.is_file():
         raise ToolError(f'{args.scenario}: no such scenario file')
     scenario = load_scenario(args.scenario, args.speed or None)    # one line, no process
+    extra = controller_arguments(args.controller, args.param)
     bag = None if args.no_record else (args.bag or default_bag(
         args.scenario, args.schedule if args.law == 'paper' else args.law,
         float(scenario.speed.initial),
@@ -317,8 +390,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         bag.mkdir(parents=True)
         bag.rmdir()
     code = run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
-                               args.plant, args.rate, args.timeout, bag=bag,
-                               via_bridge=args.via_bridge, law=args.law))
+                               args.plant, args.rate, args.timeout,
+                               extra_controller_args=extra, bag=bag,
+                               via_bridge=args.via_bridge, law=args.law,
+                               controller_params=args.controller))
     if bag is not None and code == 0:
         print(f'closed_loop: recorded {bag}')
     return code

@@ -164,8 +164,9 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
             '(-1: not counted); `max_gap_s`: the longest gap between stamps, or between '
             'receive times (not in lockstep), of any input or of the steering (0: none); '
             "`compliance_memory_final_ratio`: the default law's memory of the rear "
-            "compliance over the model's at its last answer (start the car's next run "
-            'from it: `lane_keeping.compliance_memory_seed`; empty for other laws).',
+            "compliance over the model's at its end, or before a restart it learned "
+            "nothing after (`notes`); start the car's next run from it: "
+            '`lane_keeping.compliance_memory_seed` (`-` for other laws).',
             '',
             markdown_table(rows, COLUMNS, digits=3), '',
             *notes_list(rows, ('bag',)),
