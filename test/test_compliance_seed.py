@@ -100,9 +100,9 @@ def test_a_curve_outweighs_a_wrong_seed():
      r'compliance_memory_seed = 0.0 is out of range; allowed: \(0, inf\]'),
     ({'compliance_memory_seed': 0.5}, r'compliance_memory_seed = 0.5 is out of range; '
      r'allowed: \[0.571429, 1.75\] \(1 / lane_keeping.compliance_memory_range to it'),
-    # a rounded value is taken up to 0.1 % beyond an end, not further
-    ({'compliance_memory_seed': 1.752}, r'compliance_memory_seed = 1.752 is out of range'),
-    ({'compliance_memory_seed': 0.5708}, r'compliance_memory_seed = 0.5708 is out of range'),
+    # a rounded value is taken up to 0.5 % beyond an end, not further
+    ({'compliance_memory_seed': 1.76}, r'compliance_memory_seed = 1.76 is out of range'),
+    ({'compliance_memory_seed': 0.568}, r'compliance_memory_seed = 0.568 is out of range'),
     ({'compliance_memory_seed': -1.2}, 'compliance_memory_seed = -1.2 is out of range'),
     ({'compliance_memory_seed': math.nan}, 'compliance_memory_seed'),
     ({'compliance_memory_seed': math.inf}, 'compliance_memory_seed'),
@@ -135,6 +135,12 @@ def test_the_allowed_seeds():
     heavy = VehicleParams(mass=1500.0)
     at_end = float(np.clip(1e9, heavy.eta / 1.75, heavy.eta * 1.75) / heavy.eta)
     assert at_end > 1.75
+    # dev-probe47: 0.1 % was less than 3 significant digits round away (2.99's lower
+    # end 0.334, 0.15 % beyond); 1.5015 against a compliance_range of 1.5
+    for rounded in (at_end, 0.571, 1.751):
+        LaneKeepingParams(compliance_memory_seed=rounded)
+    LaneKeepingParams(compliance_memory_range=2.99, compliance_memory_seed=0.334)
+    LaneKeepingParams(compliance_range=1.5, compliance_memory_seed=1.5015)
     for rounded in (at_end, 0.571, 1.751):
         LaneKeepingParams(compliance_memory_seed=rounded)
         # taken as the range's end: the memory stays within it
@@ -233,37 +239,64 @@ def test_the_node_takes_the_seed_as_a_parameter_and_checks_it_with_the_memory(co
         node.destroy_node()
 
 
-def _memory_run(values, stamps=None):
+def _memory_run(values, stamps=None, restarts=None):
     from pathlib import Path
     from lookahead_control.bags.run_data import RunData, Samples
     values = np.asarray(values, dtype=float)
     stamps = np.arange(values.size, dtype=np.int64) * 10_000_000 if stamps is None else stamps
     order = np.arange(values.size, dtype=np.int64)
-    return RunData(Path('bag'), debug=Samples(stamps, stamps, order,
-                                              {'compliance_memory': values}))
+    fields = {'compliance_memory': values}
+    if restarts is not None:
+        fields['restarts'] = np.asarray(restarts, dtype=float)
+    return RunData(Path('bag'), debug=Samples(stamps, stamps, order, fields))
 
 
 def test_analyze_reports_the_memory_a_restart_did_not_erase():
     from lookahead_control.analysis.bag_analysis import final_compliance_memory
     # learned to 1.6, then went on
-    assert final_compliance_memory(_memory_run([1.3, 1.4, 1.6])) == (1.6, '')
-    # dev-probe46: a switch to the paper law and back (or stale inputs) near the end put
-    # the memory back at its seed (1.3), and analyze reported the seed as what the run
-    # taught: now the memory before the restart, with a note
+    assert final_compliance_memory(_memory_run([1.3, 1.4, 1.6], restarts=[1, 1, 1])) == (
+        1.6, '')
+    # dev-probe46: a switch to the paper law and back (answers without a memory between)
+    # near the end put the memory back at its seed (1.3), and analyze reported the seed
+    # as what the run taught: now the memory before, with a note
     value, note = final_compliance_memory(
         _memory_run([1.3, 1.4, 1.6, math.nan, math.nan, 1.3, 1.3]))
     assert value == 1.6
-    assert ('the law restarted (back to its seed, 1.3) 0.05 s after its first answer and '
-            'learned nothing after it') in note
+    assert ('the law started again (a restart or a switch of law) 0.05 s after its first '
+            'answer and learned nothing after it') in note
+    # a restart the law counts (stale inputs, a time jump): the same
+    value, note = final_compliance_memory(
+        _memory_run([1.3, 1.4, 1.6, 1.3, 1.3], restarts=[1, 1, 1, 2, 2]))
+    assert value == 1.6 and '0.03 s after its first answer' in note
     # learned again after the restart: what it learned since, with a note
-    value, note = final_compliance_memory(_memory_run([1.3, 1.6, 1.3, 1.35]))
-    assert value == 1.35 and 'what it learned after that restart' in note
+    value, note = final_compliance_memory(
+        _memory_run([1.3, 1.6, 1.3, 1.35], restarts=[0, 0, 1, 1]))
+    assert value == 1.35 and 'what it learned after that' in note
+    # dev-probe47: a seed at the memory's range end (1.75): a memory learning back to
+    # the clip is no restart (the first rule, 'back at the seed exactly', said it was)
+    assert final_compliance_memory(
+        _memory_run([1.75, 1.748, 1.75, 1.75], restarts=[1, 1, 1, 1])) == (1.75, '')
+    # dev-probe47: the seed set at run time (1.0 -> 1.3, carried: 1.428), then a time
+    # jump: the memory before the jump, not the new seed
+    value, note = final_compliance_memory(
+        _memory_run([1.0, 1.37, 1.428, 1.3, 1.3], restarts=[1, 1, 1, 2, 2]))
+    assert value == 1.428 and 'learned nothing after it' in note
     # in stamp order, not file order
     shuffled = _memory_run([1.6, 1.3, 1.4], np.array([30, 10, 20], dtype=np.int64))
     assert final_compliance_memory(shuffled) == (1.6, '')
     # never learned (a straight): the seed, no note; no memory at all: NaN
     assert final_compliance_memory(_memory_run([1.0, 1.0])) == (1.0, '')
     assert math.isnan(final_compliance_memory(_memory_run([math.nan]))[0])
+
+
+def test_the_law_counts_its_restarts_on_debug():
+    law = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
+    turn = law_after_a_curve()[1]
+    law.step(turn, None, 0.0)
+    before = dict(law.debug_values())['restarts']
+    law.step(turn, None, 5.0)                   # a time jump
+    law.step(turn._replace(v_y=math.nan), None, DT)
+    assert dict(law.debug_values())['restarts'] == before + 2
 
 
 @pytest.mark.parametrize('argv, said', [
@@ -288,14 +321,58 @@ def test_closed_loop_refuses_bad_controller_settings_before_any_start(argv, said
 def test_closed_loop_file_is_checked_with_the_shipped_one(tmp_path):
     # the file's seed against the memory the shipped file keeps (and its range)
     from lookahead_control.core.cli import ToolError
-    from lookahead_control.ros.closed_loop import controller_arguments
+    from lookahead_control.ros.closed_loop import controller_settings
     mine = tmp_path / 'car.yaml'
     mine.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
                     '      compliance_memory_range: 1.3\n      compliance_memory_seed: 1.42\n')
     with pytest.raises(ToolError, match='compliance_memory_seed = 1.42 is out of range'):
-        controller_arguments(mine, [])
-    assert controller_arguments(mine, ['lane_keeping.compliance_memory_range:=1.5']) == [
-        '-p', 'lane_keeping.compliance_memory_range:=1.5']
+        controller_settings(mine, [], 'cg_compensated', 'paper')
+    params, dropped = controller_settings(
+        mine, ['lane_keeping.compliance_memory_range:=1.5'], 'cg_compensated', 'paper')
+    assert params['lane_keeping.compliance_memory_range'] == 1.5
+    assert params['lane_keeping.compliance_memory_seed'] == 1.42 and dropped == []
+    # the package's files under it (the vehicle and the rest of the controller's)
+    assert params['vehicle.mass'] == 1485.0 and params['lane_keeping.integral_gain'] == 0.3
+
+
+def test_closed_loop_checks_what_the_node_runs_and_gives_it_that_alone(tmp_path):
+    # dev-probe47: the file went to the node as a second params file beside -p: rcl
+    # let its controller: section beat --law (the run used pure_pursuit), a nested map
+    # opened again beat --param, and the checks missed what the node's core refuses
+    # (controller.reference arc_exact with cg_compensated: the controller exited 2, a
+    # broken bag left); autostart false hung until --timeout
+    from lookahead_control.core.cli import ToolError
+    from lookahead_control.ros import closed_loop
+    mine = tmp_path / 'car.yaml'
+    mine.write_text('controller:\n  ros__parameters:\n    law: pure_pursuit\n'
+                    '    controller:\n      schedule: exact\n    autostart: false\n'
+                    '    lane_keeping:\n      compliance_memory_seed: 1.3\n')
+    params, dropped = closed_loop.controller_settings(
+        mine, ['lane_keeping.compliance_memory_seed:=1.2'], 'cg_compensated', 'paper')
+    assert sorted(dropped) == ['autostart', 'controller.schedule', 'law']
+    assert params['lane_keeping.compliance_memory_seed'] == 1.2
+    assert not set(closed_loop.OWN_CONTROLLER_PARAMS) & set(params)
+    # the node gets one file, and the run's own -p
+    written = closed_loop.write_controller_params(params)
+    try:
+        cfg = closed_loop.LoopConfig(mine, law='cg_compensated', controller_params=written)
+        _, command = closed_loop.node_commands(cfg)
+        assert command.count('--params-file') == 1 and str(written) in command
+        assert 'law:=cg_compensated' in command
+        from lookahead_control.core.config import load_ros_params
+        assert load_ros_params(written, 'controller') == params
+    finally:
+        written.unlink()
+    bad = tmp_path / 'ref.yaml'
+    bad.write_text('controller:\n  ros__parameters:\n    controller:\n'
+                   '      reference: arc_exact\n')
+    with pytest.raises(ToolError, match='builds its own reference'):
+        closed_loop.controller_settings(bad, [], 'cg_compensated', 'paper')
+    # the paper law takes it
+    closed_loop.controller_settings(bad, [], 'paper', 'paper')
+    for own in ('autostart:=false', 'mode:=timer', 'use_sim_time:=false'):
+        with pytest.raises(ToolError, match='closed_loop sets'):
+            closed_loop.controller_settings(None, [own], 'cg_compensated', 'paper')
 
 
 def test_a_run_seeded_on_the_command_line_starts_from_the_seed(tmp_path):

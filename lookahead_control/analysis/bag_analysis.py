@@ -380,37 +380,42 @@ def final_compliance_memory(run: RunData) -> tuple[float, str]:
     Return the default law's compliance memory at the end of a run, to seed the next.
 
     The memory (``~/debug`` ``compliance_memory``, over the model's ``eta``) at the law's
-    last answer. A law that restarts (a time jump, stale inputs, a bad input, a switch of
-    ``law`` and back) goes back to its seed, the value it started the run with, exactly;
-    where it ended there after it had learned, the value is the one it held before that
-    restart, and the note says so.
+    last answer. A law that restarts (its ``~/debug`` ``restarts`` counts up: a time jump,
+    stale inputs, a bad input) or is switched away and back (answers without a memory
+    between) starts again from its seed; where it learned nothing after the last such
+    start, the value is the memory it held before it, and the note says so.
 
     :param run: the run.
     :return: the value (NaN where the law kept no memory: another law, no debug topic)
         and a note ('' if none).
     """
     values = run.debug.values.get('compliance_memory')
-    if values is None or values.dtype == object:
+    if values is None or values.dtype == object or not values.size:
         return math.nan, ''
-    finite = np.flatnonzero(np.isfinite(values))
-    if not finite.size:
-        return math.nan, ''
-    ordered = finite[np.lexsort((run.debug.order[finite], run.debug.stamp_ns[finite]))]
+    ordered = np.lexsort((run.debug.order, run.debug.stamp_ns))
     memory, stamps = values[ordered], run.debug.stamp_ns[ordered]
-    start = memory[0]
-    restarts = np.flatnonzero((memory[1:] == start) & (memory[:-1] != start)) + 1
-    if not restarts.size:
+    kept = np.flatnonzero(np.isfinite(memory))
+    if not kept.size:
+        return math.nan, ''
+    # a new start: another law answered between two of its answers, or it restarted
+    starts = np.diff(kept) > 1
+    counted = run.debug.values.get('restarts')
+    if counted is not None and counted.dtype != object:
+        count = counted[ordered][kept]
+        starts |= (count[1:] != count[:-1]) & np.isfinite(count[1:])
+    begins = np.flatnonzero(starts) + 1
+    memory, stamps = memory[kept], stamps[kept]
+    if not begins.size:
         return float(memory[-1]), ''
-    back = int(restarts[-1])
-    when = f'{(int(stamps[back]) - int(stamps[0])) * 1e-9:.3g} s after its first answer'
-    if np.all(memory[back:] == start):
-        return float(memory[back - 1]), (
-            f'compliance_memory_final_ratio: the law restarted (back to its seed, '
-            f'{start:.6g}) {when} and learned nothing after it; the value is its memory '
-            'before that restart')
+    last = int(begins[-1])
+    when = f'{(int(stamps[last]) - int(stamps[0])) * 1e-9:.3g} s after its first answer'
+    if np.all(memory[last:] == memory[last]):
+        return float(memory[last - 1]), (
+            f'compliance_memory_final_ratio: the law started again (a restart or a switch '
+            f'of law) {when} and learned nothing after it; the value is its memory before')
     return float(memory[-1]), (
-        f'compliance_memory_final_ratio: the law restarted (back to its seed, {start:.6g}) '
-        f'{when}; the value is what it learned after that restart')
+        f'compliance_memory_final_ratio: the law started again (a restart or a switch of '
+        f'law) {when}; the value is what it learned after that')
 
 
 def bag_row(run: RunData, series: RunSeries,

@@ -648,7 +648,11 @@ class KalmanStateFilter:
         """
         last = self.history[-1][1] if self.history else self.held
         if isinstance(steering, np.ndarray):
-            steering = np.clip(steering, -MAX_WHEEL_ANGLE, MAX_WHEEL_ANGLE)
+            # (judged before the clip: an infinite command is no command, as for a float;
+            # clipped first it was a wheel at 90 degrees in a batch, dev-probe47)
+            finite = np.isfinite(steering)
+            steering = np.where(finite, np.clip(steering, -MAX_WHEEL_ANGLE, MAX_WHEEL_ANGLE),
+                                last)
         elif math.isfinite(steering):
             steering = min(MAX_WHEEL_ANGLE, max(-MAX_WHEEL_ANGLE, steering))
         self.history.append((self.time, _select(np.isfinite(steering), steering, last)))

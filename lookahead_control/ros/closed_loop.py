@@ -34,7 +34,7 @@ import signal
 import subprocess
 import sys
 import time
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
@@ -66,8 +66,8 @@ class LoopConfig:
     :param extra_bridge_args: more ROS arguments for the bridge.
     :param law: the controller's steering law (``law`` parameter; ``schedule`` is the
         paper law's d_v schedule).
-    :param controller_params: the controller's own params file, read after
-        ``config/controller.yaml`` and before this run's settings (``law``, ...).
+    :param controller_params: the controller's one params file (None: the package's
+        ``vehicle.yaml`` and ``controller.yaml``): :func:`write_controller_params`.
     """
 
     scenario: Path
@@ -86,42 +86,53 @@ class LoopConfig:
     controller_params: Optional[Path] = None
 
 
-#: the controller parameters ``closed_loop`` sets itself (its options say them)
+#: the controller parameters ``closed_loop`` sets itself: its options say the first
+#: four; the controller answers each measurement (event mode) and starts itself
 OWN_CONTROLLER_PARAMS = ('law', 'controller.schedule', 'wait_for_matching_stamps',
-                         'use_sim_time')
+                         'use_sim_time', 'mode', 'rate_hz', 'autostart')
 
 
-def controller_arguments(params_file: Optional[Path], settings: Sequence[str]) -> list[str]:
+def controller_settings(params_file: Optional[Path], settings: Sequence[str], law: str,
+                        schedule: str) -> tuple[dict[str, Any], list[str]]:
     """
-    Check the controller's own params file and ``NAME:=VALUE`` settings before any start.
+    Return the controller's own settings, checked as the node checks them, before any start.
 
-    Read as the node reads them: ``config/controller.yaml``, then the file, then the
-    settings. A name the node does not have, a value out of its range and settings the
-    law refuses together are one line here, before any process starts.
+    ``config/vehicle.yaml``, ``config/controller.yaml``, then the file, then the
+    settings, each replacing the one before; the run's own parameters
+    (:data:`OWN_CONTROLLER_PARAMS`) are left out of the file's and refused as settings.
+    The node is given the result as its one params file (:func:`write_controller_params`):
+    it runs what was checked here, whatever rcl would make of several files and ``-p``.
+    A name the node does not have, a value out of its range, and a combination the
+    node's core or its law refuses (with this run's ``law``) are one line here.
 
     :param params_file: the controller's params file (None: none).
     :param settings: ``NAME:=VALUE`` items (``--param``).
-    :return: the controller's ``-p`` arguments for the settings.
+    :param law: the run's law (``--law``).
+    :param schedule: the run's d_v schedule (``--schedule``).
+    :return: ``(parameters by name, the file's parameters left out)``.
     :raises ToolError: naming the file or setting and what is allowed.
     """
     import yaml
 
     from lookahead_control.core.config import (check_params_file, ConfigError,
-                                               dataclass_from_params, load_ros_params)
-    from lookahead_control.core.lane_keeping import LaneKeepingParams
+                                               load_ros_params)
     from lookahead_control.core.param_schema import check_params
-    from lookahead_control.core.params import ControllerParams, ParameterError
-    from lookahead_control.ros.controller_node import ALL_SPECS
-    merged = load_ros_params(source_config_dir() / 'controller.yaml', 'controller')
+    from lookahead_control.core.params import ParameterError
+    from lookahead_control.ros.controller_node import ALL_SPECS, core_from_params
+    config = source_config_dir()
+    merged = load_ros_params(config / 'vehicle.yaml', 'controller')
+    merged.update(load_ros_params(config / 'controller.yaml', 'controller'))
+    dropped: list[str] = []
     if params_file is not None:
         if not params_file.is_file():
             raise ToolError(f'--controller {params_file}: no such file')
         try:
             check_params_file(params_file, 'controller', ALL_SPECS)
-            merged.update(load_ros_params(params_file, 'controller'))
+            mine = load_ros_params(params_file, 'controller')
         except ConfigError as err:
             raise ToolError(f'--controller {err}') from err
-    args: list[str] = []
+        dropped = [name for name in mine if name in OWN_CONTROLLER_PARAMS]
+        merged.update({k: v for k, v in mine.items() if k not in OWN_CONTROLLER_PARAMS})
     for item in settings:
         name, sep, text = item.partition(':=')
         if not sep or not name or not text:
@@ -129,21 +140,40 @@ def controller_arguments(params_file: Optional[Path], settings: Sequence[str]) -
                             'lane_keeping.compliance_memory_seed:=1.42')
         if name in OWN_CONTROLLER_PARAMS:
             raise ToolError(f'--param {item}: closed_loop sets {name} itself (--law, '
-                            '--schedule, --mode); use its option')
+                            '--schedule, --mode; the controller answers each measurement)')
         try:
             merged[name] = check_params({name: yaml.safe_load(text)}, ALL_SPECS)[name]
         except (ParameterError, yaml.YAMLError) as err:
             raise ToolError(f'--param {item}: {err}') from err
-        args += ['-p', item]
     given = ' and '.join([*([f'--controller {params_file}'] if params_file else []),
                           *(['--param'] if settings else [])])
+    merged = {k: v for k, v in merged.items() if k not in OWN_CONTROLLER_PARAMS}
     try:
-        for cls, prefix in ((ControllerParams, 'controller'),
-                            (LaneKeepingParams, 'lane_keeping')):
-            dataclass_from_params(cls, merged, prefix, given or 'config/controller.yaml')
-    except ConfigError as err:
-        raise ToolError(str(err)) from err
-    return args
+        checked = check_params(merged, ALL_SPECS)
+        every = {spec.name: spec.default for spec in ALL_SPECS}
+        core_from_params({**every, **checked, 'law': law, 'controller.schedule': schedule})
+    except ParameterError as err:
+        raise ToolError(f'{given}: {err}') from err
+    return checked, dropped
+
+
+def write_controller_params(params: dict[str, Any]) -> Path:
+    """
+    Write the controller's parameters as one params file (the caller deletes it).
+
+    :param params: parameters by name (:func:`controller_settings`).
+    :return: the file.
+    """
+    import tempfile
+
+    import yaml
+
+    from lookahead_control.ros.node_main import nested_params
+    handle = tempfile.NamedTemporaryFile('w', suffix='.yaml', prefix='closed_loop_controller_',
+                                         delete=False)
+    with handle:
+        yaml.safe_dump({'/**': {'ros__parameters': nested_params(params)}}, handle)
+    return Path(handle.name)
 
 
 def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
@@ -161,10 +191,10 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
            '-p', f'plant.model:={cfg.plant}', '-p', 'use_sim_time:=false',
            '-p', f'subscribers:={2 if cfg.bag else 1}',
            *(['-p', 'output:=vehicle'] if cfg.via_bridge else []), *cfg.extra_sim_args]
+    files = (['--params-file', str(cfg.controller_params)] if cfg.controller_params else
+             [*common, '--params-file', str(config / 'controller.yaml')])
     controller = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
-                  *common, '--params-file', str(config / 'controller.yaml'),
-                  *(['--params-file', str(cfg.controller_params)]
-                    if cfg.controller_params is not None else []),
+                  *files,
                   '-p', f'controller.schedule:={cfg.schedule}', '-p', f'law:={cfg.law}',
                   '-p', f'wait_for_matching_stamps:={str(cfg.mode == "lockstep").lower()}',
                   '-p', 'use_sim_time:=true', *cfg.extra_controller_args]
@@ -365,8 +395,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='sim_plant publishes odometry and the road as a path; path_bridge '
                    'turns them into the contract (as on a real vehicle)')
     p.add_argument('--controller', type=Path, default=None, metavar='YAML',
-                   help="the controller node's own params file, read after "
-                   'config/controller.yaml (--law and --schedule still apply)')
+                   help="the controller node's own params file, over the package's "
+                   '(this run sets law, controller.schedule, mode, rate_hz, autostart, '
+                   'use_sim_time and wait_for_matching_stamps itself)')
     p.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
                    help='a controller parameter, after the files (repeatable), e.g. '
                    "--param lane_keeping.compliance_memory_seed:=1.42 (a run's "
@@ -378,7 +409,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.scenario.is_file():
         raise ToolError(f'{args.scenario}: no such scenario file')
     scenario = load_scenario(args.scenario, args.speed or None)    # one line, no process
-    extra = controller_arguments(args.controller, args.param)
+    own = None
+    if args.controller is not None or args.param:
+        own, dropped = controller_settings(args.controller, args.param, args.law,
+                                           args.schedule)
+        if dropped:
+            print(f'closed_loop: --controller {args.controller}: {", ".join(dropped)} not '
+                  'used (this run sets them: --law, --schedule; event mode, started by '
+                  'itself)')
     bag = None if args.no_record else (args.bag or default_bag(
         args.scenario, args.schedule if args.law == 'paper' else args.law,
         float(scenario.speed.initial),
@@ -389,11 +427,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         # an unwritable place: one line now, not a failed recorder after start-up
         bag.mkdir(parents=True)
         bag.rmdir()
-    code = run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
-                               args.plant, args.rate, args.timeout,
-                               extra_controller_args=extra, bag=bag,
-                               via_bridge=args.via_bridge, law=args.law,
-                               controller_params=args.controller))
+    written = write_controller_params(own) if own is not None else None
+    try:
+        code = run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
+                                   args.plant, args.rate, args.timeout, bag=bag,
+                                   via_bridge=args.via_bridge, law=args.law,
+                                   controller_params=written))
+    finally:
+        if written is not None:
+            written.unlink(missing_ok=True)
     if bag is not None and code == 0:
         print(f'closed_loop: recorded {bag}')
     return code

@@ -25,7 +25,7 @@ from __future__ import annotations
 import struct
 import sys
 import time
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Mapping, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
@@ -160,6 +160,21 @@ def capped_notes(law: str, lane_keeping: LaneKeepingParams) -> str:
                                  integral_schedule_note(lane_keeping)) if n)
 
 
+def core_from_params(params: Mapping[str, Any]) -> SteeringController:
+    """
+    Return the controller core the node runs with these parameters.
+
+    :param params: every parameter of :data:`ALL_SPECS` by name (checked values).
+    :return: the core (its law built: the law's own checks have run).
+    :raises ParameterError: a value or combination the core or its law refuses.
+    """
+    vehicle, controller = vehicle_and_controller(params)
+    return SteeringController(vehicle, controller, params['acceleration_source'],
+                              params['use_curvature_preview'], safety_params(params),
+                              params['law'], baseline_params(params),
+                              lane_keeping_params(params))
+
+
 class ControllerNode(LifecycleNode):
     """Lifecycle node publishing the variable look-ahead steering command."""
 
@@ -171,12 +186,7 @@ class ControllerNode(LifecycleNode):
         """
         super().__init__('controller', **kwargs)
         declare(self, ALL_SPECS)
-        params = values(self, ALL_SPECS)
-        vehicle, controller = vehicle_and_controller(params)
-        self.core = SteeringController(vehicle, controller, params['acceleration_source'],
-                                       params['use_curvature_preview'], safety_params(params),
-                                       params['law'], baseline_params(params),
-                                       lane_keeping_params(params))
+        self.core = core_from_params(values(self, ALL_SPECS))
         self.counters = {'saturated': 0, 'rate_limited': 0, 'low_speed': 0,
                          'd_v_clamped': 0, 'stale_commands': 0, 'demand_capped': 0,
                          'approach_clipped': 0}

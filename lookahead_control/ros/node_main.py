@@ -144,7 +144,13 @@ def check_params_files(args: Sequence[str]) -> None:
                               '"<node>: {ros__parameters: {...}}")')
 
 
-def _nested(flat: dict[str, Any]) -> dict[str, Any]:
+def nested_params(flat: dict[str, Any]) -> dict[str, Any]:
+    """
+    Return dotted parameter names as the nested mapping of a ROS params file.
+
+    :param flat: ``a.b.c`` -> value.
+    :return: ``{'a': {'b': {'c': value}}}``.
+    """
     tree: dict[str, Any] = {}
     for name, value in flat.items():
         *heads, last = name.split('.')
@@ -185,7 +191,7 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                 handle = tempfile.NamedTemporaryFile(
                     'w', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)
                 with handle:
-                    yaml.safe_dump({key: {'ros__parameters': _nested(flat)}
+                    yaml.safe_dump({key: {'ros__parameters': nested_params(flat)}
                                     for key, flat in sections.items()}, handle)
                 scratch.append(Path(handle.name))
                 out[i + 1] = handle.name
