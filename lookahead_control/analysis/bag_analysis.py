@@ -375,15 +375,24 @@ def _assumptions(run: RunData) -> list[str]:
             if missing else [])
 
 
+#: a stretch of a run whose compliance memory moved less than this share from where it
+#: started taught nothing to carry to the next run (a straight's filter tails move it by
+#: 1e-5 to 1e-4; a curve by percents)
+MEMORY_LEARNED = 5e-3
+
+
 def final_compliance_memory(run: RunData) -> tuple[float, str]:
     """
     Return the default law's compliance memory at the end of a run, to seed the next.
 
     The memory (``~/debug`` ``compliance_memory``, over the model's ``eta``) at the law's
-    last answer. A law that restarts (its ``~/debug`` ``restarts`` counts up: a time jump,
-    stale inputs, a bad input) or is switched away and back (answers without a memory
-    between) starts again from its seed; where it learned nothing after the last such
-    start, the value is the memory it held before it, and the note says so.
+    last answer. It starts again from its seed where its ``~/debug`` ``memory_starts``
+    counts up (a restart of the law: a time jump, stale inputs, a bad input,
+    deactivate / activate; a retune that restarted the estimate), where another law
+    answered between two of its answers (a switch away and back), and, in bags without
+    ``memory_starts``, where it is back exactly at its first value. If it moved less than
+    :data:`MEMORY_LEARNED` after its last start, the value is its memory at the end of
+    the last stretch that taught it more, and the note says so.
 
     :param run: the run.
     :return: the value (NaN where the law kept no memory: another law, no debug topic)
@@ -397,25 +406,35 @@ def final_compliance_memory(run: RunData) -> tuple[float, str]:
     kept = np.flatnonzero(np.isfinite(memory))
     if not kept.size:
         return math.nan, ''
-    # a new start: another law answered between two of its answers, or it restarted
+    # a new start: another law answered between two of its answers ...
     starts = np.diff(kept) > 1
-    counted = run.debug.values.get('restarts')
+    memory, stamps = memory[kept], stamps[kept]
+    counted = run.debug.values.get('memory_starts')
     if counted is not None and counted.dtype != object:
+        # ... or its count of starts moved
         count = counted[ordered][kept]
         starts |= (count[1:] != count[:-1]) & np.isfinite(count[1:])
-    begins = np.flatnonzero(starts) + 1
-    memory, stamps = memory[kept], stamps[kept]
-    if not begins.size:
+    else:
+        # (a bag from before the count, whose seed was the model: back at it exactly)
+        starts |= (memory[1:] == memory[0]) & (memory[:-1] != memory[0])
+    begins = [0, *(np.flatnonzero(starts) + 1).tolist()]
+    if len(begins) == 1:
         return float(memory[-1]), ''
-    last = int(begins[-1])
-    when = f'{(int(stamps[last]) - int(stamps[0])) * 1e-9:.3g} s after its first answer'
-    if np.all(memory[last:] == memory[last]):
-        return float(memory[last - 1]), (
-            f'compliance_memory_final_ratio: the law started again (a restart or a switch '
-            f'of law) {when} and learned nothing after it; the value is its memory before')
-    return float(memory[-1]), (
-        f'compliance_memory_final_ratio: the law started again (a restart or a switch of '
-        f'law) {when}; the value is what it learned after that')
+    ends = [*begins[1:], memory.size]
+    when = f'{(int(stamps[begins[-1]]) - int(stamps[0])) * 1e-9:.3g} s after its first answer'
+    taught = [k for k, (a, b) in enumerate(zip(begins, ends))
+              if np.max(np.abs(memory[a:b] - memory[a])) > MEMORY_LEARNED * abs(memory[a])]
+    if not taught or taught[-1] == len(begins) - 1:
+        return float(memory[-1]), (
+            f'compliance_memory_final_ratio: the memory started again (a restart, a switch '
+            f'of law or a retune) {when}; the value is what it learned after that')
+    stretch = taught[-1]
+    return float(memory[ends[stretch] - 1]), (
+        f'compliance_memory_final_ratio: the memory started again (a restart, a switch of '
+        f'law or a retune) {when} and learned less than {MEMORY_LEARNED:.1%} after it; the '
+        'value is its memory '
+        f'{(int(stamps[ends[stretch] - 1]) - int(stamps[0])) * 1e-9:.3g} s after the first '
+        'answer, before it started again')
 
 
 def bag_row(run: RunData, series: RunSeries,

@@ -131,9 +131,13 @@ class ComplianceEstimator:
         self.energy: Real = 0.0          # D [m^2/s^4]
         self.memory_moment: Real = 0.0   # N_m [rad m/s^2]
         self.memory_energy: Real = 0.0   # D_m [m^2/s^4]
+        #: how often the memory started from its seed again (a reset, or a retune that
+        #: did not carry it): a run's record tells what it learned since (``analyze``)
+        self.starts = 0
 
     def reset(self) -> None:
         """Forget everything learned, the memory too (back to its seed, ``s eta``)."""
+        self.starts += 1
         self.filtered = None
         self.moment = 0.0
         self.energy = 0.0
@@ -212,10 +216,13 @@ class ComplianceEstimator:
         ratio = self.vehicle.eta / old.vehicle.eta
         self.moment = old.moment * ratio if ratio != 1.0 else old.moment
         self.energy = old.energy
+        self.starts = old.starts
         if self.memory_time > 0.0:
             self.memory_moment = (old.memory_moment * ratio if ratio != 1.0
                                   else old.memory_moment)
             self.memory_energy = old.memory_energy
+        else:
+            self.starts += 1        # dropped: the model's eta from here on
         self.filtered = old.filtered if self.vehicle == old.vehicle else None
 
     def forget(self, where: Any) -> None:

@@ -950,6 +950,7 @@ class CgCompensatedLaw:
                                                     ' (as its scale over eta)'))
         else:
             restarted.append('compliance estimate')
+            self.estimator.starts = old.estimator.starts + 1
         source = old.state_filter or old.curvature_filter
         if self.state_filter is not None:
             if source is not None:
@@ -1041,9 +1042,9 @@ class CgCompensatedLaw:
         estimate over the model's ``eta``), ``compliance_memory`` (the memory it falls back
         to, over ``eta``), ``demand_capped`` (1: the command was held at
         the demand band, ``demand_limit``), ``approach_clipped`` (1: the CG's offset was
-        clipped, ``approach_heading``), ``restarts`` (how often the law restarted: a time
-        jump, stale inputs, a non-finite output; its memory went back to its seed). One
-        run (not a batch).
+        clipped, ``approach_heading``), ``memory_starts`` (how often the memory started
+        from its seed again: a restart of the law, or a retune that restarted the
+        estimate). One run (not a batch).
 
         :return: ``(name, value)`` pairs.
         """
@@ -1054,7 +1055,7 @@ class CgCompensatedLaw:
                 ('compliance_scale', one(self.estimator.compliance()) / self.vehicle.eta),
                 ('compliance_memory', one(self.estimator.memory()) / self.vehicle.eta),
                 ('demand_capped', one(self.capped)), ('approach_clipped', one(self.clipped)),
-                ('restarts', float(self.resets))]
+                ('memory_starts', float(self.estimator.starts))]
 
     def note_limited(self, cut: bool) -> None:
         """

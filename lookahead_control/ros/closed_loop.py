@@ -116,7 +116,8 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
 
     from lookahead_control.core.config import (check_params_file, ConfigError,
                                                load_ros_params)
-    from lookahead_control.core.param_schema import check_params
+    from lookahead_control.core.param_schema import (check_params, ROS_BUILTIN,
+                                                     ROS_BUILTIN_PREFIXES)
     from lookahead_control.core.params import ParameterError
     from lookahead_control.ros.controller_node import ALL_SPECS, core_from_params
     config = source_config_dir()
@@ -147,7 +148,10 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
             raise ToolError(f'--param {item}: {err}') from err
     given = ' and '.join([*([f'--controller {params_file}'] if params_file else []),
                           *(['--param'] if settings else [])])
-    merged = {k: v for k, v in merged.items() if k not in OWN_CONTROLLER_PARAMS}
+    # the node's own names: a /** section holds other nodes' too (the node skips them)
+    known = {spec.name for spec in ALL_SPECS}
+    merged = {k: v for k, v in merged.items() if k not in OWN_CONTROLLER_PARAMS and (
+        k in known or k in ROS_BUILTIN or k.startswith(ROS_BUILTIN_PREFIXES))}
     try:
         checked = check_params(merged, ALL_SPECS)
         every = {spec.name: spec.default for spec in ALL_SPECS}
@@ -166,13 +170,11 @@ def write_controller_params(params: dict[str, Any]) -> Path:
     """
     import tempfile
 
-    import yaml
-
-    from lookahead_control.ros.node_main import nested_params
+    from lookahead_control.ros.node_main import dump_params
     handle = tempfile.NamedTemporaryFile('w', suffix='.yaml', prefix='closed_loop_controller_',
                                          delete=False)
     with handle:
-        yaml.safe_dump({'/**': {'ros__parameters': nested_params(params)}}, handle)
+        dump_params({'/**': params}, handle)
     return Path(handle.name)
 
 

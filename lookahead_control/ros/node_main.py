@@ -144,6 +144,45 @@ def check_params_files(args: Sequence[str]) -> None:
                               '"<node>: {ros__parameters: {...}}")')
 
 
+class _Quoted(str):
+    """A string parameter value, written quoted."""
+
+
+class _ParamsDumper(yaml.SafeDumper):
+    """
+    Write params files with every string value quoted.
+
+    rcl's parser reads an unquoted ``y``, ``n``, ``1e5`` or ``inf`` as a bool or a
+    number, which PyYAML (YAML 1.1) writes unquoted as strings: a ``frame_id: "y"``
+    copied so reached the node as a bool and the node exited (dev-probe48).
+    """
+
+
+_ParamsDumper.add_representer(
+    _Quoted, lambda dumper, value: dumper.represent_scalar('tag:yaml.org,2002:str',
+                                                           str(value), style="'"))
+
+
+def _quoted(value: Any) -> Any:
+    if isinstance(value, str):
+        return _Quoted(value)
+    if isinstance(value, list):
+        return [_quoted(item) for item in value]
+    return value
+
+
+def dump_params(sections: dict[str, dict[str, Any]], handle: Any) -> None:
+    """
+    Write params-file sections, their string values quoted (as rcl must read them).
+
+    :param sections: section name (``/**``, ``controller`` ...) -> flat parameters.
+    :param handle: a text file open for writing.
+    """
+    yaml.dump({key: {'ros__parameters': nested_params({name: _quoted(value)
+                                                       for name, value in flat.items()})}
+               for key, flat in sections.items()}, handle, Dumper=_ParamsDumper)
+
+
 def nested_params(flat: dict[str, Any]) -> dict[str, Any]:
     """
     Return dotted parameter names as the nested mapping of a ROS params file.
@@ -191,8 +230,7 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                 handle = tempfile.NamedTemporaryFile(
                     'w', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)
                 with handle:
-                    yaml.safe_dump({key: {'ros__parameters': nested_params(flat)}
-                                    for key, flat in sections.items()}, handle)
+                    dump_params(sections, handle)
                 scratch.append(Path(handle.name))
                 out[i + 1] = handle.name
         elif flag == '-p' and ':=' in value and ':' not in value.partition(':=')[0]:
