@@ -239,58 +239,65 @@ def test_the_node_takes_the_seed_as_a_parameter_and_checks_it_with_the_memory(co
         node.destroy_node()
 
 
-def _memory_run(values, stamps=None, starts=None):
+def _memory_run(values, stamps=None, generation=None):
     from pathlib import Path
     from lookahead_control.bags.run_data import RunData, Samples
     values = np.asarray(values, dtype=float)
     stamps = np.arange(values.size, dtype=np.int64) * 10_000_000 if stamps is None else stamps
     order = np.arange(values.size, dtype=np.int64)
     fields = {'compliance_memory': values}
-    if starts is not None:
-        fields['memory_starts'] = np.asarray(starts, dtype=float)
+    if generation is not None:
+        fields['memory_generation'] = np.asarray(generation, dtype=float)
     return RunData(Path('bag'), debug=Samples(stamps, stamps, order, fields))
 
 
 def test_analyze_reports_the_memory_a_new_start_did_not_erase():
     from lookahead_control.analysis.bag_analysis import final_compliance_memory
     # learned to 1.6, then went on
-    assert final_compliance_memory(_memory_run([1.3, 1.4, 1.6], starts=[1, 1, 1])) == (
+    assert final_compliance_memory(_memory_run([1.3, 1.4, 1.6], generation=[1, 1, 1])) == (
         1.6, '')
     # dev-probe46: a switch to the paper law and back (answers without a memory between)
     # near the end put the memory back at its seed (1.3), and analyze reported the seed
     # as what the run taught: now the memory before, with a note
     value, note = final_compliance_memory(
-        _memory_run([1.3, 1.4, 1.6, math.nan, math.nan, 1.3, 1.3], starts=[1] * 7))
+        _memory_run([1.3, 1.4, 1.6, math.nan, math.nan, 1.3, 1.3], generation=[1] * 7))
     assert value == 1.6
     assert ('the memory started again (a restart, a switch of law or a retune) 0.05 s after '
-            'its first answer and learned less than 0.5% after it; the value is its memory '
-            '0.02 s after the first answer') in note
+            'its first answer; the value is its memory 0.02 s after its first answer, at '
+            'the end of the stretch that moved it most (0.3 against 0 after the last '
+            'start)') in note
     # dev-probe48: after the new start a straight moves it by 4.5e-5 (filter tails): not
     # what the run taught
     value, note = final_compliance_memory(
-        _memory_run([1.0, 1.1401, 1.0, 1.0000447], starts=[1, 1, 2, 2]))
-    assert value == 1.1401 and 'learned less than 0.5%' in note
+        _memory_run([1.0, 1.1401, 1.0, 1.0000447], generation=[1, 1, 2, 2]))
+    assert value == 1.1401 and 'moved it most' in note
     # dev-probe48: a retune that restarted the estimate (the same law answering on)
-    # counts a start too
+    # starts a new generation too
     value, note = final_compliance_memory(
-        _memory_run([1.0, 1.1029, 1.0, 1.0], starts=[1, 1, 2, 2]))
+        _memory_run([1.0, 1.1029, 1.0, 1.0], generation=[1, 1, 2, 2]))
     assert value == 1.1029
-    # learned again after the start: what it learned since, with a note
+    # dev-probe49: a restart 0.2 s before the end of a curve: the 8 s before it taught
+    # the memory 1.4163; the 0.2 s after, 1.2369 (the next run's first curve 8.3 cm
+    # seeded with it, 5.4 with the other)
     value, note = final_compliance_memory(
-        _memory_run([1.3, 1.6, 1.3, 1.35], starts=[0, 0, 1, 1]))
-    assert value == 1.35 and 'what it learned after that' in note
+        _memory_run([1.0, 1.3, 1.4163, 1.0, 1.2369], generation=[1, 1, 1, 2, 2]))
+    assert value == 1.4163
+    # learned as much again after the start: what it learned since, with a note
+    value, note = final_compliance_memory(
+        _memory_run([1.3, 1.6, 1.3, 1.65], generation=[0, 0, 1, 1]))
+    assert value == 1.65 and 'it learned most after that' in note
     # dev-probe47: a seed at the memory's range end (1.75): a memory learning back to
     # the clip is no new start (the first rule, 'back at the seed exactly', said it was)
     assert final_compliance_memory(
-        _memory_run([1.75, 1.748, 1.75, 1.75], starts=[1, 1, 1, 1])) == (1.75, '')
+        _memory_run([1.75, 1.748, 1.75, 1.75], generation=[1, 1, 1, 1])) == (1.75, '')
     # dev-probe47: the seed set at run time (1.0 -> 1.3, carried: 1.428), then a time
     # jump: the memory before the jump, not the new seed
     value, note = final_compliance_memory(
-        _memory_run([1.0, 1.37, 1.428, 1.3, 1.3], starts=[1, 1, 1, 2, 2]))
-    assert value == 1.428 and 'learned less than' in note
-    # a bag from before the count (its seed the model's 1): back at it exactly is a start
+        _memory_run([1.0, 1.37, 1.428, 1.3, 1.3], generation=[1, 1, 1, 2, 2]))
+    assert value == 1.428 and 'moved it most' in note
+    # a bag from before the number (its seed the model's 1): back at it exactly is a start
     value, note = final_compliance_memory(_memory_run([1.0, 1.2, 1.0, 1.0]))
-    assert value == 1.2 and 'learned less than' in note
+    assert value == 1.2 and 'moved it most' in note
     # in stamp order, not file order
     shuffled = _memory_run([1.6, 1.3, 1.4], np.array([30, 10, 20], dtype=np.int64))
     assert final_compliance_memory(shuffled) == (1.6, '')
@@ -299,32 +306,30 @@ def test_analyze_reports_the_memory_a_new_start_did_not_erase():
     assert math.isnan(final_compliance_memory(_memory_run([math.nan]))[0])
 
 
-def test_the_law_counts_the_memory_s_starts_on_debug():
+def test_the_memory_s_generation_changes_at_every_new_start():
     law = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams())
     turn = law_after_a_curve()[1]
     law.step(turn, None, 0.0)
-    before = dict(law.debug_values())['memory_starts']
+    seen = {dict(law.debug_values())['memory_generation']}
     law.step(turn, None, 5.0)                   # a time jump
+    seen.add(dict(law.debug_values())['memory_generation'])
     law.step(turn._replace(v_y=math.nan), None, DT)
-    assert dict(law.debug_values())['memory_starts'] == before + 2
+    seen.add(dict(law.debug_values())['memory_generation'])
+    assert len(seen) == 3
     # dev-probe48: a retune that restarts the estimate (another compliance_filter)
-    # started the memory again unseen; one that carries it does not count
-    for settings, more in ((LaneKeepingParams(integral_gain=0.4), 0),
-                           (LaneKeepingParams(compliance_filter=0.31), 1),
-                           (LaneKeepingParams(compliance_filter=0.31, compliance_memory=0.0),
-                            1)):
+    # started the memory again unseen; one that carries it keeps its number
+    for settings, new_start in ((LaneKeepingParams(integral_gain=0.4), False),
+                                (LaneKeepingParams(compliance_filter=0.31), True),
+                                (LaneKeepingParams(compliance_memory=0.0), True)):
         old = law_after_a_curve()[0]
-        counted = old.estimator.starts
         new = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
         new.reset()
         new.take_over(old)
-        assert dict(new.debug_values())['memory_starts'] == counted + more, settings
-    # memory dropped by a retune (compliance_memory 0, the estimate carried): a start
-    old = law_after_a_curve()[0]
-    new = CgCompensatedLaw(VEHICLE, ControllerParams(), LaneKeepingParams(compliance_memory=0.0))
-    new.reset()
-    new.take_over(old)
-    assert new.estimator.starts == old.estimator.starts + 1
+        assert (new.estimator.generation != old.estimator.generation) == new_start, settings
+    # dev-probe49: a law built anew (a switch of law away and back, no answer between)
+    # numbers its memory apart from the old one's (a count began at 1 again in both)
+    assert CgCompensatedLaw(VEHICLE, ControllerParams()).estimator.generation != \
+        law.estimator.generation
 
 
 @pytest.mark.parametrize('argv, said', [
@@ -424,13 +429,14 @@ def test_a_run_seeded_on_the_command_line_starts_from_the_seed(tmp_path):
     assert row['compliance_memory_final_ratio'] == pytest.approx(memory[-1], rel=1e-12)
 
 
-def _node_reads(path):
-    """Return the controller node's parameters as rcl reads them from one params file."""
+def _node_reads(*paths):
+    """Return the controller node's parameters as rcl reads them from params files."""
     import rclpy
     from rclpy.context import Context
     from lookahead_control.ros.controller_node import ALL_SPECS, ControllerNode
     ctx = Context()
-    rclpy.init(args=['--ros-args', '--params-file', str(path)], context=ctx)
+    files = [arg for path in paths for arg in ('--params-file', str(path))]
+    rclpy.init(args=['--ros-args', *files], context=ctx)
     try:
         node = ControllerNode(context=ctx)
         try:
@@ -481,3 +487,68 @@ def test_a_converted_params_file_keeps_its_strings(tmp_path, text):
         for path in scratch:
             path.unlink()
     assert read['frame_id'] == text and read['vehicle.mass'] == 1500.0
+
+
+@pytest.mark.parametrize('layout', [
+    # dev-probe49: the file's node section before its /**: by hand rcl takes the node
+    # section's 6.0 (the package's files opened /** first); closed_loop took 5.0
+    'controller:\n  ros__parameters:\n    lane_keeping:\n      natural_frequency: 6.0\n'
+    '/**:\n  ros__parameters:\n    lane_keeping:\n      natural_frequency: 5.0\n',
+    '/**:\n  ros__parameters:\n    lane_keeping:\n      natural_frequency: 5.0\n'
+    'controller:\n  ros__parameters:\n    lane_keeping:\n      natural_frequency: 6.0\n',
+    '/**/controller:\n  ros__parameters:\n    vehicle:\n      mass: 1600.0\n'
+    '/controller:\n  ros__parameters:\n    vehicle:\n      mass: 1700.0\n'
+    '/**:\n  ros__parameters:\n    vehicle:\n      mass: 1500.0\n'
+    '    frame_id: base_link\n',
+])
+def test_closed_loop_gives_the_node_what_a_hand_run_with_the_file_would(tmp_path, layout):
+    from lookahead_control.ros import closed_loop
+    mine = tmp_path / 'car.yaml'
+    mine.write_text(layout)
+    config = closed_loop.source_config_dir()
+    by_hand = _node_reads(config / 'vehicle.yaml', config / 'controller.yaml', mine)
+    params, _ = closed_loop.controller_settings(mine, [], 'cg_compensated', 'paper')
+    written = closed_loop.write_controller_params(params)
+    try:
+        merged = _node_reads(written)
+    finally:
+        written.unlink()
+    own = set(closed_loop.OWN_CONTROLLER_PARAMS)
+    differ = {name: (by_hand[name], merged[name]) for name in by_hand
+              if name not in own and by_hand[name] != merged[name]}
+    assert differ == {}
+
+
+def test_a_converted_copy_keeps_the_order_of_its_sections(tmp_path):
+    # dev-probe49: the copy sorted its sections, '/**' before 'controller': the node ran
+    # the node section's frame_id where the original gave the later '/**' one's
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    mine = tmp_path / 'car.yaml'
+    mine.write_text('controller:\n  ros__parameters:\n    frame_id: from_controller\n'
+                    '/**:\n  ros__parameters:\n    frame_id: from_wildcard\n'
+                    '    vehicle:\n      mass: 1500\n')
+    scratch = []
+    args = checked_arguments(['--params-file', str(mine)], 'controller', ALL_SPECS, scratch)
+    try:
+        assert args[1] != str(mine)
+        assert _node_reads(args[1])['frame_id'] == 'from_wildcard'
+    finally:
+        for path in scratch:
+            path.unlink()
+
+
+def test_a_name_and_its_prefix_in_one_file_is_one_line_and_no_copy_left(tmp_path):
+    # dev-probe49: foo: 1 beside foo.bar: 2 (another node's, in /**) with a conversion:
+    # a traceback from the copy, and an empty copy left behind
+    from lookahead_control.core.config import ConfigError
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    mine = tmp_path / 'car.yaml'
+    mine.write_text('/**:\n  ros__parameters:\n    foo: 1\n    foo.bar: 2\n'
+                    '    vehicle:\n      mass: 1500\n')
+    scratch = []
+    with pytest.raises(ConfigError, match=r"car.yaml: foo.bar: 'foo' is also a parameter"):
+        checked_arguments(['--params-file', str(mine)], 'controller', ALL_SPECS, scratch)
+    assert len(scratch) == 1
+    scratch[0].unlink()

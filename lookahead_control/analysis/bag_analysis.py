@@ -375,24 +375,20 @@ def _assumptions(run: RunData) -> list[str]:
             if missing else [])
 
 
-#: a stretch of a run whose compliance memory moved less than this share from where it
-#: started taught nothing to carry to the next run (a straight's filter tails move it by
-#: 1e-5 to 1e-4; a curve by percents)
-MEMORY_LEARNED = 5e-3
-
-
 def final_compliance_memory(run: RunData) -> tuple[float, str]:
     """
     Return the default law's compliance memory at the end of a run, to seed the next.
 
     The memory (``~/debug`` ``compliance_memory``, over the model's ``eta``) at the law's
-    last answer. It starts again from its seed where its ``~/debug`` ``memory_starts``
-    counts up (a restart of the law: a time jump, stale inputs, a bad input,
-    deactivate / activate; a retune that restarted the estimate), where another law
-    answered between two of its answers (a switch away and back), and, in bags without
-    ``memory_starts``, where it is back exactly at its first value. If it moved less than
-    :data:`MEMORY_LEARNED` after its last start, the value is its memory at the end of
-    the last stretch that taught it more, and the note says so.
+    last answer. It starts again from its seed where its ``~/debug``
+    ``memory_generation`` changes (a restart of the law: a time jump, stale inputs, a bad
+    input; a new law after a switch away and back; a retune that restarted the
+    estimate), where another law answered between two of its answers, and, in bags
+    without ``memory_generation``, where it is back exactly at its first value. The car
+    is the same through a run: of its stretches the one that moved the memory farthest
+    from where it started taught it most (a restart late in a curve leaves a stretch
+    that learned for a fraction of a second); the value is that stretch's last, and the
+    note says so where that is not the run's end.
 
     :param run: the run.
     :return: the value (NaN where the law kept no memory: another law, no debug topic)
@@ -409,32 +405,33 @@ def final_compliance_memory(run: RunData) -> tuple[float, str]:
     # a new start: another law answered between two of its answers ...
     starts = np.diff(kept) > 1
     memory, stamps = memory[kept], stamps[kept]
-    counted = run.debug.values.get('memory_starts')
-    if counted is not None and counted.dtype != object:
-        # ... or its count of starts moved
-        count = counted[ordered][kept]
-        starts |= (count[1:] != count[:-1]) & np.isfinite(count[1:])
+    numbered = run.debug.values.get('memory_generation')
+    if numbered is not None and numbered.dtype != object:
+        # ... or its number changed
+        number = numbered[ordered][kept]
+        starts |= (number[1:] != number[:-1]) & np.isfinite(number[1:])
     else:
-        # (a bag from before the count, whose seed was the model: back at it exactly)
+        # (a bag from before the number, whose seed was the model: back at it exactly)
         starts |= (memory[1:] == memory[0]) & (memory[:-1] != memory[0])
     begins = [0, *(np.flatnonzero(starts) + 1).tolist()]
     if len(begins) == 1:
         return float(memory[-1]), ''
     ends = [*begins[1:], memory.size]
-    when = f'{(int(stamps[begins[-1]]) - int(stamps[0])) * 1e-9:.3g} s after its first answer'
-    taught = [k for k, (a, b) in enumerate(zip(begins, ends))
-              if np.max(np.abs(memory[a:b] - memory[a])) > MEMORY_LEARNED * abs(memory[a])]
-    if not taught or taught[-1] == len(begins) - 1:
+    moved = [float(np.max(np.abs(memory[a:b] - memory[a]))) for a, b in zip(begins, ends)]
+    # the farthest; of equals, the later
+    best = max(range(len(moved)), key=lambda k: (moved[k], k))
+
+    def at(index: int) -> str:
+        return f'{(int(stamps[index]) - int(stamps[0])) * 1e-9:.3g} s after its first answer'
+    if best == len(moved) - 1:
         return float(memory[-1]), (
             f'compliance_memory_final_ratio: the memory started again (a restart, a switch '
-            f'of law or a retune) {when}; the value is what it learned after that')
-    stretch = taught[-1]
-    return float(memory[ends[stretch] - 1]), (
+            f'of law or a retune) {at(begins[-1])}; it learned most after that')
+    return float(memory[ends[best] - 1]), (
         f'compliance_memory_final_ratio: the memory started again (a restart, a switch of '
-        f'law or a retune) {when} and learned less than {MEMORY_LEARNED:.1%} after it; the '
-        'value is its memory '
-        f'{(int(stamps[ends[stretch] - 1]) - int(stamps[0])) * 1e-9:.3g} s after the first '
-        'answer, before it started again')
+        f'law or a retune) {at(begins[-1])}; the value is its memory {at(ends[best] - 1)}, '
+        f'at the end of the stretch that moved it most ({moved[best]:.3g} against '
+        f'{moved[-1]:.3g} after the last start)')
 
 
 def bag_row(run: RunData, series: RunSeries,

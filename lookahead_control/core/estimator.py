@@ -54,6 +54,7 @@ Everything works on floats and on numpy arrays (a batch).
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any, Optional
 
@@ -64,6 +65,9 @@ from lookahead_control.core.params import VehicleParams
 import numpy as np
 
 GRAVITY = 9.80665
+#: numbers for the memory's starts, unique in a process: a law built anew (a switch of
+#: ``law`` away and back) starts its memory under another number than the old law's
+_GENERATIONS = itertools.count(1)
 #: highest load ratio ``|a| / (mu g)`` the shape is evaluated at (beyond it the tyre
 #: saturates; the shape is 1.79, its slope 4.6)
 MAX_LOAD = 0.9
@@ -131,13 +135,14 @@ class ComplianceEstimator:
         self.energy: Real = 0.0          # D [m^2/s^4]
         self.memory_moment: Real = 0.0   # N_m [rad m/s^2]
         self.memory_energy: Real = 0.0   # D_m [m^2/s^4]
-        #: how often the memory started from its seed again (a reset, or a retune that
-        #: did not carry it): a run's record tells what it learned since (``analyze``)
-        self.starts = 0
+        #: a number that changes whenever the memory starts from its seed again (a
+        #: reset, a new law, a retune that did not carry it): a run's record then tells
+        #: what it learned since (``analyze``)
+        self.generation = next(_GENERATIONS)
 
     def reset(self) -> None:
         """Forget everything learned, the memory too (back to its seed, ``s eta``)."""
-        self.starts += 1
+        self.generation = next(_GENERATIONS)
         self.filtered = None
         self.moment = 0.0
         self.energy = 0.0
@@ -216,13 +221,13 @@ class ComplianceEstimator:
         ratio = self.vehicle.eta / old.vehicle.eta
         self.moment = old.moment * ratio if ratio != 1.0 else old.moment
         self.energy = old.energy
-        self.starts = old.starts
+        self.generation = old.generation
         if self.memory_time > 0.0:
             self.memory_moment = (old.memory_moment * ratio if ratio != 1.0
                                   else old.memory_moment)
             self.memory_energy = old.memory_energy
         else:
-            self.starts += 1        # dropped: the model's eta from here on
+            self.generation = next(_GENERATIONS)    # dropped: the model's eta from here on
         self.filtered = old.filtered if self.vehicle == old.vehicle else None
 
     def forget(self, where: Any) -> None:

@@ -949,8 +949,7 @@ class CgCompensatedLaw:
             carried.append('compliance estimate' + ('' if same_vehicle else
                                                     ' (as its scale over eta)'))
         else:
-            restarted.append('compliance estimate')
-            self.estimator.starts = old.estimator.starts + 1
+            restarted.append('compliance estimate')     # (its memory under a new number)
         source = old.state_filter or old.curvature_filter
         if self.state_filter is not None:
             if source is not None:
@@ -1042,9 +1041,9 @@ class CgCompensatedLaw:
         estimate over the model's ``eta``), ``compliance_memory`` (the memory it falls back
         to, over ``eta``), ``demand_capped`` (1: the command was held at
         the demand band, ``demand_limit``), ``approach_clipped`` (1: the CG's offset was
-        clipped, ``approach_heading``), ``memory_starts`` (how often the memory started
-        from its seed again: a restart of the law, or a retune that restarted the
-        estimate). One run (not a batch).
+        clipped, ``approach_heading``), ``memory_generation`` (a number that changes
+        whenever the memory starts from its seed again: a restart, a new law, a retune
+        that restarted the estimate). One run (not a batch).
 
         :return: ``(name, value)`` pairs.
         """
@@ -1055,7 +1054,7 @@ class CgCompensatedLaw:
                 ('compliance_scale', one(self.estimator.compliance()) / self.vehicle.eta),
                 ('compliance_memory', one(self.estimator.memory()) / self.vehicle.eta),
                 ('demand_capped', one(self.capped)), ('approach_clipped', one(self.clipped)),
-                ('memory_starts', float(self.estimator.starts))]
+                ('memory_generation', float(self.estimator.generation))]
 
     def note_limited(self, cut: bool) -> None:
         """

@@ -114,8 +114,8 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
     """
     import yaml
 
-    from lookahead_control.core.config import (check_params_file, ConfigError,
-                                               load_ros_params)
+    from lookahead_control.core.config import (applies_to, check_params_file, ConfigError,
+                                               load_ros_params, node_sections)
     from lookahead_control.core.param_schema import (check_params, ROS_BUILTIN,
                                                      ROS_BUILTIN_PREFIXES)
     from lookahead_control.core.params import ParameterError
@@ -129,7 +129,14 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
             raise ToolError(f'--controller {params_file}: no such file')
         try:
             check_params_file(params_file, 'controller', ALL_SPECS)
-            mine = load_ros_params(params_file, 'controller')
+            # rcl applies a section in the order it first met its name over all the
+            # files: the package's open '/**', so the file's '/**' sections come before
+            # its others whatever its own order (dev-probe49)
+            sections = [(key, flat or {}) for key, flat in node_sections(params_file)
+                        if applies_to(key, 'controller')]
+            mine: dict[str, Any] = {}
+            for key, flat in sorted(sections, key=lambda item: item[0] != '/**'):
+                mine.update(flat)
         except ConfigError as err:
             raise ToolError(f'--controller {err}') from err
         dropped = [name for name in mine if name in OWN_CONTROLLER_PARAMS]
@@ -173,9 +180,14 @@ def write_controller_params(params: dict[str, Any]) -> Path:
     from lookahead_control.ros.node_main import dump_params
     handle = tempfile.NamedTemporaryFile('w', suffix='.yaml', prefix='closed_loop_controller_',
                                          delete=False)
-    with handle:
-        dump_params({'/**': params}, handle)
-    return Path(handle.name)
+    path = Path(handle.name)
+    try:
+        with handle:
+            dump_params({'/**': params}, handle)
+    except BaseException:
+        path.unlink(missing_ok=True)
+        raise
+    return path
 
 
 def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:

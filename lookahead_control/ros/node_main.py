@@ -178,9 +178,12 @@ def dump_params(sections: dict[str, dict[str, Any]], handle: Any) -> None:
     :param sections: section name (``/**``, ``controller`` ...) -> flat parameters.
     :param handle: a text file open for writing.
     """
+    # in the sections' order: rcl applies them in it (sorted, '/**' came before
+    # 'controller' and won where the file had it after, dev-probe49)
     yaml.dump({key: {'ros__parameters': nested_params({name: _quoted(value)
                                                        for name, value in flat.items()})}
-               for key, flat in sections.items()}, handle, Dumper=_ParamsDumper)
+               for key, flat in sections.items()}, handle, Dumper=_ParamsDumper,
+              sort_keys=False)
 
 
 def nested_params(flat: dict[str, Any]) -> dict[str, Any]:
@@ -196,6 +199,12 @@ def nested_params(flat: dict[str, Any]) -> dict[str, Any]:
         branch = tree
         for head in heads:
             branch = branch.setdefault(head, {})
+            if not isinstance(branch, dict):
+                raise ConfigError(f'{name}: {head!r} is also a parameter of its own '
+                                  'there; a params file cannot hold both')
+        if isinstance(branch.get(last), dict):
+            raise ConfigError(f'{name}: also the prefix of other parameters; a params '
+                              'file cannot hold both')
         branch[last] = value
     return tree
 
@@ -229,9 +238,12 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                    for key, flat in sections.items() for name, v in flat.items()):
                 handle = tempfile.NamedTemporaryFile(
                     'w', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)
+                scratch.append(Path(handle.name))   # deleted even if writing it fails
                 with handle:
-                    dump_params(sections, handle)
-                scratch.append(Path(handle.name))
+                    try:
+                        dump_params(sections, handle)
+                    except ConfigError as err:
+                        raise ConfigError(f'{value}: {err}') from err
                 out[i + 1] = handle.name
         elif flag == '-p' and ':=' in value and ':' not in value.partition(':=')[0]:
             # (``-p node:name:=value`` is for another node)
