@@ -239,7 +239,7 @@ def test_the_node_takes_the_seed_as_a_parameter_and_checks_it_with_the_memory(co
         node.destroy_node()
 
 
-def _memory_run(values, stamps=None, generation=None):
+def _memory_run(values, stamps=None, generation=None, weight=None):
     from pathlib import Path
     from lookahead_control.bags.run_data import RunData, Samples
     values = np.asarray(values, dtype=float)
@@ -248,62 +248,78 @@ def _memory_run(values, stamps=None, generation=None):
     fields = {'compliance_memory': values}
     if generation is not None:
         fields['memory_generation'] = np.asarray(generation, dtype=float)
+    if weight is not None:
+        fields['memory_weight'] = np.asarray(weight, dtype=float)
     return RunData(Path('bag'), debug=Samples(stamps, stamps, order, fields))
 
 
 def test_analyze_reports_the_memory_a_new_start_did_not_erase():
     from lookahead_control.analysis.bag_analysis import final_compliance_memory
+
+    def final(values, generation, weight):
+        return final_compliance_memory(_memory_run(values, generation=generation,
+                                                   weight=weight))
     # learned to 1.6, then went on
-    assert final_compliance_memory(_memory_run([1.3, 1.4, 1.6], generation=[1, 1, 1])) == (
-        1.6, '')
+    assert final([1.3, 1.4, 1.6], [1, 1, 1], [0.0, 0.5, 0.95]) == (1.6, '')
     # dev-probe46: a switch to the paper law and back (answers without a memory between)
     # near the end put the memory back at its seed (1.3), and analyze reported the seed
     # as what the run taught: now the memory before, with a note
-    value, note = final_compliance_memory(
-        _memory_run([1.3, 1.4, 1.6, math.nan, math.nan, 1.3, 1.3], generation=[1] * 7))
+    value, note = final([1.3, 1.4, 1.6, math.nan, math.nan, 1.3, 1.3], [1] * 7,
+                        [0.0, 0.5, 0.95, math.nan, math.nan, 0.0, 0.0])
     assert value == 1.6
     assert ('the memory started again (a restart, a switch of law or a retune) 0.05 s after '
             'its first answer; the value is its memory 0.02 s after its first answer, at '
-            'the end of the stretch that moved it most (0.3 against 0 after the last '
-            'start)') in note
+            'the end of the stretch that learned most (0.95 of it learned, 0.00 after the '
+            'last start)') in note
     # dev-probe48: after the new start a straight moves it by 4.5e-5 (filter tails): not
     # what the run taught
-    value, note = final_compliance_memory(
-        _memory_run([1.0, 1.1401, 1.0, 1.0000447], generation=[1, 1, 2, 2]))
-    assert value == 1.1401 and 'moved it most' in note
+    assert final([1.0, 1.1401, 1.0, 1.0000447], [1, 1, 2, 2], [0, 0.9, 0, 0.001])[0] == 1.1401
     # dev-probe48: a retune that restarted the estimate (the same law answering on)
     # starts a new generation too
-    value, note = final_compliance_memory(
-        _memory_run([1.0, 1.1029, 1.0, 1.0], generation=[1, 1, 2, 2]))
-    assert value == 1.1029
+    assert final([1.0, 1.1029, 1.0, 1.0], [1, 1, 2, 2], [0, 0.8, 0, 0])[0] == 1.1029
     # dev-probe49: a restart 0.2 s before the end of a curve: the 8 s before it taught
-    # the memory 1.4163; the 0.2 s after, 1.2369 (the next run's first curve 8.3 cm
-    # seeded with it, 5.4 with the other)
-    value, note = final_compliance_memory(
-        _memory_run([1.0, 1.3, 1.4163, 1.0, 1.2369], generation=[1, 1, 1, 2, 2]))
-    assert value == 1.4163
-    # learned as much again after the start: what it learned since, with a note
-    value, note = final_compliance_memory(
-        _memory_run([1.3, 1.6, 1.3, 1.65], generation=[0, 0, 1, 1]))
-    assert value == 1.65 and 'it learned most after that' in note
+    # the memory 1.4163; the 0.2 s after, 1.23 (the next run's first curve 8.3 cm
+    # seeded with it, 5.4 with the other), its weight already 0.52
+    assert final([1.0, 1.3, 1.4163, 1.0, 1.2319], [1, 1, 1, 2, 2],
+                 [0, 0.6, 0.95, 0, 0.52])[0] == 1.4163
+    # dev-probe50: a slide on a wet road taught the first stretch 1.47 (moved most); a
+    # gentle curve of 19 s after a restart on the straight taught 1.086 (the run without
+    # the restart ends at 1.15): the later stretch that learned enough, not the slide
+    value, note = final([1.0, 1.4714, 1.0, 1.086], [1, 1, 2, 2], [0, 0.97, 0, 0.95])
+    assert value == 1.086 and 'learned enough after it' in note
     # dev-probe47: a seed at the memory's range end (1.75): a memory learning back to
     # the clip is no new start (the first rule, 'back at the seed exactly', said it was)
-    assert final_compliance_memory(
-        _memory_run([1.75, 1.748, 1.75, 1.75], generation=[1, 1, 1, 1])) == (1.75, '')
+    assert final([1.75, 1.748, 1.75, 1.75], [1, 1, 1, 1], [0, 0.5, 0.6, 0.7]) == (1.75, '')
     # dev-probe47: the seed set at run time (1.0 -> 1.3, carried: 1.428), then a time
     # jump: the memory before the jump, not the new seed
-    value, note = final_compliance_memory(
-        _memory_run([1.0, 1.37, 1.428, 1.3, 1.3], generation=[1, 1, 1, 2, 2]))
-    assert value == 1.428 and 'moved it most' in note
-    # a bag from before the number (its seed the model's 1): back at it exactly is a start
-    value, note = final_compliance_memory(_memory_run([1.0, 1.2, 1.0, 1.0]))
-    assert value == 1.2 and 'moved it most' in note
+    assert final([1.0, 1.37, 1.428, 1.3, 1.3], [1, 1, 1, 2, 2],
+                 [0, 0.8, 0.9, 0, 0])[0] == 1.428
+    # bags before the weight: the last stretch that moved the memory by 0.5 %
+    value, note = final([1.0, 1.1401, 1.0, 1.0000447], [1, 1, 2, 2], None)
+    assert value == 1.1401 and 'moved it by more than 0.5 %' in note
+    # ... and before the number (its seed the model's 1): back at it exactly is a start
+    assert final([1.0, 1.2, 1.0, 1.0], None, None)[0] == 1.2
     # in stamp order, not file order
     shuffled = _memory_run([1.6, 1.3, 1.4], np.array([30, 10, 20], dtype=np.int64))
     assert final_compliance_memory(shuffled) == (1.6, '')
     # never learned (a straight): the seed, no note; no memory at all: NaN
     assert final_compliance_memory(_memory_run([1.0, 1.0])) == (1.0, '')
     assert math.isnan(final_compliance_memory(_memory_run([math.nan]))[0])
+
+
+def test_the_memory_s_weight_by_hand():
+    est = seeded(1.4)
+    assert est.memory_weight() == 0.0
+    v_y, r = cornering(0.7, 30.0, 3.0)
+    for _ in range(300):
+        est.update(state(v_y, r), DT, True)
+    assert est.memory_weight() == pytest.approx(
+        est.memory_energy / (est.memory_energy + PRIOR * PRIOR), rel=1e-15)
+    assert 0.5 < est.memory_weight() < 1.0      # 3 s of 3 m/s^2 outweighs the seed
+    assert seeded(1.0, memory_time=0.0).memory_weight() == 0.0
+    law = law_after_a_curve()[0]
+    assert dict(law.debug_values())['memory_weight'] == pytest.approx(
+        law.estimator.memory_weight(), rel=1e-15)
 
 
 def test_the_memory_s_generation_changes_at_every_new_start():
@@ -552,3 +568,36 @@ def test_a_name_and_its_prefix_in_one_file_is_one_line_and_no_copy_left(tmp_path
         checked_arguments(['--params-file', str(mine)], 'controller', ALL_SPECS, scratch)
     assert len(scratch) == 1
     scratch[0].unlink()
+
+
+def test_a_restart_late_in_a_curve_leaves_analyze_the_memory_before_it():
+    # the run the probes drove (tyres 30 % softer, 37 m/s, two curves): a restart 0.2 s
+    # before the end, in the second arc (stale inputs, say): the memory before it, not
+    # the 0.2 s after it (1.23: halfway from the seed, its weight 0.52)
+    from pathlib import Path
+    from lookahead_control.analysis.bag_analysis import final_compliance_memory
+    from lookahead_control.bags.run_data import RunData, Samples
+    vehicle = load_vehicle(None)
+    soft = replace(vehicle, c_f=0.7 * vehicle.c_f, c_r=0.7 * vehicle.c_r)
+    records = []
+
+    class Restarted(CgCompensatedLaw):
+        time = 0.0
+
+        def step(self, state, preview, dt):
+            Restarted.time += dt
+            if abs(Restarted.time - 19.8) < 0.0025:
+                self.reset()
+            out = super().step(state, preview, dt)
+            records.append(dict(self.debug_values()))
+            return out
+    law = Restarted(vehicle, ControllerParams())
+    run(two_curves(6.0), vehicle, law, PlantParams(model='nonlinear'), dt=0.005,
+        initial_speed=37.0, plant_vehicle=soft, delay=0.02, preview_distance=100.0)
+    stamps = np.arange(len(records), dtype=np.int64) * 5_000_000
+    fields = {name: np.array([r[name] for r in records])
+              for name in ('compliance_memory', 'memory_generation', 'memory_weight')}
+    assert fields['compliance_memory'][-1] < 1.3          # the last stretch's
+    value, note = final_compliance_memory(
+        RunData(Path('bag'), debug=Samples(stamps, stamps, np.arange(stamps.size), fields)))
+    assert value == pytest.approx(1.416, abs=0.002) and 'learned most' in note

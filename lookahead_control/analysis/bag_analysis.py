@@ -375,6 +375,13 @@ def _assumptions(run: RunData) -> list[str]:
             if missing else [])
 
 
+#: a stretch whose memory ended learned at least this much (``memory_weight``: the
+#: memory is then within a tenth of the way from its seed to what the curves taught) is
+#: taken over an earlier one. Half (the curves weighing as much as the seed) was
+#: reached 0.2 s into a 3.4 m/s^2 curve, halfway from the seed (dev-probe50)
+MEMORY_LEARNED = 0.9
+
+
 def final_compliance_memory(run: RunData) -> tuple[float, str]:
     """
     Return the default law's compliance memory at the end of a run, to seed the next.
@@ -384,11 +391,13 @@ def final_compliance_memory(run: RunData) -> tuple[float, str]:
     ``memory_generation`` changes (a restart of the law: a time jump, stale inputs, a bad
     input; a new law after a switch away and back; a retune that restarted the
     estimate), where another law answered between two of its answers, and, in bags
-    without ``memory_generation``, where it is back exactly at its first value. The car
-    is the same through a run: of its stretches the one that moved the memory farthest
-    from where it started taught it most (a restart late in a curve leaves a stretch
-    that learned for a fraction of a second); the value is that stretch's last, and the
-    note says so where that is not the run's end.
+    without ``memory_generation``, where it is back exactly at its first value. Of the
+    stretches between, the last whose memory ended learned at least
+    :data:`MEMORY_LEARNED` (``~/debug`` ``memory_weight``) gives the value, else the one
+    that ended learned most (a restart late in a curve leaves a stretch that learned for
+    a fraction of a second); the note says so where that is not the run's end. Without
+    ``memory_weight`` (older bags), the last stretch that moved the memory by more than
+    0.5 %.
 
     :param run: the run.
     :return: the value (NaN where the law kept no memory: another law, no debug topic)
@@ -402,13 +411,16 @@ def final_compliance_memory(run: RunData) -> tuple[float, str]:
     kept = np.flatnonzero(np.isfinite(memory))
     if not kept.size:
         return math.nan, ''
+
+    def field(name: str) -> Optional[Array]:
+        column = run.debug.values.get(name)
+        return None if column is None or column.dtype == object else column[ordered][kept]
     # a new start: another law answered between two of its answers ...
     starts = np.diff(kept) > 1
     memory, stamps = memory[kept], stamps[kept]
-    numbered = run.debug.values.get('memory_generation')
-    if numbered is not None and numbered.dtype != object:
+    number = field('memory_generation')
+    if number is not None:
         # ... or its number changed
-        number = numbered[ordered][kept]
         starts |= (number[1:] != number[:-1]) & np.isfinite(number[1:])
     else:
         # (a bag from before the number, whose seed was the model: back at it exactly)
@@ -417,21 +429,30 @@ def final_compliance_memory(run: RunData) -> tuple[float, str]:
     if len(begins) == 1:
         return float(memory[-1]), ''
     ends = [*begins[1:], memory.size]
-    moved = [float(np.max(np.abs(memory[a:b] - memory[a]))) for a, b in zip(begins, ends)]
-    # the farthest; of equals, the later
-    best = max(range(len(moved)), key=lambda k: (moved[k], k))
+    weight = field('memory_weight')
+    if weight is not None:
+        learned = [float(weight[b - 1]) if np.isfinite(weight[b - 1]) else 0.0 for b in ends]
+        enough = [k for k, w in enumerate(learned) if w >= MEMORY_LEARNED]
+        best = enough[-1] if enough else max(range(len(learned)),
+                                             key=lambda k: (learned[k], k))
+        how = (f'learned most ({learned[best]:.2f} of it learned, {learned[-1]:.2f} after '
+               'the last start)')
+    else:
+        moved = [k for k, (a, b) in enumerate(zip(begins, ends))
+                 if np.max(np.abs(memory[a:b] - memory[a])) > 5e-3 * abs(memory[a])]
+        best = moved[-1] if moved else len(begins) - 1
+        how = 'moved it by more than 0.5 %, the last to'
 
     def at(index: int) -> str:
         return f'{(int(stamps[index]) - int(stamps[0])) * 1e-9:.3g} s after its first answer'
-    if best == len(moved) - 1:
+    if best == len(begins) - 1:
         return float(memory[-1]), (
             f'compliance_memory_final_ratio: the memory started again (a restart, a switch '
-            f'of law or a retune) {at(begins[-1])}; it learned most after that')
+            f'of law or a retune) {at(begins[-1])} and learned enough after it')
     return float(memory[ends[best] - 1]), (
         f'compliance_memory_final_ratio: the memory started again (a restart, a switch of '
         f'law or a retune) {at(begins[-1])}; the value is its memory {at(ends[best] - 1)}, '
-        f'at the end of the stretch that moved it most ({moved[best]:.3g} against '
-        f'{moved[-1]:.3g} after the last start)')
+        f'at the end of the stretch that {how}')
 
 
 def bag_row(run: RunData, series: RunSeries,

@@ -276,6 +276,17 @@ class ComplianceEstimator:
             self.memory_energy + prior)
         return xp.clip(estimate, eta / self.memory_ratio, eta * self.memory_ratio)
 
+    def memory_weight(self) -> Real:
+        """
+        Return how much of the memory is learned rather than its seed.
+
+        :return: ``D_m / (D_m + p^2)`` in ``[0, 1)``: 0 before any loaded driving, 1/2
+            once the curves it learned weigh as much as the seed (0 without a memory).
+        """
+        if self.memory_time <= 0.0:
+            return 0.0 * self.memory_energy
+        return self.memory_energy / (self.memory_energy + self.prior * self.prior)
+
     def at(self, accel: Real) -> tuple[Real, Real]:
         """
         Return the secant and tangent compliance at a lateral acceleration [s^2/m].

@@ -1043,7 +1043,8 @@ class CgCompensatedLaw:
         the demand band, ``demand_limit``), ``approach_clipped`` (1: the CG's offset was
         clipped, ``approach_heading``), ``memory_generation`` (a number that changes
         whenever the memory starts from its seed again: a restart, a new law, a retune
-        that restarted the estimate). One run (not a batch).
+        that restarted the estimate), ``memory_weight`` (how much of the memory is
+        learned rather than its seed, 0-1). One run (not a batch).
 
         :return: ``(name, value)`` pairs.
         """
@@ -1054,7 +1055,8 @@ class CgCompensatedLaw:
                 ('compliance_scale', one(self.estimator.compliance()) / self.vehicle.eta),
                 ('compliance_memory', one(self.estimator.memory()) / self.vehicle.eta),
                 ('demand_capped', one(self.capped)), ('approach_clipped', one(self.clipped)),
-                ('memory_generation', float(self.estimator.generation))]
+                ('memory_generation', float(self.estimator.generation)),
+                ('memory_weight', one(self.estimator.memory_weight()))]
 
     def note_limited(self, cut: bool) -> None:
         """
