@@ -102,8 +102,8 @@ from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
 from lookahead_control.core.state_filter import (continuous_model, expm, kinematic_gain,
                                                  MAX_SUBSTEP, measurement_matrix,
-                                                 MIN_AHEAD_SUBSTEP, StateFilterParams,
-                                                 steady_gain, TIE)
+                                                 MIN_AHEAD_SUBSTEP, piece_overlaps,
+                                                 StateFilterParams, steady_gain, TIE)
 import numpy as np
 import numpy.typing as npt
 
@@ -193,6 +193,8 @@ _STEP = 1e-4
 
 #: the plant's transport delays of :func:`robust_check` [s] (the sweep's range)
 DELAYS = (0.0, 0.02, 0.05)
+#: the sampled checks' control period (the node's 100 Hz) [s]
+PERIOD = 0.01
 
 
 def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
@@ -759,7 +761,7 @@ def _actuated_plant(plant: VehicleParams, v_x: float, lag: float) -> tuple[Matri
 
 def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_x: float, *,
-                  plant: Optional[VehicleParams] = None, period: float = 0.01,
+                  plant: Optional[VehicleParams] = None, period: float = PERIOD,
                   lag: float = 0.05, delay_steps: int = 2,
                   filter_settings: Optional[StateFilterParams] = None,
                   filter_vehicle: Optional[VehicleParams] = None,
@@ -992,10 +994,9 @@ def _input_substeps(horizon: float, period: float, delay: float,
         means = []
         for start, end in zip(cuts, cuts[1:]):
             shares: dict[int, float] = {}
-            for a, b, age in pieces:
-                overlap = min(b, end) - max(a, start)
-                if overlap > 0.0:
-                    shares[age] = shares.get(age, 0.0) + overlap / (end - start)
+            for i, overlap in piece_overlaps(edges, start, end):
+                age = pieces[i][2]
+                shares[age] = shares.get(age, 0.0) + overlap / (end - start)
             means.append((start, end, shares))
     else:
         means = [(start, end, {age: 1.0}) for start, end, age in pieces]
@@ -1090,7 +1091,7 @@ def filtered_radius(vehicle: VehicleParams, controller: ControllerParams,
 
 def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_x: float, *,
-                    plant: Optional[VehicleParams] = None, period: float = 0.01,
+                    plant: Optional[VehicleParams] = None, period: float = PERIOD,
                     lag: float = 0.05, delay_steps: int = 2,
                     integral_frozen: bool = False, approach: bool = False) -> float:
     """
@@ -1171,7 +1172,7 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                  speeds: tuple[float, ...] = (10.0, 15.0, 20.0, 25.0, 30.0, 37.0),
                  stiffness: tuple[float, ...] = (0.7, 1.0, 1.3),
                  mass: tuple[float, ...] = (0.8, 1.0, 1.2),
-                 delays: tuple[float, ...] = DELAYS, period: float = 0.01,
+                 delays: tuple[float, ...] = DELAYS, period: float = PERIOD,
                  lag: float = 0.05, filtered: bool = False,
                  filter_vehicle: Optional[VehicleParams] = None,
                  filter_settings: Optional[StateFilterParams] = None,

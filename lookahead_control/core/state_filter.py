@@ -497,14 +497,29 @@ def _select(mask: Any, a: Real, b: Real) -> Real:
     return a if mask else b
 
 
+def piece_overlaps(edges: list[float], start: float, end: float) -> list[tuple[int, float]]:
+    """
+    Return how long each piece between ``edges`` overlaps ``[start, end]``.
+
+    :param edges: the pieces' bounds, increasing.
+    :param start: the interval's start.
+    :param end: its end.
+    :return: ``(piece index, overlap)`` for the pieces that overlap it.
+    """
+    out = []
+    for i, (a, b) in enumerate(zip(edges, edges[1:])):
+        overlap = min(b, end) - max(a, start)
+        if overlap > 0.0:
+            out.append((i, overlap))
+    return out
+
+
 def _mean_input(edges: list[float], commands: list[Real], start: float,
                 end: float) -> Real:
     """Return the mean over ``[start, end]`` of the piecewise constant input."""
     total: Real = 0.0
-    for a, b, command in zip(edges, edges[1:], commands):
-        overlap = min(b, end) - max(a, start)
-        if overlap > 0.0:
-            total = total + overlap * command
+    for i, overlap in piece_overlaps(edges, start, end):
+        total = total + overlap * commands[i]
     return total / (end - start)
 
 

@@ -26,12 +26,10 @@ from lookahead_control.core.cli import (markdown_table, number, parser, run_tool
                                         write_json)
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
-from lookahead_control.core.lane_keeping_stability import certificate, DELAYS, robust_check
+from lookahead_control.core.lane_keeping_stability import (certificate, DELAYS, PERIOD,
+                                                           robust_check)
 from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
-
-#: the sampled checks' control period (robust_check's default) [s]
-PERIOD = 0.01
 
 
 def stability_main(argv: Sequence[str] | None = None) -> int:
