@@ -771,3 +771,30 @@ def test_the_default_bag_name_has_the_speed_of_the_run():
         'paper_r400_fixed_20_')
     assert default_bag(scenarios / 's_curve_accel.yaml', 'paper', 0.0).name.startswith(
         's_curve_accel_paper_15_')
+
+
+def test_a_recorder_s_drain_ends_while_publishers_go_on():
+    # a recorder orphaned by a SIGKILLed closed_loop drained for an hour at 60 % CPU:
+    # another run on its domain refilled its readers as fast as it took from them
+    from types import SimpleNamespace
+    from lookahead_control.bags.recorder_node import RecorderNode
+    taken = []
+
+    class Endless:
+
+        def take_message(self, msg_type, raw):
+            taken.append('take')
+            assert len(taken) < 10_000, 'drained without end'
+            return b'data', None
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+    sub = SimpleNamespace(handle=Endless(), msg_type=None, raw=True,
+                          qos_profile=SimpleNamespace(depth=1000))
+    fake = SimpleNamespace(_subs={'/yaw': sub, '/gone': None},
+                           on_message=lambda topic, data, info: taken.append(topic))
+    assert RecorderNode.drain(fake) == 1000
+    assert taken.count('/yaw') == 1000
