@@ -36,13 +36,13 @@ from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
 from lookahead_control.bags.run_data import as_it_ran, CONTROLLER_NODE, load_run, rerun
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
                                         ToolError, write_json)
+from lookahead_control.core.config import ConfigError, rcl_param_value
 from lookahead_control.ros import conversions as conv
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock as ClockMsg
-import yaml
 
 EXIT_CHECK_FAILED = 1
 
@@ -54,8 +54,13 @@ def offline(args: argparse.Namespace) -> int:
     :param args: the parsed command line.
     :return: 0, or 1 if ``--check`` failed.
     """
-    # override values as YAML: numbers, booleans, strings
-    overrides = {k: yaml.safe_load(v) for k, v in assignments(args.param, '-p').items()}
+    # override values as rcl reads -p: numbers, booleans, strings
+    overrides: dict[str, Any] = {}
+    for name, text in assignments(args.param, '-p').items():
+        try:
+            overrides[name] = rcl_param_value(text)
+        except ConfigError as err:
+            raise ToolError(f'-p {name}:={text}: {err}') from err
     node = CONTROLLER_NODE if args.node is None else args.node     # '' is refused
     run = load_run(args.bag, assignments(args.topic, '--topic'), node)
     result = rerun(run, overrides, args.order)

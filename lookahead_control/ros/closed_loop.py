@@ -112,10 +112,9 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
     :return: ``(parameters by name, the file's parameters left out)``.
     :raises ToolError: naming the file or setting and what is allowed.
     """
-    import yaml
-
     from lookahead_control.core.config import (applies_to, check_params_file, ConfigError,
-                                               load_ros_params, node_sections)
+                                               load_ros_params, node_sections,
+                                               rcl_param_value)
     from lookahead_control.core.param_schema import (check_params, ROS_BUILTIN,
                                                      ROS_BUILTIN_PREFIXES)
     from lookahead_control.core.params import ParameterError
@@ -150,8 +149,8 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
             raise ToolError(f'--param {item}: closed_loop sets {name} itself (--law, '
                             '--schedule, --mode; the controller answers each measurement)')
         try:
-            merged[name] = check_params({name: yaml.safe_load(text)}, ALL_SPECS)[name]
-        except (ParameterError, yaml.YAMLError) as err:
+            merged[name] = check_params({name: rcl_param_value(text)}, ALL_SPECS)[name]
+        except (ParameterError, ConfigError) as err:
             raise ToolError(f'--param {item}: {err}') from err
     given = ' and '.join([*([f'--controller {params_file}'] if params_file else []),
                           *(['--param'] if settings else [])])

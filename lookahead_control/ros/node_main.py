@@ -34,7 +34,7 @@ from typing import Any, Callable, Optional, Sequence, TypeVar
 from lookahead_control.core import interrupts
 from lookahead_control.core.cli import one_line
 from lookahead_control.core.config import (check_params_file, ConfigError, node_sections,
-                                           read_yaml)
+                                           rcl_param_value, read_params_yaml)
 from lookahead_control.core.param_schema import check_params
 from lookahead_control.core.params import ParameterError
 import rclpy
@@ -139,7 +139,7 @@ def check_params_files(args: Sequence[str]) -> None:
     :raises ConfigError: a file is missing, unreadable, malformed or not a mapping.
     """
     for flag, path in zip(args, args[1:]):
-        if flag == '--params-file' and not isinstance(read_yaml(path), dict):
+        if flag == '--params-file' and not isinstance(read_params_yaml(path), dict):
             raise ConfigError(f'{path}: not a ROS parameters file (expected '
                               '"<node>: {ros__parameters: {...}}")')
 
@@ -249,9 +249,8 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
             # (``-p node:name:=value`` is for another node)
             name, _, text = value.partition(':=')
             try:
-                parsed = check_params({name: yaml.safe_load(text) if text else ''},
-                                      specs)[name]
-            except (ParameterError, yaml.YAMLError) as err:
+                parsed = check_params({name: rcl_param_value(text)}, specs)[name]
+            except (ParameterError, ConfigError) as err:
                 raise ConfigError(f'-p {value}: {one_line(str(err))}') from err
             if isinstance(parsed, float):
                 out[i + 1] = f'{name}:={parsed!r}'

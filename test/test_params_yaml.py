@@ -1,0 +1,250 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Params files and ``-p`` values read as rcl reads them, checked against rcl itself.
+
+Until dev-rclyaml the checks read params files with PyYAML (YAML 1.1): a
+``integral_gain: 3e-1`` rcl takes as 0.3 was refused ("expected a number"), a
+``frame_id: y`` rcl takes as a bool passed the check and the node then failed in rcl,
+and a file with aliases or merge keys passed the check and rcl refused the file.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+
+from lookahead_control.core.config import (ConfigError, load_params_yaml, node_sections,
+                                           rcl_param_value, rcl_scalar)
+import pytest
+import yaml
+
+# what rcl (Jazzy's rcl_yaml_param_parser) made of these unquoted scalars, read with
+# rclpy from a params file; the test below asks rcl again
+RCL_READS = {
+    '3e-1': 0.3, '2e-3': 0.002, '1e5': 1e5, '-1e+5': -1e5, '1.5e3': 1500.0, '1.': 1.0,
+    '.5': 0.5, 'inf': math.inf, 'infinity': math.inf, '.inf': math.inf, '+.inf': math.inf,
+    '-.inf': -math.inf, '.Inf': math.inf, '0x1p3': 8.0, '08': 8.0,
+    '99999999999999999999': 1e20,
+    'y': True, 'Y': True, 'yes': True, 'on': True, 'True': True, 'n': False, 'N': False,
+    'no': False, 'off': False, 'FALSE': False,
+    '017': 15, '0x10': 16, '-0x10': -16, '+5': 5, '-0': 0, '00': 0, '1485': 1485,
+    '1_000': '1_000', '0b101': '0b101', '0o10': '0o10', '-.nan': '-.nan', '1e400': '1e400',
+    '1e-400': '1e-400', '1e-310': '1e-310', '1:20': '1:20', '2001-12-14': '2001-12-14',
+    'null': 'null', '~': '~', '0x': '0x', '1e': '1e', 'yes!': 'yes!', 'base_link': 'base_link',
+}
+NAN_TEXTS = ('nan', '.nan', '.NaN', 'NAN', 'nan(12)')
+
+
+def _same(a, b):
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return type(a) is type(b) and a == b
+
+
+def _rcl_parameters(tmp_path, text):
+    """Return what rclpy declares from a params file for node ``n`` (name -> value)."""
+    import rclpy
+    from rclpy.context import Context
+    path = tmp_path / f'rcl_{random.getrandbits(32)}.yaml'
+    path.write_text(text)
+    ctx = Context()
+    rclpy.init(args=['--ros-args', '--params-file', str(path)], context=ctx)
+    try:
+        node = rclpy.create_node('n', context=ctx,
+                                 automatically_declare_parameters_from_overrides=True)
+        try:
+            return {name: param.value for name, param in node._parameters.items()}
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def _rcl_refuses(tmp_path, text):
+    import rclpy
+    from rclpy.context import Context
+    path = tmp_path / f'rcl_{random.getrandbits(32)}.yaml'
+    path.write_text(text)
+    ctx = Context()
+    try:
+        rclpy.init(args=['--ros-args', '--params-file', str(path)], context=ctx)
+    except Exception as err:     # rclpy's RCLError
+        return 'params file' in str(err)
+    rclpy.try_shutdown(context=ctx)
+    return False
+
+
+def test_scalars_are_typed_as_rcl_types_them():
+    for text, value in RCL_READS.items():
+        assert _same(rcl_scalar(text), value), (text, rcl_scalar(text), value)
+    for text in NAN_TEXTS:
+        assert math.isnan(rcl_scalar(text)), text
+
+
+def _random_scalars(count, seed):
+    rng = random.Random(seed)
+    alphabet = '0123456789.eE+-xXpPinfatyYnN_o'
+    out = set()
+    while len(out) < count:
+        text = ''.join(rng.choice(alphabet) for _ in range(rng.randint(1, 6)))
+        try:
+            node = yaml.compose(f'p: {text}')
+        except yaml.YAMLError:
+            continue
+        value = node.value[0][1]
+        if isinstance(value, yaml.ScalarNode) and value.style is None and value.value == text:
+            out.add(text)
+    return sorted(out)
+
+
+def test_a_params_file_reads_as_rcl_reads_it(tmp_path):
+    # every fixed case and 400 random ones in one file, asked of rcl itself; quoted
+    # scalars stay strings, tags are ignored, lists keep one type
+    texts = [*RCL_READS, *NAN_TEXTS, *_random_scalars(400, 7)]
+    body = ''.join(f'    p{i}: {text}\n' for i, text in enumerate(texts))
+    extra = ("    q0: '3e-1'\n    q1: \"y\"\n    q2: !!float 1\n    q3: [y, true]\n"
+             '    q4: [1, 0x10]\n    q5: [08, 1.5]\n    q6: {a: 2e-3}\n    q7: |\n      12\n'
+             '    q8: {a: 1, b: {c: 2}}\n    q8: {b: {d: 3}, e: 4}\n')
+    text = 'n:\n  ros__parameters:\n' + body + extra
+    rcl = _rcl_parameters(tmp_path, text)
+    ours = dict(node_sections(tmp_path / _write(tmp_path, text)))['n']
+    assert set(ours) == set(rcl) - {'use_sim_time', 'start_type_description_service'}
+    wrong = {name: (ours[name], rcl[name]) for name in ours if not _same(ours[name], rcl[name])
+             and not (isinstance(ours[name], list) and all(
+                 _same(a, b) for a, b in zip(ours[name], rcl[name])))}
+    assert wrong == {}
+    assert ours['q0'] == '3e-1' and ours['q2'] == 1 and ours['q6.a'] == 0.002
+    # a map opened twice: one map (before, PyYAML kept only the later one)
+    assert {k: v for k, v in ours.items() if k.startswith('q8')} == {
+        'q8.a': 1, 'q8.b.c': 2, 'q8.b.d': 3, 'q8.e': 4}
+
+
+SECTION_NAMES = [
+    'controller', '/controller', '/**', '/*', '/**/controller', '/*/controller', '**',
+    '*', '*/c', '**/c', '/ns/**', '/ns/*', '/*/*/c', '/**/**/c', '/a/*/b/c', 'ns/controller',
+    '/ns/**/controller', '_c', 'c__d', '/ns1/c', 'A', '/contr*', '/ns*/c', '/***/c', '***',
+    '/**/c*', '1controller', '/1ns/c', 'a-b', 'c.d', 'contr oller', '//c', '/ns//c', '/ns/',
+    '/ns/c/', '/', '~/c', '/ns/~c', '\u00f6']
+
+
+def test_section_names_are_taken_and_refused_as_rcl_does(tmp_path):
+    # before: a section rcl refuses ('/contr*', '//c') was skipped by the checks, so
+    # the file passed them and the node then failed in rcl
+    verdicts = {}
+    for name in SECTION_NAMES:
+        text = f"'{name}':\n  ros__parameters:\n    a: 1\n"
+        path = tmp_path / _write(tmp_path, text)
+        try:
+            node_sections(path)
+            ours = True
+        except ConfigError as err:
+            assert 'rcl refuses the file' in str(err) and repr(name) in str(err), err
+            ours = False
+        verdicts[name] = (ours, not _rcl_refuses(tmp_path, text))
+    assert {name: v for name, v in verdicts.items() if v[0] != v[1]} == {}
+    assert sum(ours for ours, _ in verdicts.values()) == 21
+
+
+def _write(tmp_path, text):
+    path = tmp_path / f'ours_{random.getrandbits(32)}.yaml'
+    path.write_text(text)
+    return path.name
+
+
+@pytest.mark.parametrize('text, match', [
+    ('n:\n  ros__parameters:\n    a: &x 1.0\n    b: *x\n', r'alias \(\*x\)'),
+    ('base: &base\n  ros__parameters: {a: 1.0}\nn:\n  <<: *base\n', r'alias \(\*base\)'),
+    ('n:\n  ros__parameters:\n    a: [1, 2.5]\n', r'mixed types \(float, int\)'),
+    ("n:\n  ros__parameters:\n    a: [y, 'y']\n", r'mixed types \(bool, str\)'),
+    ('n:\n  ros__parameters:\n    a: [[1], [2]]\n', 'a list inside a list'),
+])
+def test_what_rcl_refuses_is_refused_with_the_line(tmp_path, text, match):
+    # before: PyYAML read these files and the check passed them; rcl then refused them
+    assert _rcl_refuses(tmp_path, text)
+    path = tmp_path / _write(tmp_path, text)
+    with pytest.raises(ConfigError, match=f'not readable by rcl \\(line \\d\\): .*{match}'):
+        node_sections(path)
+
+
+def test_a_list_inside_a_list_is_refused(tmp_path):
+    # with one item rcl takes it and flattens it ([[1]] is [1]): a mistake, refused
+    text = 'n:\n  ros__parameters:\n    a: [[1]]\n'
+    assert _rcl_parameters(tmp_path, text)['a'] == [1]
+    with pytest.raises(ConfigError, match=r'line 3\): a list inside a list'):
+        node_sections(tmp_path / _write(tmp_path, text))
+
+
+def test_a_command_line_value_reads_as_rcl_reads_it():
+    assert rcl_param_value('3e-1') == 0.3 and rcl_param_value('y') is True
+    assert rcl_param_value("'y'") == 'y' and rcl_param_value('1_000') == '1_000'
+    assert rcl_param_value('[1, 2]') == [1, 2]
+    for bad in ('', 'a: 1', '[1, 2.5]'):
+        with pytest.raises(ConfigError):
+            rcl_param_value(bad)
+    assert load_params_yaml('') is None
+
+
+def test_the_node_takes_a_value_rcl_takes_and_refuses_one_rcl_types_otherwise(tmp_path):
+    # before: 'integral_gain: 3e-1' was refused ("expected a number") and 'frame_id: y'
+    # passed the check, then rcl read a bool and the node failed on its declaration
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    good = tmp_path / 'good.yaml'
+    good.write_text('controller:\n  ros__parameters:\n    lane_keeping:\n'
+                    '      integral_gain: 3e-1\n    vehicle:\n      mass: 1.5e3\n')
+    assert checked_arguments(['--params-file', str(good)], 'controller', ALL_SPECS, []) == [
+        '--params-file', str(good)]
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('controller:\n  ros__parameters:\n    frame_id: y\n')
+    with pytest.raises(ConfigError, match='frame_id = True'):
+        checked_arguments(['--params-file', str(bad)], 'controller', ALL_SPECS, [])
+    assert checked_arguments(['-p', 'lane_keeping.integral_gain:=3e-1'], 'controller',
+                             ALL_SPECS, []) == ['-p', 'lane_keeping.integral_gain:=0.3']
+    with pytest.raises(ConfigError, match='-p frame_id:=: .*empty string'):
+        checked_arguments(['-p', 'frame_id:='], 'controller', ALL_SPECS, [])
+
+
+def test_a_converted_copy_keeps_what_rcl_read(tmp_path):
+    # an integer for a real makes the node pass rcl a converted copy: the values rcl
+    # reads from it are those it read from the file (a 3e-1 stays 0.3, not '3e-1')
+    from test_compliance_seed import _node_reads
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    mine = tmp_path / 'car.yaml'
+    mine.write_text('controller:\n  ros__parameters:\n    vehicle:\n      mass: 1500\n'
+                    '    lane_keeping:\n      integral_gain: 3e-1\n'
+                    "      compliance_memory_seed: 1.2e0\n    frame_id: '1e5'\n")
+    scratch = []
+    args = checked_arguments(['--params-file', str(mine)], 'controller', ALL_SPECS, scratch)
+    try:
+        assert args[1] != str(mine) and scratch
+        read = _node_reads(args[1])
+    finally:
+        for path in scratch:
+            path.unlink()
+    assert read['vehicle.mass'] == 1500.0 and read['lane_keeping.integral_gain'] == 0.3
+    assert read['lane_keeping.compliance_memory_seed'] == 1.2 and read['frame_id'] == '1e5'
+
+
+def test_closed_loop_and_replay_take_values_as_rcl_does(tmp_path):
+    from lookahead_control.ros import closed_loop
+    car = tmp_path / 'car.yaml'
+    car.write_text('controller:\n  ros__parameters:\n    lane_keeping:\n'
+                   '      integral_gain: 2.5e-1\n')
+    params, _ = closed_loop.controller_settings(
+        car, ['lane_keeping.compliance_memory_seed:=1.2e0'], 'cg_compensated', 'paper')
+    assert params['lane_keeping.integral_gain'] == 0.25
+    assert params['lane_keeping.compliance_memory_seed'] == 1.2
