@@ -537,3 +537,42 @@ def test_rerun_of_a_bag_recorded_with_the_schedule_keeps_it(tmp_path):
     result = rerun(run)
     assert result.compared == 300 and result.max_diff <= 1e-9, result.max_diff
     assert rerun(run, {low: 0.3}).max_diff > 1e-4      # today's default is another law here
+
+
+@pytest.mark.parametrize('law, inactive_steps', [('cg_compensated', 50), ('cg_compensated', 10),
+                                                 ('paper', 50)])
+def test_inputs_received_while_deactivated_are_not_re_run(law, inactive_steps):
+    # a deactivated node takes its inputs in and answers none: its law is not stepped,
+    # and once activated again a time jump (0.5 s > max_gap) restarts it, or a step of
+    # 0.1 s follows. The re-run stepped the law on them (dev-probe48 over DDS: 7.5 mrad
+    # apart after a deactivate / activate); ~/debug activations now says where
+    rows = _inputs(300, math.inf)
+    node, _ = controller_from_params({'law': law})
+    commands, counts, activations = {}, {}, 1
+    off = range(100, 100 + inactive_steps)
+    for role, sample in _feed(rows):
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role != 'lateral_error':
+            continue
+        k = sample.stamp_ns // PERIOD_NS
+        if k in off:
+            continue                            # inactive: nothing computed, nothing sent
+        activations += k == off.stop            # on_activate
+        commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+        counts[sample.stamp_ns] = float(activations)
+    run = _bag(rows, commands, {'activations': counts}, {'law': law})
+    result = rerun(run, order='stamp')
+    assert result.compared == 300 - inactive_steps and result.max_diff == 0.0, result.max_diff
+    assert result.inactive_skipped == inactive_steps
+    blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
+    assert blind.inactive_skipped == 0
+    if law == 'cg_compensated':         # a law with a state (the paper law has none)
+        assert blind.max_diff > 1e-4, blind.max_diff
+    # an answer the recorder lost while the node stayed active is still re-run
+    lost = next(iter(sorted(commands)[10:]))
+    dropped = _bag(rows, {s: c for s, c in commands.items() if s != lost},
+                   {'activations': {s: c for s, c in counts.items() if s != lost}},
+                   {'law': law})
+    again = rerun(dropped, order='stamp')
+    assert again.inactive_skipped == inactive_steps and again.max_diff == 0.0
+    assert lost in again.commands

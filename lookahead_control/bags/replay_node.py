@@ -75,6 +75,7 @@ def offline(args: argparse.Namespace) -> int:
     report['parameter_sets_followed'] = result.parameter_sets
     report['parameter_sets_unmarked'] = result.parameter_sets_unmarked
     report['parameter_sets_before_bag'] = result.parameter_sets_before_bag
+    report['inputs_while_inactive'] = result.inactive_skipped
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
@@ -113,6 +114,11 @@ def offline(args: argparse.Namespace) -> int:
         print(f'replay: {result.parameter_sets} parameter set(s) at run time (recorded '
               f'/parameter_events of {run.controller_node}) applied where the recorded '
               f'controller did ({run.controller_node}/debug parameter_sets)')
+    if result.inactive_skipped:
+        print(f'replay: {run.controller_node} was deactivated and activated again: '
+              f'{result.inactive_skipped} lateral error(s) it received while inactive are '
+              f'not re-run, as it did not answer them ({run.controller_node}/debug '
+              'activations)')
     if result.parameter_sets_before_bag:
         # a recorder started after a set: its values are the bag's parameters
         print(f'replay: {run.controller_node} had applied '

@@ -25,6 +25,7 @@ the law's values of that re-run for all steps at once.
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
@@ -638,6 +639,8 @@ class Rerun:
     :param parameter_sets_before_bag: sets the recorded controller had applied before
         its recorded ``/parameter_events`` begin (a recorder started after them: their
         values are in the bag's parameters); the recorded sets are numbered after them.
+    :param inactive_skipped: lateral errors the recorded controller received while
+        deactivated (:func:`inactive_inputs`), not computed, as the node did not.
     """
 
     commands: dict[int, Command]
@@ -653,6 +656,7 @@ class Rerun:
     parameter_sets: int = 0
     parameter_sets_unmarked: Optional[int] = None
     parameter_sets_before_bag: int = 0
+    inactive_skipped: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -746,10 +750,13 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     before_bag = sets_before_bag(run)
     params, applied = dict(run.controller_params), 0
     followed = otherwise = switches = 0
+    inactive = inactive_inputs(run)
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
         refused = core.accept(role, sample)
+        if role == 'lateral_error' and sample.stamp_ns in inactive:
+            continue                # taken in, not answered: the node was inactive
         if role == 'lateral_error' and refused is None:
             due = min(sets.get(sample.stamp_ns, applied + before_bag) - before_bag,
                       len(events))
@@ -784,7 +791,37 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
-                 switches, applied, unmarked, before_bag)
+                 switches, applied, unmarked, before_bag, len(inactive))
+
+
+def inactive_inputs(run: RunData) -> frozenset[int]:
+    """
+    Return the lateral-error stamps the recorded controller received while deactivated.
+
+    A deactivated node takes its inputs in and answers none, so its law is not stepped
+    until it is activated again (then a time jump restarts it, or a long step follows).
+    Its debug topic counts its activations (``activations``): an unanswered lateral
+    error between two answers of different counts came while it was inactive (before,
+    the re-run stepped the law on them: 7.5 mrad apart after a deactivate / activate).
+
+    :param run: the bag.
+    :return: the stamps (empty: none, or the bag does not say; an older bag).
+    """
+    counts = run.debug.values.get('activations')
+    lateral = run.inputs.get('lateral_error')
+    if counts is None or lateral is None:
+        return frozenset()
+    marked = {int(t): c for t, c in zip(run.debug.stamp_ns.tolist(), counts.tolist())
+              if math.isfinite(c)}
+    answered = sorted(marked)
+    recorded = set(run.steering.stamp_ns.tolist())
+    out = set()
+    for stamp in lateral.stamp_ns.tolist():
+        at = bisect.bisect_left(answered, stamp)
+        if (stamp not in recorded and 0 < at < len(answered)
+                and marked[answered[at - 1]] != marked[answered[at]]):
+            out.add(int(stamp))
+    return frozenset(out)
 
 
 def recorded_parameter_sets(run: RunData) -> dict[int, int]:

@@ -211,6 +211,9 @@ class ControllerNode(LifecycleNode):
         self.published = 0
         #: parameter sets applied at run time (each a /parameter_events message)
         self.parameter_sets = 0
+        #: activations since start (~/debug: the offline re-run skips what the node
+        #: received while inactive, as the node did)
+        self.activations = 0
         self._last_publish: Optional[int] = None
         self._refusal_log = Throttle(1.0)
         self._cache_input_parameters()
@@ -327,6 +330,7 @@ class ControllerNode(LifecycleNode):
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Start publishing."""
         self.active = True
+        self.activations += 1
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -607,6 +611,9 @@ class ControllerNode(LifecycleNode):
         # the parameter sets applied before this answer (the re-run applies the recorded
         # /parameter_events at the answer where this count reaches them)
         debug.append(('parameter_sets', float(self.parameter_sets)))
+        # the activations before this answer: inputs left unanswered between two answers
+        # of different counts came while the node was inactive (the re-run skips them)
+        debug.append(('activations', float(self.activations)))
         state = getattr(self.core.law, 'debug_values', None)
         if state is not None:       # a law with a state: cg_compensated (its estimate ...)
             debug += state()
