@@ -363,7 +363,8 @@ def _closed_loop():
                                     or pytest.fail())),
         '--plant': (('bicycle',), check(lambda s, ctl, c: s['plant.model'] == 'nonlinear'
                                         or pytest.fail())),
-        '--rate': (NON_NUMBERS + ('0', '-100', '1e6'),
+        # 5 Hz: a period of 0.2 s, past the shipped safety.max_future (dev-loopcheck)
+        '--rate': (NON_NUMBERS + ('0', '-100', '1e6', '5'),
                    check(lambda s, ctl, c: s['rate_hz'] == 50.0 or pytest.fail())),
         '--timeout': (NON_NUMBERS + ('0', '-1'), timeout),
         '--bag': ((), check(lambda s, ctl, c: None)),
@@ -373,7 +374,8 @@ def _closed_loop():
                          check(lambda s, ctl, c: ctl['controller.natural_frequency'] == 1.5
                                or pytest.fail(ctl['controller.natural_frequency']))),
         '--param': (('lane_keeping.compliance_memory_seed:=9', 'law:=paper', 'nonsense',
-                     'lane_keeping.nonsense:=1'),
+                     'lane_keeping.nonsense:=1', 'safety.max_future:=0.005',
+                     'frame_id:=odom'),
                     check(lambda s, ctl, c: ctl['lane_keeping.compliance_memory_seed'] == 1.3
                           or pytest.fail(ctl['lane_keeping.compliance_memory_seed']))),
     }
@@ -938,3 +940,25 @@ def test_option_changes_the_output(exe, option, ctx):
 def test_non_numbers_are_what_they_say():
     assert all(not math.isfinite(float(v)) for v in NON_NUMBERS[:4])
     assert yaml.safe_load('1e400') == '1e400'    # argparse sees text, float() gives inf
+
+
+def test_closed_loop_refuses_settings_its_simulator_is_never_answered_under():
+    # before (dev-loopcheck): such a run started, then waited 0.5 s for each answer
+    # (every input refused) until --timeout; measured: max_future 0.0099 s at 100 Hz,
+    # 77 missed deadlines in 40 s, 0.01 s: none
+    from lookahead_control.core.cli import ToolError
+    from lookahead_control.ros import closed_loop
+    from lookahead_control.ros.path_bridge_node import NODE_SPECS as BRIDGE_SPECS
+    from sim_plant.sim_plant_node import SIM_SPECS
+    base = {'safety.max_future': 0.01, 'frame_id': 'base_link'}
+    for mode in ('lockstep', 'realtime'):
+        closed_loop.loop_compatibility(base, mode, 100.0, 'x')
+        with pytest.raises(ToolError, match=r'x: safety.max_future = 0.0099 s: .*>= 0.01 s'):
+            closed_loop.loop_compatibility({**base, 'safety.max_future': 0.0099}, mode,
+                                           100.0, 'x')
+    closed_loop.loop_compatibility({**base, 'frame_id': ''}, 'lockstep', 100.0, 'x')
+    with pytest.raises(ToolError, match="frame_id = 'odom': .* or '' \\(any\\)"):
+        closed_loop.loop_compatibility({**base, 'frame_id': 'odom'}, 'lockstep', 100.0, 'x')
+    # the frame the simulator and the bridge publish in
+    for specs in (SIM_SPECS, BRIDGE_SPECS):
+        assert next(s.default for s in specs if s.name == 'frame_id') == closed_loop.SIM_FRAME
