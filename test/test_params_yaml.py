@@ -24,7 +24,11 @@ and a file with aliases or merge keys passed the check and rcl refused the file.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 import random
+import signal
+import subprocess
+import sys
 
 from lookahead_control.core.config import (ConfigError, load_params_yaml, node_sections,
                                            rcl_param_value, rcl_scalar)
@@ -248,3 +252,79 @@ def test_closed_loop_and_replay_take_values_as_rcl_does(tmp_path):
         car, ['lane_keeping.compliance_memory_seed:=1.2e0'], 'cg_compensated', 'paper')
     assert params['lane_keeping.integral_gain'] == 0.25
     assert params['lane_keeping.compliance_memory_seed'] == 1.2
+
+
+REMAPS = (['-r', '__ns:=/car_b'], ['-r', '__ns:=/car_b', '-r', '__node:=truck'],
+          ['--remap', 'controller:__ns:=/car_b'], ['-r', 'other:__ns:=/car_b'], [])
+
+
+@pytest.mark.parametrize('key', ['/car_b/controller', 'car_b/controller', '/**', '/*',
+                                 '/**/controller', 'controller', '/car_b/*', '/*/controller',
+                                 '/car_b/truck'])
+def test_a_renamed_or_namespaced_node_reads_its_own_sections(tmp_path, key):
+    # before: the checks matched sections against '/controller' whatever the remapping,
+    # so under -r __ns:=/car_b the section '/car_b/controller' was neither checked (a
+    # typo passed) nor converted ('mass: 1500' made the node exit: INTEGER, expecting
+    # DOUBLE); the node's full name now decides, as in rcl (asked here, 5 remappings)
+    import rclpy
+    from rclpy.context import Context
+    from lookahead_control.core.config import check_params_file
+    from lookahead_control.ros.controller_node import ALL_SPECS, ControllerNode
+    from lookahead_control.ros.node_main import node_full_name
+    path = tmp_path / 'ns.yaml'
+    path.write_text(f"'{key}':\n  ros__parameters:\n    vehicle:\n      mass: 1600.5\n")
+    for remap in REMAPS:
+        args = ['--ros-args', *remap, '--params-file', str(path)]
+        full = node_full_name(args, 'controller')
+        sections = check_params_file(path, full, ALL_SPECS)
+        ours = next((flat['vehicle.mass'] for flat in sections.values()), None)
+        ctx = Context()
+        rclpy.init(args=args, context=ctx)
+        try:
+            node = ControllerNode(context=ctx)
+            try:
+                assert node.get_fully_qualified_name() == full
+                theirs = node.get_parameter('vehicle.mass').value
+            finally:
+                node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=ctx)
+        assert (ours or 1485.0) == theirs, (key, remap, ours, theirs)
+
+
+def test_a_namespaced_node_s_section_is_checked_and_converted(tmp_path):
+    from test_compliance_seed import _node_reads
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    typo = tmp_path / 'typo.yaml'
+    typo.write_text('/car_b/controller:\n  ros__parameters:\n    vehicle:\n      masss: 3.0\n')
+    with pytest.raises(ConfigError, match="unknown parameter 'vehicle.masss'"):
+        checked_arguments(['--ros-args', '-r', '__ns:=/car_b', '--params-file', str(typo)],
+                          'controller', ALL_SPECS, [])
+    # the same file for a node in another namespace: not its section
+    checked_arguments(['--ros-args', '-r', '__ns:=/car_a', '--params-file', str(typo)],
+                      'controller', ALL_SPECS, [])
+    whole = tmp_path / 'whole.yaml'
+    whole.write_text('/car_b/controller:\n  ros__parameters:\n    vehicle:\n      mass: 1500\n')
+    scratch = []
+    args = checked_arguments(['--ros-args', '-r', '__ns:=/car_b', '--params-file', str(whole)],
+                             'controller', ALL_SPECS, scratch)
+    try:
+        assert scratch and args[-1] == str(scratch[0])
+        text = scratch[0].read_text()
+        assert text.startswith('/car_b/controller:'), text
+        assert _node_reads(scratch[0])['vehicle.mass'] == 1485.0   # not the root node's
+    finally:
+        for path in scratch:
+            path.unlink()
+    # the node itself starts (before: 'vehicle.mass' ... 'INTEGER', expecting 'DOUBLE')
+    exe = Path(sys.prefix) / 'lib' / 'lookahead_control' / 'controller'
+    proc = subprocess.Popen([str(exe), '--ros-args', '-r', '__ns:=/car_b', '--params-file',
+                             str(whole)], stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        line = proc.stderr.readline()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        rest = proc.communicate(timeout=60)[1]
+    assert '[car_b.controller]: configured' in line, line + rest
+    assert proc.returncode == 0, rest

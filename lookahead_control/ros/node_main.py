@@ -209,6 +209,34 @@ def nested_params(flat: dict[str, Any]) -> dict[str, Any]:
     return tree
 
 
+def node_full_name(args: Sequence[str], node_name: str) -> str:
+    """
+    Return the node's fully qualified name after the command line's remappings.
+
+    ``--ros-args -r __ns:=/car_b`` (``--remap``; ``controller:__ns:=...`` for this node
+    alone) and ``-r __node:=name`` (or ``__name``), as rcl applies them: the params
+    files' sections that apply are those matching this name (``/car_b/controller:``).
+
+    :param args: command-line arguments (ROS arguments included).
+    :param node_name: the node's name in the code.
+    :return: ``/<namespace>/<name>`` (``/controller`` without remappings).
+    """
+    namespace, name, ros = '/', node_name, False
+    for flag, rule in zip(args, [*args[1:], '']):
+        if flag in ('--ros-args', '--'):
+            ros = flag == '--ros-args'
+        elif ros and flag in ('-r', '--remap') and ':=' in rule:
+            lhs, _, value = rule.partition(':=')
+            target, _, key = lhs.rpartition(':')
+            if target and target.lstrip('/') != node_name:
+                continue
+            if key == '__ns' and value:
+                namespace = value if value.startswith('/') else '/' + value
+            elif key in ('__node', '__name') and value:
+                name = value
+    return namespace.rstrip('/') + '/' + name
+
+
 def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                       scratch: list[Path]) -> list[str]:
     """
@@ -229,11 +257,14 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
     check_params_files(args)
     if not specs:
         return list(args)
+    # a node started in a namespace or renamed reads its own sections
+    # ('/car_b/controller:'); before, they were neither checked nor converted
+    full_name = node_full_name(args, node_name)
     out = list(args)
     for i, (flag, value) in enumerate(zip(args, args[1:])):
         if flag == '--params-file':
             raw = dict(node_sections(value))
-            sections = check_params_file(value, node_name, specs)
+            sections = check_params_file(value, full_name, specs)
             if any(type(v) is not type((raw[key] or {})[name])
                    for key, flat in sections.items() for name, v in flat.items()):
                 handle = tempfile.NamedTemporaryFile(
