@@ -30,8 +30,8 @@ import signal
 import subprocess
 import sys
 
-from lookahead_control.core.config import (ConfigError, load_params_yaml, node_sections,
-                                           rcl_param_value, rcl_scalar)
+from lookahead_control.core.config import ConfigError, node_sections, rcl_param_value
+from lookahead_control.core.rcl_yaml import compose, rcl_scalar
 import pytest
 import yaml
 
@@ -48,6 +48,14 @@ RCL_READS = {
     '1_000': '1_000', '0b101': '0b101', '0o10': '0o10', '-.nan': '-.nan', '1e400': '1e400',
     '1e-400': '1e-400', '1e-310': '1e-310', '1:20': '1:20', '2001-12-14': '2001-12-14',
     'null': 'null', '~': '~', '0x': '0x', '1e': '1e', 'yes!': 'yes!', 'base_link': 'base_link',
+    # dev-probe51: strtod's tininess is of the exact value (the first rounds to the
+    # smallest normal double, and glibc says ERANGE); an exact subnormal is no error;
+    # a hex float past the largest double overflowed float.fromhex (a traceback);
+    # re.IGNORECASE took the Unicode dotless i and long s
+    '2.2250738585072012e-308': '2.2250738585072012e-308', '0x1p-1074': 5e-324,
+    '0x1p1024': '0x1p1024', '0x1.fffffffffffff8p1023': '0x1.fffffffffffff8p1023',
+    '0x1.8': 1.5, '0xFFFFFFFFFFFFFFFFFF': float(0xFFFFFFFFFFFFFFFFFF),
+    '\u0131nf': '\u0131nf', 'na\u017f': 'na\u017f',
 }
 NAN_TEXTS = ('nan', '.nan', '.NaN', 'NAN', 'nan(12)')
 
@@ -198,7 +206,7 @@ def test_a_command_line_value_reads_as_rcl_reads_it():
     for bad in ('', 'a: 1', '[1, 2.5]'):
         with pytest.raises(ConfigError):
             rcl_param_value(bad)
-    assert load_params_yaml('') is None
+    assert compose('') is None
 
 
 def test_the_node_takes_a_value_rcl_takes_and_refuses_one_rcl_types_otherwise(tmp_path):
@@ -216,7 +224,7 @@ def test_the_node_takes_a_value_rcl_takes_and_refuses_one_rcl_types_otherwise(tm
     with pytest.raises(ConfigError, match='frame_id = True'):
         checked_arguments(['--params-file', str(bad)], 'controller', ALL_SPECS, [])
     assert checked_arguments(['-p', 'lane_keeping.integral_gain:=3e-1'], 'controller',
-                             ALL_SPECS, []) == ['-p', 'lane_keeping.integral_gain:=0.3']
+                             ALL_SPECS, []) == ['-p', 'lane_keeping.integral_gain:=3e-1']
     with pytest.raises(ConfigError, match='-p frame_id:=: .*empty string'):
         checked_arguments(['-p', 'frame_id:='], 'controller', ALL_SPECS, [])
 
@@ -328,3 +336,120 @@ def test_a_namespaced_node_s_section_is_checked_and_converted(tmp_path):
         rest = proc.communicate(timeout=60)[1]
     assert '[car_b.controller]: configured' in line, line + rest
     assert proc.returncode == 0, rest
+
+
+# dev-probe51's files: each read by rcl and here; both refuse it, or both read the same
+AGREED = {
+    'str tag': 'n:\n  ros__parameters:\n    a: !!str 0.25\n    b: !<tag:yaml.org,2002:str> 1\n'
+               '    c: !!float 1\n    d: !!int 0.5\n',
+    'same type twice': 'n:\n  ros__parameters:\n    c: 1.5\n    c: 2.5\n    g: {a: 1}\n'
+                       '    g: {b: 2}\n',
+    'a section twice': 'n:\n  ros__parameters:\n    a: 1\nn:\n  ros__parameters:\n    a: 2\n',
+    'empty value': 'n:\n  ros__parameters:\n    a:\n    b: 1\n',
+    'empty value, comment': 'n:\n  ros__parameters:\n    a: # c\n',
+    'value outside ros__parameters': 'sim_plant: {rate: 100}\nn:\n  ros__parameters: {a: 1}\n',
+    'value before ros__parameters': 'n:\n  rate: 100\n  ros__parameters:\n    a: 1\n',
+    'top-level ros__parameters': 'ros__parameters:\n  a: 1\n',
+    'two ros__parameters keys': 'n:\n  ros__parameters:\n    a: 1\n  ros__parameters_old:\n'
+                                '    b: 1\n',
+    'ros__parameters_v2': 'n:\n  ros__parameters_v2:\n    a: 1\n',
+    'empty map value': 'n:\n  ros__parameters:\n    a: {}\n    b: 1\n',
+    'empty ros__parameters': 'n:\n  ros__parameters: {}\nm:\n  ros__parameters: {a: 1}\n',
+    'empty namespace': 'sim: {}\nn:\n  ros__parameters: {a: 1}\n',
+    'empty key': "n:\n  ros__parameters:\n    '': 1\n",
+    'empty file': '',
+    'comment only': '# nothing\n',
+    'slashes joined': "'/ns/':\n  '/n':\n    ros__parameters: {a: 1}\n",
+    'a namespace ending in a slash': "'/':\n  n:\n    ros__parameters: {a: 1}\n",
+    'long node name': f"'{'n' * 256}':\n  ros__parameters: {{a: 1}}\n",
+    'longest node name': f"'{'n' * 255}':\n  ros__parameters: {{a: 1}}\n",
+    'anchor twice': 'n:\n  ros__parameters:\n    a: &x 1\n    b: &x 2\n',
+    'dotted then nested': 'n:\n  ros__parameters:\n    g.a: 0.5\n    g:\n      a: 0.7\n',
+}
+# what rcl reads otherwise than anyone means: refused here, with the line
+REFUSED_HERE = {
+    # rcl keeps both values and reads the int (by type: bool, int, double, string)
+    'two types twice': 'n:\n  ros__parameters:\n    a: 0\n    a: 0.2\n',
+    'two types in two sections': 'n:\n  ros__parameters:\n    a: on\nn:\n  ros__parameters:\n'
+                                 '    a: odom\n',
+    # rcl reads the nested section in this order and refuses the file in the other
+    'a section beside a node': '/**:\n  n:\n    ros__parameters: {b: 2}\n  ros__parameters:\n'
+                               '    a: 1\n',
+    'a node beside a section': '/**:\n  ros__parameters:\n    a: 1\n  n:\n    ros__parameters:\n'
+                               '      b: 2\n',
+    # rcl flattens it
+    'a list inside a list': 'n:\n  ros__parameters:\n    a: [[1]]\n',
+}
+
+
+def _rcl_reads_file(tmp_path, text):
+    """Return rcl's parameters of node ``/n``, or None if rcl refuses the file."""
+    if _rcl_refuses(tmp_path, text):
+        return None
+    params = _rcl_parameters(tmp_path, text)
+    return {k: v for k, v in params.items()
+            if k not in ('use_sim_time', 'start_type_description_service')}
+
+
+def _ours(tmp_path, text):
+    path = tmp_path / _write(tmp_path, text)
+    try:
+        return {k: v for name, flat in node_sections(path) if name in ('n', '/n', '/**')
+                for k, v in flat.items()}
+    except ConfigError as err:
+        assert str(err).startswith(f'{path}: ') and '\n' not in str(err), err
+        return None
+
+
+def test_files_are_read_or_refused_as_rcl_does(tmp_path):
+    wrong = {}
+    for case, text in AGREED.items():
+        rcl, ours = _rcl_reads_file(tmp_path, text), _ours(tmp_path, text)
+        if rcl != ours:
+            wrong[case] = (rcl, ours)
+    assert wrong == {}
+    assert _ours(tmp_path, AGREED['str tag']) == {'a': '0.25', 'b': '1', 'c': 1, 'd': 0.5}
+
+
+def test_files_rcl_reads_against_their_meaning_are_refused(tmp_path):
+    for case, text in REFUSED_HERE.items():
+        assert _ours(tmp_path, text) is None, case
+    # rcl reads the first nested form and refuses the other: by the order alone
+    assert _rcl_reads_file(tmp_path, REFUSED_HERE['a section beside a node']) is not None
+    assert _rcl_reads_file(tmp_path, REFUSED_HERE['a node beside a section']) is None
+    assert _rcl_reads_file(tmp_path, REFUSED_HERE['two types twice']) == {'a': 0}
+
+
+def test_a_utf16_file_reads_and_a_latin1_one_is_one_line(tmp_path):
+    # before: a traceback (UnicodeDecodeError) from the node, closed_loop and compare
+    text = 'n:\n  ros__parameters:\n    a: 0.2\n'
+    utf16 = tmp_path / 'utf16.yaml'
+    utf16.write_bytes(text.encode('utf-16'))
+    assert node_sections(utf16) == [('n', {'a': 0.2})]
+    latin1 = tmp_path / 'latin1.yaml'
+    latin1.write_bytes('# r\xe9glage\n'.encode('latin-1') + text.encode())
+    with pytest.raises(ConfigError, match=f'{latin1}: malformed YAML'):
+        node_sections(latin1)
+
+
+def test_every_form_of_a_command_line_value_for_this_node_is_checked():
+    # dev-probe51: --param (rcl's long form of -p) and -p controller:NAME:=V (for this
+    # node) were not checked; a whole real for an integer now reaches rcl as the integer
+    # (in a file it already did: -p and files disagreed); another node's rule is rcl's
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    for flag in ('-p', '--param'):
+        with pytest.raises(ConfigError, match=f'{flag} lane_keeping.integral_gain:=9: '):
+            checked_arguments([flag, 'lane_keeping.integral_gain:=9'], 'controller',
+                              ALL_SPECS, [])
+    with pytest.raises(ConfigError, match='expected a number'):
+        checked_arguments(['-p', 'controller:lane_keeping.integral_gain:=!!str 0.25'],
+                          'controller', ALL_SPECS, [])
+    assert checked_arguments(['-p', 'other:lane_keeping.integral_gain:=9'], 'controller',
+                             ALL_SPECS, []) == ['-p', 'other:lane_keeping.integral_gain:=9']
+    # under a namespace 'controller:' is not this node's (rcl matches /controller)
+    args = ['--ros-args', '-r', '__ns:=/car_b', '-p', 'controller:lane_keeping.integral_gain:=9']
+    assert checked_arguments(args, 'controller', ALL_SPECS, []) == args
+    assert checked_arguments(['-p', 'controller:safety.max_curvature_points:=100.0'],
+                             'controller', ALL_SPECS, []) == [
+        '-p', 'controller:safety.max_curvature_points:=100']

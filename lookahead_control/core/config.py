@@ -24,11 +24,9 @@ nested keys flatten to dotted names (``vehicle.mass``).
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 import re
-import sys
-from typing import Any, Callable, Mapping, Sequence, Type, TypeVar
+from typing import Any, Mapping, Sequence, Type, TypeVar
 
 from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePursuitParams,
                                               StanleyParams)
@@ -38,6 +36,7 @@ from lookahead_control.core.param_schema import (BASELINE_SPECS, check_params, C
                                                  SAFETY_SPECS, Spec, unknown_name,
                                                  VEHICLE_SPECS)
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.rcl_yaml import param_value, params_sections, RclYamlError
 import yaml
 
 
@@ -76,197 +75,31 @@ def read_yaml(path: Path | str) -> Any:
     :param path: the file.
     :return: the parsed document.
     """
-    return _read(path, yaml.safe_load)
-
-
-def read_params_yaml(path: Path | str) -> Any:
-    """
-    Read a ROS params file as rcl reads it (:func:`load_params_yaml`).
-
-    :param path: the file.
-    :return: the parsed document.
-    :raises ConfigError: a missing, unreadable or malformed file, or one rcl refuses.
-    """
-    return _read(path, load_params_yaml)
-
-
-def _read(path: Path | str, load: Callable[[str], Any]) -> Any:
     file = Path(path)
     try:
         text = file.read_text(encoding='utf-8')
-    except OSError as err:
-        raise ConfigError(f'{file}: cannot read: {err.strerror or err}') from err
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(f'{file}: cannot read: {getattr(err, "strerror", None) or err}'
+                          ) from err
     try:
-        return load(text)
+        return yaml.safe_load(text)
     except yaml.YAMLError as err:
-        mark = getattr(err, 'problem_mark', None)
-        where = f' (line {mark.line + 1})' if mark is not None else ''
-        what = 'not readable by rcl' if isinstance(err, RclYamlError) else 'malformed YAML'
-        raise ConfigError(f'{file}: {what}{where}: '
-                          f'{getattr(err, "problem", None) or err}') from err
+        raise ConfigError(f'{file}: {yaml_problem(err)}') from err
 
 
-# rcl_yaml_param_parser's reading of a scalar that is not quoted (its ``get_value``):
-# a bool from these words, else an int64 if C's strtol (base 0) takes the whole text,
-# else a double if strtod does (or one of YAML's .inf / .nan spellings), else a string.
-# PyYAML (YAML 1.1) reads many values otherwise: '2e-3', 'inf' and '1.5e3' are strings
-# to it and doubles to rcl; 'y' and 'n' strings to it and bools to rcl; '1_000',
-# '0b101', '1:20', 'null' and '2001-12-14' numbers, None or a date to it and strings
-# to rcl; explicit tags (!!float) are obeyed by it and ignored by rcl.
-_RCL_TRUE = frozenset(('Y', 'y', 'yes', 'Yes', 'YES', 'true', 'True', 'TRUE', 'on', 'On',
-                       'ON'))
-_RCL_FALSE = frozenset(('N', 'n', 'no', 'No', 'NO', 'false', 'False', 'FALSE', 'off',
-                        'Off', 'OFF'))
-_RCL_SPECIAL = {**{s: math.nan for s in ('.nan', '.NaN', '.NAN')},
-                **{f'{sign}{s}': (-math.inf if sign == '-' else math.inf)
-                   for sign in ('', '+', '-') for s in ('.inf', '.Inf', '.INF')}}
-_C_SPACE = '[ \t\n\v\f\r]*'
-_RCL_INT = re.compile(_C_SPACE + r'[+-]?(0[xX][0-9a-fA-F]+|0[0-7]*|[1-9][0-9]*)')
-_RCL_DECIMAL = re.compile(_C_SPACE + r'[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?')
-_RCL_HEX = re.compile(_C_SPACE + r'([+-]?)(0[xX]([0-9a-fA-F]+\.?[0-9a-fA-F]*|'
-                      r'\.[0-9a-fA-F]+)([pP][+-]?[0-9]+)?)')
-_RCL_WORD = re.compile(_C_SPACE + r'([+-]?)(inf|infinity|nan(\([0-9A-Za-z_]*\))?)',
-                       re.IGNORECASE)
-INT64_RANGE = (-2 ** 63, 2 ** 63 - 1)
-
-
-class RclYamlError(yaml.MarkedYAMLError):
-    """YAML that PyYAML reads and rcl refuses (an alias, a list of mixed types)."""
-
-
-def rcl_scalar(text: str) -> Any:
+def yaml_problem(err: yaml.YAMLError) -> str:
     """
-    Return an unquoted YAML scalar as rcl reads it in a params file or ``-p``.
+    Return a YAML error in one line: what is wrong, where.
 
-    :param text: the scalar's text (a quoted scalar is always the string itself).
-    :return: a bool, an int (int64), a float or the text.
+    :param err: the error (:class:`~lookahead_control.core.rcl_yaml.RclYamlError`: what
+        rcl refuses or reads otherwise than meant).
+    :return: ``malformed YAML (line 3): ...`` or ``not readable by rcl (line 3): ...``.
     """
-    if text in _RCL_TRUE or text in _RCL_FALSE:
-        return text in _RCL_TRUE
-    whole = _RCL_INT.fullmatch(text)
-    if whole:
-        number = int(whole.group(1), 16 if whole.group(1)[1:2] in ('x', 'X') else 8
-                     if whole.group(1).startswith('0') else 10)
-        number = -number if text.lstrip().startswith('-') else number
-        if INT64_RANGE[0] <= number <= INT64_RANGE[1]:
-            return number           # else strtol's ERANGE: strtod's turn
-    if text in _RCL_SPECIAL:
-        return _RCL_SPECIAL[text]
-    word = _RCL_WORD.fullmatch(text)
-    if word:
-        value = math.nan if word.group(2)[:1] in ('n', 'N') else math.inf
-        return -value if word.group(1) == '-' else value
-    hexa = _RCL_HEX.fullmatch(text)
-    if hexa:
-        value, digits = float.fromhex(hexa.group(2)), hexa.group(3)
-        value = -value if hexa.group(1) == '-' else value
-    elif _RCL_DECIMAL.fullmatch(text):
-        value, digits = float(text), _RCL_DECIMAL.fullmatch(text).group(1)  # type: ignore
-    else:
-        return text
-    # strtod's ERANGE (rcl then keeps the text): overflow, or a nonzero value that
-    # underflows to a subnormal or to zero
-    nonzero = any(c not in '0.xX' for c in digits)
-    if math.isinf(value) or (nonzero and abs(value) < sys.float_info.min):
-        return text
-    return value
-
-
-class _RclLoader(yaml.SafeLoader):
-    """PyYAML's composer with rcl's refusal of aliases (``*name``)."""
-
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        if self.check_event(yaml.AliasEvent):
-            event = self.peek_event()
-            raise RclYamlError(None, None, f'an alias (*{event.anchor}): rcl reads no YAML '
-                               'aliases or merge keys, write the values out',
-                               event.start_mark)
-        return super().compose_node(parent, index)
-
-
-def _rcl_object(node: yaml.Node) -> Any:
-    if isinstance(node, yaml.ScalarNode):
-        if node.style in ("'", '"'):
-            return node.value
-        return None if node.value == '' else rcl_scalar(node.value)
-    if isinstance(node, yaml.MappingNode):
-        out: dict[str, Any] = {}
-        for key, value in node.value:
-            if not isinstance(key, yaml.ScalarNode):
-                raise RclYamlError(None, None, 'a key that is not a plain name',
-                                   key.start_mark)
-            new = _rcl_object(value)
-            old = out.get(key.value)
-            # a map opened twice is one map to rcl, the later values replacing
-            out[key.value] = (_merged(old, new) if isinstance(old, dict)
-                              and isinstance(new, dict) else new)
-        return out
-    items = []
-    for item in node.value:
-        if not isinstance(item, yaml.ScalarNode):
-            raise RclYamlError(None, None, 'a list inside a list: a parameter is a list '
-                               'of plain values', item.start_mark)
-        items.append(_rcl_object(item))
-    kinds = {type(item).__name__ for item in items}
-    if len(kinds) > 1:
-        raise RclYamlError(None, None, f'a list of mixed types ({", ".join(sorted(kinds))}):'
-                           ' rcl refuses it; write every item the same way (1.0, 2.5)',
-                           node.start_mark)
-    return items
-
-
-def _merged(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
-    out = dict(old)
-    for key, value in new.items():
-        out[key] = (_merged(out[key], value) if isinstance(out.get(key), dict)
-                    and isinstance(value, dict) else value)
-    return out
-
-
-_ROS_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
-
-
-def section_name_error(name: str) -> str | None:
-    """
-    Return why rcl refuses a params file's section name, or None if it takes it.
-
-    The name the keys above ``ros__parameters`` spell (``/**/controller``), a leading
-    slash added: each part between slashes a ROS name (letters, digits, underscores,
-    not first a digit) or a wildcard ``*`` or ``**``.
-
-    :param name: the section's name.
-    :return: the reason, or None.
-    """
-    for token in (name if name.startswith('/') else '/' + name)[1:].split('/'):
-        if token not in ('*', '**') and not _ROS_NAME.fullmatch(token):
-            return (f'{token!r} is not a ROS name (letters, digits and underscores, not '
-                    'first a digit) nor a wildcard (* or **)' if token else
-                    'an empty name between slashes')
-    return None
-
-
-def _rcl_node(text: str) -> Any:
-    loader = _RclLoader(text)
-    try:
-        return loader.get_single_node()
-    finally:
-        loader.dispose()
-
-
-def load_params_yaml(text: str) -> Any:
-    """
-    Parse YAML text as rcl reads a ROS params file (or a ``-p`` value).
-
-    Unquoted scalars are typed as rcl types them (:func:`rcl_scalar`), tags are
-    ignored, keys are their text, and what rcl refuses is refused: aliases (so merge
-    keys), lists of mixed types and lists inside lists.
-
-    :param text: the YAML text.
-    :return: the document (None if empty).
-    :raises yaml.YAMLError: malformed YAML, or :class:`RclYamlError`.
-    """
-    node = _rcl_node(text)
-    return None if node is None else _rcl_object(node)
+    mark = getattr(err, 'problem_mark', None)
+    where = f' (line {mark.line + 1})' if mark is not None else ''
+    what = 'not readable by rcl' if isinstance(err, RclYamlError) else 'malformed YAML'
+    problem = ' '.join(str(getattr(err, 'problem', None) or err).split())
+    return f'{what}{where}: {problem}'
 
 
 def rcl_param_value(text: str) -> Any:
@@ -274,108 +107,38 @@ def rcl_param_value(text: str) -> Any:
     Return the value of a ``-p name:=value`` override as rcl reads it.
 
     :param text: the text after ``:=``.
-    :return: the value.
-    :raises ConfigError: an empty value, a mapping, or YAML rcl refuses.
+    :return: the value (:func:`~lookahead_control.core.rcl_yaml.param_value`).
+    :raises ConfigError: an empty value, a map, or YAML rcl refuses.
     """
     try:
-        value = load_params_yaml(text)
+        return param_value(text)
     except yaml.YAMLError as err:
-        raise ConfigError(f'{one_line_yaml_error(err)}') from err
-    if value is None or isinstance(value, dict):
-        raise ConfigError(f'{text!r} is not a value rcl reads (a number, true / false, a '
-                          "string, a list; an empty string is '')")
-    return value
+        raise ConfigError(yaml_problem(err)) from err
 
 
-def one_line_yaml_error(err: yaml.YAMLError) -> str:
-    """
-    Return a YAML error's problem in one line.
-
-    :param err: the error.
-    :return: its problem (and line), or its text.
-    """
-    mark = getattr(err, 'problem_mark', None)
-    where = f' (line {mark.line + 1})' if mark is not None else ''
-    return f'{getattr(err, "problem", None) or err}{where}'
-
-
-def _flatten(prefix: str, tree: Mapping[str, Any], out: dict[str, Any]) -> None:
-    for key, value in tree.items():
-        name = f'{prefix}.{key}' if prefix else str(key)
-        if isinstance(value, Mapping):
-            _flatten(name, value, out)
-        else:
-            out[name] = value
-
-
-def flat_parameters(section: Any) -> dict[str, Any]:
-    """
-    Return a params file section's ``ros__parameters`` as dotted names.
-
-    :param section: ``{ros__parameters: {...}}``.
-    :return: dotted name -> value (empty if the section has none).
-    """
-    out: dict[str, Any] = {}
-    if isinstance(section, Mapping) and isinstance(section.get('ros__parameters'), Mapping):
-        _flatten('', section['ros__parameters'], out)
-    return out
-
-
-def _is_namespace(node: Any) -> bool:
-    # a mapping of node names (rcl's nested form ``/**: {controller: {ros__parameters:
-    # ...}}``), not a node's section (``ros__parameters`` missing: an error if it applies)
-    if not isinstance(node, yaml.MappingNode) or not node.value:
-        return False
-    if any(getattr(k, 'value', None) == 'ros__parameters' for k, _ in node.value):
-        return False
-    return all(isinstance(v, yaml.MappingNode) and (
-        any(getattr(k, 'value', None) == 'ros__parameters' for k, _ in v.value)
-        or _is_namespace(v)) for _, v in node.value)
-
-
-def node_sections(path: Path | str) -> list[tuple[str, dict[str, Any] | None]]:
+def node_sections(path: Path | str) -> list[tuple[str, dict[str, Any]]]:
     """
     Return a params file's node sections as rcl reads them, in the file's order.
 
-    Values are typed as rcl types them (:func:`load_params_yaml`). A namespace nesting
-    (``/**: {controller: {ros__parameters: ...}}``) is the node name it spells
-    (``/**/controller``); sections of the same name (a key written twice) are one, at the
-    place of the first, the later one's entries replacing the earlier one's. A section
-    name rcl refuses (:func:`section_name_error`) is refused.
+    Values typed as rcl types them, names as rcl spells them (``/**: {controller:
+    {ros__parameters: ...}}`` is ``/**/controller``); sections of one name are one, at
+    the place of the first (:func:`~lookahead_control.core.rcl_yaml.params_sections`).
+    What rcl refuses is refused, and what it reads otherwise than meant.
 
     :param path: the params file.
-    :return: (node name or pattern, its flat parameters, or None if it has no
-        ``ros__parameters`` mapping) pairs.
-    :raises ConfigError: a missing, unreadable or malformed file, not a mapping, or one
-        rcl refuses.
+    :return: (node name or pattern, its flat parameters) pairs.
+    :raises ConfigError: a missing or unreadable file, malformed YAML, or one rcl
+        refuses, naming the file and the line.
     """
-    document = read_params_yaml(path)
-    if not isinstance(document, Mapping):
-        raise ConfigError(f'{path}: not a ROS parameters file (expected '
-                          '"<node>: {ros__parameters: {...}}")')
-    out: dict[str, dict[str, Any] | None] = {}
-
-    def walk(node: Any, prefix: list[str]) -> None:
-        for key_node, value_node in node.value:
-            parts = [*prefix, str(key_node.value)]
-            if _is_namespace(value_node):
-                walk(value_node, parts)
-                continue
-            name = parts[0] if len(parts) == 1 else '/' + '/'.join(
-                p.strip('/') for p in parts if p.strip('/'))
-            section = _rcl_object(value_node)
-            flat = (flat_parameters(section) if isinstance(section, Mapping) and isinstance(
-                section.get('ros__parameters'), Mapping) else None)
-            error = None if flat is None else section_name_error(name)
-            if error is not None:
-                raise ConfigError(f'{path}: section {name!r} (line '
-                                  f'{key_node.start_mark.line + 1}): rcl refuses the file: '
-                                  f'{error}')
-            old = out.get(name, {})
-            out[name] = None if old is None or flat is None else {**old, **flat}
-
-    walk(_rcl_node(Path(path).read_text(encoding='utf-8')), [])
-    return list(out.items())
+    file = Path(path)
+    try:
+        data = file.read_bytes()
+    except OSError as err:
+        raise ConfigError(f'{file}: cannot read: {err.strerror or err}') from err
+    try:
+        return [(name, flat) for name, flat, _ in params_sections(data)]
+    except yaml.YAMLError as err:
+        raise ConfigError(f'{file}: {yaml_problem(err)}') from err
 
 
 def applies_to(key: Any, node_name: str) -> bool:
@@ -415,8 +178,6 @@ def load_ros_params(path: Path | str, node_name: str | None = None) -> dict[str,
                   str(key) in ('/**', '**'))
         if not wanted:
             continue
-        if flat is None:
-            raise ConfigError(f'{path}: section {key!r} has no ros__parameters mapping')
         merged.update(flat)
     return merged
 
@@ -475,8 +236,6 @@ def check_params_file(path: Path | str, node_name: str,
     for pattern, flat in node_sections(path):
         if not applies_to(pattern, node_name):
             continue
-        if flat is None:
-            raise ConfigError(f'{path}: section {pattern!r} has no ros__parameters mapping')
         wildcard = '*' in pattern
         try:
             out[pattern] = check_params(flat, specs,

@@ -131,7 +131,7 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
             # rcl applies a section in the order it first met its name over all the
             # files: the package's open '/**', so the file's '/**' sections come before
             # its others whatever its own order (dev-probe49)
-            sections = [(key, flat or {}) for key, flat in node_sections(params_file)
+            sections = [(key, flat) for key, flat in node_sections(params_file)
                         if applies_to(key, 'controller')]
             mine: dict[str, Any] = {}
             for key, flat in sorted(sections, key=lambda item: item[0] != '/**'):

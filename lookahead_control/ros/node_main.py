@@ -34,7 +34,7 @@ from typing import Any, Callable, Optional, Sequence, TypeVar
 from lookahead_control.core import interrupts
 from lookahead_control.core.cli import one_line
 from lookahead_control.core.config import (check_params_file, ConfigError, node_sections,
-                                           rcl_param_value, read_params_yaml)
+                                           rcl_param_value)
 from lookahead_control.core.param_schema import check_params
 from lookahead_control.core.params import ParameterError
 import rclpy
@@ -136,12 +136,12 @@ def check_params_files(args: Sequence[str]) -> None:
     Read each ``--params-file`` before rcl does, for a one-line error naming it.
 
     :param args: command-line arguments.
-    :raises ConfigError: a file is missing, unreadable, malformed or not a mapping.
+    :raises ConfigError: a file is missing, unreadable, malformed, or one rcl refuses or
+        reads otherwise than meant (:func:`~lookahead_control.core.config.node_sections`).
     """
     for flag, path in zip(args, args[1:]):
-        if flag == '--params-file' and not isinstance(read_params_yaml(path), dict):
-            raise ConfigError(f'{path}: not a ROS parameters file (expected '
-                              '"<node>: {ros__parameters: {...}}")')
+        if flag == '--params-file':
+            node_sections(path)
 
 
 class _Quoted(str):
@@ -265,7 +265,7 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
         if flag == '--params-file':
             raw = dict(node_sections(value))
             sections = check_params_file(value, full_name, specs)
-            if any(type(v) is not type((raw[key] or {})[name])
+            if any(type(v) is not type(raw[key][name])
                    for key, flat in sections.items() for name, v in flat.items()):
                 handle = tempfile.NamedTemporaryFile(
                     'w', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)
@@ -276,15 +276,21 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                     except ConfigError as err:
                         raise ConfigError(f'{value}: {err}') from err
                 out[i + 1] = handle.name
-        elif flag == '-p' and ':=' in value and ':' not in value.partition(':=')[0]:
-            # (``-p node:name:=value`` is for another node)
-            name, _, text = value.partition(':=')
+        elif flag in ('-p', '--param') and ':=' in value:
+            # ``-p node:name:=value`` is for the node whose full name is /node (rcl's
+            # rule: not under a namespace); another node's is rcl's business
+            lhs, _, text = value.partition(':=')
+            target, _, name = lhs.rpartition(':')
+            if target and '/' + target != full_name:
+                continue
             try:
-                parsed = check_params({name: rcl_param_value(text)}, specs)[name]
+                given = rcl_param_value(text)
+                parsed = check_params({name: given}, specs)[name]
             except (ParameterError, ConfigError) as err:
-                raise ConfigError(f'-p {value}: {one_line(str(err))}') from err
-            if isinstance(parsed, float):
-                out[i + 1] = f'{name}:={parsed!r}'
+                raise ConfigError(f'{flag} {value}: {one_line(str(err))}') from err
+            if type(parsed) is not type(given):
+                # an integer for a real or a whole real for an integer, as in a file
+                out[i + 1] = f'{target + ":" if target else ""}{name}:={parsed!r}'
     return out
 
 
