@@ -539,17 +539,15 @@ def test_rerun_of_a_bag_recorded_with_the_schedule_keeps_it(tmp_path):
     assert rerun(run, {low: 0.3}).max_diff > 1e-4      # today's default is another law here
 
 
-@pytest.mark.parametrize('law, inactive_steps', [('cg_compensated', 50), ('cg_compensated', 10),
-                                                 ('paper', 50)])
-def test_inputs_received_while_deactivated_are_not_re_run(law, inactive_steps):
-    # a deactivated node takes its inputs in and answers none: its law is not stepped,
-    # and once activated again a time jump (0.5 s > max_gap) restarts it, or a step of
-    # 0.1 s follows. The re-run stepped the law on them (dev-probe48 over DDS: 7.5 mrad
-    # apart after a deactivate / activate); ~/debug activations now says where
+def _deactivated(law, off):
+    """
+    Return a run of the node, deactivated over the steps ``off``, and its bag.
+
+    :return: ``(rows, commands, debug columns, bag)``.
+    """
     rows = _inputs(300, math.inf)
     node, _ = controller_from_params({'law': law})
-    commands, counts, activations = {}, {}, 1
-    off = range(100, 100 + inactive_steps)
+    commands, counts, numbers, activations = {}, {}, {}, 1
     for role, sample in _feed(rows):
         assert node.accept(role, sample, sample.stamp_ns) is None
         if role != 'lateral_error':
@@ -560,10 +558,22 @@ def test_inputs_received_while_deactivated_are_not_re_run(law, inactive_steps):
         activations += k == off.stop            # on_activate
         commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
         counts[sample.stamp_ns] = float(activations)
-    run = _bag(rows, commands, {'activations': counts}, {'law': law})
+        numbers[sample.stamp_ns] = float(len(commands))
+    columns = {'activations': counts, 'answers': numbers}
+    return rows, commands, columns, _bag(rows, commands, columns, {'law': law})
+
+
+@pytest.mark.parametrize('law, inactive_steps', [('cg_compensated', 50), ('cg_compensated', 10),
+                                                 ('paper', 50)])
+def test_inputs_received_while_deactivated_are_not_re_run(law, inactive_steps):
+    # a deactivated node takes its inputs in and answers none: its law is not stepped,
+    # and once activated again a time jump (0.5 s > max_gap) restarts it, or a step of
+    # 0.1 s follows. The re-run stepped the law on them (dev-probe48 over DDS: 7.5 mrad
+    # apart after a deactivate / activate); ~/debug activations now says where
+    rows, commands, columns, run = _deactivated(law, range(100, 100 + inactive_steps))
     result = rerun(run, order='stamp')
     assert result.compared == 300 - inactive_steps and result.max_diff == 0.0, result.max_diff
-    assert result.inactive_skipped == inactive_steps
+    assert result.inactive_skipped == inactive_steps and result.inactive_lost == 0
     blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
     assert blind.inactive_skipped == 0
     if law == 'cg_compensated':         # a law with a state (the paper law has none)
@@ -571,8 +581,43 @@ def test_inputs_received_while_deactivated_are_not_re_run(law, inactive_steps):
     # an answer the recorder lost while the node stayed active is still re-run
     lost = next(iter(sorted(commands)[10:]))
     dropped = _bag(rows, {s: c for s, c in commands.items() if s != lost},
-                   {'activations': {s: c for s, c in counts.items() if s != lost}},
-                   {'law': law})
+                   {name: {s: c for s, c in column.items() if s != lost}
+                    for name, column in columns.items()}, {'law': law})
     again = rerun(dropped, order='stamp')
     assert again.inactive_skipped == inactive_steps and again.max_diff == 0.0
     assert lost in again.commands
+
+
+def test_a_node_deactivated_before_its_first_answer_is_re_run_as_it_ran():
+    # dev-probe52: deactivated before it answered anything and activated later, the node
+    # left every lateral error before its first answer unanswered; the re-run stepped
+    # the law on them (4.03 mrad over DDS, silently): the first answer's count is 2
+    rows, commands, columns, run = _deactivated('cg_compensated', range(1, 50))
+    assert columns['activations'][min(commands)] == 2.0
+    result = rerun(run, order='stamp')
+    assert result.inactive_skipped == 49 and result.max_diff == 0.0, result.max_diff
+    # autostarted (count 1 at the first answer): nothing before it is skipped
+    _, _, _, started = _deactivated('cg_compensated', range(0))
+    assert rerun(started, order='stamp').inactive_skipped == 0
+
+
+def test_answers_lost_next_to_a_deactivation():
+    # dev-probe52: the first answer after activating lost its steering but not its
+    # debug: it was taken as unanswered and skipped (21 of 20 inputs, 1.6e-6 rad)
+    rows, commands, columns, run = _deactivated('cg_compensated', range(100, 120))
+    first_after = sorted(commands)[99]
+    kept = Samples(*(np.delete(getattr(run.steering, f), 99)
+                     for f in ('recv_ns', 'stamp_ns', 'order')),
+                   {k: np.delete(v, 99) for k, v in run.steering.values.items()})
+    assert first_after not in set(kept.stamp_ns.tolist())
+    result = rerun(replace(run, steering=kept), order='stamp')
+    assert result.inactive_skipped == 20 and result.inactive_lost == 0
+    assert result.max_diff == 0.0 and first_after in result.commands
+    # the last answer before it lost with its debug: the bag cannot tell it from an
+    # input never answered; the count of answers says one is missing there
+    last_before = sorted(commands)[98]
+    dropped = _bag(rows, {s: c for s, c in commands.items() if s != last_before},
+                   {name: {s: c for s, c in column.items() if s != last_before}
+                    for name, column in columns.items()}, {'law': 'cg_compensated'})
+    again = rerun(dropped, order='stamp')
+    assert again.inactive_skipped == 21 and again.inactive_lost == 1

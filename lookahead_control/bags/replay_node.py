@@ -76,6 +76,7 @@ def offline(args: argparse.Namespace) -> int:
     report['parameter_sets_unmarked'] = result.parameter_sets_unmarked
     report['parameter_sets_before_bag'] = result.parameter_sets_before_bag
     report['inputs_while_inactive'] = result.inactive_skipped
+    report['answers_lost_next_to_inactive'] = result.inactive_lost
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
@@ -119,6 +120,11 @@ def offline(args: argparse.Namespace) -> int:
               f'{result.inactive_skipped} lateral error(s) it received while inactive are '
               f'not re-run, as it did not answer them ({run.controller_node}/debug '
               'activations)')
+    if result.inactive_lost:
+        print(f'replay: the bag lost {result.inactive_lost} answer(s) of '
+              f'{run.controller_node} next to a deactivation ({run.controller_node}/debug '
+              'answers): those inputs were answered, which ones the bag does not say; '
+              'the re-run skips them and is not exact there')
     if result.parameter_sets_before_bag:
         # a recorder started after a set: its values are the bag's parameters
         print(f'replay: {run.controller_node} had applied '

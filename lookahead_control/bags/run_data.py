@@ -641,6 +641,8 @@ class Rerun:
         values are in the bag's parameters); the recorded sets are numbered after them.
     :param inactive_skipped: lateral errors the recorded controller received while
         deactivated (:func:`inactive_inputs`), not computed, as the node did not.
+    :param inactive_lost: answers the recorder lost next to a deactivation: among the
+        skipped inputs that many were answered (the re-run is not exact there).
     """
 
     commands: dict[int, Command]
@@ -657,6 +659,7 @@ class Rerun:
     parameter_sets_unmarked: Optional[int] = None
     parameter_sets_before_bag: int = 0
     inactive_skipped: int = 0
+    inactive_lost: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -750,7 +753,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     before_bag = sets_before_bag(run)
     params, applied = dict(run.controller_params), 0
     followed = otherwise = switches = 0
-    inactive = inactive_inputs(run)
+    inactive, lost = inactive_inputs(run)
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
@@ -791,10 +794,10 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
-                 switches, applied, unmarked, before_bag, len(inactive))
+                 switches, applied, unmarked, before_bag, len(inactive), lost)
 
 
-def inactive_inputs(run: RunData) -> frozenset[int]:
+def inactive_inputs(run: RunData) -> tuple[frozenset[int], int]:
     """
     Return the lateral-error stamps the recorded controller received while deactivated.
 
@@ -802,26 +805,49 @@ def inactive_inputs(run: RunData) -> frozenset[int]:
     until it is activated again (then a time jump restarts it, or a long step follows).
     Its debug topic counts its activations (``activations``): an unanswered lateral
     error between two answers of different counts came while it was inactive (before,
-    the re-run stepped the law on them: 7.5 mrad apart after a deactivate / activate).
+    the re-run stepped the law on them: 7.5 mrad apart after a deactivate / activate),
+    and so did one before the first answer if that answer's count is above 1 (the node
+    was deactivated before it answered; dev-probe52: 4 mrad). An answer whose steering
+    the recorder lost but whose debug it has was given. The debug's ``answers`` (the
+    law's answers so far) tells how many answers of such a stretch the recorder lost:
+    those inputs were answered, but which of them the bag does not say (counted).
 
     :param run: the bag.
-    :return: the stamps (empty: none, or the bag does not say; an older bag).
+    :return: the stamps (empty: none, or the bag does not say; an older bag), and the
+        answers the recorder lost in those stretches.
     """
     counts = run.debug.values.get('activations')
     lateral = run.inputs.get('lateral_error')
     if counts is None or lateral is None:
-        return frozenset()
-    marked = {int(t): c for t, c in zip(run.debug.stamp_ns.tolist(), counts.tolist())
-              if math.isfinite(c)}
+        return frozenset(), 0
+    numbers = run.debug.values.get('answers')
+    numbers_list = (numbers.tolist() if numbers is not None
+                    else [math.nan] * len(counts))
+    columns = zip(run.debug.stamp_ns.tolist(), counts.tolist(), numbers_list)
+    marked = {int(t): (c, n) for t, c, n in columns if math.isfinite(c)}
+    if not marked:
+        return frozenset(), 0
     answered = sorted(marked)
-    recorded = set(run.steering.stamp_ns.tolist())
-    out = set()
+    given = set(run.steering.stamp_ns.tolist()) | set(marked)
+    out, gaps = set(), set()
     for stamp in lateral.stamp_ns.tolist():
+        if stamp in given:
+            continue
         at = bisect.bisect_left(answered, stamp)
-        if (stamp not in recorded and 0 < at < len(answered)
-                and marked[answered[at - 1]] != marked[answered[at]]):
+        if at == len(answered):
+            continue                # after the last answer: nothing to compare
+        after = marked[answered[at]][0]
+        before = marked[answered[at - 1]][0] if at else 1.0
+        if before != after:
             out.add(int(stamp))
-    return frozenset(out)
+            gaps.add(at)
+    lost = 0
+    for at in gaps:
+        number = marked[answered[at]][1]
+        earlier = marked[answered[at - 1]][1] if at else 0.0
+        if math.isfinite(number) and math.isfinite(earlier):
+            lost += max(0, int(number - earlier) - 1)
+    return frozenset(out), lost
 
 
 def recorded_parameter_sets(run: RunData) -> dict[int, int]:

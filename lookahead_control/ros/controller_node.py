@@ -211,9 +211,11 @@ class ControllerNode(LifecycleNode):
         self.published = 0
         #: parameter sets applied at run time (each a /parameter_events message)
         self.parameter_sets = 0
-        #: activations since start (~/debug: the offline re-run skips what the node
-        #: received while inactive, as the node did)
+        #: activations since start, and the law's answers (~/debug: the offline re-run
+        #: skips what the node received while inactive, as the node did, and tells an
+        #: answer the recorder lost from one never given)
         self.activations = 0
+        self.answers = 0
         self._last_publish: Optional[int] = None
         self._refusal_log = Throttle(1.0)
         self._cache_input_parameters()
@@ -593,6 +595,7 @@ class ControllerNode(LifecycleNode):
         law = command.law
         if law is None:
             return
+        self.answers += 1
         if self.core.law_name == 'paper':
             self.counters['d_v_clamped'] += int(float(law.d_v) >= self.core.params.max_look_ahead)
         # the law's own clips (cg_compensated): counted, told, not warned (they are its
@@ -614,6 +617,7 @@ class ControllerNode(LifecycleNode):
         # the activations before this answer: inputs left unanswered between two answers
         # of different counts came while the node was inactive (the re-run skips them)
         debug.append(('activations', float(self.activations)))
+        debug.append(('answers', float(self.answers)))
         state = getattr(self.core.law, 'debug_values', None)
         if state is not None:       # a law with a state: cg_compensated (its estimate ...)
             debug += state()
