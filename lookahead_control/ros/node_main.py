@@ -41,6 +41,7 @@ import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 import yaml
@@ -48,6 +49,13 @@ import yaml
 N = TypeVar('N', bound=Node)
 RCLError = _rclpy.RCLError
 _RCL_LOCATION = re.compile(r', at /\S+:\d+')
+
+# rclpy's logger sets the attribute its __del__ reads after its name in __init__: a
+# Ctrl-C between the two made __del__ print 'Exception ignored ... Traceback ...
+# AttributeError' after 'replay: interrupted' (session 24's suite, once in 8 x 10
+# interrupts); a class default keeps __del__ quiet
+if not hasattr(RcutilsLogger, 'logger_sublogger_namepair'):
+    RcutilsLogger.logger_sublogger_namepair = None
 
 
 def rcl_reason(err: Exception) -> str:
