@@ -495,10 +495,11 @@ def test_a_converted_params_file_keeps_its_strings(tmp_path, text):
     mine.write_text(f"controller:\n  ros__parameters:\n    frame_id: '{text}'\n"
                     '    vehicle:\n      mass: 1500\n')
     scratch = []
-    args = checked_arguments(['--params-file', str(mine)], 'controller', ALL_SPECS, scratch)
+    args = checked_arguments(['--ros-args', '--params-file', str(mine)], 'controller',
+                             ALL_SPECS, scratch)
     try:
-        assert args[1] != str(mine)             # converted (the mass)
-        read = _node_reads(args[1])
+        assert args[-1] != str(mine)             # converted (the mass)
+        read = _node_reads(args[-1])
     finally:
         for path in scratch:
             path.unlink()
@@ -545,29 +546,38 @@ def test_a_converted_copy_keeps_the_order_of_its_sections(tmp_path):
                     '/**:\n  ros__parameters:\n    frame_id: from_wildcard\n'
                     '    vehicle:\n      mass: 1500\n')
     scratch = []
-    args = checked_arguments(['--params-file', str(mine)], 'controller', ALL_SPECS, scratch)
+    args = checked_arguments(['--ros-args', '--params-file', str(mine)], 'controller',
+                             ALL_SPECS, scratch)
     try:
-        assert args[1] != str(mine)
-        assert _node_reads(args[1])['frame_id'] == 'from_wildcard'
+        assert args[-1] != str(mine)
+        assert _node_reads(args[-1])['frame_id'] == 'from_wildcard'
     finally:
         for path in scratch:
             path.unlink()
 
 
-def test_a_name_and_its_prefix_in_one_file_is_one_line_and_no_copy_left(tmp_path):
+def test_a_name_and_its_prefix_in_one_file_reach_rcl_as_written(tmp_path):
     # dev-probe49: foo: 1 beside foo.bar: 2 (another node's, in /**) with a conversion:
-    # a traceback from the copy, and an empty copy left behind
-    from lookahead_control.core.config import ConfigError
+    # a traceback from the copy, and an empty copy left behind; then refused (nested
+    # maps cannot hold both), though rcl reads both (dev-probe53): the copy is written
+    # with dotted names, as rcl reads them back
     from lookahead_control.ros.controller_node import ALL_SPECS
     from lookahead_control.ros.node_main import checked_arguments
+    from test_params_yaml import _rcl_parameters
     mine = tmp_path / 'car.yaml'
     mine.write_text('/**:\n  ros__parameters:\n    foo: 1\n    foo.bar: 2\n'
-                    '    vehicle:\n      mass: 1500\n')
+                    "    'x..y': 3\n    vehicle:\n      mass: 1500\n")
     scratch = []
-    with pytest.raises(ConfigError, match=r"car.yaml: foo.bar: 'foo' is also a parameter"):
-        checked_arguments(['--params-file', str(mine)], 'controller', ALL_SPECS, scratch)
-    assert len(scratch) == 1
-    scratch[0].unlink()
+    args = checked_arguments(['--ros-args', '--params-file', str(mine)], 'controller',
+                             ALL_SPECS, scratch)
+    try:
+        assert len(scratch) == 1 and args[-1] == str(scratch[0])
+        copy = _rcl_parameters(tmp_path, scratch[0].read_text())
+    finally:
+        scratch[0].unlink()
+    original = _rcl_parameters(tmp_path, mine.read_text())
+    assert copy['foo'] == original['foo'] == 1 and copy['foo.bar'] == 2 and copy['x..y'] == 3
+    assert copy['vehicle.mass'] == 1500.0 and original['vehicle.mass'] == 1500
 
 
 def test_a_restart_late_in_a_curve_leaves_analyze_the_memory_before_it():

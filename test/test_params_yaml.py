@@ -56,6 +56,10 @@ RCL_READS = {
     '0x1p1024': '0x1p1024', '0x1.fffffffffffff8p1023': '0x1.fffffffffffff8p1023',
     '0x1.8': 1.5, '0xFFFFFFFFFFFFFFFFFF': float(0xFFFFFFFFFFFFFFFFFF),
     '\u0131nf': '\u0131nf', 'na\u017f': 'na\u017f',
+    # dev-probe53: glibc judges tininess after rounding (these round to the smallest
+    # normal double and are no range error)
+    '2.2250738585072013e-308': 2.2250738585072014e-308,
+    '0x1.fffffffffffff8p-1023': 2.2250738585072014e-308,
 }
 NAN_TEXTS = ('nan', '.nan', '.NaN', 'NAN', 'nan(12)')
 
@@ -181,7 +185,7 @@ def _write(tmp_path, text):
     ('base: &base\n  ros__parameters: {a: 1.0}\nn:\n  <<: *base\n', r'alias \(\*base\)'),
     ('n:\n  ros__parameters:\n    a: [1, 2.5]\n', r'mixed types \(float, int\)'),
     ("n:\n  ros__parameters:\n    a: [y, 'y']\n", r'mixed types \(bool, str\)'),
-    ('n:\n  ros__parameters:\n    a: [[1], [2]]\n', 'a list inside a list'),
+    ('n:\n  ros__parameters:\n    a: [[1], [2]]\n', 'a list or a map inside a list'),
 ])
 def test_what_rcl_refuses_is_refused_with_the_line(tmp_path, text, match):
     # before: PyYAML read these files and the check passed them; rcl then refused them
@@ -195,7 +199,7 @@ def test_a_list_inside_a_list_is_refused(tmp_path):
     # with one item rcl takes it and flattens it ([[1]] is [1]): a mistake, refused
     text = 'n:\n  ros__parameters:\n    a: [[1]]\n'
     assert _rcl_parameters(tmp_path, text)['a'] == [1]
-    with pytest.raises(ConfigError, match=r'line 3\): a list inside a list'):
+    with pytest.raises(ConfigError, match=r'line 3\): a list or a map inside a list'):
         node_sections(tmp_path / _write(tmp_path, text))
 
 
@@ -217,16 +221,17 @@ def test_the_node_takes_a_value_rcl_takes_and_refuses_one_rcl_types_otherwise(tm
     good = tmp_path / 'good.yaml'
     good.write_text('controller:\n  ros__parameters:\n    lane_keeping:\n'
                     '      integral_gain: 3e-1\n    vehicle:\n      mass: 1.5e3\n')
-    assert checked_arguments(['--params-file', str(good)], 'controller', ALL_SPECS, []) == [
-        '--params-file', str(good)]
+    assert checked_arguments(['--ros-args', '--params-file', str(good)], 'controller',
+                             ALL_SPECS, []) == [
+        '--ros-args', '--params-file', str(good)]
     bad = tmp_path / 'bad.yaml'
     bad.write_text('controller:\n  ros__parameters:\n    frame_id: y\n')
     with pytest.raises(ConfigError, match='frame_id = True'):
-        checked_arguments(['--params-file', str(bad)], 'controller', ALL_SPECS, [])
-    assert checked_arguments(['-p', 'lane_keeping.integral_gain:=3e-1'], 'controller',
-                             ALL_SPECS, []) == ['-p', 'lane_keeping.integral_gain:=3e-1']
+        checked_arguments(['--ros-args', '--params-file', str(bad)], 'controller', ALL_SPECS, [])
+    three = ['--ros-args', '-p', 'lane_keeping.integral_gain:=3e-1']
+    assert checked_arguments(three, 'controller', ALL_SPECS, []) == three
     with pytest.raises(ConfigError, match='-p frame_id:=: .*empty string'):
-        checked_arguments(['-p', 'frame_id:='], 'controller', ALL_SPECS, [])
+        checked_arguments(['--ros-args', '-p', 'frame_id:='], 'controller', ALL_SPECS, [])
 
 
 def test_a_converted_copy_keeps_what_rcl_read(tmp_path):
@@ -240,10 +245,11 @@ def test_a_converted_copy_keeps_what_rcl_read(tmp_path):
                     '    lane_keeping:\n      integral_gain: 3e-1\n'
                     "      compliance_memory_seed: 1.2e0\n    frame_id: '1e5'\n")
     scratch = []
-    args = checked_arguments(['--params-file', str(mine)], 'controller', ALL_SPECS, scratch)
+    args = checked_arguments(['--ros-args', '--params-file', str(mine)], 'controller',
+                             ALL_SPECS, scratch)
     try:
-        assert args[1] != str(mine) and scratch
-        read = _node_reads(args[1])
+        assert args[-1] != str(mine) and scratch
+        read = _node_reads(args[-1])
     finally:
         for path in scratch:
             path.unlink()
@@ -263,7 +269,13 @@ def test_closed_loop_and_replay_take_values_as_rcl_does(tmp_path):
 
 
 REMAPS = (['-r', '__ns:=/car_b'], ['-r', '__ns:=/car_b', '-r', '__node:=truck'],
-          ['--remap', 'controller:__ns:=/car_b'], ['-r', 'other:__ns:=/car_b'], [])
+          ['--remap', 'controller:__ns:=/car_b'], ['-r', 'other:__ns:=/car_b'], [],
+          # dev-probe53: the first rule wins; a node's rule names the renamed node
+          ['-r', '__ns:=/car_b', '-r', '__ns:=/car_a'],
+          ['-r', 'controller:__ns:=/car_b', '-r', '__ns:=/car_a'],
+          ['-r', '__node:=truck', '-r', 'controller:__ns:=/car_b'],
+          ['-r', '__node:=truck', '-r', 'truck:__ns:=/car_b'],
+          ['-r', '__node:=truck', '-r', 'controller:__node:=bus', '-r', '__ns:=/car_b'])
 
 
 @pytest.mark.parametrize('key', ['/car_b/controller', 'car_b/controller', '/**', '/*',
@@ -365,6 +377,10 @@ AGREED = {
     'longest node name': f"'{'n' * 255}':\n  ros__parameters: {{a: 1}}\n",
     'anchor twice': 'n:\n  ros__parameters:\n    a: &x 1\n    b: &x 2\n',
     'dotted then nested': 'n:\n  ros__parameters:\n    g.a: 0.5\n    g:\n      a: 0.7\n',
+    # dev-probe53
+    'a NUL in a string': 'n:\n  ros__parameters:\n    a: "base_link\\0x"\n',
+    'an empty tagged value': 'n:\n  ros__parameters:\n    a: !!str\n    b: 1\n',
+    'a name and its prefix': 'n:\n  ros__parameters:\n    foo: 1\n    foo.bar: 2\n',
 }
 # what rcl reads otherwise than anyone means: refused here, with the line
 REFUSED_HERE = {
@@ -379,6 +395,17 @@ REFUSED_HERE = {
                                '      b: 2\n',
     # rcl flattens it
     'a list inside a list': 'n:\n  ros__parameters:\n    a: [[1]]\n',
+    # dev-probe53: rcl renames the earlier value (frame_id.child = odom)
+    'a map over a value in a later section': 'n:\n  ros__parameters:\n    a: odom\n'
+                                             'n:\n  ros__parameters:\n    a: {child: x}\n',
+    # one name nested and dotted, two types: rcl reads the int
+    'nested and dotted, two types': 'n:\n  ros__parameters:\n    g: {a: 1}\n    g.a: 0.2\n',
+    # rcl misnames the names after it (x.b.d)
+    'a dotted name opening a map': 'n:\n  ros__parameters:\n    x: {b.c: {e: 1}, d: 2}\n',
+    # rclpy cannot declare it
+    'an empty list': 'n:\n  ros__parameters:\n    a: []\n',
+    'deep': 'n:\n  ros__parameters:\n    a: ' + '[' * 400 + '1' + ']' * 400 + '\n',
+    'deeper maps': 'n:\n  ros__parameters:\n    a: ' + '{b: ' * 400 + '1' + '}' * 400 + '\n',
 }
 
 
@@ -386,7 +413,10 @@ def _rcl_reads_file(tmp_path, text):
     """Return rcl's parameters of node ``/n``, or None if rcl refuses the file."""
     if _rcl_refuses(tmp_path, text):
         return None
-    params = _rcl_parameters(tmp_path, text)
+    try:
+        params = _rcl_parameters(tmp_path, text)
+    except ValueError:          # rclpy: a value it cannot declare (an empty list)
+        return None
     return {k: v for k, v in params.items()
             if k not in ('use_sim_time', 'start_type_description_service')}
 
@@ -414,6 +444,11 @@ def test_files_are_read_or_refused_as_rcl_does(tmp_path):
 def test_files_rcl_reads_against_their_meaning_are_refused(tmp_path):
     for case, text in REFUSED_HERE.items():
         assert _ours(tmp_path, text) is None, case
+    rename = _rcl_reads_file(tmp_path, REFUSED_HERE['a map over a value in a later section'])
+    assert set(rename) == {'a.child'}           # the value 'odom' of 'a' is gone
+    assert _rcl_reads_file(tmp_path, REFUSED_HERE['nested and dotted, two types']) == {'g.a': 1}
+    assert set(_rcl_reads_file(tmp_path, REFUSED_HERE['a dotted name opening a map'])) == {
+        'x.b.c.e', 'x.b.d'}
     # rcl reads the first nested form and refuses the other: by the order alone
     assert _rcl_reads_file(tmp_path, REFUSED_HERE['a section beside a node']) is not None
     assert _rcl_reads_file(tmp_path, REFUSED_HERE['a node beside a section']) is None
@@ -440,16 +475,100 @@ def test_every_form_of_a_command_line_value_for_this_node_is_checked():
     from lookahead_control.ros.node_main import checked_arguments
     for flag in ('-p', '--param'):
         with pytest.raises(ConfigError, match=f'{flag} lane_keeping.integral_gain:=9: '):
-            checked_arguments([flag, 'lane_keeping.integral_gain:=9'], 'controller',
+            checked_arguments(['--ros-args', flag, 'lane_keeping.integral_gain:=9'], 'controller',
                               ALL_SPECS, [])
     with pytest.raises(ConfigError, match='expected a number'):
-        checked_arguments(['-p', 'controller:lane_keeping.integral_gain:=!!str 0.25'],
+        checked_arguments(['--ros-args', '-p',
+                           'controller:lane_keeping.integral_gain:=!!str 0.25'],
                           'controller', ALL_SPECS, [])
-    assert checked_arguments(['-p', 'other:lane_keeping.integral_gain:=9'], 'controller',
-                             ALL_SPECS, []) == ['-p', 'other:lane_keeping.integral_gain:=9']
+    other = ['--ros-args', '-p', 'other:lane_keeping.integral_gain:=9']
+    assert checked_arguments(other, 'controller', ALL_SPECS, []) == other
     # under a namespace 'controller:' is not this node's (rcl matches /controller)
     args = ['--ros-args', '-r', '__ns:=/car_b', '-p', 'controller:lane_keeping.integral_gain:=9']
     assert checked_arguments(args, 'controller', ALL_SPECS, []) == args
-    assert checked_arguments(['-p', 'controller:safety.max_curvature_points:=100.0'],
+    assert checked_arguments(['--ros-args', '-p', 'controller:safety.max_curvature_points:=100.0'],
                              'controller', ALL_SPECS, []) == [
-        '-p', 'controller:safety.max_curvature_points:=100']
+        '--ros-args', '-p', 'controller:safety.max_curvature_points:=100']
+
+
+def test_a_params_file_read_once_is_checked_and_reaches_rcl(tmp_path):
+    # dev-probe53: --params-file <(printf ...) (a pipe): the checks read it, rcl then found
+    # it empty, and the node ran unchecked on its defaults (integral_gain: abc started)
+    import os
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    for text, error in (('0.2', None), ('abc', 'expected a number')):
+        read, write = os.pipe()
+        os.write(write, ('controller:\n  ros__parameters:\n    lane_keeping:\n'
+                         f'      integral_gain: {text}\n').encode())
+        os.close(write)
+        scratch = []
+        try:
+            if error:
+                with pytest.raises(ConfigError, match=error):
+                    checked_arguments(['--ros-args', '--params-file', f'/dev/fd/{read}'],
+                                      'controller', ALL_SPECS, scratch)
+                continue
+            args = checked_arguments(['--ros-args', '--params-file', f'/dev/fd/{read}'],
+                                     'controller', ALL_SPECS, scratch)
+            assert args[-1] == str(scratch[0])
+            from test_compliance_seed import _node_reads
+            assert _node_reads(args[-1])['lane_keeping.integral_gain'] == 0.2
+        finally:
+            os.close(read)
+            for path in scratch:
+                path.unlink()
+
+
+def test_later_arguments_rcl_would_read_otherwise_are_refused(tmp_path):
+    # dev-probe53: a file's int and a later -p's real for one name (rcl reads the int 7,
+    # the node ran 5.0), or two -p; and a later file's map over a -p's value (rcl drops it)
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    seven = tmp_path / 'seven.yaml'
+    seven.write_text('/**:\n  ros__parameters:\n    safety:\n      max_curvature_points: 7\n')
+    for args in (['--params-file', str(seven), '-p', 'safety.max_curvature_points:=5.0'],
+                 ['-p', 'safety.max_curvature_points:=7',
+                  '-p', 'safety.max_curvature_points:=5.0']):
+        with pytest.raises(ConfigError, match='given twice, as int 7 and float 5.0'):
+            checked_arguments(['--ros-args', *args], 'controller', ALL_SPECS, [])
+    assert _rcl_p(['--params-file', str(seven), '-p', 'safety.max_curvature_points:=5.0']) == 7
+    child = tmp_path / 'child.yaml'
+    child.write_text("/**:\n  ros__parameters:\n    frame_id: {child: 'x'}\n")
+    with pytest.raises(ConfigError, match='frame_id is a value, and later the map'):
+        checked_arguments(['--ros-args', '-p', 'frame_id:=odom', '--params-file', str(child)],
+                          'controller', ALL_SPECS, [])
+    # one type: the later wins, as in rcl
+    checked_arguments(['--ros-args', '--params-file', str(seven), '-p',
+                       'safety.max_curvature_points:=5'], 'controller', ALL_SPECS, [])
+
+
+def _rcl_p(args):
+    import rclpy
+    from rclpy.context import Context
+    ctx = Context()
+    rclpy.init(args=['--ros-args', *args], context=ctx)
+    try:
+        node = rclpy.create_node('controller', context=ctx,
+                                 automatically_declare_parameters_from_overrides=True)
+        try:
+            return node.get_parameter('safety.max_curvature_points').value
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_arguments_rcl_does_not_read_are_not_checked(tmp_path):
+    # dev-probe53: a --params-file before --ros-args, or a -p after its closing --, is the
+    # program's: rcl never reads it, and it was refused
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('controller:\n  ros__parameters:\n    law: bogus\n')
+    for args in (['--params-file', str(bad)], ['--ros-args', '--', '-p', 'law:=bogus'],
+                 ['--params-file', str(bad), '--ros-args', '-r', '__ns:=/a']):
+        assert checked_arguments(args, 'controller', ALL_SPECS, []) == args
+    with pytest.raises(ConfigError, match='law'):
+        checked_arguments(['--ros-args', '--params-file', str(bad)], 'controller',
+                          ALL_SPECS, [])

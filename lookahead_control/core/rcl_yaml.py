@@ -68,12 +68,17 @@ def _error(problem: str, node: Any) -> RclYamlError:
     return RclYamlError(None, None, problem, node.start_mark)
 
 
+# glibc judges tininess after rounding: a value that rounds (with an unbounded exponent)
+# to the smallest normal double is not tiny; below the midpoint under it, it is
+_TINY = Fraction(sys.float_info.min) - Fraction(1, 2 ** 1076)
+
+
 def _strtod_range_error(exact: Fraction, value: float) -> bool:
     # glibc's ERANGE, after which rcl keeps the text: an overflow, or a result that is
-    # tiny (the exact value below the smallest normal double) and inexact
+    # tiny and inexact (an exact subnormal is no error)
     if math.isinf(value):
         return True
-    return 0 < abs(exact) < Fraction(sys.float_info.min) and Fraction(value) != exact
+    return 0 < abs(exact) < _TINY and Fraction(value) != exact
 
 
 def _hex_float(sign: str, whole: str, fraction: str, exponent: Optional[str]) -> Any:
@@ -158,6 +163,10 @@ def compose(data: str | bytes) -> Any:
     loader = _Loader(data)
     try:
         return loader.get_single_node()
+    except RecursionError as err:
+        # rcl reads hundreds of levels; Python's recursion stops first (a traceback)
+        raise RclYamlError(None, None, 'nested too deep to read (hundreds of levels)',
+                           None) from err
     finally:
         loader.dispose()
 
@@ -168,19 +177,27 @@ def _kind(value: Any) -> str:
     return type(value).__name__
 
 
-def value_of(node: Any) -> Any:
+#: deeper maps are refused (Python's recursion would fail first, with a traceback)
+MAX_DEPTH = 64
+
+
+def value_of(node: Any, depth: int = 1) -> Any:
     """
     Return a parameter's value (a node under ``ros__parameters``) as rcl reads it.
 
     :param node: the node.
+    :param depth: its depth under ``ros__parameters`` (1: a parameter or namespace
+        there).
     :return: a scalar, a list of one type, or a mapping of names to values.
     :raises RclYamlError: what rcl refuses or reads otherwise than meant.
     """
+    if depth > MAX_DEPTH:
+        raise _error(f'maps nested more than {MAX_DEPTH} deep', node)
     if isinstance(node, yaml.ScalarNode):
-        if node.style in ("'", '"') or getattr(node, 'rcl_string', False):
-            return node.value
-        if node.value == '':
+        if node.value == '' and node.style not in ("'", '"'):
             raise _error("no value (rcl refuses an empty one; an empty string is '')", node)
+        if node.style in ("'", '"') or getattr(node, 'rcl_string', False):
+            return node.value.split('\0', 1)[0]        # rcl's C string ends at a NUL
         return rcl_scalar(node.value)
     if isinstance(node, yaml.MappingNode):
         if not node.value:
@@ -188,7 +205,10 @@ def value_of(node: Any) -> Any:
         out: dict[str, Any] = {}
         for key, item in node.value:
             name = _key(key)
-            new = value_of(item)
+            if depth >= 2 and '.' in name and isinstance(item, yaml.MappingNode):
+                raise _error(f'{name!r}: a dotted name opening a map inside a map (rcl '
+                             'misnames the names after it); write it as nested maps', key)
+            new = value_of(item, depth + 1)
             if name in out:
                 new = _merged(out[name], new, name, key)
             out[name] = new
@@ -196,9 +216,12 @@ def value_of(node: Any) -> Any:
     items = []
     for item in node.value:
         if not isinstance(item, yaml.ScalarNode):
-            raise _error('a list inside a list: a parameter is a list of plain values',
-                         item)
-        items.append(value_of(item))
+            raise _error('a list or a map inside a list: a parameter is a list of plain '
+                         'values', item)
+        items.append(value_of(item, depth + 1))
+    if not items:
+        raise _error('an empty list: rcl cannot tell its type (write the parameter out '
+                     'or give it items)', node)
     kinds = {type(item).__name__ for item in items}
     if len(kinds) > 1:
         raise _error(f'a list of mixed types ({", ".join(sorted(kinds))}): rcl refuses it; '
@@ -209,9 +232,9 @@ def value_of(node: Any) -> Any:
 def _key(node: Any) -> str:
     if not isinstance(node, yaml.ScalarNode):
         raise _error('a key that is not a plain name', node)
-    if node.value == '':
+    if node.value.split('\0', 1)[0] == '':
         raise _error('an empty key: rcl refuses it', node)
-    return str(node.value)
+    return str(node.value).split('\0', 1)[0]
 
 
 def _merged(old: Any, new: Any, name: str, mark: Any) -> Any:
@@ -228,6 +251,35 @@ def _merged(old: Any, new: Any, name: str, mark: Any) -> Any:
     return new
 
 
+def merge_flat(old: dict[str, Any], new: dict[str, Any], mark: Any = None) -> None:
+    """
+    Refuse what rcl reads otherwise when a later source sets parameters of earlier ones.
+
+    A section of the same name again, another file, or a ``-p``: a name given two types
+    (rcl keeps both and reads one by its type), or a later map under an earlier value's
+    name (``frame_id: odom``, later ``frame_id: {child: x}``: rcl renames the value to
+    ``frame_id.child``).
+
+    :param old: the parameters so far (flat).
+    :param new: the later ones (flat).
+    :param mark: where the later ones begin (the error's line), or None.
+    :raises RclYamlError: naming the parameter.
+    """
+    for param, value in new.items():
+        if param in old and _kind(old[param]) != _kind(value):
+            raise RclYamlError(None, None, f'{param} given twice, as {_kind(old[param])} '
+                               f'{old[param]!r} and {_kind(value)} {value!r}: rcl keeps both '
+                               'and reads one by its type, not the later; give it once',
+                               getattr(mark, 'start_mark', None))
+        head = param.rpartition('.')[0]
+        while head:
+            if head in old and head not in new:
+                raise RclYamlError(None, None, f'{head} is a value, and later the map of '
+                                   f'{param}: rcl then renames the value; give one or the '
+                                   'other', getattr(mark, 'start_mark', None))
+            head = head.rpartition('.')[0]
+
+
 def flatten(tree: dict[str, Any], prefix: str = '') -> dict[str, Any]:
     """
     Return nested parameters as dotted names.
@@ -239,10 +291,15 @@ def flatten(tree: dict[str, Any], prefix: str = '') -> dict[str, Any]:
     out: dict[str, Any] = {}
     for key, value in tree.items():
         name = f'{prefix}.{key}' if prefix else key
-        if isinstance(value, dict):
-            out.update(flatten(value, name))
-        else:
-            out[name] = value
+        for param, item in (flatten(value, name) if isinstance(value, dict)
+                            else {name: value}).items():
+            if param in out and _kind(out[param]) != _kind(item):
+                # 'a: {b: 1}' and 'a.b: 0.2' in one section: rcl keeps both types
+                raise RclYamlError(None, None, f'{param} written twice, as '
+                                   f'{_kind(out[param])} {out[param]!r} and {_kind(item)} '
+                                   f'{item!r}: rcl keeps both and reads one by its type, not '
+                                   'the later; write it once', None)
+            out[param] = item
     return out
 
 
@@ -325,9 +382,7 @@ def params_sections(data: str | bytes) -> list[tuple[str, dict[str, Any], int]]:
                     raise _error(f'{key} of {name!r} is not a map of parameters', value_node)
                 flat = flatten(value_of(value_node)) if value_node.value else {}
                 old, line = out.get(name, ({}, key_node.start_mark.line + 1))
-                for param, value in flat.items():
-                    if param in old:
-                        _merged(old[param], value, param, key_node)
+                merge_flat(old, flat, key_node)
                 out[name] = ({**old, **flat}, line)
             elif isinstance(value_node, yaml.MappingNode):
                 walk(value_node, [*names, key])
@@ -337,7 +392,11 @@ def params_sections(data: str | bytes) -> list[tuple[str, dict[str, Any], int]]:
                              f'parameters go under "<node>: {{{PARAMS_KEY}: {{...}}}}")',
                              value_node)
 
-    walk(root, [])
+    try:
+        walk(root, [])
+    except RecursionError as err:
+        raise RclYamlError(None, None, 'nested too deep to read (hundreds of levels)',
+                           None) from err
     return [(name, flat, line) for name, (flat, line) in out.items()]
 
 

@@ -37,6 +37,7 @@ from lookahead_control.core.config import (check_params_file, ConfigError, node_
                                            rcl_param_value)
 from lookahead_control.core.param_schema import check_params
 from lookahead_control.core.params import ParameterError
+from lookahead_control.core.rcl_yaml import merge_flat, RclYamlError
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
@@ -139,6 +140,36 @@ def now_ns(node: Node) -> int:
         return int(handle.get_now().nanoseconds)
 
 
+#: rcl's --ros-args flags that take a value (the value is not a flag)
+_VALUED_FLAGS = frozenset(('-r', '--remap', '-p', '--param', '--params-file', '--log-level',
+                           '--log-config-file', '-e', '--enclave', '--log-file-name'))
+
+
+def ros_flags(args: Sequence[str]) -> list[tuple[int, str, str]]:
+    """
+    Return the flags rcl reads, with their values: those inside ``--ros-args`` blocks.
+
+    A block ends at ``--`` or at the next ``--ros-args``; a ``--params-file`` outside
+    one is the program's, not rcl's (before, it was checked and rcl never read it).
+
+    :param args: command-line arguments.
+    :return: (index of the value, flag, value), in order.
+    """
+    out: list[tuple[int, str, str]] = []
+    ros, i = False, 0
+    while i < len(args):
+        flag = args[i]
+        if flag == '--ros-args':
+            ros = True
+        elif flag == '--':
+            ros = False
+        elif ros and flag in _VALUED_FLAGS and i + 1 < len(args):
+            out.append((i + 1, flag, args[i + 1]))
+            i += 1
+        i += 1
+    return out
+
+
 def check_params_files(args: Sequence[str]) -> None:
     """
     Read each ``--params-file`` before rcl does, for a one-line error naming it.
@@ -147,7 +178,7 @@ def check_params_files(args: Sequence[str]) -> None:
     :raises ConfigError: a file is missing, unreadable, malformed, or one rcl refuses or
         reads otherwise than meant (:func:`~lookahead_control.core.config.node_sections`).
     """
-    for flag, path in zip(args, args[1:]):
+    for _, flag, path in ros_flags(args):
         if flag == '--params-file':
             node_sections(path)
 
@@ -183,65 +214,44 @@ def dump_params(sections: dict[str, dict[str, Any]], handle: Any) -> None:
     """
     Write params-file sections, their string values quoted (as rcl must read them).
 
+    Each parameter under its dotted name (``vehicle.mass: 1500.0``), as rcl reads it
+    back; nested maps failed for a name beside its prefix (``foo`` and ``foo.bar``, which
+    rcl reads) and for names rcl takes but cannot nest (``foo..bar``; dev-probe53).
+
     :param sections: section name (``/**``, ``controller`` ...) -> flat parameters.
     :param handle: a text file open for writing.
     """
     # in the sections' order: rcl applies them in it (sorted, '/**' came before
     # 'controller' and won where the file had it after, dev-probe49)
-    yaml.dump({key: {'ros__parameters': nested_params({name: _quoted(value)
-                                                       for name, value in flat.items()})}
+    yaml.dump({key: {'ros__parameters': {name: _quoted(value) for name, value in flat.items()}}
                for key, flat in sections.items()}, handle, Dumper=_ParamsDumper,
               sort_keys=False)
-
-
-def nested_params(flat: dict[str, Any]) -> dict[str, Any]:
-    """
-    Return dotted parameter names as the nested mapping of a ROS params file.
-
-    :param flat: ``a.b.c`` -> value.
-    :return: ``{'a': {'b': {'c': value}}}``.
-    """
-    tree: dict[str, Any] = {}
-    for name, value in flat.items():
-        *heads, last = name.split('.')
-        branch = tree
-        for head in heads:
-            branch = branch.setdefault(head, {})
-            if not isinstance(branch, dict):
-                raise ConfigError(f'{name}: {head!r} is also a parameter of its own '
-                                  'there; a params file cannot hold both')
-        if isinstance(branch.get(last), dict):
-            raise ConfigError(f'{name}: also the prefix of other parameters; a params '
-                              'file cannot hold both')
-        branch[last] = value
-    return tree
 
 
 def node_full_name(args: Sequence[str], node_name: str) -> str:
     """
     Return the node's fully qualified name after the command line's remappings.
 
-    ``--ros-args -r __ns:=/car_b`` (``--remap``; ``controller:__ns:=...`` for this node
-    alone) and ``-r __node:=name`` (or ``__name``), as rcl applies them: the params
+    As rcl applies them: the first ``-r __node:=name`` (or ``__name``; ``controller:``
+    rules only for the node's own name) renames it, then the first ``-r __ns:=/car_b``
+    whose node part, if any, is the new name places it (``--remap`` alike). The params
     files' sections that apply are those matching this name (``/car_b/controller:``).
 
     :param args: command-line arguments (ROS arguments included).
     :param node_name: the node's name in the code.
     :return: ``/<namespace>/<name>`` (``/controller`` without remappings).
     """
-    namespace, name, ros = '/', node_name, False
-    for flag, rule in zip(args, [*args[1:], '']):
-        if flag in ('--ros-args', '--'):
-            ros = flag == '--ros-args'
-        elif ros and flag in ('-r', '--remap') and ':=' in rule:
+    rules = []
+    for _, flag, rule in ros_flags(args):
+        if flag in ('-r', '--remap') and ':=' in rule:
             lhs, _, value = rule.partition(':=')
             target, _, key = lhs.rpartition(':')
-            if target and target.lstrip('/') != node_name:
-                continue
-            if key == '__ns' and value:
-                namespace = value if value.startswith('/') else '/' + value
-            elif key in ('__node', '__name') and value:
-                name = value
+            rules.append((target.lstrip('/'), key, value))
+    name = next((value for target, key, value in rules if key in ('__node', '__name')
+                 and value and target in ('', node_name)), node_name)
+    namespace = next((value for target, key, value in rules if key == '__ns' and value
+                      and target in ('', name)), '/')
+    namespace = namespace if namespace.startswith('/') else '/' + namespace
     return namespace.rstrip('/') + '/' + name
 
 
@@ -262,16 +272,37 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
     :return: the arguments to give rcl.
     :raises ConfigError: a bad file or value.
     """
+    out = list(args)
+    for at, flag, value in ros_flags(args):
+        path = Path(value)
+        if flag == '--params-file' and path.exists() and not path.is_file():
+            # a file read once (<(...), a pipe): read here, rcl would find it empty
+            # (before: the node ran unchecked on its defaults; dev-probe53)
+            try:
+                data = path.read_bytes()
+            except OSError as err:
+                raise ConfigError(f'{value}: cannot read: {err.strerror or err}') from err
+            copy = tempfile.NamedTemporaryFile(
+                'wb', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)
+            scratch.append(Path(copy.name))
+            with copy:
+                copy.write(data)
+            out[at] = copy.name
+    args = list(out)
     check_params_files(args)
     if not specs:
-        return list(args)
+        return out
     # a node started in a namespace or renamed reads its own sections
     # ('/car_b/controller:'); before, they were neither checked nor converted
     full_name = node_full_name(args, node_name)
-    out = list(args)
-    for i, (flag, value) in enumerate(zip(args, args[1:])):
+    # what rcl reads otherwise when a later file or -p sets an earlier one's names
+    # (two types, a map over a value): one params entry per section name, -p in '/**'
+    given: dict[str, dict[str, Any]] = {}
+    for i, flag, value in ros_flags(args):
         if flag == '--params-file':
             raw = dict(node_sections(value))
+            for key, flat in raw.items():
+                _merge_given(given, key, flat, value)
             sections = check_params_file(value, full_name, specs)
             if any(type(v) is not type(raw[key][name])
                    for key, flat in sections.items() for name, v in flat.items()):
@@ -283,7 +314,7 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                         dump_params(sections, handle)
                     except ConfigError as err:
                         raise ConfigError(f'{value}: {err}') from err
-                out[i + 1] = handle.name
+                out[i] = handle.name
         elif flag in ('-p', '--param') and ':=' in value:
             # ``-p node:name:=value`` is for the node whose full name is /node (rcl's
             # rule: not under a namespace); another node's is rcl's business
@@ -292,14 +323,26 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
             if target and '/' + target != full_name:
                 continue
             try:
-                given = rcl_param_value(text)
-                parsed = check_params({name: given}, specs)[name]
+                typed = rcl_param_value(text)
+                _merge_given(given, target or '/**', {name: typed}, f'{flag} {value}')
+                parsed = check_params({name: typed}, specs)[name]
             except (ParameterError, ConfigError) as err:
                 raise ConfigError(f'{flag} {value}: {one_line(str(err))}') from err
-            if type(parsed) is not type(given):
+            if type(parsed) is not type(typed):
                 # an integer for a real or a whole real for an integer, as in a file
-                out[i + 1] = f'{target + ":" if target else ""}{name}:={parsed!r}'
+                out[i] = f'{target + ":" if target else ""}{name}:={parsed!r}'
     return out
+
+
+def _merge_given(given: dict[str, dict[str, Any]], key: str, flat: dict[str, Any],
+                 source: str) -> None:
+    entry = given.setdefault(key, {})
+    try:
+        merge_flat(entry, flat)
+    except RclYamlError as err:
+        raise ConfigError(f'{source}: not readable by rcl with the arguments before it: '
+                          f'{err.problem}') from err
+    entry.update(flat)
 
 
 def wants_help(args: Sequence[str]) -> bool:
