@@ -70,23 +70,28 @@ def _same(a, b):
     return type(a) is type(b) and a == b
 
 
-def _rcl_parameters(tmp_path, text):
-    """Return what rclpy declares from a params file for node ``n`` (name -> value)."""
+def _rcl_read(args, name='n'):
+    """Return what rclpy declares for node ``name`` from ROS arguments (name -> value)."""
     import rclpy
     from rclpy.context import Context
-    path = tmp_path / f'rcl_{random.getrandbits(32)}.yaml'
-    path.write_text(text)
     ctx = Context()
-    rclpy.init(args=['--ros-args', '--params-file', str(path)], context=ctx)
+    rclpy.init(args=['--ros-args', *args], context=ctx)
     try:
-        node = rclpy.create_node('n', context=ctx,
+        node = rclpy.create_node(name, context=ctx,
                                  automatically_declare_parameters_from_overrides=True)
         try:
-            return {name: param.value for name, param in node._parameters.items()}
+            return {key: param.value for key, param in node._parameters.items()}
         finally:
             node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def _rcl_parameters(tmp_path, text):
+    """Return what rclpy declares from a params file for node ``n`` (name -> value)."""
+    path = tmp_path / f'rcl_{random.getrandbits(32)}.yaml'
+    path.write_text(text)
+    return _rcl_read(['--params-file', str(path)])
 
 
 def _rcl_refuses(tmp_path, text):
@@ -532,7 +537,8 @@ def test_later_arguments_rcl_would_read_otherwise_are_refused(tmp_path):
                   '-p', 'safety.max_curvature_points:=5.0']):
         with pytest.raises(ConfigError, match='given twice, as int 7 and float 5.0'):
             checked_arguments(['--ros-args', *args], 'controller', ALL_SPECS, [])
-    assert _rcl_p(['--params-file', str(seven), '-p', 'safety.max_curvature_points:=5.0']) == 7
+    assert _rcl_read(['--params-file', str(seven), '-p', 'safety.max_curvature_points:=5.0'],
+                     'controller')['safety.max_curvature_points'] == 7
     child = tmp_path / 'child.yaml'
     child.write_text("/**:\n  ros__parameters:\n    frame_id: {child: 'x'}\n")
     with pytest.raises(ConfigError, match='frame_id is a value, and later the map'):
@@ -541,22 +547,6 @@ def test_later_arguments_rcl_would_read_otherwise_are_refused(tmp_path):
     # one type: the later wins, as in rcl
     checked_arguments(['--ros-args', '--params-file', str(seven), '-p',
                        'safety.max_curvature_points:=5'], 'controller', ALL_SPECS, [])
-
-
-def _rcl_p(args):
-    import rclpy
-    from rclpy.context import Context
-    ctx = Context()
-    rclpy.init(args=['--ros-args', *args], context=ctx)
-    try:
-        node = rclpy.create_node('controller', context=ctx,
-                                 automatically_declare_parameters_from_overrides=True)
-        try:
-            return node.get_parameter('safety.max_curvature_points').value
-        finally:
-            node.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=ctx)
 
 
 def test_arguments_rcl_does_not_read_are_not_checked(tmp_path):
