@@ -136,7 +136,7 @@ def node_sections(path: Path | str) -> list[tuple[str, dict[str, Any]]]:
     except OSError as err:
         raise ConfigError(f'{file}: cannot read: {err.strerror or err}') from err
     try:
-        return [(name, flat) for name, flat, _ in params_sections(data)]
+        return params_sections(data)
     except yaml.YAMLError as err:
         raise ConfigError(f'{file}: {yaml_problem(err)}') from err
 

@@ -334,7 +334,7 @@ def section_name_error(name: str) -> str | None:
     return None
 
 
-def params_sections(data: str | bytes) -> list[tuple[str, dict[str, Any], int]]:
+def params_sections(data: str | bytes) -> list[tuple[str, dict[str, Any]]]:
     """
     Return a params file's node sections as rcl reads them, in the file's order.
 
@@ -344,8 +344,7 @@ def params_sections(data: str | bytes) -> list[tuple[str, dict[str, Any], int]]:
     are one, at the place of the first.
 
     :param data: the file's text (bytes: UTF-8 or UTF-16 by its mark).
-    :return: (section name, flat parameters, line of its key) triples; none for an
-        empty file.
+    :return: (section name, flat parameters) pairs; none for an empty file.
     :raises yaml.YAMLError: malformed YAML, or :class:`RclYamlError` (what rcl refuses
         or reads otherwise than meant), with the line.
     """
@@ -355,7 +354,7 @@ def params_sections(data: str | bytes) -> list[tuple[str, dict[str, Any], int]]:
     if not isinstance(root, yaml.MappingNode):
         raise _error('not a ROS parameters file (expected "<node>: {ros__parameters: '
                      '{...}}")', root)
-    out: dict[str, tuple[dict[str, Any], int]] = {}
+    out: dict[str, dict[str, Any]] = {}
 
     def walk(node: yaml.MappingNode, names: list[str]) -> None:
         sections = [key for key, _ in node.value if isinstance(key, yaml.ScalarNode)
@@ -381,9 +380,9 @@ def params_sections(data: str | bytes) -> list[tuple[str, dict[str, Any], int]]:
                 if not isinstance(value_node, yaml.MappingNode):
                     raise _error(f'{key} of {name!r} is not a map of parameters', value_node)
                 flat = flatten(value_of(value_node)) if value_node.value else {}
-                old, line = out.get(name, ({}, key_node.start_mark.line + 1))
+                old = out.get(name, {})
                 merge_flat(old, flat, key_node)
-                out[name] = ({**old, **flat}, line)
+                out[name] = {**old, **flat}
             elif isinstance(value_node, yaml.MappingNode):
                 walk(value_node, [*names, key])
             else:
@@ -397,7 +396,7 @@ def params_sections(data: str | bytes) -> list[tuple[str, dict[str, Any], int]]:
     except RecursionError as err:
         raise RclYamlError(None, None, 'nested too deep to read (hundreds of levels)',
                            None) from err
-    return [(name, flat, line) for name, (flat, line) in out.items()]
+    return list(out.items())
 
 
 def param_value(text: str) -> Any:
