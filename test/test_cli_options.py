@@ -951,14 +951,12 @@ def test_closed_loop_refuses_settings_its_simulator_is_never_answered_under():
     from lookahead_control.ros.path_bridge_node import NODE_SPECS as BRIDGE_SPECS
     from sim_plant.sim_plant_node import SIM_SPECS
     base = {'safety.max_future': 0.01, 'frame_id': 'base_link'}
-    for mode in ('lockstep', 'realtime'):
-        closed_loop.loop_compatibility(base, mode, 100.0, 'x')
-        with pytest.raises(ToolError, match=r'x: safety.max_future = 0.0099 s: .*>= 0.01 s'):
-            closed_loop.loop_compatibility({**base, 'safety.max_future': 0.0099}, mode,
-                                           100.0, 'x')
-    closed_loop.loop_compatibility({**base, 'frame_id': ''}, 'lockstep', 100.0, 'x')
+    closed_loop.loop_compatibility(base, 100.0, 'x')
+    with pytest.raises(ToolError, match=r'x: safety.max_future = 0.0099 s: .*>= 0.01 s'):
+        closed_loop.loop_compatibility({**base, 'safety.max_future': 0.0099}, 100.0, 'x')
+    closed_loop.loop_compatibility({**base, 'frame_id': ''}, 100.0, 'x')
     with pytest.raises(ToolError, match="frame_id = 'odom': .* or '' \\(any\\)"):
-        closed_loop.loop_compatibility({**base, 'frame_id': 'odom'}, 'lockstep', 100.0, 'x')
+        closed_loop.loop_compatibility({**base, 'frame_id': 'odom'}, 100.0, 'x')
     # the frame the simulator and the bridge publish in
     for specs in (SIM_SPECS, BRIDGE_SPECS):
         assert next(s.default for s in specs if s.name == 'frame_id') == closed_loop.SIM_FRAME

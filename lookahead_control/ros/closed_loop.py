@@ -171,7 +171,7 @@ SIM_FRAME = 'base_link'
 ANY_FRAME = ''
 
 
-def loop_compatibility(params: dict[str, Any], mode: str, rate_hz: float, given: str) -> None:
+def loop_compatibility(params: dict[str, Any], rate_hz: float, given: str) -> None:
     """
     Refuse controller settings this loop's simulator can never be answered under.
 
@@ -179,7 +179,6 @@ def loop_compatibility(params: dict[str, Any], mode: str, rate_hz: float, given:
     deadline (0.5 s a step) until ``--timeout``: every input refused.
 
     :param params: the controller's settings (:func:`controller_settings`).
-    :param mode: ``lockstep`` or ``realtime`` (for the message: both stamp ahead).
     :param rate_hz: the loop's rate [Hz].
     :param given: where the settings came from, for the message.
     :raises ToolError: naming the setting, its value and what is allowed.
@@ -188,9 +187,9 @@ def loop_compatibility(params: dict[str, Any], mode: str, rate_hz: float, given:
     future = params.get('safety.max_future')
     if future is not None and future < period:
         raise ToolError(f'{given}: safety.max_future = {future:g} s: the simulator '
-                        f'stamps each step one period ahead of its /clock ({mode} too) '
-                        f'({period:g} s at --rate {rate_hz:g}), so the controller would '
-                        f'refuse every input; allowed here: >= {period:g} s')
+                        f'stamps each step one period ({period:g} s at --rate {rate_hz:g}) '
+                        'ahead of its /clock, in lockstep and realtime alike, so the '
+                        f'controller would refuse every input; allowed here: >= {period:g} s')
     frame = params.get('frame_id')
     if frame not in (None, ANY_FRAME, SIM_FRAME):
         raise ToolError(f'{given}: frame_id = {frame!r}: the simulator (and path_bridge) '
@@ -464,7 +463,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     given = ' and '.join([*([f'--controller {args.controller}'] if args.controller else []),
                           *(['--param'] if args.param else [])]) or 'config/controller.yaml'
     loop_compatibility(own if own is not None else controller_settings(
-        None, [], args.law, args.schedule)[0], args.mode, args.rate, given)
+        None, [], args.law, args.schedule)[0], args.rate, given)
     bag = None if args.no_record else (args.bag or default_bag(
         args.scenario, args.schedule if args.law == 'paper' else args.law,
         float(scenario.speed.initial),
