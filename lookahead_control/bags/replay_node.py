@@ -60,7 +60,7 @@ def offline(args: argparse.Namespace) -> int:
         try:
             overrides[name] = rcl_param_value(text)
         except ConfigError as err:
-            raise ToolError(f'-p {name}:={text}: {err}') from err
+            raise ToolError(f'-p {name}={text}: {err}') from err
     node = CONTROLLER_NODE if args.node is None else args.node     # '' is refused
     run = load_run(args.bag, assignments(args.topic, '--topic'), node)
     result = rerun(run, overrides, args.order)
