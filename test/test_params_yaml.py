@@ -407,8 +407,6 @@ REFUSED_HERE = {
     'nested and dotted, two types': 'n:\n  ros__parameters:\n    g: {a: 1}\n    g.a: 0.2\n',
     # rcl misnames the names after it (x.b.d)
     'a dotted name opening a map': 'n:\n  ros__parameters:\n    x: {b.c: {e: 1}, d: 2}\n',
-    # rclpy cannot declare it
-    'an empty list': 'n:\n  ros__parameters:\n    a: []\n',
     'deep': 'n:\n  ros__parameters:\n    a: ' + '[' * 400 + '1' + ']' * 400 + '\n',
     'deeper maps': 'n:\n  ros__parameters:\n    a: ' + '{b: ' * 400 + '1' + '}' * 400 + '\n',
 }
@@ -535,7 +533,8 @@ def test_later_arguments_rcl_would_read_otherwise_are_refused(tmp_path):
     for args in (['--params-file', str(seven), '-p', 'safety.max_curvature_points:=5.0'],
                  ['-p', 'safety.max_curvature_points:=7',
                   '-p', 'safety.max_curvature_points:=5.0']):
-        with pytest.raises(ConfigError, match='given twice, as int 7 and float 5.0'):
+        with pytest.raises(ConfigError, match='given as int 7 and later as float 5.0: rcl '
+                           'keeps both and reads the int 7'):
             checked_arguments(['--ros-args', *args], 'controller', ALL_SPECS, [])
     assert _rcl_read(['--params-file', str(seven), '-p', 'safety.max_curvature_points:=5.0'],
                      'controller')['safety.max_curvature_points'] == 7
@@ -562,3 +561,56 @@ def test_arguments_rcl_does_not_read_are_not_checked(tmp_path):
     with pytest.raises(ConfigError, match='law'):
         checked_arguments(['--ros-args', '--params-file', str(bad)], 'controller',
                           ALL_SPECS, [])
+
+
+def test_a_later_integer_for_an_earlier_real_is_the_user_s_value(tmp_path):
+    # dev-probe54: 'controller --params-file config/vehicle.yaml -p vehicle.mass:=1500'
+    # was refused (two types), though rcl reads the later integer (it prefers an int to a
+    # double) and the node takes it as 1500.0; only a real after an integer is read
+    # otherwise (the integer), and refused
+    from lookahead_control.core.config import source_config_dir
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    vehicle = str(source_config_dir() / 'vehicle.yaml')
+    for args in (['--params-file', vehicle, '-p', 'vehicle.mass:=1500'],
+                 ['-r', '__ns:=/car_b', '--params-file', vehicle, '-p', 'vehicle.mass:=2000'],
+                 ['--params-file', vehicle, '-p', 'lane_keeping.integral_gain:=0']):
+        checked_arguments(['--ros-args', *args], 'controller', ALL_SPECS, [])
+    assert _rcl_read(['--params-file', vehicle, '-p', 'vehicle.mass:=1500'],
+                     'controller')['vehicle.mass'] == 1500
+    with pytest.raises(ConfigError, match='reads the int 1500, not the later'):
+        checked_arguments(['--ros-args', '-p', 'vehicle.mass:=1500', '-p',
+                           'vehicle.mass:=1600.0'], 'controller', ALL_SPECS, [])
+
+
+def test_another_node_s_empty_list_leaves_the_file_readable(tmp_path):
+    # dev-probe54: a launch-style file with 'recorder: {ros__parameters: {exclude: []}}'
+    # was refused for the controller; rcl parses it (only that node could not declare it)
+    text = ('recorder:\n  ros__parameters:\n    exclude: []\n'
+            'controller:\n  ros__parameters:\n    lane_keeping:\n      integral_gain: 0.2\n')
+    path = tmp_path / _write(tmp_path, text)
+    assert dict(node_sections(path))['controller'] == {'lane_keeping.integral_gain': 0.2}
+    assert not _rcl_refuses(tmp_path, text)
+
+
+def test_a_tab_is_refused_saying_what_to_write(tmp_path):
+    path = tmp_path / _write(tmp_path, 'n:\n  ros__parameters:\n    a:\t1.0\n')
+    with pytest.raises(ConfigError, match='use spaces'):
+        node_sections(path)
+
+
+def test_path_bridge_checks_its_parameters_as_the_other_nodes_do(tmp_path):
+    # dev-probe54: path_bridge ran with no checks: an integer for a real refused in
+    # rclpy's words, a typo or an unknown choice run silently, --help without parameters
+    from lookahead_control.ros.path_bridge_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    checked_arguments(['--ros-args', '-p', 'sensor_distance:=2'], 'path_bridge', ALL_SPECS, [])
+    with pytest.raises(ConfigError, match='did you mean'):
+        checked_arguments(['--ros-args', '-p', 'sensor_distanse:=2.0'], 'path_bridge',
+                          ALL_SPECS, [])
+    with pytest.raises(ConfigError, match='qos_reliability'):
+        checked_arguments(['--ros-args', '-p', 'qos_reliability:=best_effrt'], 'path_bridge',
+                          ALL_SPECS, [])
+    exe = Path(sys.prefix) / 'lib' / 'lookahead_control' / 'path_bridge'
+    out = subprocess.run([str(exe), '--help'], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and 'sensor_distance' in out.stdout, out.stdout

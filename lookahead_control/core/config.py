@@ -99,6 +99,8 @@ def yaml_problem(err: yaml.YAMLError) -> str:
     where = f' (line {mark.line + 1})' if mark is not None else ''
     what = 'not readable by rcl' if isinstance(err, RclYamlError) else 'malformed YAML'
     problem = ' '.join(str(getattr(err, 'problem', None) or err).split())
+    if "'\\t'" in problem:
+        problem += ' (YAML here takes no tab around a value: use spaces)'
     return f'{what}{where}: {problem}'
 
 

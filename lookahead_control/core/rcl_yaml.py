@@ -177,6 +177,25 @@ def _kind(value: Any) -> str:
     return type(value).__name__
 
 
+# rcl keeps the latest value of each type a parameter was given, and rclpy reads the
+# first type present in this order: the later value is read unless an earlier one's
+# type comes first (a real after an integer: the integer is read)
+_PRIORITY = ('bool', 'int', 'float', 'str', 'list of nothing', 'list of bool', 'list of int',
+             'list of float', 'list of str')
+
+
+def _shadowed(old: Any, new: Any) -> bool:
+    # True if rcl reads the earlier value, not the later one
+    kinds = (_kind(old), _kind(new))
+    return kinds[0] != kinds[1] and _PRIORITY.index(kinds[0]) < _PRIORITY.index(kinds[1])
+
+
+def _shadow_problem(name: str, old: Any, new: Any) -> str:
+    return (f'{name} is given as {_kind(old)} {old!r} and later as {_kind(new)} {new!r}: '
+            f'rcl keeps both and reads the {_kind(old)} {old!r}, not the later; give both '
+            'the same type')
+
+
 #: deeper maps are refused (Python's recursion would fail first, with a traceback)
 MAX_DEPTH = 64
 
@@ -219,9 +238,6 @@ def value_of(node: Any, depth: int = 1) -> Any:
             raise _error('a list or a map inside a list: a parameter is a list of plain '
                          'values', item)
         items.append(value_of(item, depth + 1))
-    if not items:
-        raise _error('an empty list: rcl cannot tell its type (write the parameter out '
-                     'or give it items)', node)
     kinds = {type(item).__name__ for item in items}
     if len(kinds) > 1:
         raise _error(f'a list of mixed types ({", ".join(sorted(kinds))}): rcl refuses it; '
@@ -244,10 +260,10 @@ def _merged(old: Any, new: Any, name: str, mark: Any) -> Any:
         for key, value in new.items():
             out[key] = _merged(out[key], value, f'{name}.{key}', mark) if key in out else value
         return out
-    if _kind(old) != _kind(new):
-        raise _error(f'{name} written twice, as {_kind(old)} {old!r} and {_kind(new)} '
-                     f'{new!r}: rcl keeps both and reads one by its type, not the later; '
-                     'write it once', mark)
+    if isinstance(old, dict) or isinstance(new, dict):
+        raise _error(f'{name} written twice, as a value and as a map: write it once', mark)
+    if _shadowed(old, new):
+        raise _error(_shadow_problem(name, old, new), mark)
     return new
 
 
@@ -266,10 +282,8 @@ def merge_flat(old: dict[str, Any], new: dict[str, Any], mark: Any = None) -> No
     :raises RclYamlError: naming the parameter.
     """
     for param, value in new.items():
-        if param in old and _kind(old[param]) != _kind(value):
-            raise RclYamlError(None, None, f'{param} given twice, as {_kind(old[param])} '
-                               f'{old[param]!r} and {_kind(value)} {value!r}: rcl keeps both '
-                               'and reads one by its type, not the later; give it once',
+        if param in old and _shadowed(old[param], value):
+            raise RclYamlError(None, None, _shadow_problem(param, old[param], value),
                                getattr(mark, 'start_mark', None))
         head = param.rpartition('.')[0]
         while head:
@@ -293,12 +307,10 @@ def flatten(tree: dict[str, Any], prefix: str = '') -> dict[str, Any]:
         name = f'{prefix}.{key}' if prefix else key
         for param, item in (flatten(value, name) if isinstance(value, dict)
                             else {name: value}).items():
-            if param in out and _kind(out[param]) != _kind(item):
-                # 'a: {b: 1}' and 'a.b: 0.2' in one section: rcl keeps both types
-                raise RclYamlError(None, None, f'{param} written twice, as '
-                                   f'{_kind(out[param])} {out[param]!r} and {_kind(item)} '
-                                   f'{item!r}: rcl keeps both and reads one by its type, not '
-                                   'the later; write it once', None)
+            if param in out and _shadowed(out[param], item):
+                # 'a: {b: 1}' and 'a.b: 0.2' in one section: rcl reads the int
+                raise RclYamlError(None, None, _shadow_problem(param, out[param], item),
+                                   None)
             out[param] = item
     return out
 

@@ -302,7 +302,7 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
         if flag == '--params-file':
             raw = dict(node_sections(value))
             for key, flat in raw.items():
-                _merge_given(given, key, flat, value)
+                _merge_given(given, key, flat, f'{value}: ')
             sections = check_params_file(value, full_name, specs)
             if any(type(v) is not type(raw[key][name])
                    for key, flat in sections.items() for name, v in flat.items()):
@@ -324,7 +324,7 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                 continue
             try:
                 typed = rcl_param_value(text)
-                _merge_given(given, target or '/**', {name: typed}, f'{flag} {value}')
+                _merge_given(given, target or '/**', {name: typed}, '')
                 parsed = check_params({name: typed}, specs)[name]
             except (ParameterError, ConfigError) as err:
                 raise ConfigError(f'{flag} {value}: {one_line(str(err))}') from err
@@ -340,7 +340,7 @@ def _merge_given(given: dict[str, dict[str, Any]], key: str, flat: dict[str, Any
     try:
         merge_flat(entry, flat)
     except RclYamlError as err:
-        raise ConfigError(f'{source}: not readable by rcl with the arguments before it: '
+        raise ConfigError(f'{source}read otherwise by rcl after the arguments before it: '
                           f'{err.problem}') from err
     entry.update(flat)
 

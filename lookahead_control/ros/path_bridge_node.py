@@ -486,7 +486,11 @@ def main(args: Optional[list[str]] = None) -> int:
     :param args: command-line arguments (ROS arguments included).
     :return: exit code.
     """
-    return run_node('path_bridge', args, _make_bridge)
+    # its parameters checked as the other nodes' (before, no --help list, no typo or
+    # choice check, an integer for a real refused in rclpy's words; dev-probe54)
+    return run_node('path_bridge', args, _make_bridge, specs=ALL_SPECS,
+                    description='vehicle bridge: odometry and a road path to the '
+                    "controller's contract topics")
 
 
 def entry() -> int:
