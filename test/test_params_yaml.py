@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 import random
+import re
 import signal
 import subprocess
 import sys
@@ -614,3 +615,16 @@ def test_path_bridge_checks_its_parameters_as_the_other_nodes_do(tmp_path):
     exe = Path(sys.prefix) / 'lib' / 'lookahead_control' / 'path_bridge'
     out = subprocess.run([str(exe), '--help'], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0 and 'sensor_distance' in out.stdout, out.stdout
+
+
+@pytest.mark.parametrize('section', ['controller', '/**/controller', '/*', '/**/sim_plant'])
+def test_a_vehicle_file_gives_the_car_to_every_node(tmp_path, section):
+    # dev-probe54: --vehicle FILE read only /**: vehicle.* in a 'controller:' section was
+    # left out and certificate, compare, sweep ran the default car without a word
+    from lookahead_control.core.config import load_vehicle
+    path = tmp_path / 'car.yaml'
+    path.write_text(f"'{section}':\n  ros__parameters:\n    vehicle:\n      mass: 1600.0\n")
+    with pytest.raises(ConfigError, match=f"vehicle.mass in section '{re.escape(section)}'"):
+        load_vehicle(path)
+    path.write_text("'/**':\n  ros__parameters:\n    vehicle:\n      mass: 1600.0\n")
+    assert load_vehicle(path).mass == 1600.0

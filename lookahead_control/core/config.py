@@ -251,10 +251,23 @@ def load_vehicle(path: Path | str | None = None) -> VehicleParams:
     """
     Load the vehicle parameters (default: ``config/vehicle.yaml``).
 
+    The file's ``/**`` section, the one every node reads. ``vehicle.*`` in a section of
+    one node (``controller:``, ``/**/sim_plant:``) is refused: the car is the plant's
+    and the controller's alike (before, it was left out silently and the tools ran the
+    default car; dev-probe54).
+
     :param path: a ROS params file with ``vehicle.*`` entries.
     :return: the vehicle parameters.
+    :raises ConfigError: a bad file or value, or ``vehicle.*`` in one node's section.
     """
     file = Path(path) if path else source_config_dir() / 'vehicle.yaml'
+    for key, flat in node_sections(file):
+        names = sorted(name for name in flat if name.startswith('vehicle.'))
+        if names and str(key) not in ('/**', '**'):
+            raise ConfigError(f'{file}: {", ".join(names)} in section {key!r}, for one node: '
+                              'a vehicle file gives the car in /**, which every node reads '
+                              '(a controller model other than the car goes in its own '
+                              'params file, --controller)')
     return dataclass_from_params(VehicleParams, load_ros_params(file), 'vehicle', str(file))
 
 
