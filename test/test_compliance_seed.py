@@ -463,6 +463,21 @@ def _node_reads(*paths):
         rclpy.try_shutdown(context=ctx)
 
 
+def _copy_reads(path):
+    """Return the controller's parameters as rcl reads them from its converted copy."""
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    from lookahead_control.ros.node_main import checked_arguments
+    scratch = []
+    args = checked_arguments(['--ros-args', '--params-file', str(path)], 'controller',
+                             ALL_SPECS, scratch)
+    try:
+        assert args[-1] != str(path) and scratch        # converted
+        return _node_reads(args[-1])
+    finally:
+        for copy in scratch:
+            copy.unlink()
+
+
 def test_closed_loop_s_one_file_reaches_the_node_as_checked(tmp_path):
     # dev-probe48: a string PyYAML writes unquoted ('y', '1e5', 'inf') was read back by
     # rcl as a bool or a number: frame_id 'y' made the controller exit 2. And a /**
@@ -489,20 +504,10 @@ def test_closed_loop_s_one_file_reaches_the_node_as_checked(tmp_path):
 @pytest.mark.parametrize('text', ['y', 'n', '1e5', 'inf', 'nan', 'yes', 'true', '3'])
 def test_a_converted_params_file_keeps_its_strings(tmp_path, text):
     # the node's own conversion of a file (an integer for a real) wrote the same way
-    from lookahead_control.ros.node_main import checked_arguments
-    from lookahead_control.ros.controller_node import ALL_SPECS
     mine = tmp_path / 'car.yaml'
     mine.write_text(f"controller:\n  ros__parameters:\n    frame_id: '{text}'\n"
                     '    vehicle:\n      mass: 1500\n')
-    scratch = []
-    args = checked_arguments(['--ros-args', '--params-file', str(mine)], 'controller',
-                             ALL_SPECS, scratch)
-    try:
-        assert args[-1] != str(mine)             # converted (the mass)
-        read = _node_reads(args[-1])
-    finally:
-        for path in scratch:
-            path.unlink()
+    read = _copy_reads(mine)                    # converted (the mass)
     assert read['frame_id'] == text and read['vehicle.mass'] == 1500.0
 
 
@@ -539,21 +544,11 @@ def test_closed_loop_gives_the_node_what_a_hand_run_with_the_file_would(tmp_path
 def test_a_converted_copy_keeps_the_order_of_its_sections(tmp_path):
     # dev-probe49: the copy sorted its sections, '/**' before 'controller': the node ran
     # the node section's frame_id where the original gave the later '/**' one's
-    from lookahead_control.ros.controller_node import ALL_SPECS
-    from lookahead_control.ros.node_main import checked_arguments
     mine = tmp_path / 'car.yaml'
     mine.write_text('controller:\n  ros__parameters:\n    frame_id: from_controller\n'
                     '/**:\n  ros__parameters:\n    frame_id: from_wildcard\n'
                     '    vehicle:\n      mass: 1500\n')
-    scratch = []
-    args = checked_arguments(['--ros-args', '--params-file', str(mine)], 'controller',
-                             ALL_SPECS, scratch)
-    try:
-        assert args[-1] != str(mine)
-        assert _node_reads(args[-1])['frame_id'] == 'from_wildcard'
-    finally:
-        for path in scratch:
-            path.unlink()
+    assert _copy_reads(mine)['frame_id'] == 'from_wildcard'
 
 
 def test_a_name_and_its_prefix_in_one_file_reach_rcl_as_written(tmp_path):

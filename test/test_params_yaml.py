@@ -243,22 +243,12 @@ def test_the_node_takes_a_value_rcl_takes_and_refuses_one_rcl_types_otherwise(tm
 def test_a_converted_copy_keeps_what_rcl_read(tmp_path):
     # an integer for a real makes the node pass rcl a converted copy: the values rcl
     # reads from it are those it read from the file (a 3e-1 stays 0.3, not '3e-1')
-    from test_compliance_seed import _node_reads
-    from lookahead_control.ros.controller_node import ALL_SPECS
-    from lookahead_control.ros.node_main import checked_arguments
+    from test_compliance_seed import _copy_reads
     mine = tmp_path / 'car.yaml'
     mine.write_text('controller:\n  ros__parameters:\n    vehicle:\n      mass: 1500\n'
                     '    lane_keeping:\n      integral_gain: 3e-1\n'
                     "      compliance_memory_seed: 1.2e0\n    frame_id: '1e5'\n")
-    scratch = []
-    args = checked_arguments(['--ros-args', '--params-file', str(mine)], 'controller',
-                             ALL_SPECS, scratch)
-    try:
-        assert args[-1] != str(mine) and scratch
-        read = _node_reads(args[-1])
-    finally:
-        for path in scratch:
-            path.unlink()
+    read = _copy_reads(mine)
     assert read['vehicle.mass'] == 1500.0 and read['lane_keeping.integral_gain'] == 0.3
     assert read['lane_keeping.compliance_memory_seed'] == 1.2 and read['frame_id'] == '1e5'
 

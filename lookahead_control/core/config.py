@@ -174,13 +174,22 @@ def load_ros_params(path: Path | str, node_name: str | None = None) -> dict[str,
     :param node_name: the node whose sections to merge, or None for wildcards only.
     :return: a mapping of dotted parameter names to values.
     """
+    return merged_params(node_sections(path), node_name)
+
+
+def merged_params(sections: Sequence[tuple[str, dict[str, Any]]],
+                  node_name: str | None = None) -> dict[str, Any]:
+    """
+    Merge a params file's sections (:func:`node_sections`) as :func:`load_ros_params`.
+
+    :param sections: the file's sections.
+    :param node_name: the node whose sections to merge, or None for wildcards only.
+    :return: a mapping of dotted parameter names to values.
+    """
     merged: dict[str, Any] = {}
-    for key, flat in node_sections(path):
-        wanted = (applies_to(key, node_name) if node_name else
-                  str(key) in ('/**', '**'))
-        if not wanted:
-            continue
-        merged.update(flat)
+    for key, flat in sections:
+        if applies_to(key, node_name) if node_name else str(key) in ('/**', '**'):
+            merged.update(flat)
     return merged
 
 
@@ -219,8 +228,9 @@ def dataclass_from_params(cls: Type[D], params: Mapping[str, Any], prefix: str,
         raise ConfigError(f'{source}: {err}') from err
 
 
-def check_params_file(path: Path | str, node_name: str,
-                      specs: Sequence[Spec]) -> dict[str, dict[str, Any]]:
+def check_params_file(path: Path | str, node_name: str, specs: Sequence[Spec],
+                      sections: Sequence[tuple[str, dict[str, Any]]] | None = None
+                      ) -> dict[str, dict[str, Any]]:
     """
     Check a ROS params file for one node against its schema, as the node would read it.
 
@@ -231,11 +241,12 @@ def check_params_file(path: Path | str, node_name: str,
     :param path: the params file.
     :param node_name: the node's name.
     :param specs: the node's parameters.
+    :param sections: the file's sections if already read (:func:`node_sections`).
     :return: section -> the section's flat parameters, integers for reals converted.
     :raises ConfigError: ``<file>: <name> = <value> ...``, or a malformed file.
     """
     out: dict[str, dict[str, Any]] = {}
-    for pattern, flat in node_sections(path):
+    for pattern, flat in node_sections(path) if sections is None else sections:
         if not applies_to(pattern, node_name):
             continue
         wildcard = '*' in pattern
@@ -261,14 +272,15 @@ def load_vehicle(path: Path | str | None = None) -> VehicleParams:
     :raises ConfigError: a bad file or value, or ``vehicle.*`` in one node's section.
     """
     file = Path(path) if path else source_config_dir() / 'vehicle.yaml'
-    for key, flat in node_sections(file):
+    sections = node_sections(file)
+    for key, flat in sections:
         names = sorted(name for name in flat if name.startswith('vehicle.'))
         if names and str(key) not in ('/**', '**'):
             raise ConfigError(f'{file}: {", ".join(names)} in section {key!r}, for one node: '
                               'a vehicle file gives the car in /**, which every node reads '
                               '(a controller model other than the car goes in its own '
                               'params file, --controller)')
-    return dataclass_from_params(VehicleParams, load_ros_params(file), 'vehicle', str(file))
+    return dataclass_from_params(VehicleParams, merged_params(sections), 'vehicle', str(file))
 
 
 def load_controller(path: Path | str | None = None, **overrides: Any) -> ControllerParams:

@@ -127,12 +127,12 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
         if not params_file.is_file():
             raise ToolError(f'--controller {params_file}: no such file')
         try:
-            check_params_file(params_file, 'controller', ALL_SPECS)
+            read = node_sections(params_file)
+            check_params_file(params_file, 'controller', ALL_SPECS, read)
             # rcl applies a section in the order it first met its name over all the
             # files: the package's open '/**', so the file's '/**' sections come before
             # its others whatever its own order (dev-probe49)
-            sections = [(key, flat) for key, flat in node_sections(params_file)
-                        if applies_to(key, 'controller')]
+            sections = [(key, flat) for key, flat in read if applies_to(key, 'controller')]
             mine: dict[str, Any] = {}
             for key, flat in sorted(sections, key=lambda item: item[0] != '/**'):
                 mine.update(flat)

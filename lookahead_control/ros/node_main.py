@@ -170,19 +170,6 @@ def ros_flags(args: Sequence[str]) -> list[tuple[int, str, str]]:
     return out
 
 
-def check_params_files(args: Sequence[str]) -> None:
-    """
-    Read each ``--params-file`` before rcl does, for a one-line error naming it.
-
-    :param args: command-line arguments.
-    :raises ConfigError: a file is missing, unreadable, malformed, or one rcl refuses or
-        reads otherwise than meant (:func:`~lookahead_control.core.config.node_sections`).
-    """
-    for _, flag, path in ros_flags(args):
-        if flag == '--params-file':
-            node_sections(path)
-
-
 class _Quoted(str):
     """A string parameter value, written quoted."""
 
@@ -289,7 +276,9 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                 copy.write(data)
             out[at] = copy.name
     args = list(out)
-    check_params_files(args)
+    # each file read once, before rcl does, for a one-line error naming it (any node)
+    files = {i: node_sections(value) for i, flag, value in ros_flags(args)
+             if flag == '--params-file'}
     if not specs:
         return out
     # a node started in a namespace or renamed reads its own sections
@@ -300,20 +289,17 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
     given: dict[str, dict[str, Any]] = {}
     for i, flag, value in ros_flags(args):
         if flag == '--params-file':
-            raw = dict(node_sections(value))
+            raw = dict(files[i])
             for key, flat in raw.items():
                 _merge_given(given, key, flat, f'{value}: ')
-            sections = check_params_file(value, full_name, specs)
+            sections = check_params_file(value, full_name, specs, files[i])
             if any(type(v) is not type(raw[key][name])
                    for key, flat in sections.items() for name, v in flat.items()):
                 handle = tempfile.NamedTemporaryFile(
                     'w', suffix='.yaml', prefix=f'{node_name}_params_', delete=False)
                 scratch.append(Path(handle.name))   # deleted even if writing it fails
                 with handle:
-                    try:
-                        dump_params(sections, handle)
-                    except ConfigError as err:
-                        raise ConfigError(f'{value}: {err}') from err
+                    dump_params(sections, handle)
                 out[i] = handle.name
         elif flag in ('-p', '--param') and ':=' in value:
             # ``-p node:name:=value`` is for the node whose full name is /node (rcl's
