@@ -460,10 +460,33 @@ def test_a_controller_file_without_a_section_for_the_controller_is_refused(tmp_p
         compare.load_law_settings(other)
     code = run_tool(compare.main, ['--controller', str(other), '--out', str(tmp_path / 'o')])
     assert code == 2 and not (tmp_path / 'o').exists()
+    # closed_loop and paper_scenario ran such a file's defaults as the file's: another
+    # vehicle's section (the README's way to run several) was read as nothing
+    from lookahead_control.core.cli import ToolError
+    from lookahead_control.ros.closed_loop import controller_settings
+    from lookahead_control.tools import paper_scenario
+    car_b = tmp_path / 'car_b.yaml'
+    car_b.write_text('/car_b/controller:\n  ros__parameters:\n    lane_keeping:\n'
+                     '      integral_gain: 0.6\n')
+    with pytest.raises(ToolError, match=r'--controller .*car_b.yaml: no section applies to '
+                       r'the controller node \(sections: /car_b/controller\)'):
+        controller_settings(car_b, [], 'cg_compensated', 'paper')
+    code = run_tool(paper_scenario.main, ['--controller', str(car_b), '--speeds', '37',
+                                          '--duration', '0.1', '--out', str(tmp_path / 'p')])
+    assert code == 2 and not (tmp_path / 'p' / 'report.md').exists()
+    # and paper_scenario checked only controller.*: the node refuses a lane_keeping typo
+    typo = tmp_path / 'typo.yaml'
+    typo.write_text('controller:\n  ros__parameters:\n    lane_keeping:\n'
+                    '      integral_gian: 0.6\n')
+    code = run_tool(paper_scenario.main, ['--controller', str(typo), '--speeds', '37',
+                                          '--duration', '0.1', '--out', str(tmp_path / 'p')])
+    assert code == 2 and not (tmp_path / 'p' / 'report.md').exists()
     wildcard = tmp_path / 'all.yaml'
     wildcard.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
                         '      integral_gain: 0.6\n')
     assert compare.load_law_settings(wildcard).lane_keeping.integral_gain == 0.6
+    params, _ = controller_settings(wildcard, [], 'cg_compensated', 'paper')
+    assert params['lane_keeping.integral_gain'] == 0.6
 
 
 def test_seeds_repeat_each_noisy_run_and_each_row_is_its_own_single_run():

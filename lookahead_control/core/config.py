@@ -258,6 +258,32 @@ def check_params_file(path: Path | str, node_name: str, specs: Sequence[Spec],
     return out
 
 
+def node_file_sections(path: Path | str, node_name: str, specs: Sequence[Spec]
+                       ) -> list[tuple[str, dict[str, Any]]]:
+    """
+    Read and check a params file given for one node, as that node would read it.
+
+    A file none of whose sections applies to the node (``/car_b/controller:`` only, for
+    the node ``/controller``) is refused: the node would run on its defaults, and the
+    tool that asked for the file would say it ran the file (closed_loop and
+    paper_scenario did).
+
+    :param path: the params file.
+    :param node_name: the node's name.
+    :param specs: the node's parameters (:func:`check_params_file`).
+    :return: the file's sections (:func:`node_sections`), all of them.
+    :raises ConfigError: a malformed file, a bad value, or no section for the node.
+    """
+    sections = node_sections(path)
+    if not any(applies_to(key, node_name) for key, _ in sections):
+        names = ', '.join(str(key) for key, _ in sections) or 'none'
+        raise ConfigError(f'{path}: no section applies to the {node_name} node (sections: '
+                          f'{names}): its parameters are not in this file; expected '
+                          f'{node_name}:, /{node_name}:, /**: or the like')
+    check_params_file(path, node_name, specs, sections)
+    return sections
+
+
 def load_vehicle(path: Path | str | None = None) -> VehicleParams:
     """
     Load the vehicle parameters (default: ``config/vehicle.yaml``).

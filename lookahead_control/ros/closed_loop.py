@@ -112,9 +112,8 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
     :return: ``(parameters by name, the file's parameters left out)``.
     :raises ToolError: naming the file or setting and what is allowed.
     """
-    from lookahead_control.core.config import (applies_to, check_params_file, ConfigError,
-                                               load_ros_params, node_sections,
-                                               rcl_param_value)
+    from lookahead_control.core.config import (applies_to, ConfigError, load_ros_params,
+                                               node_file_sections, rcl_param_value)
     from lookahead_control.core.param_schema import (check_params, ROS_BUILTIN,
                                                      ROS_BUILTIN_PREFIXES)
     from lookahead_control.core.params import ParameterError
@@ -127,8 +126,7 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
         if not params_file.is_file():
             raise ToolError(f'--controller {params_file}: no such file')
         try:
-            read = node_sections(params_file)
-            check_params_file(params_file, 'controller', ALL_SPECS, read)
+            read = node_file_sections(params_file, 'controller', ALL_SPECS)
             # rcl applies a section in the order it first met its name over all the
             # files: the package's open '/**', so the file's '/**' sections come before
             # its others whatever its own order (dev-probe49)

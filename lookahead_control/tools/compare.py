@@ -121,17 +121,12 @@ def load_law_settings(path: Path | str,
     """
     from dataclasses import fields
 
-    from lookahead_control.core.config import (applies_to, check_params_file, ConfigError,
-                                               dataclass_from_params, load_baselines,
-                                               load_controller, load_lane_keeping,
-                                               load_ros_params, node_sections)
+    from lookahead_control.core.config import (ConfigError, dataclass_from_params,
+                                               load_baselines, load_controller,
+                                               load_lane_keeping, load_ros_params,
+                                               node_file_sections)
     from lookahead_control.ros.controller_node import ALL_SPECS
-    sections = [str(name) for name, _ in node_sections(path)]
-    if not any(applies_to(name, 'controller') for name in sections):
-        raise ConfigError(f'{path}: no section applies to the controller node (sections: '
-                          f'{", ".join(sections) or "none"}): its parameters are not in this '
-                          'file; expected controller:, /controller:, /**: or the like')
-    check_params_file(path, 'controller', ALL_SPECS)
+    node_file_sections(path, 'controller', ALL_SPECS)
     if vehicle is not None:
         params = load_ros_params(path, 'controller')
         given = {k.partition('.')[2] for k in params if k.startswith('vehicle.')}
