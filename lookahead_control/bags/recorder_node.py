@@ -39,7 +39,8 @@ from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAM
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import ConfigError, source_config_dir
-from lookahead_control.ros.node_main import now_ns, rcl_reason, RCLError, run_node
+from lookahead_control.ros.node_main import (now_ns, program_arguments, rcl_reason, RCLError,
+                                             run_node)
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidHandle
@@ -47,7 +48,6 @@ from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
-from rclpy.utilities import remove_ros_args
 import yaml
 
 DEFAULT_DESCRIBE = ('/controller', '/sim_plant')
@@ -465,7 +465,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                    '(default 0.5)')
     p.add_argument('--recover', type=Path, metavar='BAG',
                    help='rewrite a truncated bag into a readable one and exit')
-    args = p.parse_args(remove_ros_args(full)[1:])
+    args = p.parse_args(program_arguments(full))
     if args.recover is not None:
         given = [name for name, used in (
             ('topics', args.topics), ('-o', args.output), ('-e', args.regex),

@@ -38,10 +38,10 @@ from lookahead_control.core.cli import (ArgumentParser, assignments, number, run
                                         ToolError, write_json)
 from lookahead_control.core.config import ConfigError, rcl_param_value
 from lookahead_control.ros import conversions as conv
+from lookahead_control.ros.node_main import program_arguments, rcl_log_held
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 EXIT_CHECK_FAILED = 1
@@ -192,7 +192,8 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
     if not conns:
         reader.close()
         raise ToolError(f'{args.bag}: nothing to publish')
-    rclpy.init(args=ros_args)
+    with rcl_log_held():
+        rclpy.init(args=ros_args)
     node = Node('replay')
     published = 0
     try:
@@ -286,7 +287,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                               'steering > TOL [rad]; implies --offline')
     offline_only.add_argument('--json', type=Path, default=None, metavar='FILE',
                               help='write the comparison as JSON')
-    args = p.parse_args(remove_ros_args(full)[1:])
+    args = p.parse_args(program_arguments(full))
     offline_run = args.offline or args.check is not None
     played = [name for name, value in (('--rate', args.rate), ('--topics', args.topics),
                                        ('--clock', args.clock), ('--wait', args.wait))

@@ -119,14 +119,21 @@ class _UnraisableHook:
     A Ctrl-C to the process group can land in a child between ``fork`` and ``exec``,
     while Python runs its after-fork hooks (``subprocess`` with ``preexec_fn``); Python
     then prints ``Exception ignored in ... Traceback`` and the child goes on to start its
-    node. The parent has the same Ctrl-C and prints the one line.
+    node. The parent has the same Ctrl-C and prints the one line. Once a signal has
+    been received, any exception Python cannot raise is silent too: it is what the
+    interrupt left half done (the process is stopping on that interrupt).
     """
 
     def __init__(self, previous: object) -> None:
         self.previous = previous
 
     def __call__(self, unraisable: Any) -> None:
-        if _interrupted(unraisable.exc_value) is not None and running_as_executable():
+        # also what an interrupt left half done: a Ctrl-C inside rclpy's logger
+        # constructor, at 'import rclpy' (its root logger), before any of this package's
+        # code could give the class the attribute its __del__ reads, made that __del__
+        # print 'Exception ignored ... AttributeError' after 'record: interrupted'
+        if ((_interrupted(unraisable.exc_value) is not None or received)
+                and running_as_executable()):
             return
         self.previous(unraisable)               # type: ignore[operator]
 

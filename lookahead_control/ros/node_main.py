@@ -21,7 +21,9 @@ and ``try_shutdown``.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 from pathlib import Path
 import re
 import signal
@@ -29,10 +31,10 @@ import sys
 import tempfile
 import time
 from types import FrameType
-from typing import Any, Callable, Optional, Sequence, TypeVar
+from typing import Any, Callable, Iterator, Optional, Sequence, TypeVar
 
 from lookahead_control.core import interrupts
-from lookahead_control.core.cli import one_line
+from lookahead_control.core.cli import one_line, ToolError
 from lookahead_control.core.config import (check_params_file, ConfigError, node_sections,
                                            rcl_param_value)
 from lookahead_control.core.param_schema import check_params
@@ -45,6 +47,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
 import yaml
 
 N = TypeVar('N', bound=Node)
@@ -63,10 +66,62 @@ def rcl_reason(err: Exception) -> str:
     """
     Return rcl's message of an error without the C source locations it appends.
 
+    A remap rule rcl cannot parse gets what rcl expected (its own words are lexeme
+    numbers: ``-r __ns:=car_b`` is "Expected lexeme type 19, got 18 at index 6").
+
     :param err: the error (an ``RCLError``).
     :return: the message, stripped.
     """
-    return _RCL_LOCATION.sub('', str(err)).strip()
+    reason = _RCL_LOCATION.sub('', str(err)).strip()
+    if "Couldn't parse remap rule" in reason:
+        reason += (' (a rule is FROM:=TO with ROS names: a namespace absolute, '
+                   '__ns:=/car_b; a node name one token, __node:=truck)')
+    return reason
+
+
+@contextlib.contextmanager
+def rcl_log_held() -> Iterator[None]:
+    """
+    Hold back what rcl writes to stderr in the block, and let it out unless rcl fails.
+
+    rcl logs ``[ERROR] [rcl]: Failed to parse global arguments`` (and a warning or two)
+    before it raises the error the caller reports in one line: those lines are
+    dropped with the error, kept without one (at the file descriptor: rcl writes there).
+    """
+    sys.stderr.flush()
+    saved = os.dup(2)
+    held = tempfile.TemporaryFile()
+    failed = False
+    os.dup2(held.fileno(), 2)
+    try:
+        yield
+    except RCLError:
+        failed = True
+        raise
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        if not failed:
+            held.seek(0)
+            text = held.read()
+            if text:
+                os.write(2, text)
+        held.close()
+
+
+def program_arguments(full: Sequence[str]) -> list[str]:
+    """
+    Return a tool's own arguments: the command line without its program name and ROS args.
+
+    :param full: the command line, program name first.
+    :return: the rest, without ``--ros-args`` blocks.
+    :raises ToolError: rcl refuses the ROS arguments (one line; before, a traceback).
+    """
+    try:
+        with rcl_log_held():
+            return list(remove_ros_args(list(full))[1:])
+    except RCLError as err:
+        raise ToolError(f'--ros-args: {rcl_reason(err)}') from err
 
 
 class Throttle:
@@ -433,7 +488,8 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
          scratch: list[Path]) -> int:
     try:
         rcl_args = checked_arguments(args or [], name, specs, scratch)
-        rclpy.init(args=rcl_args, signal_handler_options=SignalHandlerOptions.NO)
+        with rcl_log_held():
+            rclpy.init(args=rcl_args, signal_handler_options=SignalHandlerOptions.NO)
     except ConfigError as err:
         print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
         return 2
