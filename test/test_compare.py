@@ -858,3 +858,126 @@ def test_a_noisy_plant_s_cost_counts_its_noise_free_twins():
     case = next(c for c in compare.PLANTS if c.name == compare.INDEPENDENT_PLANT)
     assert compare.plant_cost(case, speeds, 16, 10.0, compare.DT) == pytest.approx(
         (64 + 4) / 4 * cost['commonroad_mb'])
+
+
+def _read_once(text):
+    """Return a path that can be read once, as a shell's <(...) gives: /dev/fd/N."""
+    read, write = os.pipe()
+    os.write(write, text.encode())
+    os.close(write)
+    return Path(f'/dev/fd/{read}'), read
+
+
+def test_a_controller_file_that_can_be_read_once_is_read_once(tmp_path, capsys):
+    # dev-probe55: `--controller <(...)` was read again for each namespace, the second
+    # read empty: compare, sweep, lane_keeping_stability and paper_scenario ran every
+    # default and called it the file's ("none differs from the defaults"); closed_loop
+    # said "no such file"
+    from lookahead_control.ros.closed_loop import controller_settings
+    from lookahead_control.tools import lane_keeping_tool, paper_scenario
+    text = ('/**:\n  ros__parameters:\n    lane_keeping:\n      integral_gain: 0.1\n'
+            '    controller:\n      max_look_ahead: 30.0\n')
+    path, fd = _read_once(text)
+    try:
+        settings = compare.load_law_settings(path)
+    finally:
+        os.close(fd)
+    assert settings.lane_keeping.integral_gain == 0.1
+    assert settings.controller.max_look_ahead == 30.0
+    path, fd = _read_once(text)
+    try:
+        params, _ = controller_settings(path, [], 'cg_compensated', 'paper')
+    finally:
+        os.close(fd)
+    assert params['lane_keeping.integral_gain'] == 0.1
+    path, fd = _read_once(text)
+    try:
+        out = tmp_path / 'p.json'
+        assert run_tool(paper_scenario.main, ['--controller', str(path), '--speeds', '37',
+                                              '--duration', '1', '--json', str(out)]) == 0
+    finally:
+        os.close(fd)
+    import json
+    rows = json.loads(out.read_text())
+    assert {row['d_v_final_m'] for row in rows if row['controller'] == 'paper'} == {30.0}
+    path, fd = _read_once(text)
+    try:
+        run_tool(lane_keeping_tool.stability_main, ['--controller', str(path), '--samples',
+                                                    '2', '--delays', '0.02'])
+    finally:
+        os.close(fd)
+    said = capsys.readouterr().out
+    assert 'differing from the defaults: controller.max_look_ahead = 30.0, ' in said, said
+    # a folder is no file, in closed_loop's words as the others'
+    from lookahead_control.core.cli import ToolError
+    with pytest.raises(ToolError, match='cannot read: Is a directory'):
+        controller_settings(tmp_path, [], 'cg_compensated', 'paper')
+
+
+@pytest.mark.parametrize('body, named', [
+    ('safety:\n      max_steering_angle: 0.01\n      max_steering_rate: 0.02',
+     'safety.max_steering_angle = 0.01, safety.max_steering_rate = 0.02'),
+    ('acceleration_source: zero', "acceleration_source = 'zero'"),
+    ('mode: timer\n    rate_hz: 20.0', "mode = 'timer'"),
+])
+def test_a_node_setting_the_offline_runs_do_not_run_is_refused(body, named, tmp_path):
+    # dev-probe55: a file with the node's safety limits at 0.01 rad gave a league of
+    # commands up to 0.019 rad, "none differs from the defaults"; acceleration_source and
+    # timer mode alike, in compare, sweep and paper_scenario
+    from lookahead_control.tools import paper_scenario, sweep
+    path = tmp_path / 'c.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    ' + body + '\n')
+    with pytest.raises(ConfigError, match=f'{named}: the controller node runs this, compare '
+                       'does not'):
+        compare.load_law_settings(path, tool='compare')
+    for main, args in ((compare.main, ['--out', str(tmp_path / 'c')]),
+                       (sweep.main, ['--out', str(tmp_path / 's'), '--workers', '0']),
+                       (paper_scenario.main, ['--out', str(tmp_path / 'p')])):
+        assert run_tool(main, args + ['--controller', str(path)]) == 2, main
+    assert not any((tmp_path / name).exists() for name in 'csp')
+    # the safety layer's timing never meets exact, timely inputs: not refused; nor the
+    # package's own value
+    path.write_text('/**:\n  ros__parameters:\n    safety:\n      input_timeout: 0.3\n'
+                    '      max_steering_angle: 0.6\n    mode: event\n')
+    assert compare.settings_changes(compare.load_law_settings(path)) == []
+
+
+def test_the_stability_check_takes_the_nodes_acceleration_source(tmp_path, capsys):
+    # dev-probe55: with acceleration_source: zero the node's law takes a_x = 0; the check
+    # certified an exact a_x ("certificate HOLDS" to 4.6 m/s^2), where the law with a_x
+    # 0 is certified to 3.37 only
+    from lookahead_control.tools import lane_keeping_tool
+    path = tmp_path / 'a.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    acceleration_source: zero\n'
+                    '    law: paper\n')
+    code = run_tool(lane_keeping_tool.stability_main, ['--controller', str(path),
+                                                       '--samples', '2', '--delays', '0.02'])
+    said = capsys.readouterr().out
+    assert 'the law takes a_x = 0, so its a_x error is up to --a-max: --a-error 3.5 used' \
+        in said, said
+    assert 'error of the law a_x <= 3.5 m/s^2' in said and code == 1, said
+    assert f'note: {path} runs law paper in the node' in said
+
+
+def test_the_paper_laws_run_as_the_node_runs_them_by_default():
+    # found in dev-sections: the node gives the laws d rho / dt only with
+    # use_curvature_preview (default false), the offline paper laws always had it: the
+    # league's eq. 26 row on S2 at 37 m/s was 109.5 cm where the node's law makes 118.4
+    from lookahead_control.bags.run_data import controller_from_params
+    from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample,
+                                                VelocitySample, YawSample)
+    for preview in (False, True):
+        core, _ = controller_from_params({'law': 'paper', 'use_curvature_preview': preview})
+        ahead = ((0.0, 0.001), (50.0, 0.003))       # a clothoid: slope 4e-5 1/m^2
+        for name, sample in (('lateral_error', LateralErrorSample(0, 2.0, 0.3)),
+                             ('yaw', YawSample(0, 0.01, 0.02, 0.0)),
+                             ('velocity', VelocitySample(0, 30.0, 0.1)),
+                             ('road_curvature', CurvatureSample(0, 0.001, 4e-5, ahead))):
+            assert core.accept(name, sample, 0) is None
+        node = core.compute(0).steering
+        state = core.state(0)
+        settings = compare.LawSettings(curvature_rate=preview)
+        offline = compare.LAWS['paper_eq26'](VEHICLE, settings).step(
+            state._replace(rho_rate=30.0 * 4e-5), None, 0.01).steering
+        assert offline == node, (preview, offline, node)
+    assert compare.LawSettings().curvature_rate is False

@@ -323,6 +323,28 @@ def load_controller(path: Path | str | None = None, **overrides: Any) -> Control
     return dataclass_from_params(ControllerParams, params, 'controller', str(file))
 
 
+def law_params_from(params: Mapping[str, Any], source: str
+                    ) -> tuple[ControllerParams, LaneKeepingParams, BaselineParams]:
+    """
+    Build the laws' parameters from a controller node's merged parameters.
+
+    What :func:`load_controller`, :func:`load_lane_keeping` and :func:`load_baselines`
+    give for a file, from parameters read once (a ``--controller <(...)`` can be read
+    only once: read again, it gave every default; dev-probe55).
+
+    :param params: the node's merged parameters (:func:`merged_params`).
+    :param source: where they came from, for messages.
+    :return: the paper law's, the CG-compensated law's and the baselines' parameters.
+    :raises ConfigError: ``<source>: <name> = <value> ...``.
+    """
+    return (dataclass_from_params(ControllerParams, params, 'controller', source),
+            dataclass_from_params(LaneKeepingParams, params, 'lane_keeping', source),
+            BaselineParams(
+                dataclass_from_params(PurePursuitParams, params, 'pure_pursuit', source),
+                dataclass_from_params(StanleyParams, params, 'stanley', source),
+                dataclass_from_params(LqrParams, params, 'lqr', source)))
+
+
 def load_lane_keeping(path: Path | str | None = None) -> LaneKeepingParams:
     """
     Load the CG-compensated law's settings (default: ``config/controller.yaml``).

@@ -176,16 +176,20 @@ class PaperLaw:
     meaning in that function's docstring.
     """
 
-    def __init__(self, vehicle: VehicleParams, controller: Any) -> None:
+    def __init__(self, vehicle: VehicleParams, controller: Any,
+                 curvature_rate: bool = True) -> None:
         """
         Wrap the law.
 
         :param vehicle: the controller's vehicle model.
         :param controller: :class:`~lookahead_control.core.params.ControllerParams`, or
             :class:`GainBatch` (one set of gains per run of a batch).
+        :param curvature_rate: feed the state's ``rho_rate`` forward; False: 0, as the
+            controller node runs the law without ``use_curvature_preview`` (its default).
         """
         self.vehicle = vehicle
         self.controller = controller
+        self.curvature_rate = curvature_rate
 
     @classmethod
     def batch(cls, vehicle: VehicleParams, controllers: Sequence[ControllerParams]
@@ -211,6 +215,8 @@ class PaperLaw:
         :param dt: unused.
         :return: the command.
         """
+        if not self.curvature_rate:
+            state = state._replace(rho_rate=0.0 * state.rho_rate)
         return steering_law(state, self.vehicle, self.controller)
 
 

@@ -123,8 +123,6 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
     merged.update(load_ros_params(config / 'controller.yaml', 'controller'))
     dropped: list[str] = []
     if params_file is not None:
-        if not params_file.is_file():
-            raise ToolError(f'--controller {params_file}: no such file')
         try:
             read = node_file_sections(params_file, 'controller', ALL_SPECS)
             # rcl applies a section in the order it first met its name over all the

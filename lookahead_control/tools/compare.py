@@ -83,17 +83,38 @@ class LawSettings:
         name's) and the d_v schedule, clamp and speed floor of ``cg_compensated``.
     :param lane_keeping: ``lane_keeping.*``: the ``cg_compensated`` law's settings.
     :param baselines: ``pure_pursuit.*``, ``stanley.*``, ``lqr.*``.
+    :param curvature_rate: ``use_curvature_preview``: the paper laws' ``d rho / dt``
+        feed-forward (off by default in the node, so off here: until dev-sections the
+        league's paper rows had it, 109.5 cm on S2 at 37 m/s against the node's 118.4).
+    :param acceleration_source: where the node takes a_x from (``imu``, ``differentiate``,
+        ``zero``): the tools run the laws on the exact a_x, the stability check takes
+        ``zero``'s error into account.
+    :param law: the law the node runs (``law``).
     """
 
     controller: ControllerParams = ControllerParams()
     lane_keeping: LaneKeepingParams = LaneKeepingParams()
     baselines: BaselineParams = BaselineParams()
+    curvature_rate: bool = False
+    acceleration_source: str = 'imu'
+    law: str = 'cg_compensated'
+
+
+#: the node's settings that change a run but that the offline loop does not run (it
+#: answers each measurement, 10 ms apart, with the law alone, on exact inputs and a_x):
+#: the safety layer's limits and input checks, the source of a_x, the answer's timing
+NOT_RUN_OFFLINE = ('safety.', 'acceleration_source', 'mode')
+#: ... but the safety layer's timing, which exact and timely inputs never meet
+SAFETY_TIMING = ('safety.max_future', 'safety.input_timeout', 'safety.hold_time',
+                 'safety.max_curvature_points', 'safety.latency_warn')
 
 
 LawFactory = Callable[[VehicleParams, LawSettings], Law]
 LAWS: dict[str, LawFactory] = {
-    'paper_fixed': lambda v, s: PaperLaw(v, replace(s.controller, schedule='fixed')),
-    'paper_eq26': lambda v, s: PaperLaw(v, replace(s.controller, schedule='paper')),
+    'paper_fixed': lambda v, s: PaperLaw(v, replace(s.controller, schedule='fixed'),
+                                         s.curvature_rate),
+    'paper_eq26': lambda v, s: PaperLaw(v, replace(s.controller, schedule='paper'),
+                                        s.curvature_rate),
     'pure_pursuit': lambda v, s: baseline_law('pure_pursuit', v, s.baselines),
     'stanley': lambda v, s: baseline_law('stanley', v, s.baselines),
     'lqr': lambda v, s: baseline_law('lqr', v, s.baselines),
@@ -102,33 +123,37 @@ LAWS: dict[str, LawFactory] = {
 }
 
 
-def load_law_settings(path: Path | str,
-                      vehicle: Optional[VehicleParams] = None) -> LawSettings:
+def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
+                      not_run: Sequence[str] = NOT_RUN_OFFLINE,
+                      tool: str = 'this tool') -> LawSettings:
     """
     Load the laws' settings from a controller node's params file.
 
-    The file is checked first as the node checks it (``check_params_file`` with the
-    node's parameters): a name the node does not have (``lane_keping.*``), in a section
-    for the node, is refused as the node refuses it, not left at its default.
+    The file is read once (a ``<(...)`` can be read only once) and checked first as the
+    node checks it (``check_params_file`` with the node's parameters): a name the node
+    does not have (``lane_keping.*``), in a section for the node, is refused as the node
+    refuses it, not left at its default.
 
     :param path: a ROS params file (``config/controller.yaml`` format); what it does not
         set stays at the package default.
     :param vehicle: the tool's vehicle model (``--vehicle``; also its plant): a
         ``vehicle.*`` the file gives the node that differs from it is refused (the node
         would run another model than the one measured).
+    :param not_run: the node's settings (names or ``namespace.`` prefixes) the tool does
+        not run: one the file sets otherwise than the package is refused (the tool would
+        measure another controller than the node's; dev-probe55).
+    :param tool: the tool's name, for that message.
     :return: the settings.
     :raises ConfigError: a bad file or value, in one line naming it.
     """
     from dataclasses import fields
 
     from lookahead_control.core.config import (ConfigError, dataclass_from_params,
-                                               load_baselines, load_controller,
-                                               load_lane_keeping, load_ros_params,
+                                               law_params_from, merged_params,
                                                node_file_sections)
     from lookahead_control.ros.controller_node import ALL_SPECS
-    node_file_sections(path, 'controller', ALL_SPECS)
+    params = merged_params(node_file_sections(path, 'controller', ALL_SPECS), 'controller')
     if vehicle is not None:
-        params = load_ros_params(path, 'controller')
         given = {k.partition('.')[2] for k in params if k.startswith('vehicle.')}
         node = dataclass_from_params(VehicleParams, params, 'vehicle', str(path))
         differ = [f'vehicle.{f.name} = {getattr(node, f.name)!r}' for f in fields(node)
@@ -138,7 +163,36 @@ def load_law_settings(path: Path | str,
                 f'{path}: {", ".join(differ)}: the controller would run this vehicle '
                 'model, the tool measures the one of --vehicle (also its plant): give that '
                 "vehicle in --vehicle, or leave vehicle.* out of the controller's file")
-    return LawSettings(load_controller(path), load_lane_keeping(path), load_baselines(path))
+    package = package_node_defaults()
+    unrun = [f'{name} = {value!r}' for name, value in params.items()
+             if name.startswith(tuple(not_run)) and name not in SAFETY_TIMING
+             and name in package and value != package[name]]
+    if unrun:
+        raise ConfigError(
+            f'{path}: {", ".join(unrun)}: the controller node runs this, {tool} does not '
+            '(it runs the laws alone, each 10 ms measurement answered on exact inputs '
+            'and a_x); measure it with closed_loop, or leave it out of this file')
+    controller, lane_keeping, baselines = law_params_from(params, str(path))
+    return LawSettings(controller, lane_keeping, baselines,
+                       bool(params.get('use_curvature_preview', package['use_curvature_preview'])),
+                       str(params.get('acceleration_source', package['acceleration_source'])),
+                       str(params.get('law', package['law'])))
+
+
+def package_node_defaults() -> dict[str, Any]:
+    """
+    Return the controller node's parameters with the package's files and no other.
+
+    :return: name -> value: ``config/vehicle.yaml`` and ``config/controller.yaml`` over
+        the parameters' declared defaults.
+    """
+    from lookahead_control.core.config import load_ros_params, source_config_dir
+    from lookahead_control.ros.controller_node import ALL_SPECS
+    config = source_config_dir()
+    out = {spec.name: spec.default for spec in ALL_SPECS}
+    out.update(load_ros_params(config / 'vehicle.yaml', 'controller'))
+    out.update(load_ros_params(config / 'controller.yaml', 'controller'))
+    return out
 
 
 def settings_changes(settings: LawSettings) -> list[str]:
@@ -155,6 +209,8 @@ def settings_changes(settings: LawSettings) -> list[str]:
                                       for name in ('pure_pursuit', 'stanley', 'lqr'))]
     lines = [f'{space}.{name} = {value!r}' for space, params in parts
              for name, value in changed_fields(params).items()]
+    if settings.curvature_rate:
+        lines.append('use_curvature_preview = True')
     return with_schedule_note(lines, settings.lane_keeping)
 
 
@@ -1259,7 +1315,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.tune:
             raise ToolError("--controller: --tune scores the baselines' grids, not a file's "
                             'settings; use one or the other')
-        settings = load_law_settings(args.controller, vehicle)
+        settings = load_law_settings(args.controller, vehicle, tool='compare')
         for name in args.laws:       # a setting no law accepts: one line, before any run
             try:
                 LAWS[name](vehicle, settings)

@@ -83,8 +83,24 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         # as the node reads the file (its own check first: a name it does not have is
         # refused, not left at its default)
         from lookahead_control.tools.compare import load_law_settings
-        both = load_law_settings(args.controller, vehicle)
+        # the node's safety limits are no part of the linear loop checked here; its
+        # timing is (timer mode at rate_hz: another period than the checks' 10 ms)
+        both = load_law_settings(args.controller, vehicle, ('mode',),
+                                 'lane_keeping_stability')
         loaded, controller = both.lane_keeping, both.controller
+        if both.law != 'cg_compensated':
+            print(f'note: {args.controller} runs law {both.law} in the node; this checks '
+                  "cg_compensated with the file's controller.* and lane_keeping.*")
+        if both.acceleration_source == 'zero' and args.a_error < args.a_max:
+            # the node's law then takes a_x = 0: its error is the whole |a_x| (before,
+            # the certificate was given for an exact a_x: 'HOLDS' where it does not;
+            # dev-probe55)
+            print(f'acceleration_source zero in {args.controller}: the law takes a_x = 0, '
+                  f'so its a_x error is up to --a-max: --a-error {args.a_max:g} used')
+            args.a_error = args.a_max
+        elif both.acceleration_source == 'differentiate' and args.a_error == 0.0:
+            print(f'note: acceleration_source differentiate in {args.controller}: give the '
+                  "differentiated speed's error in --a-error (checked here with an exact a_x)")
     try:
         settings = replace(loaded, **overrides)
     except ParameterError as err:       # with the file's (or the default) other settings

@@ -30,7 +30,7 @@ from lookahead_control.analysis.metrics import (METRIC_COLUMNS, metrics_legend, 
 from lookahead_control.analysis.paper_tables import PAPER_FIG5_LEGEND, PAPER_SPEEDS
 from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
                                         write_csv, write_json)
-from lookahead_control.core.config import load_controller, load_vehicle, node_file_sections
+from lookahead_control.core.config import load_controller, load_vehicle
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import paper_scenario
@@ -163,12 +163,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ToolError('--no-plots: no report folder is written (give --out)')
     if out is not None:
         check_out(out, args.overwrite)  # before the runs: nothing of the user's is replaced
+    vehicle = load_vehicle(args.vehicle)
+    controller = load_controller(None)
     if args.controller is not None:
-        # checked as the node reads it: a file without the node's section, or a name
-        # the node does not have, would have run the defaults as if from the file
-        from lookahead_control.ros.controller_node import ALL_SPECS
-        node_file_sections(args.controller, 'controller', ALL_SPECS)
-    runs = reproduce(load_vehicle(args.vehicle), load_controller(args.controller),
+        # read once and checked as the node reads it: a file without the node's section,
+        # a name the node does not have, a file read once (<(...)), another vehicle or a
+        # node setting the offline runs do not run ran the defaults as if from the file
+        # (dev-probe55)
+        from lookahead_control.tools.compare import load_law_settings, NOT_RUN_OFFLINE
+        controller = load_law_settings(args.controller, vehicle,
+                                       (*NOT_RUN_OFFLINE, 'use_curvature_preview'),
+                                       'paper_scenario').controller
+    runs = reproduce(vehicle, controller,
                      PlantParams(model=args.plant), args.speeds, args.duration)
     rows = metrics_rows(runs)
     print(markdown_table(rows, TABLE_COLUMNS, digits=3))

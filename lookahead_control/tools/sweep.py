@@ -66,14 +66,16 @@ SUMMARY_METRICS = ('peak_cg_error_m', 'peak_look_ahead_lane_error_m',
 
 def paper_law(vehicle: VehicleParams, controller: ControllerParams,
               lane_keeping: LaneKeepingParams) -> Law:
-    """Return the paper's law with the eq. 26 schedule (``lane_keeping`` unused)."""
-    return PaperLaw(vehicle, ControllerParams(**{**asdict(controller), 'schedule': 'paper'}))
+    """Return the paper's law with the eq. 26 schedule, as the node runs it by default."""
+    return PaperLaw(vehicle, ControllerParams(**{**asdict(controller), 'schedule': 'paper'}),
+                    curvature_rate=False)
 
 
 def paper_fixed_law(vehicle: VehicleParams, controller: ControllerParams,
                     lane_keeping: LaneKeepingParams) -> Law:
-    """Return the paper's law with the fixed look-down (``lane_keeping`` unused)."""
-    return PaperLaw(vehicle, ControllerParams(**{**asdict(controller), 'schedule': 'fixed'}))
+    """Return the paper's law with the fixed look-down, as the node runs it by default."""
+    return PaperLaw(vehicle, ControllerParams(**{**asdict(controller), 'schedule': 'fixed'}),
+                    curvature_rate=False)
 
 
 # name -> factory(controller's vehicle model, paper-law parameters, lane-keeping
@@ -878,8 +880,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         # as the node reads the file (its own check first: a name it does not have is
         # refused, not left at its default)
-        from lookahead_control.tools.compare import load_law_settings
-        loaded = load_law_settings(args.controller, vehicle)
+        from lookahead_control.tools.compare import load_law_settings, NOT_RUN_OFFLINE
+        loaded = load_law_settings(args.controller, vehicle,
+                                   (*NOT_RUN_OFFLINE, 'use_curvature_preview'), 'sweep')
         controller, lane_keeping = loaded.controller, loaded.lane_keeping
     for law in spec.laws:       # the node's checks across parameters: before any run
         try:
