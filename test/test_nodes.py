@@ -51,7 +51,56 @@ def test_curvature_preview_interpolates_at_the_cg():
     sample = conv.from_curvature(msg)
     assert (sample.rho, sample.slope) == pytest.approx((0.005, 0.001))
     assert conv.from_curvature(conv.to_curvature(0, 'b', [(0.0, -0.0025)])).rho == -0.0025
-    assert conv.from_curvature(conv.to_curvature(0, 'b', [])).rho == 0.0
+    # an empty polygon is no curvature (it was 0, a straight road: dev-probe55)
+    assert math.isnan(conv.from_curvature(conv.to_curvature(0, 'b', [])).rho)
+
+
+def test_an_empty_curvature_polygon_is_refused_not_a_straight_road():
+    # dev-probe55: a map or planner with no path publishes an empty polygon; the node took
+    # it as a fresh curvature 0 in a 400 m curve at 30 m/s (the command went from -0.014
+    # to +0.052 rad) and /diagnostics said OK; refused, the curvature goes lost and is
+    # estimated, as when the topic dies. The node refuses it by its count, a re-run from a
+    # bag by its value (both through the core's refusal)
+    from lookahead_control.bags import cdr_decode
+    from lookahead_control.bags.run_data import controller_from_params
+    from lookahead_control.core.safety import check_points, SafetyParams
+    from rclpy.serialization import serialize_message
+    assert check_points(0, SafetyParams()) == ('road_curvature: no points: an empty '
+                                               'polygon carries no curvature')
+    assert check_points(1, SafetyParams()) is None
+    core, _ = controller_from_params({'law': 'cg_compensated'})
+    curve = conv.from_curvature(conv.to_curvature(10, 'base_link', [(0.0, 0.0025)]))
+    assert core.accept('road_curvature', curve, 10) is None
+    empty = conv.to_curvature(20, 'base_link', [])
+    for sample in (conv.from_curvature(empty), cdr_decode.curvature(serialize_message(empty))):
+        assert core.accept('road_curvature', sample, 20) is not None
+        assert core.curvature == curve
+
+
+def test_an_orientation_that_is_no_unit_quaternion_is_refused():
+    # dev-probe55: (0, 0, 0, 0) was read as yaw 0, a quaternion of norm 0.9 for a yaw of
+    # 0.1 rad as 0.081 rad, both silently
+    from lookahead_control.bags import cdr_decode
+    from lookahead_control.bags.run_data import controller_from_params
+    from rclpy.serialization import serialize_message
+    half = math.sin(0.05), math.cos(0.05)
+    for x, y, z, w in ((0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.9 * half[0], 0.9 * half[1]),
+                       (0.0, 0.0, 1.1 * half[0], 1.1 * half[1]),
+                       (0.0, 0.0, math.nan, 1.0)):
+        msg = conv.to_yaw(0, 'base_link', 0.1, 0.0, 0.0)
+        msg.orientation.x, msg.orientation.y = x, y
+        msg.orientation.z, msg.orientation.w = z, w
+        with pytest.raises(ValueError, match='orientation'):
+            conv.from_yaw(msg)
+        # a bag's re-run: no yaw, which the core refuses (as the node refused it)
+        sample = cdr_decode.yaw(serialize_message(msg))
+        assert math.isnan(sample.relative_yaw)
+        core, _ = controller_from_params({})
+        assert core.accept('yaw', sample, 0) is not None
+    # a float32-rounded unit quaternion is one
+    msg = conv.to_yaw(0, 'base_link', 0.1, 0.0, 0.0)
+    msg.orientation.z, msg.orientation.w = float(np.float32(half[0])), float(np.float32(half[1]))
+    assert conv.from_yaw(msg).relative_yaw == pytest.approx(0.1, abs=1e-6)
 
 
 def test_steering_without_the_joint_is_refused():

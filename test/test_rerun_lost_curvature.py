@@ -621,3 +621,25 @@ def test_answers_lost_next_to_a_deactivation():
                     for name, column in columns.items()}, {'law': 'cg_compensated'})
     again = rerun(dropped, order='stamp')
     assert again.inactive_skipped == 21 and again.inactive_lost == 1
+
+
+def test_without_recorded_parameters_the_first_answers_law_is_no_run_time_set():
+    # dev-probe55: a car recorded without --describe re-ran its debug's law, and replay
+    # said 'the law was set at run time ... (1 switches)': the default law of the
+    # re-run, not the node, had it otherwise
+    rows = _inputs(100, math.inf)
+    node, _ = controller_from_params({'law': 'paper'})
+    commands = {}
+    for role, sample in _feed(rows):
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role == 'lateral_error':
+            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+    columns = {'law:paper': dict.fromkeys(commands, 0.0),
+               'law:cg_compensated': dict.fromkeys(commands, math.nan)}
+    result = rerun(_bag(rows, commands, columns, {}), order='stamp')
+    assert result.max_diff == 0.0 and result.compared == 100, result.max_diff
+    assert result.law_switches == 0
+    # with the start's parameters recorded, another law at the first answer was set
+    # before the recorder joined: a set at run time
+    started = rerun(_bag(rows, commands, columns, {'law': 'cg_compensated'}), order='stamp')
+    assert started.max_diff == 0.0 and started.law_switches == 1

@@ -87,8 +87,8 @@ def offline(args: argparse.Namespace) -> int:
         # default controller, which is not what ran
         print(f'replay: the bag has no {run.controller_node} parameters (recorded of: '
               f'{", ".join(described_nodes(Path(args.bag))) or "no node"}): the re-run '
-              'uses the default vehicle, law and safety parameters (-p NAME=VALUE sets '
-              'one)')
+              'uses the default vehicle, law and safety parameters, the law its debug '
+              'names where it has one (-p NAME=VALUE sets one)')
     if filled:
         # a bag from before the integral gain's speed schedule: the law ran with k_i
         # constant, which the schedule's defaults would not re-run

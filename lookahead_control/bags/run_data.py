@@ -778,7 +778,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             if law != core.law_name:    # as the node: a new law from its reset state
                 core.configure(core.vehicle, core.params, core.acceleration_source,
                                core.use_preview, law=law)
-                switches += 1
+                # without recorded parameters the first answer's law is the debug's,
+                # not a set at run time (it was called one; dev-probe55)
+                switches += bool(commands or run.controller_params)
             received = judged.get(sample.stamp_ns)
             if received is not None:
                 followed += 1

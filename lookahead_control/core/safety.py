@@ -199,6 +199,11 @@ def check_points(count: int, params: SafetyParams) -> Optional[str]:
     :param params: the limits.
     :return: the reason.
     """
+    if count == 0:
+        # a map or planner without a path: taken as a fresh straight road, the law
+        # steered straight on in a curve and /diagnostics said OK (dev-probe55); refused,
+        # it leaves the curvature to go lost (estimated, with the warning)
+        return 'road_curvature: no points: an empty polygon carries no curvature'
     if count > params.max_curvature_points:
         return (f'road_curvature: points = {count} > max_curvature_points '
                 f'{params.max_curvature_points}')

@@ -23,7 +23,7 @@ from messages; :mod:`lookahead_control.bags.cdr_decode` builds them from raw bag
 from __future__ import annotations
 
 import math
-from typing import NamedTuple, Sequence
+from typing import NamedTuple, Optional, Sequence
 
 STEERING_JOINT = 'front_wheel_steering'
 
@@ -80,16 +80,44 @@ def yaw_to_quaternion(yaw: float) -> tuple[float, float, float, float]:
     return 0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw)
 
 
-def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
+#: how far an orientation's norm may be from 1: a float32 quaternion is within 1e-7; a
+#: zero one, or one of norm 0.9, is a broken publisher (0.9 for a yaw of 0.1 rad read as
+#: 0.081 rad; (0, 0, 0, 0) as 0; dev-probe55)
+QUATERNION_NORM_TOLERANCE = 0.01
+
+
+def quaternion_problem(x: float, y: float, z: float, w: float) -> Optional[str]:
     """
-    Return the rotation about z of a quaternion (REP-103, counter-clockwise +).
+    Return why a quaternion is no orientation, or None.
 
     :param x: quaternion x.
     :param y: quaternion y.
     :param z: quaternion z.
     :param w: quaternion w.
-    :return: yaw [rad] in (-pi, pi].
+    :return: the reason (not finite, or its norm off 1 by more than the tolerance).
     """
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not math.isfinite(norm):
+        return f'orientation ({x}, {y}, {z}, {w}) is not finite'
+    if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+        return (f'orientation ({x:.6g}, {y:.6g}, {z:.6g}, {w:.6g}) has norm {norm:.6g}, not 1 '
+                f'(within {QUATERNION_NORM_TOLERANCE:g})')
+    return None
+
+
+def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
+    """
+    Return the rotation about z of a unit quaternion (REP-103, counter-clockwise +).
+
+    :param x: quaternion x.
+    :param y: quaternion y.
+    :param z: quaternion z.
+    :param w: quaternion w.
+    :return: yaw [rad] in (-pi, pi]; NaN if it is no orientation
+        (:func:`quaternion_problem`), which the safety layer refuses.
+    """
+    if quaternion_problem(x, y, z, w) is not None:
+        return math.nan
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
@@ -134,7 +162,9 @@ def curvature_from_points(stamp: int, polygon: Sequence[tuple[float, float]]
     points = one_per_distance(raw)
     ahead = tuple(points)
     if not points:
-        return CurvatureSample(stamp, 0.0, 0.0, ahead)
+        # no curvature (not 0): the safety layer refuses it, in a re-run from a bag as
+        # in the node (check_points)
+        return CurvatureSample(stamp, math.nan, 0.0, ahead)
     if points[-1][0] <= 0.0:
         return CurvatureSample(stamp, points[-1][1], 0.0, ahead)
     i = 0

@@ -39,8 +39,9 @@ from typing import Sequence
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.samples import (curvature_from_points, CurvatureSample,
-                                            LateralErrorSample, quaternion_to_yaw, STEERING_JOINT,
-                                            VelocitySample, yaw_to_quaternion, YawSample)
+                                            LateralErrorSample, quaternion_problem,
+                                            quaternion_to_yaw, STEERING_JOINT, VelocitySample,
+                                            yaw_to_quaternion, YawSample)
 from sensor_msgs.msg import Imu, JointState
 
 
@@ -81,8 +82,12 @@ def from_yaw(msg: Imu) -> YawSample:
 
     :param msg: the message.
     :return: the sample.
+    :raises ValueError: the orientation is no unit quaternion (a malformed message).
     """
     q = msg.orientation
+    problem = quaternion_problem(q.x, q.y, q.z, q.w)
+    if problem is not None:
+        raise ValueError(problem)
     return YawSample(stamp_to_ns(msg.header.stamp), quaternion_to_yaw(q.x, q.y, q.z, q.w),
                      float(msg.angular_velocity.z), float(msg.linear_acceleration.x))
 
@@ -107,7 +112,7 @@ def from_curvature(msg: PolygonStamped) -> CurvatureSample:
     the first segment that starts at or ahead of the CG.
 
     :param msg: the message.
-    :return: the sample (curvature 0 if the polygon is empty).
+    :return: the sample (curvature NaN if the polygon is empty: no curvature, refused).
     """
     return curvature_from_points(stamp_to_ns(msg.header.stamp),
                                  [(float(p.x), float(p.y)) for p in msg.polygon.points])
