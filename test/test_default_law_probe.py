@@ -293,3 +293,19 @@ def test_diagnostics_say_when_the_sim_clock_stops(context):
         assert node.diagnostics().level == DiagnosticStatus.OK
     finally:
         node.destroy_node()
+
+
+def test_diagnostics_say_the_speed_of_a_low_speed_hold_and_a_car_reversing(context):
+    # dev-probe55: a velocity of -10 m/s was only 'low speed: N' in /diagnostics
+    from diagnostic_msgs.msg import DiagnosticStatus
+    node = _default_node(context)
+    try:
+        stamp, status = _one_second(node, 100 * S, rho=0.0, v_x=-10.0)
+        assert status.level == DiagnosticStatus.WARN
+        assert ('low speed: 100 (v_x -10 m/s, below safety.low_speed 3: holding the '
+                'command; reversing: the laws steer forward driving only)') in status.message
+        stamp, status = _one_second(node, stamp, rho=0.0, v_x=1.0)
+        assert 'low speed: 100 (v_x 1 m/s, below safety.low_speed 3: holding the ' \
+            'command)' in status.message, status.message
+    finally:
+        node.destroy_node()

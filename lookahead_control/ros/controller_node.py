@@ -669,6 +669,13 @@ class ControllerNode(LifecycleNode):
                 text = f'{key.replace("_", " ")}: {new[key]}'
                 if key == 'rejected':
                     text += f' (last: {self.core.last_rejection})'
+                elif key == 'low_speed' and self.core.velocity is not None:
+                    # a car reversing was only 'low speed' (dev-probe55)
+                    v_x = self.core.velocity.v_x
+                    text += (f' (v_x {v_x:.3g} m/s, below safety.low_speed '
+                             f'{self.core.safety.low_speed:g}: holding the command'
+                             + ('; reversing: the laws steer forward driving only'
+                                if v_x < 0.0 else '') + ')')
                 elif key == 'law_restarts':
                     why = {'gap': 'lateral errors further apart than lane_keeping.max_gap '
                                   f'{self.core.lane_keeping.max_gap:g} s',
