@@ -471,16 +471,14 @@ def test_a_controller_file_without_a_section_for_the_controller_is_refused(tmp_p
     with pytest.raises(ToolError, match=r'--controller .*car_b.yaml: no section applies to '
                        r'the controller node \(sections: /car_b/controller\)'):
         controller_settings(car_b, [], 'cg_compensated', 'paper')
-    code = run_tool(paper_scenario.main, ['--controller', str(car_b), '--speeds', '37',
-                                          '--duration', '0.1', '--out', str(tmp_path / 'p')])
-    assert code == 2 and not (tmp_path / 'p' / 'report.md').exists()
     # and paper_scenario checked only controller.*: the node refuses a lane_keeping typo
     typo = tmp_path / 'typo.yaml'
     typo.write_text('controller:\n  ros__parameters:\n    lane_keeping:\n'
                     '      integral_gian: 0.6\n')
-    code = run_tool(paper_scenario.main, ['--controller', str(typo), '--speeds', '37',
-                                          '--duration', '0.1', '--out', str(tmp_path / 'p')])
-    assert code == 2 and not (tmp_path / 'p' / 'report.md').exists()
+    for path in (car_b, typo):
+        code = run_tool(paper_scenario.main, ['--controller', str(path), '--speeds', '37',
+                                              '--duration', '0.1', '--out', str(tmp_path / 'p')])
+        assert code == 2 and not (tmp_path / 'p' / 'report.md').exists(), path
     wildcard = tmp_path / 'all.yaml'
     wildcard.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
                         '      integral_gain: 0.6\n')
