@@ -798,3 +798,24 @@ def test_a_recorder_s_drain_ends_while_publishers_go_on():
                            on_message=lambda topic, data, info: taken.append(topic))
     assert RecorderNode.drain(fake) == 1000
     assert taken.count('/yaw') == 1000
+
+
+def test_replay_terminated_while_playing_says_so_and_exits_143(loop_bag):
+    # dev-probe56: SIGTERM during playback printed 'replay: interrupted after N messages'
+    # and exited 0, as if the bag had been played
+    import signal
+    proc = subprocess.Popen([sys.executable, '-m', 'lookahead_control.bags.replay_node',
+                             str(loop_bag), '--rate', '0.01', '--wait', '0'],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        # printed just before the first message goes out (nothing subscribes here)
+        line = proc.stderr.readline()
+        assert 'playing anyway' in line, line
+        proc.send_signal(signal.SIGTERM)
+        rest = proc.communicate(timeout=60)[1]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 143, rest
+    assert rest.startswith('replay: terminated after ') and 'interrupted' not in rest, rest

@@ -979,3 +979,25 @@ def test_the_paper_laws_run_as_the_node_runs_them_by_default():
             state._replace(rho_rate=30.0 * 4e-5), None, 0.01).steering
         assert offline == node, (preview, offline, node)
     assert compare.LawSettings().curvature_rate is False
+
+
+def test_a_setting_is_refused_only_where_a_tool_does_not_run_it(tmp_path):
+    # dev-probe56: sweep refused use_curvature_preview: true with cg_compensated alone
+    # (the paper laws are the only ones it changes), lane_keeping_stability refused mode:
+    # timer at 100 Hz (the period of its checks) and explained it with the offline loop's
+    # words
+    from lookahead_control.tools import lane_keeping_tool, sweep
+    preview = tmp_path / 'preview.yaml'
+    preview.write_text('/**:\n  ros__parameters:\n    use_curvature_preview: true\n')
+    tiny = ['--mode', 'monte_carlo', '--runs', '1', '--scenarios', 's0_straight', '--speeds',
+            '20', '--duration', '0.2', '--workers', '0', '--no-plots', '--no-progress']
+    assert run_tool(sweep.main, [*tiny, '--laws', 'paper_eq26', '--controller', str(preview),
+                                 '--out', str(tmp_path / 'a')]) == 2
+    assert run_tool(sweep.main, [*tiny, '--laws', 'cg_compensated', '--controller',
+                                 str(preview), '--out', str(tmp_path / 'b')]) == 0
+    timer = tmp_path / 'timer.yaml'
+    check = ['--samples', '2', '--delays', '0.02', '--controller', str(timer)]
+    timer.write_text('/**:\n  ros__parameters:\n    mode: timer\n    rate_hz: 100\n')
+    assert run_tool(lane_keeping_tool.stability_main, check) in (0, 1)
+    timer.write_text('/**:\n  ros__parameters:\n    mode: timer\n    rate_hz: 20.0\n')
+    assert run_tool(lane_keeping_tool.stability_main, check) == 2

@@ -97,6 +97,13 @@ def test_an_orientation_that_is_no_unit_quaternion_is_refused():
         assert math.isnan(sample.relative_yaw)
         core, _ = controller_from_params({})
         assert core.accept('yaw', sample, 0) is not None
+    # within the tolerance, the yaw of the normalized quaternion (at norm 0.991 a yaw of
+    # 1 rad was read 15 mrad off: dev-probe56)
+    for scale in (0.991, 1.0099):
+        msg = conv.to_yaw(0, 'base_link', 1.0, 0.0, 0.0)
+        msg.orientation.z *= scale
+        msg.orientation.w *= scale
+        assert conv.from_yaw(msg).relative_yaw == pytest.approx(1.0, abs=1e-12)
     # a float32-rounded unit quaternion is one
     msg = conv.to_yaw(0, 'base_link', 0.1, 0.0, 0.0)
     msg.orientation.z, msg.orientation.w = float(np.float32(half[0])), float(np.float32(half[1]))

@@ -643,3 +643,20 @@ def test_without_recorded_parameters_the_first_answers_law_is_no_run_time_set():
     # before the recorder joined: a set at run time
     started = rerun(_bag(rows, commands, columns, {'law': 'cg_compensated'}), order='stamp')
     assert started.max_diff == 0.0 and started.law_switches == 1
+
+
+def test_the_re_run_counts_the_inputs_its_checks_refuse():
+    # dev-probe56: a bag of a node older than a check (a zero quaternion, decoded as a
+    # NaN yaw, which the node then used) re-ran 18.7 mrad apart and replay said nothing
+    rows = _inputs(100, math.inf)
+    node, _ = controller_from_params({'law': 'paper'})
+    commands = {}
+    for role, sample in _feed(rows):
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role == 'lateral_error':
+            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+    rows['yaw'][50] = rows['yaw'][50]._replace(relative_yaw=math.nan)
+    result = rerun(_bag(rows, commands, {}, {'law': 'paper'}), order='stamp')
+    assert result.refused == {'yaw': 1} and 'yaw' in result.last_refusal
+    clean = rerun(_bag(_inputs(100, math.inf), commands, {}, {'law': 'paper'}), order='stamp')
+    assert clean.refused == {} and clean.max_diff == 0.0

@@ -34,6 +34,7 @@ from typing import Any, Optional, Sequence
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
 from lookahead_control.bags.run_data import as_it_ran, CONTROLLER_NODE, load_run, rerun
+from lookahead_control.core import interrupts
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
                                         ToolError, write_json)
 from lookahead_control.core.config import ConfigError, rcl_param_value
@@ -77,6 +78,7 @@ def offline(args: argparse.Namespace) -> int:
     report['parameter_sets_before_bag'] = result.parameter_sets_before_bag
     report['inputs_while_inactive'] = result.inactive_skipped
     report['answers_lost_next_to_inactive'] = result.inactive_lost
+    report['inputs_refused'] = result.refused
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
@@ -107,6 +109,14 @@ def offline(args: argparse.Namespace) -> int:
               "otherwise (one or two at a switch-over: the node's clock; many: a "
               'road_curvature in the bag that the controller did not receive, remapped or '
               'a QoS mismatch)')
+    if result.refused:
+        # a node older than a check used what the re-run refuses (dev-probe56: bags with
+        # a zero quaternion or empty polygons re-ran 18.7 and 29.2 mrad apart, unsaid)
+        counts = ', '.join(f'{name} {count}' for name, count in sorted(result.refused.items()))
+        print(f"replay: the re-run's input checks refused {sum(result.refused.values())} "
+              f'input(s) ({counts}; last: {result.last_refusal}), as the node does; a node '
+              'older than a check (an orientation that is no unit quaternion, an empty '
+              'road_curvature: since dev-sections) used them, and the re-run differs there')
     if result.law_switches:
         print(f'replay: the law was set at run time: the re-run switched it where the '
               f'recorded controller did ({result.law_switches} switches, '
@@ -230,8 +240,11 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
         print(f'replay: {args.bag}: published {published} messages on {len(conns)} topics '
               f'at {args.rate:g}x in {time.monotonic() - start_wall:.2f} s'
               + (f', and {clocks} on /clock at {args.clock:g} Hz' if clock else ''))
-    except KeyboardInterrupt:
-        print(f'replay: interrupted after {published} messages', file=sys.stderr)
+    except KeyboardInterrupt as stop:
+        # SIGTERM (Terminated) was 'interrupted' and exit 0, as if played (dev-probe56)
+        word = 'terminated' if isinstance(stop, interrupts.Terminated) else 'interrupted'
+        print(f'replay: {word} after {published} messages', file=sys.stderr)
+        return interrupts.exit_code(stop)
     finally:
         reader.close()
         node.destroy_node()

@@ -643,6 +643,8 @@ class Rerun:
         deactivated (:func:`inactive_inputs`), not computed, as the node did not.
     :param inactive_lost: answers the recorder lost next to a deactivation: among the
         skipped inputs that many were answered (the re-run is not exact there).
+    :param refused: inputs the re-run's checks refused, by input, and the last reason
+        (a node older than a check used what the re-run refuses).
     """
 
     commands: dict[int, Command]
@@ -660,6 +662,8 @@ class Rerun:
     parameter_sets_before_bag: int = 0
     inactive_skipped: int = 0
     inactive_lost: int = 0
+    refused: dict[str, int] = field(default_factory=dict)
+    last_refusal: str = ''
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -754,10 +758,15 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     params, applied = dict(run.controller_params), 0
     followed = otherwise = switches = 0
     inactive, lost = inactive_inputs(run)
+    refusals: dict[str, int] = {}
+    last_refusal = ''
     for _, role, sample in feed:
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
         refused = core.accept(role, sample)
+        if refused is not None:
+            refusals[role] = refusals.get(role, 0) + 1
+            last_refusal = refused
         if role == 'lateral_error' and sample.stamp_ns in inactive:
             continue                # taken in, not answered: the node was inactive
         if role == 'lateral_error' and refused is None:
@@ -796,7 +805,8 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
-                 switches, applied, unmarked, before_bag, len(inactive), lost)
+                 switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
+                 last_refusal)
 
 
 def inactive_inputs(run: RunData) -> tuple[frozenset[int], int]:

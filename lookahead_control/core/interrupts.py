@@ -108,6 +108,13 @@ class _Hook:
             name = os.path.basename(sys.argv[0]).rsplit('.py', 1)[0]
             print(f'{name}: {"terminated" if terminated else "interrupted"}',
                   file=sys.stderr)
+            if not isinstance(value, KeyboardInterrupt):
+                # Python exits 1 for the other error it has here (replay, Ctrl-C at
+                # 0.77 s: 'replay: interrupted' and exit 1; dev-probe56): the signal's code
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os._exit(exit_code(interrupt) if interrupt is not None
+                         else 128 + received[-1])
             return
         self.previous(kind, value, trace)       # type: ignore[operator]
 

@@ -118,6 +118,12 @@ def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
     """
     if quaternion_problem(x, y, z, w) is not None:
         return math.nan
+    squared = x * x + y * y + z * z + w * w
+    if abs(squared - 1.0) > 1e-12:
+        # the formula needs a unit norm: off it by 1 % read a yaw of 1 rad 15 mrad off
+        # (dev-probe56); a unit quaternion in doubles is taken as it is (exact re-runs)
+        norm = math.sqrt(squared)
+        x, y, z, w = x / norm, y / norm, z / norm, w / norm
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 

@@ -52,6 +52,9 @@ import yaml
 
 N = TypeVar('N', bound=Node)
 RCLError = _rclpy.RCLError
+#: what rclpy raises for ROS arguments it refuses: rcl's errors, and a token after
+#: --ros-args that is no ROS argument (not an RCLError: it was a traceback; dev-probe56)
+ROS_ARGS_ERRORS = (RCLError, _rclpy.UnknownROSArgsError)
 _RCL_LOCATION = re.compile(r', at /\S+:\d+')
 
 # rclpy's logger sets the attribute its __del__ reads after its name in __init__: a
@@ -72,6 +75,10 @@ def rcl_reason(err: Exception) -> str:
     :param err: the error (an ``RCLError``).
     :return: the message, stripped.
     """
+    if isinstance(err, _rclpy.UnknownROSArgsError):
+        return (f'unknown ROS argument(s) {str(err).strip("[]")} after --ros-args (ROS '
+                "arguments: -r, -p, --params-file, --log-level, ...; the program's own "
+                'go before --ros-args or after --)')
     reason = _RCL_LOCATION.sub('', str(err)).strip()
     if "Couldn't parse remap rule" in reason:
         reason += (' (a rule is FROM:=TO with ROS names: a namespace absolute, '
@@ -95,7 +102,7 @@ def rcl_log_held() -> Iterator[None]:
     os.dup2(held.fileno(), 2)
     try:
         yield
-    except RCLError:
+    except ROS_ARGS_ERRORS:
         failed = True
         raise
     finally:
@@ -120,7 +127,7 @@ def program_arguments(full: Sequence[str]) -> list[str]:
     try:
         with rcl_log_held():
             return list(remove_ros_args(list(full))[1:])
-    except RCLError as err:
+    except ROS_ARGS_ERRORS as err:
         raise ToolError(f'--ros-args: {rcl_reason(err)}') from err
 
 
@@ -493,7 +500,7 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
     except ConfigError as err:
         print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
         return 2
-    except RCLError as err:
+    except ROS_ARGS_ERRORS as err:
         # a missing or malformed --params-file, a bad remapping: rcl's message, minus
         # the C source locations it appends
         print(f'{name}: error: {one_line(rcl_reason(err))}', file=sys.stderr)

@@ -90,6 +90,8 @@ class LawSettings:
         ``zero``): the tools run the laws on the exact a_x, the stability check takes
         ``zero``'s error into account.
     :param law: the law the node runs (``law``).
+    :param mode: how the node answers (``event``: each lateral error; ``timer``).
+    :param rate_hz: its timer's rate (``timer`` mode) [Hz].
     """
 
     controller: ControllerParams = ControllerParams()
@@ -98,12 +100,16 @@ class LawSettings:
     curvature_rate: bool = False
     acceleration_source: str = 'imu'
     law: str = 'cg_compensated'
+    mode: str = 'event'
+    rate_hz: float = 100.0
 
 
 #: the node's settings that change a run but that the offline loop does not run (it
 #: answers each measurement, 10 ms apart, with the law alone, on exact inputs and a_x):
 #: the safety layer's limits and input checks, the source of a_x, the answer's timing
 NOT_RUN_OFFLINE = ('safety.', 'acceleration_source', 'mode')
+#: what the offline tools run in their place
+OFFLINE_RUNS = 'it runs the laws alone, each 10 ms measurement answered on exact inputs and a_x'
 #: ... but the safety layer's timing, which exact and timely inputs never meet
 SAFETY_TIMING = ('safety.max_future', 'safety.input_timeout', 'safety.hold_time',
                  'safety.max_curvature_points', 'safety.latency_warn')
@@ -125,7 +131,7 @@ LAWS: dict[str, LawFactory] = {
 
 def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                       not_run: Sequence[str] = NOT_RUN_OFFLINE,
-                      tool: str = 'this tool') -> LawSettings:
+                      tool: str = 'this tool', runs: str = OFFLINE_RUNS) -> LawSettings:
     """
     Load the laws' settings from a controller node's params file.
 
@@ -143,6 +149,7 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
         not run: one the file sets otherwise than the package is refused (the tool would
         measure another controller than the node's; dev-probe55).
     :param tool: the tool's name, for that message.
+    :param runs: what the tool runs instead, for that message.
     :return: the settings.
     :raises ConfigError: a bad file or value, in one line naming it.
     """
@@ -170,13 +177,14 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
     if unrun:
         raise ConfigError(
             f'{path}: {", ".join(unrun)}: the controller node runs this, {tool} does not '
-            '(it runs the laws alone, each 10 ms measurement answered on exact inputs '
-            'and a_x); measure it with closed_loop, or leave it out of this file')
+            f'({runs}); measure it with closed_loop, or leave it out of this file')
     controller, lane_keeping, baselines = law_params_from(params, str(path))
     return LawSettings(controller, lane_keeping, baselines,
                        bool(params.get('use_curvature_preview', package['use_curvature_preview'])),
                        str(params.get('acceleration_source', package['acceleration_source'])),
-                       str(params.get('law', package['law'])))
+                       str(params.get('law', package['law'])),
+                       str(params.get('mode', package['mode'])),
+                       float(params.get('rate_hz', package['rate_hz'])))
 
 
 def package_node_defaults() -> dict[str, Any]:

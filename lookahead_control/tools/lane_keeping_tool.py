@@ -85,9 +85,15 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         from lookahead_control.tools.compare import load_law_settings
         # the node's safety limits are no part of the linear loop checked here; its
         # timing is (timer mode at rate_hz: another period than the checks' 10 ms)
-        both = load_law_settings(args.controller, vehicle, ('mode',),
-                                 'lane_keeping_stability')
+        both = load_law_settings(args.controller, vehicle, ())
         loaded, controller = both.lane_keeping, both.controller
+        if both.mode == 'timer' and abs(both.rate_hz * PERIOD - 1.0) > 1e-9:
+            # the checks sample the loop every PERIOD (event mode at 100 Hz measurements,
+            # or a 100 Hz timer)
+            raise ToolError(f'{args.controller}: mode timer at rate_hz {both.rate_hz:g}: the '
+                            'controller node answers every '
+                            f'{1.0 / both.rate_hz:g} s, lane_keeping_stability checks the '
+                            f'loop sampled every {PERIOD:g} s; measure it with closed_loop')
         if both.law != 'cg_compensated':
             print(f'note: {args.controller} runs law {both.law} in the node; this checks '
                   "cg_compensated with the file's controller.* and lane_keeping.*")

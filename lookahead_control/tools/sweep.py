@@ -881,8 +881,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         # as the node reads the file (its own check first: a name it does not have is
         # refused, not left at its default)
         from lookahead_control.tools.compare import load_law_settings, NOT_RUN_OFFLINE
-        loaded = load_law_settings(args.controller, vehicle,
-                                   (*NOT_RUN_OFFLINE, 'use_curvature_preview'), 'sweep')
+        # the paper laws run as the node runs them by default: without d rho / dt
+        paper = any(law.startswith('paper') for law in spec.laws)
+        loaded = load_law_settings(args.controller, vehicle, (
+            *NOT_RUN_OFFLINE, *(('use_curvature_preview',) if paper else ())), 'sweep')
         controller, lane_keeping = loaded.controller, loaded.lane_keeping
     for law in spec.laws:       # the node's checks across parameters: before any run
         try:
