@@ -356,7 +356,9 @@ def test_the_memory_s_generation_changes_at_every_new_start():
     (['--param', 'lane_keeping.compliance_memory_sed:=1.2'], 'compliance_memory_sed'),
     (['--param', 'lane_keeping.compliance_memory_seed:=1.5',
       '--param', 'lane_keeping.compliance_memory:=0'], 'has nothing to seed'),
-    (['--controller', 'no_such_file.yaml'], 'no_such_file.yaml: no such file'),
+    # in the words of the other tools (it was 'no such file' for a pipe and a folder too)
+    (['--controller', 'no_such_file.yaml'],
+     'no_such_file.yaml: cannot read: No such file or directory'),
 ])
 def test_closed_loop_refuses_bad_controller_settings_before_any_start(argv, said, tmp_path):
     from lookahead_control.core.cli import ToolError
