@@ -506,6 +506,7 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
         print(f'{name}: error: {one_line(rcl_reason(err))}', file=sys.stderr)
         return 2
     node: Optional[N] = None
+    executor: Optional[Executor] = None
     try:
         node = make()
         kind = (node.get_parameter('executor').value if node.has_parameter('executor')
@@ -529,6 +530,12 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
         print(f'{name}: error: {one_line(reason)}', file=sys.stderr)
         return 2
     finally:
+        if executor is not None:
+            # the executor first, while its node and the context live: left to the
+            # garbage collector after them, the controller once died of SIGSEGV while
+            # garbage-collecting after Ctrl-C (the events executor; this session's suite)
+            executor.shutdown(timeout_sec=1.0)
+            executor = None
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
