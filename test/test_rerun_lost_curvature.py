@@ -623,17 +623,23 @@ def test_answers_lost_next_to_a_deactivation():
     assert again.inactive_skipped == 21 and again.inactive_lost == 1
 
 
-def test_without_recorded_parameters_the_first_answers_law_is_no_run_time_set():
-    # dev-probe55: a car recorded without --describe re-ran its debug's law, and replay
-    # said 'the law was set at run time ... (1 switches)': the default law of the
-    # re-run, not the node, had it otherwise
-    rows = _inputs(100, math.inf)
+def _paper_run(steps):
+    """Return the inputs of a curve and the paper law's answers as the node gave them."""
+    rows = _inputs(steps, math.inf)
     node, _ = controller_from_params({'law': 'paper'})
     commands = {}
     for role, sample in _feed(rows):
         assert node.accept(role, sample, sample.stamp_ns) is None
         if role == 'lateral_error':
             commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+    return rows, commands
+
+
+def test_without_recorded_parameters_the_first_answers_law_is_no_run_time_set():
+    # dev-probe55: a car recorded without --describe re-ran its debug's law, and replay
+    # said 'the law was set at run time ... (1 switches)': the default law of the
+    # re-run, not the node, had it otherwise
+    rows, commands = _paper_run(100)
     columns = {'law:paper': dict.fromkeys(commands, 0.0),
                'law:cg_compensated': dict.fromkeys(commands, math.nan)}
     result = rerun(_bag(rows, commands, columns, {}), order='stamp')
@@ -648,13 +654,7 @@ def test_without_recorded_parameters_the_first_answers_law_is_no_run_time_set():
 def test_the_re_run_counts_the_inputs_its_checks_refuse():
     # dev-probe56: a bag of a node older than a check (a zero quaternion, decoded as a
     # NaN yaw, which the node then used) re-ran 18.7 mrad apart and replay said nothing
-    rows = _inputs(100, math.inf)
-    node, _ = controller_from_params({'law': 'paper'})
-    commands = {}
-    for role, sample in _feed(rows):
-        assert node.accept(role, sample, sample.stamp_ns) is None
-        if role == 'lateral_error':
-            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+    rows, commands = _paper_run(100)
     rows['yaw'][50] = rows['yaw'][50]._replace(relative_yaw=math.nan)
     result = rerun(_bag(rows, commands, {}, {'law': 'paper'}), order='stamp')
     assert result.refused == {'yaw': 1} and 'yaw' in result.last_refusal
