@@ -99,6 +99,9 @@ def probe():
     executor = SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
     yield node, executor
+    # the executor first: destroy_node with the executor still holding the node died
+    # once of SIGSEGV in this fixture's teardown (session 25's suite under two CPU hogs)
+    executor.shutdown(timeout_sec=1.0)
     node.destroy_node()
     rclpy.try_shutdown(context=ctx)
 
