@@ -323,6 +323,18 @@ def load_controller(path: Path | str | None = None, **overrides: Any) -> Control
     return dataclass_from_params(ControllerParams, params, 'controller', str(file))
 
 
+def package_controller_params() -> dict[str, Any]:
+    """
+    Return what the package's own params files give the controller node.
+
+    :return: ``config/vehicle.yaml`` then ``config/controller.yaml``, merged for the node.
+    """
+    config = source_config_dir()
+    merged = load_ros_params(config / 'vehicle.yaml', 'controller')
+    merged.update(load_ros_params(config / 'controller.yaml', 'controller'))
+    return merged
+
+
 def law_params_from(params: Mapping[str, Any], source: str
                     ) -> tuple[ControllerParams, LaneKeepingParams, BaselineParams]:
     """

@@ -97,12 +97,17 @@ def quaternion_problem(x: float, y: float, z: float, w: float) -> Optional[str]:
     :return: the reason (not finite, or its norm off 1 by more than the tolerance).
     """
     norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if _unit(norm):
+        return None
     if not math.isfinite(norm):
         return f'orientation ({x}, {y}, {z}, {w}) is not finite'
-    if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
-        return (f'orientation ({x:.6g}, {y:.6g}, {z:.6g}, {w:.6g}) has norm {norm:.6g}, not 1 '
-                f'(within {QUATERNION_NORM_TOLERANCE:g})')
-    return None
+    return (f'orientation ({x:.6g}, {y:.6g}, {z:.6g}, {w:.6g}) has norm {norm:.6g}, not 1 '
+            f'(within {QUATERNION_NORM_TOLERANCE:g})')
+
+
+def _unit(norm: float) -> bool:
+    """Return True if a quaternion of this norm is an orientation (NaN: no)."""
+    return abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE
 
 
 def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
@@ -116,13 +121,13 @@ def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
     :return: yaw [rad] in (-pi, pi]; NaN if it is no orientation
         (:func:`quaternion_problem`), which the safety layer refuses.
     """
-    if quaternion_problem(x, y, z, w) is not None:
-        return math.nan
     squared = x * x + y * y + z * z + w * w
+    norm = math.sqrt(squared)
+    if not _unit(norm):
+        return math.nan
     if abs(squared - 1.0) > 1e-12:
         # the formula needs a unit norm: off it by 1 % read a yaw of 1 rad 15 mrad off
         # (dev-probe56); a unit quaternion in doubles is taken as it is (exact re-runs)
-        norm = math.sqrt(squared)
         x, y, z, w = x / norm, y / norm, z / norm, w / norm
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 

@@ -112,15 +112,13 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
     :return: ``(parameters by name, the file's parameters left out)``.
     :raises ToolError: naming the file or setting and what is allowed.
     """
-    from lookahead_control.core.config import (applies_to, ConfigError, load_ros_params,
-                                               node_file_sections, rcl_param_value)
+    from lookahead_control.core.config import (applies_to, ConfigError, node_file_sections,
+                                               package_controller_params, rcl_param_value)
     from lookahead_control.core.param_schema import (check_params, ROS_BUILTIN,
                                                      ROS_BUILTIN_PREFIXES)
     from lookahead_control.core.params import ParameterError
     from lookahead_control.ros.controller_node import ALL_SPECS, core_from_params
-    config = source_config_dir()
-    merged = load_ros_params(config / 'vehicle.yaml', 'controller')
-    merged.update(load_ros_params(config / 'controller.yaml', 'controller'))
+    merged = package_controller_params()
     dropped: list[str] = []
     if params_file is not None:
         try:

@@ -194,13 +194,9 @@ def package_node_defaults() -> dict[str, Any]:
     :return: name -> value: ``config/vehicle.yaml`` and ``config/controller.yaml`` over
         the parameters' declared defaults.
     """
-    from lookahead_control.core.config import load_ros_params, source_config_dir
+    from lookahead_control.core.config import package_controller_params
     from lookahead_control.ros.controller_node import ALL_SPECS
-    config = source_config_dir()
-    out = {spec.name: spec.default for spec in ALL_SPECS}
-    out.update(load_ros_params(config / 'vehicle.yaml', 'controller'))
-    out.update(load_ros_params(config / 'controller.yaml', 'controller'))
-    return out
+    return {**{spec.name: spec.default for spec in ALL_SPECS}, **package_controller_params()}
 
 
 def settings_changes(settings: LawSettings) -> list[str]:
