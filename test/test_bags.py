@@ -654,6 +654,9 @@ def test_replay_over_dds_drives_a_controller(loop_bag, tmp_path):
         assert player.returncode == 0
         assert 'published 2000 messages on 5 topics' in player.stdout.read()
     finally:
+        # the executor first: destroyed while it held the node, the test process died of
+        # SIGSEGV once (the fixture probe's teardown, session 25)
+        executor.shutdown(timeout_sec=1.0)
         controller.destroy_node()
         rclpy.try_shutdown(context=ctx)
     recorded = {s: v['angle'] for s, v in load_run(loop_bag).steering.by_stamp().items()}

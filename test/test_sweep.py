@@ -111,13 +111,13 @@ def test_resume_runs_only_what_is_missing_and_gives_the_same_table(tmp_path, ref
         _sweep(tmp_path / 'r', replace(SPEC, runs=4))
 
 
-def crash_once(task, data, vehicle, controller, lane_keeping=None):
+def crash_once(task, data, vehicle, controller, lane_keeping=None, safety=None):
     """Kill the worker process the first time the first task runs."""
     marker = Path(os.environ['SWEEP_TEST_MARKER'])
     if task['task'].endswith('-00000') and task['law'] == 'paper_eq26' and not marker.exists():
         marker.write_text('crashed')
         os._exit(1)
-    return sw.run_task(task, data, vehicle, controller, lane_keeping)
+    return sw.run_task(task, data, vehicle, controller, lane_keeping, safety)
 
 
 def test_a_killed_dask_worker_loses_no_result(tmp_path, monkeypatch, reference):
@@ -150,11 +150,11 @@ def test_output_folder_that_is_not_a_sweep_is_refused(tmp_path):
         _sweep(tmp_path / 'o')
 
 
-def fail_third(task, data, vehicle, controller, lane_keeping=None):
+def fail_third(task, data, vehicle, controller, lane_keeping=None, safety=None):
     """Fail on the third task (a bug in a law, say)."""
     if task['task'] == 'paper_fixed-s1_paper_step-00000':
         raise ValueError('law exploded')
-    return sw.run_task(task, data, vehicle, controller, lane_keeping)
+    return sw.run_task(task, data, vehicle, controller, lane_keeping, safety)
 
 
 def test_a_failing_task_stops_the_sweep_and_keeps_finished_parts(tmp_path):

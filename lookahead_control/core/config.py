@@ -37,6 +37,7 @@ from lookahead_control.core.param_schema import (BASELINE_SPECS, check_params, C
                                                  VEHICLE_SPECS)
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.rcl_yaml import param_value, params_sections, RclYamlError
+from lookahead_control.core.safety import SafetyParams
 import yaml
 
 
@@ -372,6 +373,19 @@ def load_lane_keeping(path: Path | str | None = None) -> LaneKeepingParams:
     file = Path(path) if path else source_config_dir() / 'controller.yaml'
     return dataclass_from_params(LaneKeepingParams, load_ros_params(file, 'controller'),
                                  'lane_keeping', str(file))
+
+
+def load_safety(path: Path | str | None = None) -> SafetyParams:
+    """
+    Load the controller node's limits (default: ``config/controller.yaml``).
+
+    :param path: a ROS params file with ``safety.*`` entries (the rest at their defaults).
+    :return: the limits.
+    :raises ConfigError: ``<file>: safety.<name> = <value> ...``.
+    """
+    file = Path(path) if path else source_config_dir() / 'controller.yaml'
+    return dataclass_from_params(SafetyParams, load_ros_params(file, 'controller'), 'safety',
+                                 str(file))
 
 
 def load_baselines(path: Path | str | None = None) -> BaselineParams:

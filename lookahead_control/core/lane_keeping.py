@@ -827,7 +827,7 @@ class CgCompensatedLaw:
         self.clipped: Any = False
         #: the last step's command was held at the demand band (``demand_limit``)
         self.capped: Any = False
-        self.cut = False        # the last command sent was cut outside the law
+        self.cut: Any = False       # the last command sent was cut outside the law
         st = self.settings
         self.estimator = ComplianceEstimator(
             vehicle, max(st.compliance_time_constant, 1e-3), st.compliance_filter,
@@ -1058,7 +1058,7 @@ class CgCompensatedLaw:
                 ('memory_generation', float(self.estimator.generation)),
                 ('memory_weight', one(self.estimator.memory_weight()))]
 
-    def note_limited(self, cut: bool) -> None:
+    def note_limited(self, cut: Any) -> None:
         """
         Say whether the command sent was cut outside the law (anti-windup).
 
@@ -1066,11 +1066,11 @@ class CgCompensatedLaw:
         (0.059 rad at 37 m/s) and its rate limit, far below ``steering_limit``: while it
         does, the integral and the estimate are frozen at the next step.
 
-        :param cut: the angle or rate limit changed the last command.
+        :param cut: the angle or rate limit changed the last command (a batch: per run).
         """
-        self.cut = bool(cut)
+        self.cut = np.asarray(cut, dtype=bool) if np.ndim(cut) else bool(cut)
 
-    def note_sent(self, angle: float) -> None:
+    def note_sent(self, angle: Real) -> None:
         """
         Take the command the safety layer sent for the last step (the state filter's input).
 
@@ -1185,8 +1185,9 @@ class CgCompensatedLaw:
         unclipped = (~self.clipped if isinstance(self.clipped, np.ndarray)
                      else not self.clipped)
         uncapped = ~self.capped if isinstance(self.capped, np.ndarray) else not self.capped
+        uncut = ~self.cut if isinstance(self.cut, np.ndarray) else not self.cut
         active = ((state.v_x >= s.integral_min_speed)
-                  & (xp.absolute(self.last_steering) < s.steering_limit) & (not self.cut)
+                  & (xp.absolute(self.last_steering) < s.steering_limit) & uncut
                   & unclipped & uncapped)
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:

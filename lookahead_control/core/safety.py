@@ -39,6 +39,7 @@ import math
 from typing import Any, Optional
 
 from lookahead_control.core.params import check_finite, check_range, ParameterError
+import numpy as np
 
 INPUT_NAMES = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
 # limits that may be 0: no hold (ramp at once), no stamp ahead of the node's clock
@@ -297,6 +298,52 @@ def limit(raw: float, previous: Optional[float], dt: float, v_x: float, wheelbas
         angle = min(high, max(low, angle))
         rate_limited = True
     return Limited(float(angle), saturated, rate_limited)
+
+
+def limit_batch(raw: Any, previous: Any, dt: float, v_x: Any, wheelbase: float,
+                params: SafetyParams) -> tuple[Any, Any]:
+    """
+    Apply :func:`limit` element-wise to a batch of runs (the offline output stage).
+
+    Every element equals :func:`limit` on it (without ``reference``: one clock, the
+    runner's). Floats in give floats out.
+
+    :param raw: the wanted angles [rad].
+    :param previous: the last commands sent [rad] (None: no rate limit; a non-finite
+        element: none for that run).
+    :param dt: time since them [s] (non-finite or negative: 0).
+    :param v_x: speeds for the angle limit [m/s].
+    :param wheelbase: l_1 + l_2 [m].
+    :param params: the limits.
+    :return: ``(angle, cut)``: the limited commands, and where the angle or the rate
+        limit changed them.
+    """
+    scalar = np.ndim(raw) == 0 and np.ndim(v_x) == 0 and np.ndim(previous) == 0
+    wanted_in = np.asarray(raw, dtype=float)
+    speed = np.asarray(v_x, dtype=float)
+    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+        squared = np.where(np.isfinite(speed), speed * speed, 0.0)
+        moving = squared > 0.0
+        ratio = params.max_lateral_acceleration * wheelbase / np.where(moving, squared, 1.0)
+    # math.atan per element, as the node: numpy's vectorized arctan differs from it in the
+    # last bit for some speeds (22.25 m/s: 1.4e-17 rad; dev-probe57)
+    cap = np.where(moving, np.minimum(params.max_steering_angle, np.reshape(
+        [math.atan(x) for x in np.ravel(ratio)], np.shape(ratio))), params.max_steering_angle)
+    last = np.full(np.shape(wanted_in), math.nan) if previous is None else np.asarray(
+        previous, dtype=float)
+    known = np.isfinite(last)
+    wanted = np.where(np.isfinite(wanted_in), wanted_in, np.where(known, last, 0.0))
+    angle = np.minimum(cap, np.maximum(-cap, wanted))
+    cut = angle != wanted
+    step = params.max_steering_rate * (dt if _finite(dt) and dt > 0.0 else 0.0)
+    low = np.where(known, last - step, -math.inf)
+    high = np.where(known, last + step, math.inf)
+    rated = (angle < low) | (angle > high)
+    angle = np.minimum(high, np.maximum(low, angle))
+    cut = cut | rated
+    if scalar:
+        return float(angle), bool(cut)
+    return angle, cut
 
 
 def stale_target(held: float, stale_for: float, params: SafetyParams) -> float:

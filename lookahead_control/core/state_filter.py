@@ -672,7 +672,7 @@ class KalmanStateFilter:
             steering = min(MAX_WHEEL_ANGLE, max(-MAX_WHEEL_ANGLE, steering))
         self.history.append((self.time, _select(np.isfinite(steering), steering, last)))
 
-    def correct(self, steering: float) -> None:
+    def correct(self, steering: Real) -> None:
         """
         Replace the command recorded at the present step by the one actually sent.
 
@@ -680,10 +680,15 @@ class KalmanStateFilter:
         low-speed blend): the actuator gets the cut one, so the model must too.
         A non-finite value is ignored (the recorded command stays).
 
-        :param steering: the command sent [rad].
+        :param steering: the command sent [rad] (a batch: per run).
         """
-        if self.history and math.isfinite(steering):
-            self.history[-1] = (self.history[-1][0], steering)
+        if not self.history:
+            return
+        issued, recorded = self.history[-1]
+        if isinstance(steering, np.ndarray) or isinstance(recorded, np.ndarray):
+            self.history[-1] = (issued, np.where(np.isfinite(steering), steering, recorded))
+        elif math.isfinite(steering):
+            self.history[-1] = (issued, steering)
 
     def _applied(self, when: float) -> Real:
         """Return the command in effect at the actuator's input at time ``when``."""

@@ -47,7 +47,9 @@ from lookahead_control.core.cli import (claim_output, markdown_table, number, on
 from lookahead_control.core.control_law import arc_offset
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
+from lookahead_control.core.output_stage import NodeOutputStage, OUTPUT_STAGE
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.safety import SafetyParams
 from lookahead_control.core.schedule import paper_look_ahead
 import numpy as np
 import numpy.typing as npt
@@ -92,6 +94,8 @@ class LawSettings:
     :param law: the law the node runs (``law``).
     :param mode: how the node answers (``event``: each lateral error; ``timer``).
     :param rate_hz: its timer's rate (``timer`` mode) [Hz].
+    :param safety: ``safety.*``: the node's limits; the offline tools run its output
+        stage with them (:class:`~lookahead_control.core.output_stage.NodeOutputStage`).
     """
 
     controller: ControllerParams = ControllerParams()
@@ -102,17 +106,22 @@ class LawSettings:
     law: str = 'cg_compensated'
     mode: str = 'event'
     rate_hz: float = 100.0
+    safety: SafetyParams = SafetyParams()
 
 
 #: the node's settings that change a run but that the offline loop does not run (it
-#: answers each measurement, 10 ms apart, with the law alone, on exact inputs and a_x):
-#: the safety layer's limits and input checks, the source of a_x, the answer's timing
+#: answers each measurement, 10 ms apart, with the law and the node's output stage, on
+#: exact inputs and a_x): the safety layer's input checks, the source of a_x, the
+#: answer's timing
 NOT_RUN_OFFLINE = ('safety.', 'acceleration_source', 'mode')
 #: what the offline tools run in their place
-OFFLINE_RUNS = 'it runs the laws alone, each 10 ms measurement answered on exact inputs and a_x'
-#: ... but the safety layer's timing, which exact and timely inputs never meet
+OFFLINE_RUNS = ("it runs each law and the node's output stage, each 10 ms measurement "
+                'answered on exact inputs and a_x')
+#: ... but the safety layer's timing, which exact and timely inputs never meet (the safe
+#: angle: where stale inputs ramp to)
 SAFETY_TIMING = ('safety.max_future', 'safety.input_timeout', 'safety.hold_time',
-                 'safety.max_curvature_points', 'safety.latency_warn')
+                 'safety.max_curvature_points', 'safety.latency_warn', 'safety.safe_angle')
+# ... and the node's output stage, which they run (core/output_stage.OUTPUT_STAGE)
 
 
 LawFactory = Callable[[VehicleParams, LawSettings], Law]
@@ -129,9 +138,22 @@ LAWS: dict[str, LawFactory] = {
 }
 
 
+def league_law(name: str, vehicle: VehicleParams, settings: LawSettings) -> Law:
+    """
+    Return a law of the league as the controller node runs it: through its output stage.
+
+    :param name: the law (a key of ``LAWS``).
+    :param vehicle: the law's vehicle model (also the angle limit's wheelbase).
+    :param settings: the settings.
+    :return: the law.
+    """
+    return NodeOutputStage(LAWS[name](vehicle, settings), vehicle.wheelbase, settings.safety)
+
+
 def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                       not_run: Sequence[str] = NOT_RUN_OFFLINE,
-                      tool: str = 'this tool', runs: str = OFFLINE_RUNS) -> LawSettings:
+                      tool: str = 'this tool', runs: str = OFFLINE_RUNS,
+                      output_stage: bool = True) -> LawSettings:
     """
     Load the laws' settings from a controller node's params file.
 
@@ -150,6 +172,8 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
         measure another controller than the node's; dev-probe55).
     :param tool: the tool's name, for that message.
     :param runs: what the tool runs instead, for that message.
+    :param output_stage: the tool runs the node's output stage (``OUTPUT_STAGE``): the
+        file's limits are taken, not refused.
     :return: the settings.
     :raises ConfigError: a bad file or value, in one line naming it.
     """
@@ -173,6 +197,7 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
     package = package_node_defaults()
     unrun = [f'{name} = {value!r}' for name, value in params.items()
              if name.startswith(tuple(not_run)) and name not in SAFETY_TIMING
+             and not (output_stage and name in OUTPUT_STAGE)
              and name in package and value != package[name]]
     if unrun:
         raise ConfigError(
@@ -184,7 +209,8 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                        str(params.get('acceleration_source', package['acceleration_source'])),
                        str(params.get('law', package['law'])),
                        str(params.get('mode', package['mode'])),
-                       float(params.get('rate_hz', package['rate_hz'])))
+                       float(params.get('rate_hz', package['rate_hz'])),
+                       dataclass_from_params(SafetyParams, params, 'safety', str(path)))
 
 
 def package_node_defaults() -> dict[str, Any]:
@@ -215,7 +241,28 @@ def settings_changes(settings: LawSettings) -> list[str]:
              for name, value in changed_fields(params).items()]
     if settings.curvature_rate:
         lines.append('use_curvature_preview = True')
+    lines += safety_changes(settings.safety)
     return with_schedule_note(lines, settings.lane_keeping)
+
+
+def safety_changes(safety: SafetyParams) -> list[str]:
+    """
+    Return ``safety.name = value`` for each of the node's limits off the package's.
+
+    The output stage's limits are run; the others (only ``SAFETY_TIMING``'s pass
+    :func:`load_law_settings`) are said to be never met.
+
+    :param safety: the node's limits.
+    :return: the lines (empty: the package's limits).
+    """
+    from dataclasses import fields
+
+    from lookahead_control.core.config import load_safety
+    default = load_safety(None)
+    return [f'safety.{f.name} = {getattr(safety, f.name)!r}'
+            + ('' if f'safety.{f.name}' in OUTPUT_STAGE else
+               ' (not met: the inputs are exact and timely)')
+            for f in fields(safety) if getattr(safety, f.name) != getattr(default, f.name)]
 
 
 def with_schedule_note(lines: list[str], lane_keeping: LaneKeepingParams) -> list[str]:
@@ -622,7 +669,7 @@ def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario,
                 league_vehicle: VehicleParams, dt: float,
                 settings: LawSettings) -> list[dict[str, Any]]:
     vehicle = case.law_vehicle(league_vehicle)
-    law = LAWS[law_name](vehicle, settings)
+    law = league_law(law_name, vehicle, settings)
     common: dict[str, Any] = {'dt': case.dt or dt, 'preview_distance': PREVIEW_DISTANCE,
                               'delay': case.delay}
     speeds = list(dict.fromkeys(speed for speed, _ in runs))
@@ -686,12 +733,15 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     :param workers: processes (1: in this process).
     :param duration: cut every scenario to this duration [s] (None: their own; tests).
     :param progress: show a progress bar on stderr (one step per law and scenario).
-    :param settings: the laws' settings (None: the package defaults).
+    :param settings: the laws' settings (None: the package defaults, the limits of its
+        ``config/controller.yaml``).
     :param seeds: noise seeds per speed on the noisy plant (:func:`run_seed`; 1: the
         league's one seed per speed).
     :return: one row per run, in a fixed order (law, scenario, plant, speed, seed).
     """
-    settings = settings or LawSettings()
+    if settings is None:
+        from lookahead_control.core.config import load_safety
+        settings = LawSettings(safety=load_safety(None))
     loaded = load_scenarios(scenarios)
     # one task per law, scenario and plant (each plant's runs are independent: the same
     # rows as one task per law and scenario), so that the pool can balance the costly
@@ -1106,7 +1156,9 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         '# League table: every law x S0-S5 x plants x speeds', '',
         'Same inputs (the contract through the same sensors; noise seeds per run), '
         f'curvature preview {PREVIEW_DISTANCE:g} m, the same plant and actuator for every '
-        f'law. Goal plant: `{GOAL_PLANT}` (Fiala tyres, 50 ms actuator lag, 0.8 rad/s, '
+        "law; every law's command passes the controller node's output stage (its angle "
+        'and rate limits, `safety.*`). '
+        f'Goal plant: `{GOAL_PLANT}` (Fiala tyres, 50 ms actuator lag, 0.8 rad/s, '
         f'{1000 * DELAY:g} ms transport delay, default sensor noise). Worst case over the '
         'runs of each column; goals as in issue 14 (a NaN metric counts as missed). In the '
         "first table the metric columns are the goal plant's runs; the runs off the road, "
@@ -1206,11 +1258,14 @@ def tune_point(task: tuple[str, Any, VehicleParams, float, Optional[float]]
         scenarios' own).
     :return: the scores and parameters.
     """
+    from lookahead_control.core.config import load_safety
     name, params, vehicle, dt, duration = task
     scenarios = load_scenarios(('s0_straight', 's1_paper_step', 's2_curve_entry'))
     if duration is not None:
         scenarios = {k: replace(v, duration=duration) for k, v in scenarios.items()}
-    law = baseline_law(name, vehicle, replace(BaselineParams(), **{name: params}))
+    law = NodeOutputStage(baseline_law(name, vehicle,
+                                       replace(BaselineParams(), **{name: params})),
+                          vehicle.wheelbase, load_safety(None))
     case = next(p for p in PLANTS if p.name == GOAL_PLANT)
     v0 = np.asarray(TUNING_SPEEDS)
     peak = 0.0
@@ -1309,8 +1364,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--controller', type=Path, default=None, metavar='YAML',
                    help='run every law with the settings the controller node would run '
                    "with this params file (controller.*, lane_keeping.*, the baselines' "
-                   'sections; default: the package defaults, the one tuning the goal rows '
-                   'are for)')
+                   "sections, the limits of the node's output stage every law runs "
+                   'through: safety.max_steering_angle, max_steering_rate, '
+                   'max_lateral_acceleration, low_speed, low_speed_blend; default: the '
+                   'package defaults, the one tuning the goal rows are for)')
     args = p.parse_args(argv)
     from lookahead_control.core.config import ConfigError, load_vehicle
     vehicle = load_vehicle(args.vehicle)

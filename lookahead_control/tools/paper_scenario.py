@@ -41,6 +41,9 @@ MARKER = '.paper_scenario'      # in an --out folder this tool wrote
 REPORT_FILES = ('report.md', 'metrics.csv', 'metrics.json')
 MAX_SPEED = 90.0        # m/s, the scenarios' limit
 MAX_DURATION = 600.0    # s of simulated time per run
+#: what it runs in place of the node's safety layer
+PAPER_RUNS = ("the paper's law alone, as the paper simulates it: no actuator limits, exact "
+              'inputs and a_x')
 TABLE_COLUMNS = ('controller', 'speed_mps', 'd_v_final_m', *METRIC_COLUMNS)
 
 
@@ -171,9 +174,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         # node setting the offline runs do not run ran the defaults as if from the file
         # (dev-probe55)
         from lookahead_control.tools.compare import load_law_settings, NOT_RUN_OFFLINE
+        # the paper's simulation has no actuator limits: neither has its reproduction
         controller = load_law_settings(args.controller, vehicle,
                                        (*NOT_RUN_OFFLINE, 'use_curvature_preview'),
-                                       'paper_scenario').controller
+                                       'paper_scenario', PAPER_RUNS,
+                                       output_stage=False).controller
     runs = reproduce(vehicle, controller,
                      PlantParams(model=args.plant), args.speeds, args.duration)
     rows = metrics_rows(runs)

@@ -48,10 +48,12 @@ from lookahead_control.analysis.metrics import rms, run_metrics
 from lookahead_control.core.cli import (ArgumentParser, markdown_table, number, run_tool,
                                         ToolError, write_csv)
 from lookahead_control.core.config import (changed_fields, load_controller, load_lane_keeping,
-                                           load_vehicle, source_config_dir)
+                                           load_safety, load_vehicle, source_config_dir)
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
+from lookahead_control.core.output_stage import NodeOutputStage, OUTPUT_STAGE
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.safety import SafetyParams
 import numpy as np
 
 PLANTS = ('nonlinear', 'linear')
@@ -268,15 +270,19 @@ def tasks(spec: SweepSpec) -> list[dict[str, Any]]:
 
 def run_task(task: Mapping[str, Any], spec_data: Mapping[str, Any],
              vehicle: VehicleParams, controller: ControllerParams,
-             lane_keeping: LaneKeepingParams | None = None) -> dict[str, list[Any]]:
+             lane_keeping: LaneKeepingParams | None = None,
+             safety: SafetyParams | None = None) -> dict[str, list[Any]]:
     """
     Run one task as one vectorized batch and return its rows as columns.
+
+    Each law runs through the node's output stage (angle and rate limits).
 
     :param task: a task of :func:`tasks`.
     :param spec_data: the sweep's ``to_json``.
     :param vehicle: the controller's vehicle model (the plant's before scaling).
     :param controller: the paper law's parameters.
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
+    :param safety: the node's limits, for its output stage (None: the defaults).
     :return: column name -> values, one per run.
     """
     from dataclasses import replace
@@ -298,7 +304,9 @@ def run_task(task: Mapping[str, Any], spec_data: Mapping[str, Any],
               for c in conds]
     plants = [PlantParams(model=spec.plant, friction=c['friction']) for c in conds]
     speeds = None if scenario.speed.fixed else np.array([c['speed'] for c in conds])
-    law = LAWS[task['law']](vehicle, controller, lane_keeping or LaneKeepingParams())
+    law = NodeOutputStage(LAWS[task['law']](vehicle, controller,
+                                            lane_keeping or LaneKeepingParams()),
+                          vehicle.wheelbase, safety or SafetyParams())
     with np.errstate(all='ignore'):
         result = run(scenario, vehicle, law, plants, dt=spec.dt, initial_speed=speeds,
                      plant_vehicle=bodies, delay=np.array([c['delay'] for c in conds]),
@@ -381,7 +389,8 @@ def write_parquet(columns: Mapping[str, Sequence[Any]], path: Path) -> None:
 
 
 def manifest_data(spec: SweepSpec, vehicle: VehicleParams, controller: ControllerParams,
-                  lane_keeping: LaneKeepingParams | None = None) -> dict[str, Any]:
+                  lane_keeping: LaneKeepingParams | None = None,
+                  safety: SafetyParams | None = None) -> dict[str, Any]:
     """
     Return what ``sweep.json`` holds: the options and the models every run used.
 
@@ -389,10 +398,14 @@ def manifest_data(spec: SweepSpec, vehicle: VehicleParams, controller: Controlle
     :param vehicle: the controller's vehicle model (the plants are it, scaled).
     :param controller: the paper law's parameters.
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
+    :param safety: the node's limits (None: the defaults); its output stage's are kept.
     :return: JSON data (as read back from the file).
     """
+    limits = safety or SafetyParams()
     data = {**spec.to_json(), 'vehicle': asdict(vehicle), 'controller': asdict(controller),
-            'lane_keeping': asdict(lane_keeping or LaneKeepingParams())}
+            'lane_keeping': asdict(lane_keeping or LaneKeepingParams()),
+            'output_stage': {name.partition('.')[2]: getattr(limits, name.partition('.')[2])
+                             for name in OUTPUT_STAGE}}
     return dict(json.loads(json.dumps(data)))
 
 
@@ -421,7 +434,8 @@ def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
 
 def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
             controller: ControllerParams | None = None,
-            lane_keeping: LaneKeepingParams | None = None) -> None:
+            lane_keeping: LaneKeepingParams | None = None,
+            safety: SafetyParams | None = None) -> None:
     """
     Create the sweep folder, or check that it holds the same sweep (resume).
 
@@ -434,12 +448,13 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
     :param controller: the paper law's parameters (default: config/controller.yaml).
     :param lane_keeping: the CG-compensated law's settings (default: those of
         config/controller.yaml).
+    :param safety: the node's limits, for its output stage (None: the defaults).
     :raises ToolError: it holds another sweep.
     """
     manifest = out / 'sweep.json'
     new = manifest_data(spec, vehicle or load_vehicle(None),
                         controller or load_controller(None),
-                        lane_keeping or load_lane_keeping(None))
+                        lane_keeping or load_lane_keeping(None), safety)
     if manifest.exists():
         try:
             old = json.loads(manifest.read_text(encoding='utf-8'))
@@ -470,6 +485,10 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
                                    **{k: new['lane_keeping'][k] for k in (
                                        'integral_speed', 'low_integral_speed')
                                       if k not in settled}}
+        if 'output_stage' not in old and {'vehicle', 'controller'} <= set(old):
+            raise ToolError(f'{out} holds a sweep from before the output stage: its laws ran '
+                            "without the node's angle and rate limits, and runs of both "
+                            'must not mix; use another --out')
         differ = sorted(_differences(old, new))
         if differ and not {'vehicle', 'controller', 'lane_keeping'} <= set(old):
             raise ToolError(f'{out} holds a sweep that did not record its vehicle, '
@@ -511,7 +530,8 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
             vehicle: VehicleParams, controller: ControllerParams, workers: int,
             scheduler: Optional[str], progress: bool,
             runner: Callable[..., dict[str, list[Any]]] = run_task,
-            lane_keeping: LaneKeepingParams | None = None) -> int:
+            lane_keeping: LaneKeepingParams | None = None,
+            safety: SafetyParams | None = None) -> int:
     """
     Run the tasks and write each one's part as it finishes.
 
@@ -525,6 +545,7 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     :param progress: show a progress bar.
     :param runner: the task function (:func:`run_task`; tests wrap it).
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
+    :param safety: the node's limits, for its output stage (None: the defaults).
     :return: the number of tasks run.
     """
     bar = _local_progress(len(todo), progress)
@@ -532,7 +553,7 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     lane_keeping = lane_keeping or LaneKeepingParams()
     if workers == 0 and scheduler is None:
         for task in todo:
-            write_parquet(runner(task, data, vehicle, controller, lane_keeping),
+            write_parquet(runner(task, data, vehicle, controller, lane_keeping, safety),
                           part_path(out, task['task']))
             if bar is not None:
                 bar.update(1)
@@ -550,7 +571,7 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     try:
         # no retries: an exception is deterministic (it stops the sweep, finished parts
         # stay); a worker that dies is rerun elsewhere by the scheduler (allowed-failures)
-        futures = {client.submit(runner, task, data, vehicle, controller, lane_keeping,
+        futures = {client.submit(runner, task, data, vehicle, controller, lane_keeping, safety,
                                  key=f'sweep-{task["task"]}-{time.time_ns()}',
                                  pure=False): task for task in todo}
         for future in as_completed(futures):
@@ -692,7 +713,8 @@ def plot(table: Any, out: Path) -> list[Path]:
 
 
 def settings_note(spec: SweepSpec, controller: ControllerParams | None,
-                  lane_keeping: LaneKeepingParams | None) -> str:
+                  lane_keeping: LaneKeepingParams | None,
+                  safety: SafetyParams | None = None) -> str:
     """
     Return what ``summary.md`` says of the laws' settings: those that differ from the defaults.
 
@@ -703,6 +725,7 @@ def settings_note(spec: SweepSpec, controller: ControllerParams | None,
     :param spec: the sweep.
     :param controller: the paper law's parameters (None: the defaults).
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
+    :param safety: the node's limits its output stage ran (None: the defaults).
     :return: the sentences, each with a leading space ('' with no law to name).
     """
     control = changed_fields(controller or ControllerParams())
@@ -720,12 +743,17 @@ def settings_note(spec: SweepSpec, controller: ControllerParams | None,
                                     lane_keeping or LaneKeepingParams())
         text += ' cg_compensated: ' + (', '.join(shown) + ' (the rest default).' if shown
                                        else 'the default settings.')
+    from lookahead_control.tools.compare import safety_changes
+    limits = safety_changes(safety or load_safety(None))
+    if limits:
+        text += f" The node's limits: {', '.join(limits)}."
     return text
 
 
 def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
            lane_keeping: LaneKeepingParams | None = None,
-           controller: ControllerParams | None = None) -> Path:
+           controller: ControllerParams | None = None,
+           safety: SafetyParams | None = None) -> Path:
     """
     Write ``summary.md`` and ``summary.csv`` (and the plots).
 
@@ -735,17 +763,19 @@ def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
     :param plots: also write the plots.
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
     :param controller: the paper law's parameters (None: the defaults).
+    :param safety: the node's limits its output stage ran (None: the defaults).
     :return: the markdown summary's path.
     """
     rows = summarize(table)
-    settings = settings_note(spec, controller, lane_keeping)
+    settings = settings_note(spec, controller, lane_keeping, safety)
     write_csv(out / 'summary.csv', rows)
     text = [f'# Sweep: {spec.mode}, {table.num_rows} runs', '',
             f'Scenarios {", ".join(spec.scenarios)}; speeds {spec.speeds} m/s; '
             f'{spec.plant} plant; cornering stiffness x(1 + {spec.cornering}), mass and '
             f'yaw inertia x(1 + {spec.mass}), friction {spec.friction}, delay '
             f'{spec.delay} s, noise {"on" if spec.noise else "off"}. A run fails when its '
-            f'peak CG error exceeds {spec.max_error:g} m or a value is not finite.'
+            f'peak CG error exceeds {spec.max_error:g} m or a value is not finite. The '
+            "laws' commands pass the node's output stage (angle and rate limits)."
             + settings, '',
             markdown_table(rows, SUMMARY_COLUMNS, digits=3), '']
     if plots:
@@ -758,7 +788,8 @@ def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
 
 def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
           controller: ControllerParams | None = None,
-          lane_keeping: LaneKeepingParams | None = None, workers: int = 2,
+          lane_keeping: LaneKeepingParams | None = None,
+          safety: SafetyParams | None = None, workers: int = 2,
           scheduler: Optional[str] = None, progress: bool = False, plots: bool = True,
           max_tasks: Optional[int] = None,
           runner: Callable[..., dict[str, list[Any]]] = run_task) -> tuple[Any, int]:
@@ -771,6 +802,8 @@ def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
     :param controller: the paper law's parameters (default: config/controller.yaml).
     :param lane_keeping: the CG-compensated law's settings (default: those of
         config/controller.yaml).
+    :param safety: the node's limits, for its output stage (default: those of
+        config/controller.yaml).
     :param workers: local Dask workers (0: no Dask).
     :param scheduler: address of an existing Dask scheduler.
     :param progress: show a progress bar.
@@ -782,17 +815,18 @@ def sweep(spec: SweepSpec, out: Path, *, vehicle: VehicleParams | None = None,
     vehicle = vehicle or load_vehicle(None)
     controller = controller or load_controller(None)
     lane_keeping = lane_keeping or load_lane_keeping(None)
+    safety = safety or load_safety(None)
     all_tasks = tasks(spec)
-    prepare(out, spec, vehicle, controller, lane_keeping)
+    prepare(out, spec, vehicle, controller, lane_keeping, safety)
     todo = pending(out, all_tasks)
     if max_tasks is not None:
         todo = todo[:max_tasks]
     count = execute(out, spec, todo, vehicle, controller, workers, scheduler, progress,
-                    runner, lane_keeping)
+                    runner, lane_keeping, safety)
     if pending(out, all_tasks):
         return None, count
     table = collect(out, all_tasks)
-    report(out, spec, table, plots, lane_keeping, controller)
+    report(out, spec, table, plots, lane_keeping, controller, safety)
     return table, count
 
 
@@ -832,7 +866,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                    'holds the same sweep)')
     p.add_argument('--controller', type=Path, default=None,
                    help="the controller node's params YAML: the paper laws' controller.* "
-                   "and cg_compensated's lane_keeping.* (default: config/controller.yaml)")
+                   "and cg_compensated's lane_keeping.*, and the limits of the node's "
+                   'output stage every law runs through (safety.max_steering_angle, '
+                   'max_steering_rate, max_lateral_acceleration, low_speed, '
+                   'low_speed_blend; default: config/controller.yaml)')
     p.add_argument('--mode', choices=('monte_carlo', 'grid'), default=d.mode)
     p.add_argument('--runs', type=int, default=d.runs, help='Monte Carlo: conditions per '
                    'scenario')
@@ -877,6 +914,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     vehicle = load_vehicle(args.vehicle)
     if args.controller is None:
         controller, lane_keeping = load_controller(None), load_lane_keeping(None)
+        safety = load_safety(None)
     else:
         # as the node reads the file (its own check first: a name it does not have is
         # refused, not left at its default)
@@ -885,7 +923,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         paper = any(law.startswith('paper') for law in spec.laws)
         loaded = load_law_settings(args.controller, vehicle, (
             *NOT_RUN_OFFLINE, *(('use_curvature_preview',) if paper else ())), 'sweep')
-        controller, lane_keeping = loaded.controller, loaded.lane_keeping
+        controller, lane_keeping, safety = (loaded.controller, loaded.lane_keeping,
+                                            loaded.safety)
     for law in spec.laws:       # the node's checks across parameters: before any run
         try:
             LAWS[law](vehicle, controller, lane_keeping)
@@ -894,7 +933,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                             f'{err}') from err
     start = time.monotonic()
     table, count = sweep(spec, args.out, vehicle=vehicle, controller=controller,
-                         lane_keeping=lane_keeping,
+                         lane_keeping=lane_keeping, safety=safety,
                          workers=args.workers, scheduler=args.scheduler,
                          progress=not args.no_progress, plots=not args.no_plots)
     print(markdown_table(summarize(table), STDOUT_COLUMNS, digits=3))
