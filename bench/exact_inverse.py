@@ -36,9 +36,8 @@ import sys
 from typing import Any, Sequence
 
 from lookahead_control.core.config import load_vehicle
-from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
-from lookahead_control.core.params import ControllerParams
-from lookahead_control.tools.compare import (DELAY, DT, GOAL_PLANT, LawSettings,
+from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.tools.compare import (DELAY, DT, GOAL_PLANT, LawSettings, league_law,
                                              load_scenarios, NONLINEAR, PlantCase, PLANTS,
                                              PREVIEW_DISTANCE, run_case)
 import numpy as np
@@ -90,8 +89,10 @@ def measure(settings: LaneKeepingParams, speeds: Sequence[float] = (30.0, 37.0),
                                    yaw_inertia=vehicle.yaw_inertia * mass)
         out['corners'][corner] = [
             float(np.max(np.abs(run(
-                scenarios[name], vehicle, CgCompensatedLaw(vehicle, ControllerParams(),
-                                                           settings),
+                scenarios[name], vehicle,
+                # through the node's output stage, as run_case's rows (dev-probe58: the
+                # corners alone ran without it, S1 46.3 cm where the node's is 50.9)
+                league_law('cg_compensated', vehicle, LawSettings(lane_keeping=settings)),
                 PlantParams(model='nonlinear', friction=friction), dt=DT,
                 preview_distance=PREVIEW_DISTANCE, delay=delay, initial_speed=37.0,
                 plant_vehicle=body)['y_cg'])))

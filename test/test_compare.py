@@ -1079,6 +1079,12 @@ def test_without_a_file_the_limits_are_the_package_configs(tmp_path, monkeypatch
                                                        'max_steering_rate: 0.8'))
     monkeypatch.setattr(config, 'source_config_dir', lambda: mine)
     assert config.load_safety(None).max_steering_rate == 0.8
+    # dev-probe58: LawSettings() (run_case without settings, the benches) and sweep's
+    # functions without limits took the built-in defaults
+    assert compare.LawSettings().safety.max_steering_rate == 0.8
+    assert compare.settings_changes(compare.LawSettings()) == []
+    assert sweep.manifest_data(sweep.SweepSpec(), VEHICLE, compare.ControllerParams())[
+        'output_stage']['max_steering_rate'] == 0.8
     tiny = ['--mode', 'monte_carlo', '--runs', '1', '--scenarios', 's1_paper_step',
             '--speeds', '37', '--duration', '1', '--workers', '0', '--no-plots',
             '--no-progress', '--laws', 'paper_fixed', '--out', str(tmp_path / 's')]

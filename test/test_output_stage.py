@@ -131,3 +131,33 @@ def test_the_batch_angle_limit_is_the_nodes_to_the_last_bit():
     angles, _ = limit_batch(np.ones_like(v_x), None, 0.0, v_x, VEHICLE.wheelbase, safety)
     node = [limit(1.0, None, 0.0, float(v), VEHICLE.wheelbase, safety).angle for v in v_x]
     assert np.array_equal(angles, node)
+
+
+def test_the_low_speed_hold_is_the_command_sent_not_the_laws():
+    # dev-probe58: above low_speed the node kept the law's command as its hold, before the
+    # angle limit; slowing through the hand-over the limit widens, and the hold was sent at
+    # a size the car never got (0.6 rad with low_speed 30 m/s); now the command sent
+    core, _ = controller_from_params({'law': 'paper', 'safety.low_speed': 30.0,
+                                      'safety.low_speed_blend': 1.0,
+                                      'safety.max_lateral_acceleration': 4.0})
+    twin = NodeOutputStage(PaperLaw(VEHICLE, CONTROLLER, curvature_rate=False),
+                           VEHICLE.wheelbase, core.safety)
+    twin.start()
+    sent_fast, sent_slow = [], []
+    for k in range(300):
+        stamp = 1_000_000_000 + k * 10_000_000
+        speed = 35.0 if k < 100 else 28.0           # then held: below the blend
+        for name, sample in (('lateral_error', LateralErrorSample(stamp, VEHICLE.d_s, 1.5)),
+                             ('yaw', YawSample(stamp, 0.0, 0.0, 0.0)),
+                             ('velocity', VelocitySample(stamp, speed, 0.0))):
+            assert core.accept(name, sample, stamp) is None
+        command = core.compute(stamp)
+        out = twin.step(core.state(stamp), core.preview(stamp), 0.0 if k == 0 else 0.01)
+        assert out.steering == command.steering
+        (sent_fast if k < 100 else sent_slow).append(command.steering)
+        if k == 99:
+            raw = command.law.steering
+    cap = math.atan(4.0 * VEHICLE.wheelbase / 35.0 ** 2)
+    assert abs(raw) > cap + 0.002               # the law asked more than was sent
+    assert abs(sent_fast[-1]) == pytest.approx(cap, abs=1e-12)
+    assert max(abs(a) for a in sent_slow) <= abs(sent_fast[-1]) + 1e-15

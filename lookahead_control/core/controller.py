@@ -817,12 +817,15 @@ class SteeringController:
         v_x = float(state.v_x)
         weight = low_speed_weight(v_x, self.safety)
         raw = float(law.steering)
-        if weight >= 1.0:
-            self._hold_value = raw
         hold = self._hold_value if self._hold_value is not None else 0.0
-        wanted = weight * raw + (1.0 - weight) * hold
+        wanted = raw if weight >= 1.0 else weight * raw + (1.0 - weight) * hold
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
+        if weight >= 1.0:
+            # the command sent, not the law's: a command the angle limit cut at speed was
+            # held at its uncut size as the speed fell and the limit widened (dev-probe58:
+            # 0.6 rad with low_speed 30 m/s, a size the car never got above it)
+            self._hold_value = self.last.steering
         note_limited = getattr(self.law, 'note_limited', None)
         if note_limited is not None:        # anti-windup of a law with an integral
             note_limited(self.last.saturated or self.last.rate_limited)

@@ -102,12 +102,14 @@ class NodeOutputStage:
             weight = np.where(np.isfinite(v_x),
                               np.clip((v_x - low) / s.low_speed_blend, 0.0, 1.0), 0.0)
         raw = np.asarray(out.steering, dtype=float)
-        self.hold = np.where(weight >= 1.0, raw, self.hold)
         with np.errstate(invalid='ignore'):
-            wanted = weight * raw + (1.0 - weight) * self.hold
-        if np.ndim(out.steering) == 0 and np.ndim(state.v_x) == 0:
-            wanted, self.hold = float(wanted), float(self.hold)
+            blended = np.where(weight >= 1.0, raw, weight * raw + (1.0 - weight) * self.hold)
+        wanted: Any = (float(blended) if np.ndim(out.steering) == 0 and np.ndim(state.v_x) == 0
+                       else blended)
         angle, cut = limit_batch(wanted, self.sent, dt, state.v_x, self.wheelbase, s)
+        # the hold is the command sent above the low speed, as the node's
+        held = np.where(weight >= 1.0, angle, self.hold)
+        self.hold = float(held) if np.ndim(held) == 0 else held
         note_limited = getattr(self.law, 'note_limited', None)
         if note_limited is not None:
             note_limited(cut)

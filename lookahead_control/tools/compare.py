@@ -30,7 +30,7 @@ from __future__ import annotations
 from collections import Counter
 from concurrent.futures import as_completed, ProcessPoolExecutor
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 import math
 from pathlib import Path
@@ -94,8 +94,9 @@ class LawSettings:
     :param law: the law the node runs (``law``).
     :param mode: how the node answers (``event``: each lateral error; ``timer``).
     :param rate_hz: its timer's rate (``timer`` mode) [Hz].
-    :param safety: ``safety.*``: the node's limits; the offline tools run its output
-        stage with them (:class:`~lookahead_control.core.output_stage.NodeOutputStage`).
+    :param safety: ``safety.*``: the node's limits (default: ``config/controller.yaml``'s);
+        the offline tools run its output stage with them
+        (:class:`~lookahead_control.core.output_stage.NodeOutputStage`).
     """
 
     controller: ControllerParams = ControllerParams()
@@ -106,7 +107,7 @@ class LawSettings:
     law: str = 'cg_compensated'
     mode: str = 'event'
     rate_hz: float = 100.0
-    safety: SafetyParams = SafetyParams()
+    safety: SafetyParams = field(default_factory=lambda: package_safety())
 
 
 #: the node's settings that change a run but that the offline loop does not run (it
@@ -122,6 +123,16 @@ OFFLINE_RUNS = ("it runs each law and the node's output stage, each 10 ms measur
 SAFETY_TIMING = ('safety.max_future', 'safety.input_timeout', 'safety.hold_time',
                  'safety.max_curvature_points', 'safety.latency_warn', 'safety.safe_angle')
 # ... and the node's output stage, which they run (core/output_stage.OUTPUT_STAGE)
+
+
+def package_safety() -> SafetyParams:
+    """
+    Return the node's limits of the package's ``config/controller.yaml``.
+
+    :return: the limits.
+    """
+    from lookahead_control.core.config import load_safety
+    return load_safety(None)
 
 
 LawFactory = Callable[[VehicleParams, LawSettings], Law]
@@ -256,9 +267,7 @@ def safety_changes(safety: SafetyParams) -> list[str]:
     :return: the lines (empty: the package's limits).
     """
     from dataclasses import fields
-
-    from lookahead_control.core.config import load_safety
-    default = load_safety(None)
+    default = package_safety()
     return [f'safety.{f.name} = {getattr(safety, f.name)!r}'
             + ('' if f'safety.{f.name}' in OUTPUT_STAGE else
                ' (not met: the inputs are exact and timely)')
@@ -739,9 +748,7 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
         league's one seed per speed).
     :return: one row per run, in a fixed order (law, scenario, plant, speed, seed).
     """
-    if settings is None:
-        from lookahead_control.core.config import load_safety
-        settings = LawSettings(safety=load_safety(None))
+    settings = settings or LawSettings()
     loaded = load_scenarios(scenarios)
     # one task per law, scenario and plant (each plant's runs are independent: the same
     # rows as one task per law and scenario), so that the pool can balance the costly
@@ -1258,14 +1265,13 @@ def tune_point(task: tuple[str, Any, VehicleParams, float, Optional[float]]
         scenarios' own).
     :return: the scores and parameters.
     """
-    from lookahead_control.core.config import load_safety
     name, params, vehicle, dt, duration = task
     scenarios = load_scenarios(('s0_straight', 's1_paper_step', 's2_curve_entry'))
     if duration is not None:
         scenarios = {k: replace(v, duration=duration) for k, v in scenarios.items()}
     law = NodeOutputStage(baseline_law(name, vehicle,
                                        replace(BaselineParams(), **{name: params})),
-                          vehicle.wheelbase, load_safety(None))
+                          vehicle.wheelbase, package_safety())
     case = next(p for p in PLANTS if p.name == GOAL_PLANT)
     v0 = np.asarray(TUNING_SPEEDS)
     peak = 0.0
@@ -1409,7 +1415,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         record_output(args.out, 'compare', [args.out / 'tuning.csv'], previous)
         if args.json:
             write_json(args.json, rows)
-        print(f'wrote {args.out / "tuning.csv"} in {time.monotonic() - start:.0f} s')
+        print(f'wrote {args.out / "tuning.csv"} in {time.monotonic() - start:.0f} s (every '
+              "point through the node's output stage, with config/controller.yaml's limits)")
         return 0
     plants = [c for c in PLANTS if c.name in args.plants]
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,

@@ -282,7 +282,7 @@ def run_task(task: Mapping[str, Any], spec_data: Mapping[str, Any],
     :param vehicle: the controller's vehicle model (the plant's before scaling).
     :param controller: the paper law's parameters.
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
-    :param safety: the node's limits, for its output stage (None: the defaults).
+    :param safety: the node's limits, for its output stage (None: config/controller.yaml's).
     :return: column name -> values, one per run.
     """
     from dataclasses import replace
@@ -306,7 +306,7 @@ def run_task(task: Mapping[str, Any], spec_data: Mapping[str, Any],
     speeds = None if scenario.speed.fixed else np.array([c['speed'] for c in conds])
     law = NodeOutputStage(LAWS[task['law']](vehicle, controller,
                                             lane_keeping or LaneKeepingParams()),
-                          vehicle.wheelbase, safety or SafetyParams())
+                          vehicle.wheelbase, safety or load_safety(None))
     with np.errstate(all='ignore'):
         result = run(scenario, vehicle, law, plants, dt=spec.dt, initial_speed=speeds,
                      plant_vehicle=bodies, delay=np.array([c['delay'] for c in conds]),
@@ -398,10 +398,11 @@ def manifest_data(spec: SweepSpec, vehicle: VehicleParams, controller: Controlle
     :param vehicle: the controller's vehicle model (the plants are it, scaled).
     :param controller: the paper law's parameters.
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
-    :param safety: the node's limits (None: the defaults); its output stage's are kept.
+    :param safety: the node's limits (None: config/controller.yaml's); its output stage's
+        are kept.
     :return: JSON data (as read back from the file).
     """
-    limits = safety or SafetyParams()
+    limits = safety or load_safety(None)
     data = {**spec.to_json(), 'vehicle': asdict(vehicle), 'controller': asdict(controller),
             'lane_keeping': asdict(lane_keeping or LaneKeepingParams()),
             'output_stage': {name.partition('.')[2]: getattr(limits, name.partition('.')[2])
@@ -448,7 +449,7 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
     :param controller: the paper law's parameters (default: config/controller.yaml).
     :param lane_keeping: the CG-compensated law's settings (default: those of
         config/controller.yaml).
-    :param safety: the node's limits, for its output stage (None: the defaults).
+    :param safety: the node's limits, for its output stage (None: config/controller.yaml's).
     :raises ToolError: it holds another sweep.
     """
     manifest = out / 'sweep.json'
@@ -545,7 +546,7 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     :param progress: show a progress bar.
     :param runner: the task function (:func:`run_task`; tests wrap it).
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
-    :param safety: the node's limits, for its output stage (None: the defaults).
+    :param safety: the node's limits, for its output stage (None: config/controller.yaml's).
     :return: the number of tasks run.
     """
     bar = _local_progress(len(todo), progress)
@@ -725,7 +726,7 @@ def settings_note(spec: SweepSpec, controller: ControllerParams | None,
     :param spec: the sweep.
     :param controller: the paper law's parameters (None: the defaults).
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
-    :param safety: the node's limits its output stage ran (None: the defaults).
+    :param safety: the node's limits its output stage ran (None: config/controller.yaml's).
     :return: the sentences, each with a leading space ('' with no law to name).
     """
     control = changed_fields(controller or ControllerParams())
@@ -763,7 +764,7 @@ def report(out: Path, spec: SweepSpec, table: Any, plots: bool,
     :param plots: also write the plots.
     :param lane_keeping: the CG-compensated law's settings (None: the defaults).
     :param controller: the paper law's parameters (None: the defaults).
-    :param safety: the node's limits its output stage ran (None: the defaults).
+    :param safety: the node's limits its output stage ran (None: config/controller.yaml's).
     :return: the markdown summary's path.
     """
     rows = summarize(table)
