@@ -16,7 +16,7 @@
 The controller node's output stage around a law, for the offline runner (ROS-free).
 
 The node does not send the law's command: :class:`~lookahead_control.core.controller.
-Controller` blends it to a hold below ``safety.low_speed``, clamps it to the
+SteeringController` blends it to a hold below ``safety.low_speed``, clamps it to the
 speed-dependent angle limit ``atan(a_lat L / v_x^2)`` (0.0587 rad at 37 m/s with the
 defaults), limits its rate, and tells the law what was sent (``note_limited``: the
 anti-windup of the default law; ``note_sent``: its state filter's actuator model).
@@ -60,7 +60,7 @@ class NodeOutputStage:
         self.wheelbase = wheelbase
         self.safety = safety
         self.sent: Optional[Any] = None     # the last command sent (None: none yet)
-        self.hold: Any = 0.0                # the last law command above the low speed
+        self.hold: Any = 0.0                # the last command sent above the low speed
 
     def __getattr__(self, name: str) -> Any:
         """Give the wrapped law's attribute (only called for names this class lacks)."""

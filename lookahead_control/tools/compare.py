@@ -122,7 +122,6 @@ OFFLINE_RUNS = ("it runs each law and the node's output stage, each 10 ms measur
 #: angle: where stale inputs ramp to)
 SAFETY_TIMING = ('safety.max_future', 'safety.input_timeout', 'safety.hold_time',
                  'safety.max_curvature_points', 'safety.latency_warn', 'safety.safe_angle')
-# ... and the node's output stage, which they run (core/output_stage.OUTPUT_STAGE)
 
 
 def package_safety() -> SafetyParams:
