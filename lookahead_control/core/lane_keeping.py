@@ -1182,13 +1182,10 @@ class CgCompensatedLaw:
         # and the demand band (demand_limit), and while the CG closes on the lane at the
         # approach heading (approach_heading): that error is the clip's pace, not the
         # model's
-        unclipped = (~self.clipped if isinstance(self.clipped, np.ndarray)
-                     else not self.clipped)
-        uncapped = ~self.capped if isinstance(self.capped, np.ndarray) else not self.capped
-        uncut = ~self.cut if isinstance(self.cut, np.ndarray) else not self.cut
+        unclipped = _not(self.clipped)
         active = ((state.v_x >= s.integral_min_speed)
-                  & (xp.absolute(self.last_steering) < s.steering_limit) & uncut
-                  & unclipped & uncapped)
+                  & (xp.absolute(self.last_steering) < s.steering_limit) & _not(self.cut)
+                  & unclipped & _not(self.capped))
         zero = 0.0 * state.y_cg
         if s.compliance_time_constant > 0.0:
             # the memory learns only near the lane: a CG further off says something the
@@ -1483,6 +1480,11 @@ class CgCompensatedLaw:
         left = self._blend_left
         self._blending = xp.where(left > 0.0, self._blend_offset * (left / span), 0.0)
         return state._replace(rho=state.rho + self._blending)
+
+
+def _not(flag: Any) -> Any:
+    """Return the negation of a flag, per run of a batch (a bool stays a bool)."""
+    return ~flag if isinstance(flag, np.ndarray) else not flag
 
 
 def _forget(state: tuple[Real, Real], runs: Any) -> tuple[Real, Real]:

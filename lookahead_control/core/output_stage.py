@@ -32,7 +32,8 @@ from typing import Any, Optional
 
 from lookahead_control.core.control_law import LateralState, LawOutput
 from lookahead_control.core.laws import Law, Preview
-from lookahead_control.core.safety import limit_batch, SafetyParams
+from lookahead_control.core.safety import (limit_batch, low_speed_weight, per_element,
+                                           SafetyParams)
 import numpy as np
 
 #: the node's parameters the stage runs
@@ -96,11 +97,7 @@ class NodeOutputStage:
         """
         out = self.law.step(state, preview, dt)
         s = self.safety
-        low = s.low_speed - s.low_speed_blend
-        v_x = np.asarray(state.v_x, dtype=float)
-        with np.errstate(invalid='ignore'):
-            weight = np.where(np.isfinite(v_x),
-                              np.clip((v_x - low) / s.low_speed_blend, 0.0, 1.0), 0.0)
+        weight = per_element(lambda v: low_speed_weight(v, s), state.v_x)
         raw = np.asarray(out.steering, dtype=float)
         with np.errstate(invalid='ignore'):
             blended = np.where(weight >= 1.0, raw, weight * raw + (1.0 - weight) * self.hold)

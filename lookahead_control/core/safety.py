@@ -320,15 +320,9 @@ def limit_batch(raw: Any, previous: Any, dt: float, v_x: Any, wheelbase: float,
     """
     scalar = np.ndim(raw) == 0 and np.ndim(v_x) == 0 and np.ndim(previous) == 0
     wanted_in = np.asarray(raw, dtype=float)
-    speed = np.asarray(v_x, dtype=float)
-    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
-        squared = np.where(np.isfinite(speed), speed * speed, 0.0)
-        moving = squared > 0.0
-        ratio = params.max_lateral_acceleration * wheelbase / np.where(moving, squared, 1.0)
-    # math.atan per element, as the node: numpy's vectorized arctan differs from it in the
-    # last bit for some speeds (22.25 m/s: 1.4e-17 rad; dev-probe57)
-    cap = np.where(moving, np.minimum(params.max_steering_angle, np.reshape(
-        [math.atan(x) for x in np.ravel(ratio)], np.shape(ratio))), params.max_steering_angle)
+    # the node's angle_limit per element (numpy's vectorized arctan differs from its
+    # math.atan in the last bit for some speeds, 22.25 m/s: 1.4e-17 rad; dev-probe57)
+    cap = per_element(lambda v: angle_limit(v, wheelbase, params), v_x)
     last = np.full(np.shape(wanted_in), math.nan) if previous is None else np.asarray(
         previous, dtype=float)
     known = np.isfinite(last)
@@ -344,6 +338,20 @@ def limit_batch(raw: Any, previous: Any, dt: float, v_x: Any, wheelbase: float,
     if scalar:
         return float(angle), bool(cut)
     return angle, cut
+
+
+def per_element(function: Any, values: Any) -> Any:
+    """
+    Return a scalar function applied to each element, as the node applies it (a float: a float).
+
+    :param function: ``float -> float``.
+    :param values: a float or an array.
+    :return: the results, in the shape of ``values``.
+    """
+    if np.ndim(values) == 0:
+        return function(float(values))
+    flat = np.ravel(np.asarray(values, dtype=float))
+    return np.reshape(np.array([function(float(v)) for v in flat]), np.shape(values))
 
 
 def stale_target(held: float, stale_for: float, params: SafetyParams) -> float:

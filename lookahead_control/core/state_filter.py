@@ -682,13 +682,9 @@ class KalmanStateFilter:
 
         :param steering: the command sent [rad] (a batch: per run).
         """
-        if not self.history:
-            return
-        issued, recorded = self.history[-1]
-        if isinstance(steering, np.ndarray) or isinstance(recorded, np.ndarray):
-            self.history[-1] = (issued, np.where(np.isfinite(steering), steering, recorded))
-        elif math.isfinite(steering):
-            self.history[-1] = (issued, steering)
+        if self.history:
+            issued, recorded = self.history[-1]
+            self.history[-1] = (issued, _select(np.isfinite(steering), steering, recorded))
 
     def _applied(self, when: float) -> Real:
         """Return the command in effect at the actuator's input at time ``when``."""
