@@ -1056,6 +1056,22 @@ def test_the_node_output_stage_limits_are_run_offline(tmp_path):
                                   output_stage=False)
     assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'p'), '--controller',
                                           str(path)]) == 2
+    # session 26's note: paper_scenario took a file's input timing (safety.safe_angle,
+    # input_timeout...) silently; compare and sweep report them as not met, it has no
+    # safety layer and no line for them: refused as the limits are
+    timing = tmp_path / 'timing.yaml'
+    timing.write_text('/**:\n  ros__parameters:\n    safety:\n      safe_angle: 0.1\n'
+                      '      input_timeout: 0.5\n')
+    with pytest.raises(ConfigError, match='safety.safe_angle = 0.1, safety.input_timeout = '
+                       '0.5: the controller node runs this, paper_scenario does not'):
+        compare.load_law_settings(timing, tool='paper_scenario', runs=paper_scenario.PAPER_RUNS,
+                                  output_stage=False)
+    assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'q'), '--controller',
+                                          str(timing)]) == 2
+    assert not (tmp_path / 'q' / 'report.md').exists()
+    assert compare.settings_changes(compare.load_law_settings(timing, tool='compare')) == [
+        'safety.input_timeout = 0.5 (not met: the inputs are exact and timely)',
+        'safety.safe_angle = 0.1 (not met: the inputs are exact and timely)']
 
 
 def test_without_a_file_the_limits_are_the_package_configs(tmp_path, monkeypatch):
@@ -1094,3 +1110,36 @@ def test_without_a_file_the_limits_are_the_package_configs(tmp_path, monkeypatch
     rows = compare.league(['stanley'], ['s1_paper_step'], [37.0], [compare.PLANTS[1]],
                           VEHICLE, workers=1, duration=2.0)
     assert rows[0]['peak_command_rate_rad_per_s'] <= 0.8 + 1e-9
+
+
+def test_a_run_the_law_never_drove_misses_its_goals_and_says_why(tmp_path, capsys):
+    # session 26's note: with safety.low_speed above a scenario's speed the node holds 0
+    # and no law drives; league.md counted S0's rebound goal met (0 %) while the car sat
+    # 0.8 m off the lane, with no word that the law never ran
+    import csv
+    path = tmp_path / 'slow.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    safety:\n      low_speed: 30.0\n')
+    assert run_tool(compare.main, ['--laws', 'cg_compensated', '--scenarios', 's0_straight',
+                                   '--speeds', '20', '--plants', 'nonlinear_delay_noise',
+                                   '--duration', '3', '--no-plots', '--out',
+                                   str(tmp_path / 'c'), '--controller', str(path)]) == 0
+    with open(tmp_path / 'c' / 'league.csv', encoding='utf-8') as handle:
+        row, = list(csv.DictReader(handle))
+    assert float(row['peak_command_rad']) == 0.0 and float(row['yaw_rebound']) == 0.0
+    assert float(row['law_share']) == 0.0 and float(row['peak_cg_error_m']) > 0.5
+    assert row['goals_missed'] == 'S0 yaw rebound <= 50 %'
+    assert 'the law never drove' in row['notes']
+    report = (tmp_path / 'c' / 'league.md').read_text()
+    assert 'the law never drove' in report
+    assert 'warning: the law never drove 1 run(s)' in capsys.readouterr().err
+    # half of S5's profile below a low_speed of 23.5 m/s: noted, the goals judged as run
+    half = compare.load_law_settings(path, tool='compare')
+    half = replace(half, safety=replace(half.safety, low_speed=23.5, low_speed_blend=0.5))
+    rows = compare.league(['paper_eq26'], ['s5_envelope'], [37.0], [compare.PLANTS[1]],
+                          VEHICLE, workers=1, settings=half)
+    assert 0.2 < rows[0]['law_share'] < 0.8
+    assert 'the law drove' in rows[0]['notes'] and 'below safety.low_speed' in rows[0]['notes']
+    # the package's limits: every league run is driven throughout, no note
+    rows = compare.league(['paper_eq26'], ['s1_paper_step'], [10.0], [compare.PLANTS[1]],
+                          VEHICLE, workers=1, duration=2.0)
+    assert rows[0]['law_share'] == 1.0 and 'drove' not in rows[0]['notes']

@@ -49,7 +49,7 @@ from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingPar
 from lookahead_control.core.laws import Law, PaperLaw
 from lookahead_control.core.output_stage import NodeOutputStage, OUTPUT_STAGE
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
-from lookahead_control.core.safety import SafetyParams
+from lookahead_control.core.safety import low_speed_weight, per_element, SafetyParams
 from lookahead_control.core.schedule import paper_look_ahead
 import numpy as np
 import numpy.typing as npt
@@ -183,7 +183,8 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
     :param tool: the tool's name, for that message.
     :param runs: what the tool runs instead, for that message.
     :param output_stage: the tool runs the node's output stage (``OUTPUT_STAGE``): the
-        file's limits are taken, not refused.
+        file's limits are taken, not refused, and its ``SAFETY_TIMING`` settings too (the
+        tool reports them as not met, :func:`safety_changes`); False: both refused.
     :return: the settings.
     :raises ConfigError: a bad file or value, in one line naming it.
     """
@@ -206,8 +207,8 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                 "vehicle in --vehicle, or leave vehicle.* out of the controller's file")
     package = package_node_defaults()
     unrun = [f'{name} = {value!r}' for name, value in params.items()
-             if name.startswith(tuple(not_run)) and name not in SAFETY_TIMING
-             and not (output_stage and name in OUTPUT_STAGE)
+             if name.startswith(tuple(not_run))
+             and not (output_stage and name in (*OUTPUT_STAGE, *SAFETY_TIMING))
              and name in package and value != package[name]]
     if unrun:
         raise ConfigError(
@@ -459,7 +460,8 @@ def yaw_rebound(eps_r: Array) -> float:
 METRICS = ('peak_cg_error_m', 'steady_cg_error_m', 'peak_look_ahead_lane_error_m',
            'yaw_overshoot', 'yaw_rate_overshoot', 'yaw_rebound', 'peak_wheel_angle_rad',
            'peak_wheel_rate_rad_per_s', 'peak_command_rad', 'peak_command_rate_rad_per_s',
-           'steering_noise_rms_rad')
+           'steering_noise_rms_rad', 'law_share')
+NEVER_DROVE = 'the law never drove'
 FAILED = 'failed: '          # a row's notes start so when its run raised (not a result)
 
 
@@ -485,7 +487,8 @@ def _diverged_at(result: SimResult, index: Optional[int]) -> float:
 
 def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
             clean_command: Optional[Array],
-            clean: Optional[Mapping[str, Array]] = None) -> dict[str, Any]:
+            clean: Optional[Mapping[str, Array]] = None,
+            safety: Optional[SafetyParams] = None) -> dict[str, Any]:
     """
     Return the metrics of one run of a batch.
 
@@ -498,6 +501,11 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
     :param clean_command: the same run's command without sensor noise (noise metric).
     :param clean: the same run without sensor noise, ``eps_r`` and ``r`` (the overshoots'
         settling band under noise: :func:`step_metrics`).
+    :param safety: the limits of the output stage the law ran through: ``law_share`` is
+        the share of the run's steps at which the law's command went out whole (at or
+        above ``safety.low_speed``; below it the node blends to and holds its last
+        command), noted where below 1; a run the law never drove (0) misses every goal
+        (:func:`goal_verdicts`). None: 1, no note.
     :return: the metrics.
     """
     def channel(name: str) -> Array:
@@ -530,9 +538,21 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
             np.sqrt(np.mean(np.square(command - clean_command))))),
         'off_road': bool(not np.all(np.isfinite(y)) or np.max(np.abs(y)) > 5.0),
         'diverged_at_s': math.nan,
+        'law_share': 1.0,
     }
     window = curve_window(t, rho)
     notes = []
+    if safety is not None:
+        weight = np.asarray(per_element(lambda v: low_speed_weight(v, safety), v_x))
+        row['law_share'] = float(np.mean(weight >= 1.0))
+        if row['law_share'] == 0.0:
+            notes.append(f'{NEVER_DROVE}: the speed stayed below safety.low_speed '
+                         f'{safety.low_speed:g} m/s (the node holds its last command): '
+                         'every goal missed')
+        elif row['law_share'] < 1.0:
+            notes.append(f"the law drove {100.0 * row['law_share']:.0f} % of the run: "
+                         f'below safety.low_speed {safety.low_speed:g} m/s the node holds '
+                         'its last command')
     if not np.any(np.abs(rho) > 1e-9):
         row['yaw_rebound'] = yaw_rebound(eps)
     elif window is None:
@@ -554,8 +574,18 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
 
 
 def _meets(goal: Goal, row: Mapping[str, Any]) -> bool:
-    """Return whether a run meets a goal: a NaN metric or a run off the road does not."""
-    return bool(row[goal.metric] <= goal.bound) and not row['off_road']
+    """
+    Return whether a run meets a goal.
+
+    A NaN metric, a run off the road and a run the law never drove (``law_share`` 0: its
+    figures are the held command's) do not.
+
+    :param goal: the goal.
+    :param row: the run's row.
+    :return: met.
+    """
+    return (bool(row[goal.metric] <= goal.bound) and not row['off_road']
+            and row.get('law_share', 1.0) != 0.0)
 
 
 def goal_verdicts(row: Mapping[str, Any]) -> tuple[list[str], list[str]]:
@@ -684,7 +714,8 @@ def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario,
     if not case.noisy:
         result = run(scenario, vehicle, law, case.plant,
                      initial_speed=np.asarray(speeds, dtype=float), **common)
-        return [run_row(result, i, vehicle, None) for i in range(len(speeds))]
+        return [run_row(result, i, vehicle, None, safety=settings.safety)
+                for i in range(len(speeds))]
     # the noise-free twin of each speed (one for all its seeds): the steering noise (S0)
     # and the noise's effect on the yaw responses
     twin = run(scenario, vehicle, law, case.plant,
@@ -698,7 +729,8 @@ def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario,
         rows.append(run_row(
             result, i, vehicle,
             twin['steering_cmd'][:, j] if scenario_name == NOISE_SCENARIO else None,
-            {'yaw_overshoot': twin['eps_r'][:, j], 'yaw_rate_overshoot': twin['r'][:, j]}))
+            {'yaw_overshoot': twin['eps_r'][:, j], 'yaw_rate_overshoot': twin['r'][:, j]},
+            safety=settings.safety))
     return rows
 
 
@@ -1226,6 +1258,17 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
              markdown_table([{k: r[k] for k in ('law', 'scenario', 'plant', 'speed_mps',
                                                 'notes')} for r in broken])
              if broken else 'none', '']
+    held = [r for r in rows if float(r.get('law_share', 1.0)) < 1.0]
+    if held:
+        text += ['## Runs the law did not drive throughout', '',
+                 'Below `safety.low_speed` the output stage blends to the command sent '
+                 'last above it and holds that, as the node does: those steps are not the '
+                 "law's. `law_share`: the share of a run's steps at which the law's command "
+                 'went out whole. A run the law never drove misses every goal that applies '
+                 'to it.', '',
+                 markdown_table([{k: r[k] for k in ('law', 'scenario', 'plant', 'speed_mps',
+                                                    'law_share', 'notes')} for r in held],
+                                digits=3), '']
     missed = missed_runs(rows)
     text += ['## Goals missed', '',
              *([] if seeds == 1 else [
@@ -1437,6 +1480,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                'goals_over_seeds': goals_over_seeds(goal_cells(rows,
                                                                                args.laws))})
     print(f'wrote {report} ({len(rows)} runs in {time.monotonic() - start:.0f} s)')
+    undriven = sum(float(r.get('law_share', 1.0)) == 0.0 for r in rows)
+    if undriven:
+        print(f'compare: warning: the law never drove {undriven} run(s): their speed stayed '
+              f'below safety.low_speed (every goal missed; {report.name}: "Runs the law did '
+              'not drive throughout")', file=sys.stderr)
     failed = [r for r in rows if str(r['notes']).startswith(FAILED)]
     if failed:
         first = failed[0]
