@@ -205,8 +205,10 @@ def test_with_curvature_received_the_runs_are_those_of_the_old_code():
 
     for name, total, settings in (
             ('s2_curve_entry', -18.67866522659203,
-             LaneKeepingParams(state_preview=0.0, compliance_memory=0.0)),
-            ('s0_straight', -0.1944498962871857, LaneKeepingParams(compliance_memory=0.0))):
+             LaneKeepingParams(state_preview=0.0, compliance_memory=0.0,
+                               curvature_smoothing=0.0)),
+            ('s0_straight', -0.1944498962871857,
+             LaneKeepingParams(compliance_memory=0.0, curvature_smoothing=0.0))):
         scenario = load_scenarios([name])[name]
         result = run(scenario, VEHICLE, Told(settings), PlantParams(model='nonlinear'),
                      initial_speed=37.0, dt=0.001, delay=0.02, preview_distance=100.0,

@@ -36,9 +36,15 @@ PERIOD = 0.01
 
 
 def _long_delay(delay, prediction=True, **more):
-    """Return the law's settings for a transport delay the filter is told of."""
+    """
+    Return the law's settings for a transport delay the filter is told of.
+
+    The polygon as received (``curvature_smoothing`` 0): the prediction was measured
+    on the law before the averaging (docs/lane_keeping.md, "The delay-aware law").
+    """
     return LaneKeepingParams(filter_delay=delay, feedforward_preview=0.05 + delay,
-                             delay_prediction=prediction, **more)
+                             delay_prediction=prediction,
+                             **{'curvature_smoothing': 0.0, **more})
 
 
 def _filter_after_commands(delay, period=PERIOD, jitter=0.0):

@@ -1057,9 +1057,11 @@ def test_rate_feedforward_sees_at_most_the_jerk_limit():
     # a curvature step of 1/400 within one 5 m preview segment at 37 m/s: rate
     # 37 * 0.0025 / 5 = 0.0185 1/(m s), lateral jerk 25 m/s^3; the feedforward's lead
     # -(v I_z eta / (m l_1) + (eta v^2 - l_2) l_2 / v) multiplies at most 10 / 37^2
+    # (the polygon as received: curvature_smoothing 0)
     law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(design_friction=0.0,
                                                                   compliance_time_constant=0.0,
-                                                                  integral_gain=0.0))
+                                                                  integral_gain=0.0,
+                                                                  curvature_smoothing=0.0))
     step = Preview(np.array([0.0, 5.0, 100.0]), np.array([0.0, -0.0025, -0.0025]))
     out = law.step(state(), step, 0.01)
     v, eta = 37.0, VEHICLE.eta
@@ -1073,7 +1075,7 @@ def test_rate_feedforward_sees_at_most_the_jerk_limit():
     # without the clip the lead sees all of it
     free = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(
         design_friction=0.0, compliance_time_constant=0.0, integral_gain=0.0,
-        max_lateral_jerk=0.0))
+        max_lateral_jerk=0.0, curvature_smoothing=0.0))
     assert free.step(state(), step, 0.01).y_ref == pytest.approx(d_v * lead * -0.0185)
 
 
@@ -1089,7 +1091,8 @@ def test_curve_entry_on_the_fiala_plant_at_37_mps():
                  preview_distance=100.0)
     assert np.max(np.abs(result['y_cg'])) < 0.03
     assert abs(result['y_cg'][-1]) < 0.005
-    old = LaneKeepingParams(design_friction=0.0, rate_feedforward=False, compliance_memory=0.0)
+    old = LaneKeepingParams(design_friction=0.0, rate_feedforward=False, compliance_memory=0.0,
+                            curvature_smoothing=0.0)
     before = run(scenario, VEHICLE, CgCompensatedLaw(VEHICLE, CONTROLLER, old),
                  PlantParams(model='nonlinear'), initial_speed=37.0, dt=0.005,
                  preview_distance=100.0)

@@ -35,7 +35,8 @@ INDEPENDENT = PlantCase('commonroad_mb_delay', PlantParams(model='commonroad_mb'
 GOAL = PlantCase('nonlinear_delay_noise', NONLINEAR, DELAY, True)
 #: the default until dev-approach: w_n falling to 3 rad/s below 12.9 m/s, no clip (and
 #: no demand limit, dev-demand)
-OLD = LaneKeepingParams(low_speed_frequency=3.0, approach_heading=0.0, demand_limit=0.0)
+OLD = LaneKeepingParams(low_speed_frequency=3.0, approach_heading=0.0, demand_limit=0.0,
+                        curvature_smoothing=0.0)
 #: w_n 7 reached at 20 m/s without the approach heading (cb360b4, withdrawn: it loses the
 #: lane from 2.5-3 m off at 15-25 m/s on the CommonRoad car, dev-probe34)
 WN20 = LaneKeepingParams(frequency_speed=20.0, low_speed_frequency=3.0,

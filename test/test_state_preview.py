@@ -118,9 +118,11 @@ def test_share_0_is_the_law_before_it():
     # S3 at 30 m/s on the noise-free goal plant, every other setting the default: the
     # figures of the code before the lead (2dfcd0d), to 1e-12 (a reduction's rounding
     # may differ between CPUs); likewise with the preview but no feedforward_preview.
-    # Without the compliance memory (0 is the estimator before it, dev-memory)
+    # Without the compliance memory (0 is the estimator before it, dev-memory) and the
+    # polygon as received (curvature_smoothing 0, the law before it)
     scen = load_scenarios(['s3_s_bend'])['s3_s_bend']
-    for settings in (LaneKeepingParams(state_preview=0.0, compliance_memory=0.0),
+    for settings in (LaneKeepingParams(state_preview=0.0, compliance_memory=0.0,
+                                       curvature_smoothing=0.0),
                      LaneKeepingParams(feedforward_preview=0.0, state_preview=3.0)):
         law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
         result = run(scen, VEHICLE, law, NONLINEAR, dt=DT, preview_distance=PREVIEW_DISTANCE,
@@ -146,8 +148,9 @@ def test_a_curvature_step_in_the_map_leads_by_at_most_the_jerk_limit():
                               curvatures=np.where(distances >= 5.0, 0.01, 0.0))
     state = LateralState(0.0, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0)
     # (the demand band off: a step to 9 m/s^2 at 30 m/s reaches it, and the preview is
-    # what is tested)
-    settings = LaneKeepingParams(state_filter='none', demand_limit=0.0)
+    # what is tested; the polygon as received: curvature_smoothing 0)
+    settings = LaneKeepingParams(state_filter='none', demand_limit=0.0,
+                                 curvature_smoothing=0.0)
     steer = {}
     for g in (0.0, 1.0):
         law = CgCompensatedLaw(VEHICLE, CONTROLLER,
@@ -199,8 +202,9 @@ def test_on_the_design_plant_with_a_70_ms_delay_the_whole_preview_is_the_best(sc
 def test_on_the_noise_free_goal_plant_the_default_takes_a_third_off_the_clothoids():
     # nonlinear plant, 50 ms actuator, 20 ms delay, 37 m/s (docs/lane_keeping.md,
     # "Preview of the drift term's state terms"): without it 2.67 / 5.89 / 5.70 cm on
-    # S2-S4, with the default 1.59 / 3.35 / 4.52 cm
-    peaks = {(g, s): _peak(LaneKeepingParams(state_preview=g), s, 37.0)
+    # S2-S4, with the default 1.59 / 3.35 / 4.52 cm (the polygon as received, as then)
+    peaks = {(g, s): _peak(LaneKeepingParams(state_preview=g, curvature_smoothing=0.0), s,
+                           37.0)
              for g in (0.0, 1.0) for s in ('s2_curve_entry', 's3_s_bend', 's4_lane_change')}
     assert LaneKeepingParams().state_preview == 1.0
     assert peaks[0.0, 's2_curve_entry'] > 0.025 and peaks[1.0, 's2_curve_entry'] < 0.019

@@ -61,6 +61,7 @@ from lookahead_control.core import cg_reference
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.control_law import (axle_gains, drift_term, LateralState,
                                                 LawOutput)
+from lookahead_control.core.curvature_smoothing import CurvatureHistory, smoothed_preview
 from lookahead_control.core.estimator import ComplianceEstimator
 from lookahead_control.core.numeric import Real
 from lookahead_control.core.params import (check_range, ControllerParams, ParameterError,
@@ -185,6 +186,14 @@ class LaneKeepingParams:
         compliance ``c(a) = c_hat s(|a| / (mu g))`` (brush shape, evaluated at the
         reference curvature's lateral acceleration; the estimate learns ``c_hat``);
         0: a constant compliance [-].
+    :param curvature_smoothing: the law reads the ``road_curvature`` polygon averaged
+        along the road by a triangular window of this half-width, centred on each point,
+        reaching behind the CG into the curvature it saw there
+        (``core/curvature_smoothing.py``): a clothoid is unchanged, a curvature step is
+        an S-curve of twice this length and a clothoid's ends are rounded, so the
+        reference and its rate stay within what the car and the node's angle limit can
+        follow (docs/lane_keeping.md, "The previewed curvature, averaged along the
+        road"); 0: the polygon as received [m].
     :param max_lateral_jerk: the rate feedforward uses the curvature rate clipped to
         this lateral jerk ``v_x^2 rho'`` (a curvature step in the map would be an
         impulse); 0: no clip [m/s^3].
@@ -243,6 +252,7 @@ class LaneKeepingParams:
     exact_inverse_damping: float = 0.0
     state_preview: float = 1.0
     design_friction: float = 1.0
+    curvature_smoothing: float = 5.0
     max_lateral_jerk: float = 10.0
     state_filter: str = 'kalman'
     curvature_blend: float = 0.5
@@ -343,6 +353,9 @@ class LaneKeepingParams:
         check_range('lane_keeping.design_friction', self.design_friction, 0.0, 2.0)
         check_range('lane_keeping.max_lateral_jerk', self.max_lateral_jerk, 0.0, 1000.0,
                     unit='m/s^3')
+        _check_off_or_range('lane_keeping.curvature_smoothing', self.curvature_smoothing,
+                            (1.0, 50.0), 'm', 'the polygon as received',
+                            'would average over less than a metre of road')
         check_range('lane_keeping.curvature_blend', self.curvature_blend, 0.0, 10.0,
                     unit='s')
         check_range('lane_keeping.estimate_rate_time', self.estimate_rate_time, 0.0, 10.0,
@@ -861,6 +874,9 @@ class CgCompensatedLaw:
         #: equilibrium
         self._inverse: Optional[tuple[Real, Real]] = None
         self._inverse_ff: Optional[tuple[Real, Real]] = None
+        #: the curvature seen at the CG over the last ``curvature_smoothing`` metres
+        self._history = (CurvatureHistory(st.curvature_smoothing)
+                         if st.curvature_smoothing > 0.0 else None)
         self.resets = 0
         #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
         #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
@@ -884,6 +900,8 @@ class CgCompensatedLaw:
         self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self._rate_last, self._rate = None, 0.0
         self._inverse = self._inverse_ff = None
+        if self._history is not None:
+            self._history.clear()
         self.resets += 1
 
     def take_over(self, old: 'CgCompensatedLaw') -> tuple[list[str], list[str]]:
@@ -971,6 +989,11 @@ class CgCompensatedLaw:
             self.curvature_filter.take_over(old.curvature_filter, same_vehicle)
             self._curvature_runs = old._curvature_runs
             carried.append('curvature filter')
+        if self._history is not None and old._history is not None:
+            # the road behind: the new half-width keeps what it reaches of it
+            self._history.travelled = old._history.travelled
+            self._history.samples = list(old._history.samples)
+            carried.append('curvature behind the CG')
         if s.exact_inverse > 0.0 and old._inverse is not None:
             # the road's trajectory: kept (its next step runs with the new settings)
             self._inverse, self._inverse_ff = old._inverse, old._inverse_ff
@@ -1146,6 +1169,12 @@ class CgCompensatedLaw:
         slope = state.rho_rate / v_x
         distances = getattr(preview, 'distances', None)
         curvatures = getattr(preview, 'curvatures', None)
+        if self._history is not None:
+            if dt > 0.0 or self._history.travelled is None:
+                self._history.record(state.v_x, dt, state.rho)
+            if distances is not None and curvatures is not None:
+                distances, curvatures = smoothed_preview(distances, curvatures,
+                                                         s.curvature_smoothing, self._history)
         blending = self._blending
 
         def road(time: float) -> tuple[Real, Real]:
@@ -1253,6 +1282,8 @@ class CgCompensatedLaw:
                 # restarted: at the next step's equilibrium (a NaN starts it there)
                 self._inverse = _forget(self._inverse, ~finite)
                 self._inverse_ff = _forget(self._inverse_ff, ~finite)
+            if self._history is not None:       # restarted: no road behind
+                self._history.forget(~finite)
             if self._rate_last is not None:     # restarted: the rate from 0
                 self._rate = np.where(finite, self._rate, 0.0)
                 self._rate_last = np.where(finite, self._rate_last, math.nan)

@@ -151,6 +151,9 @@ LANE_KEEPING_SPECS = tuple(
          0.0, 3.0),
         ('design_friction', 'friction of the design tyre for the load-dependent rear '
          'compliance (brush shape); 0: constant compliance [-]', 0.0, 2.0),
+        ('curvature_smoothing', 'the law reads road_curvature averaged along the road by '
+         'a triangular window of this half-width reaching behind the CG (a curvature step '
+         'becomes an S-curve); 0: as received [m]', 0.0, 50.0),
         ('max_lateral_jerk', 'the rate feedforward sees at most this lateral jerk '
          '(a curvature step in the map is not followed as an impulse); 0: no limit '
          '[m/s^3]', 0.0, 1000.0),
