@@ -890,7 +890,10 @@ def test_a_controller_file_that_can_be_read_once_is_read_once(tmp_path, capsys):
     finally:
         os.close(fd)
     assert params['lane_keeping.integral_gain'] == 0.1
-    path, fd = _read_once(text)
+    # (paper_scenario runs the paper's law: a file of its own, since dev-probe59 refuses
+    # lane_keeping.*)
+    path, fd = _read_once('/**:\n  ros__parameters:\n    controller:\n'
+                          '      max_look_ahead: 30.0\n')
     try:
         out = tmp_path / 'p.json'
         assert run_tool(paper_scenario.main, ['--controller', str(path), '--speeds', '37',
@@ -1069,6 +1072,22 @@ def test_the_node_output_stage_limits_are_run_offline(tmp_path):
     assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'q'), '--controller',
                                           str(timing)]) == 2
     assert not (tmp_path / 'q' / 'report.md').exists()
+    # dev-probe59: ... and the other laws' settings, which it does not run either
+    other = tmp_path / 'other.yaml'
+    other.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
+                     '      natural_frequency: 6.0\n    stanley:\n      gain: 2.0\n')
+    with pytest.raises(ConfigError, match='lane_keeping.natural_frequency = 6.0, '
+                       'stanley.gain = 2.0: the controller node runs this, paper_scenario'):
+        compare.load_law_settings(other, tool='paper_scenario', runs=paper_scenario.PAPER_RUNS,
+                                  not_run=(*compare.NOT_RUN_OFFLINE, 'lane_keeping.',
+                                           'stanley.'), output_stage=False)
+    assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'r'), '--controller',
+                                          str(other)]) == 2
+    # the package's own file: every value the package's, nothing refused
+    from lookahead_control.core.config import source_config_dir
+    assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'pkg'), '--no-plots',
+                                          '--controller',
+                                          str(source_config_dir() / 'controller.yaml')]) == 0
     assert compare.settings_changes(compare.load_law_settings(timing, tool='compare')) == [
         'safety.input_timeout = 0.5 (not met: the inputs are exact and timely)',
         'safety.safe_angle = 0.1 (not met: the inputs are exact and timely)']

@@ -24,37 +24,29 @@ the node's angle limit (0.0587 rad), and the cut excited the CG's zero dynamics.
 
 :func:`smoothed_preview` averages the curvature with a triangular window of half-width
 ``W`` centred on each point (the weight falls linearly from the point to ``W`` either
-side): a straight line (a clothoid) is unchanged, a step becomes an S-curve of length
-``2 W`` centred on it, a kink is rounded over ``+-W``. The window reaches behind the CG:
-:class:`CurvatureHistory` keeps the curvature the law saw at the CG over the last ``W``
-of road. ``docs/lane_keeping.md`` ("The previewed curvature, averaged along the road")
-has the measurements.
+side), integrated exactly over the polygon's linear pieces: a straight line (a
+clothoid) is unchanged, a step becomes an S-curve of length ``2 W`` centred on it, a
+kink is rounded over ``+-W``. The window reaches behind the CG: :class:`CurvatureHistory`
+keeps the curvature the law saw at the CG over the last ``W`` of road.
+``docs/lane_keeping.md`` ("The previewed curvature, averaged along the road") has the
+measurements.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any, Optional
 
 from lookahead_control.core.numeric import Real
 import numpy as np
 
-#: quadrature points per half window (the grid's spacing, W / TAPS, is also the
-#: averaged polygon's: the law reads a segment's slope, so a coarser output (W / 4) led
-#: the rate by half a segment: S1 / S4 at 37 m/s 3.29 / 4.27 cm against 2.89 / 3.96)
-TAPS = 8
-
-
-def triangle_weights(taps: int = TAPS) -> np.ndarray:
-    """
-    Return the weights of the triangular window on ``2 taps + 1`` evenly spaced points.
-
-    :param taps: points per half window.
-    :return: the weights, summing to 1 (0 at the window's ends left out: ``2 taps - 1``
-        weights for the offsets ``-(taps - 1) .. taps - 1`` grid steps).
-    """
-    j = np.arange(-(taps - 1), taps, dtype=float)
-    weights = taps - np.abs(j)
-    return weights / weights.sum()
+#: the averaged polygon's spacing is W / STEPS (the law reads a segment's slope: a
+#: coarser output, W / 4, led the rate by half a segment: S1 / S4 at 37 m/s 3.29 / 4.27
+#: cm against 2.89 / 3.96)
+STEPS = 8
+#: the history keeps at most this many samples: W behind the CG at 100 Hz down to
+#: W / 10.24 m/s (0.5 m/s for 5 m); slower, the window behind is the last 10.24 s
+MAX_SAMPLES = 1024
 
 
 class CurvatureHistory:
@@ -62,7 +54,7 @@ class CurvatureHistory:
     The curvature the law saw at the CG over the last ``half_width`` metres of road.
 
     Works on floats (one vehicle) and on arrays (a batch of runs): the distance travelled
-    and the curvature are recorded per run.
+    and the curvature are recorded per run, at most :data:`MAX_SAMPLES` samples.
     """
 
     def __init__(self, half_width: float) -> None:
@@ -76,8 +68,10 @@ class CurvatureHistory:
 
     def clear(self) -> None:
         """Forget the road behind (a time jump: the distance travelled is unknown)."""
-        self.travelled: Optional[Any] = None
-        self.samples: list[tuple[Any, Any]] = []
+        self.travelled: Optional[np.ndarray] = None
+        self._where = np.zeros(0)
+        self._rho = np.zeros(0)
+        self.size = 0
 
     def record(self, v_x: Real, dt: float, rho: Real) -> None:
         """
@@ -87,17 +81,36 @@ class CurvatureHistory:
         :param dt: the step [s].
         :param rho: the curvature at the CG [1/m] (not finite: unknown there).
         """
-        speed = np.where(np.isfinite(v_x), np.maximum(v_x, 0.0), 0.0)
-        step, rho = np.broadcast_arrays(np.asarray(speed * dt, dtype=float),
-                                        np.asarray(rho, dtype=float))
-        if self.travelled is not None and np.shape(self.travelled) != step.shape:
-            self.clear()                # another batch: its road behind is not this one
-        self.travelled = step.copy() if self.travelled is None else self.travelled + step
-        self.samples.append((np.array(self.travelled), rho.copy()))
+        with np.errstate(invalid='ignore'):
+            speed = np.where(np.isfinite(v_x), np.maximum(v_x, 0.0), 0.0)
+        step, value = np.broadcast_arrays(np.asarray(speed * dt, dtype=float),
+                                          np.asarray(rho, dtype=float))
+        if self.travelled is not None and self.travelled.shape != step.shape:
+            try:                        # one speed and curvature for every run so far
+                step, value = (np.broadcast_to(step, self.travelled.shape),
+                               np.broadcast_to(value, self.travelled.shape))
+            except ValueError:
+                self.clear()            # another batch: its road behind is not this one
+        if self.travelled is None or self.size == 0:
+            self.travelled = np.zeros(step.shape)
+            self._where = np.zeros((MAX_SAMPLES,) + step.shape)
+            self._rho = np.zeros((MAX_SAMPLES,) + step.shape)
+        else:
+            self.travelled = self.travelled + np.where(np.isfinite(step), step, 0.0)
         # the oldest sample kept is the last one at or beyond half_width behind every run
-        while (len(self.samples) > 1
-               and np.all(self.samples[1][0] <= self.travelled - self.half_width)):
-            self.samples.pop(0)
+        # (the positions grow along the samples: the runs' test is true on a prefix)
+        beyond = self._where[:self.size] <= self.travelled - self.half_width
+        drop = max(int(np.count_nonzero(
+            beyond.reshape(self.size, -1).all(axis=1))) - 1, 0) if self.size else 0
+        if self.size == MAX_SAMPLES:
+            drop = max(drop, 1)
+        if drop:
+            self._where[:self.size - drop] = self._where[drop:self.size].copy()
+            self._rho[:self.size - drop] = self._rho[drop:self.size].copy()
+            self.size -= drop
+        self._where[self.size] = self.travelled
+        self._rho[self.size] = value
+        self.size += 1
 
     def forget(self, runs: Any) -> None:
         """
@@ -105,95 +118,169 @@ class CurvatureHistory:
 
         :param runs: boolean per run.
         """
-        self.samples = [(s, np.where(runs, np.nan, rho)) for s, rho in self.samples]
+        runs = np.asarray(runs, dtype=bool)
+        if self.travelled is None or not np.any(runs):
+            return
+        if runs.shape != self.travelled.shape:
+            # recorded with one speed and curvature for the whole batch: per run from now
+            try:
+                shape = np.broadcast_shapes(self.travelled.shape, runs.shape)
+            except ValueError:
+                self.clear()
+                return
+            self.travelled = np.broadcast_to(self.travelled, shape).copy()
+            self._where = np.broadcast_to(self._where, (MAX_SAMPLES,) + shape).copy()
+            self._rho = np.broadcast_to(self._rho, (MAX_SAMPLES,) + shape).copy()
+        self._rho[:self.size] = np.where(runs, math.nan, self._rho[:self.size])
 
-    def behind(self, distances: np.ndarray) -> Optional[np.ndarray]:
+    def copy_from(self, other: 'CurvatureHistory') -> None:
         """
-        Return the curvature at ``distances`` behind the CG (negative), per run.
+        Take another history's samples (a retune: the road behind is the same).
 
-        Linear between the samples; before the oldest sample its value; NaN where the
-        run has no finite sample there.
-
-        :param distances: relative distances ``<= 0``, shape ``(M,)`` [m].
-        :return: shape ``(M,)`` (floats recorded) or ``(M, N)``; None: no history.
+        :param other: the history.
         """
-        if not self.samples:
-            return None
-        where = np.stack([s for s, _ in self.samples]) - self.travelled   # (P,) or (P, N)
-        rho = np.stack([k for _, k in self.samples])
-        u = distances.reshape((-1,) + (1,) * (where.ndim - 1))
-        # per target and run: the sample at or before it and the one after (clipped)
-        after = np.clip(np.sum(where[None] <= u[:, None], axis=1), 1, len(self.samples) - 1
-                        ) if len(self.samples) > 1 else np.zeros(u.shape, dtype=int)
-        before = np.maximum(after - 1, 0)
+        self.travelled = None if other.travelled is None else other.travelled.copy()
+        self._where, self._rho = other._where.copy(), other._rho.copy()
+        self.size = other.size
 
-        def pick(values: np.ndarray, index: np.ndarray) -> np.ndarray:
-            if values.ndim == 1:
-                return values[index]
-            return np.take_along_axis(values, np.broadcast_to(
-                index, (index.shape[0], values.shape[1])), axis=0)
+    def behind(self) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the samples, oldest first: distance from the CG (<= 0) and curvature.
 
-        s0, s1 = pick(where, before), pick(where, after)
-        k0, k1 = pick(rho, before), pick(rho, after)
-        gap = s1 - s0
-        with np.errstate(invalid='ignore', divide='ignore'):
-            share = np.where(gap > 0.0, np.clip((u - s0) / gap, 0.0, 1.0), 1.0)
-        return k0 + share * (k1 - k0)
+        :return: ``(where, rho)``, shape ``(P,)`` or ``(P, N)``; NaN where a run has no
+            finite curvature.
+        """
+        if self.travelled is None:
+            return np.zeros(0), np.zeros(0)
+        return self._where[:self.size] - self.travelled, self._rho[:self.size]
 
 
 def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
-                     history: Optional[CurvatureHistory] = None
+                     history: Optional[CurvatureHistory] = None, reach: float = math.inf
                      ) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the polygon averaged along the road by a triangular window of ``half_width``.
 
-    The polygon is read as the law reads it (linear, held beyond its ends); behind the
-    CG the window reads ``history`` (without it, or where a run has none: the polygon's
-    first value, the curvature at the CG). The result is sampled every
-    ``half_width / TAPS`` from the polygon's first distance to its last: read by linear
-    interpolation like any polygon. A polygon the law would not read (not 1-D,
-    empty, not increasing, a non-finite distance) is returned unchanged, and a run whose
-    curvatures are not all finite keeps NaN (the law's fallback for it stays).
+    The road is the polygon read as the law reads it (linear, held beyond its ends) and,
+    behind the CG and the polygon's first point, ``history`` (a run's samples before its
+    oldest finite one take that one's value; with none, the polygon's first value is held
+    back). The average is exact over the linear pieces. It is given every
+    ``half_width / STEPS`` from the CG (or the polygon's first point ahead of it) to one
+    step past ``reach`` (the farthest point the law reads; at most the polygon's end),
+    and the polygon's own points beyond that follow unchanged. A polygon
+    the law would not read (not 1-D, empty, not increasing, a non-finite distance) is
+    returned unchanged, and a run whose curvatures are not all finite keeps NaN (the
+    law's fallback for it stays).
 
     :param distances: the polygon's distances ahead of the CG [m], shape ``(K,)``.
     :param curvatures: its curvatures [1/m], ``(K,)`` or ``(K, N)``.
     :param half_width: ``W`` [m] (> 0).
     :param history: the curvature behind the CG.
+    :param reach: how far ahead of the CG the law reads [m].
     :return: ``(distances, curvatures)`` of the averaged polygon.
     """
     d = np.asarray(distances, dtype=float)
     k = np.asarray(curvatures, dtype=float)
-    if (d.ndim != 1 or d.size == 0 or k.shape[:1] != d.shape or not np.all(np.isfinite(d))
-            or np.any(np.diff(d) <= 0.0)):
+    if (d.ndim != 1 or d.size == 0 or k.shape[:1] != d.shape or k.ndim > 2
+            or not np.all(np.isfinite(d)) or np.any(np.diff(d) <= 0.0)):
         return d, k
     usable = np.all(np.isfinite(k), axis=0)
-    k = np.where(usable, k, 0.0)
-    step = half_width / TAPS
-    grid = d[0] - half_width + step * np.arange(
-        int(np.floor((d[-1] - d[0] + 2.0 * half_width) / step + 1e-9)) + 1)
-    column = (-1,) + (1,) * (k.ndim - 1)
-    raw = _polygon_at(d, k, grid.reshape(column))
-    past = grid < 0.0
-    if np.any(past):
-        behind = None if history is None else history.behind(grid[past])
-        first = raw[np.argmax(grid >= d[0])] if np.any(grid >= d[0]) else k[0]
-        if behind is not None and behind.shape[1:] == k.shape[1:]:
-            raw[past] = np.where(np.isfinite(behind), behind, first)
-        else:
-            raw[past] = first
-    weights = triangle_weights()
-    centre = np.arange(TAPS, grid.size - TAPS)              # points with a whole window
-    smooth = sum(w * raw[centre + j] for j, w in zip(range(-(TAPS - 1), TAPS), weights))
-    out_d, out_k = grid[centre], np.asarray(smooth)
-    return out_d, np.where(usable, out_k, np.nan)
+    flat = np.where(usable, k, 0.0).reshape(d.size, -1)          # (K, N)
+    runs = flat.shape[1]
+    step = half_width / STEPS
+    low = min(max(0.0, d[0]), d[-1])
+    far = reach if math.isfinite(reach) else d[-1]
+    # one step past the farthest read: its segment (the slope read there) is averaged too
+    high = min(max(far, low) + step, d[-1])
+    count = int(math.floor((high - low) / step))
+    out = low + step * np.arange(count + 1)
+    if out[-1] < high:
+        out = np.append(out, high)
+    # the road over [low - W, high + W]: the history behind the polygon, then the polygon
+    # cut at high + W (a point there, interpolated)
+    end = high + half_width
+    inside = d < end
+    x_poly = np.append(d[inside], end) if d[-1] > end else d
+    y_poly = (np.vstack([flat[inside], _interpolated(d, flat, end)]) if d[-1] > end
+              else flat)
+    x_road, y_road = _with_history(x_poly, y_poly, history, runs)
+    values = np.stack([_second_integral(x_road, y_road, out + shift)
+                       for shift in (-half_width, 0.0, half_width)])
+    smooth = (values[0] - 2.0 * values[1] + values[2]) / (half_width * half_width)
+    beyond = d > high
+    out_d = np.concatenate([out, d[beyond]])
+    out_k = np.vstack([smooth, flat[beyond]])
+    out_k = np.where(usable.reshape(-1), out_k, math.nan)
+    return out_d, (out_k.reshape(-1) if k.ndim == 1 else out_k)
 
 
-def _polygon_at(d: np.ndarray, k: np.ndarray, where: np.ndarray) -> np.ndarray:
-    """Return the polygon's linear interpolation at ``where`` (``(M,)`` or ``(M, 1)``)."""
-    flat = where.reshape(-1)
-    if d.size == 1:
-        return np.broadcast_to(k[0], flat.shape + k.shape[1:]).copy()
-    i = np.clip(np.searchsorted(d, flat, side='right') - 1, 0, d.size - 2)
-    share = np.clip((flat - d[i]) / (d[i + 1] - d[i]), 0.0, 1.0)
-    share = share.reshape(share.shape + (1,) * (k.ndim - 1))
-    return k[i] + share * (k[i + 1] - k[i])
+def _interpolated(d: np.ndarray, k: np.ndarray, at: float) -> np.ndarray:
+    """Return the polygon ``(d, k (K, N))`` at ``at``, shape ``(1, N)``."""
+    i = min(max(int(np.searchsorted(d, at, side='right')) - 1, 0), d.size - 2)
+    share = (at - d[i]) / (d[i + 1] - d[i])
+    return (k[i] + share * (k[i + 1] - k[i])).reshape(1, -1)
+
+
+def _with_history(x_poly: np.ndarray, y_poly: np.ndarray,
+                  history: Optional[CurvatureHistory], runs: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the road's breakpoints per run: the history behind the polygon, the polygon.
+
+    :return: ``(x, y)``, shape ``(B, N)``, ``x`` ascending per run.
+    """
+    x = np.broadcast_to(x_poly.reshape(-1, 1), (x_poly.size, runs))
+    if history is None:
+        return x, y_poly
+    where, rho = history.behind()
+    if where.size == 0:
+        return x, y_poly
+    where = where.reshape(where.shape[0], -1)
+    rho = rho.reshape(rho.shape[0], -1)
+    if where.shape[1] != runs:
+        return x, y_poly                # another batch's history: none of this one's
+    # a sample without a curvature takes the next finite one's toward now (a restarted
+    # run's old samples: the value where it restarted); none: the polygon's first
+    size = rho.shape[0]
+    index = np.where(np.isfinite(rho), np.arange(size).reshape(-1, 1), size)
+    nearest = np.minimum.accumulate(index[::-1], axis=0)[::-1]
+    filled = np.take_along_axis(np.vstack([rho, y_poly[:1]]), nearest, axis=0)
+    # only behind the polygon's first point (and the CG): there the polygon is the road
+    keep = where < min(x_poly[0], 0.0)
+    filled = np.where(keep, filled, np.nan)
+    # behind the polygon the samples move up to it (a sample not kept repeats the
+    # polygon's first point: a piece of length 0)
+    where = np.where(keep, where, x_poly[0])
+    filled = np.where(keep, filled, y_poly[:1])
+    return np.vstack([where, x]), np.vstack([filled, y_poly])
+
+
+def _second_integral(x: np.ndarray, y: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """
+    Return ``F(at)``, ``F'' = `` the road, ``F = F' = 0`` at its first breakpoint.
+
+    The road is linear between the breakpoints ``(x, y)`` (``(B, N)``, ``x``
+    non-decreasing per run; a piece of length 0 is a jump) and constant beyond them.
+
+    :param at: the points, shape ``(M,)``.
+    :return: shape ``(M, N)``.
+    """
+    dx = np.diff(x, axis=0)
+    dy = np.diff(y, axis=0)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        slope = np.where(dx > 0.0, dy / np.where(dx > 0.0, dx, 1.0), 0.0)
+    first = np.vstack([np.zeros((1, x.shape[1])),
+                       np.cumsum(y[:-1] * dx + 0.5 * slope * dx * dx, axis=0)])
+    second = np.vstack([np.zeros((1, x.shape[1])),
+                        np.cumsum(first[:-1] * dx + 0.5 * y[:-1] * dx * dx
+                                  + slope * dx ** 3 / 6.0, axis=0)])
+    if x.shape[1] == 1:                 # one run: a search (the node's case)
+        count = np.searchsorted(x[:, 0], at, side='right').reshape(-1, 1)
+    else:
+        count = np.count_nonzero(x[None] <= at.reshape(-1, 1, 1), axis=1)
+    i = np.clip(count - 1, 0, x.shape[0] - 1)                       # (M, N)
+    h = at.reshape(-1, 1) - np.take_along_axis(x, i, axis=0)
+    m = np.take_along_axis(np.vstack([slope, np.zeros((1, x.shape[1]))]), i, axis=0)
+    m = np.where(h >= 0.0, m, 0.0)      # before the first breakpoint: held
+    return (np.take_along_axis(second, i, axis=0) + np.take_along_axis(first, i, axis=0) * h
+            + 0.5 * np.take_along_axis(y, i, axis=0) * h * h + m * h ** 3 / 6.0)

@@ -925,7 +925,9 @@ class CgCompensatedLaw:
         - the actuator model and the commands on their way to it, the last command,
           the anti-windup flag, the curvature judgment and its switch-over blend, and
           the estimated curvature's rate (``estimate_rate_time``; the car's and the
-          road's, never restarted).
+          road's, never restarted);
+        - the curvature seen behind the CG (``curvature_smoothing``; restarted when it
+          was 0 before).
 
         Works on floats and on a batch's arrays alike.
 
@@ -991,8 +993,7 @@ class CgCompensatedLaw:
             carried.append('curvature filter')
         if self._history is not None and old._history is not None:
             # the road behind: the new half-width keeps what it reaches of it
-            self._history.travelled = old._history.travelled
-            self._history.samples = list(old._history.samples)
+            self._history.copy_from(old._history)
             carried.append('curvature behind the CG')
         if s.exact_inverse > 0.0 and old._inverse is not None:
             # the road's trajectory: kept (its next step runs with the new settings)
@@ -1169,12 +1170,18 @@ class CgCompensatedLaw:
         slope = state.rho_rate / v_x
         distances = getattr(preview, 'distances', None)
         curvatures = getattr(preview, 'curvatures', None)
+        ahead = s.filter_delay if s.delay_prediction else 0.0
         if self._history is not None:
             if dt > 0.0 or self._history.travelled is None:
                 self._history.record(state.v_x, dt, state.rho)
             if distances is not None and curvatures is not None:
+                # the farthest the law reads: road() below, at the fastest run's speed
+                fastest = np.max(np.where(np.isfinite(v_x), v_x, 0.0))
+                reach = float(fastest) * max(s.reference_preview + ahead,
+                                             s.feedforward_preview, ahead)
                 distances, curvatures = smoothed_preview(distances, curvatures,
-                                                         s.curvature_smoothing, self._history)
+                                                         s.curvature_smoothing, self._history,
+                                                         reach)
         blending = self._blending
 
         def road(time: float) -> tuple[Real, Real]:
@@ -1192,7 +1199,6 @@ class CgCompensatedLaw:
                 rho_t = rho_t + blending
             return rho_t, slope_t
 
-        ahead = s.filter_delay if s.delay_prediction else 0.0
         rho_ref, slope_ref = road(s.reference_preview + ahead)
         rho_ff, slope_ff = road(s.feedforward_preview)
         # the state the law acts on: the estimate where the command it sends now reaches

@@ -548,7 +548,7 @@ def run_row(result: SimResult, index: Optional[int], vehicle: VehicleParams,
         if row['law_share'] == 0.0:
             notes.append(f'{NEVER_DROVE}: the speed stayed below safety.low_speed '
                          f'{safety.low_speed:g} m/s (the node holds its last command): '
-                         'every goal missed')
+                         'a goal that applies to it counts as missed')
         elif row['law_share'] < 1.0:
             notes.append(f"the law drove {100.0 * row['law_share']:.0f} % of the run: "
                          f'below safety.low_speed {safety.low_speed:g} m/s the node holds '

@@ -174,9 +174,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         # node setting the offline runs do not run ran the defaults as if from the file
         # (dev-probe55)
         from lookahead_control.tools.compare import load_law_settings, NOT_RUN_OFFLINE
-        # the paper's simulation has no actuator limits: neither has its reproduction
+        # the paper's simulation has no actuator limits: neither has its reproduction;
+        # it runs the paper's law, whatever the file says of the others (dev-probe59:
+        # lane_keeping.* and the baselines' settings were taken silently)
         controller = load_law_settings(args.controller, vehicle,
-                                       (*NOT_RUN_OFFLINE, 'use_curvature_preview'),
+                                       (*NOT_RUN_OFFLINE, 'use_curvature_preview',
+                                        'lane_keeping.', 'pure_pursuit.', 'stanley.', 'lqr.'),
                                        'paper_scenario', PAPER_RUNS,
                                        output_stage=False).controller
     runs = reproduce(vehicle, controller,
