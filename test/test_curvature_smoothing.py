@@ -17,11 +17,13 @@
 from __future__ import annotations
 
 from dataclasses import replace
+import math
 
+from lookahead_control.core import curvature_smoothing
 from lookahead_control.core.config import load_controller, load_lane_keeping, load_vehicle
 from lookahead_control.core.control_law import LateralState
-from lookahead_control.core.curvature_smoothing import (CurvatureHistory, MAX_SAMPLES,
-                                                        smoothed_preview)
+from lookahead_control.core.curvature_smoothing import (CurvatureHistory, MAX_OUTPUT,
+                                                        MAX_SAMPLES, smoothed_preview)
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Preview
 from lookahead_control.core.output_stage import NodeOutputStage
@@ -271,6 +273,10 @@ def test_a_restarted_run_of_a_batch_is_its_single_run_restarted():
         y = np.array([np.nan if i == 150 else 0.01, 0.01])
         rho = np.where(s >= 100.0, -0.0025, 0.0)
         ahead = np.where(s[None, :] + D[:, None] >= 100.0, -0.0025, 0.0)
+        # (dev-probe60: the curvature measured at the CG 0.001 off the polygon's: the
+        # restarted run's old samples took the new measurement, its single run held the
+        # polygon's first value back: 2e-2 rad apart on the step after)
+        rho = rho + 0.001
         state = LateralState(y_cg=y, eps_r=0 * y, v_y=0 * y, r=0 * y, v_x=speeds,
                              a_x=0 * y, rho=rho, rho_rate=0 * y)
         out = batch.step(state, Preview(D, ahead), 0.01)
@@ -282,3 +288,77 @@ def test_a_restarted_run_of_a_batch_is_its_single_run_restarted():
                 assert out.steering[j] == pytest.approx(one.steering, rel=1e-9, abs=1e-12)
             else:
                 assert not np.isfinite(out.steering[j])
+
+
+# -- dev-probe60 -------------------------------------------------------------------------
+
+def test_a_polygon_a_billion_metres_off_is_averaged_without_rounding_away():
+    # the integrals ran from the road's first breakpoint: a polygon starting 1e9 m ahead
+    # (the history about the CG) or 1e9 m behind lost the curvature to rounding (0.2 read
+    # as 16 at W 1; the node sent -0.00143 rad for 0.00885 at 25 m/s): a constant road
+    # is constant
+    history = CurvatureHistory(5.0)
+    for _ in range(100):
+        history.record(10.0, 0.005, 0.2)
+    for start in (1e8, 1e10, 1e12, 3e38):
+        for width in (1.0, 5.0, 50.0):
+            history.half_width = width
+            _, out = smoothed_preview(np.array([start, start * (1 + 1e-7) + 10.0]),
+                                      np.array([0.2, 0.2]), width, history, reach=50.0)
+            assert out == pytest.approx(np.full(out.size, 0.2), abs=1e-12)
+    _, out = smoothed_preview(np.array([-1e9, -1e6, 0.0, 5.0, 95.0]), np.full(5, 0.002),
+                              1.0, reach=2.6)
+    assert out == pytest.approx(np.full(out.size, 0.002), abs=1e-15)
+    vehicle, controller = load_vehicle(None), load_controller(None)
+    steering = []
+    for width in (0.0, 5.0):
+        law = CgCompensatedLaw(vehicle, controller,
+                               LaneKeepingParams(curvature_smoothing=width))
+        arc = LateralState(0.0, 0.0, 0.0, 0.0, 20.0, 0.0, 0.01, 0.0)
+        for _ in range(50):
+            out_law = law.step(arc, Preview(np.array([1e9, 1e9 + 10.0]), np.full(2, 0.01)),
+                               0.01)
+        steering.append(out_law.steering)
+    assert steering[1] == pytest.approx(steering[0], rel=1e-9)
+
+
+def test_a_polygon_behind_the_cg_is_averaged_at_the_cg():
+    # it was averaged at its last point (0.00907 where the road at the CG averages to
+    # 0.00953), and the law held that ahead
+    history = CurvatureHistory(W)
+    for _ in range(100):
+        history.record(10.0, 0.01, 0.01)
+    d, k = np.array([-10.0, -1.0]), np.array([0.0, 0.01])
+    out_d, out_k = smoothed_preview(d, k, W, history, reach=2.6)
+    assert out_d[0] == 0.0 and out_d[-1] > 2.6
+    where, rho = history.behind()
+    behind = where < d[0]
+    road = np.concatenate([where[behind], d]), np.concatenate([rho[behind], k])
+    assert out_k[0] == pytest.approx(triangle_average(
+        0.0, lambda u: np.interp(u, *road), breaks=road[0]), abs=1e-15)
+
+
+def test_reach_not_finite_is_the_polygon_s_end_within_a_bound():
+    d, k = np.array([0.0, 5.0, 3e38]), np.full(3, -0.002)
+    for reach in (math.nan, math.inf, -math.inf):
+        out_d, out_k = smoothed_preview(d, k, W, reach=reach)
+        assert out_d.size <= MAX_OUTPUT + 2 and out_d[-1] == 3e38
+    law = CgCompensatedLaw(load_vehicle(None), load_controller(None), LaneKeepingParams())
+    fast = LateralState(0.0, 0.0, 0.0, 0.0, 1e30, 0.0, -0.002, 0.0)
+    law.step(fast, Preview(d, k), 0.01)     # a reach of 7e28 m: no grid to match
+
+
+def test_a_stopped_run_keeps_the_batch_s_road_short():
+    # a stopped run keeps every sample (none is W behind it): every run's road was 1024
+    # samples long, 44 ms a step for 96 runs (384 ms with W 1 and a 3 s preview)
+    history = CurvatureHistory(W)
+    speeds = np.full(96, 30.0)
+    speeds[7] = 0.0
+    for _ in range(MAX_SAMPLES + 100):
+        history.record(speeds, 0.01, np.full(96, 0.001))
+    assert history.size == MAX_SAMPLES
+    k = np.full((D.size, 96), 0.001)
+    x, _ = curvature_smoothing._road(D, k, history, -W)
+    assert x.shape[0] <= W / 0.3 + 2 + D.size
+    _, out = smoothed_preview(D, k, W, history, reach=2.6)
+    assert out == pytest.approx(np.full(out.shape, 0.001), abs=1e-15)

@@ -47,6 +47,9 @@ STEPS = 8
 #: the history keeps at most this many samples: W behind the CG at 100 Hz down to
 #: W / 10.24 m/s (0.5 m/s for 5 m); slower, the window behind is the last 10.24 s
 MAX_SAMPLES = 1024
+#: the averaged stretch has at most this many steps (with ``reach`` 2.6 m at 37 m/s and
+#: 5 m it has 6; the bound keeps a polygon billions of metres long from a grid to match)
+MAX_OUTPUT = 4096
 
 
 class CurvatureHistory:
@@ -161,16 +164,18 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
     """
     Return the polygon averaged along the road by a triangular window of ``half_width``.
 
-    The road is the polygon read as the law reads it (linear, held beyond its ends) and,
-    behind the CG and the polygon's first point, ``history`` (a run's samples before its
-    oldest finite one take that one's value; with none, the polygon's first value is held
-    back). The average is exact over the linear pieces. It is given every
-    ``half_width / STEPS`` from the CG (or the polygon's first point ahead of it) to one
-    step past ``reach`` (the farthest point the law reads; at most the polygon's end),
-    and the polygon's own points beyond that follow unchanged. A polygon
-    the law would not read (not 1-D, empty, not increasing, a non-finite distance) is
-    returned unchanged, and a run whose curvatures are not all finite keeps NaN (the
-    law's fallback for it stays).
+    The road is, behind the polygon's first point and the CG, ``history`` (a run's
+    samples before its oldest finite one kept take that one's value; with none, the
+    polygon's first value is held back), then the polygon as the law reads it (its first
+    value held from the CG to its first point, linear, its last value held beyond its
+    end). The average is exact over the road's linear pieces, integrated from ``W``
+    before the first point given. It is given every ``half_width / STEPS`` from the CG
+    (or the polygon's first point ahead of it) to one step past ``reach`` (the farthest
+    point the law reads; at most the polygon's end if that is ahead, and at most
+    :data:`MAX_OUTPUT` steps: a ``reach`` not finite is the polygon's end), and the
+    polygon's own points beyond that follow unchanged. A polygon the law would not read
+    (not 1-D, empty, not increasing, a non-finite distance) is returned unchanged, and a
+    run whose curvatures are not all finite keeps NaN (the law's fallback for it stays).
 
     :param distances: the polygon's distances ahead of the CG [m], shape ``(K,)``.
     :param curvatures: its curvatures [1/m], ``(K,)`` or ``(K, N)``.
@@ -186,26 +191,25 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
         return d, k
     usable = np.all(np.isfinite(k), axis=0)
     flat = np.where(usable, k, 0.0).reshape(d.size, -1)          # (K, N)
-    runs = flat.shape[1]
     step = half_width / STEPS
-    low = min(max(0.0, d[0]), d[-1])
+    low = max(0.0, d[0])
     far = reach if math.isfinite(reach) else d[-1]
     # one step past the farthest read: its segment (the slope read there) is averaged too
-    high = min(max(far, low) + step, d[-1])
-    count = int(math.floor((high - low) / step))
-    out = low + step * np.arange(count + 1)
+    high = max(far, low) + step
+    if d[-1] >= low:
+        high = min(high, d[-1])
+    high = min(high, low + MAX_OUTPUT * step)
+    out = low + step * np.arange(int(math.floor((high - low) / step)) + 1)
     if out[-1] < high:
         out = np.append(out, high)
-    # the road over [low - W, high + W]: the history behind the polygon, then the polygon
-    # cut at high + W (a point there, interpolated)
-    end = high + half_width
-    inside = d < end
-    x_poly = np.append(d[inside], end) if d[-1] > end else d
-    y_poly = (np.vstack([flat[inside], _interpolated(d, flat, end)]) if d[-1] > end
-              else flat)
-    x_road, y_road = _with_history(x_poly, y_poly, history, runs)
-    values = np.stack([_second_integral(x_road, y_road, out + shift)
-                       for shift in (-half_width, 0.0, half_width)])
+    x_road, y_road = _road(d, flat, history, low - half_width)
+    # the road over [low - W, high + W] only, measured from low: its integrals stay of
+    # the window's size wherever the polygon lies (from its first point they lost the
+    # curvature to rounding a billion metres away)
+    x_road, y_road = _cut(x_road, y_road, low - half_width, high + half_width)
+    at = out - low
+    values = _second_integral(x_road - low, y_road, np.concatenate(
+        [at - half_width, at, at + half_width])).reshape(3, at.size, -1)
     smooth = (values[0] - 2.0 * values[1] + values[2]) / (half_width * half_width)
     beyond = d > high
     out_d = np.concatenate([out, d[beyond]])
@@ -214,45 +218,85 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
     return out_d, (out_k.reshape(-1) if k.ndim == 1 else out_k)
 
 
-def _interpolated(d: np.ndarray, k: np.ndarray, at: float) -> np.ndarray:
-    """Return the polygon ``(d, k (K, N))`` at ``at``, shape ``(1, N)``."""
-    i = min(max(int(np.searchsorted(d, at, side='right')) - 1, 0), d.size - 2)
-    share = (at - d[i]) / (d[i + 1] - d[i])
-    return (k[i] + share * (k[i + 1] - k[i])).reshape(1, -1)
-
-
-def _with_history(x_poly: np.ndarray, y_poly: np.ndarray,
-                  history: Optional[CurvatureHistory], runs: int
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def _road(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
+          start: float) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the road's breakpoints per run: the history behind the polygon, the polygon.
 
-    :return: ``(x, y)``, shape ``(B, N)``, ``x`` ascending per run.
+    :param d: the polygon's distances, ``(K,)``.
+    :param k: its curvatures, ``(K, N)``.
+    :param history: the curvature behind the CG.
+    :param start: where the road is wanted from [m]: the samples before the last one
+        before it are left out (a stopped run of a batch keeps every run's samples).
+    :return: ``(x, y)``, shape ``(B, N)``, ``x`` non-decreasing per run (a piece of
+        length 0 is a jump).
     """
+    runs = k.shape[1]
+    x_poly, y_poly = d, k
+    if d[0] > 0.0:                      # the polygon's first value, held from the CG
+        x_poly, y_poly = np.append(0.0, d), np.vstack([k[:1], k])
     x = np.broadcast_to(x_poly.reshape(-1, 1), (x_poly.size, runs))
-    if history is None:
-        return x, y_poly
-    where, rho = history.behind()
+    where, rho = (np.zeros(0), np.zeros(0)) if history is None else history.behind()
     if where.size == 0:
         return x, y_poly
     where = where.reshape(where.shape[0], -1)
     rho = rho.reshape(rho.shape[0], -1)
     if where.shape[1] != runs:
         return x, y_poly                # another batch's history: none of this one's
-    # a sample without a curvature takes the next finite one's toward now (a restarted
-    # run's old samples: the value where it restarted); none: the polygon's first
+    needed = np.flatnonzero(np.any((where >= start) & (where < x_poly[0]), axis=1))
+    before = np.flatnonzero(np.any(where < start, axis=1))
+    first = (max(int(needed[0]) - 1, 0) if needed.size
+             else int(before[-1]) if before.size else where.shape[0] - 1)
+    where, rho = where[first:], rho[first:]
+    # the samples behind the polygon's first point (and the CG); a sample without a
+    # curvature, or not kept, takes the next kept finite one's toward now (a restarted
+    # run's old samples: what its single run, cleared, holds back); none: the polygon's
+    keep = where < x_poly[0]
+    rho = np.where(keep, rho, math.nan)
     size = rho.shape[0]
     index = np.where(np.isfinite(rho), np.arange(size).reshape(-1, 1), size)
     nearest = np.minimum.accumulate(index[::-1], axis=0)[::-1]
     filled = np.take_along_axis(np.vstack([rho, y_poly[:1]]), nearest, axis=0)
-    # only behind the polygon's first point (and the CG): there the polygon is the road
-    keep = where < min(x_poly[0], 0.0)
-    filled = np.where(keep, filled, np.nan)
-    # behind the polygon the samples move up to it (a sample not kept repeats the
-    # polygon's first point: a piece of length 0)
+    # a sample not kept moves up to the polygon's first point (a piece of length 0)
     where = np.where(keep, where, x_poly[0])
-    filled = np.where(keep, filled, y_poly[:1])
     return np.vstack([where, x]), np.vstack([filled, y_poly])
+
+
+def _cut(x: np.ndarray, y: np.ndarray, start: float, end: float
+         ) -> tuple[np.ndarray, np.ndarray]:
+    """Return the road ``(x, y)`` on ``[start, end]``: its points there and both ends."""
+    y_start, y_end = _road_at(x, y, start), _road_at(x, y, end)
+    inside = (x > start) & (x < end)
+    # the points outside move onto the ends, with the ends' values (pieces of length 0)
+    y_in = np.where(inside, y, np.where(x <= start, y_start, y_end))
+    x_in = np.clip(x, start, end)
+    runs = x.shape[1]
+    return (np.vstack([np.full((1, runs), start), x_in, np.full((1, runs), end)]),
+            np.vstack([y_start, y_in, y_end]))
+
+
+def _segment(x: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Return per point and run the index of the last breakpoint at or before it."""
+    if x.shape[1] == 1:
+        count = np.searchsorted(x[:, 0], at, side='right').reshape(-1, 1)
+    elif at.size * x.size <= 1_000_000:   # per run (the history's positions differ)
+        count = np.count_nonzero(x[None] <= at.reshape(-1, 1, 1), axis=1)
+    else:
+        count = np.stack([np.searchsorted(x[:, j], at, side='right')
+                          for j in range(x.shape[1])], axis=1)
+    return np.clip(count - 1, 0, x.shape[0] - 1)
+
+
+def _road_at(x: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
+    """Return the road at ``at`` per run (linear, held beyond its ends), ``(1, N)``."""
+    i = _segment(x, np.array([at]))
+    j = np.minimum(i + 1, x.shape[0] - 1)
+    x0, x1 = np.take_along_axis(x, i, axis=0), np.take_along_axis(x, j, axis=0)
+    y0, y1 = np.take_along_axis(y, i, axis=0), np.take_along_axis(y, j, axis=0)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        share = np.where(x1 > x0, np.clip((at - x0) / np.where(x1 > x0, x1 - x0, 1.0),
+                                          0.0, 1.0), 0.0)
+    return y0 + share * (y1 - y0)
 
 
 def _second_integral(x: np.ndarray, y: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -274,11 +318,7 @@ def _second_integral(x: np.ndarray, y: np.ndarray, at: np.ndarray) -> np.ndarray
     second = np.vstack([np.zeros((1, x.shape[1])),
                         np.cumsum(first[:-1] * dx + 0.5 * y[:-1] * dx * dx
                                   + slope * dx ** 3 / 6.0, axis=0)])
-    if x.shape[1] == 1:                 # one run: a search (the node's case)
-        count = np.searchsorted(x[:, 0], at, side='right').reshape(-1, 1)
-    else:
-        count = np.count_nonzero(x[None] <= at.reshape(-1, 1, 1), axis=1)
-    i = np.clip(count - 1, 0, x.shape[0] - 1)                       # (M, N)
+    i = _segment(x, at)                                             # (M, N)
     h = at.reshape(-1, 1) - np.take_along_axis(x, i, axis=0)
     m = np.take_along_axis(np.vstack([slope, np.zeros((1, x.shape[1]))]), i, axis=0)
     m = np.where(h >= 0.0, m, 0.0)      # before the first breakpoint: held
