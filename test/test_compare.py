@@ -1059,36 +1059,34 @@ def test_the_node_output_stage_limits_are_run_offline(tmp_path):
                                   output_stage=False)
     assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'p'), '--controller',
                                           str(path)]) == 2
+
+    def refused(name: str, body: str, match: str, not_run=compare.NOT_RUN_OFFLINE) -> None:
+        path = tmp_path / f'{name}.yaml'
+        path.write_text('/**:\n  ros__parameters:\n' + body)
+        with pytest.raises(ConfigError, match=match):
+            compare.load_law_settings(path, tool='paper_scenario', not_run=not_run,
+                                      runs=paper_scenario.PAPER_RUNS, output_stage=False)
+        assert run_tool(paper_scenario.main, ['--out', str(tmp_path / name), '--controller',
+                                              str(path)]) == 2
+        assert not (tmp_path / name / 'report.md').exists()
     # session 26's note: paper_scenario took a file's input timing (safety.safe_angle,
     # input_timeout...) silently; compare and sweep report them as not met, it has no
     # safety layer and no line for them: refused as the limits are
-    timing = tmp_path / 'timing.yaml'
-    timing.write_text('/**:\n  ros__parameters:\n    safety:\n      safe_angle: 0.1\n'
-                      '      input_timeout: 0.5\n')
-    with pytest.raises(ConfigError, match='safety.safe_angle = 0.1, safety.input_timeout = '
-                       '0.5: the controller node runs this, paper_scenario does not'):
-        compare.load_law_settings(timing, tool='paper_scenario', runs=paper_scenario.PAPER_RUNS,
-                                  output_stage=False)
-    assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'q'), '--controller',
-                                          str(timing)]) == 2
-    assert not (tmp_path / 'q' / 'report.md').exists()
+    refused('timing', '    safety:\n      safe_angle: 0.1\n      input_timeout: 0.5\n',
+            'safety.safe_angle = 0.1, safety.input_timeout = 0.5: the controller node runs '
+            'this, paper_scenario does not')
     # dev-probe59: ... and the other laws' settings, which it does not run either
-    other = tmp_path / 'other.yaml'
-    other.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
-                     '      natural_frequency: 6.0\n    stanley:\n      gain: 2.0\n')
-    with pytest.raises(ConfigError, match='lane_keeping.natural_frequency = 6.0, '
-                       'stanley.gain = 2.0: the controller node runs this, paper_scenario'):
-        compare.load_law_settings(other, tool='paper_scenario', runs=paper_scenario.PAPER_RUNS,
-                                  not_run=(*compare.NOT_RUN_OFFLINE, 'lane_keeping.',
-                                           'stanley.'), output_stage=False)
-    assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'r'), '--controller',
-                                          str(other)]) == 2
+    refused('other', '    lane_keeping:\n      natural_frequency: 6.0\n    stanley:\n'
+            '      gain: 2.0\n', 'lane_keeping.natural_frequency = 6.0, stanley.gain = 2.0: '
+            'the controller node runs this, paper_scenario',
+            (*compare.NOT_RUN_OFFLINE, 'lane_keeping.', 'stanley.'))
     # the package's own file: every value the package's, nothing refused
     from lookahead_control.core.config import source_config_dir
     assert run_tool(paper_scenario.main, ['--out', str(tmp_path / 'pkg'), '--no-plots',
                                           '--controller',
                                           str(source_config_dir() / 'controller.yaml')]) == 0
-    assert compare.settings_changes(compare.load_law_settings(timing, tool='compare')) == [
+    assert compare.settings_changes(compare.load_law_settings(
+            tmp_path / 'timing.yaml', tool='compare')) == [
         'safety.input_timeout = 0.5 (not met: the inputs are exact and timely)',
         'safety.safe_angle = 0.1 (not met: the inputs are exact and timely)']
 
