@@ -94,7 +94,7 @@ class CurvatureHistory:
                                np.broadcast_to(value, self.travelled.shape))
             except ValueError:
                 self.clear()            # another batch: its road behind is not this one
-        if self.travelled is None or self.size == 0:
+        if self.travelled is None:
             self.travelled = np.zeros(step.shape)
             self._where = np.zeros((MAX_SAMPLES,) + step.shape)
             self._rho = np.zeros((MAX_SAMPLES,) + step.shape)
@@ -102,11 +102,10 @@ class CurvatureHistory:
             self.travelled = self.travelled + np.where(np.isfinite(step), step, 0.0)
         # the oldest sample kept is the last one at or beyond half_width behind every run
         # (the positions grow along the samples: the runs' test is true on a prefix)
-        beyond = self._where[:self.size] <= self.travelled - self.half_width
-        drop = max(int(np.count_nonzero(
-            beyond.reshape(self.size, -1).all(axis=1))) - 1, 0) if self.size else 0
-        if self.size == MAX_SAMPLES:
-            drop = max(drop, 1)
+        beyond = (self._where[:self.size] <= self.travelled - self.half_width).reshape(
+            self.size, self.travelled.size)
+        drop = max(int(np.count_nonzero(beyond.all(axis=1))) - 1,
+                   1 if self.size == MAX_SAMPLES else 0)
         if drop:
             self._where[:self.size - drop] = self._where[drop:self.size].copy()
             self._rho[:self.size - drop] = self._rho[drop:self.size].copy()
@@ -244,9 +243,11 @@ def _road(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
     if where.shape[1] != runs:
         return x, y_poly                # another batch's history: none of this one's
     needed = np.flatnonzero(np.any((where >= start) & (where < x_poly[0]), axis=1))
-    before = np.flatnonzero(np.any(where < start, axis=1))
-    first = (max(int(needed[0]) - 1, 0) if needed.size
-             else int(before[-1]) if before.size else where.shape[0] - 1)
+    if needed.size:
+        first = max(int(needed[0]) - 1, 0)
+    else:                               # the last sample before the window, or the newest
+        before = np.flatnonzero(np.any(where < start, axis=1))
+        first = int(before[-1]) if before.size else where.shape[0] - 1
     where, rho = where[first:], rho[first:]
     # the samples behind the polygon's first point (and the CG); a sample without a
     # curvature, or not kept, takes the next kept finite one's toward now (a restarted
