@@ -32,7 +32,7 @@ from dataclasses import replace
 from pathlib import Path
 import sys
 import time
-from typing import Any, Optional
+from typing import Any, Mapping, Optional
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.config import source_config_dir
@@ -133,6 +133,23 @@ GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_
                 'v_x', 'a_x', 'rho', 'command_time')
 
 
+def check_parameters(params: Mapping[str, Any]) -> tuple[VehicleParams, PlantParams]:
+    """
+    Refuse parameters the simulator would not start with (before ROS starts, too).
+
+    :param params: every parameter of :data:`ALL_SPECS` by name (checked values).
+    :return: the vehicle (the controller's model) and the plant.
+    :raises ParameterError: a value or combination the simulator refuses.
+    """
+    if params['output'] == 'vehicle' and params['curvature_stop'] > 0.0:
+        # the road goes out once, as a path: path_bridge's curvature would not stop
+        raise ParameterError(f"curvature_stop = {params['curvature_stop']:g}: only with output "
+                             "'contract' (road_curvature); output 'vehicle' sends the "
+                             "road once as a path, the curvature is path_bridge's")
+    build(NoiseParams, params, 'noise')
+    return build(VehicleParams, params, 'vehicle'), build(PlantParams, params, 'plant')
+
+
 class SimPlantNode(Node):
     """Plant simulator publishing the controller's input contract."""
 
@@ -146,13 +163,9 @@ class SimPlantNode(Node):
         declare(self, ALL_SPECS)
         p = values(self, ALL_SPECS)
         self.params = p
-        if p['output'] == 'vehicle' and p['curvature_stop'] > 0.0:
-            # the road goes out once, as a path: path_bridge's curvature would not stop
-            raise ParameterError(f"curvature_stop = {p['curvature_stop']:g}: only with output "
-                                 "'contract' (road_curvature); output 'vehicle' sends the "
-                                 "road once as a path, the curvature is path_bridge's")
-        self.vehicle: VehicleParams = build(VehicleParams, p, 'vehicle')
-        self.plant: PlantParams = build(PlantParams, p, 'plant')
+        self.vehicle: VehicleParams
+        self.plant: PlantParams
+        self.vehicle, self.plant = check_parameters(p)
         self.plant_vehicle = replace(
             self.vehicle, mass=self.vehicle.mass * p['plant.mass_scale'],
             yaw_inertia=self.vehicle.yaw_inertia * p['plant.inertia_scale'],
@@ -631,7 +644,8 @@ def main(args: Optional[list[str]] = None) -> int:
     """
     return run_node('sim_plant', args, SimPlantNode, lambda node: node.done.done(),
                     specs=ALL_SPECS, description='plant simulator: publishes the '
-                    "controller's inputs for a scenario, integrates its steering")
+                    "controller's inputs for a scenario, integrates its steering",
+                    check=check_parameters)
 
 
 def entry() -> int:

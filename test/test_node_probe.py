@@ -495,3 +495,42 @@ def test_record_names_a_topic_whose_type_is_not_installed(probe, tmp_path, capsy
     assert err.rstrip().endswith('; not recorded, type not installed: /untyped '
                                  '(std_msgs/msg/Float64MultiArray)'), err
     assert bag_topics(tmp_path / 'bag') == {}
+
+
+def test_replay_and_record_check_the_params_files_among_their_ros_arguments(tmp_path, capsys):
+    # dev-probe5x's "seen": replay took a params file holding only a string (it played,
+    # and re-ran offline, on it), and a directory or a malformed file gave rcl's raw
+    # message in record and replay; now both read them as the nodes do, in one line
+    import os
+    from lookahead_control.bags import recorder_node, replay_node
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    word = tmp_path / 'word.yaml'
+    word.write_text('hello\n')
+    malformed = tmp_path / 'malformed.yaml'
+    malformed.write_text('a: [1,\n')
+    folder = tmp_path / 'folder'
+    folder.mkdir()
+    for path, why in ((word, 'not a ROS parameters file'), (malformed, 'malformed YAML'),
+                      (folder, 'cannot read')):
+        assert run_tool(replay_node.main, [str(bag), '--offline', '--ros-args',
+                                           '--params-file', str(path)]) == 2
+        err = capsys.readouterr().err
+        assert f': error: {path}: ' in err and why in err, err
+        assert err.count('\n') == 1, err
+        assert run_tool(recorder_node.main, ['record', '-o', str(tmp_path / 'rec'),
+                                             '--ros-args', '--params-file', str(path)]) == 2
+        err = capsys.readouterr().err
+        assert f': error: {path}: ' in err and why in err, err
+        assert err.count('\n') == 1, err
+        assert not (tmp_path / 'rec').exists()
+    # a good file read once (a pipe) is read by the check, and the re-run still runs
+    read, write = os.pipe()
+    os.write(write, b'/**:\n  ros__parameters:\n    use_sim_time: false\n')
+    os.close(write)
+    try:
+        assert run_tool(replay_node.main, [str(bag), '--offline', '--node', '/controller',
+                                           '--check', '1e-9', '--ros-args', '--params-file',
+                                           f'/dev/fd/{read}']) == 0
+    finally:
+        os.close(read)

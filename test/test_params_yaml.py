@@ -618,3 +618,90 @@ def test_a_vehicle_file_gives_the_car_to_every_node(tmp_path, section):
         load_vehicle(path)
     path.write_text("'/**':\n  ros__parameters:\n    vehicle:\n      mass: 1600.0\n")
     assert load_vehicle(path).mass == 1600.0
+
+
+def test_a_value_the_core_refuses_names_the_argument_that_set_it(tmp_path):
+    # dev-probe60's "seen": 'curvature_smoothing: 0.5' (allowed 0 or 1-50 m) passes the
+    # schema's range 0-50 and stopped the node on the core's check, without the file's
+    # name that every range error has; now the whole set is checked before ROS starts
+    import os
+    from lookahead_control.ros.controller_node import ALL_SPECS, check_parameters
+    from lookahead_control.ros.node_main import checked_arguments
+
+    def given(*args):
+        return checked_arguments(['--ros-args', *args], 'controller', ALL_SPECS, [],
+                                 check_parameters)
+
+    half = tmp_path / 'half.yaml'
+    half.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
+                    '      curvature_smoothing: 0.5\n')
+    with pytest.raises(ConfigError, match=f'^{half}: lane_keeping.curvature_smoothing = 0.5 '
+                       r'm would average .*allowed: 0 \(the polygon as received\) or 1-50 m'):
+        given('--params-file', str(half))
+    with pytest.raises(ConfigError, match='^-p lane_keeping.curvature_smoothing:=0.5: '
+                       'lane_keeping.curvature_smoothing = 0.5 m'):
+        given('-p', 'lane_keeping.curvature_smoothing:=0.5')
+    # a later argument that sets it right: the node starts
+    assert given('--params-file', str(half), '-p', 'lane_keeping.curvature_smoothing:=5.0')
+    # another node's section is not this node's
+    other = tmp_path / 'other.yaml'
+    other.write_text('/car_b/controller:\n  ros__parameters:\n    lane_keeping:\n'
+                     '      curvature_smoothing: 0.5\n')
+    assert given('--params-file', str(other))
+    # a combination: each argument that set a named parameter is named
+    gap = tmp_path / 'gap.yaml'
+    gap.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n      max_gap: 1.0\n')
+    with pytest.raises(ConfigError, match=f'^{gap}: lane_keeping.max_gap = 1.0 s is above'):
+        given('--params-file', str(gap))
+    with pytest.raises(ConfigError, match=f'^{gap} and -p lane_keeping.state_filter:=kalman: '):
+        given('--params-file', str(gap), '-p', 'lane_keeping.state_filter:=kalman')
+    assert given('--params-file', str(gap), '-p', 'lane_keeping.state_filter:=none')
+    # a name without a namespace is named as 'name =', not as a word of the message
+    with pytest.raises(ConfigError, match=r'^-p controller.reference:=arc_exact: controller.'
+                       r"reference = 'arc_exact': the CG-compensated law builds"):
+        given('-p', 'controller.reference:=arc_exact', '-p', 'law:=cg_compensated')
+    with pytest.raises(ConfigError, match="^-p law:=bogus: law = 'bogus' is not allowed"):
+        given('-p', 'law:=bogus')
+    # a file read once is named as given, not as the copy the node reads
+    read, write = os.pipe()
+    os.write(write, half.read_bytes())
+    os.close(write)
+    scratch = []
+    try:
+        with pytest.raises(ConfigError, match=f'^/dev/fd/{read}: lane_keeping.curvature'):
+            checked_arguments(['--ros-args', '--params-file', f'/dev/fd/{read}'], 'controller',
+                              ALL_SPECS, scratch, check_parameters)
+    finally:
+        os.close(read)
+        for path in scratch:
+            path.unlink()
+
+
+def test_the_simulator_and_the_bridge_check_their_whole_set_at_start_up(tmp_path):
+    from lookahead_control.ros import path_bridge_node
+    from lookahead_control.ros.node_main import checked_arguments
+    from sim_plant import sim_plant_node
+    stop = tmp_path / 'stop.yaml'
+    stop.write_text('sim_plant:\n  ros__parameters:\n    output: vehicle\n'
+                    '    curvature_stop: 5.0\n')
+    with pytest.raises(ConfigError, match=f'^{stop}: curvature_stop = 5: only with output'):
+        checked_arguments(['--ros-args', '--params-file', str(stop)], 'sim_plant',
+                          sim_plant_node.ALL_SPECS, [], sim_plant_node.check_parameters)
+    assert checked_arguments(['--ros-args', '--params-file', str(stop), '-p', 'output:=contract'],
+                             'sim_plant', sim_plant_node.ALL_SPECS, [],
+                             sim_plant_node.check_parameters)
+    assert checked_arguments(['--ros-args', '-p', 'path.fit_half_window:=2.0'], 'path_bridge',
+                             path_bridge_node.ALL_SPECS, [], path_bridge_node.check_parameters)
+
+
+def test_the_controller_executable_names_the_file_of_a_value_its_core_refuses(tmp_path):
+    half = tmp_path / 'half.yaml'
+    half.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n'
+                    '      curvature_smoothing: 0.5\n')
+    exe = Path(sys.prefix) / 'lib' / 'lookahead_control' / 'controller'
+    out = subprocess.run([str(exe), '--ros-args', '--params-file', str(half)],
+                         capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert out.returncode == 2, out.stderr
+    assert out.stderr == (f'controller: error: {half}: lane_keeping.curvature_smoothing = 0.5 '
+                          'm would average over less than a metre of road; allowed: 0 (the '
+                          'polygon as received) or 1-50 m\n')

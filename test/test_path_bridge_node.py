@@ -198,7 +198,7 @@ def test_driving_off_the_end_stops_the_output_and_a_new_path_resumes_it(bridge):
 
 @pytest.mark.parametrize('field, value, reason', [
     ('x', math.nan, 'odometry position.x is not finite (nan)'),
-    ('w', 0.0, 'odometry orientation has norm 0: not a rotation'),
+    ('w', 0.0, 'odometry orientation (0, 0, 0, 0) has norm 0, not 1 (within 0.01)'),
     ('vx', math.inf, 'odometry twist.linear.x is not finite (inf)'),
 ])
 def test_non_finite_odometry_is_refused(bridge, field, value, reason):
@@ -214,6 +214,34 @@ def test_non_finite_odometry_is_refused(bridge, field, value, reason):
         msg.twist.twist.linear.x = value
     node.on_odometry(msg)
     assert node.out == [] and node.diag[-1].message == reason
+
+
+def test_an_orientation_that_is_no_unit_quaternion_is_refused_as_the_controller_does(bridge):
+    # dev-probe5x's "seen": the bridge normalized any non-zero quaternion, so a corrupt
+    # (0, 0, 0.3, 0) read as a yaw of pi and a norm of 0.5 as a rotation, while the
+    # controller refuses an Imu orientation whose norm is off 1 by more than 0.01
+    node = bridge()
+    node.on_path(road_path())
+    for k, scale in enumerate((0.5, 0.98, 1.02, 1.5), start=1):
+        msg = odometry(k, 20.0)
+        o = msg.pose.pose.orientation
+        o.x, o.y, o.z, o.w = o.x * scale, o.y * scale, o.z * scale, o.w * scale
+        node.on_odometry(msg)
+        assert node.out == [], scale
+        assert node.problem.startswith('odometry orientation (') and (
+            f'has norm {scale:g}, not 1 (within 0.01)' in node.problem), scale
+    # within the tolerance it is normalized: the same lane error and yaw as the unit one
+    unit, off = bridge(), bridge()
+    for each, scale in ((unit, 1.0), (off, 1.009)):
+        each.on_path(road_path())
+        msg = odometry(1, 20.0, lateral=0.3)
+        o = msg.pose.pose.orientation
+        o.x, o.y, o.z, o.w = o.x * scale, o.y * scale, o.z * scale, o.w * scale
+        each.on_odometry(msg)
+    assert contract(off)['lateral_error'].value == pytest.approx(
+        contract(unit)['lateral_error'].value, abs=1e-12)
+    yaws = [contract(each)['yaw'].relative_yaw for each in (off, unit)]
+    assert yaws[0] == pytest.approx(yaws[1], abs=1e-12)
 
 
 def test_a_five_metre_relocalization_is_followed_and_reported(bridge):

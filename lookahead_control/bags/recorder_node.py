@@ -39,8 +39,8 @@ from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAM
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import ConfigError, source_config_dir
-from lookahead_control.ros.node_main import (now_ns, program_arguments, rcl_reason, RCLError,
-                                             run_node)
+from lookahead_control.ros.node_main import (checked_arguments, now_ns, program_arguments,
+                                             rcl_reason, RCLError, run_node)
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidHandle
@@ -465,6 +465,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                    '(default 0.5)')
     p.add_argument('--recover', type=Path, metavar='BAG',
                    help='rewrite a truncated bag into a readable one and exit')
+    # the params files among the ROS arguments checked before rcl parses them here: a
+    # malformed one or a directory is one line naming it (was rcl's raw message), and a
+    # read-once file is copied first (rcl read it here, and the node then found it empty)
+    scratch: list[Path] = []
+    try:
+        full = checked_arguments(full, 'record', (), scratch)
+        return _main(p, full)
+    finally:
+        for path in scratch:
+            path.unlink(missing_ok=True)
+
+
+def _main(p: ArgumentParser, full: list[str]) -> int:
     args = p.parse_args(program_arguments(full))
     if args.recover is not None:
         given = [name for name, used in (

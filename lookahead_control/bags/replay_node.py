@@ -39,7 +39,8 @@ from lookahead_control.core.cli import (ArgumentParser, assignments, number, run
                                         ToolError, write_json)
 from lookahead_control.core.config import ConfigError, rcl_param_value
 from lookahead_control.ros import conversions as conv
-from lookahead_control.ros.node_main import program_arguments, rcl_log_held
+from lookahead_control.ros.node_main import (checked_arguments, program_arguments,
+                                             rcl_log_held)
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -300,6 +301,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                               'steering > TOL [rad]; implies --offline')
     offline_only.add_argument('--json', type=Path, default=None, metavar='FILE',
                               help='write the comparison as JSON')
+    # the params files among the ROS arguments read as record and the nodes read them:
+    # one line naming a malformed one (before, a file holding only a string played, and
+    # a directory gave rcl's raw message), a read-once file copied before rcl reads it
+    scratch: list[Path] = []
+    try:
+        full = checked_arguments(full, 'replay', (), scratch)
+        return _main(p, full)
+    finally:
+        for path in scratch:
+            path.unlink(missing_ok=True)
+
+
+def _main(p: ArgumentParser, full: list[str]) -> int:
     args = p.parse_args(program_arguments(full))
     offline_run = args.offline or args.check is not None
     played = [name for name, value in (('--rate', args.rate), ('--topics', args.topics),

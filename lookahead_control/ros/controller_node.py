@@ -175,6 +175,18 @@ def core_from_params(params: Mapping[str, Any]) -> SteeringController:
                               lane_keeping_params(params))
 
 
+def check_parameters(params: Mapping[str, Any]) -> None:
+    """
+    Refuse parameters the node would not start with (its on-set check, at start-up).
+
+    :param params: every parameter of :data:`ALL_SPECS` by name (checked values).
+    :raises ParameterError: a value or combination the core or its law refuses.
+    :raises ValueError: a string parameter that is not one of its choices.
+    """
+    check_choices(ALL_SPECS, params)
+    core_from_params(params)
+
+
 class ControllerNode(LifecycleNode):
     """Lifecycle node publishing the variable look-ahead steering command."""
 
@@ -774,7 +786,8 @@ def main(args: Optional[list[str]] = None) -> int:
     :return: exit code.
     """
     return run_node('controller', args, _make_controller, specs=ALL_SPECS,
-                    description='variable look-ahead lateral controller (lifecycle node)')
+                    description='variable look-ahead lateral controller (lifecycle node)',
+                    check=check_parameters)
 
 
 def entry() -> int:

@@ -35,8 +35,8 @@ from typing import Any, Callable, Iterator, Optional, Sequence, TypeVar
 
 from lookahead_control.core import interrupts
 from lookahead_control.core.cli import one_line, ToolError
-from lookahead_control.core.config import (check_params_file, ConfigError, node_sections,
-                                           rcl_param_value)
+from lookahead_control.core.config import (applies_to, check_params_file, ConfigError,
+                                           node_sections, rcl_param_value)
 from lookahead_control.core.param_schema import check_params
 from lookahead_control.core.params import ParameterError
 from lookahead_control.core.rcl_yaml import merge_flat, RclYamlError
@@ -305,23 +305,31 @@ def node_full_name(args: Sequence[str], node_name: str) -> str:
 
 
 def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
-                      scratch: list[Path]) -> list[str]:
+                      scratch: list[Path],
+                      check: Optional[Callable[[dict[str, Any]], Any]] = None) -> list[str]:
     """
     Check the parameters given on the command line against the node's schema.
 
     The same check as the offline tools make (``core.param_schema``): unknown names in
     the node's sections (``vehicle.masss``), wrong types and values out of range are one
     line naming the file (or ``-p``). An integer for a real (``mass: 1485``) is taken as
-    that real: the file is passed to rcl as a converted copy, ``-p`` rewritten.
+    that real: the file is passed to rcl as a converted copy, ``-p`` rewritten. Then
+    ``check`` runs on every parameter the node will start with: a value its core refuses
+    (a setting that is 0 or within a range, a combination) is one line naming the file
+    or ``-p`` that set it, as a range error is.
 
     :param args: command-line arguments (ROS arguments included).
     :param node_name: the node's name (its sections in params files).
     :param specs: its parameters (empty: only the files' syntax is checked).
     :param scratch: converted copies written are appended here (the caller deletes them).
+    :param check: builds the node's core from its parameters by name (defaults and what
+        is given, checked) and raises ``ParameterError`` or ``ValueError`` for what the
+        core refuses (None: no such check).
     :return: the arguments to give rcl.
     :raises ConfigError: a bad file or value.
     """
     out = list(args)
+    shown: dict[str, str] = {}      # a read-once file's copy -> the name given
     for at, flag, value in ros_flags(args):
         path = Path(value)
         if flag == '--params-file' and path.exists() and not path.is_file():
@@ -337,6 +345,7 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
             with copy:
                 copy.write(data)
             out[at] = copy.name
+            shown[copy.name] = value
     args = list(out)
     # each file read once, before rcl does, for a one-line error naming it (any node)
     files = {i: node_sections(value) for i, flag, value in ros_flags(args)
@@ -349,11 +358,13 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
     # what rcl reads otherwise when a later file or -p sets an earlier one's names
     # (two types, a map over a value): one params entry per section name, -p in '/**'
     given: dict[str, dict[str, Any]] = {}
+    origin: dict[str, dict[str, str]] = {}     # section -> name -> the argument setting it
     for i, flag, value in ros_flags(args):
         if flag == '--params-file':
             raw = dict(files[i])
             for key, flat in raw.items():
                 _merge_given(given, key, flat, f'{value}: ')
+                origin.setdefault(key, {}).update(dict.fromkeys(flat, shown.get(value, value)))
             sections = check_params_file(value, full_name, specs, files[i])
             if any(type(v) is not type(raw[key][name])
                    for key, flat in sections.items() for name, v in flat.items()):
@@ -373,13 +384,58 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
             try:
                 typed = rcl_param_value(text)
                 _merge_given(given, target or '/**', {name: typed}, '')
+                origin.setdefault(target or '/**', {})[name] = f'{flag} {value}'
                 parsed = check_params({name: typed}, specs)[name]
             except (ParameterError, ConfigError) as err:
                 raise ConfigError(f'{flag} {value}: {one_line(str(err))}') from err
             if type(parsed) is not type(typed):
                 # an integer for a real or a whole real for an integer, as in a file
                 out[i] = f'{target + ":" if target else ""}{name}:={parsed!r}'
+    if check is not None:
+        _check_whole(given, origin, full_name, specs, check)
     return out
+
+
+def _check_whole(given: dict[str, dict[str, Any]], origin: dict[str, dict[str, str]],
+                 full_name: str, specs: Sequence[Any],
+                 check: Callable[[dict[str, Any]], Any]) -> None:
+    """
+    Run the node's own check on the parameters it will start with, naming their source.
+
+    The sections that apply to the node in rcl's order (:func:`_merge_given`: one entry
+    per section name, ``-p`` in ``/**``), over the defaults. Before, a value the schema's
+    range lets through and the core refuses (``curvature_smoothing: 0.5``, allowed 0 or
+    1-50 m) stopped the node without the file's name (dev-probe60's "seen").
+
+    :param given: section name -> its merged parameters.
+    :param origin: section name -> parameter -> the argument that set it last.
+    :param full_name: the node's full name.
+    :param specs: its parameters.
+    :param check: the node's check (:func:`checked_arguments`).
+    :raises ConfigError: ``<file or -p>: <the core's message>``.
+    """
+    names = {spec.name for spec in specs}
+    effective: dict[str, Any] = {}
+    source: dict[str, str] = {}
+    for key, flat in given.items():
+        if applies_to(key, full_name):
+            mine = {name: value for name, value in flat.items() if name in names}
+            effective.update(mine)
+            source.update({name: origin[key][name] for name in mine})
+    params = {spec.name: spec.default for spec in specs}
+    try:
+        params.update(check_params(effective, specs))
+        check(params)
+    except (ParameterError, ValueError) as err:
+        message = str(err)
+        # the parameters the message names, of those given: the arguments that set them
+        # (a name without a namespace only as 'name =': 'law' is also a word)
+        named = sorted((found.start(), name) for name in source
+                       for found in [re.search(rf'(?<![\w.]){re.escape(name)}'
+                                               rf'{"" if "." in name else " ="}(?![\w])',
+                                               message)] if found)
+        where = list(dict.fromkeys(source[name] for _, name in named))
+        raise ConfigError(f'{" and ".join(where) + ": " if where else ""}{message}') from err
 
 
 def _merge_given(given: dict[str, dict[str, Any]], key: str, flat: dict[str, Any],
@@ -460,7 +516,8 @@ class _StopRequest:
 
 def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
              done: Callable[[N], bool] = lambda node: False,
-             specs: Sequence[Any] = (), description: str = '') -> int:
+             specs: Sequence[Any] = (), description: str = '',
+             check: Optional[Callable[[dict[str, Any]], Any]] = None) -> int:
     """
     Create a node, spin it until done or shut down, and clean up.
 
@@ -475,6 +532,8 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
     :param done: True when the node has finished (default: run until shut down).
     :param specs: the node's parameters, for ``--help``.
     :param description: what the node does, for ``--help``.
+    :param check: the node's check of its whole parameter set before ROS starts
+        (:func:`checked_arguments`).
     :return: 0, or 2 for bad parameters or config.
     """
     if wants_help([name, *(args or [])[1:]]):
@@ -483,7 +542,7 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
     stop = _StopRequest()
     scratch: list[Path] = []
     try:
-        return _run(name, args, make, done, stop, specs, scratch)
+        return _run(name, args, make, done, stop, specs, scratch, check)
     finally:
         stop.restore()
         for path in scratch:
@@ -492,9 +551,9 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
 
 def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
          done: Callable[[N], bool], stop: _StopRequest, specs: Sequence[Any],
-         scratch: list[Path]) -> int:
+         scratch: list[Path], check: Optional[Callable[[dict[str, Any]], Any]]) -> int:
     try:
-        rcl_args = checked_arguments(args or [], name, specs, scratch)
+        rcl_args = checked_arguments(args or [], name, specs, scratch, check)
         with rcl_log_held():
             rclpy.init(args=rcl_args, signal_handler_options=SignalHandlerOptions.NO)
     except ConfigError as err:

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Mapping, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
@@ -99,6 +99,18 @@ DEBUG_FIELDS = ('s', 'y_cg', 'eps_r', 'rho', 'path_heading', 'remaining', 'yaw_r
                 'accel_x')
 
 
+def check_parameters(params: Mapping[str, Any]) -> None:
+    """
+    Refuse parameters the bridge would not run with (its on-set check, at start-up).
+
+    :param params: every parameter of :data:`ALL_SPECS` by name (checked values).
+    :raises ParameterError: a path setting :class:`PathParams` refuses.
+    :raises ValueError: a string parameter that is not one of its choices.
+    """
+    check_choices(ALL_SPECS, params)
+    build(PathParams, params, 'path')
+
+
 class PathBridgeNode(LifecycleNode):
     """Lifecycle node turning odometry and a path into the controller's inputs."""
 
@@ -143,9 +155,7 @@ class PathBridgeNode(LifecycleNode):
 
     def _validate_parameters(self, params: list[Parameter]) -> SetParametersResult:
         try:
-            merged = values(self, ALL_SPECS, params)
-            check_choices(ALL_SPECS, merged)
-            build(PathParams, merged, 'path')
+            check_parameters(values(self, ALL_SPECS, params))
         except (ParameterError, ValueError) as err:
             return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
@@ -490,7 +500,7 @@ def main(args: Optional[list[str]] = None) -> int:
     # choice check, an integer for a real refused in rclpy's words; dev-probe54)
     return run_node('path_bridge', args, _make_bridge, specs=ALL_SPECS,
                     description='vehicle bridge: odometry and a road path to the '
-                    "controller's contract topics")
+                    "controller's contract topics", check=check_parameters)
 
 
 def entry() -> int:

@@ -27,7 +27,7 @@ import struct
 from typing import NamedTuple, Sequence
 
 from geometry_msgs.msg import PoseStamped
-from lookahead_control.core.samples import yaw_to_quaternion
+from lookahead_control.core.samples import quaternion_problem, yaw_to_quaternion
 from lookahead_control.ros.conversions import ns_to_stamp, stamp_to_ns
 from nav_msgs.msg import Odometry, Path
 import numpy as np
@@ -54,8 +54,8 @@ def from_odometry(msg: Odometry) -> OdometrySample:
 
     :param msg: the message.
     :return: the sample.
-    :raises ValueError: a non-finite field or an orientation that is no rotation
-        (norm 0); the message names it.
+    :raises ValueError: a non-finite field or an orientation that is no unit quaternion
+        (its norm off 1 by more than ``QUATERNION_NORM_TOLERANCE``); the message names it.
     """
     p, q, t = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist
     values = {'position.x': p.x, 'position.y': p.y, 'orientation.x': q.x,
@@ -65,9 +65,13 @@ def from_odometry(msg: Odometry) -> OdometrySample:
     for name, value in values.items():
         if not math.isfinite(value):
             raise ValueError(f'odometry {name} is not finite ({value!r})')
+    # as the controller reads an Imu's: a norm off 1 by more than the tolerance is a
+    # malformed message, not a rotation to normalize (before: any non-zero norm was
+    # normalized, so (0, 0, 0.3, 0) read as a yaw of pi)
+    problem = quaternion_problem(q.x, q.y, q.z, q.w)
+    if problem:
+        raise ValueError(f'odometry {problem}')
     norm = math.sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w)
-    if norm < 1e-6:
-        raise ValueError(f'odometry orientation has norm {norm:g}: not a rotation')
     x, y, z, w = q.x / norm, q.y / norm, q.z / norm, q.w / norm
     yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return OdometrySample(stamp_to_ns(msg.header.stamp), msg.header.frame_id,
