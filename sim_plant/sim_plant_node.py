@@ -32,10 +32,10 @@ from dataclasses import replace
 from pathlib import Path
 import sys
 import time
-from typing import Any, Mapping, Optional
+from typing import Any, Mapping, NamedTuple, Optional
 
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
-from lookahead_control.core.config import source_config_dir
+from lookahead_control.core.config import ConfigError, source_config_dir
 from lookahead_control.core.params import ParameterError, VehicleParams
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.controller_node import qos, WRITER_DEPTH, writer_qos
@@ -133,21 +133,59 @@ GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_
                 'v_x', 'a_x', 'rho', 'command_time')
 
 
-def check_parameters(params: Mapping[str, Any]) -> tuple[VehicleParams, PlantParams]:
+class Checked(NamedTuple):
+    """What the simulator's parameters give, checked (:func:`check_parameters`)."""
+
+    vehicle: VehicleParams
+    plant: PlantParams
+    scenario: Scenario
+    substeps: int
+    n_steps: int
+    lag: int
+
+
+def check_parameters(params: Mapping[str, Any]) -> Checked:
     """
     Refuse parameters the simulator would not start with (before ROS starts, too).
 
+    Each message names the parameters behind it as ``name = value``, so that the start-up
+    check names the file or ``-p`` that set them.
+
     :param params: every parameter of :data:`ALL_SPECS` by name (checked values).
-    :return: the vehicle (the controller's model) and the plant.
+    :return: the vehicle (the controller's model), the plant, the scenario, the plant
+        steps per control step, the control steps and the delay in plant steps.
     :raises ParameterError: a value or combination the simulator refuses.
+    :raises ConfigError: a scenario file that does not load.
     """
     if params['output'] == 'vehicle' and params['curvature_stop'] > 0.0:
         # the road goes out once, as a path: path_bridge's curvature would not stop
         raise ParameterError(f"curvature_stop = {params['curvature_stop']:g}: only with output "
-                             "'contract' (road_curvature); output 'vehicle' sends the "
+                             "= 'contract' (road_curvature); output = 'vehicle' sends the "
                              "road once as a path, the curvature is path_bridge's")
     build(NoiseParams, params, 'noise')
-    return build(VehicleParams, params, 'vehicle'), build(PlantParams, params, 'plant')
+    path = Path(params['scenario_file']) if params['scenario_file'] else (
+        source_config_dir() / 'scenarios' / 'paper_r400.yaml')
+    speed = params['speed'] or None
+    try:
+        scenario = load_scenario(path, speed)
+    except ConfigError as err:
+        if speed is None:
+            raise
+        load_scenario(path)         # the file itself loads: the override is refused
+        raise ParameterError(f'speed = {speed:g} m/s: {err}') from err
+    dt, rate = params['dt'], params['rate_hz']
+    try:
+        substeps, n_steps = check_steps(dt, 1.0 / rate, scenario.duration)
+    except ParameterError as err:
+        raise ParameterError(f'rate_hz = {rate:g} Hz and dt = {dt!r} s: the period 1 / '
+                             f'rate_hz must be a whole multiple of dt ({err})') from err
+    try:
+        lag = delay_steps(params['plant.delay'], dt)
+    except ParameterError as err:
+        raise ParameterError(f"plant.delay = {params['plant.delay']!r} s is not a whole "
+                             f'multiple of dt = {dt!r} s') from err
+    return Checked(build(VehicleParams, params, 'vehicle'), build(PlantParams, params, 'plant'),
+                   scenario, substeps, n_steps, lag)
 
 
 class SimPlantNode(Node):
@@ -163,9 +201,9 @@ class SimPlantNode(Node):
         declare(self, ALL_SPECS)
         p = values(self, ALL_SPECS)
         self.params = p
-        self.vehicle: VehicleParams
-        self.plant: PlantParams
-        self.vehicle, self.plant = check_parameters(p)
+        checked = check_parameters(p)
+        self.vehicle: VehicleParams = checked.vehicle
+        self.plant: PlantParams = checked.plant
         self.plant_vehicle = replace(
             self.vehicle, mass=self.vehicle.mass * p['plant.mass_scale'],
             yaw_inertia=self.vehicle.yaw_inertia * p['plant.inertia_scale'],
@@ -173,15 +211,12 @@ class SimPlantNode(Node):
             c_r=self.vehicle.c_r * p['plant.cornering_scale'])
         self.noise = (NoiseStream(build(NoiseParams, p, 'noise'), p['noise.seed'])
                       if p['noise.enabled'] else None)
-        path = Path(p['scenario_file']) if p['scenario_file'] else (
-            source_config_dir() / 'scenarios' / 'paper_r400.yaml')
-        self.scenario: Scenario = load_scenario(path, p['speed'] or None)
+        self.scenario: Scenario = checked.scenario
         self.period = 1.0 / p['rate_hz']
-        self.substeps, self.n_steps = check_steps(p['dt'], self.period,
-                                                  self.scenario.duration)
+        self.substeps, self.n_steps = checked.substeps, checked.n_steps
         self.sensor_distance = (p['sensor_distance'] if p['sensor_distance'] >= 0.0
                                 else self.vehicle.d_s)
-        self.lag = delay_steps(p['plant.delay'], p['dt'])
+        self.lag = checked.lag
         self.commands: dict[int, float] = {}      # step -> command, for the delay
         speed = self.scenario.speed
         self._preview_rho = self.scenario.road.curvature_function()

@@ -534,3 +534,67 @@ def test_replay_and_record_check_the_params_files_among_their_ros_arguments(tmp_
                                            f'/dev/fd/{read}']) == 0
     finally:
         os.close(read)
+
+
+def test_replay_and_record_name_a_bad_piped_file_and_namespace_in_one_line(tmp_path, capsys):
+    # dev-probe61: a malformed file read once was named as the deleted copy the check
+    # made of it (/tmp/.../replay_params_*.yaml); '-r __ns:=/car_b/' passes rcl's argument
+    # parser and ended in a traceback when the node was created
+    import os
+    from lookahead_control.bags import recorder_node, replay_node
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    for tool, argv in ((replay_node.main, [str(bag), '--offline']),
+                       (recorder_node.main, ['record', '-o', str(tmp_path / 'rec')])):
+        read, write = os.pipe()
+        os.write(write, b'a: [\n')
+        os.close(write)
+        try:
+            assert run_tool(tool, [*argv, '--ros-args', '--params-file',
+                                   f'/dev/fd/{read}']) == 2
+        finally:
+            os.close(read)
+        err = capsys.readouterr().err
+        assert f': error: /dev/fd/{read}: malformed YAML' in err, err
+        assert run_tool(tool, [*argv, '--ros-args', '-r', '__ns:=/car_b/']) == 2
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and (': error: -r __ns:=/car_b/: Invalid namespace: '
+                                         "namespace must not end with a '/'") in err, err
+    assert not (tmp_path / 'rec').exists()
+
+
+def test_replay_refuses_a_builtin_parameter_of_the_wrong_type_in_one_line(tmp_path, capsys):
+    # dev-probe61: 'replay BAG -- ros-args -p use_sim_time:=7' (playing over DDS) ended in
+    # a traceback from the node's creation, exit 1
+    from lookahead_control.bags import replay_node
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    assert run_tool(replay_node.main, [str(bag), '--wait', '0', '--ros-args', '-p',
+                                       'use_sim_time:=7']) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and "parameter 'use_sim_time' to '7'" in err, err
+
+
+def test_ctrl_c_while_replay_plays_is_one_line_and_exit_130(tmp_path):
+    # dev-probe61: rclpy's own SIGINT handler invalidated the context, and the next
+    # publish ended in a traceback ("publisher's context is invalid"), exit 1, 5 of 5
+    import signal
+    import subprocess
+    import sys
+    import time
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    for pause in (0.2, 3.0):                # in --wait, and while playing
+        proc = subprocess.Popen([sys.executable, '-m', 'lookahead_control.bags.replay_node',
+                                 str(bag), '--rate', '0.01', '--wait', '1'],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            time.sleep(pause)
+        finally:
+            proc.send_signal(signal.SIGINT)
+            out, err = proc.communicate(timeout=60)
+        # died of the signal (run_tool re-raises it for the shell) or exit 130
+        assert proc.returncode in (-signal.SIGINT, 130), err
+        assert re.fullmatch(r'\S+: interrupted( after \d+ messages)?',
+                            err.strip().splitlines()[-1]), err
+        assert 'Traceback' not in err and 'context is invalid' not in err, err

@@ -108,6 +108,17 @@ def test_an_orientation_that_is_no_unit_quaternion_is_refused():
     msg = conv.to_yaw(0, 'base_link', 0.1, 0.0, 0.0)
     msg.orientation.z, msg.orientation.w = float(np.float32(half[0])), float(np.float32(half[1]))
     assert conv.from_yaw(msg).relative_yaw == pytest.approx(0.1, abs=1e-6)
+    # dev-probe61: a norm of exactly 0.99 or 1.01 is within 0.01 (the rounding of |0.99 -
+    # 1| refused it), and a finite quaternion too large to square has its norm, not "not
+    # finite"
+    from lookahead_control.core.samples import quaternion_problem
+    assert quaternion_problem(0.0, 0.0, 0.0, 0.99) is None
+    assert quaternion_problem(0.0, 0.0, 0.0, 1.01) is None
+    assert quaternion_problem(0.0, 0.0, 0.0, 0.9899) == (
+        'orientation (0, 0, 0, 0.9899) has norm 0.9899, not 1 (within 0.01)')
+    assert quaternion_problem(1e200, 0.0, 0.0, 0.0) == (
+        'orientation (1e+200, 0, 0, 0) has norm 1e+200, not 1 (within 0.01)')
+    assert conv.quaternion_to_yaw(0.0, 0.0, 0.0, 1.01) == 0.0
 
 
 def test_steering_without_the_joint_is_refused():

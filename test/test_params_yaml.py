@@ -31,7 +31,8 @@ import signal
 import subprocess
 import sys
 
-from lookahead_control.core.config import ConfigError, node_sections, rcl_param_value
+from lookahead_control.core.config import (ConfigError, node_sections, rcl_param_value,
+                                           source_config_dir)
 from lookahead_control.core.rcl_yaml import compose, rcl_scalar
 import pytest
 import yaml
@@ -705,3 +706,75 @@ def test_the_controller_executable_names_the_file_of_a_value_its_core_refuses(tm
     assert out.stderr == (f'controller: error: {half}: lane_keeping.curvature_smoothing = 0.5 '
                           'm would average over less than a metre of road; allowed: 0 (the '
                           'polygon as received) or 1-50 m\n')
+
+
+def test_every_argument_behind_a_refusal_is_named(tmp_path):
+    # dev-probe61: messages that wrote another parameter without its namespace
+    # ('must be <= low_speed') named no argument or only one; the simulator's step and
+    # delay checks and its speed override ran after ROS started, without the file's name;
+    # a built-in parameter of the wrong type (use_sim_time: 1) too, in rclpy's words
+    import os
+    from lookahead_control.ros.controller_node import ALL_SPECS, check_parameters
+    from lookahead_control.ros.node_main import checked_arguments
+    from sim_plant import sim_plant_node
+
+    def node(name, specs, check, *args):
+        return checked_arguments(['--ros-args', *args], name, specs, [], check)
+
+    def write(name, section, text):
+        path = tmp_path / name
+        path.write_text(f'{section}:\n  ros__parameters:\n{text}')
+        return str(path)
+
+    low = write('low.yaml', 'controller', '    safety.low_speed: 0.5\n')
+    with pytest.raises(ConfigError, match=f'^{low}: safety.low_speed_blend = 1: must be <= '
+                       r'safety.low_speed \(0.5\)'):
+        node('controller', ALL_SPECS, check_parameters, '--params-file', low)
+    limit = write('limit.yaml', 'controller', '    safety.max_steering_angle: 0.2\n')
+    safe = write('safe.yaml', '/**', '    safety.safe_angle: 0.3\n')
+    with pytest.raises(ConfigError, match=f'^{safe} and {limit}: safety.safe_angle = 0.3'):
+        node('controller', ALL_SPECS, check_parameters, '--params-file', limit,
+             '--params-file', safe)
+    clock = write('clock.yaml', '/**', '    use_sim_time: 1\n')
+    with pytest.raises(ConfigError, match=f'^{clock}: use_sim_time = 1: expected true or '
+                       'false'):
+        node('controller', ALL_SPECS, check_parameters, '--params-file', clock)
+    sim = (sim_plant_node.ALL_SPECS, sim_plant_node.check_parameters)
+    fine = write('fine.yaml', 'sim_plant', '    dt: 0.003\n')
+    with pytest.raises(ConfigError, match=f'^{fine}: rate_hz = 100 Hz and dt = 0.003 s: the '
+                       'period 1 / rate_hz must be a whole multiple of dt'):
+        node('sim_plant', *sim, '--params-file', fine)
+    with pytest.raises(ConfigError, match=f'^-p rate_hz:=7.0 and {fine}: rate_hz = 7 Hz'):
+        node('sim_plant', *sim, '--params-file', fine, '-p', 'rate_hz:=7.0')
+    with pytest.raises(ConfigError, match='^-p plant.delay:=0.0015: plant.delay = 0.0015 s '
+                       'is not a whole multiple of dt = 0.001 s'):
+        node('sim_plant', *sim, '-p', 'plant.delay:=0.0015')
+    envelope = source_config_dir() / 'scenarios' / 's5_envelope.yaml'
+    fast = write('fast.yaml', 'sim_plant', f'    scenario_file: {envelope}\n    speed: 20.0\n')
+    with pytest.raises(ConfigError, match=f'^{fast}: speed = 20 m/s: {envelope}: scenario '
+                       "'s5_envelope' has its own speed profile"):
+        node('sim_plant', *sim, '--params-file', fast)
+    vehicle = write('vehicle.yaml', 'sim_plant', '    output: vehicle\n')
+    with pytest.raises(ConfigError, match=f'^-p curvature_stop:=3.0 and {vehicle}: '):
+        node('sim_plant', *sim, '--params-file', vehicle, '-p', 'curvature_stop:=3.0')
+    # a malformed file read once is named as given, not as the check's copy of it
+    read, write_end = os.pipe()
+    os.write(write_end, b'controller:\n  ros__parameters:\n    lane_keeping.natural_frequency: '
+                        b'500.0\n')
+    os.close(write_end)
+    scratch = []
+    try:
+        with pytest.raises(ConfigError, match=f'^/dev/fd/{read}: lane_keeping.natural_'
+                           'frequency = 500.0 rad/s is out of range'):
+            checked_arguments(['--ros-args', '--params-file', f'/dev/fd/{read}'],
+                              'controller', ALL_SPECS, scratch, check_parameters)
+    finally:
+        os.close(read)
+        for path in scratch:
+            path.unlink()
+    # a name or namespace the node's creation refuses, before ROS starts
+    for rule, why in (('__ns:=/car_b/', "namespace must not end with a '/'"),
+                      ('__node:=1car', 'node name must not start with a number'),
+                      (f'__node:={"a" * 256}', 'node name length should not exceed')):
+        with pytest.raises(ConfigError, match=f'^-r {re.escape(rule)}: Invalid .*{why}'):
+            node('controller', ALL_SPECS, check_parameters, '-r', rule)

@@ -39,11 +39,13 @@ from lookahead_control.core.cli import (ArgumentParser, assignments, number, run
                                         ToolError, write_json)
 from lookahead_control.core.config import ConfigError, rcl_param_value
 from lookahead_control.ros import conversions as conv
-from lookahead_control.ros.node_main import (checked_arguments, program_arguments,
-                                             rcl_log_held)
+from lookahead_control.ros.node_main import (checked_arguments, parameter_reason,
+                                             program_arguments, rcl_log_held)
 import rclpy
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 EXIT_CHECK_FAILED = 1
@@ -204,8 +206,17 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
         reader.close()
         raise ToolError(f'{args.bag}: nothing to publish')
     with rcl_log_held():
-        rclpy.init(args=ros_args)
-    node = Node('replay')
+        # rclpy's signal handling off: with it, Ctrl-C invalidated the context first and
+        # the next publish ended in a traceback ("publisher's context is invalid", exit 1;
+        # dev-probe61); now it is the KeyboardInterrupt below, as SIGTERM's Terminated
+        rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        node = Node('replay')
+    except (InvalidParameterTypeException, InvalidParameterValueException) as err:
+        # '-p use_sim_time:=7': rclpy's words, one line (was a traceback; dev-probe61)
+        reader.close()
+        rclpy.try_shutdown()
+        raise ToolError(parameter_reason(err)) from err
     published = 0
     try:
         pubs = {c.id: node.create_publisher(message_class(c.msgtype), c.topic, qos_of(c))

@@ -250,6 +250,11 @@ SAFETY_SPECS = tuple(
     ))
 
 ROS_BUILTIN = ('use_sim_time', 'start_type_description_service')
+#: rclpy's own parameters of every node, with their types (a ``use_sim_time: 1`` stopped
+#: a node after ROS started, in rclpy's words and without the file's name; dev-probe61)
+BUILTIN_SPECS = {spec.name: spec for spec in (
+    Spec('use_sim_time', False, "rclpy: the node's clock follows /clock"),
+    Spec('start_type_description_service', True, 'rclpy: the type description service'))}
 ROS_BUILTIN_PREFIXES = ('qos_overrides.',)
 
 
@@ -342,7 +347,7 @@ def check_params(params: Mapping[str, Any], specs: Sequence[Spec],
     scope = None if namespaces is None else set(namespaces)
     out = {}
     for name, value in params.items():
-        spec = by_name.get(name)
+        spec = by_name.get(name, BUILTIN_SPECS.get(name))
         if spec is None:
             builtin = name in ROS_BUILTIN or name.startswith(ROS_BUILTIN_PREFIXES)
             outside = scope is not None and name.partition('.')[0] not in scope

@@ -104,10 +104,11 @@ class SafetyParams:
                 check_range(f'safety.{name}', value, 0.0, 1e6, low_open=True)
         if abs(self.safe_angle) > self.max_steering_angle:
             raise ParameterError(f'safety.safe_angle = {self.safe_angle:g} rad: must be '
-                                 f'within +-max_steering_angle ({self.max_steering_angle:g})')
+                                 'within +-safety.max_steering_angle '
+                                 f'({self.max_steering_angle:g})')
         if self.low_speed_blend > self.low_speed:
             raise ParameterError(f'safety.low_speed_blend = {self.low_speed_blend:g}: must '
-                                 f'be <= low_speed ({self.low_speed:g})')
+                                 f'be <= safety.low_speed ({self.low_speed:g})')
 
 
 def _finite(*values: float) -> bool:

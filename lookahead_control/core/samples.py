@@ -96,18 +96,21 @@ def quaternion_problem(x: float, y: float, z: float, w: float) -> Optional[str]:
     :param w: quaternion w.
     :return: the reason (not finite, or its norm off 1 by more than the tolerance).
     """
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if _unit(norm):
+    if _unit(math.sqrt(x * x + y * y + z * z + w * w)):
         return None
-    if not math.isfinite(norm):
+    if not all(math.isfinite(c) for c in (x, y, z, w)):
         return f'orientation ({x}, {y}, {z}, {w}) is not finite'
+    # without overflow: (1e200, 0, 0, 0) has norm 1e200, not inf (dev-probe61)
+    norm = math.hypot(x, y, z, w)
     return (f'orientation ({x:.6g}, {y:.6g}, {z:.6g}, {w:.6g}) has norm {norm:.6g}, not 1 '
             f'(within {QUATERNION_NORM_TOLERANCE:g})')
 
 
 def _unit(norm: float) -> bool:
     """Return True if a quaternion of this norm is an orientation (NaN: no)."""
-    return abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE
+    # a norm of 0.99 or 1.01 is within the tolerance, whose rounding (|0.99 - 1| is
+    # 0.010000000000000009) refused it (dev-probe61)
+    return abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE + 1e-12
 
 
 def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:

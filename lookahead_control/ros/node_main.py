@@ -41,13 +41,16 @@ from lookahead_control.core.param_schema import check_params
 from lookahead_control.core.params import ParameterError
 from lookahead_control.core.rcl_yaml import merge_flat, RclYamlError
 import rclpy
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.exceptions import (InvalidNamespaceException, InvalidNodeNameException,
+                              InvalidParameterTypeException, InvalidParameterValueException)
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
+from rclpy.validate_namespace import validate_namespace
+from rclpy.validate_node_name import validate_node_name
 import yaml
 
 N = TypeVar('N', bound=Node)
@@ -84,6 +87,16 @@ def rcl_reason(err: Exception) -> str:
         reason += (' (a rule is FROM:=TO with ROS names: a namespace absolute, '
                    '__ns:=/car_b; a node name one token, __node:=truck)')
     return reason
+
+
+def parameter_reason(err: Exception) -> str:
+    """
+    Return why rclpy refused a parameter override, without its repeated preamble.
+
+    :param err: ``InvalidParameterTypeException`` or ``InvalidParameterValueException``.
+    :return: the reason (``Trying to set parameter 'use_sim_time' to '7' ...``).
+    """
+    return str(err).split('Reason: ', 1)[-1].rsplit(': ', 1)[0]
 
 
 @contextlib.contextmanager
@@ -289,6 +302,7 @@ def node_full_name(args: Sequence[str], node_name: str) -> str:
     :param args: command-line arguments (ROS arguments included).
     :param node_name: the node's name in the code.
     :return: ``/<namespace>/<name>`` (``/controller`` without remappings).
+    :raises ConfigError: a name or namespace the node's creation would refuse.
     """
     rules = []
     for _, flag, rule in ros_flags(args):
@@ -301,6 +315,16 @@ def node_full_name(args: Sequence[str], node_name: str) -> str:
     namespace = next((value for target, key, value in rules if key == '__ns' and value
                       and target in ('', name)), '/')
     namespace = namespace if namespace.startswith('/') else '/' + namespace
+    try:
+        # what rcl takes here and the node's creation refuses ('-r __ns:=/car_b/', a
+        # name over 255 characters): a traceback after ROS started (dev-probe61)
+        validate_node_name(name)
+        validate_namespace(namespace)
+    except (InvalidNodeNameException, InvalidNamespaceException) as err:
+        what = '__ns' if isinstance(err, InvalidNamespaceException) else '__node'
+        reason = one_line(str(err).split('\n', 1)[0].rstrip(':'))
+        raise ConfigError(f'-r {what}:={namespace if what == "__ns" else name}: '
+                          f'{reason}') from err
     return namespace.rstrip('/') + '/' + name
 
 
@@ -346,15 +370,28 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
                 copy.write(data)
             out[at] = copy.name
             shown[copy.name] = value
-    args = list(out)
+    try:
+        return _checked_files(out, node_name, specs, scratch, check)
+    except ConfigError as err:
+        # a read-once file is named as given (/dev/fd/63), not as its deleted copy
+        message = str(err)
+        for made, name in shown.items():
+            message = message.replace(made, name)
+        raise ConfigError(message) from err
+
+
+def _checked_files(args: list[str], node_name: str, specs: Sequence[Any],
+                   scratch: list[Path],
+                   check: Optional[Callable[[dict[str, Any]], Any]]) -> list[str]:
+    out = list(args)
     # each file read once, before rcl does, for a one-line error naming it (any node)
     files = {i: node_sections(value) for i, flag, value in ros_flags(args)
              if flag == '--params-file'}
-    if not specs:
-        return out
     # a node started in a namespace or renamed reads its own sections
     # ('/car_b/controller:'); before, they were neither checked nor converted
     full_name = node_full_name(args, node_name)
+    if not specs:
+        return out
     # what rcl reads otherwise when a later file or -p sets an earlier one's names
     # (two types, a map over a value): one params entry per section name, -p in '/**'
     given: dict[str, dict[str, Any]] = {}
@@ -364,7 +401,7 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
             raw = dict(files[i])
             for key, flat in raw.items():
                 _merge_given(given, key, flat, f'{value}: ')
-                origin.setdefault(key, {}).update(dict.fromkeys(flat, shown.get(value, value)))
+                origin.setdefault(key, {}).update(dict.fromkeys(flat, value))
             sections = check_params_file(value, full_name, specs, files[i])
             if any(type(v) is not type(raw[key][name])
                    for key, flat in sections.items() for name, v in flat.items()):
@@ -585,7 +622,7 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
         return 2
     except (InvalidParameterTypeException, InvalidParameterValueException) as err:
         # a parameter override out of its descriptor's range or of the wrong type
-        reason = str(err).split('Reason: ', 1)[-1].rsplit(': ', 1)[0]
+        reason = parameter_reason(err)
         print(f'{name}: error: {one_line(reason)}', file=sys.stderr)
         return 2
     finally:
