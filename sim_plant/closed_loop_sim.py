@@ -584,15 +584,16 @@ class CommonRoadGroup:
 
     def measure(self, x: State, t: float, scenario: Scenario, accel: Real) -> LateralState:
         """
-        Return the law's inputs: the plant's own speed, the profile's acceleration.
+        Return the law's inputs: the plant's own speed and acceleration.
 
         :param x: the contract state.
         :param t: time [s].
         :param scenario: the scenario (speed profile, road slope).
-        :param accel: first-ramp acceleration(s).
+        :param accel: first-ramp acceleration(s) (unused: the plant's own is measured;
+            the profile's, given before, ended its ramps before the car did).
         :return: the inputs.
         """
-        _, a_x = profile_speed(scenario.speed, t, self.v_x, accel)
+        a_x = self._pack([plant.acceleration(t) for plant in self.plants])
         _, slope = scenario.road.curvature(x[0])
         return LateralState(x[1], x[2], x[3], x[4], self.v_x, a_x, self.rho,
                             self.v_x * slope)

@@ -84,8 +84,10 @@ def controller_vehicle(vehicle_id: int) -> VehicleParams:
     axle load ``F_z`` (front ``m g b / l``), ``mu = p_dy1`` and ``C_S = -p_ky1 / p_dy1``,
     so the axle cornering stiffness is ``c_f = -p_ky1 m g b / l`` and ``c_r = -p_ky1 m g
     a / l``. The multi-body model's Pacejka tyres have about this stiffness at small
-    slip (not exactly: that is part of what it tests). ``d_s`` (the bumper) is half the
-    vehicle length.
+    slip (not exactly: that is part of what it tests), in proportion to their load.
+    ``d_s`` (the bumper) is half the vehicle length. ``cg_height`` is the whole car's CG
+    height: the sprung mass at ``h_s``, the unsprung masses at the wheel radius ``R_w``
+    (0.582 m for set 2): under ``a_x`` the multi-body model moves load between the axles.
 
     :param vehicle_id: 1, 2 or 3.
     :return: the controller's vehicle model.
@@ -93,9 +95,10 @@ def controller_vehicle(vehicle_id: int) -> VehicleParams:
     p = commonroad_parameters(vehicle_id)
     wheelbase = p.a + p.b
     stiffness = -p.tire.p_ky1 * p.m * GRAVITY
+    height = (p.m_s * p.h_s + (p.m_uf + p.m_ur) * p.R_w) / (p.m_s + p.m_uf + p.m_ur)
     return VehicleParams(mass=p.m, yaw_inertia=p.I_z, l1=p.a, l2=p.b,
                          c_f=stiffness * p.b / wheelbase, c_r=stiffness * p.a / wheelbase,
-                         d_s=0.5 * p.l)
+                         d_s=0.5 * p.l, cg_height=height)
 
 
 def _rk4(f: Callable[[list[float]], list[float]], x: list[float], h: float) -> list[float]:
@@ -142,6 +145,7 @@ class CommonRoadPlant:
             self.state = core
             self._f = vehicle_dynamics_st
         self.s = 0.0
+        self.command = 0.0                        # the last command held (acceleration)
         self.diverged_at: float | None = None     # [s] the step the model failed in
         self.failure = ''                         # what failed, one line
 
@@ -170,6 +174,31 @@ class CommonRoadPlant:
         return ((lane.s, lane.lateral, lane.relative_yaw, v_y, x[5], x[2]), v_x,
                 lane.curvature)
 
+    def acceleration(self, t: float) -> float:
+        """
+        Return the model's ``dv_x/dt`` now: what the car's IMU measures (plus ``v_y r``).
+
+        Not the speed profile's: the model follows the profile through its drivetrain
+        and a speed controller, and goes on accelerating after the profile's ramp ends
+        (S5: about 2 m/s^2 for a second). Before, the law and the simulator's IMU were
+        given the profile's ``a_x`` on this plant.
+
+        :param t: time [s] (the speed controller's reference).
+        :return: ``dv_x/dt`` [m/s^2] of the body-frame speed at the CG (0 once the run
+            has diverged).
+        """
+        if self.diverged_at is not None:
+            return 0.0
+        x = self.state
+        try:
+            rates = self._f(x, self._inputs(t, x, self.command), self.p)
+        except (ZeroDivisionError, OverflowError, ValueError, FloatingPointError):
+            return 0.0
+        if self.multibody:
+            return float(rates[3])
+        # single track: v_x = v cos(beta)
+        return float(rates[3] * math.cos(x[6]) - x[3] * math.sin(x[6]) * rates[6])
+
     def _inputs(self, t: float, x: list[float], command: float) -> list[float]:
         plant = self.plant
         target = min(max(command, -plant.max_steering_angle), plant.max_steering_angle)
@@ -197,6 +226,7 @@ class CommonRoadPlant:
         """
         if self.diverged_at is not None:
             return False
+        self.command = command
         f, p = self._f, self.p
         # the inputs are evaluated once per step (a zero-order hold at dt), as the
         # CommonRoad examples do

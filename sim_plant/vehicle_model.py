@@ -36,8 +36,8 @@ from typing import Any, Callable, Sequence
 
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import (check_choice, check_range, ParameterError,
-                                           VehicleParams)
+from lookahead_control.core.params import (axle_load_factors, check_choice, check_range,
+                                           ParameterError, VehicleParams)
 import numpy as np
 
 State = tuple[Real, ...]
@@ -136,7 +136,7 @@ def stack(items: Sequence[Any]) -> Any:
     return Stacked(items)
 
 
-def fiala_force(slip: Real, stiffness: float, limit: float) -> Real:
+def fiala_force(slip: Real, stiffness: Real, limit: Real) -> Real:
     """
     Return the lateral force of a Fiala brush tyre (axle) at slip angle ``slip``.
 
@@ -156,9 +156,13 @@ def fiala_force(slip: Real, stiffness: float, limit: float) -> Real:
 
 
 def axle_forces(vehicle: VehicleParams, plant: PlantParams, v_x: Real, v_y: Real, r: Real,
-                steering: Real) -> tuple[Real, Real]:
+                steering: Real, a_x: Real = 0.0) -> tuple[Real, Real]:
     """
     Return the front and rear lateral axle forces in the wheel frames [N].
+
+    The nonlinear plant moves load between the axles under ``a_x`` when
+    ``vehicle.cg_height`` > 0 (``axle_load_factors``): each Fiala tyre's stiffness and
+    friction limit with its axle's load. The linear plant is the paper's model: none.
 
     :param vehicle: vehicle parameters.
     :param plant: plant options (model, friction).
@@ -166,6 +170,7 @@ def axle_forces(vehicle: VehicleParams, plant: PlantParams, v_x: Real, v_y: Real
     :param v_y: body lateral velocity [m/s].
     :param r: yaw rate [rad/s].
     :param steering: actual front-wheel angle [rad].
+    :param a_x: dv_x/dt [m/s^2] (the axle loads).
     :return: ``(F_yf, F_yr)``.
     """
     if plant.model == 'linear':
@@ -175,8 +180,16 @@ def axle_forces(vehicle: VehicleParams, plant: PlantParams, v_x: Real, v_y: Real
     load = vehicle.mass * GRAVITY / vehicle.wheelbase
     slip_f = xp.atan2(v_y + vehicle.l1 * r, v_x) - steering
     slip_r = xp.atan2(v_y - vehicle.l2 * r, v_x)
-    f_front = fiala_force(slip_f, vehicle.c_f, plant.friction * load * vehicle.l2)
-    f_rear = fiala_force(slip_r, vehicle.c_r, plant.friction * load * vehicle.l1)
+    c_f: Real = vehicle.c_f
+    c_r: Real = vehicle.c_r
+    limit_f: Real = plant.friction * load * vehicle.l2
+    limit_r: Real = plant.friction * load * vehicle.l1
+    if vehicle.cg_height > 0.0:
+        front, rear = axle_load_factors(vehicle, a_x)
+        c_f, c_r = c_f * front, c_r * rear
+        limit_f, limit_r = limit_f * front, limit_r * rear
+    f_front = fiala_force(slip_f, c_f, limit_f)
+    f_rear = fiala_force(slip_r, c_r, limit_r)
     return f_front, f_rear
 
 
@@ -202,7 +215,8 @@ def derivatives(x: State, command: Real, v_x: Real, a_x: Real, rho: Real,
     :param x: state ``(s, y_cg, eps_r, v_y, r, steering)``.
     :param command: steering command [rad].
     :param v_x: longitudinal speed [m/s].
-    :param a_x: longitudinal acceleration [m/s^2] (unused by the lateral model).
+    :param a_x: longitudinal acceleration [m/s^2] (the nonlinear plant's axle loads, with
+        ``vehicle.cg_height``).
     :param rho: road curvature at ``s`` [1/m].
     :param vehicle: vehicle parameters.
     :param plant: plant options.
@@ -217,7 +231,7 @@ def derivatives(x: State, command: Real, v_x: Real, a_x: Real, rho: Real,
         moment = vehicle.l1 * f_front - vehicle.l2 * f_rear
     else:
         steering_rate = actuator_rate(plant, steering, command)
-        f_front, f_rear = axle_forces(vehicle, plant, v_x, v_y, r, steering)
+        f_front, f_rear = axle_forces(vehicle, plant, v_x, v_y, r, steering, a_x)
         f_front = f_front * xp.cos(steering)
         lateral = f_front + f_rear
         moment = vehicle.l1 * f_front - vehicle.l2 * f_rear

@@ -182,9 +182,11 @@ def test_the_independent_cars_engaged_off_the_lane_with_a_heading_error():
     # dev-demand: the CommonRoad multi-body cars engaged 1-3 m off a straight lane with
     # 0.1 rad heading away from it at 25-37 m/s spin without the limit (20 and 50 ms;
     # the Fiala goal plant does not); with the default 14 m/s^2 they are back, overshoot
-    # <= 7 cm (dev-course: none of 96 runs of cars 1-3 lost, 19 without)
+    # <= 7 cm (dev-course: none of 96 runs of cars 1-3 lost, 19 without). Car 2 at 28
+    # m/s: since its mapping has its CG height (dev-sc28) the law without the limit keeps
+    # it too (5.4 cm over); at 30-37 m/s it spins as before
     from sim_plant.commonroad_plant import controller_vehicle
-    cases = [(2, 3.0, DELAY, [28.0, 30.0]), (3, 1.0, 0.05, [30.0, 37.0]),
+    cases = [(2, 3.0, DELAY, [30.0, 33.0]), (3, 1.0, 0.05, [30.0, 37.0]),
              (1, 3.0, 0.05, [30.0, 37.0])]
     for vehicle_id, offset, delay, speeds in cases:
         car = controller_vehicle(vehicle_id)

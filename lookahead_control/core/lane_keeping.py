@@ -64,8 +64,8 @@ from lookahead_control.core.control_law import (axle_gains, drift_term, LateralS
 from lookahead_control.core.curvature_smoothing import CurvatureHistory, smoothed_preview
 from lookahead_control.core.estimator import ComplianceEstimator
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import (check_range, ControllerParams, ParameterError,
-                                           VehicleParams)
+from lookahead_control.core.params import (check_range, ControllerParams, loaded_vehicle,
+                                           ParameterError, VehicleParams)
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.state_filter import (_bounded, FILTER_MODES, KalmanStateFilter,
                                                  MAX_PERIOD, StateFilterParams)
@@ -1339,7 +1339,9 @@ class CgCompensatedLaw:
         s = self.settings
         v_x = xp.maximum(state.v_x, self.controller.min_speed)
         gains = loop_gains(s, v_x)
-        out = cg_compensated_law(state, self.vehicle, self.controller, rho_ref, rho_ref_rate,
+        # each axle's stiffness at its load under a_x (vehicle.cg_height; 0: the model)
+        out = cg_compensated_law(state, loaded_vehicle(self.vehicle, state.a_x),
+                                 self.controller, rho_ref, rho_ref_rate,
                                  rho_ff, rho_ff_rate, offset, offset_rate,
                                  compliance=secant, rate_feedforward=s.rate_feedforward,
                                  tangent_compliance=tangent, gains=gains,

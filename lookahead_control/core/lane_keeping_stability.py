@@ -1216,7 +1216,8 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                                                    delays):
         plant = VehicleParams(mass=vehicle.mass * m, yaw_inertia=vehicle.yaw_inertia * m,
                               l1=vehicle.l1, l2=vehicle.l2, c_f=vehicle.c_f * c_f,
-                              c_r=vehicle.c_r * c_r, d_s=vehicle.d_s)
+                              c_r=vehicle.c_r * c_r, d_s=vehicle.d_s,
+                              cg_height=vehicle.cg_height)
         steps = int(round(delay / period))
         if filtered:
             radius = filtered_radius(vehicle, controller, settings, v, plant=plant,

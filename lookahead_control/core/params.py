@@ -27,6 +27,9 @@ from functools import cached_property
 import math
 from typing import Iterable
 
+from lookahead_control.core import numeric as xp
+from lookahead_control.core.numeric import Real
+
 SCHEDULE_MODES = ('paper', 'exact', 'fixed')
 REFERENCE_MODES = ('lane_tangent', 'arc_approx', 'arc_exact', 'cg_compensated')
 
@@ -105,6 +108,10 @@ class VehicleParams:
     :param c_f: front axle cornering stiffness, whole axle [N/rad].
     :param c_r: rear axle cornering stiffness, whole axle [N/rad].
     :param d_s: distance from the CG to the front bumper (look-down sensor) [m].
+    :param cg_height: height of the CG above the ground [m]: under a longitudinal
+        acceleration ``a_x`` the axle loads move by ``m a_x h / L`` and each axle's
+        cornering stiffness with its load (:func:`axle_load_factors`); 0 (the default,
+        the paper's model): none.
     """
 
     mass: float = 1485.0
@@ -114,6 +121,7 @@ class VehicleParams:
     c_f: float = 80000.0
     c_r: float = 80000.0
     d_s: float = 1.96
+    cg_height: float = 0.0
 
     _RANGES = {
         'mass': (0.0, 1.0e5, 'kg'),
@@ -123,6 +131,7 @@ class VehicleParams:
         'c_f': (0.0, 1.0e7, 'N/rad'),
         'c_r': (0.0, 1.0e7, 'N/rad'),
         'd_s': (0.0, 50.0, 'm'),
+        'cg_height': (0.0, 3.0, 'm'),
     }
 
     def __post_init__(self) -> None:
@@ -130,7 +139,7 @@ class VehicleParams:
             low, high, unit = self._RANGES[item.name]
             object.__setattr__(self, item.name, check_range(
                 f'vehicle.{item.name}', getattr(self, item.name), low, high,
-                low_open=True, unit=unit))
+                low_open=item.name != 'cg_height', unit=unit))
 
     @cached_property
     def wheelbase(self) -> float:
@@ -147,6 +156,58 @@ class VehicleParams:
         """Understeer gradient K = m l_2 / (C_f L) - m l_1 / (C_r L) [rad s^2/m]."""
         return (self.mass * self.l2 / (self.c_f * self.wheelbase)
                 - self.mass * self.l1 / (self.c_r * self.wheelbase))
+
+
+#: the smallest share of its static load an axle keeps in :func:`axle_load_factors` (a
+#: larger transfer lifts the axle: no model of this package holds there)
+MIN_LOAD_SHARE = 0.1
+#: [m/s^2] the gravity of the axle-load transfer (as the plants' and the estimator's)
+LOAD_GRAVITY = 9.80665
+
+
+def axle_load_factors(vehicle: VehicleParams, a_x: Real) -> tuple[Real, Real]:
+    """
+    Return each axle's load over its static load under a longitudinal acceleration.
+
+    ``F_zf = m (g l_2 - a_x h) / L``, ``F_zr = m (g l_1 + a_x h) / L`` (``h`` =
+    ``cg_height``): the factors ``1 - a_x h / (g l_2)`` and ``1 + a_x h / (g l_1)``, each
+    at least :data:`MIN_LOAD_SHARE`. Braking loads the front axle. A tyre's cornering
+    stiffness grows with its load (in proportion for CommonRoad's Pacejka tyres at small
+    slip), so the axle stiffness is ``C`` times the factor.
+
+    :param vehicle: vehicle parameters (``cg_height`` 0: both factors 1, exactly).
+    :param a_x: dv_x/dt [m/s^2] (float or array).
+    :return: ``(front, rear)`` factors.
+    """
+    h = vehicle.cg_height
+    if h == 0.0:
+        return 1.0, 1.0
+    transfer = a_x * (h / LOAD_GRAVITY)
+    return (xp.maximum(1.0 - transfer / vehicle.l2, MIN_LOAD_SHARE),
+            xp.maximum(1.0 + transfer / vehicle.l1, MIN_LOAD_SHARE))
+
+
+def loaded_vehicle(vehicle: VehicleParams, a_x: Real) -> VehicleParams:
+    """
+    Return the vehicle with each axle's cornering stiffness at its load under ``a_x``.
+
+    For a batch (``a_x`` an array) the stiffnesses are arrays, which the checks of
+    :class:`VehicleParams` do not take: the copy is made without them (its values come
+    from a checked vehicle and :func:`axle_load_factors`' floor).
+
+    :param vehicle: the vehicle (``cg_height`` 0: returned as it is).
+    :param a_x: dv_x/dt [m/s^2] (float or array).
+    :return: the vehicle at those loads.
+    """
+    if vehicle.cg_height == 0.0:
+        return vehicle
+    front, rear = axle_load_factors(vehicle, a_x)
+    out = object.__new__(VehicleParams)
+    for item in fields(vehicle):
+        object.__setattr__(out, item.name, getattr(vehicle, item.name))
+    object.__setattr__(out, 'c_f', vehicle.c_f * front)
+    object.__setattr__(out, 'c_r', vehicle.c_r * rear)
+    return out
 
 
 @dataclass(frozen=True)

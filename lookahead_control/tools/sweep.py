@@ -300,7 +300,8 @@ def run_task(task: Mapping[str, Any], spec_data: Mapping[str, Any],
                             yaw_inertia=vehicle.yaw_inertia * (1.0 + c['mass']),
                             l1=vehicle.l1, l2=vehicle.l2,
                             c_f=vehicle.c_f * (1.0 + c['cornering']),
-                            c_r=vehicle.c_r * (1.0 + c['cornering']), d_s=vehicle.d_s)
+                            c_r=vehicle.c_r * (1.0 + c['cornering']), d_s=vehicle.d_s,
+                            cg_height=vehicle.cg_height)
               for c in conds]
     plants = [PlantParams(model=spec.plant, friction=c['friction']) for c in conds]
     speeds = None if scenario.speed.fixed else np.array([c['speed'] for c in conds])

@@ -1,0 +1,190 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The axle-load transfer under a_x (``vehicle.cg_height``): law, plants, CommonRoad's a_x."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+import math
+
+from lookahead_control.core import lane_keeping
+from lookahead_control.core.config import load_controller, load_lane_keeping, load_vehicle
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.lane_keeping import cg_compensated_law, CgCompensatedLaw
+from lookahead_control.core.laws import Preview
+from lookahead_control.core.params import (axle_load_factors, loaded_vehicle,
+                                           MIN_LOAD_SHARE, ParameterError, VehicleParams)
+import numpy as np
+import pytest
+from sim_plant.vehicle_model import axle_forces, fiala_force, PlantParams
+
+G = 9.80665
+H = 0.58
+
+
+def test_the_axle_loads_move_by_m_ax_h_over_l():
+    vehicle = VehicleParams(cg_height=H)
+    m, l1, l2, big_l = vehicle.mass, vehicle.l1, vehicle.l2, vehicle.wheelbase
+    for a_x in (-3.5, -1.0, 0.0, 2.0, 3.5):
+        front, rear = axle_load_factors(vehicle, a_x)
+        # the loads by hand, over the static ones
+        assert front == pytest.approx((m * G * l2 / big_l - m * a_x * H / big_l)
+                                      / (m * G * l2 / big_l), rel=1e-14)
+        assert rear == pytest.approx((m * G * l1 / big_l + m * a_x * H / big_l)
+                                     / (m * G * l1 / big_l), rel=1e-14)
+        # the load moves, the total stays
+        assert front * l2 + rear * l1 == pytest.approx(big_l, rel=1e-14)
+    # braking loads the front; a transfer beyond the axle's load is floored
+    assert axle_load_factors(vehicle, -3.5)[0] > 1.0 > axle_load_factors(vehicle, -3.5)[1]
+    assert axle_load_factors(vehicle, 100.0)[0] == MIN_LOAD_SHARE
+    batch = np.array([-3.5, 0.0, 3.5])
+    front, rear = axle_load_factors(vehicle, batch)
+    assert [axle_load_factors(vehicle, float(a)) for a in batch] == list(zip(front, rear))
+
+
+def test_without_a_cg_height_nothing_moves_exactly():
+    vehicle = VehicleParams()
+    assert vehicle.cg_height == 0.0
+    assert axle_load_factors(vehicle, 3.5) == (1.0, 1.0)
+    assert loaded_vehicle(vehicle, np.array([3.5, -3.5])) is vehicle
+    plant = PlantParams(model='nonlinear')
+    args = (30.0, 0.2, 0.05, 0.01)
+    assert axle_forces(vehicle, plant, *args, 3.5) == axle_forces(vehicle, plant, *args)
+    with pytest.raises(ParameterError, match=r'vehicle.cg_height = -0.1 m is out of range'):
+        VehicleParams(cg_height=-0.1)
+
+
+def test_the_loaded_vehicle_has_each_axles_stiffness_at_its_load():
+    vehicle = VehicleParams(cg_height=H)
+    front, rear = axle_load_factors(vehicle, 3.5)
+    one = loaded_vehicle(vehicle, 3.5)
+    assert (one.c_f, one.c_r) == (vehicle.c_f * front, vehicle.c_r * rear)
+    assert one.eta == pytest.approx(vehicle.mass * vehicle.l1
+                                    / (vehicle.c_r * rear * vehicle.wheelbase), rel=1e-14)
+    assert (one.mass, one.l1, one.l2, one.d_s, one.cg_height) == (
+        vehicle.mass, vehicle.l1, vehicle.l2, vehicle.d_s, H)
+    many = loaded_vehicle(vehicle, np.array([3.5, -2.0]))
+    assert many.c_f[0] == one.c_f and many.c_r[0] == one.c_r
+    assert many.c_r[1] == loaded_vehicle(vehicle, -2.0).c_r
+    assert vehicle.c_f == 80000.0            # the design vehicle is not changed
+
+
+def test_the_nonlinear_plant_moves_its_tyres_stiffness_and_friction_with_the_load():
+    vehicle = VehicleParams(cg_height=H)
+    plant = PlantParams(model='nonlinear', friction=0.8)
+    v_x, v_y, r, steering, a_x = 30.0, 0.3, 0.1, 0.02, -3.5
+    front, rear = axle_load_factors(vehicle, a_x)
+    load = vehicle.mass * G / vehicle.wheelbase
+    slip_f = math.atan2(v_y + vehicle.l1 * r, v_x) - steering
+    slip_r = math.atan2(v_y - vehicle.l2 * r, v_x)
+    expected = (fiala_force(slip_f, vehicle.c_f * front, 0.8 * load * vehicle.l2 * front),
+                fiala_force(slip_r, vehicle.c_r * rear, 0.8 * load * vehicle.l1 * rear))
+    assert axle_forces(vehicle, plant, v_x, v_y, r, steering, a_x) == expected
+    # the linear plant is the paper's model: no transfer
+    linear = PlantParams()
+    assert (axle_forces(vehicle, linear, v_x, v_y, r, steering, a_x)
+            == axle_forces(VehicleParams(), linear, v_x, v_y, r, steering))
+
+
+def _state(a_x: float) -> LateralState:
+    return LateralState(0.05, 0.004, 0.1, 0.0925, 37.0, a_x, 0.0025, 0.0)
+
+
+def test_the_law_steers_on_the_loaded_stiffness_and_a_batch_as_its_runs():
+    controller, settings = load_controller(None), load_lane_keeping(None)
+    vehicle = replace(load_vehicle(None), cg_height=H)
+    preview = Preview(np.array([0.0, 100.0]), np.array([0.0025, 0.0025]))
+    seen = []
+
+    def spy(state, model, *args, **kwargs):
+        seen.append(model)
+        return cg_compensated_law(state, model, *args, **kwargs)
+
+    for a_x in (-3.5, 0.0, 3.0):
+        law = CgCompensatedLaw(vehicle, controller, settings)
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(lane_keeping, 'cg_compensated_law', spy)
+            law.step(_state(a_x), preview, 0.01)
+        # the linearizing law's model: each axle's stiffness at its load
+        front, rear = axle_load_factors(vehicle, a_x)
+        assert (seen[-1].c_f, seen[-1].c_r) == (vehicle.c_f * front, vehicle.c_r * rear)
+        if a_x == 0.0:
+            plain = CgCompensatedLaw(load_vehicle(None), controller, settings)
+            assert (CgCompensatedLaw(vehicle, controller, settings).step(
+                _state(0.0), preview, 0.01).steering
+                == plain.step(_state(0.0), preview, 0.01).steering)
+    # braking moves the command: the front is stiffer, the rear softer
+    commands = [CgCompensatedLaw(vehicle, controller, settings).step(
+        _state(a_x), preview, 0.01).steering for a_x in (-3.5, 0.0)]
+    assert abs(commands[0] - commands[1]) > 1e-4
+    # a batch: each run as alone, bit for bit
+    a_x = np.array([-3.5, 0.0, 3.0])
+    batch = CgCompensatedLaw(vehicle, controller, settings)
+    state = LateralState(*(np.full(3, v) for v in _state(0.0)[:5]), a_x,
+                         np.full(3, 0.0025), np.zeros(3))
+    out = batch.step(state, Preview(preview.distances, np.full((2, 3), 0.0025)), 0.01)
+    for i, a in enumerate(a_x):
+        alone = CgCompensatedLaw(vehicle, controller, settings).step(
+            _state(float(a)), preview, 0.01)
+        assert out.steering[i] == alone.steering
+
+
+def test_the_commonroad_car_is_mapped_with_its_cg_height_and_measured_a_x():
+    # the law and the simulator's IMU were given the speed profile's a_x on this plant,
+    # while the car follows the profile through a speed controller (S5: it goes on
+    # accelerating after the ramp ends)
+    from lookahead_control.tools import compare
+    from sim_plant.commonroad_plant import (commonroad_parameters, CommonRoadPlant,
+                                            controller_vehicle)
+    p = commonroad_parameters(2)
+    mapped = controller_vehicle(2)
+    assert mapped.cg_height == pytest.approx(
+        (p.m_s * p.h_s + (p.m_uf + p.m_ur) * p.R_w) / p.m, rel=1e-6)
+    assert mapped.cg_height == pytest.approx(0.582, abs=5e-4)
+    scenario = compare.load_scenarios(['s5_envelope'])['s5_envelope']
+    case = next(c for c in compare.PLANTS if c.name == 'commonroad_mb')
+    car = CommonRoadPlant(scenario, case.plant, 10.0, 0.0)
+    dt, times, speeds, accels = 0.001, np.arange(11000) * 0.001, [], []
+    for t in times:
+        speeds.append(car.body_velocity(car.state)[0])
+        accels.append(car.acceleration(t))
+        car.advance(t, dt, 0.0)
+    speeds, accels = np.array(speeds), np.array(accels)
+    # the measured a_x is the derivative of the car's own v_x (each step holds its inputs
+    # from its start: forward differences), but in the 20 ms after the ramp's start at
+    # 2 s, where the wheels' slip builds up within a step (0.58 m/s^2 in the first)
+    error = np.abs(accels[:-1] - np.diff(speeds) / dt)
+    settled = (times[:-1] < 2.0) | (times[:-1] > 2.02)
+    assert np.max(error[settled]) < 0.02 and np.percentile(error, 99) < 0.005
+    # and it is not the profile's: the ramp ends at 9.71 s, the car still accelerates
+    after = int(10.0 / dt)
+    assert accels[after] > 1.0
+
+
+def test_s5_on_the_commonroad_car_with_its_load_transfer():
+    # the CommonRoad multi-body car moves load between its axles under a_x: S5 (the
+    # 10 -> 37 -> 10 m/s envelope) was 9.5 cm noise-free, 2.75 on the nonlinear plant;
+    # with its CG height and its measured a_x 4.6 cm
+    from lookahead_control.tools import compare
+    from sim_plant.closed_loop_sim import run
+    case = next(c for c in compare.PLANTS if c.name == 'commonroad_mb')
+    vehicle = case.law_vehicle(load_vehicle(None))
+    assert vehicle.cg_height > 0.5
+    scenario = compare.load_scenarios(['s5_envelope'])['s5_envelope']
+    law = compare.league_law('cg_compensated', vehicle, compare.LawSettings())
+    result = run(scenario, vehicle, law, case.plant, dt=compare.DT,
+                 preview_distance=compare.PREVIEW_DISTANCE, delay=case.delay)
+    peak = float(np.max(np.abs(result['y_cg'])))
+    assert peak < 0.055, peak
