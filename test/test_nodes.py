@@ -814,7 +814,7 @@ def test_sim_plant_refuses_curvature_stop_with_the_vehicle_output(context):
     # before, curvature_stop was taken and did nothing, the curvature never stopped
     from lookahead_control.core.params import ParameterError
     from sim_plant.sim_plant_node import SimPlantNode
-    with pytest.raises(ParameterError, match=r'^curvature_stop = 4: only with output '
+    with pytest.raises(ParameterError, match=r'^curvature_stop = 4: only with output = '
                        r"'contract'"):
         SimPlantNode(context=context, parameter_overrides=[
             Parameter('output', value='vehicle'), Parameter('curvature_stop', value=4.0)])
