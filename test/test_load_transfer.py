@@ -188,3 +188,16 @@ def test_s5_on_the_commonroad_car_with_its_load_transfer():
                  preview_distance=compare.PREVIEW_DISTANCE, delay=case.delay)
     peak = float(np.max(np.abs(result['y_cg'])))
     assert peak < 0.055, peak
+
+
+def test_the_stability_tool_says_the_load_transfer_is_not_covered(tmp_path, capsys):
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    tall = tmp_path / 'tall.yaml'
+    tall.write_text('/**:\n  ros__parameters:\n    vehicle:\n      cg_height: 0.55\n')
+    stability_main(['--samples', '28', '--vehicle', str(tall), '--delays', '0.02'])
+    assert ("vehicle.cg_height = 0.55 m: the law linearizes with each axle's stiffness at "
+            'its load under a_x; the certificate and the checks here are for the static '
+            'stiffnesses (cg_height 0): the load transfer is not covered'
+            in capsys.readouterr().out)
+    stability_main(['--samples', '28', '--delays', '0.02'])
+    assert 'cg_height' not in capsys.readouterr().out

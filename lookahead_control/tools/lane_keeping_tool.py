@@ -190,6 +190,13 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     print('the certificate covers the law on exact states at varying speed; the sampled '
           'check covers the law on the estimate of the Kalman filter at frozen speeds')
     notes = exact_inverse_notes(settings)
+    if vehicle.cg_height > 0.0:
+        # the law's stiffnesses then move with its a_x (core/params.py, loaded_vehicle):
+        # nothing here models that (dev-sc28)
+        notes.append(f'vehicle.cg_height = {vehicle.cg_height:g} m: the law linearizes with '
+                     "each axle's stiffness at its load under a_x; the certificate and the "
+                     'checks here are for the static stiffnesses (cg_height 0): the load '
+                     'transfer is not covered')
     if settings.delay_prediction:
         notes.append("lane_keeping.delay_prediction: the law acts on the filter's estimate "
                      'predicted across filter_delay; the row "exact states" is the law '
