@@ -233,6 +233,26 @@ def test_a_sweep_from_before_the_integral_gain_schedule_resumes_with_its_constan
     assert count == 4 and resumed.num_rows == 6
 
 
+def test_a_sweep_from_before_the_cg_height_resumes_as_one_without_load_transfer(
+        reference, tmp_path):
+    # dev-probe62: its manifest's vehicle lacks cg_height, and every resume was refused
+    # ("vehicle.cg_height = None in the folder, 0.0 now"), though cg_height 0 runs it
+    from dataclasses import replace
+    from lookahead_control.core.config import load_vehicle
+    folder, _ = reference
+    manifest = json.loads((folder / 'sweep.json').read_text())
+    del manifest['vehicle']['cg_height']
+    old = tmp_path / 'old'
+    (old / 'parts').mkdir(parents=True)
+    (old / 'sweep.json').write_text(json.dumps(manifest))
+    with pytest.raises(ToolError, match=r'options differ: vehicle\.cg_height = 0\.0 in the '
+                       r'folder, 0\.5 now'):
+        sw.sweep(SPEC, old, vehicle=replace(load_vehicle(None), cg_height=0.5),
+                 controller=CONTROLLER, plots=False, workers=0)
+    resumed, count = _sweep(old)
+    assert count == 4 and resumed.num_rows == 6
+
+
 def test_a_sweep_written_with_the_schedule_default_resumes_only_with_the_schedule(
         reference, tmp_path):
     # a folder written from dev-kisched to dev-gate records low_speed_integral_gain 0.05

@@ -205,20 +205,22 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
     if not conns:
         reader.close()
         raise ToolError(f'{args.bag}: nothing to publish')
-    with rcl_log_held():
-        # rclpy's signal handling off: with it, Ctrl-C invalidated the context first and
-        # the next publish ended in a traceback ("publisher's context is invalid", exit 1;
-        # dev-probe61); now it is the KeyboardInterrupt below, as SIGTERM's Terminated
-        rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        node = Node('replay')
-    except (InvalidParameterTypeException, InvalidParameterValueException) as err:
-        # '-p use_sim_time:=7': rclpy's words, one line (was a traceback; dev-probe61)
-        reader.close()
-        rclpy.try_shutdown()
-        raise ToolError(parameter_reason(err)) from err
+    node: Optional[Node] = None
     published = 0
+    # every exit from here on shuts the context down: a Ctrl-C while the context or the
+    # node was being created left it up, and the interpreter's exit waited on it (a suite
+    # under load)
     try:
+        with rcl_log_held():
+            # rclpy's signal handling off: with it, Ctrl-C invalidated the context first
+            # and the next publish ended in a traceback ("publisher's context is invalid",
+            # exit 1; dev-probe61); now it is the KeyboardInterrupt below, as SIGTERM's
+            rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
+        try:
+            node = Node('replay')
+        except (InvalidParameterTypeException, InvalidParameterValueException) as err:
+            # '-p use_sim_time:=7': rclpy's words, one line (was a traceback; dev-probe61)
+            raise ToolError(parameter_reason(err)) from err
         pubs = {c.id: node.create_publisher(message_class(c.msgtype), c.topic, qos_of(c))
                 for c in conns}
         clock = node.create_publisher(ClockMsg, '/clock', 10) if args.clock else None
@@ -259,7 +261,8 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
         return interrupts.exit_code(stop)
     finally:
         reader.close()
-        node.destroy_node()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
     return 0
 

@@ -56,7 +56,8 @@ VEHICLE_SPECS = (
     Spec('vehicle.c_r', 80000.0, 'rear axle cornering stiffness C_r [N/rad]', 1.0, 1.0e7),
     Spec('vehicle.d_s', 1.96, 'CG to front bumper, look-down sensor d_s [m]', 0.01, 50.0),
     Spec('vehicle.cg_height', 0.0, 'CG height above the ground h: under a_x the axle loads '
-         'and cornering stiffnesses move by m a_x h / L (0: none, the paper model) [m]',
+         'and cornering stiffnesses move by m a_x h / L, read by law cg_compensated and the '
+         'nonlinear plant (0: none, the paper model) [m]',
          0.0, 3.0),
 )
 

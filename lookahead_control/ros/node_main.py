@@ -215,6 +215,9 @@ def now_ns(node: Node) -> int:
         return int(handle.get_now().nanoseconds)
 
 
+#: the characters of a remapped name that rcl's argument parser takes
+_TOKENS = re.compile(r'\w*')
+
 #: rcl's --ros-args flags that take a value (the value is not a flag)
 _VALUED_FLAGS = frozenset(('-r', '--remap', '-p', '--param', '--params-file', '--log-level',
                            '--log-config-file', '-e', '--enclave', '--log-file-name'))
@@ -316,10 +319,14 @@ def node_full_name(args: Sequence[str], node_name: str) -> str:
                       and target in ('', name)), '/')
     namespace = namespace if namespace.startswith('/') else '/' + namespace
     try:
-        # what rcl takes here and the node's creation refuses ('-r __ns:=/car_b/', a
-        # name over 255 characters): a traceback after ROS started (dev-probe61)
-        validate_node_name(name)
-        validate_namespace(namespace)
+        # what rcl's argument parser takes and the node's creation refuses ('-r
+        # __ns:=/car_b/', a name over 255 characters): a traceback after ROS started
+        # (dev-probe61); a rule rcl's parser refuses ('__node:=a/b') is left to its
+        # message, which says what a rule must be
+        if _TOKENS.fullmatch(name):
+            validate_node_name(name)
+        if _TOKENS.fullmatch(namespace.replace('/', '')):
+            validate_namespace(namespace)
     except (InvalidNodeNameException, InvalidNamespaceException) as err:
         what = '__ns' if isinstance(err, InvalidNamespaceException) else '__node'
         reason = one_line(str(err).split('\n', 1)[0].rstrip(':'))

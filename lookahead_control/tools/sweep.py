@@ -487,6 +487,11 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
                                    **{k: new['lane_keeping'][k] for k in (
                                        'integral_speed', 'low_integral_speed')
                                       if k not in settled}}
+        body = old.get('vehicle')
+        if isinstance(body, dict) and 'cg_height' not in body:
+            # a sweep from before vehicle.cg_height (dev-sc28) ran without load transfer,
+            # which cg_height 0 runs to the last bit (dev-probe62: it was refused)
+            old['vehicle'] = {**body, 'cg_height': 0.0}
         if 'output_stage' not in old and {'vehicle', 'controller'} <= set(old):
             raise ToolError(f'{out} holds a sweep from before the output stage: its laws ran '
                             "without the node's angle and rate limits, and runs of both "
