@@ -621,11 +621,29 @@ def test_a_vehicle_file_gives_the_car_to_every_node(tmp_path, section):
     assert load_vehicle(path).mass == 1600.0
 
 
+def _refused_when_piped(data: bytes, reason: str) -> None:
+    """Check that a params file read once (a pipe) is refused under the name given."""
+    import os
+    from lookahead_control.ros.controller_node import ALL_SPECS, check_parameters
+    from lookahead_control.ros.node_main import checked_arguments
+    read, write = os.pipe()
+    os.write(write, data)
+    os.close(write)
+    scratch: list = []
+    try:
+        with pytest.raises(ConfigError, match=f'^/dev/fd/{read}: {re.escape(reason)}'):
+            checked_arguments(['--ros-args', '--params-file', f'/dev/fd/{read}'],
+                              'controller', ALL_SPECS, scratch, check_parameters)
+    finally:
+        os.close(read)
+        for path in scratch:
+            path.unlink()
+
+
 def test_a_value_the_core_refuses_names_the_argument_that_set_it(tmp_path):
     # dev-probe60's "seen": 'curvature_smoothing: 0.5' (allowed 0 or 1-50 m) passes the
     # schema's range 0-50 and stopped the node on the core's check, without the file's
     # name that every range error has; now the whole set is checked before ROS starts
-    import os
     from lookahead_control.ros.controller_node import ALL_SPECS, check_parameters
     from lookahead_control.ros.node_main import checked_arguments
 
@@ -664,18 +682,7 @@ def test_a_value_the_core_refuses_names_the_argument_that_set_it(tmp_path):
     with pytest.raises(ConfigError, match="^-p law:=bogus: law = 'bogus' is not allowed"):
         given('-p', 'law:=bogus')
     # a file read once is named as given, not as the copy the node reads
-    read, write = os.pipe()
-    os.write(write, half.read_bytes())
-    os.close(write)
-    scratch = []
-    try:
-        with pytest.raises(ConfigError, match=f'^/dev/fd/{read}: lane_keeping.curvature'):
-            checked_arguments(['--ros-args', '--params-file', f'/dev/fd/{read}'], 'controller',
-                              ALL_SPECS, scratch, check_parameters)
-    finally:
-        os.close(read)
-        for path in scratch:
-            path.unlink()
+    _refused_when_piped(half.read_bytes(), 'lane_keeping.curvature_smoothing = 0.5 m')
 
 
 def test_the_simulator_and_the_bridge_check_their_whole_set_at_start_up(tmp_path):
@@ -713,7 +720,6 @@ def test_every_argument_behind_a_refusal_is_named(tmp_path):
     # ('must be <= low_speed') named no argument or only one; the simulator's step and
     # delay checks and its speed override ran after ROS started, without the file's name;
     # a built-in parameter of the wrong type (use_sim_time: 1) too, in rclpy's words
-    import os
     from lookahead_control.ros.controller_node import ALL_SPECS, check_parameters
     from lookahead_control.ros.node_main import checked_arguments
     from sim_plant import sim_plant_node
@@ -758,20 +764,9 @@ def test_every_argument_behind_a_refusal_is_named(tmp_path):
     with pytest.raises(ConfigError, match=f'^-p curvature_stop:=3.0 and {vehicle}: '):
         node('sim_plant', *sim, '--params-file', vehicle, '-p', 'curvature_stop:=3.0')
     # a malformed file read once is named as given, not as the check's copy of it
-    read, write_end = os.pipe()
-    os.write(write_end, b'controller:\n  ros__parameters:\n    lane_keeping.natural_frequency: '
-                        b'500.0\n')
-    os.close(write_end)
-    scratch = []
-    try:
-        with pytest.raises(ConfigError, match=f'^/dev/fd/{read}: lane_keeping.natural_'
-                           'frequency = 500.0 rad/s is out of range'):
-            checked_arguments(['--ros-args', '--params-file', f'/dev/fd/{read}'],
-                              'controller', ALL_SPECS, scratch, check_parameters)
-    finally:
-        os.close(read)
-        for path in scratch:
-            path.unlink()
+    _refused_when_piped(b'controller:\n  ros__parameters:\n    lane_keeping.natural_'
+                        b'frequency: 500.0\n', 'lane_keeping.natural_frequency = 500.0 rad/s '
+                        'is out of range')
     # a name or namespace the node's creation refuses, before ROS starts
     for rule, why in (('__ns:=/car_b/', "namespace must not end with a '/'"),
                       ('__node:=1car', 'node name must not start with a number'),

@@ -39,8 +39,8 @@ from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAM
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import ConfigError, source_config_dir
-from lookahead_control.ros.node_main import (checked_arguments, now_ns, program_arguments,
-                                             rcl_reason, RCLError, run_node)
+from lookahead_control.ros.node_main import (now_ns, program_arguments, rcl_reason, RCLError,
+                                             run_node, tool_arguments)
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidHandle
@@ -465,16 +465,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                    '(default 0.5)')
     p.add_argument('--recover', type=Path, metavar='BAG',
                    help='rewrite a truncated bag into a readable one and exit')
-    # the params files among the ROS arguments checked before rcl parses them here: a
-    # malformed one or a directory is one line naming it (was rcl's raw message), and a
-    # read-once file is copied first (rcl read it here, and the node then found it empty)
-    scratch: list[Path] = []
-    try:
-        full = checked_arguments(full, 'record', (), scratch)
-        return _main(p, full)
-    finally:
-        for path in scratch:
-            path.unlink(missing_ok=True)
+    # before, a file holding only a string played, a directory or a malformed file gave
+    # rcl's raw message, and record let rcl's parser read a pipe before the node
+    with tool_arguments(full, 'record') as checked:
+        return _main(p, checked)
 
 
 def _main(p: ArgumentParser, full: list[str]) -> int:

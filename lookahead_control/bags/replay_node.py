@@ -39,8 +39,8 @@ from lookahead_control.core.cli import (ArgumentParser, assignments, number, run
                                         ToolError, write_json)
 from lookahead_control.core.config import ConfigError, rcl_param_value
 from lookahead_control.ros import conversions as conv
-from lookahead_control.ros.node_main import (checked_arguments, parameter_reason,
-                                             program_arguments, rcl_log_held)
+from lookahead_control.ros.node_main import (parameter_reason, program_arguments,
+                                             rcl_log_held, tool_arguments)
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
@@ -315,16 +315,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                               'steering > TOL [rad]; implies --offline')
     offline_only.add_argument('--json', type=Path, default=None, metavar='FILE',
                               help='write the comparison as JSON')
-    # the params files among the ROS arguments read as record and the nodes read them:
-    # one line naming a malformed one (before, a file holding only a string played, and
-    # a directory gave rcl's raw message), a read-once file copied before rcl reads it
-    scratch: list[Path] = []
-    try:
-        full = checked_arguments(full, 'replay', (), scratch)
-        return _main(p, full)
-    finally:
-        for path in scratch:
-            path.unlink(missing_ok=True)
+    # before, a file holding only a string played, a directory or a malformed file gave
+    # rcl's raw message, and record let rcl's parser read a pipe before the node
+    with tool_arguments(full, 'replay') as checked:
+        return _main(p, checked)
 
 
 def _main(p: ArgumentParser, full: list[str]) -> int:

@@ -387,6 +387,29 @@ def checked_arguments(args: Sequence[str], node_name: str, specs: Sequence[Any],
         raise ConfigError(message) from err
 
 
+@contextlib.contextmanager
+def tool_arguments(full: Sequence[str], name: str) -> Iterator[list[str]]:
+    """
+    Check the params files among a tool's ROS arguments before rcl parses them.
+
+    What :func:`checked_arguments` does for a node without parameters (``record``,
+    ``replay``): a malformed file or a directory is one line naming it, and a file read
+    once is copied first (rcl's argument parser would read it, and the node then find it
+    empty); the copies are deleted when the block ends.
+
+    :param full: the command line, program name first.
+    :param name: the tool's node name.
+    :return: the command line to parse and give rcl.
+    :raises ConfigError: a bad file or name.
+    """
+    scratch: list[Path] = []
+    try:
+        yield checked_arguments(full, name, (), scratch)
+    finally:
+        for path in scratch:
+            path.unlink(missing_ok=True)
+
+
 def _checked_files(args: list[str], node_name: str, specs: Sequence[Any],
                    scratch: list[Path],
                    check: Optional[Callable[[dict[str, Any]], Any]]) -> list[str]:
