@@ -25,6 +25,8 @@ simulator the recorder read last.
 
 from pathlib import Path
 import re
+import signal
+import time
 from types import SimpleNamespace
 
 from lookahead_control.bags.rosbag_io import SCENARIO_KEY
@@ -598,3 +600,25 @@ def test_ctrl_c_while_replay_plays_is_one_line_and_exit_130(tmp_path):
         assert re.fullmatch(r'\S+: interrupted( after \d+ messages)?',
                             err.strip().splitlines()[-1]), err
         assert 'Traceback' not in err and 'context is invalid' not in err, err
+
+
+def test_a_ctrl_c_a_library_swallowed_stops_replay_playing(tmp_path, capsys, monkeypatch):
+    # this session's suite: 'replay' hung 60 s after a Ctrl-C under load. A SIGINT while a
+    # C extension initializes (a lazy import in play) can become an error a fallback
+    # catches; only interrupts.received remembers it, and replay played the whole bag
+    from lookahead_control.bags import replay_node
+    from lookahead_control.core import interrupts
+    bag = tmp_path / 'two'
+    _bag(bag, TWO_CARS)
+    opened = replay_node.bag_reader
+
+    def swallowing(path):
+        interrupts.received.append(signal.SIGINT)       # the signal, its exception lost
+        return opened(path)
+
+    monkeypatch.setattr(interrupts, 'received', [])
+    monkeypatch.setattr(replay_node, 'bag_reader', swallowing)
+    start = time.monotonic()
+    assert run_tool(replay_node.main, [str(bag), '--rate', '0.05', '--wait', '0']) == 130
+    assert time.monotonic() - start < 10.0          # the bag takes 12 s at 0.05x
+    assert capsys.readouterr().err.strip().endswith('interrupted after 0 messages')

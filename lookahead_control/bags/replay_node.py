@@ -229,6 +229,7 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
         end = time.monotonic() + args.wait
         while (time.monotonic() < end and rclpy.ok()
                and not all(pub.get_subscription_count() for pub in pubs.values())):
+            interrupts.raise_if_received()
             rclpy.spin_once(node, timeout_sec=0.05)
         alone = [c.topic for c in conns if not pubs[c.id].get_subscription_count()]
         if alone:
@@ -239,6 +240,8 @@ def play(args: argparse.Namespace, ros_args: list[str]) -> int:
         start_bag: Optional[int] = None
         next_clock = 0
         for conn, stamp, data in reader.messages(connections=conns):
+            # a Ctrl-C a lazy import swallowed stops the play too
+            interrupts.raise_if_received()
             if not rclpy.ok():
                 break
             start_bag = stamp if start_bag is None else start_bag

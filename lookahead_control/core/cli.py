@@ -22,12 +22,11 @@ import json
 import math
 import os
 from pathlib import Path
-import signal
 import sys
 from typing import Any, Callable, Mapping, NoReturn, Sequence
 
 from lookahead_control.core.config import ConfigError
-from lookahead_control.core.interrupts import exit_code, install, received, Terminated
+from lookahead_control.core.interrupts import exit_code, install, raise_if_received, Terminated
 from lookahead_control.core.params import ParameterError
 
 EXIT_USAGE = 2
@@ -78,12 +77,10 @@ def run_tool(main: Callable[[Sequence[str] | None], int],
     prog = Path(sys.argv[0]).name
     install()           # SIGTERM stops the tool as Ctrl-C does (children, bags)
     try:
-        if received:
-            # a Ctrl-C or SIGTERM while the tool started that an import swallowed (a
-            # C extension's init can turn it into an ImportError a fallback catches):
-            # the tool stops as the nodes do (node_main), instead of running on
-            raise (Terminated(received[-1]) if received[-1] == signal.SIGTERM
-                   else KeyboardInterrupt())
+        # a Ctrl-C or SIGTERM while the tool started that an import swallowed (a C
+        # extension's init can turn it into an ImportError a fallback catches): the tool
+        # stops as the nodes do (node_main), instead of running on
+        raise_if_received()
         return main(argv)
     except BrokenPipeError:
         # `tool | head`: the reader left; no message (nobody reads it), and no second

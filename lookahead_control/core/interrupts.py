@@ -61,6 +61,21 @@ def exit_code(interrupt: BaseException) -> int:
     return 128 + int(getattr(interrupt, 'signum', signal.SIGINT))
 
 
+def raise_if_received() -> None:
+    """
+    Raise the interrupt of a SIGINT / SIGTERM that a library swallowed, if one came.
+
+    A Ctrl-C while a C extension initializes (a lazy import) can become an ImportError a
+    fallback catches: the tool ran on (``replay`` played a whole bag at 0.01x after a
+    Ctrl-C under load: the suite's 60 s hang). A loop calls this between its steps.
+
+    :raises KeyboardInterrupt: a SIGINT was received (:class:`Terminated`: a SIGTERM).
+    """
+    if received:
+        raise (Terminated(received[-1]) if received[-1] == signal.SIGTERM
+               else KeyboardInterrupt())
+
+
 def running_as_executable(argv0: str | None = None) -> bool:
     """
     Return True when this process is one of the package's executables.
