@@ -834,12 +834,11 @@ def test_a_start_up_interrupt_an_import_swallowed_stops_the_tool(
     # honoured such a signal (node_main); the tools now do too
     from lookahead_control.core import cli, interrupts
     monkeypatch.setattr(interrupts, 'received', [signum])
-    monkeypatch.setattr(cli, 'received', interrupts.received)
     called = []
     assert cli.run_tool(lambda argv: called.append(argv) or 0, []) == code
     assert not called
     assert capsys.readouterr().err.endswith(f': {word}\n')
-    monkeypatch.setattr(cli, 'received', [])
+    monkeypatch.setattr(interrupts, 'received', [])
     assert cli.run_tool(lambda argv: called.append(argv) or 0, []) == 0 and called == [[]]
 
 

@@ -33,6 +33,7 @@ from lookahead_control.bags.rosbag_io import SCENARIO_KEY
 from lookahead_control.bags.run_data import load_run
 from lookahead_control.core.cli import run_tool
 import pytest
+from test_faults import _start_default_sigint
 from test_rerun_lost_curvature import controllers_bag
 
 SCENARIO_A = 'scenario:\n  name: road_a\n'
@@ -587,9 +588,12 @@ def test_ctrl_c_while_replay_plays_is_one_line_and_exit_130(tmp_path):
     bag = tmp_path / 'two'
     _bag(bag, TWO_CARS)
     for pause in (0.2, 3.0):                # in --wait, and while playing
+        # SIGINT at its default, as from a shell: a suite started as a background job
+        # ignores SIGINT, and the child inherited that (it played 60 s: this test hung)
         proc = subprocess.Popen([sys.executable, '-m', 'lookahead_control.bags.replay_node',
                                  str(bag), '--rate', '0.01', '--wait', '1'],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=_start_default_sigint)
         try:
             time.sleep(pause)
         finally:
