@@ -607,9 +607,9 @@ def test_ctrl_c_while_replay_plays_is_one_line_and_exit_130(tmp_path):
 
 
 def test_a_ctrl_c_a_library_swallowed_stops_replay_playing(tmp_path, capsys, monkeypatch):
-    # this session's suite: 'replay' hung 60 s after a Ctrl-C under load. A SIGINT while a
-    # C extension initializes (a lazy import in play) can become an error a fallback
-    # catches; only interrupts.received remembers it, and replay played the whole bag
+    # a SIGINT while a C extension initializes (a lazy import in play) can become an
+    # error a fallback catches; only interrupts.received remembers it, and replay played
+    # the whole bag (run_tool checked it only before main)
     from lookahead_control.bags import replay_node
     from lookahead_control.core import interrupts
     bag = tmp_path / 'two'

@@ -66,8 +66,8 @@ def raise_if_received() -> None:
     Raise the interrupt of a SIGINT / SIGTERM that a library swallowed, if one came.
 
     A Ctrl-C while a C extension initializes (a lazy import) can become an ImportError a
-    fallback catches: the tool ran on (``replay`` played a whole bag at 0.01x after a
-    Ctrl-C under load: the suite's 60 s hang). A loop calls this between its steps.
+    fallback catches, and the tool ran on: ``run_tool`` checks before the tool's main,
+    a loop (``replay``'s) between its steps.
 
     :raises KeyboardInterrupt: a SIGINT was received (:class:`Terminated`: a SIGTERM).
     """
