@@ -294,9 +294,10 @@ def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
     try:
         assert talker.stdout.readline().startswith('published')
         time.sleep(0.6)                       # more than two chunk intervals of quiet
+    finally:
+        # the recorder too: a failed assertion above left it recording for hours
         recorder.kill()
         recorder.wait()
-    finally:
         talker.kill()
         talker.wait()
     assert not (bag / 'metadata.yaml').exists()
