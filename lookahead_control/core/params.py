@@ -197,7 +197,7 @@ def loaded_vehicle(vehicle: VehicleParams, a_x: Real) -> VehicleParams:
 
     For a batch (``a_x`` an array) the stiffnesses are arrays, which the checks of
     :class:`VehicleParams` do not take: the copy is made without them (its values come
-    from a checked vehicle and :func:`axle_load_factors`' floor).
+    from a checked vehicle and :func:`axle_load_factors`' bounded transfer).
 
     :param vehicle: the vehicle (``cg_height`` 0: returned as it is).
     :param a_x: dv_x/dt [m/s^2] (float or array).
