@@ -23,6 +23,7 @@ import signal
 import subprocess
 import sys
 import time
+import types
 
 from conftest import spin_until
 from lookahead_control.analysis.bag_analysis import bag_row, run_series
@@ -305,19 +306,43 @@ def test_sigkill_loses_at_most_the_last_chunk(tmp_path):
     result = recover(bag)
     values = load_floats(bag)
     # everything in the chunks the recorder had closed is back, in order, from the
-    # first message: only the chunk still open at the kill is lost
+    # first message: only the chunk still open at the kill is lost. 400 messages over 2 s
+    # close several chunks by time (at 64 KiB a chunk holds thousands of these). Where
+    # it closes them is checked on a clock the test controls
+    # (test_chunks_close_by_the_writers_clock): the log times here, read before each
+    # write, let no bound tell the rule from a recorder preempted between a message's
+    # stamp and its chunk's close (before, a bound of 1 ms past 0.2 s did)
     assert result.messages == len(values) == sum(map(len, chunks))
     assert values == list(range(len(values)))
-    # and it closed them by its rule: on the first write more than 0.2 s (its clock)
-    # after the previous close, so every message of a chunk but its last was received
-    # within 0.2 s of the previous chunk's last (of the chunk's first, for the first
-    # chunk); 1 ms for the rates of its system and steady clocks. 400 messages over 2 s
-    # close several chunks
     assert len(chunks) >= 2
-    before = chunks[0][0]
-    for times in chunks:
-        assert max(times[:-1], default=before) - before <= 0.2e9 + 1e6, (before, times)
-        before = times[-1]
+
+
+def test_chunks_close_by_the_writers_clock(tmp_path, monkeypatch):
+    # BagWriter closes a chunk on the first write more than chunk_interval after the
+    # previous close, on its own steady clock, whatever the stamps say (receive times,
+    # or simulated time that jumps)
+    from lookahead_control.bags import rosbag_io
+    from std_msgs.msg import Float64
+    clock = [100.0]
+    monkeypatch.setattr(rosbag_io, 'time', types.SimpleNamespace(monotonic=lambda: clock[0]))
+    store = typestore()
+    writer = BagWriter(tmp_path / 'bag', chunk_interval=0.2)
+    writer.add_topic('/talk', 'std_msgs/msg/Float64',
+                     [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})])
+    # steady-clock instants after the writer's start [s], and the stamp of each write
+    # (steps of 0.07 s; a stall from 0.35 s to 0.8 s; stamps jumping back at 0.84 s)
+    steps = [0.0, 0.07, 0.14, 0.21, 0.28, 0.35, 0.8, 0.8, 0.8, 0.84, 0.91, 0.98, 1.05]
+    stamps = [k * 10**9 for k in range(9)] + [5, 6, 7, 8]
+    for k, (at, stamp) in enumerate(zip(steps, stamps)):
+        clock[0] = 100.0 + at
+        writer.write('/talk', stamp, serialize_cdr(Float64(data=float(k)), store))
+    # closes: at 0.21 (0.21 s after the start), at 0.8 (0.59 s after 0.21; the stall's
+    # backlog written after it goes to the next chunk), at 1.05 (0.25 s after 0.8); the
+    # messages at 0.84-0.98 do not close one whatever their stamps
+    chunks = _complete_chunks(tmp_path / 'bag' / 'bag.mcap')
+    assert chunks == [stamps[0:4], stamps[4:7], stamps[7:13]]
+    writer.close()
+    assert sorted(load_floats(tmp_path / 'bag')) == list(range(13))
 
 
 def _complete_chunks(path):
