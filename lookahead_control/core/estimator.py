@@ -49,6 +49,15 @@ law evaluates ``c`` at the lateral acceleration of the curve ahead: the complian
 curve is known before the tyres are loaded. A two-parameter form ``c(a) = theta_1 +
 theta_2 |a|`` was tried instead and measured worse under sensor noise: on a single curve
 the two are not separable (``docs/lane_keeping.md``).
+
+Axle-load transfer (the vehicle's ``cg_height`` > 0): under ``a_x`` the rear axle carries
+``f_r`` (:func:`~lookahead_control.core.params.axle_load_factors`) of its static load, and
+a tyre's stiffness and friction limit go with its load, so the rear compliance is ``c /
+f_r`` and the shape's load ratio ``|a| / (mu g f_r)``. The estimator then learns the
+scale over the loaded compliance (the regressor is divided by ``f_r`` of the sample's
+``a_x``) and :meth:`ComplianceEstimator.at` gives the compliance at the present ``a_x``:
+a braking step moves it at once, where an estimate of the compliance itself would
+follow about a second later (``docs/lane_keeping.md``, "Axle-load transfer").
 Everything works on floats and on numpy arrays (a batch).
 """
 
@@ -61,7 +70,7 @@ from typing import Any, Optional
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import VehicleParams
+from lookahead_control.core.params import axle_load_factors, VehicleParams
 import numpy as np
 
 GRAVITY = 9.80665
@@ -184,7 +193,13 @@ class ComplianceEstimator:
         self.filtered = (f_slip, f_turn, f_w)
         # the backward difference of the filtered w: (w - F w) / (T_f - dt) exactly
         phi = f_turn + (w - f_w) / max(self.filter_time - dt, 1e-3)
-        if self.friction > 0.0:
+        if veh.cg_height > 0.0:
+            # the scale over the compliance at the rear axle's present load
+            rear = axle_load_factors(veh, state.a_x)[1]
+            if self.friction > 0.0:
+                phi = phi * brush_shape(phi / (self.friction * GRAVITY * rear))[0]
+            phi = phi / rear
+        elif self.friction > 0.0:
             phi = phi * brush_shape(phi / (self.friction * GRAVITY))[0]
         zero = 0.0 * slip
         g = xp.where(active, min(dt / self.time_constant, 1.0) + zero, zero)
@@ -287,21 +302,30 @@ class ComplianceEstimator:
             return 0.0 * self.memory_energy
         return self.memory_energy / (self.memory_energy + self.prior * self.prior)
 
-    def at(self, accel: Real) -> tuple[Real, Real]:
+    def at(self, accel: Real, a_x: Real = 0.0) -> tuple[Real, Real]:
         """
         Return the secant and tangent compliance at a lateral acceleration [s^2/m].
 
         Secant: rear slip per lateral acceleration; tangent: its derivative d alpha / d a.
-        Both are the estimate itself without the load-dependent shape; with it, both
-        stay within ``[eta / k, eta k]``.
+        Both are the estimate itself without the load-dependent shape and the load
+        transfer; with either, both stay within ``[eta / k, eta k]``.
 
         :param accel: lateral acceleration (of the curve ahead) [m/s^2].
+        :param a_x: longitudinal acceleration [m/s^2]: the rear axle's load (the
+            vehicle's ``cg_height`` > 0; else unused).
         :return: ``(secant, tangent)``.
         """
         scale = self.compliance()
-        if self.friction <= 0.0:
+        rear: Real = 1.0
+        if self.vehicle.cg_height > 0.0:
+            rear = axle_load_factors(self.vehicle, a_x)[1]
+        elif self.friction <= 0.0:
             return scale, scale
-        secant, tangent = brush_shape(accel / (self.friction * GRAVITY))
+        secant: Real = 1.0
+        tangent: Real = 1.0
+        if self.friction > 0.0:
+            secant, tangent = brush_shape(accel / (self.friction * GRAVITY * rear))
         eta = self.vehicle.eta
         low, high = eta / self.ratio, eta * self.ratio
-        return xp.clip(scale * secant, low, high), xp.clip(scale * tangent, low, high)
+        return (xp.clip(scale * secant / rear, low, high),
+                xp.clip(scale * tangent / rear, low, high))

@@ -1062,7 +1062,8 @@ class CgCompensatedLaw:
         ``curvature_estimated`` (1: it ran on its own estimate, no curvature received),
         ``rho_used`` (the curvature at the CG it used [1/m]), ``integral`` (the CG-error
         integral's shift of the reference [m]), ``compliance_scale`` (the rear-compliance
-        estimate over the model's ``eta``), ``compliance_memory`` (the memory it falls back
+        estimate over the model's ``eta``; with ``cg_height`` > 0 over the loaded ``eta`` at
+        the present ``a_x``), ``compliance_memory`` (the memory it falls back
         to, over ``eta``), ``demand_capped`` (1: the command was held at
         the demand band, ``demand_limit``), ``approach_clipped`` (1: the CG's offset was
         clipped, ``approach_heading``), ``memory_generation`` (a number that changes
@@ -1242,7 +1243,8 @@ class CgCompensatedLaw:
                                            | (self.integral * state.y_cg < 0.0)),
                         integral_gain_at(s, v_x) * state.y_cg, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
-        secant, tangent = self.estimator.at(v_x * v_x * rho_ref)
+        # the compliance at the rear axle's load under the a_x the law linearizes at
+        secant, tangent = self.estimator.at(v_x * v_x * rho_ref, law_state.a_x)
         out = self.evaluate(law_state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
                             integral, rate, secant, tangent, lead_rate, lead_ff_rate,
                             max(s.feedforward_preview - ahead, 0.0))
