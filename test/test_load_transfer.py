@@ -288,3 +288,28 @@ def test_the_stability_tool_says_the_load_transfer_is_not_covered(tmp_path, caps
             in capsys.readouterr().out)
     stability_main(['--samples', '28', '--delays', '0.02'])
     assert 'cg_height' not in capsys.readouterr().out
+
+
+def test_compare_and_sweep_say_the_linear_plant_has_no_load_transfer(tmp_path, capsys):
+    # dev-sc28 left it to the docs: a --vehicle with cg_height on the linear plant ran the
+    # law's loaded model against a plant without transfer, and nothing said so
+    from lookahead_control.core.cli import run_tool
+    from lookahead_control.tools import compare, sweep
+    tall = tmp_path / 'tall.yaml'
+    tall.write_text('/**:\n  ros__parameters:\n    vehicle:\n      cg_height: 0.58\n')
+    note = ('vehicle.cg_height = 0.58 m: the linear plant has no load transfer')
+    quick = ['--laws', 'cg_compensated', '--scenarios', 's0_straight', '--speeds', '37',
+             '--duration', '0.2', '--workers', '1', '--no-plots', '--no-progress']
+    for plant, vehicle, said in (('linear', tall, True), ('nonlinear', tall, False),
+                                 ('linear', None, False)):
+        given = ['--vehicle', str(vehicle)] if vehicle else []
+        out = tmp_path / f'c_{plant}_{said}'
+        assert compare.main(quick + given + ['--plants', plant, '--out', str(out)]) == 0
+        assert (f'compare: note: {note}' in capsys.readouterr().err) == said
+        assert run_tool(sweep.main, given + [
+            '--out', str(tmp_path / f's_{plant}_{said}'), '--workers', '0', '--mode', 'grid',
+            '--levels', '2', '--cornering', '0:0', '--mass', '0:0', '--friction', '1:1',
+            '--delay', '0:0', '--speeds', '37', '--scenarios', 's0_straight', '--duration',
+            '0.2', '--laws', 'cg_compensated', '--plant', plant, '--no-plots',
+            '--no-progress']) == 0
+        assert (f'sweep: note: {note}' in capsys.readouterr().err) == said

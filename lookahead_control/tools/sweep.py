@@ -919,6 +919,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not scenario_path(name).exists():
             raise ToolError(f'--scenarios: no scenario {name!r} ({scenario_path(name)})')
     vehicle = load_vehicle(args.vehicle)
+    from lookahead_control.tools.compare import load_transfer_note
+    note = load_transfer_note(vehicle, [spec.plant])
+    if note:
+        print(f'sweep: note: {note}', file=sys.stderr)
     if args.controller is None:
         controller, lane_keeping = load_controller(None), load_lane_keeping(None)
         safety = load_safety(None)
