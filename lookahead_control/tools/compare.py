@@ -289,7 +289,7 @@ def load_transfer_note(vehicle: VehicleParams, plants: Sequence[str]) -> Optiona
     if vehicle.cg_height <= 0.0 or 'linear' not in plants:
         return None
     return (f'vehicle.cg_height = {vehicle.cg_height:g} m: the linear plant has no '
-            'load transfer (the paper\'s model), while cg_compensated linearizes with each '
+            "load transfer (the paper's model), while cg_compensated linearizes with each "
             "axle's stiffness at its load under a_x: on that plant its model is a mismatch "
             '(the nonlinear plant moves its tyres with the load)')
 
