@@ -203,6 +203,47 @@ def test_the_estimate_learns_its_scale_over_the_loaded_compliance():
         assert (got[0][i], got[1][i]) == pytest.approx(one.at(a_y, float(a_x[i])), rel=1e-12)
 
 
+def test_a_noisy_a_x_does_not_bias_the_scale():
+    # dev-probe63: the regressor divided by f_r of each sample's raw a_x learnt E[1/f] /
+    # E[1/f^2] < 1 under noise (3 m/s^2, a raw dv_x/dt: the scale 7 % low, S5 10-12 cm
+    # against 5.4); a_x now passes the regression's own filter first
+    vehicle = VehicleParams(cg_height=H)
+    v_y, r = _loaded_cornering(vehicle, -3.5, 30.0, 3.0)
+    rng = np.random.default_rng(7)
+    est = _estimator(vehicle)
+    seen = []
+    for k in range(6000):
+        a_x = -3.5 + 3.0 * rng.standard_normal()
+        est.update(LateralState(0.0, 0.0, v_y, r, 30.0, a_x, 0.0, 0.0), 0.01, True)
+        if k >= 1000:
+            seen.append(est.compliance() / vehicle.eta)
+    # its mean over 50 s (the estimate itself wanders 1.7 % rms with its 0.5 s window):
+    # 0.998, with the raw a_x 0.854
+    assert np.mean(seen) == pytest.approx(1.0, abs=0.006)
+
+
+def test_a_retune_of_the_cg_height_restarts_the_estimate():
+    # dev-probe63: carried, a scale learnt braking without a cg_height (the loaded
+    # compliance itself) was counted again with one: 27 % over the plant's slip
+    controller, settings = load_controller(None), load_lane_keeping(None)
+    flat, tall = load_vehicle(None), replace(load_vehicle(None), cg_height=H)
+    v_y, r = _loaded_cornering(tall, -3.5, 30.0, 3.0)
+    preview = Preview(np.array([0.0, 100.0]), np.array([3.0 / 900.0] * 2))
+    old = CgCompensatedLaw(flat, controller, settings)
+    for _ in range(300):
+        old.step(LateralState(0.0, 0.0, v_y, r, 30.0, -3.5, 3.0 / 900.0, 0.0), preview, 0.01)
+    assert old.compliance() / flat.eta > 1.2          # it learnt the unloaded rear
+    new = CgCompensatedLaw(tall, controller, settings)
+    new.reset()
+    carried, restarted = new.take_over(old)
+    assert 'compliance estimate' in restarted and 'compliance estimate' not in carried
+    assert new.compliance() == tall.eta
+    # the same height: carried
+    again = CgCompensatedLaw(flat, controller, settings)
+    again.reset()
+    assert 'compliance estimate' in again.take_over(old)[0]
+
+
 def test_without_a_cg_height_the_estimate_ignores_a_x():
     vehicle = VehicleParams()
     v_y, r = _loaded_cornering(vehicle, 0.0, 30.0, 3.0)
@@ -215,7 +256,7 @@ def test_without_a_cg_height_the_estimate_ignores_a_x():
 
 def test_s5_on_the_nonlinear_plant_with_load_transfer():
     # the package's plant and the law both with 0.58 m (20 ms delay, noise-free): 8.4 cm
-    # while the estimate followed the load a second late, 5.4 cm since (2.7 cm on a car
+    # while the estimate followed the load a second late, 4.4 cm since (2.7 cm on a car
     # without transfer; docs/lane_keeping.md, "Axle-load transfer")
     from lookahead_control.tools import compare
     from sim_plant.closed_loop_sim import run
@@ -225,7 +266,7 @@ def test_s5_on_the_nonlinear_plant_with_load_transfer():
     result = run(scenario, vehicle, law, compare.NONLINEAR, dt=compare.DT,
                  preview_distance=compare.PREVIEW_DISTANCE, delay=compare.DELAY)
     peak = float(np.max(np.abs(result['y_cg'])))
-    assert peak < 0.065, peak
+    assert peak < 0.055, peak
 
 
 def test_the_commonroad_car_is_mapped_with_its_cg_height_and_measured_a_x():

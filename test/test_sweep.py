@@ -253,6 +253,31 @@ def test_a_sweep_from_before_the_cg_height_resumes_as_one_without_load_transfer(
     assert count == 4 and resumed.num_rows == 6
 
 
+def test_a_sweep_with_a_cg_height_from_before_the_loaded_scale_is_refused(
+        reference, tmp_path):
+    # dev-probe63: since dev-sc29 the estimate learns its scale over the loaded rear
+    # compliance; a folder of runs with a cg_height from before it resumed silently,
+    # mixing runs of two estimators. Without a cg_height the estimate is the same
+    from dataclasses import replace
+    from lookahead_control.core.config import load_vehicle
+    folder, _ = reference
+    manifest = json.loads((folder / 'sweep.json').read_text())
+    assert manifest.pop('load_transfer_estimate') == sw.LOADED_SCALE
+    flat = tmp_path / 'flat'
+    (flat / 'parts').mkdir(parents=True)
+    (flat / 'sweep.json').write_text(json.dumps(manifest))
+    resumed, count = _sweep(flat)
+    assert count == 4 and resumed.num_rows == 6
+    tall = tmp_path / 'tall'
+    (tall / 'parts').mkdir(parents=True)
+    manifest['vehicle']['cg_height'] = 0.5
+    (tall / 'sweep.json').write_text(json.dumps(manifest))
+    with pytest.raises(ToolError, match=r'vehicle\.cg_height = 0\.5 from before the '
+                       r'compliance estimate learnt its scale'):
+        sw.sweep(SPEC, tall, vehicle=replace(load_vehicle(None), cg_height=0.5),
+                 controller=CONTROLLER, plots=False, workers=0)
+
+
 def test_a_sweep_written_with_the_schedule_default_resumes_only_with_the_schedule(
         reference, tmp_path):
     # a folder written from dev-kisched to dev-gate records low_speed_integral_gain 0.05

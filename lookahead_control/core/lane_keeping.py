@@ -963,8 +963,12 @@ class CgCompensatedLaw:
         else:
             restarted.append('integral (integral_gain 0)')
         statistics = ('compliance_time_constant', 'compliance_filter', 'design_friction')
+        # the CG height defines the regressor too (the scale over the loaded compliance):
+        # carried, a scale learnt braking without it was counted again with it, 27 % over
+        # the slip (dev-probe63)
         if s.compliance_time_constant > 0.0 and all(
-                getattr(s, name) == getattr(was, name) for name in statistics):
+                getattr(s, name) == getattr(was, name) for name in statistics) and (
+                self.vehicle.cg_height == old.vehicle.cg_height):
             self.estimator.take_over(old.estimator)
             carried.append('compliance estimate' + ('' if same_vehicle else
                                                     ' (as its scale over eta)'))
@@ -1132,7 +1136,8 @@ class CgCompensatedLaw:
         """
         Return the rear-compliance estimate [s^2/m] (eta before anything is learned).
 
-        With ``design_friction > 0`` it is the scale (the compliance at zero load).
+        With ``design_friction > 0`` it is the scale (the compliance at zero lateral
+        load), with the vehicle's ``cg_height`` > 0 at ``a_x`` 0 (the axles' static loads).
 
         :return: the estimate.
         """

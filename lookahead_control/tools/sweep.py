@@ -57,6 +57,8 @@ from lookahead_control.core.safety import SafetyParams
 import numpy as np
 
 PLANTS = ('nonlinear', 'linear')
+#: ``sweep.json``'s ``load_transfer_estimate`` since dev-sc29
+LOADED_SCALE = 'scale over the loaded compliance'
 RANGES = ('cornering', 'mass', 'friction', 'delay')
 PARAMETER_COLUMNS = ('run_id', 'task', 'law', 'scenario', 'plant', 'speed', 'cornering',
                      'mass', 'friction', 'delay', 'seed', 'noise')
@@ -407,7 +409,10 @@ def manifest_data(spec: SweepSpec, vehicle: VehicleParams, controller: Controlle
     data = {**spec.to_json(), 'vehicle': asdict(vehicle), 'controller': asdict(controller),
             'lane_keeping': asdict(lane_keeping or LaneKeepingParams()),
             'output_stage': {name.partition('.')[2]: getattr(limits, name.partition('.')[2])
-                             for name in OUTPUT_STAGE}}
+                             for name in OUTPUT_STAGE},
+            # what cg_compensated's compliance estimate learns with a cg_height (dev-sc29:
+            # the scale over the compliance at the rear axle's load, before: the compliance)
+            'load_transfer_estimate': LOADED_SCALE}
     return dict(json.loads(json.dumps(data)))
 
 
@@ -492,6 +497,15 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
             # a sweep from before vehicle.cg_height (dev-sc28) ran without load transfer,
             # which cg_height 0 runs to the last bit (dev-probe62: it was refused)
             old['vehicle'] = {**body, 'cg_height': 0.0}
+        if 'load_transfer_estimate' not in old and isinstance(body, dict):
+            if float(old['vehicle'].get('cg_height') or 0.0) > 0.0:
+                raise ToolError(
+                    f'{out} holds a sweep with vehicle.cg_height = '
+                    f"{old['vehicle']['cg_height']!r} from before the compliance estimate "
+                    "learnt its scale over the rear axle's loaded compliance (dev-sc29): "
+                    'runs of both must not mix; use another --out')
+            # without a cg_height the estimate is the one before, to the last bit
+            old['load_transfer_estimate'] = LOADED_SCALE
         if 'output_stage' not in old and {'vehicle', 'controller'} <= set(old):
             raise ToolError(f'{out} holds a sweep from before the output stage: its laws ran '
                             "without the node's angle and rate limits, and runs of both "
