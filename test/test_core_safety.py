@@ -528,3 +528,32 @@ def test_no_input_sequence_moves_the_command_faster_than_the_rate_limit():
             assert abs(a1 - a0) <= rate * max(0, s1 - newest) * 1e-9 + 1e-12, seed
             newest = max(newest, s1)
         assert start_path <= rate * span + 1e-12, seed
+
+
+def test_a_differentiated_a_x_beyond_the_believable_is_not_taken():
+    # dev-probe63: velocity stamps 1 us apart made a_x 1e5 m/s^2 and the commands swing
+    # 6.5-57 mrad; an IMU's accel_x beyond safety.max_acceleration is refused, the
+    # derivative was not checked. Now the last believable one is kept
+    from lookahead_control.bags.run_data import _differentiated, Samples
+    import numpy as np
+    core = SteeringController(VehicleParams(), ControllerParams(), 'differentiate', True,
+                              SafetyParams())
+    # (stamp [ns], v_x): 3 m/s^2 at 100 Hz, a sample 1 us after one, then on at 100 Hz
+    feed = [(0, 20.0), (10 * MS, 20.03), (20 * MS, 20.06), (20 * MS + 1000, 20.07),
+            (30 * MS, 20.09), (40 * MS, 20.12), (50 * MS, 40.0), (60 * MS, 40.03)]
+    seen = []
+    for stamp, v_x in feed:
+        core.update_velocity(VelocitySample(stamp, v_x, 0.0))
+        seen.append(core.acceleration())
+    assert seen[:3] == pytest.approx([0.0, 3.0, 3.0])
+    assert seen[3] == pytest.approx(3.0)               # 1e4 m/s^2: not taken
+    assert seen[4] == pytest.approx(0.02 / (0.01 - 1e-6))   # from the sample before it
+    assert seen[5] == pytest.approx(3.0)
+    assert seen[6] == pytest.approx(3.0)               # a speed jump: 1988 m/s^2, not taken
+    assert seen[7] == pytest.approx(3.0)
+    assert max(abs(a) for a in seen) <= SafetyParams().max_acceleration
+    # the re-run's arrays give the same a_x after each sample
+    velocity = Samples(np.array([s for s, _ in feed]), np.array([s for s, _ in feed]),
+                       np.arange(len(feed)), {'v_x': np.array([v for _, v in feed])})
+    arrays = _differentiated(velocity, np.arange(len(feed)), SafetyParams().max_acceleration)
+    assert list(arrays) == seen

@@ -1008,7 +1008,8 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
         a_x = column('yaw', 'accel_x') + v_y * rate
     elif core.acceleration_source == 'differentiate':
         fed = np.nonzero(code == roles.index('velocity'))[0]
-        a_x = _differentiated(run.inputs['velocity'], index[fed])[
+        a_x = _differentiated(run.inputs['velocity'], index[fed],
+                              core.safety.max_acceleration)[
             np.searchsorted(fed, latest['velocity'][at])]
     else:
         a_x = np.zeros(at.size)
@@ -1046,14 +1047,16 @@ def _stepped_law(result: Rerun) -> tuple[IntArray, LawOutput]:
     return stamps, LawOutput(*columns)
 
 
-def _differentiated(velocity: Samples, fed: IntArray) -> Array:
+def _differentiated(velocity: Samples, fed: IntArray, most: float) -> Array:
     """
     Return the controller's differentiated a_x after each velocity sample of a feed.
 
     :param velocity: the velocity samples.
     :param fed: their indexes in the order they are fed.
+    :param most: the believable |a_x| (``safety.max_acceleration``) [m/s^2].
     :return: a_x after each (as ``SteeringController.update_velocity``: updated when a
-        sample is newer than the one before, else kept; 0 before the first update).
+        sample is newer than the one before and the derivative within ``most``, else
+        kept; 0 before the first update).
     """
     v, stamp = velocity.values['v_x'][fed], velocity.stamp_ns[fed]
     updated = np.zeros(fed.size, dtype=bool)
@@ -1061,5 +1064,7 @@ def _differentiated(velocity: Samples, fed: IntArray) -> Array:
     estimate = np.zeros(fed.size)
     estimate[1:][updated[1:]] = ((v[1:] - v[:-1])[updated[1:]]
                                  / ((stamp[1:] - stamp[:-1])[updated[1:]] * 1e-9))
+    with np.errstate(invalid='ignore'):
+        updated &= np.abs(estimate) <= most
     last = np.maximum.accumulate(np.where(updated, np.arange(fed.size), -1))
     return np.where(last >= 0, estimate[np.maximum(last, 0)], 0.0)

@@ -700,7 +700,12 @@ class SteeringController:
         previous = self.velocity
         if previous is not None and sample.stamp_ns > previous.stamp_ns:
             dt = (sample.stamp_ns - previous.stamp_ns) * 1e-9
-            self._accel_estimate = (sample.v_x - previous.v_x) / dt
+            estimate = (sample.v_x - previous.v_x) / dt
+            # a derivative beyond the believable |a_x| is not the car's (two stamps
+            # microseconds apart: 1e5 m/s^2, commands swinging 6.5-57 mrad, dev-probe63):
+            # the last one is kept, as an IMU's accel_x beyond it is refused
+            if abs(estimate) <= self.safety.max_acceleration:
+                self._accel_estimate = estimate
         self.velocity = sample
 
     def update_curvature(self, sample: CurvatureSample) -> None:
