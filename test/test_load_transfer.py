@@ -222,6 +222,23 @@ def test_a_noisy_a_x_does_not_bias_the_scale():
     assert np.mean(seen) == pytest.approx(1.0, abs=0.006)
 
 
+def test_one_huge_a_x_does_not_linger_in_the_filtered_load():
+    # dev-probe64: through the filter, one sample of a_x 1e4 (a library caller; the node
+    # bounds a_x) left the scale at 1.73 a second later, 1e300 pinned it near the range
+    # for 200 s; a_x beyond where the transfer saturates moves the factor no further
+    vehicle = VehicleParams(cg_height=H)
+    v_y, r = _loaded_cornering(vehicle, -3.5, 30.0, 3.0)
+    runs = {}
+    for bad in (None, 1e4, 1e300, -1e300):
+        est = _estimator(vehicle)
+        for k in range(500):
+            a_x = bad if (k == 300 and bad is not None) else -3.5
+            est.update(LateralState(0.0, 0.0, v_y, r, 30.0, a_x, 0.0, 0.0), 0.01, True)
+        runs[bad] = est.compliance() / vehicle.eta
+    for bad in (1e4, 1e300, -1e300):
+        assert runs[bad] == pytest.approx(runs[None], abs=0.01), (bad, runs)
+
+
 def test_a_retune_of_the_cg_height_restarts_the_estimate():
     # dev-probe63: carried, a scale learnt braking without a cg_height (the loaded
     # compliance itself) was counted again with one: 27 % over the plant's slip
@@ -347,6 +364,10 @@ def test_compare_and_sweep_say_the_linear_plant_has_no_load_transfer(tmp_path, c
         out = tmp_path / f'c_{plant}_{said}'
         assert compare.main(quick + given + ['--plants', plant, '--out', str(out)]) == 0
         assert (f'compare: note: {note}' in capsys.readouterr().err) == said
+        # only cg_compensated reads the height (dev-probe64: said for Stanley too)
+        assert compare.main(quick[:1] + ['stanley'] + quick[2:] + given + [
+            '--plants', plant, '--out', str(out) + '_stanley']) == 0
+        assert 'compare: note:' not in capsys.readouterr().err
         assert run_tool(sweep.main, given + [
             '--out', str(tmp_path / f's_{plant}_{said}'), '--workers', '0', '--mode', 'grid',
             '--levels', '2', '--cornering', '0:0', '--mass', '0:0', '--friction', '1:1',

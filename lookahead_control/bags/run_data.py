@@ -1054,17 +1054,17 @@ def _differentiated(velocity: Samples, fed: IntArray, most: float) -> Array:
     :param velocity: the velocity samples.
     :param fed: their indexes in the order they are fed.
     :param most: the believable |a_x| (``safety.max_acceleration``) [m/s^2].
-    :return: a_x after each (as ``SteeringController.update_velocity``: updated when a
-        sample is newer than the one before and the derivative within ``most``, else
-        kept; 0 before the first update).
+    :return: a_x after each, as ``SteeringController.update_velocity`` takes it
+        (:func:`~lookahead_control.core.controller.differentiated_step`; 0 before the
+        first).
     """
+    from lookahead_control.core.controller import differentiated_step
     v, stamp = velocity.values['v_x'][fed], velocity.stamp_ns[fed]
-    updated = np.zeros(fed.size, dtype=bool)
-    updated[1:] = stamp[1:] > stamp[:-1]
-    estimate = np.zeros(fed.size)
-    estimate[1:][updated[1:]] = ((v[1:] - v[:-1])[updated[1:]]
-                                 / ((stamp[1:] - stamp[:-1])[updated[1:]] * 1e-9))
-    with np.errstate(invalid='ignore'):
-        updated &= np.abs(estimate) <= most
-    last = np.maximum.accumulate(np.where(updated, np.arange(fed.size), -1))
-    return np.where(last >= 0, estimate[np.maximum(last, 0)], 0.0)
+    out = np.zeros(fed.size)
+    estimate: float = 0.0
+    anchor: Optional[tuple[int, float]] = None
+    for k in range(fed.size):       # each step depends on the anchor before it
+        estimate, anchor = differentiated_step(estimate, anchor, int(stamp[k]), float(v[k]),
+                                               most)
+        out[k] = estimate
+    return out

@@ -23,6 +23,7 @@ and the whole input -> command path testable without DDS.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+import math
 from typing import Any, Optional
 
 from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, BaselineParams
@@ -168,6 +169,43 @@ class InputTiming:
         return out
 
 
+#: the shortest time a differentiated a_x is taken over [s]: a derivative over two stamps
+#: closer says nothing of the car (two 1 us apart made it 1e5 m/s^2, dev-probe63), and
+#: dropping such single values instead biased a noisy 1 kHz feed's a_x toward 0
+#: (-3.5 m/s^2 read as -0.36, dev-probe64)
+DIFFERENTIATE_SPAN = 0.01
+
+
+def differentiated_step(estimate: float, anchor: Optional[tuple[int, float]], stamp_ns: int,
+                        v_x: float, most: float) -> tuple[float, Optional[tuple[int, float]]]:
+    """
+    Return the differentiated a_x and its anchor after one velocity sample.
+
+    a_x is ``(v_x - v_anchor) / (t - t_anchor)`` once the sample is at least
+    :data:`DIFFERENTIATE_SPAN` after the anchor (which it then becomes), clipped to the
+    believable ``most`` (``safety.max_acceleration``, the bound an IMU's ``accel_x`` is
+    refused at); a sample closer to the anchor leaves both; one not after it (a stream
+    restarted, a time jump back) becomes the anchor; a non-finite derivative is not
+    taken.
+
+    :param estimate: a_x so far [m/s^2] (0 before the first).
+    :param anchor: ``(stamp [ns], v_x)`` it was last taken at (None: none yet).
+    :param stamp_ns: the sample's stamp [ns].
+    :param v_x: its speed [m/s].
+    :param most: the believable |a_x| [m/s^2].
+    :return: the new ``(estimate, anchor)``.
+    """
+    if anchor is None or stamp_ns <= anchor[0]:
+        return estimate, (stamp_ns, v_x)
+    dt = (stamp_ns - anchor[0]) * 1e-9
+    if dt < DIFFERENTIATE_SPAN:
+        return estimate, anchor
+    value = (v_x - anchor[1]) / dt
+    if not math.isfinite(value):
+        return estimate, (stamp_ns, v_x)
+    return min(max(value, -most), most), (stamp_ns, v_x)
+
+
 class SteeringController:
     """
     Holds the latest inputs and evaluates the law on demand.
@@ -263,7 +301,8 @@ class SteeringController:
         self.yaw: Optional[YawSample] = None
         self.velocity: Optional[VelocitySample] = None
         self.curvature: Optional[CurvatureSample] = None
-        self._previous_velocity: Optional[VelocitySample] = None
+        #: the (stamp [ns], v_x) the differentiated a_x was last taken at
+        self._accel_anchor: Optional[tuple[int, float]] = None
         self._accel_estimate = 0.0
         self.last: Optional[Command] = None
         # the rate limit's reference: the last angle sent (kept across resets: the
@@ -381,7 +420,7 @@ class SteeringController:
         it, the next ones move from it.
         """
         self.lateral = self.yaw = self.velocity = self.curvature = None
-        self._previous_velocity = None
+        self._accel_anchor = None
         self._accel_estimate = 0.0
         self.last = None
         self._rate_now = self._rate_steady = self._rate_time = None
@@ -696,16 +735,16 @@ class SteeringController:
         self.yaw = sample
 
     def update_velocity(self, sample: VelocitySample) -> None:
-        """Store the latest velocity sample and update the differentiated a_x."""
-        previous = self.velocity
-        if previous is not None and sample.stamp_ns > previous.stamp_ns:
-            dt = (sample.stamp_ns - previous.stamp_ns) * 1e-9
-            estimate = (sample.v_x - previous.v_x) / dt
-            # a derivative beyond the believable |a_x| is not the car's (two stamps
-            # microseconds apart: 1e5 m/s^2, commands swinging 6.5-57 mrad, dev-probe63):
-            # the last one is kept, as an IMU's accel_x beyond it is refused
-            if abs(estimate) <= self.safety.max_acceleration:
-                self._accel_estimate = estimate
+        """
+        Store the latest velocity sample and update the differentiated a_x.
+
+        See :func:`differentiated_step`.
+
+        :param sample: the velocity sample.
+        """
+        self._accel_estimate, self._accel_anchor = differentiated_step(
+            self._accel_estimate, self._accel_anchor, sample.stamp_ns, sample.v_x,
+            self.safety.max_acceleration)
         self.velocity = sample
 
     def update_curvature(self, sample: CurvatureSample) -> None:

@@ -70,7 +70,8 @@ from typing import Any, Optional
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import axle_load_factors, VehicleParams
+from lookahead_control.core.params import (axle_load_factors, MIN_LOAD_SHARE,
+                                           VehicleParams)
 import numpy as np
 
 GRAVITY = 9.80665
@@ -183,7 +184,13 @@ class ComplianceEstimator:
         # a_x through the same filter: the load factor of the filtered regressor, and
         # no bias from a noisy a_x (the mean of 1 / f_r over the noise is not 1 / f_r:
         # dev-probe63, a raw a_x with 3 m/s^2 of noise learnt the scale 7 % low)
-        signals = (slip, turn, w, 0.0 * slip + state.a_x)
+        a_x = state.a_x
+        if veh.cg_height > 0.0:
+            # beyond the a_x at which the transfer saturates the factor does not move: a
+            # huge a_x (1e4) would linger in the filter for seconds (dev-probe64)
+            keep = (1.0 - MIN_LOAD_SHARE) * GRAVITY / veh.cg_height
+            a_x = xp.clip(a_x, -keep * veh.l1, keep * veh.l2)
+        signals = (slip, turn, w, 0.0 * slip + a_x)
         if self.filtered is None:
             self.filtered = signals
         elif isinstance(self.filtered[0], np.ndarray):

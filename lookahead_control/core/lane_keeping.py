@@ -915,9 +915,9 @@ class CgCompensatedLaw:
           timer; restarted at 0 when the new ``integral_gain`` is 0 (switched off);
         - the compliance estimate, as its scale over the model's ``eta``
           (:meth:`ComplianceEstimator.take_over`); restarted when
-          ``compliance_time_constant``, ``compliance_filter`` or ``design_friction``
-          changed (they define its statistics) or the new time constant is 0 (the
-          model's ``eta``); its memory with it, dropped when the new
+          ``compliance_time_constant``, ``compliance_filter``, ``design_friction`` or the
+          vehicle's ``cg_height`` changed (they define its statistics) or the new time
+          constant is 0 (the model's ``eta``); its memory with it, dropped when the new
           ``compliance_memory`` is 0;
         - the state filter's estimate, with its gains from the new settings (with
           another design vehicle too: the filter corrects its force disturbances);

@@ -274,9 +274,10 @@ def safety_changes(safety: SafetyParams) -> list[str]:
             for f in fields(safety) if getattr(safety, f.name) != getattr(default, f.name)]
 
 
-def load_transfer_note(vehicle: VehicleParams, plants: Sequence[str]) -> Optional[str]:
+def load_transfer_note(vehicle: VehicleParams, plants: Sequence[str],
+                       laws: Sequence[str]) -> Optional[str]:
     """
-    Return a note when the vehicle moves load under a_x and the linear plant is run.
+    Return a note when cg_compensated runs a vehicle with load transfer on the linear plant.
 
     The linear plant is the paper's model, without load transfer, while the
     CG-compensated law linearizes with each axle's stiffness at its load: on it the law's
@@ -284,9 +285,10 @@ def load_transfer_note(vehicle: VehicleParams, plants: Sequence[str]) -> Optiona
 
     :param vehicle: the vehicle given to the tool.
     :param plants: the names of the plants run.
+    :param laws: the names of the laws run (only cg_compensated reads ``cg_height``).
     :return: the note, or None.
     """
-    if vehicle.cg_height <= 0.0 or 'linear' not in plants:
+    if vehicle.cg_height <= 0.0 or 'linear' not in plants or 'cg_compensated' not in laws:
         return None
     return (f'vehicle.cg_height = {vehicle.cg_height:g} m: the linear plant has no '
             "load transfer (the paper's model), while cg_compensated linearizes with each "
@@ -1481,7 +1483,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               "point through the node's output stage, with config/controller.yaml's limits)")
         return 0
     plants = [c for c in PLANTS if c.name in args.plants]
-    note = load_transfer_note(vehicle, args.plants)
+    note = load_transfer_note(vehicle, args.plants, args.laws)
     if note:
         print(f'compare: note: {note}', file=sys.stderr)
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,

@@ -497,14 +497,18 @@ def prepare(out: Path, spec: SweepSpec, vehicle: VehicleParams | None = None,
             # a sweep from before vehicle.cg_height (dev-sc28) ran without load transfer,
             # which cg_height 0 runs to the last bit (dev-probe62: it was refused)
             old['vehicle'] = {**body, 'cg_height': 0.0}
-        if 'load_transfer_estimate' not in old and isinstance(body, dict):
-            if float(old['vehicle'].get('cg_height') or 0.0) > 0.0:
+        if 'load_transfer_estimate' not in old and isinstance(old.get('vehicle'), dict):
+            height = old['vehicle'].get('cg_height')
+            if (isinstance(height, (int, float)) and not isinstance(height, bool)
+                    and height > 0.0):
                 raise ToolError(
-                    f'{out} holds a sweep with vehicle.cg_height = '
-                    f"{old['vehicle']['cg_height']!r} from before the compliance estimate "
-                    "learnt its scale over the rear axle's loaded compliance (dev-sc29): "
-                    'runs of both must not mix; use another --out')
-            # without a cg_height the estimate is the one before, to the last bit
+                    f'{out} holds a sweep with vehicle.cg_height = {height!r} written by '
+                    "an earlier version of cg_compensated's compliance estimate under load "
+                    'transfer (before dev-sc29 made it learn a scale over the loaded '
+                    'compliance from a filtered a_x): runs of both must not mix; use '
+                    'another --out')
+            # without a cg_height the estimate is the one before, to the last bit (a
+            # height of another type is left to the comparison below, which names it)
             old['load_transfer_estimate'] = LOADED_SCALE
         if 'output_stage' not in old and {'vehicle', 'controller'} <= set(old):
             raise ToolError(f'{out} holds a sweep from before the output stage: its laws ran '
@@ -934,7 +938,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ToolError(f'--scenarios: no scenario {name!r} ({scenario_path(name)})')
     vehicle = load_vehicle(args.vehicle)
     from lookahead_control.tools.compare import load_transfer_note
-    note = load_transfer_note(vehicle, [spec.plant])
+    note = load_transfer_note(vehicle, [spec.plant], spec.laws)
     if note:
         print(f'sweep: note: {note}', file=sys.stderr)
     if args.controller is None:
