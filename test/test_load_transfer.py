@@ -276,14 +276,20 @@ def test_s5_on_the_nonlinear_plant_with_load_transfer():
     # while the estimate followed the load a second late, 4.4 cm since (2.7 cm on a car
     # without transfer; docs/lane_keeping.md, "Axle-load transfer")
     from lookahead_control.tools import compare
+    peak = _s5_peak(replace(load_vehicle(None), cg_height=H), compare.NONLINEAR,
+                    compare.DELAY)
+    assert peak < 0.055, peak
+
+
+def _s5_peak(vehicle: VehicleParams, plant: PlantParams, delay: float) -> float:
+    """Return S5's peak CG error [m] for cg_compensated on a plant, as the league runs it."""
+    from lookahead_control.tools import compare
     from sim_plant.closed_loop_sim import run
-    vehicle = replace(load_vehicle(None), cg_height=H)
     scenario = compare.load_scenarios(['s5_envelope'])['s5_envelope']
     law = compare.league_law('cg_compensated', vehicle, compare.LawSettings())
-    result = run(scenario, vehicle, law, compare.NONLINEAR, dt=compare.DT,
-                 preview_distance=compare.PREVIEW_DISTANCE, delay=compare.DELAY)
-    peak = float(np.max(np.abs(result['y_cg'])))
-    assert peak < 0.055, peak
+    result = run(scenario, vehicle, law, plant, dt=compare.DT,
+                 preview_distance=compare.PREVIEW_DISTANCE, delay=delay)
+    return float(np.max(np.abs(result['y_cg'])))
 
 
 def test_the_commonroad_car_is_mapped_with_its_cg_height_and_measured_a_x():
@@ -323,15 +329,10 @@ def test_s5_on_the_commonroad_car_with_its_load_transfer():
     # 10 -> 37 -> 10 m/s envelope) was 9.5 cm noise-free, 2.75 on the nonlinear plant;
     # with its CG height and its measured a_x 4.6 cm
     from lookahead_control.tools import compare
-    from sim_plant.closed_loop_sim import run
     case = next(c for c in compare.PLANTS if c.name == 'commonroad_mb')
     vehicle = case.law_vehicle(load_vehicle(None))
     assert vehicle.cg_height > 0.5
-    scenario = compare.load_scenarios(['s5_envelope'])['s5_envelope']
-    law = compare.league_law('cg_compensated', vehicle, compare.LawSettings())
-    result = run(scenario, vehicle, law, case.plant, dt=compare.DT,
-                 preview_distance=compare.PREVIEW_DISTANCE, delay=case.delay)
-    peak = float(np.max(np.abs(result['y_cg'])))
+    peak = _s5_peak(vehicle, case.plant, case.delay)
     assert peak < 0.055, peak
 
 
