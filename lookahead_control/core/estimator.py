@@ -55,7 +55,8 @@ Axle-load transfer (the vehicle's ``cg_height`` > 0): under ``a_x`` the rear axl
 a tyre's stiffness and friction limit go with its load, so the rear compliance is ``c /
 f_r`` and the shape's load ratio ``|a| / (mu g f_r)``. The estimator then learns the
 scale over the loaded compliance (the regressor is divided by ``f_r`` of the sample's
-``a_x``) and :meth:`ComplianceEstimator.at` gives the compliance at the present ``a_x``:
+``a_x``, clipped where the transfer saturates and passed through ``F`` as the other
+signals) and :meth:`ComplianceEstimator.at` gives the compliance at the present ``a_x``:
 a braking step moves it at once, where an estimate of the compliance itself would
 follow about a second later (``docs/lane_keeping.md``, "Axle-load transfer").
 Everything works on floats and on numpy arrays (a batch).
@@ -238,11 +239,10 @@ class ComplianceEstimator:
 
         The caller restarts instead where the settings that define the statistics
         (forgetting time, signal filter, design friction, the vehicle's ``cg_height``)
-        changed. The estimate is
-        carried as its scale over the model's ``eta``: with another design vehicle the
-        moment ``N`` is scaled by the ratio of the two ``eta`` (``c = (N + p^2 eta) /
-        (D + p^2)`` scales with it), and the signal filters restart at the next sample
-        (their rear slip and regressor are the other model's).
+        changed. The estimate is carried as its scale over the model's ``eta``: with
+        another design vehicle the moment ``N`` is scaled by the ratio of the two ``eta``
+        (``c = (N + p^2 eta) / (D + p^2)`` scales with it), and the signal filters restart
+        at the next sample (their rear slip and regressor are the other model's).
 
         :param old: the estimator it replaces.
         """
