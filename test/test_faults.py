@@ -390,16 +390,24 @@ def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
         bags = [tmp_path / f'run{batch}_{i}' for i in range(4)]
         logs = [tmp_path / f'run{batch}_{i}.log' for i in range(4)]
         recorders = [_record(bag, stderr=log.open('w')) for bag, log in zip(bags, logs)]
-        for bag, recorder, log in zip(bags, recorders, logs):
-            _wait_recording(bag, recorder, log)
-        killed_at = {}
-        start = time.monotonic()
-        for delay, bag, recorder in sorted(zip([rng.uniform(0.0, 1.0) for _ in bags],
-                                               bags, recorders)):
-            time.sleep(max(0.0, start + delay - time.monotonic()))
-            killed_at[bag] = time.time_ns()
-            recorder.send_signal(signal.SIGKILL)
-            recorder.wait()
+        try:
+            for bag, recorder, log in zip(bags, recorders, logs):
+                _wait_recording(bag, recorder, log)
+            killed_at = {}
+            start = time.monotonic()
+            for delay, bag, recorder in sorted(zip([rng.uniform(0.0, 1.0) for _ in bags],
+                                                   bags, recorders)):
+                time.sleep(max(0.0, start + delay - time.monotonic()))
+                killed_at[bag] = time.time_ns()
+                recorder.send_signal(signal.SIGKILL)
+                recorder.wait()
+        finally:
+            # the batch's other recorders too: one that recorded nothing left three
+            # recording until found hours later (dev-sc29)
+            for recorder in recorders:
+                if recorder.poll() is None:
+                    recorder.kill()
+                    recorder.wait()
         for bag in bags:
             in_complete_chunks = _messages_in_complete_chunks(bag / f'{bag.name}.mcap')
             result = recover(bag)
