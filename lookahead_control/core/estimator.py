@@ -71,7 +71,7 @@ from typing import Any, Optional
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import (axle_load_factors, MIN_LOAD_SHARE,
+from lookahead_control.core.params import (axle_load_factors, saturating_accelerations,
                                            VehicleParams)
 import numpy as np
 
@@ -189,8 +189,7 @@ class ComplianceEstimator:
         if veh.cg_height > 0.0:
             # beyond the a_x at which the transfer saturates the factor does not move: a
             # huge a_x (1e4) would linger in the filter for seconds (dev-probe64)
-            keep = (1.0 - MIN_LOAD_SHARE) * GRAVITY / veh.cg_height
-            a_x = xp.clip(a_x, -keep * veh.l1, keep * veh.l2)
+            a_x = xp.clip(a_x, *saturating_accelerations(veh))
         signals = (slip, turn, w, 0.0 * slip + a_x)
         if self.filtered is None:
             self.filtered = signals

@@ -191,6 +191,17 @@ def axle_load_factors(vehicle: VehicleParams, a_x: Real) -> tuple[Real, Real]:
     return 1.0 - transfer / vehicle.l2, 1.0 + transfer / vehicle.l1
 
 
+def saturating_accelerations(vehicle: VehicleParams) -> tuple[float, float]:
+    """
+    Return the a_x beyond which :func:`axle_load_factors` moves no more load.
+
+    :param vehicle: vehicle parameters with ``cg_height`` > 0.
+    :return: ``(lowest, highest)`` a_x [m/s^2]: the transfer's bounds over ``h / g``.
+    """
+    keep = (1.0 - MIN_LOAD_SHARE) * LOAD_GRAVITY / vehicle.cg_height
+    return -keep * vehicle.l1, keep * vehicle.l2
+
+
 def loaded_vehicle(vehicle: VehicleParams, a_x: Real) -> VehicleParams:
     """
     Return the vehicle with each axle's cornering stiffness at its load under ``a_x``.
