@@ -24,6 +24,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 
 from conftest import entry_points, spin_until
 from lookahead_control.bags.rosbag_io import (bag_topics, read_messages, RECORDER_KEY, recover,
@@ -182,16 +183,25 @@ def _record(bag, stderr=subprocess.PIPE, **kwargs):
                              '--chunk-interval', '0.2'], stderr=stderr, text=True, **kwargs)
 
 
-def _wait_recording(bag, recorder=None, log=None, timeout=180):
+class Unfed(AssertionError):
+    """A recorder subscribed to /talk and then received nothing."""
+
+
+def _wait_recording(bag, recorder=None, log=None, timeout=180, unfed_after=None):
     """
     Wait until the recorder has flushed its first chunk of /talk messages.
 
     A condition, not a time: the bound is far above what a loaded machine needs (four
     recorders, a talker and two test workers under two CPU hogs once took over 30 s);
     a recorder that exits is reported at once, with what it said.
+
+    :param unfed_after: if given, raise ``Unfed`` once the recorder's log has said it
+        subscribed to /talk this many seconds ago and nothing was recorded since.
     """
     end = time.monotonic() + timeout
     mcap = bag / f'{bag.name}.mcap'
+    subscribed_at = None
+    unfed = False
     while time.monotonic() < end:
         if mcap.is_file() and mcap.stat().st_size > 4096:
             return
@@ -199,6 +209,12 @@ def _wait_recording(bag, recorder=None, log=None, timeout=180):
             said = log.read_text() if log is not None and log.exists() else ''
             raise AssertionError(f'{bag}: the recorder exited ({recorder.returncode}) '
                                  f'before recording: {said[-2000:]}')
+        if unfed_after is not None and subscribed_at is None and log is not None \
+                and 'subscribed to /talk' in log.read_text():
+            subscribed_at = time.monotonic()
+        if subscribed_at is not None and time.monotonic() - subscribed_at > unfed_after:
+            unfed = True
+            break
         time.sleep(0.02)
     if recorder is not None:
         # stop it: its log then says whether it ever subscribed to /talk ('subscribed
@@ -209,6 +225,9 @@ def _wait_recording(bag, recorder=None, log=None, timeout=180):
         except subprocess.TimeoutExpired:
             recorder.kill()
     said = log.read_text() if log is not None and log.exists() else ''
+    if unfed:
+        raise Unfed(f'{bag}: subscribed to /talk and received nothing in {unfed_after} s: '
+                    f'{said[-2000:]}')
     raise AssertionError(f'{bag}: nothing recorded within {timeout} s: {said[-2000:]}')
 
 
@@ -248,6 +267,46 @@ def test_record_resolves_a_relative_name_and_names_a_topic_it_never_saw(tmp_path
     assert ('subscribed to /talk (std_msgs/msg/Float64MultiArray, 1 publisher(s), '
             'reliable)') in err
     assert err.rstrip().endswith('; no publisher of /tlak ever seen: not recorded'), err
+
+
+QUIET = """
+import time, rclpy
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+rclpy.init()
+node = Node('quiet')
+pub = node.create_publisher(Float64MultiArray, '/quiet', 10)
+print('up', flush=True)
+time.sleep(600)                                     # in the graph, never publishing
+"""
+
+
+def test_record_names_a_subscribed_topic_that_delivered_nothing(tmp_path, talker):
+    # before: a topic subscribed and never fed (a publisher silent, or messages the
+    # middleware never delivered: Fast DDS shared memory after a SIGKILL, dev-sc30)
+    # showed only in the total, '0 messages on 1 topics'
+    quiet = subprocess.Popen([sys.executable, '-c', QUIET], stdout=subprocess.PIPE,
+                             text=True)
+    try:
+        assert quiet.stdout.readline().strip() == 'up'
+        bag, log = tmp_path / 'run', tmp_path / 'run.log'
+        recorder = subprocess.Popen([str(EXES / 'record'), '/talk', '/quiet', '-o', str(bag),
+                                     '--chunk-interval', '0.2'], stderr=log.open('w'),
+                                    text=True)
+        _wait_recording(bag, recorder, log)
+        end = time.monotonic() + 120
+        while 'subscribed to /quiet' not in log.read_text() and time.monotonic() < end:
+            time.sleep(0.05)
+        recorder.send_signal(signal.SIGINT)
+        recorder.wait(timeout=30)
+    finally:
+        quiet.kill()
+        quiet.wait()
+    err = log.read_text()
+    assert recorder.returncode == 0, err
+    assert err.rstrip().endswith('; subscribed, nothing received on /quiet (1 publisher(s))'), \
+        err
+    assert sorted(bag_topics(bag)) == ['/quiet', '/talk']
 
 
 @pytest.mark.parametrize('name,ros_args,reason', [
@@ -386,13 +445,28 @@ def test_a_late_recorder_counts_what_it_missed_before_subscribing(tmp_path, talk
 
 def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
     rng = random.Random(20261121)
+    unfed = []
     for batch in range(5):              # four recorders at a time, each killed on its own
         bags = [tmp_path / f'run{batch}_{i}' for i in range(4)]
         logs = [tmp_path / f'run{batch}_{i}.log' for i in range(4)]
         recorders = [_record(bag, stderr=log.open('w')) for bag, log in zip(bags, logs)]
         try:
-            for bag, recorder, log in zip(bags, recorders, logs):
-                _wait_recording(bag, recorder, log)
+            for i, (bag, log) in enumerate(zip(bags, logs)):
+                try:
+                    _wait_recording(bag, recorders[i], log,
+                                    unfed_after=None if unfed else 60)
+                except Unfed as err:
+                    # Fast DDS 2.14's shared-memory transport: about one full suite in
+                    # eight, one recorder started next to the talker that outlived the
+                    # batch before's SIGKILLed ones subscribed and was never delivered a
+                    # message (eProsima/Fast-DDS#5053, #5469; dev-sc30). Not what this
+                    # test is about (the bags after a kill): once per run, it is set
+                    # aside and a new recorder takes its place; a second one fails.
+                    unfed.append(str(err))
+                    bag.rename(bag.with_name(bag.name + '_unfed'))
+                    log.rename(log.with_name(log.stem + '_unfed.log'))
+                    recorders[i] = _record(bag, stderr=log.open('w'))
+                    _wait_recording(bag, recorders[i], log)
             killed_at = {}
             start = time.monotonic()
             for delay, bag, recorder in sorted(zip([rng.uniform(0.0, 1.0) for _ in bags],
@@ -421,6 +495,8 @@ def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
             # the kill (chunk interval 0.2 s; the slack covers four recorders, a talker
             # and pytest on two cores)
             assert (killed_at[bag] - messages[-1].recv_ns) * 1e-9 <= 0.2 + 1.0, bag
+    if unfed:
+        warnings.warn(f'one recorder was never delivered /talk and was replaced: {unfed[0]}')
 
 
 def _messages_in_complete_chunks(path):

@@ -420,6 +420,12 @@ class RecorderNode(Node):
             # a topic named on the command line that never had a publisher: misspelt, in
             # another namespace or domain, or its publisher never discovered
             absent = sorted(t for t in self.topics if t not in self._subs)
+            # subscribed (a publisher was in the graph) and never delivered one message:
+            # a publisher that sent nothing, or one the middleware never delivered
+            # (Fast DDS 2.14's shared memory after a SIGKILL, dev-sc30): before, only the
+            # total said it, a run lost without a word on which topic
+            unfed = [f'{t} ({self.stats[t].publishers} publisher(s))'
+                     for t, r in report.items() if not r['received']]
             moved = [f'{t} -> {u}' for t, u in sorted(self.remapped.items())]
             untyped = [f'{t} ({u})' for t, u in sorted(self.unrecordable.items())]
             print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
@@ -430,6 +436,8 @@ class RecorderNode(Node):
                      if unseen else '')
                   + (f'; no publisher of {", ".join(absent)} ever seen: not recorded'
                      if absent else '')
+                  + (f'; subscribed, nothing received on {", ".join(unfed)}'
+                     if unfed else '')
                   + (f'; not recorded, remapped: {", ".join(moved)}' if moved else '')
                   + (f'; not recorded, type not installed: {", ".join(untyped)}'
                      if untyped else ''),
