@@ -20,6 +20,7 @@ from dataclasses import replace
 import math
 
 from lookahead_control.core import lane_keeping
+from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.config import load_controller, load_lane_keeping, load_vehicle
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.estimator import brush_shape, ComplianceEstimator
@@ -336,17 +337,82 @@ def test_s5_on_the_commonroad_car_with_its_load_transfer():
     assert peak < 0.055, peak
 
 
-def test_the_stability_tool_says_the_load_transfer_is_not_covered(tmp_path, capsys):
+def test_the_stability_tool_certifies_with_the_load_transfer(tmp_path, capsys):
+    # before (dev-sc28 to dev-sc29): a note said the certificate was for the static
+    # stiffnesses and the load transfer not covered; now the certificate has it, and
+    # the largest |a_x| it certifies is bisected (the value is not proportional to a_x)
     from lookahead_control.tools.lane_keeping_tool import stability_main
     tall = tmp_path / 'tall.yaml'
     tall.write_text('/**:\n  ros__parameters:\n    vehicle:\n      cg_height: 0.55\n')
-    stability_main(['--samples', '28', '--vehicle', str(tall), '--delays', '0.02'])
-    assert ("vehicle.cg_height = 0.55 m: the law linearizes with each axle's stiffness at "
-            'its load under a_x; the certificate and the checks here are for the static '
-            'stiffnesses (cg_height 0): the load transfer is not covered'
-            in capsys.readouterr().out)
+    stability_main(['--samples', '28', '--vehicle', str(tall), '--delays', '0.02',
+                    '--json', str(tmp_path / 'tall.json')])
+    out = capsys.readouterr().out
+    assert ("vehicle.cg_height = 0.55 m: the certificate has each axle's stiffness at its "
+            "load, the plant's under a_x and the law's under its a_x, checked at 9 "
+            'accelerations' in out)
+    row = next(line for line in out.splitlines() if line.startswith('| largest certified'))
+    certified = float(row.split(' | ')[1])
+    # below the static loop's 4.6 m/s^2: the law's eta (so d_v's floor) moves with the
+    # load at 10-15 m/s; and the bisection's answer holds, a little more does not
+    assert 1.0 < certified < 3.5
+    vehicle = replace(load_vehicle(None), cg_height=0.55)
+    settings, controller = load_lane_keeping(None), load_controller(None)
+    assert stability.certificate(vehicle, controller, settings, a_max=certified * 0.999,
+                                 samples=28, load_points=stability.LOAD_POINTS).holds
+    assert not stability.certificate(vehicle, controller, settings, a_max=certified * 1.01,
+                                     samples=28, load_points=stability.LOAD_POINTS).holds
     stability_main(['--samples', '28', '--delays', '0.02'])
     assert 'cg_height' not in capsys.readouterr().out
+
+
+def test_the_loaded_certificate_is_the_static_one_without_transfer():
+    # cg_height 0: A is affine in a_x and the grid's ends are the static test's vertices
+    vehicle, controller = load_vehicle(None), load_controller(None)
+    settings = load_lane_keeping(None)
+    static = stability.certificate(vehicle, controller, settings, samples=41)
+    for points, error in ((2, 0.0), (5, 0.0), (3, 0.5)):
+        static = stability.certificate(vehicle, controller, settings, samples=41,
+                                       a_error=error)
+        grid = stability.certificate(vehicle, controller, settings, samples=41,
+                                     a_error=error, load_points=points)
+        assert grid.max_norm == pytest.approx(static.max_norm, rel=1e-9)
+        assert grid.between == pytest.approx(static.between, rel=1e-9)
+    with pytest.raises(ValueError, match='load_points = 1 must be 0'):
+        stability.certificate(vehicle, controller, settings, load_points=1)
+
+
+def test_the_loaded_certificate_against_a_direct_computation():
+    # two speeds away from the schedule's kinks, three accelerations: V' of the loaded
+    # loop with P(v) from the Lyapunov equation and dP/dv by a central difference
+    vehicle = replace(load_vehicle(None), cg_height=0.58)
+    controller, settings = load_controller(None), load_lane_keeping(None)
+    weight = stability.CERTIFICATE_WEIGHTS['flat']
+    q = tuple(map(tuple, weight))
+    cert = stability.certificate(vehicle, controller, settings, 24.0, 24.5, 3.5, 2, q=q,
+                                 load_points=3)
+    root = np.linalg.inv(np.linalg.cholesky(np.asarray(weight)))
+
+    def loop(v, a):
+        return stability.closed_loop_matrix(loaded_vehicle(vehicle, a), controller,
+                                            settings, v, plant=loaded_vehicle(vehicle, a),
+                                            a_x=a)
+
+    def lyap(v):
+        return stability.lyapunov(loop(v, 0.0), np.asarray(weight))
+
+    worst = -np.inf
+    for v in (24.0, 24.5):
+        p = lyap(v)
+        p_v = (lyap(v + 1e-4) - lyap(v - 1e-4)) / 2e-4
+        for a in (-3.5, 0.0, 3.5):
+            d = loop(v, a) - loop(v, 0.0)
+            worst = max(worst, np.max(np.linalg.eigvalsh(
+                root @ (d.T @ p + p @ d + a * p_v) @ root.T)))
+    assert cert.max_norm == pytest.approx(worst, rel=1e-5)
+    # and the transfer changes it (the static loop's value at the same points differs)
+    static = stability.certificate(replace(vehicle, cg_height=0.0), controller, settings,
+                                   24.0, 24.5, 3.5, 2, q=q)
+    assert abs(static.max_norm - cert.max_norm) > 0.01
 
 
 def test_compare_and_sweep_say_the_linear_plant_has_no_load_transfer(tmp_path, capsys):

@@ -97,7 +97,7 @@ from typing import NamedTuple, Optional
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.lane_keeping import (cg_compensated_law, integral_gain_at,
                                                  LaneKeepingParams, loop_gains)
-from lookahead_control.core.params import ControllerParams, VehicleParams
+from lookahead_control.core.params import ControllerParams, loaded_vehicle, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
 from lookahead_control.core.state_filter import (continuous_model, expm, kinematic_gain,
@@ -195,6 +195,8 @@ _STEP = 1e-4
 DELAYS = (0.0, 0.02, 0.05)
 #: the sampled checks' control period (the node's 100 Hz) [s]
 PERIOD = 0.01
+LOAD_POINTS = 9
+"""Accelerations of the certificate's grid with the load transfer (``cg_height`` > 0)."""
 
 
 def feedback_gain(vehicle: VehicleParams, controller: ControllerParams,
@@ -605,7 +607,7 @@ def integral_scale(settings: LaneKeepingParams, v_x: float) -> float:
 def _certificates(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_min: float, v_max: float, a_max: float,
                   samples: int, weights: dict[str, Matrix],
-                  a_error: float) -> list[Certificate]:
+                  a_error: float, load_points: int = 0) -> list[Certificate]:
     """
     Evaluate the Section 4 test with each of several ``Q`` (see :func:`certificate`).
 
@@ -631,6 +633,9 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     :param samples: number of speeds of the uniform grid (>= 2).
     :param weights: the ``Q`` by name (each checked by :func:`lyapunov_weight`).
     :param a_error: bound on the law's acceleration error [m/s^2].
+    :param load_points: 0: the stiffnesses are the static ones (``A`` affine in
+        ``a_x``); else the plant's and the law's axles at their loads under ``a`` and
+        ``a_hat`` (:func:`_loaded_terms`, ``load_points`` accelerations).
     :return: one result per ``Q``, in the order of ``weights``.
     """
     names = list(weights)
@@ -647,6 +652,7 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     worst = np.full(len(names), -np.inf)
     worst_speed = np.full(len(names), v_min)
     lipschitz = np.zeros(len(names))
+    across = np.zeros(len(names))       # the bound between accelerations (load transfer)
     previous: Optional[tuple[float, npt.NDArray[np.float64]]] = None
     for v in (float(s) for s in speeds):
         eig = float(np.max(np.linalg.eigvals(
@@ -659,13 +665,18 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
                     breaks[breaks > v].min() - v if side > 0 and v < v_max else 0.0)
             if room <= 0.0:
                 continue
-            _, p_v, n = _lyapunov_rates(vehicle, controller, settings, v, side, stack,
-                                        min(_STEP, room / 2.0))
-            # a P_v + a_hat M = a N + (a_hat - a) M in Q's coordinates, at the vertices
-            rate = inverse @ n @ np.swapaxes(inverse, 1, 2)
-            drift = inverse @ (n - p_v) @ np.swapaxes(inverse, 1, 2)
-            scaled = np.stack([a * rate + e * drift for a in (-a_max, a_max)
-                               for e in (-a_error, a_error)], axis=1)
+            step = min(_STEP, room / 2.0)
+            p, p_v, n = _lyapunov_rates(vehicle, controller, settings, v, side, stack, step)
+            if load_points:
+                scaled, spread = _loaded_terms(vehicle, controller, settings, v, side, step,
+                                               p, p_v, inverse, a_max, a_error, load_points)
+                across = np.maximum(across, spread)
+            else:
+                # a P_v + a_hat M = a N + (a_hat - a) M in Q's coordinates, at the vertices
+                rate = inverse @ n @ np.swapaxes(inverse, 1, 2)
+                drift = inverse @ (n - p_v) @ np.swapaxes(inverse, 1, 2)
+                scaled = np.stack([a * rate + e * drift for a in (-a_max, a_max)
+                                   for e in (-a_error, a_error)], axis=1)
             value = np.max(np.linalg.eigvalsh(scaled), axis=(1, 2))
             worst_speed = np.where(value > worst, v, worst_speed)
             worst = np.maximum(worst, value)
@@ -681,7 +692,8 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     spacing = float(np.max(np.diff(speeds))) if speeds.size > 1 else 0.0
     results = []
     for i, name in enumerate(names):
-        top, between = float(worst[i]), float(worst[i] + lipschitz[i] * spacing / 2.0)
+        top = float(worst[i])
+        between = float(worst[i] + lipschitz[i] * spacing / 2.0 + across[i])
         if worst_eig >= 0.0:     # no P(v) > 0 from the Lyapunov equation: no test value
             top = between = float('inf')
         results.append(Certificate(v_min, v_max, a_max, a_error, worst_eig, top,
@@ -690,11 +702,83 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     return results
 
 
+def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
+                  settings: LaneKeepingParams, v_x: float, side: float, step: float,
+                  p: npt.NDArray[np.float64], p_v: npt.NDArray[np.float64],
+                  inverse: npt.NDArray[np.float64], a_max: float, a_error: float,
+                  points: int) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """
+    Return the test's matrices with the load transfer, and their bound between points.
+
+    With ``cg_height`` > 0 each axle's stiffness moves with its load
+    (:func:`~lookahead_control.core.params.loaded_vehicle`): the plant's with the true
+    ``a``, the law's with its ``a_hat``. ``A`` is then rational, not affine, in them:
+    ``V' = x^T (-Q + D^T P + P D + a P_v) x`` with ``D = A(v, a, a_hat) - A(v, 0, 0)``
+    (in the certificate's coordinates, ``D`` the one-sided limit as ``A_1`` is) is taken
+    on a grid, ``points`` values of ``a`` over ``[-a_max, a_max]`` and ``a_hat = a`` or
+    ``a +- a_error``. Between grid points the value moves by at most half the spacing
+    times the largest difference quotient along ``a`` (the same estimate as between
+    speeds). At ``a = a_hat = 0`` the loads are static: ``P`` and ``P_v`` are those of
+    the static loop.
+
+    :param vehicle: the design vehicle, its ``cg_height`` > 0.
+    :param controller: d_v schedule.
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :param side: +1 for the right limit, -1 for the left one.
+    :param step: the one-sided step [m/s].
+    :param p: ``P`` for each ``Q`` (k x 5 x 5), in the certificate's coordinates.
+    :param p_v: ``dP/dv`` for each ``Q``, the same side.
+    :param inverse: ``C^-1`` for each ``Q`` (``Q = C C^T``).
+    :param a_max: acceleration bound [m/s^2].
+    :param a_error: bound on the law's acceleration error [m/s^2].
+    :param points: accelerations on the grid (>= 2).
+    :return: the matrices ``C^-1 (D^T P + P D + a P_v) C^-T`` (k x points x errors x
+        5 x 5, flattened to k x (points errors) x 5 x 5) and, per ``Q``, the bound to
+        add between accelerations.
+    """
+    def loop(v: float, a: float, a_hat: float) -> Matrix:
+        change = integral_coordinates(settings, v)
+        law = closed_loop_matrix(loaded_vehicle(vehicle, a_hat), controller, settings, v,
+                                 plant=loaded_vehicle(vehicle, a), a_x=a_hat)
+        return change @ law @ np.linalg.inv(change)
+
+    def difference(a: float, a_hat: float) -> Matrix:
+        # the limit from this side (A jumps where d_v leaves its floor), as A_1's
+        near, far = v_x + side * step, v_x + 2.0 * side * step
+        return (2.0 * (loop(near, a, a_hat) - loop(near, 0.0, 0.0))
+                - (loop(far, a, a_hat) - loop(far, 0.0, 0.0)))
+
+    accelerations = np.linspace(-a_max, a_max, points)
+    errors = (0.0,) if a_error == 0.0 else (-a_error, 0.0, a_error)
+    terms = []
+    for a in accelerations:
+        for e in errors:
+            d = difference(float(a), float(a + e))
+            terms.append(d.T @ p + p @ d + a * p_v)
+    stacked = np.stack(terms, axis=1)                   # k x (points errors) x 5 x 5
+    scaled = inverse[:, np.newaxis] @ stacked @ np.swapaxes(inverse, 1, 2)[:, np.newaxis]
+    grid = scaled.reshape(scaled.shape[0], points, len(errors), 5, 5)
+    # lambda_max is convex in the matrix: on a segment, at most its ends' largest value
+    # plus how far the matrix bends away from the chord, h^2 / 8 |M''| (M'' from the
+    # second differences; 0 where A is affine, as without the transfer)
+    jumps = [np.zeros(scaled.shape[0])]
+    for axis in (1, 2):
+        if grid.shape[axis] > 2:
+            bend = np.diff(grid, n=2, axis=axis)
+            jumps.append(np.max(np.abs(np.linalg.eigvalsh(bend)), axis=(1, 2, 3)) / 8.0)
+    if grid.shape[2] > 1:
+        # and the twist of a cell (a and a_hat both between points): |M_a,a_hat| h k / 4
+        twist = np.diff(np.diff(grid, axis=1), axis=2)
+        jumps.append(np.max(np.abs(np.linalg.eigvalsh(twist)), axis=(1, 2, 3)) / 4.0)
+    return scaled, np.sum(jumps, axis=0)
+
+
 def certificate(vehicle: VehicleParams, controller: ControllerParams,
                 settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
                 a_max: float = 3.5, samples: int = 271,
                 q: Optional[tuple[tuple[float, ...], ...]] = None,
-                a_error: float = 0.0) -> Certificate:
+                a_error: float = 0.0, load_points: int = 0) -> Certificate:
     """
     Evaluate the Section 4 test, with ``A``'s dependence on ``a_x``, on the closed loop.
 
@@ -712,6 +796,9 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     :param samples: number of speeds of the uniform grid (>= 2).
     :param q: one right-hand side to use (None: each of :data:`CERTIFICATE_WEIGHTS`).
     :param a_error: bound on the error of the law's ``a_x`` [m/s^2].
+    :param load_points: 0: static axle stiffnesses; else (>= 2) the load transfer of
+        ``vehicle.cg_height`` in the plant and the law, checked at that many
+        accelerations (:func:`_loaded_terms`).
     :return: the worst cases and whether the test holds.
     :raises ValueError: an envelope, bound or sample count outside its range, or a ``Q``
         that is not symmetric positive definite.
@@ -725,12 +812,16 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
         raise ValueError(f'a_error = {a_error!r} m/s^2 must be >= 0 and finite')
     if samples < 2:
         raise ValueError(f'samples = {samples!r} must be >= 2')
+    if load_points < 0 or load_points == 1:
+        raise ValueError(f'load_points = {load_points!r} must be 0 (static stiffnesses) '
+                         'or >= 2')
     if q is not None:
         return _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
-                             {'given': lyapunov_weight(q)}, a_error)[0]
+                             {'given': lyapunov_weight(q)}, a_error, load_points)[0]
     results = _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
                             {name: lyapunov_weight(weight)
-                             for name, weight in CERTIFICATE_WEIGHTS.items()}, a_error)
+                             for name, weight in CERTIFICATE_WEIGHTS.items()}, a_error,
+                            load_points)
     return min(results, key=lambda c: (c.between, list(CERTIFICATE_WEIGHTS).index(
         c.weight)))
 
