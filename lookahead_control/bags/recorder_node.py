@@ -51,6 +51,10 @@ from rclpy.task import Future
 import yaml
 
 DEFAULT_DESCRIBE = ('/controller', '/sim_plant')
+# topics whose publishers send only on an event (a parameter set, a log line, a lifecycle
+# transition): silence there is normal and is not named in the summary
+EVENT_TOPICS = ('/parameter_events', '/rosout')
+EVENT_SUFFIXES = ('/transition_event',)
 
 
 @dataclass
@@ -208,6 +212,8 @@ class RecorderNode(Node):
         self._subs: dict[str, Any] = {}
         self.remapped: dict[str, str] = {}      # topic -> where a subscription to it goes
         self.unrecordable: dict[str, str] = {}  # topic -> its type, not importable here
+        self.recorded_type: dict[str, str] = {}     # topic -> the type subscribed
+        self.other_types: dict[str, list[str]] = {}  # topic -> types not subscribed
         self.parameters: dict[str, dict[str, Any]] = {}
         self._asked: set[str] = set()           # seen in the graph
         self._pending: set[str] = set()         # a request on its way
@@ -227,13 +233,15 @@ class RecorderNode(Node):
     def discover(self) -> None:
         """Subscribe to new selected topics; ask new described nodes for parameters."""
         for topic, types in self.get_topic_names_and_types():
+            if topic in self.stats:
+                self._note_other_types(topic, types)
             if topic in self._subs or not self.wanted(topic):
                 continue
-            infos = self.get_publishers_info_by_topic(topic)
-            if not infos:
-                continue
             target = self.resolve_topic_name(topic)
-            if target != topic:
+            # before the publishers' QoS: get_publishers_info_by_topic remaps the name, so
+            # a topic remapped to one without publishers was skipped without a word
+            # (dev-probe65); count_publishers does not remap
+            if target != topic and self.count_publishers(topic) > 0:
                 # a remapping (--ros-args -r, a launch SetRemap) applies to the
                 # recorder's own subscriptions: before, one to /talk with -r
                 # /talk:=/car_b/talk received /car_b/talk's messages and wrote them as /talk
@@ -242,6 +250,9 @@ class RecorderNode(Node):
                                        'not the recorder)')
                 self._subs[topic] = None
                 self.remapped[topic] = target
+                continue
+            infos = self.get_publishers_info_by_topic(topic)
+            if not infos or target != topic:
                 continue
             try:
                 cls = message_class(types[0])
@@ -257,6 +268,8 @@ class RecorderNode(Node):
                 self.unrecordable[topic] = types[0]
                 continue
             self.stats[topic] = TopicStats()
+            self.recorded_type[topic] = types[0]
+            self._note_other_types(topic, types)
             # two arguments: rclpy passes the message info (publication sequence number)
             callback: Any = functools.partial(self.on_message, topic)
             qos = matching_qos([i.qos_profile for i in infos])
@@ -270,6 +283,24 @@ class RecorderNode(Node):
         for topic, stats in self.stats.items():
             stats.publishers = max(stats.publishers, self.count_publishers(topic))
         self._describe_new_nodes()
+
+    def _note_other_types(self, topic: str, types: Sequence[str]) -> None:
+        """
+        Warn of the types of ``topic`` besides the one recorded, each once.
+
+        One subscription takes one type: the others' messages never arrive (before, such
+        a topic was only 'nothing received' in the summary, dev-probe65).
+
+        :param topic: a subscribed topic.
+        :param types: its types in the graph now.
+        """
+        known = self.other_types.setdefault(topic, [])
+        new = [t for t in types if t != self.recorded_type[topic] and t not in known]
+        if new:
+            known.extend(new)
+            self.get_logger().warn(f'{topic}: published as {len(known) + 1} types: '
+                                   f'recording {self.recorded_type[topic]} only, not '
+                                   f'{", ".join(known)}')
 
     def on_message(self, topic: str, data: bytes, info: dict[str, Any]) -> None:
         """Write one serialized message with its receive time."""
@@ -424,8 +455,11 @@ class RecorderNode(Node):
             # a publisher that sent nothing, or one the middleware never delivered
             # (Fast DDS 2.14's shared memory after a SIGKILL, dev-sc30): before, only the
             # total said it, a run lost without a word on which topic
-            unfed = [f'{t} ({self.stats[t].publishers} publisher(s))'
-                     for t, r in report.items() if not r['received']]
+            unfed = [f'{t} (up to {self.stats[t].publishers} publisher(s) at once)'
+                     for t, r in report.items() if not r['received']
+                     and t not in EVENT_TOPICS and not t.endswith(EVENT_SUFFIXES)]
+            clashing = [f'{t} ({", ".join(u)})' for t, u in sorted(self.other_types.items())
+                        if u]
             moved = [f'{t} -> {u}' for t, u in sorted(self.remapped.items())]
             untyped = [f'{t} ({u})' for t, u in sorted(self.unrecordable.items())]
             print(f'record: {self.bag.path}: {total} messages on {len(report)} topics, '
@@ -438,6 +472,8 @@ class RecorderNode(Node):
                      if absent else '')
                   + (f'; subscribed, nothing received on {", ".join(unfed)}'
                      if unfed else '')
+                  + (f'; not recorded, another type on: {", ".join(clashing)}'
+                     if clashing else '')
                   + (f'; not recorded, remapped: {", ".join(moved)}' if moved else '')
                   + (f'; not recorded, type not installed: {", ".join(untyped)}'
                      if untyped else ''),
