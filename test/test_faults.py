@@ -184,7 +184,7 @@ def _record(bag, stderr=subprocess.PIPE, **kwargs):
 
 
 class Unfed(AssertionError):
-    """A recorder subscribed to /talk and then received nothing."""
+    """A recorder subscribed to its topic and then received nothing."""
 
 
 def _wait_recording(bag, recorder=None, log=None, timeout=180, unfed_after=None):
@@ -196,7 +196,8 @@ def _wait_recording(bag, recorder=None, log=None, timeout=180, unfed_after=None)
     a recorder that exits is reported at once, with what it said.
 
     :param unfed_after: if given, raise ``Unfed`` once the recorder's log has said it
-        subscribed to /talk this many seconds ago and nothing was recorded since.
+        subscribed (to /talk, the one topic it records) this many seconds ago and nothing
+        was recorded since.
     """
     end = time.monotonic() + timeout
     mcap = bag / f'{bag.name}.mcap'
@@ -210,7 +211,7 @@ def _wait_recording(bag, recorder=None, log=None, timeout=180, unfed_after=None)
             raise AssertionError(f'{bag}: the recorder exited ({recorder.returncode}) '
                                  f'before recording: {said[-2000:]}')
         if unfed_after is not None and subscribed_at is None and log is not None \
-                and 'subscribed to /talk' in log.read_text():
+                and 'subscribed to /' in log.read_text():
             subscribed_at = time.monotonic()
         if subscribed_at is not None and time.monotonic() - subscribed_at > unfed_after:
             unfed = True
@@ -226,7 +227,7 @@ def _wait_recording(bag, recorder=None, log=None, timeout=180, unfed_after=None)
             recorder.kill()
     said = log.read_text() if log is not None and log.exists() else ''
     if unfed:
-        raise Unfed(f'{bag}: subscribed to /talk and received nothing in {unfed_after} s: '
+        raise Unfed(f'{bag}: subscribed and received nothing in {unfed_after} s: '
                     f'{said[-2000:]}')
     raise AssertionError(f'{bag}: nothing recorded within {timeout} s: {said[-2000:]}')
 
@@ -299,6 +300,14 @@ def test_record_names_a_subscribed_topic_that_delivered_nothing(tmp_path, talker
             time.sleep(0.05)
         recorder.send_signal(signal.SIGINT)
         recorder.wait(timeout=30)
+        # and the SIGKILL test's way out of Fast DDS's unfed recorder sees one: a
+        # recorder of /quiet alone is subscribed and never fed
+        lone, lone_log = tmp_path / 'lone', tmp_path / 'lone.log'
+        unfed = subprocess.Popen([str(EXES / 'record'), '/quiet', '-o', str(lone)],
+                                 stderr=lone_log.open('w'), text=True)
+        with pytest.raises(Unfed, match='subscribed and received nothing in 1 s'):
+            _wait_recording(lone, unfed, lone_log, timeout=120, unfed_after=1)
+        assert unfed.poll() is not None
     finally:
         quiet.kill()
         quiet.wait()
