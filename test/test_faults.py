@@ -340,15 +340,8 @@ def test_record_names_a_topic_remapped_to_a_name_nobody_publishes(tmp_path, talk
     # dev-probe65: with -r /talk:=/nowhere and nothing on /nowhere, /talk was skipped
     # without a word (the publishers' lookup remaps the name and found none), although
     # the docs promise 'not recorded, remapped'
-    bag, log = tmp_path / 'run', tmp_path / 'run.log'
-    recorder = subprocess.Popen([str(EXES / 'record'), '-e', '/talk', '-o', str(bag),
-                                 '--ros-args', '-r', '/talk:=/nowhere'], stderr=log.open('w'),
-                                text=True)
-    _wait_said(log, recorder, '/talk: not recorded')
-    recorder.send_signal(signal.SIGINT)
-    recorder.wait(timeout=30)
-    err = log.read_text()
-    assert recorder.returncode == 0, err
+    _, err = _record_until(tmp_path, ['-e', '/talk'], ['-r', '/talk:=/nowhere'],
+                           '/talk: not recorded')
     assert err.rstrip().endswith('; not recorded, remapped: /talk -> /nowhere'), err
 
 
@@ -455,18 +448,28 @@ def _wait_said(log, recorder, *words, timeout=180):
     raise AssertionError(f'not said within {timeout} s: {words}: {log.read_text()}')
 
 
-def test_record_resolves_a_substitution_in_its_own_namespace(tmp_path):
-    # before: names were checked in / whatever the namespace: {ns}/talk (/car_b/talk
-    # for this recorder, as rcl resolves it) was refused as not a ROS name
+def _record_until(tmp_path, args, ros_args, *words):
+    """
+    Run ``record ARGS -o tmp_path/run --ros-args ROS_ARGS`` until its log says ``words``.
+
+    :return: the bag's path and what the recorder said when stopped with SIGINT (it
+        exited with 0).
+    """
     bag, log = tmp_path / 'run', tmp_path / 'run.log'
-    recorder = subprocess.Popen([str(EXES / 'record'), '{ns}/talk', '-o', str(bag),
-                                 '--ros-args', '-r', '__ns:=/car_b'], stderr=log.open('w'),
-                                text=True)
-    _wait_said(log, recorder, 'recording to')
+    recorder = subprocess.Popen([str(EXES / 'record'), *args, '-o', str(bag), '--ros-args',
+                                 *ros_args], stderr=log.open('w'), text=True)
+    _wait_said(log, recorder, *words)
     recorder.send_signal(signal.SIGINT)
     recorder.wait(timeout=30)
     err = log.read_text()
     assert recorder.returncode == 0, err
+    return bag, err
+
+
+def test_record_resolves_a_substitution_in_its_own_namespace(tmp_path):
+    # before: names were checked in / whatever the namespace: {ns}/talk (/car_b/talk
+    # for this recorder, as rcl resolves it) was refused as not a ROS name
+    _, err = _record_until(tmp_path, ['{ns}/talk'], ['-r', '__ns:=/car_b'], 'recording to')
     assert err.rstrip().endswith('; no publisher of /car_b/talk ever seen: not recorded'), err
 
 
