@@ -541,12 +541,10 @@ def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
                     log.rename(log.with_name(log.stem + '_unfed.log'))
                     recorders[i] = _record(bag, stderr=log.open('w'))
                     _wait_recording(bag, recorders[i], log)
-            killed_at = {}
             start = time.monotonic()
             for delay, bag, recorder in sorted(zip([rng.uniform(0.0, 1.0) for _ in bags],
                                                    bags, recorders)):
                 time.sleep(max(0.0, start + delay - time.monotonic()))
-                killed_at[bag] = time.time_ns()
                 recorder.send_signal(signal.SIGKILL)
                 recorder.wait()
         finally:
@@ -557,7 +555,8 @@ def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
                     recorder.kill()
                     recorder.wait()
         for bag in bags:
-            in_complete_chunks = _messages_in_complete_chunks(bag / f'{bag.name}.mcap')
+            chunks = _complete_chunks(bag / f'{bag.name}.mcap')
+            in_complete_chunks = sum(len(times) for times in chunks)
             result = recover(bag)
             messages = list(read_messages(bag))
             values = [int(m.msg.data[0]) for m in messages]
@@ -565,18 +564,21 @@ def test_sigkill_at_20_random_moments_every_bag_recovers(tmp_path, talker):
             # nothing else: no gap, no duplicate, nothing out of order
             assert result.messages == len(values) == in_complete_chunks > 0, bag
             assert values == list(range(values[0], values[0] + len(values))), bag
-            # and the recorder kept writing chunks: the last one closed shortly before
-            # the kill (chunk interval 0.2 s; the slack covers four recorders, a talker
-            # and pytest on two cores)
-            assert (killed_at[bag] - messages[-1].recv_ns) * 1e-9 <= 0.2 + 1.0, bag
+            # and each chunk closed on time: the writer closes it with the first message
+            # written more than 0.2 s after the last close, so every other message of a
+            # chunk was received within 0.2 s of its first (whatever the load: before, a
+            # bound on the time from the last message to the kill, 1.2 s, held only on
+            # a machine that ran the recorder often enough)
+            for times in chunks:
+                assert times[-2:][0] - times[0] <= 0.2e9 + 1e6, (bag, times)
     if unfed:
         warnings.warn(f'one recorder was never delivered /talk and was replaced: {unfed[0]}')
 
 
-def _messages_in_complete_chunks(path):
-    """Count the messages in the whole chunks of a cut MCAP file (spec, by hand)."""
+def _complete_chunks(path):
+    """Return the log times [ns] of each whole chunk of a cut MCAP file (spec, by hand)."""
     data = path.read_bytes()
-    pos, count = 8, 0                               # after the magic
+    pos, chunks = 8, []                             # after the magic
     while pos + 9 <= len(data):
         opcode, length = data[pos], int.from_bytes(data[pos + 1:pos + 9], 'little')
         end = pos + 9 + length
@@ -587,12 +589,14 @@ def _messages_in_complete_chunks(path):
             compression = int.from_bytes(body[28:32], 'little')
             assert body[32:32 + compression] == b''
             size = int.from_bytes(body[32 + compression:40 + compression], 'little')
-            records, inner = body[40 + compression:40 + compression + size], 0
+            records, inner, times = body[40 + compression:40 + compression + size], 0, []
             while inner < len(records):
-                count += records[inner] == 0x05     # Message
+                if records[inner] == 0x05:          # Message: channel, sequence, log_time
+                    times.append(int.from_bytes(records[inner + 15:inner + 23], 'little'))
                 inner += 9 + int.from_bytes(records[inner + 1:inner + 9], 'little')
+            chunks.append(times)
         pos = end
-    return count
+    return chunks
 
 
 BRIDGE = """
