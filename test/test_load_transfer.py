@@ -365,6 +365,35 @@ def test_the_stability_tool_certifies_with_the_load_transfer(tmp_path, capsys):
     assert 'cg_height' not in capsys.readouterr().out
 
 
+def test_the_loaded_certificate_steps_around_each_acceleration_s_own_kink():
+    # dev-probe66: the law's d_v leaves its floor at a speed its a_hat's loads move; at
+    # a_max 1.505 one grid a_hat's kink lay 1.1e-4 m/s below the grid speed 11.1 and the
+    # one-sided steps crossed it: the test failed (bound 1.047) between 1.4963 and
+    # 1.5138, which both held. Each a_hat's kinks are now grid speeds, not crossed
+    vehicle = replace(load_vehicle(None), cg_height=0.58)
+    controller, settings = load_controller(None), load_lane_keeping(None)
+    bounds = [stability.certificate(vehicle, controller, settings, a_max=a,
+                                    load_points=9).between for a in (1.4963, 1.505, 1.5138)]
+    assert bounds[0] < bounds[1] < bounds[2] < 0.8
+
+
+def test_the_stability_tool_bisects_past_twice_a_max_and_gives_no_figure_at_a_max_0(
+        tmp_path, capsys):
+    # dev-probe66: the bisection stopped at 2 x --a-max (--a-max 0.5: 0.999, where more
+    # holds), and --a-max 0 printed 'largest certified |a_x| inf'
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    tall = tmp_path / 'tall.yaml'
+    tall.write_text('/**:\n  ros__parameters:\n    vehicle:\n      cg_height: 0.58\n')
+    stability_main(['--samples', '28', '--vehicle', str(tall), '--delays', '0.02',
+                    '--a-max', '0.5'])
+    row = next(line for line in capsys.readouterr().out.splitlines()
+               if line.startswith('| largest certified'))
+    assert float(row.split(' | ')[1]) > 1.2
+    for vehicle in (['--vehicle', str(tall)], []):
+        stability_main(['--samples', '28', '--delays', '0.02', '--a-max', '0', *vehicle])
+        assert '| largest certified' not in capsys.readouterr().out
+
+
 def test_the_loaded_certificate_is_the_static_one_without_transfer():
     # cg_height 0: A is affine in a_x and the grid's ends are the static test's vertices
     vehicle, controller = load_vehicle(None), load_controller(None)

@@ -643,10 +643,29 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     # Q^-1/2 in the Cholesky form: eig(Q^-1 N) = eig(C^-1 N C^-T), Q = C C^T
     inverse = np.linalg.inv(np.linalg.cholesky(stack))
     kinks = schedule_kinks(vehicle, controller, settings, v_min, v_max)
+    # the static loop's kinks bound the steps of P's derivative; the grid has them, and
+    # with the load transfer each grid a_hat's own (the law's d_v leaves its floor where
+    # its eta at those loads says): a one-sided step of a slice then never crosses its
+    # kink (dev-probe66: a kink 1e-4 m/s from a grid point made the test fail at 1.505
+    # m/s^2 and hold at 1.514). Kinks closer than `merge` are one grid point (a shorter
+    # gap would make the difference quotient between them rounding noise)
+    hat_kinks: dict[float, list[float]] = {}
+    grid_kinks, merge = list(kinks), 1e-6
+    if load_points:
+        accelerations, errors = _load_grid(a_max, a_error, load_points)
+        for a_hat in sorted({float(a + e) for a in accelerations for e in errors}):
+            hat_kinks[a_hat] = schedule_kinks(loaded_vehicle(vehicle, a_hat), controller,
+                                              settings, v_min, v_max)
+        merge = 1e-4
+        grid_kinks = []
+        for k in sorted(kinks + [k for ks in hat_kinks.values() for k in ks]):
+            if not grid_kinks or k - grid_kinks[-1] > merge:
+                grid_kinks.append(k)
     uniform = np.linspace(v_min, v_max, samples)
-    # a grid point within 1e-6 m/s of a kink is the kink (no one-sided step that short)
-    near = np.array([min((abs(u - k) for k in kinks), default=1.0) < 1e-6 for u in uniform])
-    speeds = np.unique(np.concatenate([uniform[~near], kinks]))
+    # a grid point within `merge` of a kink is the kink (no one-sided step that short)
+    near = np.array([min((abs(u - k) for k in grid_kinks), default=1.0) < merge
+                     for u in uniform])
+    speeds = np.unique(np.concatenate([uniform[~near], grid_kinks]))
     breaks = np.array([v_min] + kinks + [v_max])
     worst_eig = -np.inf
     worst = np.full(len(names), -np.inf)
@@ -669,7 +688,8 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
             p, p_v, n = _lyapunov_rates(vehicle, controller, settings, v, side, stack, step)
             if load_points:
                 scaled, spread = _loaded_terms(vehicle, controller, settings, v, side, step,
-                                               p, p_v, inverse, a_max, a_error, load_points)
+                                               p, p_v, inverse, a_max, a_error, load_points,
+                                               hat_kinks)
                 across = np.maximum(across, spread)
             else:
                 # a P_v + a_hat M = a N + (a_hat - a) M in Q's coordinates, at the vertices
@@ -702,11 +722,19 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     return results
 
 
+def _load_grid(a_max: float, a_error: float,
+               points: int) -> tuple[npt.NDArray[np.float64], tuple[float, ...]]:
+    """Return the loaded certificate's accelerations and the law's errors on them."""
+    errors = (0.0,) if a_error == 0.0 else (-a_error, 0.0, a_error)
+    return np.linspace(-a_max, a_max, points), errors
+
+
 def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_x: float, side: float, step: float,
                   p: npt.NDArray[np.float64], p_v: npt.NDArray[np.float64],
                   inverse: npt.NDArray[np.float64], a_max: float, a_error: float,
-                  points: int) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+                  points: int, hat_kinks: dict[float, list[float]]
+                  ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """
     Return the test's matrices with the load transfer, and their bound between points.
 
@@ -733,6 +761,8 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
     :param a_max: acceleration bound [m/s^2].
     :param a_error: bound on the law's acceleration error [m/s^2].
     :param points: accelerations on the grid (>= 2).
+    :param hat_kinks: the kinks of the loop for each grid ``a_hat``: a slice's one-sided
+        step stops short of its own (a third of the way).
     :return: the matrices ``C^-1 (D^T P + P D + a P_v) C^-T`` (k x points x errors x
         5 x 5, flattened to k x (points errors) x 5 x 5) and, per ``Q``, the bound to
         add between accelerations.
@@ -744,13 +774,16 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
         return change @ law @ np.linalg.inv(change)
 
     def difference(a: float, a_hat: float) -> Matrix:
-        # the limit from this side (A jumps where d_v leaves its floor), as A_1's
-        near, far = v_x + side * step, v_x + 2.0 * side * step
+        # the limit from this side (A jumps where d_v leaves its floor), as A_1's, with a
+        # step that stays on this side of the slice's own kinks
+        ahead = [side * (k - v_x) for k in hat_kinks.get(a_hat, [])
+                 if side * (k - v_x) > 1e-12]
+        h = min([step] + [d / 3.0 for d in ahead])
+        near, far = v_x + side * h, v_x + 2.0 * side * h
         return (2.0 * (loop(near, a, a_hat) - loop(near, 0.0, 0.0))
                 - (loop(far, a, a_hat) - loop(far, 0.0, 0.0)))
 
-    accelerations = np.linspace(-a_max, a_max, points)
-    errors = (0.0,) if a_error == 0.0 else (-a_error, 0.0, a_error)
+    accelerations, errors = _load_grid(a_max, a_error, points)
     terms = []
     for a in accelerations:
         for e in errors:
