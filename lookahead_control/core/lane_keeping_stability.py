@@ -744,10 +744,12 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
     ``V' = x^T (-Q + D^T P + P D + a P_v) x`` with ``D = A(v, a, a_hat) - A(v, 0, 0)``
     (in the certificate's coordinates, ``D`` the one-sided limit as ``A_1`` is) is taken
     on a grid, ``points`` values of ``a`` over ``[-a_max, a_max]`` and ``a_hat = a`` or
-    ``a +- a_error``. Between grid points the value moves by at most half the spacing
-    times the largest difference quotient along ``a`` (the same estimate as between
-    speeds). At ``a = a_hat = 0`` the loads are static: ``P`` and ``P_v`` are those of
-    the static loop.
+    ``a +- a_error``. Between grid points ``lambda_max`` (convex) is at most the larger
+    of a segment's ends plus how far the matrix bends from the chord: an eighth of the
+    largest second difference along ``a`` and along ``a_hat``, and a quarter of the
+    largest mixed difference (an estimate from the grid, as between speeds). At
+    ``a = a_hat = 0`` the loads are static: ``P`` and ``P_v`` are those of the static
+    loop.
 
     :param vehicle: the design vehicle, its ``cg_height`` > 0.
     :param controller: d_v schedule.
