@@ -288,12 +288,14 @@ def test_record_names_a_subscribed_topic_that_delivered_nothing(tmp_path, talker
     # showed only in the total, '0 messages on 1 topics'
     quiet = subprocess.Popen([sys.executable, '-c', QUIET], stdout=subprocess.PIPE,
                              text=True)
+    started = [quiet]
     try:
         assert quiet.stdout.readline().strip() == 'up'
         bag, log = tmp_path / 'run', tmp_path / 'run.log'
         recorder = subprocess.Popen([str(EXES / 'record'), '/talk', '/quiet', '-o', str(bag),
                                      '--chunk-interval', '0.2'], stderr=log.open('w'),
                                     text=True)
+        started.append(recorder)
         _wait_recording(bag, recorder, log)
         end = time.monotonic() + 120
         while 'subscribed to /quiet' not in log.read_text() and time.monotonic() < end:
@@ -305,12 +307,13 @@ def test_record_names_a_subscribed_topic_that_delivered_nothing(tmp_path, talker
         lone, lone_log = tmp_path / 'lone', tmp_path / 'lone.log'
         unfed = subprocess.Popen([str(EXES / 'record'), '/quiet', '-o', str(lone)],
                                  stderr=lone_log.open('w'), text=True)
+        started.append(unfed)
         with pytest.raises(Unfed, match='subscribed and received nothing in 1 s'):
             _wait_recording(lone, unfed, lone_log, timeout=120, unfed_after=1)
         assert unfed.poll() is not None
     finally:
-        quiet.kill()
-        quiet.wait()
+        for proc in started:
+            _kill_if_running(proc)
     err = log.read_text()
     assert recorder.returncode == 0, err
     assert err.rstrip().endswith(
@@ -326,10 +329,13 @@ def test_record_all_does_not_name_the_event_topics_silent(tmp_path, talker):
     bag, log = tmp_path / 'run', tmp_path / 'run.log'
     recorder = subprocess.Popen([str(EXES / 'record'), '-o', str(bag), '--chunk-interval',
                                  '0.2'], stderr=log.open('w'), text=True)
-    _wait_said(log, recorder, 'subscribed to /parameter_events', 'subscribed to /talk')
-    _wait_recording(bag, recorder, log)
-    recorder.send_signal(signal.SIGINT)
-    recorder.wait(timeout=30)
+    try:
+        _wait_said(log, recorder, 'subscribed to /parameter_events', 'subscribed to /talk')
+        _wait_recording(bag, recorder, log)
+        recorder.send_signal(signal.SIGINT)
+        recorder.wait(timeout=30)
+    finally:
+        _kill_if_running(recorder)
     err = log.read_text()
     assert recorder.returncode == 0, err
     assert '/parameter_events' in bag_topics(bag)
@@ -359,13 +365,13 @@ def test_record_names_the_type_it_cannot_record_on_a_topic_of_two_types(tmp_path
         bag, log = tmp_path / 'run', tmp_path / 'run.log'
         recorder = subprocess.Popen([str(EXES / 'record'), '/quiet', '-o', str(bag)],
                                     stderr=log.open('w'), text=True)
+        procs.append(recorder)          # killed below if the wait fails
         _wait_said(log, recorder, 'published as 2 types')
         recorder.send_signal(signal.SIGINT)
         recorder.wait(timeout=30)
     finally:
         for proc in procs:
-            proc.kill()
-            proc.wait()
+            _kill_if_running(proc)
     err = log.read_text()
     assert recorder.returncode == 0, err
     recorded = bag_topics(bag)['/quiet'][0]
@@ -448,6 +454,13 @@ def _wait_said(log, recorder, *words, timeout=180):
     raise AssertionError(f'not said within {timeout} s: {words}: {log.read_text()}')
 
 
+def _kill_if_running(proc):
+    """Kill ``proc`` if it has not exited (a test that failed half-way)."""
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+
+
 def _record_until(tmp_path, args, ros_args, *words):
     """
     Run ``record ARGS -o tmp_path/run --ros-args ROS_ARGS`` until its log says ``words``.
@@ -458,9 +471,12 @@ def _record_until(tmp_path, args, ros_args, *words):
     bag, log = tmp_path / 'run', tmp_path / 'run.log'
     recorder = subprocess.Popen([str(EXES / 'record'), *args, '-o', str(bag), '--ros-args',
                                  *ros_args], stderr=log.open('w'), text=True)
-    _wait_said(log, recorder, *words)
-    recorder.send_signal(signal.SIGINT)
-    recorder.wait(timeout=30)
+    try:
+        _wait_said(log, recorder, *words)
+        recorder.send_signal(signal.SIGINT)
+        recorder.wait(timeout=30)
+    finally:
+        _kill_if_running(recorder)     # a failed wait left it recording (dev-sc30)
     err = log.read_text()
     assert recorder.returncode == 0, err
     return bag, err
