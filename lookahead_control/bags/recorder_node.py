@@ -241,18 +241,20 @@ class RecorderNode(Node):
             # before the publishers' QoS: get_publishers_info_by_topic remaps the name, so
             # a topic remapped to one without publishers was skipped without a word
             # (dev-probe65); count_publishers does not remap
-            if target != topic and self.count_publishers(topic) > 0:
-                # a remapping (--ros-args -r, a launch SetRemap) applies to the
-                # recorder's own subscriptions: before, one to /talk with -r
-                # /talk:=/car_b/talk received /car_b/talk's messages and wrote them as /talk
-                self.get_logger().warn(f'{topic}: not recorded: a remapping sends a '
-                                       f'subscription to it to {target} (remap the nodes, '
-                                       'not the recorder)')
-                self._subs[topic] = None
-                self.remapped[topic] = target
+            if target != topic:
+                if self.count_publishers(topic) > 0:
+                    # a remapping (--ros-args -r, a launch SetRemap) applies to the
+                    # recorder's own subscriptions: before, one to /talk with -r
+                    # /talk:=/car_b/talk received /car_b/talk's messages and wrote them
+                    # as /talk
+                    self.get_logger().warn(f'{topic}: not recorded: a remapping sends a '
+                                           f'subscription to it to {target} (remap the '
+                                           'nodes, not the recorder)')
+                    self._subs[topic] = None
+                    self.remapped[topic] = target
                 continue
             infos = self.get_publishers_info_by_topic(topic)
-            if not infos or target != topic:
+            if not infos:
                 continue
             try:
                 cls = message_class(types[0])

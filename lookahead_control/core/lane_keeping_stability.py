@@ -549,19 +549,22 @@ def lyapunov_matrix(vehicle: VehicleParams, controller: ControllerParams,
 
 
 def loop_in_coordinates(vehicle: VehicleParams, controller: ControllerParams,
-                        settings: LaneKeepingParams, v_x: float, a_x: float = 0.0) -> Matrix:
+                        settings: LaneKeepingParams, v_x: float, a_x: float = 0.0,
+                        plant: Optional[VehicleParams] = None) -> Matrix:
     """
     Return the closed loop's ``A`` in the certificate's coordinates: ``S A S^-1``.
 
-    :param vehicle: the design vehicle.
+    :param vehicle: the design vehicle (the law's model).
     :param controller: d_v schedule.
     :param settings: the law's settings.
     :param v_x: speed [m/s].
-    :param a_x: acceleration [m/s^2].
+    :param a_x: the law's acceleration [m/s^2].
+    :param plant: the plant's parameters (None: the design vehicle).
     :return: the 5x5 matrix (:func:`closed_loop_matrix` where ``S = I``).
     """
     change = integral_coordinates(settings, v_x)
-    return (change @ closed_loop_matrix(vehicle, controller, settings, v_x, a_x=a_x)
+    return (change @ closed_loop_matrix(vehicle, controller, settings, v_x, plant=plant,
+                                        a_x=a_x)
             @ np.linalg.inv(change))
 
 
@@ -769,11 +772,16 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
         5 x 5, flattened to k x (points errors) x 5 x 5) and, per ``Q``, the bound to
         add between accelerations.
     """
+    static: dict[float, Matrix] = {}        # A(v, 0, 0), the same for every slice
+
     def loop(v: float, a: float, a_hat: float) -> Matrix:
-        change = integral_coordinates(settings, v)
-        law = closed_loop_matrix(loaded_vehicle(vehicle, a_hat), controller, settings, v,
-                                 plant=loaded_vehicle(vehicle, a), a_x=a_hat)
-        return change @ law @ np.linalg.inv(change)
+        return loop_in_coordinates(loaded_vehicle(vehicle, a_hat), controller, settings, v,
+                                   a_hat, plant=loaded_vehicle(vehicle, a))
+
+    def base(v: float) -> Matrix:
+        if v not in static:
+            static[v] = loop_in_coordinates(vehicle, controller, settings, v)
+        return static[v]
 
     def difference(a: float, a_hat: float) -> Matrix:
         # the limit from this side (A jumps where d_v leaves its floor), as A_1's, with a
@@ -782,8 +790,7 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
                  if side * (k - v_x) > 1e-12]
         h = min([step] + [d / 3.0 for d in ahead])
         near, far = v_x + side * h, v_x + 2.0 * side * h
-        return (2.0 * (loop(near, a, a_hat) - loop(near, 0.0, 0.0))
-                - (loop(far, a, a_hat) - loop(far, 0.0, 0.0)))
+        return 2.0 * (loop(near, a, a_hat) - base(near)) - (loop(far, a, a_hat) - base(far))
 
     accelerations, errors = _load_grid(a_max, a_error, points)
     terms = []
