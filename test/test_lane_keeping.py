@@ -582,7 +582,7 @@ def test_certificate_lyapunov_against_scipy():
         stability.lyapunov_weight(((1.0,) * 5,) * 5)
 
 
-def test_every_q_on_one_grid_is_each_q_on_its_own():
+def test_every_q_on_one_grid_is_each_q_on_its_own(monkeypatch):
     # certificate() makes the loop's matrices at a grid point once for all its Q (3.7
     # times faster than once per Q): each Q's result is the one of certificate(q=Q)
     # alone to the bit, and the one returned is the smallest bound
@@ -590,10 +590,23 @@ def test_every_q_on_one_grid_is_each_q_on_its_own():
         alone = {name: stability.certificate(VEHICLE, CONTROLLER, settings, samples=21,
                                              q=weight, a_error=a_error)
                  for name, weight in stability.CERTIFICATE_WEIGHTS.items()}
-        best = stability.certificate(VEHICLE, CONTROLLER, settings, samples=21,
-                                     a_error=a_error)
+        with monkeypatch.context() as patch:
+            patch.setattr(stability, 'CERTIFICATE_SCHEDULES', {})
+            best = stability.certificate(VEHICLE, CONTROLLER, settings, samples=21,
+                                         a_error=a_error)
         assert best._replace(weight='given') == alone[best.weight]
         assert best.between == min(c.between for c in alone.values())
+        # with the schedules their knots are grid speeds of every Q: a schedule's result
+        # is its own run's, and the smallest bound is still returned
+        scheduled = {name: stability.certificate(VEHICLE, CONTROLLER, settings, samples=21,
+                                                 q_knots=knots, a_error=a_error)
+                     for name, knots in stability.CERTIFICATE_SCHEDULES.items()}
+        best = stability.certificate(VEHICLE, CONTROLLER, settings, samples=21,
+                                     a_error=a_error)
+        assert best.weight == ('loaded' if settings == LaneKeepingParams() else 'scheduled')
+        if best.weight in scheduled:
+            assert best._replace(weight='given') == scheduled[best.weight]
+        assert best.between <= min(c.between for c in scheduled.values())
     with pytest.raises(ValueError, match='positive definite'):
         stability.certificate(VEHICLE, CONTROLLER, LaneKeepingParams(), samples=21,
                               q=((1.0,) * 5,) * 5)
@@ -605,7 +618,8 @@ def test_certificate_refusals_and_edges_do_not_depend_on_the_calls_before():
     # fresh process raised, and the memory grew with samples (12 KB a point, 8 grids
     # kept); now nothing is kept
     settings = LaneKeepingParams()
-    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=2).speeds == 5
+    # the 2 grid speeds, the 3 kinks and the loaded schedule's 2 knots
+    assert stability.certificate(VEHICLE, CONTROLLER, settings, samples=2).speeds == 7
     with pytest.raises(TypeError):
         stability.certificate(VEHICLE, CONTROLLER, settings, samples=2.0)
     # infinite bounds are refused in one line (were numpy's LinAlgError)
@@ -643,7 +657,13 @@ def test_certificate_holds_to_3_5_m_s2_with_the_scheduled_integral_gain():
     assert not robust.holds and robust.max_norm > 1.5
 
 
-def test_certificate_holds_to_3_5_m_s2():
+@pytest.fixture
+def constant_q(monkeypatch):
+    """Try only the constant Q of CERTIFICATE_WEIGHTS (their figures before dev-sc31)."""
+    monkeypatch.setattr(stability, 'CERTIFICATE_SCHEDULES', {})
+
+
+def test_certificate_holds_to_3_5_m_s2(constant_q):
     # the Section 4 test with A's acceleration terms and the optimized Q: 0.730 at
     # 3.5 m/s^2 on the grid, at the w_n kink; bounded between grid points (k_i constant:
     # the figures of the law before the schedule, unchanged)
@@ -668,7 +688,7 @@ def test_certificate_holds_to_3_5_m_s2():
     assert not cert.holds and cert.max_norm == pytest.approx(4.75, abs=0.03)
 
 
-def test_certificate_with_an_error_in_the_law_s_acceleration():
+def test_certificate_with_an_error_in_the_law_s_acceleration(constant_q):
     # the law's a_x (IMU, grade, differentiated speed) off the true v' by up to
     # a_error: the vertices (+-a_max, a +- a_error); 0 gives the exact test's value
     # (k_i constant: the figures before the schedule)
@@ -724,7 +744,7 @@ def test_certificate_with_an_acceleration_error_and_the_scheduled_integral_gain(
                                      q=stability.CERTIFICATE_Q_SCHEDULED).holds
 
 
-def test_certificate_of_w_n_7_from_20_mps():
+def test_certificate_of_w_n_7_from_20_mps(constant_q):
     # dev-wnflat's option frequency_speed 20 (w_n 7 from 20 m/s, not the default): the
     # sharp Q certifies it as the default schedule, 0.730 at 37 m/s (bound 0.743:
     # 4.7 m/s^2); an a_x error up to 1 m/s^2 (robust_wn20: 0.871; sharp 0.914; the
@@ -901,7 +921,8 @@ def test_lyapunov_function_decreases_for_w_n_7_from_20_mps_with_an_acceleration_
         (7.0, ('flat', 'flat_grade', 'flat_robust'), 0.829, 37.0, 4.3, 0.913, 1.2, 1.4,
          1.134, 3.05)])
 def test_certificate_of_the_low_speed_w_n_since_dev_approach(
-        low, names, exact, worst_speed, fails, grade, holds_to, fails_at, robust, certified):
+        low, names, exact, worst_speed, fails, grade, holds_to, fails_at, robust, certified,
+        constant_q):
     settings = LaneKeepingParams(low_speed_frequency=low)
 
     def check(**kwargs):
@@ -921,6 +942,24 @@ def test_certificate_of_the_low_speed_w_n_since_dev_approach(
     assert check(a_max=certified, a_error=certified).holds
     if low < 7.0:       # w_n leaves 5 rad/s at 30 * 5 / 7 m/s
         assert check().kinks[1] == pytest.approx(30.0 * 5.0 / 7.0)
+
+
+def test_the_loaded_schedule_of_q_certifies_the_law_s_a_x_0():
+    # dev-sc31: the constant Q's certified the default with acceleration_source zero (the
+    # law's a_x 0, an error up to a_max) to 3.37 m/s^2 only (wn5_robust 1.038); the
+    # loaded schedule holds at 3.5 (0.788), for w_n 7 at every speed and from 20 m/s too
+    for settings, exact, zero in ((LaneKeepingParams(), 0.612, 0.788),
+                                  (LaneKeepingParams(low_speed_frequency=7.0), 0.614, 0.790),
+                                  (WN20, 0.612, 0.878)):
+        cert = stability.certificate(VEHICLE, CONTROLLER, settings)
+        assert cert.holds and cert.weight == 'loaded'
+        assert cert.between == pytest.approx(exact, abs=0.003)
+        cert = stability.certificate(VEHICLE, CONTROLLER, settings, a_error=3.5)
+        assert cert.holds and cert.weight == 'loaded'
+        assert cert.between == pytest.approx(zero, abs=0.003)
+    # not the k_i schedule (an option): its own constant Q still does
+    cert = stability.certificate(VEHICLE, CONTROLLER, SCHEDULED, a_error=3.5)
+    assert cert.weight == 'scheduled'
 
 
 def test_lyapunov_function_decreases_for_the_default_with_a_grade():
@@ -1022,13 +1061,14 @@ def test_controller_paper_law_unchanged():
 
 def test_stability_tool_verdicts(capsys, tmp_path):
     from lookahead_control.tools.lane_keeping_tool import stability_main
-    # the paper's 3.5 m/s^2 holds (exit 0); 4.8 m/s^2 fails (exit 1) (the default with
-    # its wn5 Q)
+    # the paper's 3.5 m/s^2 holds (exit 0); 5.5 m/s^2 fails (exit 1) (the default with
+    # the loaded schedule of Q since dev-sc31; with the wn5 Q 4.33, 4.8 failed)
     assert stability_main(['--samples', '55', '--json', str(tmp_path / 's.json')]) == 0
     out = capsys.readouterr().out
     assert 'certificate HOLDS; robust check HOLDS' in out
-    assert '| largest certified \\|a_x\\| [m/s^2] | 4.33' in out    # 4.62 on 271 speeds
-    assert stability_main(['--samples', '55', '--a-max', '4.8']) == 1
+    assert '| largest certified \\|a_x\\| [m/s^2] | 5.39' in out    # 5.72 on 271 speeds
+    assert 'with Q loaded (linear in v_x between its knots at 14, 24 m/s)' in out
+    assert stability_main(['--samples', '55', '--a-max', '5.5']) == 1
     assert 'certificate DOES NOT HOLD' in capsys.readouterr().out
     assert (tmp_path / 's.json').stat().st_size > 100
     # an envelope within 1e-6 m/s of a kink (w_n's at 30 m/s) is that one speed: "1

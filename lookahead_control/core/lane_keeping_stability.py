@@ -53,6 +53,18 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   (``low_speed_integral_gain`` 0.05; the default is ``k_i`` constant); ``robust_wn20``
   for that error with ``frequency_speed`` 20 m/s (an option, dev-wnflat). They are only
   checked here; the tool reports the one with the smaller value.
+- ``Q`` may also move with the speed (:data:`CERTIFICATE_SCHEDULES`, dev-sc31): linear
+  in ``v`` between knots, constant beyond them (``loaded``: ``CERTIFICATE_Q_LOW`` up to
+  14 m/s, ``CERTIFICATE_Q_HIGH`` from 24 m/s). ``P(v)`` is still the solution of the
+  Lyapunov equation, now with ``Q(v)``, so continuous in ``v``; ``dP/dv`` has the term
+  of ``Q_v``: ``A_0^T P_v + P_v A_0 = -(A_0v^T P + P A_0v + Q_v)``. ``V' = x^T (-Q(v) +
+  a N(v)) x`` and the value is taken in ``Q(v)``'s own scale at each speed. ``Q_v``
+  jumps at the knots: they are grid points and break the one-sided steps as the kinks
+  do. ``Q(v)`` is at least the smaller of the knots' least eigenvalues, so the decay
+  stays uniform. One ``Q`` for every speed could not certify the load transfer below
+  15 m/s (the d_v floor's kink moves with the law's ``a_hat``); a low-speed ``Q``
+  found alone certified 10-15 m/s with 0.41, and the schedule joins it to the high
+  speeds.
   The integral gain ``k_i(v)`` is scheduled on speed (``integral_gain_at``): the test
   runs in the coordinates ``u = S(v) x`` of :func:`integral_coordinates` (the integral
   scaled by ``sqrt(k_i(v) / integral_gain)``), ``u' = (S A S^-1 + v' S_v S^-1) u``, the
@@ -89,6 +101,7 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import replace
 import functools
 import itertools
@@ -108,6 +121,9 @@ import numpy as np
 import numpy.typing as npt
 
 Matrix = npt.NDArray[np.float64]
+QRows = tuple[tuple[float, ...], ...]
+#: a speed schedule of the certificate's ``Q``: ``(speed, Q)`` pairs (:func:`weight_schedule`)
+Knots = tuple[tuple[float, Matrix], ...]
 STATE_NAMES = ('y_cg', 'eps_r', 'v_y', 'r', 'integral')
 # the right-hand side Q of the certificate's Lyapunov equation A_0^T P + P A_0 = -Q over
 # [y_cg, eps_r, v_y, r, I] (SI units): found once by minimizing the test's worst value
@@ -187,6 +203,27 @@ CERTIFICATE_WEIGHTS = {'wn5': CERTIFICATE_Q_WN5, 'wn5_robust': CERTIFICATE_Q_WN5
                        'flat_robust': CERTIFICATE_Q_FLAT_ROBUST, 'sharp': CERTIFICATE_Q,
                        'robust': CERTIFICATE_Q_ROBUST, 'scheduled': CERTIFICATE_Q_SCHEDULED,
                        'robust_wn20': CERTIFICATE_Q_ROBUST_WN20}
+# a speed schedule of Q (dev-sc31): Q_LOW up to 14 m/s, Q_HIGH from 24, linear between
+# (dQ/dv enters dP/dv). Found for the load transfer of a 0.58 m CG height, the law's a_x
+# exact: first Q_LOW alone over 10-15 m/s (Nelder-Mead from flat_robust: 0.41 where every
+# constant Q gives 1.3-1.8), then both together over 10-37 m/s from (Q_LOW, robust),
+# knots 14 and 24 (41 speeds, 5 accelerations; 12 and 20 gave the same within 0.02).
+# On 271 speeds and 9 accelerations it gives 0.489 there (every constant Q: 1.77 or
+# more), and without the transfer 0.612 for the exact a_x and 0.788 with the law's a_x
+# off by 3.5 m/s^2 (acceleration_source zero; the best constant Q: 1.038)
+CERTIFICATE_Q_LOW = ((1.3367, 4.1655, 0.0018057, 0.7962, 1.1476),
+                     (4.1655, 46.035, 0.74468, 5.5989, 3.183),
+                     (0.0018057, 0.74468, 0.71819, -0.69725, -0.059044),
+                     (0.7962, 5.5989, -0.69725, 3.4188, 0.77127),
+                     (1.1476, 3.183, -0.059044, 0.77127, 1.1791))
+CERTIFICATE_Q_HIGH = ((1.0, 6.9645, -0.0026637, 0.53767, 0.71905),
+                      (6.9645, 223.83, 3.6357, 18.206, 3.8433),
+                      (-0.0026637, 3.6357, 0.9289, 0.48493, 0.082549),
+                      (0.53767, 18.206, 0.48493, 10.276, 0.024041),
+                      (0.71905, 3.8433, 0.082549, 0.024041, 0.70843))
+#: speed schedules of ``Q`` (:func:`weight_schedule`), tried with :data:`CERTIFICATE_WEIGHTS`
+CERTIFICATE_SCHEDULES: dict[str, tuple[tuple[float, QRows], ...]] = {
+    'loaded': ((14.0, CERTIFICATE_Q_LOW), (24.0, CERTIFICATE_Q_HIGH))}
 # one-sided difference step of A in v [m/s] (second-order formula, error ~1e-8)
 _STEP = 1e-4
 
@@ -425,7 +462,7 @@ class Certificate(NamedTuple):
     holds: bool
 
 
-def lyapunov_weight(q: Optional[tuple[tuple[float, ...], ...]] = None) -> Matrix:
+def lyapunov_weight(q: Optional[QRows] = None) -> Matrix:
     """
     Return the certificate's ``Q`` as a checked symmetric positive definite matrix.
 
@@ -442,12 +479,14 @@ def lyapunov_weight(q: Optional[tuple[tuple[float, ...], ...]] = None) -> Matrix
 
 def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_x: float, side: float,
-                  weight: Matrix, step: float = _STEP) -> tuple[Matrix, Matrix, Matrix]:
+                  weight: Matrix, step: float = _STEP,
+                  weight_rate: Optional[Matrix] = None) -> tuple[Matrix, Matrix, Matrix]:
     """
     Return ``P``, ``dP/dv`` (one-sided) and ``N = A_1^T P + P A_1 + dP/dv`` at a speed.
 
-    ``dP/dv`` solves ``A_0^T P_v + P_v A_0 = -(A_0v^T P + P A_0v)`` with ``A_0v`` the
-    second-order one-sided difference ``+-(-3 A(v) + 4 A(v +- h) - A(v +- 2h)) / 2h``.
+    ``dP/dv`` solves ``A_0^T P_v + P_v A_0 = -(A_0v^T P + P A_0v + Q_v)`` with ``A_0v``
+    the second-order one-sided difference ``+-(-3 A(v) + 4 A(v +- h) - A(v +- 2h)) / 2h``
+    (``Q_v`` 0 for a constant ``Q``).
     ``A_1 = A(v, 1) - A(v, 0)`` exactly (``A`` is affine in ``a_x``), taken as its limit
     from the same side (it jumps where d_v leaves its floor).
 
@@ -463,17 +502,21 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
     :param side: +1 for the right derivative, -1 for the left one.
     :param weight: ``Q``.
     :param step: the difference step ``h`` [m/s].
+    :param weight_rate: ``Q_v = dQ/dv`` from the same side, for a speed schedule of ``Q``
+        (None: 0, a constant ``Q``).
     :return: ``(P, dP/dv, N)`` in ``u``.
     """
+    rates = None if weight_rate is None else np.asarray(weight_rate, dtype=float)[np.newaxis]
     p, p_v, n = _lyapunov_rates(vehicle, controller, settings, v_x, side,
-                                np.asarray(weight, dtype=float)[np.newaxis], step)
+                                np.asarray(weight, dtype=float)[np.newaxis], step, rates)
     return p[0], p_v[0], n[0]
 
 
 def _lyapunov_rates(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_x: float, side: float,
-                    weights: npt.NDArray[np.float64],
-                    step: float) -> tuple[npt.NDArray[np.float64], ...]:
+                    weights: npt.NDArray[np.float64], step: float,
+                    weight_rates: Optional[npt.NDArray[np.float64]] = None
+                    ) -> tuple[npt.NDArray[np.float64], ...]:
     """
     Return :func:`lyapunov_rate` for several ``Q`` at once (the loop's matrices once).
 
@@ -487,6 +530,8 @@ def _lyapunov_rates(vehicle: VehicleParams, controller: ControllerParams,
     :param side: +1 for the right derivative, -1 for the left one.
     :param weights: the ``Q``, stacked (k x 5 x 5).
     :param step: the difference step ``h`` [m/s].
+    :param weight_rates: ``dQ/dv`` from the same side, stacked as ``weights`` (None:
+        constant ``Q``).
     :return: ``(P, dP/dv, N)``, each stacked as ``weights``.
     """
     def matrix(v: float, a: float = 0.0) -> Matrix:
@@ -514,7 +559,8 @@ def _lyapunov_rates(vehicle: VehicleParams, controller: ControllerParams,
         return 0.5 * (p + np.swapaxes(p, 1, 2))
 
     p = solve(weights)
-    p_v = solve(a_v.T @ p + p @ a_v)
+    # differentiated: A_0^T P_v + P_v A_0 = -(A_0v^T P + P A_0v + Q_v)
+    p_v = solve(a_v.T @ p + p @ a_v + (0.0 if weight_rates is None else weight_rates))
     # the coordinates move with the true speed: u' = (S A S^-1 + v' G) u with
     # G = S_v S^-1 = (s'/s) (E_55 - E_15), s'/s = k_i' / (2 k_i) (one-sided: k_i is
     # piecewise linear in v)
@@ -607,9 +653,55 @@ def integral_scale(settings: LaneKeepingParams, v_x: float) -> float:
     return float(np.sqrt(float(integral_gain_at(settings, v_x)) / settings.integral_gain))
 
 
+def _weight_at(knots: Knots, v_x: float, side: float = 1.0) -> tuple[Matrix, Matrix]:
+    """
+    Return ``Q(v)`` of a speed schedule and its one-sided derivative ``dQ/dv``.
+
+    ``Q`` is linear in ``v`` between knots and constant beyond the first and the last
+    (a single knot: a constant ``Q``, its derivative 0).
+
+    :param knots: ``(speed, Q)`` pairs, the speeds increasing.
+    :param v_x: speed [m/s].
+    :param side: +1 for the right derivative, -1 for the left one.
+    :return: ``(Q, dQ/dv)``.
+    """
+    speeds = [speed for speed, _ in knots]
+    last = len(knots) - 1
+    i = bisect.bisect_right(speeds, v_x) - 1
+    if i < 0 or i >= last:
+        weight = knots[0][1] if i < 0 else knots[-1][1]
+    else:
+        share = (v_x - speeds[i]) / (speeds[i + 1] - speeds[i])
+        weight = (1.0 - share) * knots[i][1] + share * knots[i + 1][1]
+    j = i if side > 0.0 else bisect.bisect_left(speeds, v_x) - 1
+    if 0 <= j < last:
+        rate = (knots[j + 1][1] - knots[j][1]) / (speeds[j + 1] - speeds[j])
+    else:
+        rate = np.zeros_like(weight)
+    return weight, rate
+
+
+def weight_schedule(knots: tuple[tuple[float, QRows], ...]) -> Knots:
+    """
+    Return a speed schedule of the certificate's ``Q``, checked.
+
+    :param knots: ``(speed, Q)`` pairs: finite speeds [m/s], strictly increasing, each
+        ``Q`` as :func:`lyapunov_weight` takes it.
+    :return: the pairs with each ``Q`` as a matrix.
+    :raises ValueError: no knot, a speed not finite or not increasing, a ``Q`` that is
+        not symmetric positive definite.
+    """
+    speeds = [speed for speed, _ in knots]
+    if not knots or not all(np.isfinite(speeds)) or any(
+            b <= a for a, b in zip(speeds, speeds[1:])):
+        raise ValueError(f'knot speeds {speeds!r} m/s must be finite and strictly '
+                         'increasing, at least one')
+    return tuple((float(speed), lyapunov_weight(q)) for speed, q in knots)
+
+
 def _certificates(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_min: float, v_max: float, a_max: float,
-                  samples: int, weights: dict[str, Matrix],
+                  samples: int, weights: dict[str, Knots],
                   a_error: float, load_points: int = 0) -> list[Certificate]:
     """
     Evaluate the Section 4 test with each of several ``Q`` (see :func:`certificate`).
@@ -634,7 +726,9 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     :param v_max: upper speed [m/s].
     :param a_max: acceleration bound [m/s^2].
     :param samples: number of speeds of the uniform grid (>= 2).
-    :param weights: the ``Q`` by name (each checked by :func:`lyapunov_weight`).
+    :param weights: the ``Q`` by name, each a speed schedule (:func:`weight_schedule`;
+        one knot: a constant ``Q``). A schedule's knots are grid points and break the
+        one-sided steps as kinks do; its ``dQ/dv`` enters ``dP/dv``.
     :param a_error: bound on the law's acceleration error [m/s^2].
     :param load_points: 0: the stiffnesses are the static ones (``A`` affine in
         ``a_x``); else the plant's and the law's axles at their loads under ``a`` and
@@ -642,9 +736,10 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     :return: one result per ``Q``, in the order of ``weights``.
     """
     names = list(weights)
-    stack = np.array([weights[name] for name in names])
-    # Q^-1/2 in the Cholesky form: eig(Q^-1 N) = eig(C^-1 N C^-T), Q = C C^T
-    inverse = np.linalg.inv(np.linalg.cholesky(stack))
+    schedules = [weights[name] for name in names]
+    scheduled = any(len(knots) > 1 for knots in schedules)
+    knot_speeds = sorted({speed for knots in schedules if len(knots) > 1
+                          for speed, _ in knots if v_min < speed < v_max})
     kinks = schedule_kinks(vehicle, controller, settings, v_min, v_max)
     # the static loop's kinks bound the steps of P's derivative; the grid has them, and
     # with the load transfer each grid a_hat's own (the law's d_v leaves its floor where
@@ -653,7 +748,7 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     # m/s^2 and hold at 1.514). Kinks closer than `merge` are one grid point (a shorter
     # gap would make the difference quotient between them rounding noise)
     hat_kinks: dict[float, list[float]] = {}
-    grid_kinks, merge = list(kinks), 1e-6
+    grid_kinks, merge = sorted(set(kinks + knot_speeds)), 1e-6
     if load_points:
         accelerations, errors = _load_grid(a_max, a_error, load_points)
         for a_hat in sorted({float(a + e) for a in accelerations for e in errors}):
@@ -661,7 +756,7 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
                                               settings, v_min, v_max)
         merge = 1e-4
         grid_kinks = []
-        for k in sorted(kinks + [k for ks in hat_kinks.values() for k in ks]):
+        for k in sorted(kinks + knot_speeds + [k for ks in hat_kinks.values() for k in ks]):
             if not grid_kinks or k - grid_kinks[-1] > merge:
                 grid_kinks.append(k)
     uniform = np.linspace(v_min, v_max, samples)
@@ -669,7 +764,7 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     near = np.array([min((abs(u - k) for k in grid_kinks), default=1.0) < merge
                      for u in uniform])
     speeds = np.unique(np.concatenate([uniform[~near], grid_kinks]))
-    breaks = np.array([v_min] + kinks + [v_max])
+    breaks = np.array([v_min] + kinks + knot_speeds + [v_max])
     worst_eig = -np.inf
     worst = np.full(len(names), -np.inf)
     worst_speed = np.full(len(names), v_min)
@@ -682,13 +777,19 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
         worst_eig = max(worst_eig, eig)
         if worst_eig >= 0.0:
             break
+        stack = np.array([_weight_at(knots, v)[0] for knots in schedules])
+        # Q^-1/2 in the Cholesky form: eig(Q^-1 N) = eig(C^-1 N C^-T), Q = C C^T
+        inverse = np.linalg.inv(np.linalg.cholesky(stack))
         for side in (-1.0, 1.0):
             room = (v - breaks[breaks < v].max() if side < 0 and v > v_min else
                     breaks[breaks > v].min() - v if side > 0 and v < v_max else 0.0)
             if room <= 0.0:
                 continue
             step = min(_STEP, room / 2.0)
-            p, p_v, n = _lyapunov_rates(vehicle, controller, settings, v, side, stack, step)
+            rates = (np.array([_weight_at(knots, v, side)[1] for knots in schedules])
+                     if scheduled else None)
+            p, p_v, n = _lyapunov_rates(vehicle, controller, settings, v, side, stack, step,
+                                        rates)
             if load_points:
                 scaled, spread = _loaded_terms(vehicle, controller, settings, v, side, step,
                                                p, p_v, inverse, a_max, a_error, load_points,
@@ -818,16 +919,16 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
 
 def certificate(vehicle: VehicleParams, controller: ControllerParams,
                 settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
-                a_max: float = 3.5, samples: int = 271,
-                q: Optional[tuple[tuple[float, ...], ...]] = None,
-                a_error: float = 0.0, load_points: int = 0) -> Certificate:
+                a_max: float = 3.5, samples: int = 271, q: Optional[QRows] = None,
+                a_error: float = 0.0, load_points: int = 0,
+                q_knots: Optional[tuple[tuple[float, QRows], ...]] = None) -> Certificate:
     """
     Evaluate the Section 4 test, with ``A``'s dependence on ``a_x``, on the closed loop.
 
-    Each ``Q`` gives a sufficient condition: without ``q`` every one of
-    :data:`CERTIFICATE_WEIGHTS` is tried and the result with the smallest bound is
-    returned (the loop is stable if one holds). The grid and the test:
-    :func:`_certificates`.
+    Each ``Q`` gives a sufficient condition: without ``q`` or ``q_knots`` every one of
+    :data:`CERTIFICATE_WEIGHTS` and :data:`CERTIFICATE_SCHEDULES` is tried and the
+    result with the smallest bound is returned (the loop is stable if one holds). The
+    grid and the test: :func:`_certificates`.
 
     :param vehicle: the design vehicle.
     :param controller: gains and schedule.
@@ -837,13 +938,15 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     :param a_max: acceleration bound [m/s^2].
     :param samples: number of speeds of the uniform grid (>= 2).
     :param q: one right-hand side to use (None: each of :data:`CERTIFICATE_WEIGHTS`).
+    :param q_knots: or one speed schedule of it (:func:`weight_schedule`).
     :param a_error: bound on the error of the law's ``a_x`` [m/s^2].
     :param load_points: 0: static axle stiffnesses; else (>= 2) the load transfer of
         ``vehicle.cg_height`` in the plant and the law, checked at that many
         accelerations (:func:`_loaded_terms`).
     :return: the worst cases and whether the test holds.
-    :raises ValueError: an envelope, bound or sample count outside its range, or a ``Q``
-        that is not symmetric positive definite.
+    :raises ValueError: an envelope, bound or sample count outside its range, a ``Q``
+        that is not symmetric positive definite, knots' speeds not increasing, or both
+        ``q`` and ``q_knots``.
     """
     if not 0.0 < v_min < v_max < float('inf'):
         raise ValueError(f'speed envelope [{v_min!r}, {v_max!r}] m/s must satisfy '
@@ -857,15 +960,19 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     if load_points < 0 or load_points == 1:
         raise ValueError(f'load_points = {load_points!r} must be 0 (static stiffnesses) '
                          'or >= 2')
-    if q is not None:
+    if q is not None and q_knots is not None:
+        raise ValueError('give q (a constant Q) or q_knots (a schedule of it), not both')
+    if q is not None or q_knots is not None:
+        given = weight_schedule(((v_min, q),) if q is not None else q_knots or ())
         return _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
-                             {'given': lyapunov_weight(q)}, a_error, load_points)[0]
+                             {'given': given}, a_error, load_points)[0]
+    weights = {name: weight_schedule(((v_min, weight),))
+               for name, weight in CERTIFICATE_WEIGHTS.items()}
+    weights.update((name, weight_schedule(knots))
+                   for name, knots in CERTIFICATE_SCHEDULES.items())
     results = _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
-                            {name: lyapunov_weight(weight)
-                             for name, weight in CERTIFICATE_WEIGHTS.items()}, a_error,
-                            load_points)
-    return min(results, key=lambda c: (c.between, list(CERTIFICATE_WEIGHTS).index(
-        c.weight)))
+                            weights, a_error, load_points)
+    return min(results, key=lambda c: (c.between, list(weights).index(c.weight)))
 
 
 def _zoh(a_c: Matrix, b_c: Matrix, period: float) -> tuple[Matrix, Matrix]:

@@ -26,7 +26,8 @@ from lookahead_control.core.cli import (markdown_table, number, parser, run_tool
                                         write_json)
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
-from lookahead_control.core.lane_keeping_stability import (certificate, DELAYS,
+from lookahead_control.core.lane_keeping_stability import (certificate,
+                                                           CERTIFICATE_SCHEDULES, DELAYS,
                                                            LOAD_POINTS, PERIOD, robust_check)
 from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
@@ -207,9 +208,13 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     kinks = (f'kinks at {", ".join(f"{k:.2f}" for k in cert.kinks)} m/s, both sides'
              if cert.kinks else 'no kinks')
     speeds = f'{cert.speeds} speed' + ('' if cert.speeds == 1 else 's')
+    weight = cert.weight
+    if weight in CERTIFICATE_SCHEDULES:         # a speed schedule of Q (dev-sc31)
+        knots = ', '.join(f'{speed:g}' for speed, _ in CERTIFICATE_SCHEDULES[weight])
+        weight += f' (linear in v_x between its knots at {knots} m/s)'
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
           f'{cert.a_max:g} m/s^2, error of the law a_x <= {cert.a_error:g} m/s^2; '
-          f'checked at {speeds} ({kinks}) with Q {cert.weight}; worst value at '
+          f'checked at {speeds} ({kinks}) with Q {weight}; worst value at '
           f'{cert.max_norm_speed:.2f} m/s; plant delays {", ".join(f"{d:g}" for d in delays)}'
           f' s; worst mismatch case {robust.worst} (exact '
           f'states), {filtered.worst} (Kalman estimate)')
