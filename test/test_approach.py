@@ -289,4 +289,4 @@ def test_the_stability_tool_reports_the_approach_row(capsys):
     out = capsys.readouterr().out
     assert 'approach (CG offset clipped, integral held) | 0.99' in out
     assert 'in the approach HOLDS' in out
-    assert 'with Q wn5' in out
+    assert 'with Q loaded' in out     # wn5 before the schedule of Q (dev-sc31)

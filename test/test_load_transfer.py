@@ -491,9 +491,14 @@ def test_a_speed_schedule_of_q_is_linear_between_knots_and_constant_beyond():
                          'strictly increasing'),
                         (((math.nan, tuple(map(tuple, low))),), 'must be finite'),
                         ((), 'at least one'),
-                        (((12.0, ((1.0,) * 5,) * 5),), 'positive definite')):
+                        (((12.0, ((1.0,) * 5,) * 5),), 'positive definite'),
+                        # dev-probe67: a string was numpy's TypeError
+                        ((('12', tuple(map(tuple, low))),), 'must be finite numbers')):
         with pytest.raises(ValueError, match=blamed):
             stability.weight_schedule(bad)
+    # dev-probe67: an iterator was read up by the check and gave no knot (IndexError in
+    # certificate())
+    assert len(stability.weight_schedule(iter(knots))) == 2
 
 
 def test_the_lyapunov_rate_of_a_q_schedule_is_the_derivative_of_its_solutions():
@@ -535,6 +540,25 @@ def test_a_one_knot_schedule_is_the_constant_q():
         assert knots == constant
     with pytest.raises(ValueError, match='not both'):
         stability.certificate(vehicle, controller, settings, q=q, q_knots=((20.0, q),))
+    loaded = stability.CERTIFICATE_SCHEDULES['loaded']
+    assert stability.certificate(vehicle, controller, settings, samples=21,
+                                 q_knots=(k for k in loaded)) == \
+        stability.certificate(vehicle, controller, settings, samples=21, q_knots=loaded)
+
+
+def test_the_stability_tool_names_every_grid_point_it_adds(capsys):
+    # dev-probe67: "checked at 7 speeds (kinks at 10.78, 21.43, 30.00 m/s, both sides)"
+    # with --samples 2: the 7 had the schedule's knots too, and with the load transfer
+    # each acceleration's own kinks of d_v
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    stability_main(['--samples', '2', '--delays', '0.02'])
+    assert ('checked at 7 speeds (kinks at 10.78, 21.43, 30.00 m/s, both sides; the knots '
+            'of Q at 14, 24 m/s) with Q loaded' in capsys.readouterr().out)
+    tall = replace(load_vehicle(None), cg_height=0.58)
+    cert = stability.certificate(tall, load_controller(None), load_lane_keeping(None),
+                                 samples=2, load_points=9)
+    assert cert.knots == (14.0, 24.0) and cert.speeds == 2 + 3 + 2 + cert.load_kinks
+    assert cert.load_kinks == 6
 
 
 def test_the_certificate_with_a_q_schedule_against_a_direct_computation():
@@ -596,3 +620,17 @@ def test_the_loaded_schedule_of_q_certifies_10_to_37_m_s_with_the_load_transfer(
         patch.setattr(stability, 'CERTIFICATE_SCHEDULES', {})
         cert = stability.certificate(tall, controller, settings, load_points=9)
     assert not cert.holds and cert.between > 1.7
+
+
+def test_the_stability_tool_samples_the_loop_inside_its_envelope(capsys):
+    # dev-probe67: with --v-min 24 the sampled checks still ran at 10-20 m/s and the
+    # worst mismatch case printed was at 10 m/s, outside the envelope; now the envelope's
+    # ends and the fixed speeds inside it (10-37: the six as before)
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    stability_main(['--samples', '2', '--delays', '0.02', '--v-min', '24'])
+    out = capsys.readouterr().out
+    assert 'sampled checks at 24, 25, 30, 37 m/s, plant delays 0.02 s' in out
+    assert "worst mismatch case {'speed': 24.0" in out
+    assert '| max spectral radius, 108 mismatch cases, exact states |' in out
+    stability_main(['--samples', '2', '--delays', '0.02'])
+    assert 'sampled checks at 10, 15, 20, 25, 30, 37 m/s' in capsys.readouterr().out

@@ -105,7 +105,8 @@ import bisect
 from dataclasses import replace
 import functools
 import itertools
-from typing import NamedTuple, Optional
+from numbers import Real
+from typing import Iterable, NamedTuple, Optional
 
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.lane_keeping import (cg_compensated_law, integral_gain_at,
@@ -230,6 +231,8 @@ _STEP = 1e-4
 
 #: the plant's transport delays of :func:`robust_check` [s] (the sweep's range)
 DELAYS = (0.0, 0.02, 0.05)
+#: the speeds of :func:`robust_check` [m/s]
+ROBUST_SPEEDS = (10.0, 15.0, 20.0, 25.0, 30.0, 37.0)
 #: the sampled checks' control period (the node's 100 Hz) [s]
 PERIOD = 0.01
 LOAD_POINTS = 9
@@ -443,9 +446,15 @@ class Certificate(NamedTuple):
     :param between: the value bounded between grid points (``max_norm`` plus
         ``L h / 2``, ``L`` the largest difference quotient of the vertex matrices).
     :param kinks: the speeds where ``A`` has a kink (grid points, both sides checked).
-    :param speeds: how many speeds were checked (the grid and the kinks).
-    :param weight: the ``Q`` used: a name of :data:`CERTIFICATE_WEIGHTS` or ``given``.
+    :param speeds: how many speeds were checked (the grid, the kinks, the knots and,
+        with the load transfer, each grid acceleration's own kinks).
+    :param weight: the ``Q`` used: a name of :data:`CERTIFICATE_WEIGHTS` or
+        :data:`CERTIFICATE_SCHEDULES`, or ``given``.
     :param holds: every ``A_0`` is Hurwitz and ``between < 1``.
+    :param knots: the speeds inside the envelope where a schedule of ``Q`` has a knot
+        (grid points, both sides checked; every ``Q`` tried is checked there).
+    :param load_kinks: with the load transfer, how many speeds are an acceleration's own
+        kink (grid points; 0 without the transfer).
     """
 
     v_min: float
@@ -460,6 +469,8 @@ class Certificate(NamedTuple):
     speeds: int
     weight: str
     holds: bool
+    knots: tuple[float, ...] = ()
+    load_kinks: int = 0
 
 
 def lyapunov_weight(q: Optional[QRows] = None) -> Matrix:
@@ -681,7 +692,7 @@ def _weight_at(knots: Knots, v_x: float, side: float = 1.0) -> tuple[Matrix, Mat
     return weight, rate
 
 
-def weight_schedule(knots: tuple[tuple[float, QRows], ...]) -> Knots:
+def weight_schedule(knots: Iterable[tuple[float, QRows]]) -> Knots:
     """
     Return a speed schedule of the certificate's ``Q``, checked.
 
@@ -691,10 +702,13 @@ def weight_schedule(knots: tuple[tuple[float, QRows], ...]) -> Knots:
     :raises ValueError: no knot, a speed not finite or not increasing, a ``Q`` that is
         not symmetric positive definite.
     """
+    knots = tuple(knots)        # an iterator once (dev-probe67: read up, then empty)
     speeds = [speed for speed, _ in knots]
-    if not knots or not all(np.isfinite(speeds)) or any(
+    numbers = all(isinstance(speed, Real) and not isinstance(speed, bool)
+                  for speed in speeds)
+    if not knots or not numbers or not all(np.isfinite(speeds)) or any(
             b <= a for a, b in zip(speeds, speeds[1:])):
-        raise ValueError(f'knot speeds {speeds!r} m/s must be finite and strictly '
+        raise ValueError(f'knot speeds {speeds!r} m/s must be finite numbers, strictly '
                          'increasing, at least one')
     return tuple((float(speed), lyapunov_weight(q)) for speed, q in knots)
 
@@ -759,6 +773,8 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
         for k in sorted(kinks + knot_speeds + [k for ks in hat_kinks.values() for k in ks]):
             if not grid_kinks or k - grid_kinks[-1] > merge:
                 grid_kinks.append(k)
+    # the grid points that are only an acceleration's own kink (for the summary)
+    load_kinks = sum(all(abs(k - c) > merge for c in kinks + knot_speeds) for k in grid_kinks)
     uniform = np.linspace(v_min, v_max, samples)
     # a grid point within `merge` of a kink is the kink (no one-sided step that short)
     near = np.array([min((abs(u - k) for k in grid_kinks), default=1.0) < merge
@@ -822,7 +838,8 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
             top = between = float('inf')
         results.append(Certificate(v_min, v_max, a_max, a_error, worst_eig, top,
                                    float(worst_speed[i]), between, tuple(kinks),
-                                   int(speeds.size), name, worst_eig < 0.0 and between < 1.0))
+                                   int(speeds.size), name, worst_eig < 0.0 and between < 1.0,
+                                   tuple(knot_speeds), load_kinks))
     return results
 
 
@@ -921,7 +938,7 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
                 settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
                 a_max: float = 3.5, samples: int = 271, q: Optional[QRows] = None,
                 a_error: float = 0.0, load_points: int = 0,
-                q_knots: Optional[tuple[tuple[float, QRows], ...]] = None) -> Certificate:
+                q_knots: Optional[Iterable[tuple[float, QRows]]] = None) -> Certificate:
     """
     Evaluate the Section 4 test, with ``A``'s dependence on ``a_x``, on the closed loop.
 
@@ -1409,7 +1426,7 @@ class RobustResult(NamedTuple):
 
 def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                  settings: LaneKeepingParams, *,
-                 speeds: tuple[float, ...] = (10.0, 15.0, 20.0, 25.0, 30.0, 37.0),
+                 speeds: tuple[float, ...] = ROBUST_SPEEDS,
                  stiffness: tuple[float, ...] = (0.7, 1.0, 1.3),
                  mass: tuple[float, ...] = (0.8, 1.0, 1.2),
                  delays: tuple[float, ...] = DELAYS, period: float = PERIOD,

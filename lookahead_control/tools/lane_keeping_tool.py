@@ -28,7 +28,8 @@ from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import (certificate,
                                                            CERTIFICATE_SCHEDULES, DELAYS,
-                                                           LOAD_POINTS, PERIOD, robust_check)
+                                                           LOAD_POINTS, PERIOD, robust_check,
+                                                           ROBUST_SPEEDS)
 from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 
@@ -133,21 +134,26 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     if moved:
         print(f'--delays {" ".join(f"{d:.10g}" for d in moved)} rounded to the {PERIOD:g} s '
               f'period of the sampled check: {", ".join(f"{d:g}" for d in delays)} s')
-    robust = robust_check(vehicle, controller, settings, delays=delays)
-    filtered = robust_check(vehicle, controller, settings, delays=delays, filtered=True)
-    estimated = robust_check(vehicle, controller, settings, delays=delays, filtered=True,
-                             curvature_estimated=True)
+    # the sampled checks at the envelope's ends and the fixed speeds inside it
+    # (dev-probe67: with --v-min 24 the worst mismatch case printed was at 10 m/s)
+    at = tuple(sorted({args.v_min, args.v_max}
+                      | {v for v in ROBUST_SPEEDS if args.v_min < v < args.v_max}))
+    sampled = {'delays': delays, 'speeds': at}
+    robust = robust_check(vehicle, controller, settings, **sampled)
+    filtered = robust_check(vehicle, controller, settings, filtered=True, **sampled)
+    estimated = robust_check(vehicle, controller, settings, filtered=True,
+                             curvature_estimated=True, **sampled)
     # outside integral_band the integral is held: the loop without it must hold too
-    frozen = robust_check(vehicle, controller, settings, delays=delays, filtered=True,
-                          integral_frozen=True)
+    frozen = robust_check(vehicle, controller, settings, filtered=True, integral_frozen=True,
+                          **sampled)
     # ... and without road_curvature, where the CG is metres off (the held case there)
-    frozen_estimated = robust_check(vehicle, controller, settings, delays=delays,
-                                    filtered=True, curvature_estimated=True,
-                                    integral_frozen=True)
+    frozen_estimated = robust_check(vehicle, controller, settings, filtered=True,
+                                    curvature_estimated=True, integral_frozen=True,
+                                    **sampled)
     # engaged far off the lane (approach_heading): the CG's offset clipped, the integral
     # held, the car closing at the approach heading; that loop without y_cg must hold
-    approach = (robust_check(vehicle, controller, settings, delays=delays, filtered=True,
-                             approach=True)
+    approach = (robust_check(vehicle, controller, settings, filtered=True, approach=True,
+                             **sampled)
                 if settings.approach_heading > 0.0 else None)
     # the test's value is proportional to (a_max, a_error): the largest factor on both
     # that it certifies (with a_error = 0: the largest |a_x|)
@@ -207,6 +213,13 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                      'holds': approach.holds})
     kinks = (f'kinks at {", ".join(f"{k:.2f}" for k in cert.kinks)} m/s, both sides'
              if cert.kinks else 'no kinks')
+    # every grid point that is not the uniform grid's is named (dev-probe67: "7 speeds
+    # (kinks at 10.78, 21.43, 30.00 m/s)" with --samples 2 left out Q's knots)
+    if cert.knots:
+        kinks += f'; the knots of Q at {", ".join(f"{k:g}" for k in cert.knots)} m/s'
+    if cert.load_kinks:
+        kinks += (f"; {cert.load_kinks} more where d_v leaves its floor under an "
+                  "acceleration's loads")
     speeds = f'{cert.speeds} speed' + ('' if cert.speeds == 1 else 's')
     weight = cert.weight
     if weight in CERTIFICATE_SCHEDULES:         # a speed schedule of Q (dev-sc31)
@@ -215,8 +228,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
           f'{cert.a_max:g} m/s^2, error of the law a_x <= {cert.a_error:g} m/s^2; '
           f'checked at {speeds} ({kinks}) with Q {weight}; worst value at '
-          f'{cert.max_norm_speed:.2f} m/s; plant delays {", ".join(f"{d:g}" for d in delays)}'
-          f' s; worst mismatch case {robust.worst} (exact '
+          f'{cert.max_norm_speed:.2f} m/s; sampled checks at '
+          f'{", ".join(f"{v:g}" for v in at)} m/s, plant delays '
+          f'{", ".join(f"{d:g}" for d in delays)} s; worst mismatch case {robust.worst} (exact '
           f'states), {filtered.worst} (Kalman estimate)')
     print('the certificate covers the law on exact states at varying speed; the sampled '
           'check covers the law on the estimate of the Kalman filter at frozen speeds')
