@@ -138,22 +138,22 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # (dev-probe67: with --v-min 24 the worst mismatch case printed was at 10 m/s)
     at = tuple(sorted({args.v_min, args.v_max}
                       | {v for v in ROBUST_SPEEDS if args.v_min < v < args.v_max}))
-    sampled = {'delays': delays, 'speeds': at}
-    robust = robust_check(vehicle, controller, settings, **sampled)
-    filtered = robust_check(vehicle, controller, settings, filtered=True, **sampled)
-    estimated = robust_check(vehicle, controller, settings, filtered=True,
-                             curvature_estimated=True, **sampled)
+    robust = robust_check(vehicle, controller, settings, delays=delays, speeds=at)
+    filtered = robust_check(vehicle, controller, settings, delays=delays, speeds=at,
+                            filtered=True)
+    estimated = robust_check(vehicle, controller, settings, delays=delays, speeds=at,
+                             filtered=True, curvature_estimated=True)
     # outside integral_band the integral is held: the loop without it must hold too
-    frozen = robust_check(vehicle, controller, settings, filtered=True, integral_frozen=True,
-                          **sampled)
+    frozen = robust_check(vehicle, controller, settings, delays=delays, speeds=at,
+                          filtered=True, integral_frozen=True)
     # ... and without road_curvature, where the CG is metres off (the held case there)
-    frozen_estimated = robust_check(vehicle, controller, settings, filtered=True,
-                                    curvature_estimated=True, integral_frozen=True,
-                                    **sampled)
+    frozen_estimated = robust_check(vehicle, controller, settings, delays=delays, speeds=at,
+                                    filtered=True, curvature_estimated=True,
+                                    integral_frozen=True)
     # engaged far off the lane (approach_heading): the CG's offset clipped, the integral
     # held, the car closing at the approach heading; that loop without y_cg must hold
-    approach = (robust_check(vehicle, controller, settings, filtered=True, approach=True,
-                             **sampled)
+    approach = (robust_check(vehicle, controller, settings, delays=delays, speeds=at,
+                             filtered=True, approach=True)
                 if settings.approach_heading > 0.0 else None)
     # the test's value is proportional to (a_max, a_error): the largest factor on both
     # that it certifies (with a_error = 0: the largest |a_x|)
@@ -218,7 +218,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     if cert.knots:
         kinks += f'; the knots of Q at {", ".join(f"{k:g}" for k in cert.knots)} m/s'
     if cert.load_kinks:
-        kinks += (f"; {cert.load_kinks} more where d_v leaves its floor under an "
+        kinks += (f'; {cert.load_kinks} more where d_v leaves its floor under an '
                   "acceleration's loads")
     speeds = f'{cert.speeds} speed' + ('' if cert.speeds == 1 else 's')
     weight = cert.weight
