@@ -829,12 +829,14 @@ def _worst_case_run(weight, a_max=3.5, seconds=12.0, dt=0.002, seed=3, start=Non
         v, x = start
 
     def lyap(speed, state_):
-        # V = u^T P_u u in the certificate's coordinates u = S(v) x
+        # V = u^T P_u u in the certificate's coordinates u = S(v) x (a callable weight:
+        # a speed schedule of Q)
         change = stability.integral_coordinates(settings, speed)
         a = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, speed)
         a_u = change @ a @ np.linalg.inv(change)
         u = change @ state_
-        return float(u @ solve_continuous_lyapunov(a_u.T, -weight) @ u)
+        q = weight(speed) if callable(weight) else weight
+        return float(u @ solve_continuous_lyapunov(a_u.T, -q) @ u)
 
     def step(speed, acc, state_, law_acc):
         def f(t, z):
@@ -960,6 +962,34 @@ def test_the_loaded_schedule_of_q_certifies_the_law_s_a_x_0():
     # not the k_i schedule (an option): its own constant Q still does
     cert = stability.certificate(VEHICLE, CONTROLLER, SCHEDULED, a_error=3.5)
     assert cert.weight == 'scheduled'
+
+
+def test_lyapunov_function_decreases_with_the_loaded_schedule_and_the_law_s_a_x_0():
+    # the adversary against dev-sc31's schedule of Q (V = x^T P(v) x, P(v) from Q(v)),
+    # the law's a_x within 3.5 m/s^2 of the true one (a_hat = 0 among them), started
+    # inside the blend, at the upper knot and at 37 m/s (the worst value) on the
+    # direction where the test's value is attained (the generalized eigenvector of
+    # (N, Q)): V falls at every step
+    from scipy.linalg import eigh
+    settings = LaneKeepingParams()
+
+    def run(knots, speed):
+        knots = stability.weight_schedule(knots)
+        q, q_v = stability._weight_at(knots, speed, -1.0)
+        n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, speed, -1.0, q,
+                                    weight_rate=q_v)[2]
+        eig, vec = eigh(n, q)
+        x = vec[:, int(np.argmax(np.abs(eig)))]
+        return _worst_case_run(lambda v: stability._weight_at(knots, v)[0], seconds=2.0,
+                               a_error=3.5, start=(speed, x), settings=settings)[0]
+    for speed in (20.0, 24.0, 36.9):
+        values = run(stability.CERTIFICATE_SCHEDULES['loaded'], speed)
+        assert np.all(np.diff(values) < 0.0) and values[-1] < 0.8 * values[0], speed
+    # the run can fail: the same two Q blended within 1 m/s (certificate 5.5) make V
+    # rise inside the blend
+    steep = ((23.0, stability.CERTIFICATE_Q_LOW), (24.0, stability.CERTIFICATE_Q_HIGH))
+    values = run(steep, 23.5)
+    assert values[1] > values[0]
 
 
 def test_lyapunov_function_decreases_for_the_default_with_a_grade():
