@@ -411,6 +411,30 @@ def test_the_loaded_certificate_is_the_static_one_without_transfer():
         stability.certificate(vehicle, controller, settings, load_points=1)
 
 
+def _direct_loaded_value(vehicle, controller, settings, weight):
+    # the largest eigenvalue of C^-1 (D^T P + P D + a P_v) C^-T (Q(v) = C C^T) at 24 and
+    # 24.5 m/s, a = -3.5, 0, 3.5 (a_hat = a) with P(v) from the Lyapunov equation of
+    # Q(v) and dP/dv by a central difference (so with Q_v where Q moves)
+    def loop(v, a):
+        return stability.closed_loop_matrix(loaded_vehicle(vehicle, a), controller,
+                                            settings, v, plant=loaded_vehicle(vehicle, a),
+                                            a_x=a)
+
+    def lyap(v):
+        return stability.lyapunov(loop(v, 0.0), weight(v))
+
+    worst = -np.inf
+    for v in (24.0, 24.5):
+        root = np.linalg.inv(np.linalg.cholesky(weight(v)))
+        p = lyap(v)
+        p_v = (lyap(v + 1e-4) - lyap(v - 1e-4)) / 2e-4
+        for a in (-3.5, 0.0, 3.5):
+            d = loop(v, a) - loop(v, 0.0)
+            worst = max(worst, np.max(np.linalg.eigvalsh(
+                root @ (d.T @ p + p @ d + a * p_v) @ root.T)))
+    return worst
+
+
 def test_the_loaded_certificate_against_a_direct_computation():
     # two speeds away from the schedule's kinks, three accelerations: V' of the loaded
     # loop with P(v) from the Lyapunov equation and dP/dv by a central difference
@@ -420,24 +444,7 @@ def test_the_loaded_certificate_against_a_direct_computation():
     q = tuple(map(tuple, weight))
     cert = stability.certificate(vehicle, controller, settings, 24.0, 24.5, 3.5, 2, q=q,
                                  load_points=3)
-    root = np.linalg.inv(np.linalg.cholesky(np.asarray(weight)))
-
-    def loop(v, a):
-        return stability.closed_loop_matrix(loaded_vehicle(vehicle, a), controller,
-                                            settings, v, plant=loaded_vehicle(vehicle, a),
-                                            a_x=a)
-
-    def lyap(v):
-        return stability.lyapunov(loop(v, 0.0), np.asarray(weight))
-
-    worst = -np.inf
-    for v in (24.0, 24.5):
-        p = lyap(v)
-        p_v = (lyap(v + 1e-4) - lyap(v - 1e-4)) / 2e-4
-        for a in (-3.5, 0.0, 3.5):
-            d = loop(v, a) - loop(v, 0.0)
-            worst = max(worst, np.max(np.linalg.eigvalsh(
-                root @ (d.T @ p + p @ d + a * p_v) @ root.T)))
+    worst = _direct_loaded_value(vehicle, controller, settings, lambda v: np.asarray(weight))
     assert cert.max_norm == pytest.approx(worst, rel=1e-5)
     # and the transfer changes it (the static loop's value at the same points differs)
     static = stability.certificate(replace(vehicle, cg_height=0.0), controller, settings,
@@ -576,24 +583,7 @@ def test_the_certificate_with_a_q_schedule_against_a_direct_computation():
     def weight(v):
         share = (v - 20.0) / 10.0
         return (1.0 - share) * low + share * high
-
-    def loop(v, a):
-        return stability.closed_loop_matrix(loaded_vehicle(vehicle, a), controller,
-                                            settings, v, plant=loaded_vehicle(vehicle, a),
-                                            a_x=a)
-
-    def lyap(v):
-        return stability.lyapunov(loop(v, 0.0), weight(v))
-
-    worst = -np.inf
-    for v in (24.0, 24.5):
-        root = np.linalg.inv(np.linalg.cholesky(weight(v)))
-        p = lyap(v)
-        p_v = (lyap(v + 1e-4) - lyap(v - 1e-4)) / 2e-4
-        for a in (-3.5, 0.0, 3.5):
-            d = loop(v, a) - loop(v, 0.0)
-            worst = max(worst, np.max(np.linalg.eigvalsh(
-                root @ (d.T @ p + p @ d + a * p_v) @ root.T)))
+    worst = _direct_loaded_value(vehicle, controller, settings, weight)
     assert cert.max_norm == pytest.approx(worst, rel=1e-5)
 
 
