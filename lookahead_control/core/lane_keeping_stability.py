@@ -992,6 +992,119 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     return min(results, key=lambda c: (c.between, list(weights).index(c.weight)))
 
 
+class ScheduleSearch(NamedTuple):
+    """
+    A speed schedule of ``Q`` found by :func:`search_schedule`.
+
+    :param knots: ``(speed, Q)`` pairs, ``Q`` as rows (``certificate(q_knots=...)``).
+    :param start: the search grid's bound of the schedule it started from.
+    :param found: the search grid's bound of the one found.
+    :param evaluations: how many bounds the search computed.
+    """
+
+    knots: tuple[tuple[float, QRows], ...]
+    start: float
+    found: float
+    evaluations: int
+
+
+def search_schedule(vehicle: VehicleParams, controller: ControllerParams,
+                    settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
+                    a_max: float = 3.5, a_error: float = 0.0, load_points: int = 0,
+                    speeds: tuple[float, float] = (14.0, 24.0), evaluations: int = 2000,
+                    samples: int = 41) -> ScheduleSearch:
+    """
+    Search a two-knot speed schedule of ``Q`` that lowers the certificate's bound.
+
+    How ``CERTIFICATE_Q_LOW`` and ``CERTIFICATE_Q_HIGH`` were found (dev-sc31), for
+    another vehicle or law: Nelder-Mead (scipy, adaptive) over the Cholesky factors of
+    the two knots' ``Q``, the objective the bound ``between`` of :func:`certificate` on a
+    coarse grid (``samples`` speeds; with the load transfer at most 5 accelerations). It
+    starts from the best of :data:`CERTIFICATE_WEIGHTS` and :data:`CERTIFICATE_SCHEDULES`
+    on that grid (a constant ``Q`` at both knots) and keeps the best point it meets, so
+    the bound found is never above the start's. Any ``Q(v) > 0`` gives a valid test: the
+    search only looks for a sharp one; check the result with :func:`certificate` on the
+    full grid.
+
+    :param vehicle: the design vehicle.
+    :param controller: gains and schedule.
+    :param settings: the law's settings.
+    :param v_min: lower speed [m/s].
+    :param v_max: upper speed [m/s].
+    :param a_max: acceleration bound [m/s^2].
+    :param a_error: bound on the error of the law's ``a_x`` [m/s^2].
+    :param load_points: as :func:`certificate` (0: static stiffnesses).
+    :param speeds: the two knots' speeds [m/s], increasing.
+    :param evaluations: the most bounds to compute (>= 1).
+    :param samples: speeds of the search grid (>= 2).
+    :return: the schedule, its bound on the search grid and the start's.
+    :raises ValueError: an argument outside its range (as :func:`certificate`), knots not
+        increasing, or ``evaluations`` < 1.
+    """
+    from scipy.optimize import minimize
+    if evaluations < 1:
+        raise ValueError(f'evaluations = {evaluations!r} must be >= 1')
+    low, high = speeds
+    if not low < high:
+        raise ValueError(f'knot speeds {speeds!r} m/s must be increasing')
+    points = min(load_points, 5)
+
+    def bound(knots: tuple[tuple[float, QRows], ...]) -> float:
+        return certificate(vehicle, controller, settings, v_min, v_max, a_max, samples,
+                           a_error=a_error, load_points=points, q_knots=knots).between
+
+    shipped = certificate(vehicle, controller, settings, v_min, v_max, a_max, samples,
+                          a_error=a_error, load_points=points)
+    name = shipped.weight
+    if name in CERTIFICATE_SCHEDULES and tuple(
+            speed for speed, _ in CERTIFICATE_SCHEDULES[name]) == (low, high):
+        pair = [np.asarray(q, dtype=float) for _, q in CERTIFICATE_SCHEDULES[name]]
+    elif name in CERTIFICATE_WEIGHTS:
+        pair = [np.asarray(CERTIFICATE_WEIGHTS[name], dtype=float)] * 2
+    else:   # another schedule's knots: its Q at the two speeds
+        schedule = weight_schedule(CERTIFICATE_SCHEDULES[name])
+        pair = [_weight_at(schedule, low)[0], _weight_at(schedule, high)[0]]
+    lower = np.tril_indices(5)
+
+    def knots_of(x: npt.NDArray[np.float64]) -> tuple[tuple[float, QRows], ...]:
+        out = []
+        for speed, part in zip((low, high), np.split(x, 2)):
+            factor = np.zeros((5, 5))
+            factor[lower] = part
+            weight = factor @ factor.T
+            weight = 0.5 * (weight + weight.T)
+            out.append((speed, tuple(tuple(float(w) for w in row) for row in weight)))
+        return tuple(out)
+
+    start_x = np.concatenate([np.linalg.cholesky(q)[lower] for q in pair])
+    start = bound(knots_of(start_x))
+    best, best_x, count = start, start_x, 1
+
+    def objective(x: npt.NDArray[np.float64]) -> float:
+        nonlocal best, best_x, count
+        if count >= evaluations:
+            return best                 # the budget is spent: stay put
+        count += 1
+        try:
+            value = bound(knots_of(x))
+        except ValueError:              # a singular factor: Q not positive definite
+            return float('inf')
+        if value < best:
+            best, best_x = value, np.array(x)
+        return value
+
+    if evaluations > 1:
+        minimize(objective, start_x, method='Nelder-Mead',
+                 options={'maxfev': evaluations - 1, 'xatol': 1e-6, 'fatol': 1e-6,
+                          'adaptive': True})
+    found = knots_of(best_x)
+    # scaled so that the first Q's first entry is 1 (the test does not see the scale)
+    scale = found[0][1][0][0]
+    knots = tuple((speed, tuple(tuple(w / scale for w in row) for row in q))
+                  for speed, q in found)
+    return ScheduleSearch(knots, start, best, count)
+
+
 def _zoh(a_c: Matrix, b_c: Matrix, period: float) -> tuple[Matrix, Matrix]:
     """Return the exact zero-order-hold discretization ``(Phi, Gamma)`` over ``period``."""
     n = a_c.shape[0]

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+import json
 import math
 from pathlib import Path
 from typing import Sequence
@@ -28,8 +29,9 @@ from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import (certificate,
                                                            CERTIFICATE_SCHEDULES, DELAYS,
-                                                           LOAD_POINTS, PERIOD, robust_check,
-                                                           ROBUST_SPEEDS)
+                                                           LOAD_POINTS, PERIOD, QRows,
+                                                           robust_check, ROBUST_SPEEDS,
+                                                           search_schedule, weight_schedule)
 from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 
@@ -74,8 +76,22 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                    'file: its controller.* (d_v schedule) and lane_keeping.*; '
                    '--natural-frequency and --integral-gain override it (default: the '
                    'package defaults)')
+    given_q = p.add_mutually_exclusive_group()
+    given_q.add_argument('--search-q', type=Path, default=None, metavar='JSON',
+                         help='search a speed schedule of the Q of the certificate for this '
+                         'vehicle and law (Nelder-Mead, two knots at 14 and 24 m/s, on 41 '
+                         'speeds; a few minutes), write it to JSON and certify with it: for '
+                         'a vehicle or law the shipped Q do not certify')
+    given_q.add_argument('--q-knots', type=Path, default=None, metavar='JSON',
+                         help="certify with the schedule of Q in this file (--search-q's "
+                         'output) instead of the shipped ones')
+    p.add_argument('--search-evaluations', type=int, default=2000, metavar='N',
+                   help='the most bounds --search-q computes (default 2000)')
     args = p.parse_args(argv)
     check_envelope(args)
+    if args.search_evaluations < 1:
+        p.error(f'--search-evaluations {args.search_evaluations}: must be >= 1')
+    knots = read_knots(args.q_knots) if args.q_knots is not None else None
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
     vehicle = load_vehicle(args.vehicle)
@@ -125,8 +141,25 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # certificate then checks A(v, a, a_hat) on a grid of accelerations (dev-sc30; before,
     # a note said the load transfer was not covered)
     load_points = LOAD_POINTS if vehicle.cg_height > 0.0 else 0
+    if args.search_q is not None:
+        try:
+            found = search_schedule(vehicle, controller, settings, args.v_min, args.v_max,
+                                    args.a_max, args.a_error, load_points,
+                                    evaluations=args.search_evaluations)
+        except ImportError as err:      # scipy is a test dependency, not the node's
+            raise ToolError(f'--search-q needs scipy (pip install scipy, or apt '
+                            f'python3-scipy): {err}') from err
+        knots = found.knots
+        write_json(args.search_q, {'knots': [[speed, [list(row) for row in q]]
+                                             for speed, q in knots],
+                                   'search_bound': found.found, 'start_bound': found.start,
+                                   'evaluations': found.evaluations})
+        print(f'searched a schedule of Q ({found.evaluations} bounds on 41 speeds): bound '
+              f'{found.start:.4g} -> {found.found:.4g}; written to {args.search_q}; the '
+              'certificate below is checked with it')
     cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
-                       args.samples, a_error=args.a_error, load_points=load_points)
+                       args.samples, a_error=args.a_error, load_points=load_points,
+                       q_knots=knots)
     # the sampled loop's delay is whole periods (0.01 s): checked and printed as rounded
     # (half up), each once (dev-probe43: 0.095 and 0.105 were printed, 0.1 checked twice)
     delays = tuple(sorted({math.floor(d / PERIOD + 0.5 + 1e-9) * PERIOD for d in args.delays}))
@@ -166,7 +199,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         def holds(scale: float) -> bool:
             return certificate(vehicle, controller, settings, args.v_min, args.v_max,
                                args.a_max * scale, args.samples,
-                               a_error=args.a_error * scale, load_points=load_points).holds
+                               a_error=args.a_error * scale, load_points=load_points,
+                               q_knots=knots).holds
 
         low, high = (1.0, 2.0) if cert.holds else (0.0, 1.0)
         while high < 64.0 and holds(high):
@@ -222,9 +256,12 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                   "acceleration's loads")
     speeds = f'{cert.speeds} speed' + ('' if cert.speeds == 1 else 's')
     weight = cert.weight
-    if weight in CERTIFICATE_SCHEDULES:         # a speed schedule of Q (dev-sc31)
-        knots = ', '.join(f'{speed:g}' for speed, _ in CERTIFICATE_SCHEDULES[weight])
-        weight += f' (linear in v_x between its knots at {knots} m/s)'
+    if knots is not None:
+        weight = (f'given ({args.search_q or args.q_knots}: knots at '
+                  f'{", ".join(f"{speed:g}" for speed, _ in knots)} m/s)')
+    elif weight in CERTIFICATE_SCHEDULES:         # a speed schedule of Q (dev-sc31)
+        listed = ', '.join(f'{speed:g}' for speed, _ in CERTIFICATE_SCHEDULES[weight])
+        weight += f' (linear in v_x between its knots at {listed} m/s)'
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
           f'{cert.a_max:g} m/s^2, error of the law a_x <= {cert.a_error:g} m/s^2; '
           f'checked at {speeds} ({kinks}) with Q {weight}; worst value at '
@@ -301,6 +338,26 @@ def exact_inverse_notes(settings: LaneKeepingParams) -> list[str]:
             "'curvature estimated' take the law's terms in the estimated curvature as "
             "static gains and leave out its model's dynamics along the estimate: that loop "
             'is not checked']
+
+
+def read_knots(path: Path) -> tuple[tuple[float, QRows], ...]:
+    """
+    Return the speed schedule of ``Q`` in a file written by ``--search-q``.
+
+    :param path: the JSON file (``{"knots": [[speed, [5 rows of 5]], ...]}``).
+    :return: the knots, checked as the certificate checks them.
+    :raises ToolError: the file cannot be read or does not hold such a schedule.
+    """
+    try:
+        data = json.loads(path.read_text(encoding='utf-8'))
+        knots = tuple((speed, tuple(tuple(row) for row in q)) for speed, q in data['knots'])
+        weight_schedule(knots)
+    except OSError as err:
+        raise ToolError(f'--q-knots {path}: {err.strerror or err}') from err
+    except (ValueError, TypeError, KeyError) as err:
+        raise ToolError(f'--q-knots {path}: not a schedule of Q as --search-q writes it '
+                        f'({{"knots": [[speed, [5 rows of 5]], ...]}}): {err}') from err
+    return knots
 
 
 def stability_tool() -> int:
