@@ -38,6 +38,7 @@ import time
 from conftest import entry_points
 from lookahead_control.bags.rosbag_io import (bag_topics, DESCRIPTION_FILE, node_parameters,
                                               PARAMETERS_KEY)
+from lookahead_control.core import lane_keeping_stability as stability
 import pytest
 import yaml
 
@@ -442,6 +443,21 @@ def _lane_keeping():
         assert out.returncode in (0, 1), out.stderr
         assert json.loads(path.read_text())['certificate']['v_max'] == 37.0
 
+    def searched(c):
+        # dev-sc31: a schedule of Q searched with the budget given, written, used
+        path = c.folder(exe) / 'q.json'
+        said = output(c, '--search-q', path, '--search-evaluations', '3')
+        assert 'searched a schedule of Q (3 bounds on 41 speeds)' in said
+        assert f'with Q given ({path}: knots at 14, 24 m/s)' in said
+        assert json.loads(path.read_text())['evaluations'] == 3
+
+    def given_knots(c):
+        path = c.folder(exe) / 'given.json'
+        q = [list(row) for row in stability.CERTIFICATE_Q_FLAT]
+        path.write_text(json.dumps({'knots': [[20.0, q]]}))
+        said = output(c, '--q-knots', path)
+        assert f'with Q given ({path}: knots at 20 m/s)' in said and said != output(c)
+
     def controller(c):
         # the file's lane_keeping.* is what is checked (before: no way to check a tuning
         # other than two of its gains); an option overrides the file
@@ -497,6 +513,9 @@ def _lane_keeping():
         '--integral-gain': (NON_NUMBERS + ('-1', '1e3'), changes('--integral-gain', '0')),
         '--a-error': (NON_NUMBERS + ('-1', '1e300'), changes('--a-error', '1')),
         '--delays': (NON_NUMBERS + ('-0.01', '1.5'), changes('--delays', '0.1')),
+        '--search-q': (('.',), searched),
+        '--q-knots': (('missing.json', '.'), given_knots),
+        '--search-evaluations': (NON_NUMBERS + ('0', '-3', '2.5'), searched),
     }
 
 

@@ -102,7 +102,16 @@ def test_the_tool_writes_the_schedule_it_found_and_certifies_with_a_given_one(
     ('{"knots": [[14, [[1, 0], [0, 1]]]]}', 'positive definite 5x5'),
     ('[1, 2]', 'not a schedule of Q as --search-q writes it'),
     ('{"knots": [["14", [[1, 0, 0, 0, 0]]]]}', 'must be finite numbers'),
-    ('not json', 'Expecting value')])
+    ('not json', 'Expecting value'),
+    # dev-probe68: entries as text or true were taken as numbers; 1e308 failed inside
+    # numpy without naming the file
+    ('{"knots": [[14, [["1", 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 1, 0, 0], '
+     '[0, 0, 0, 1, 0], [0, 0, 0, 0, 1]]]]}', "Q's entries must be numbers"),
+    ('{"knots": [[14, [[1e308, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 1, 0, 0], '
+     '[0, 0, 0, 1, 0], [0, 0, 0, 0, 1]]]]}', 'condition number of 1e+308: above 1e12'),
+    ('{"knots": [[14, [[1, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 1, 0, 0], '
+     '[0, 0, 0, 1, 0], [0, 0, 0, 0, 1]]], [24, [[1, 2, 0, 0, 0], [2, 1, 0, 0, 0], '
+     '[0, 0, 1, 0, 0], [0, 0, 0, 1, 0], [0, 0, 0, 0, 1]]]]}', 'knot 1 (24 m/s)')])
 def test_the_tool_refuses_a_bad_schedule_file_in_one_line(tmp_path, capsys, text, blamed):
     path = tmp_path / 'q.json'
     if text is not None:
@@ -113,15 +122,66 @@ def test_the_tool_refuses_a_bad_schedule_file_in_one_line(tmp_path, capsys, text
     assert 'Traceback' not in err
 
 
-def test_the_tool_takes_one_source_of_q_and_a_positive_budget(tmp_path, capsys):
-    for args, blamed in ((['--search-q', 'a.json', '--q-knots', 'b.json'], 'not allowed with'),
-                         (['--search-q', str(tmp_path / 'a.json'), '--search-evaluations',
-                           '0'], '--search-evaluations 0: must be >= 1')):
+def test_the_tool_refuses_before_the_search_what_would_fail_after_it(tmp_path, capsys):
+    # dev-probe68: a folder or an unwritable path as --search-q failed only after the
+    # search; --json naming the schedule file overwrote it (exit 0); a budget without a
+    # search was ignored
+    (tmp_path / 'a_folder').mkdir()
+    (tmp_path / 'a_file').write_text('x')
+    given = tmp_path / 'given.json'
+    given.write_text('{}')
+    for args, blamed in (
+            (['--search-q', 'a.json', '--q-knots', 'b.json'], 'not allowed with'),
+            (['--search-q', str(tmp_path / 'a.json'), '--search-evaluations', '0'],
+             '--search-evaluations: 0 is out of range; allowed: [1, 1e+06]'),
+            (['--search-evaluations', '5'], '--search-evaluations: only with --search-q'),
+            (['--search-q', str(tmp_path / 'a_folder')], 'a_folder: is a folder'),
+            (['--search-q', str(tmp_path / 'a_file' / 'q.json')],
+             f'{tmp_path / "a_file"} is not a folder this user may write in'),
+            (['--search-q', str(given), '--json', str(given)],
+             f'--json {given}: the same file as --search-q'),
+            (['--q-knots', str(given), '--json', str(tmp_path / '.' / 'given.json')],
+             'the same file as --q-knots')):
         with pytest.raises(SystemExit) as exit_:
             stability_main(['--samples', '2', *args])
         assert exit_.value.code == 2
-        assert blamed in capsys.readouterr().err
-    assert not (tmp_path / 'a.json').exists()
+        assert blamed in capsys.readouterr().err, args
+    assert not (tmp_path / 'a.json').exists() and given.read_text() == '{}'
+
+
+def test_the_search_places_its_knots_inside_the_envelope_and_refuses_an_unstable_loop():
+    # dev-probe68: with --v-min 25 the knots stayed at 14 and 24 m/s: Q constant over the
+    # whole envelope; now the envelope's thirds
+    vehicle, controller = _soft_rear(), load_controller(None)
+    settings = load_lane_keeping(None)
+    found = stability.search_schedule(vehicle, controller, settings, v_min=25.0,
+                                      evaluations=1, samples=5)
+    assert [speed for speed, _ in found.knots] == [29.0, 33.0]
+    with pytest.raises(ValueError, match='not stable at every frozen speed'):
+        stability.search_schedule(vehicle, controller, replace(settings, integral_gain=0.0),
+                                  evaluations=5, samples=5)
+
+
+def test_the_json_report_says_which_q_gave_the_verdict(tmp_path, capsys):
+    # dev-probe68: with a given schedule the report said only 'given' and the knots'
+    # speeds; now the Q, their source and the search's settings
+    report = tmp_path / 'r.json'
+    run_tool(stability_main, ['--samples', '2', '--delays', '0.02', '--json', str(report)])
+    q = json.loads(report.read_text())['q']
+    assert q['name'] == 'loaded' and q['source'] == 'shipped'
+    assert q['knots'][0][0] == 14.0 and q['knots'][1][1] == [
+        list(row) for row in stability.CERTIFICATE_Q_HIGH]
+    out = tmp_path / 'q.json'
+    run_tool(stability_main, ['--samples', '2', '--delays', '0.02', '--json', str(report),
+                              '--search-q', str(out), '--search-evaluations', '3'])
+    q = json.loads(report.read_text())['q']
+    written = json.loads(out.read_text())
+    assert q['source'] == str(out) and q['knots'] == written['knots']
+    assert written['searched_for'] == {'vehicle': None, 'controller': None, 'v_min': 10.0,
+                                       'v_max': 37.0, 'a_max': 3.5, 'a_error': 0.0,
+                                       'samples': 41, 'load_points': 0}
+    assert not out.with_name('q.json.partial').exists()
+    capsys.readouterr()
 
 
 def test_the_search_without_scipy_is_one_line(tmp_path, capsys, monkeypatch):
@@ -133,3 +193,24 @@ def test_the_search_without_scipy_is_one_line(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert '--search-q needs scipy (pip install scipy, or apt python3-scipy)' in err
     assert not out.exists()
+
+
+def test_a_knot_next_to_a_kink_is_moved_onto_it():
+    # dev-probe68: a third knot on the line between the loaded schedule's two Q (the same
+    # Q(v)) 2e-13 m/s from the w_n kink at 30 * 5 / 7 m/s made a one-sided step of 1e-13
+    # and a bound of 1e10; now it is moved onto the kink (any Q(v) > 0 is a valid test)
+    vehicle, controller = load_vehicle(None), load_controller(None)
+    settings = load_lane_keeping(None)
+    (low, q_low), (high, q_high) = stability.CERTIFICATE_SCHEDULES['loaded']
+    two = stability.certificate(vehicle, controller, settings, samples=55,
+                                q_knots=((low, q_low), (high, q_high)))
+    kink = 30.0 * 5.0 / 7.0
+    for speed in (kink + 2e-13, kink + 1e-9, kink - 5e-7):
+        share = (speed - low) / (high - low)
+        middle = tuple(tuple((1.0 - share) * a + share * b for a, b in zip(r_low, r_high))
+                       for r_low, r_high in zip(q_low, q_high))
+        three = stability.certificate(vehicle, controller, settings, samples=55,
+                                      q_knots=((low, q_low), (speed, middle),
+                                               (high, q_high)))
+        assert three.between == pytest.approx(two.between, rel=1e-6), speed
+        assert three.knots == (low, pytest.approx(kink, abs=1e-12), high)

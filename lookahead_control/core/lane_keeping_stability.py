@@ -692,6 +692,20 @@ def _weight_at(knots: Knots, v_x: float, side: float = 1.0) -> tuple[Matrix, Mat
     return weight, rate
 
 
+def _snapped(knots: Knots, kinks: list[float], merge: float) -> Knots:
+    """Return a schedule with each knot within ``merge`` of a kink moved onto it."""
+    if len(knots) < 2 or not kinks:
+        return knots
+    moved = []
+    for speed, q in knots:
+        nearest = min(kinks, key=lambda k: abs(k - speed))
+        moved.append((nearest if abs(nearest - speed) <= merge else speed, q))
+    speeds = [speed for speed, _ in moved]
+    if any(b <= a for a, b in zip(speeds, speeds[1:])):
+        return knots        # two knots onto one kink: as given
+    return tuple(moved)
+
+
 def weight_schedule(knots: Iterable[tuple[float, QRows]]) -> Knots:
     """
     Return a speed schedule of the certificate's ``Q``, checked.
@@ -710,7 +724,13 @@ def weight_schedule(knots: Iterable[tuple[float, QRows]]) -> Knots:
             b <= a for a, b in zip(speeds, speeds[1:])):
         raise ValueError(f'knot speeds {speeds!r} m/s must be finite numbers, strictly '
                          'increasing, at least one')
-    return tuple((float(speed), lyapunov_weight(q)) for speed, q in knots)
+    checked = []
+    for i, (speed, q) in enumerate(knots):
+        try:
+            checked.append((float(speed), lyapunov_weight(q)))
+        except ValueError as err:
+            raise ValueError(f'knot {i} ({speed:g} m/s): {err}') from err
+    return tuple(checked)
 
 
 def _certificates(vehicle: VehicleParams, controller: ControllerParams,
@@ -750,10 +770,6 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     :return: one result per ``Q``, in the order of ``weights``.
     """
     names = list(weights)
-    schedules = [weights[name] for name in names]
-    scheduled = any(len(knots) > 1 for knots in schedules)
-    knot_speeds = sorted({speed for knots in schedules if len(knots) > 1
-                          for speed, _ in knots if v_min < speed < v_max})
     kinks = schedule_kinks(vehicle, controller, settings, v_min, v_max)
     # the static loop's kinks bound the steps of P's derivative; the grid has them, and
     # with the load transfer each grid a_hat's own (the law's d_v leaves its floor where
@@ -762,17 +778,25 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     # m/s^2 and hold at 1.514). Kinks closer than `merge` are one grid point (a shorter
     # gap would make the difference quotient between them rounding noise)
     hat_kinks: dict[float, list[float]] = {}
-    grid_kinks, merge = sorted(set(kinks + knot_speeds)), 1e-6
+    merge = 1e-6
     if load_points:
         accelerations, errors = _load_grid(a_max, a_error, load_points)
         for a_hat in sorted({float(a + e) for a in accelerations for e in errors}):
             hat_kinks[a_hat] = schedule_kinks(loaded_vehicle(vehicle, a_hat), controller,
                                               settings, v_min, v_max)
         merge = 1e-4
-        grid_kinks = []
-        for k in sorted(kinks + knot_speeds + [k for ks in hat_kinks.values() for k in ks]):
-            if not grid_kinks or k - grid_kinks[-1] > merge:
-                grid_kinks.append(k)
+    # a knot within `merge` of a kink is moved onto it (any Q(v) > 0 is a valid test, the
+    # moved schedule too): else a one-sided step between them would be rounding noise
+    # (dev-probe68: a knot 2e-13 m/s from the w_n kink gave a bound of 1e10)
+    every_kink = sorted(kinks + [k for ks in hat_kinks.values() for k in ks])
+    schedules = [_snapped(weights[name], every_kink, merge) for name in names]
+    scheduled = any(len(knots) > 1 for knots in schedules)
+    knot_speeds = sorted({speed for knots in schedules if len(knots) > 1
+                          for speed, _ in knots if v_min < speed < v_max})
+    grid_kinks: list[float] = []
+    for k in sorted(knot_speeds + every_kink):
+        if not grid_kinks or k - grid_kinks[-1] > merge:
+            grid_kinks.append(k)
     # the grid points that are only an acceleration's own kink (for the summary)
     load_kinks = sum(all(abs(k - c) > merge for c in kinks + knot_speeds) for k in grid_kinks)
     uniform = np.linspace(v_min, v_max, samples)
@@ -1011,7 +1035,7 @@ class ScheduleSearch(NamedTuple):
 def search_schedule(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
                     a_max: float = 3.5, a_error: float = 0.0, load_points: int = 0,
-                    speeds: tuple[float, float] = (14.0, 24.0), evaluations: int = 2000,
+                    speeds: Optional[tuple[float, float]] = None, evaluations: int = 2000,
                     samples: int = 41) -> ScheduleSearch:
     """
     Search a two-knot speed schedule of ``Q`` that lowers the certificate's bound.
@@ -1034,16 +1058,23 @@ def search_schedule(vehicle: VehicleParams, controller: ControllerParams,
     :param a_max: acceleration bound [m/s^2].
     :param a_error: bound on the error of the law's ``a_x`` [m/s^2].
     :param load_points: as :func:`certificate` (0: static stiffnesses).
-    :param speeds: the two knots' speeds [m/s], increasing.
+    :param speeds: the two knots' speeds [m/s], increasing (None: 14 and 24 where the
+        envelope holds both, else its thirds).
     :param evaluations: the most bounds to compute (>= 1).
     :param samples: speeds of the search grid (>= 2).
     :return: the schedule, its bound on the search grid and the start's.
     :raises ValueError: an argument outside its range (as :func:`certificate`), knots not
-        increasing, or ``evaluations`` < 1.
+        increasing, ``evaluations`` < 1, or a loop unstable at a frozen speed (no ``Q``
+        certifies it).
+    :raises ImportError: without scipy.
     """
     from scipy.optimize import minimize
     if evaluations < 1:
         raise ValueError(f'evaluations = {evaluations!r} must be >= 1')
+    if speeds is None:      # knots where Q can move inside the envelope (dev-probe68)
+        third = (v_max - v_min) / 3.0
+        speeds = ((14.0, 24.0) if v_min < 14.0 and 24.0 < v_max else
+                  (v_min + third, v_max - third))
     low, high = speeds
     if not low < high:
         raise ValueError(f'knot speeds {speeds!r} m/s must be increasing')
@@ -1055,6 +1086,10 @@ def search_schedule(vehicle: VehicleParams, controller: ControllerParams,
 
     shipped = certificate(vehicle, controller, settings, v_min, v_max, a_max, samples,
                           a_error=a_error, load_points=points)
+    if shipped.max_real_eig >= 0.0:
+        raise ValueError('the loop is not stable at every frozen speed of the envelope '
+                         f'(largest real part {shipped.max_real_eig:.3g} 1/s): no Q '
+                         'certifies it')
     name = shipped.weight
     if name in CERTIFICATE_SCHEDULES and tuple(
             speed for speed, _ in CERTIFICATE_SCHEDULES[name]) == (low, high):

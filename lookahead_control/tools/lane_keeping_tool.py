@@ -17,23 +17,27 @@
 
 from __future__ import annotations
 
+from argparse import ArgumentParser
 from dataclasses import replace
 import json
 import math
+import os
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Optional, Sequence
 
 from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
                                         write_json)
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import (certificate,
-                                                           CERTIFICATE_SCHEDULES, DELAYS,
+                                                           CERTIFICATE_SCHEDULES,
+                                                           CERTIFICATE_WEIGHTS, DELAYS,
                                                            LOAD_POINTS, PERIOD, QRows,
                                                            robust_check, ROBUST_SPEEDS,
                                                            search_schedule, weight_schedule)
 from lookahead_control.core.params import ControllerParams, ParameterError
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
+import numpy as np
 
 
 def stability_main(argv: Sequence[str] | None = None) -> int:
@@ -79,18 +83,21 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     given_q = p.add_mutually_exclusive_group()
     given_q.add_argument('--search-q', type=Path, default=None, metavar='JSON',
                          help='search a speed schedule of the Q of the certificate for this '
-                         'vehicle and law (Nelder-Mead, two knots at 14 and 24 m/s, on 41 '
-                         'speeds; a few minutes), write it to JSON and certify with it: for '
-                         'a vehicle or law the shipped Q do not certify')
+                         'vehicle and law (Nelder-Mead, two knots at 14 and 24 m/s, or at '
+                         "the envelope's thirds if it does not hold both, on 41 speeds), "
+                         'write it to JSON and certify with it: for a vehicle or law the '
+                         'shipped Q do not certify. About 0.05 s an evaluation, 0.2 s with '
+                         "a cg_height, 0.5 s with a cg_height and an a_x error: the default's "
+                         '2 to 16 minutes')
     given_q.add_argument('--q-knots', type=Path, default=None, metavar='JSON',
                          help="certify with the schedule of Q in this file (--search-q's "
                          'output) instead of the shipped ones')
-    p.add_argument('--search-evaluations', type=int, default=2000, metavar='N',
+    p.add_argument('--search-evaluations', type=number(1, 1_000_000, integer=True),
+                   default=None, metavar='N',
                    help='the most bounds --search-q computes (default 2000)')
     args = p.parse_args(argv)
     check_envelope(args)
-    if args.search_evaluations < 1:
-        p.error(f'--search-evaluations {args.search_evaluations}: must be >= 1')
+    check_schedule_files(p, args)
     knots = read_knots(args.q_knots) if args.q_knots is not None else None
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
@@ -145,21 +152,35 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         try:
             found = search_schedule(vehicle, controller, settings, args.v_min, args.v_max,
                                     args.a_max, args.a_error, load_points,
-                                    evaluations=args.search_evaluations)
+                                    evaluations=args.search_evaluations or 2000)
         except ImportError as err:      # scipy is a test dependency, not the node's
-            raise ToolError(f'--search-q needs scipy (pip install scipy, or apt '
+            raise ToolError('--search-q needs scipy (pip install scipy, or apt '
                             f'python3-scipy): {err}') from err
+        except ValueError as err:
+            raise ToolError(f'--search-q: {err}') from err
         knots = found.knots
-        write_json(args.search_q, {'knots': [[speed, [list(row) for row in q]]
-                                             for speed, q in knots],
-                                   'search_bound': found.found, 'start_bound': found.start,
-                                   'evaluations': found.evaluations})
+        # what it was searched for, to redo it; written whole or not at all
+        written = args.search_q.with_name(args.search_q.name + '.partial')
+        write_json(written, {
+            'knots': [[speed, [list(row) for row in q]] for speed, q in knots],
+            'search_bound': found.found, 'start_bound': found.start,
+            'evaluations': found.evaluations,
+            'searched_for': {'vehicle': args.vehicle and str(args.vehicle),
+                             'controller': args.controller and str(args.controller),
+                             'v_min': args.v_min, 'v_max': args.v_max, 'a_max': args.a_max,
+                             'a_error': args.a_error, 'samples': 41,
+                             'load_points': min(load_points, 5)}})
+        os.replace(written, args.search_q)
         print(f'searched a schedule of Q ({found.evaluations} bounds on 41 speeds): bound '
               f'{found.start:.4g} -> {found.found:.4g}; written to {args.search_q}; the '
               'certificate below is checked with it')
-    cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
-                       args.samples, a_error=args.a_error, load_points=load_points,
-                       q_knots=knots)
+    try:
+        cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
+                           args.samples, a_error=args.a_error, load_points=load_points,
+                           q_knots=knots)
+    except np.linalg.LinAlgError as err:   # a given schedule's entries beyond precision
+        raise ToolError(f'--q-knots {args.q_knots}: the certificate could not be computed '
+                        f'with this schedule: {err}') from err
     # the sampled loop's delay is whole periods (0.01 s): checked and printed as rounded
     # (half up), each once (dev-probe43: 0.095 and 0.105 were printed, 0.1 checked twice)
     delays = tuple(sorted({math.floor(d / PERIOD + 0.5 + 1e-9) * PERIOD for d in args.delays}))
@@ -305,7 +326,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
           + ('' if approach is None else
              f'; in the approach {"HOLDS" if approach.holds else "DOES NOT HOLD"}'))
     if args.json:
-        write_json(args.json, {'certificate': cert._asdict(), 'robust': robust._asdict(),
+        write_json(args.json, {'certificate': cert._asdict(),
+                               'q': q_used(cert.weight, knots, args, cert.v_min),
+                               'robust': robust._asdict(),
                                'robust_filtered': filtered._asdict(),
                                'robust_curvature_estimated': estimated._asdict(),
                                'robust_integral_held': frozen._asdict(),
@@ -340,6 +363,54 @@ def exact_inverse_notes(settings: LaneKeepingParams) -> list[str]:
             'is not checked']
 
 
+def check_schedule_files(p: ArgumentParser, args: Any) -> None:
+    """
+    Refuse, before any work, the schedule options that would fail late or lose a file.
+
+    :param p: the parser (its one-line error).
+    :param args: the parsed arguments.
+    """
+    if args.search_evaluations is not None and args.search_q is None:
+        p.error('--search-evaluations: only with --search-q')
+    for flag, path in (('--search-q', args.search_q), ('--q-knots', args.q_knots)):
+        # dev-probe68: --json overwrote the schedule file it named
+        if path is not None and args.json is not None and \
+                path.resolve() == args.json.resolve():
+            p.error(f'--json {args.json}: the same file as {flag}')
+    if args.search_q is None:
+        return
+    # dev-probe68: a directory or an unwritable path failed only after the search
+    if args.search_q.is_dir():
+        p.error(f'--search-q {args.search_q}: is a folder')
+    folder = args.search_q.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        p.error(f'--search-q {args.search_q}: {folder} is not a folder this user may '
+                'write in')
+
+
+def q_used(name: str, knots: Optional[tuple[tuple[float, QRows], ...]], args: Any,
+           v_min: float) -> dict[str, Any]:
+    """
+    Return which ``Q`` gave the verdict, for the JSON report (to redo it).
+
+    :param name: the certificate's ``weight``.
+    :param knots: the schedule given or searched (None: the shipped ones).
+    :param args: the parsed arguments.
+    :param v_min: the envelope's lower speed (a constant ``Q``'s one knot).
+    :return: its name, source and knots.
+    """
+    if knots is not None:
+        source = str(args.search_q or args.q_knots)
+    elif name in CERTIFICATE_SCHEDULES:
+        source, knots = 'shipped', CERTIFICATE_SCHEDULES[name]
+    else:
+        source, knots = 'shipped', ((v_min, CERTIFICATE_WEIGHTS[name]),)
+    return {'name': name, 'source': source,
+            'knots': [[speed, [list(row) for row in q]] for speed, q in knots]}
+
+
 def read_knots(path: Path) -> tuple[tuple[float, QRows], ...]:
     """
     Return the speed schedule of ``Q`` in a file written by ``--search-q``.
@@ -351,7 +422,13 @@ def read_knots(path: Path) -> tuple[tuple[float, QRows], ...]:
     try:
         data = json.loads(path.read_text(encoding='utf-8'))
         knots = tuple((speed, tuple(tuple(row) for row in q)) for speed, q in data['knots'])
-        weight_schedule(knots)
+        entries = [w for _, q in knots for row in q for w in row]
+        if not all(isinstance(w, (int, float)) and not isinstance(w, bool) for w in entries):
+            raise ValueError("Q's entries must be numbers")
+        for speed, q in weight_schedule(knots):
+            if np.linalg.cond(q) > 1e12:     # the Lyapunov solves lose every digit
+                raise ValueError(f'Q at {speed:g} m/s has a condition number of '
+                                 f'{np.linalg.cond(q):.3g}: above 1e12')
     except OSError as err:
         raise ToolError(f'--q-knots {path}: {err.strerror or err}') from err
     except (ValueError, TypeError, KeyError) as err:
