@@ -1007,10 +1007,7 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
         given = weight_schedule(((v_min, q),) if q is not None else q_knots or ())
         return _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
                              {'given': given}, a_error, load_points)[0]
-    weights = {name: weight_schedule(((v_min, weight),))
-               for name, weight in CERTIFICATE_WEIGHTS.items()}
-    weights.update((name, weight_schedule(knots))
-                   for name, knots in CERTIFICATE_SCHEDULES.items())
+    weights = _shipped_weights(v_min)
     results = _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
                             weights, a_error, load_points)
     return min(results, key=lambda c: (c.between, list(weights).index(c.weight)))
@@ -1090,15 +1087,9 @@ def search_schedule(vehicle: VehicleParams, controller: ControllerParams,
         raise ValueError('the loop is not stable at every frozen speed of the envelope '
                          f'(largest real part {shipped.max_real_eig:.3g} 1/s): no Q '
                          'certifies it')
-    name = shipped.weight
-    if name in CERTIFICATE_SCHEDULES and tuple(
-            speed for speed, _ in CERTIFICATE_SCHEDULES[name]) == (low, high):
-        pair = [np.asarray(q, dtype=float) for _, q in CERTIFICATE_SCHEDULES[name]]
-    elif name in CERTIFICATE_WEIGHTS:
-        pair = [np.asarray(CERTIFICATE_WEIGHTS[name], dtype=float)] * 2
-    else:   # another schedule's knots: its Q at the two speeds
-        schedule = weight_schedule(CERTIFICATE_SCHEDULES[name])
-        pair = [_weight_at(schedule, low)[0], _weight_at(schedule, high)[0]]
+    # the best shipped Q at the two knots (a constant one at both)
+    schedule = _shipped_weights(v_min)[shipped.weight]
+    pair = [_weight_at(schedule, low)[0], _weight_at(schedule, high)[0]]
     lower = np.tril_indices(5)
 
     def knots_of(x: npt.NDArray[np.float64]) -> tuple[tuple[float, QRows], ...]:
@@ -1138,6 +1129,15 @@ def search_schedule(vehicle: VehicleParams, controller: ControllerParams,
     knots = tuple((speed, tuple(tuple(w / scale for w in row) for row in q))
                   for speed, q in found)
     return ScheduleSearch(knots, start, best, count)
+
+
+def _shipped_weights(v_min: float) -> dict[str, Knots]:
+    """Return every shipped ``Q`` as a schedule (a constant one: one knot at ``v_min``)."""
+    weights = {name: weight_schedule(((v_min, weight),))
+               for name, weight in CERTIFICATE_WEIGHTS.items()}
+    weights.update((name, weight_schedule(knots))
+                   for name, knots in CERTIFICATE_SCHEDULES.items())
+    return weights
 
 
 def _zoh(a_c: Matrix, b_c: Matrix, period: float) -> tuple[Matrix, Matrix]:
