@@ -39,6 +39,7 @@ from conftest import entry_points
 from lookahead_control.bags.rosbag_io import (bag_topics, DESCRIPTION_FILE, node_parameters,
                                               PARAMETERS_KEY)
 from lookahead_control.core import lane_keeping_stability as stability
+from lookahead_control.core.config import load_controller, load_lane_keeping, load_vehicle
 import pytest
 import yaml
 
@@ -458,6 +459,29 @@ def _lane_keeping():
         said = output(c, '--q-knots', path)
         assert f'with Q given ({path}: knots at 20 m/s)' in said and said != output(c)
 
+    def searched_p(c):
+        # dev-sc32: P(v) itself searched (an SDP), written, used
+        path = c.folder(exe) / 'p.json'
+        said = output(c, '--search-p', path)
+        assert 'semidefinite programs on' in said
+        assert f'of the P given ({path}: linear in v_x between' in said
+        assert json.loads(path.read_text())['matrix'] == 'P'
+
+    def searched_p_knots(c):
+        path = c.folder(exe) / 'p4.json'
+        output(c, '--search-p', path, '--search-p-knots', '4')
+        assert json.loads(path.read_text())['searched_for']['knots'] == 4
+
+    def given_p(c):
+        path = c.folder(exe) / 'given_p.json'
+        weight = stability.lyapunov_weight(stability.CERTIFICATE_Q_HIGH)
+        p = stability.lyapunov_matrix(load_vehicle(None), load_controller(None),
+                                      load_lane_keeping(None), 20.0, weight)
+        path.write_text(json.dumps({'knots': [[20.0, p.tolist()]], 'matrix': 'P'}))
+        said = output(c, '--p-knots', path)
+        assert f'of the P given ({path}: linear in v_x between 1 knot)' in said
+        assert said != output(c)
+
     def controller(c):
         # the file's lane_keeping.* is what is checked (before: no way to check a tuning
         # other than two of its gains); an option overrides the file
@@ -515,6 +539,9 @@ def _lane_keeping():
         '--delays': (NON_NUMBERS + ('-0.01', '1.5'), changes('--delays', '0.1')),
         '--search-q': (('.',), searched),
         '--q-knots': (('missing.json', '.'), given_knots),
+        '--search-p': (('.',), searched_p),
+        '--p-knots': (('missing.json', '.'), given_p),
+        '--search-p-knots': (NON_NUMBERS + ('1', '-3', '2.5', '1e4'), searched_p_knots),
         '--search-evaluations': (NON_NUMBERS + ('0', '-3', '2.5'), searched),
     }
 

@@ -442,7 +442,8 @@ class Certificate(NamedTuple):
         ``a_max max |eig(Q^-1 N)|`` (with ``a_error``: the largest eigenvalue of
         ``Q^-1 (a P_v + a_hat M)`` over the vertices); the test's value, ``V' < 0`` if
         below 1.
-    :param max_norm_speed: where it occurs [m/s].
+    :param max_norm_speed: where it occurs [m/s] (for a ``P`` given whose ``Q`` is not
+        positive definite, value infinite: the first speed where it is not).
     :param between: the value bounded between grid points (``max_norm`` plus
         ``L h / 2``, ``L`` the largest difference quotient of the vertex matrices).
     :param kinks: the speeds where ``A`` has a kink (grid points, both sides checked).
@@ -473,18 +474,20 @@ class Certificate(NamedTuple):
     load_kinks: int = 0
 
 
-def lyapunov_weight(q: Optional[QRows] = None) -> Matrix:
+def lyapunov_weight(q: Optional[QRows] = None, symbol: str = 'Q') -> Matrix:
     """
     Return the certificate's ``Q`` as a checked symmetric positive definite matrix.
 
     :param q: 5 rows of 5 numbers (None: :data:`CERTIFICATE_Q`).
+    :param symbol: the matrix's name in the error (``P`` for a Lyapunov matrix given).
     :return: the 5x5 matrix.
     """
     weight = np.asarray(CERTIFICATE_Q if q is None else q, dtype=float)
     if (weight.shape != (5, 5) or not np.all(np.isfinite(weight))
             or not np.allclose(weight, weight.T, rtol=0.0, atol=1e-12)
             or float(np.min(np.linalg.eigvalsh(weight))) <= 0.0):
-        raise ValueError(f'Q = {q!r} must be a symmetric positive definite 5x5 matrix')
+        raise ValueError(f'{symbol} = {q!r} must be a symmetric positive definite 5x5 '
+                         'matrix')
     return weight
 
 
@@ -526,7 +529,8 @@ def lyapunov_rate(vehicle: VehicleParams, controller: ControllerParams,
 def _lyapunov_rates(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_x: float, side: float,
                     weights: npt.NDArray[np.float64], step: float,
-                    weight_rates: Optional[npt.NDArray[np.float64]] = None
+                    weight_rates: Optional[npt.NDArray[np.float64]] = None,
+                    terms: Optional[tuple[Matrix, Matrix, Matrix, Matrix]] = None
                     ) -> tuple[npt.NDArray[np.float64], ...]:
     """
     Return :func:`lyapunov_rate` for several ``Q`` at once (the loop's matrices once).
@@ -543,20 +547,11 @@ def _lyapunov_rates(vehicle: VehicleParams, controller: ControllerParams,
     :param step: the difference step ``h`` [m/s].
     :param weight_rates: ``dQ/dv`` from the same side, stacked as ``weights`` (None:
         constant ``Q``).
+    :param terms: :func:`_loop_terms` at this speed and side, if made already.
     :return: ``(P, dP/dv, N)``, each stacked as ``weights``.
     """
-    def matrix(v: float, a: float = 0.0) -> Matrix:
-        return loop_in_coordinates(vehicle, controller, settings, v, a)
-
-    def slope(v: float) -> Matrix:
-        return matrix(v, 1.0) - matrix(v)
-
-    a_0 = matrix(v_x)
-    # A_1 jumps where d_v leaves its floor: its limit from this side (linear
-    # extrapolation from inside the piece, error ~h^2)
-    a_1 = 2.0 * slope(v_x + side * step) - slope(v_x + 2.0 * side * step)
-    a_v = side * (-3.0 * a_0 + 4.0 * matrix(v_x + side * step)
-                  - matrix(v_x + 2.0 * side * step)) / (2.0 * step)
+    a_0, a_1, a_v, move = terms or _loop_terms(vehicle, controller, settings, v_x, side,
+                                               step)
     size = a_0.shape[0]
     eye = np.eye(size)
     operator = np.kron(eye, a_0.T) + np.kron(a_0.T, eye)
@@ -572,17 +567,71 @@ def _lyapunov_rates(vehicle: VehicleParams, controller: ControllerParams,
     p = solve(weights)
     # differentiated: A_0^T P_v + P_v A_0 = -(A_0v^T P + P A_0v + Q_v)
     p_v = solve(a_v.T @ p + p @ a_v + (0.0 if weight_rates is None else weight_rates))
+    p_v = p_v + move.T @ p + p @ move
+    return p, p_v, a_1.T @ p + p @ a_1 + p_v
+
+
+def _loop_terms(vehicle: VehicleParams, controller: ControllerParams,
+                settings: LaneKeepingParams, v_x: float, side: float,
+                step: float) -> tuple[Matrix, Matrix, Matrix, Matrix]:
+    """
+    Return the loop's matrices the test needs at a speed, from one side.
+
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :param side: +1 for the right limits, -1 for the left ones.
+    :param step: the difference step ``h`` [m/s].
+    :return: ``A_0``, ``A_1`` and ``dA_0/dv`` (one-sided), and ``G = S_v S^-1``, the
+        coordinates' own rate (0 with a constant ``k_i``), all in ``u``.
+    """
+    def matrix(v: float, a: float = 0.0) -> Matrix:
+        return loop_in_coordinates(vehicle, controller, settings, v, a)
+
+    def slope(v: float) -> Matrix:
+        return matrix(v, 1.0) - matrix(v)
+
+    a_0 = matrix(v_x)
+    # A_1 jumps where d_v leaves its floor: its limit from this side (linear
+    # extrapolation from inside the piece, error ~h^2)
+    a_1 = 2.0 * slope(v_x + side * step) - slope(v_x + 2.0 * side * step)
+    a_v = side * (-3.0 * a_0 + 4.0 * matrix(v_x + side * step)
+                  - matrix(v_x + 2.0 * side * step)) / (2.0 * step)
     # the coordinates move with the true speed: u' = (S A S^-1 + v' G) u with
     # G = S_v S^-1 = (s'/s) (E_55 - E_15), s'/s = k_i' / (2 k_i) (one-sided: k_i is
     # piecewise linear in v)
+    move = np.zeros((5, 5))
     k_0 = float(integral_gain_at(settings, v_x))
     if k_0 > 0.0:
         k_step = float(integral_gain_at(settings, v_x + side * step))
         log_rate = 0.5 * side * (k_step - k_0) / (step * k_0)
-        move = np.zeros((5, 5))
         move[4, 4], move[0, 4] = log_rate, -log_rate
-        p_v = p_v + move.T @ p + p @ move
-    return p, p_v, a_1.T @ p + p @ a_1 + p_v
+    return a_0, a_1, a_v, move
+
+
+def _given_rates(terms: tuple[Matrix, Matrix, Matrix, Matrix],
+                 matrices: npt.NDArray[np.float64], slopes: npt.NDArray[np.float64]
+                 ) -> tuple[npt.NDArray[np.float64], ...]:
+    """
+    Return :func:`lyapunov_rate`'s ``(P, dP/dv, N)`` and ``Q`` for ``P`` given directly.
+
+    A schedule of ``P`` itself (:func:`~lookahead_control.core.lyapunov_search.
+    search_lyapunov`) is not a Lyapunov solution: its ``Q`` is what ``A_0`` makes of it,
+    ``Q = -(A_0^T P + P A_0)``, and the test is then the same, ``-Q + a N`` (with
+    ``a_hat``'s term, or the load transfer's ``D``) negative definite.
+
+    :param terms: :func:`_loop_terms` at the speed, from the side of ``slopes``.
+    :param matrices: ``P`` for each schedule (k x 5 x 5), in the certificate's
+        coordinates.
+    :param slopes: their one-sided ``dP/dv`` (the schedules' own, piecewise constant).
+    :return: ``(P, dP/dv, N, Q)``, each stacked as ``matrices``.
+    """
+    a_0, a_1, _, move = terms
+    p_v = slopes + move.T @ matrices + matrices @ move
+    weight = -(a_0.T @ matrices + matrices @ a_0)
+    return matrices, p_v, a_1.T @ matrices + matrices @ a_1 + p_v, \
+        0.5 * (weight + np.swapaxes(weight, 1, 2))
 
 
 def lyapunov_matrix(vehicle: VehicleParams, controller: ControllerParams,
@@ -706,12 +755,13 @@ def _snapped(knots: Knots, kinks: list[float], merge: float) -> Knots:
     return tuple(moved)
 
 
-def weight_schedule(knots: Iterable[tuple[float, QRows]]) -> Knots:
+def weight_schedule(knots: Iterable[tuple[float, QRows]], symbol: str = 'Q') -> Knots:
     """
-    Return a speed schedule of the certificate's ``Q``, checked.
+    Return a speed schedule of the certificate's ``Q`` (or of ``P``), checked.
 
     :param knots: ``(speed, Q)`` pairs: finite speeds [m/s], strictly increasing, each
         ``Q`` as :func:`lyapunov_weight` takes it.
+    :param symbol: the matrix's name in the errors (``P`` for a schedule of ``P``).
     :return: the pairs with each ``Q`` as a matrix.
     :raises ValueError: no knot, a speed not finite or not increasing, a ``Q`` that is
         not symmetric positive definite.
@@ -727,7 +777,7 @@ def weight_schedule(knots: Iterable[tuple[float, QRows]]) -> Knots:
     checked = []
     for i, (speed, q) in enumerate(knots):
         try:
-            checked.append((float(speed), lyapunov_weight(q)))
+            checked.append((float(speed), lyapunov_weight(q, symbol)))
         except ValueError as err:
             raise ValueError(f'knot {i} ({speed:g} m/s): {err}') from err
     return tuple(checked)
@@ -736,7 +786,9 @@ def weight_schedule(knots: Iterable[tuple[float, QRows]]) -> Knots:
 def _certificates(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_min: float, v_max: float, a_max: float,
                   samples: int, weights: dict[str, Knots],
-                  a_error: float, load_points: int = 0) -> list[Certificate]:
+                  a_error: float, load_points: int = 0,
+                  matrices: Optional[dict[str, Knots]] = None,
+                  zero: bool = False) -> list[Certificate]:
     """
     Evaluate the Section 4 test with each of several ``Q`` (see :func:`certificate`).
 
@@ -767,9 +819,16 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     :param load_points: 0: the stiffnesses are the static ones (``A`` affine in
         ``a_x``); else the plant's and the law's axles at their loads under ``a`` and
         ``a_hat`` (:func:`_loaded_terms`, ``load_points`` accelerations).
-    :return: one result per ``Q``, in the order of ``weights``.
+    :param matrices: schedules of ``P`` itself by name (:func:`_given_rates`: ``Q`` is
+        then ``-(A_0^T P + P A_0)``, and where it is not positive definite the test
+        fails: value infinite); their knots are grid points as ``Q``'s are.
+    :param zero: the law's ``a_x`` is 0 (``acceleration_source: zero``): ``a_hat = 0``
+        at every vertex, ``a = +-a_max`` (with the load transfer: on its grid), and
+        ``a_error`` is not used.
+    :return: one result per ``Q``, in the order of ``weights``, then one per ``P``.
     """
-    names = list(weights)
+    given = matrices or {}
+    names = list(weights) + list(given)
     kinks = schedule_kinks(vehicle, controller, settings, v_min, v_max)
     # the static loop's kinks bound the steps of P's derivative; the grid has them, and
     # with the load transfer each grid a_hat's own (the law's d_v leaves its floor where
@@ -780,8 +839,8 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     hat_kinks: dict[float, list[float]] = {}
     merge = 1e-6
     if load_points:
-        accelerations, errors = _load_grid(a_max, a_error, load_points)
-        for a_hat in sorted({float(a + e) for a in accelerations for e in errors}):
+        _, hats = _load_grid(a_max, a_error, load_points, zero)
+        for a_hat in sorted({float(h) for h in hats.flat}):
             hat_kinks[a_hat] = schedule_kinks(loaded_vehicle(vehicle, a_hat), controller,
                                               settings, v_min, v_max)
         merge = 1e-4
@@ -789,9 +848,10 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     # moved schedule too): else a one-sided step between them would be rounding noise
     # (dev-probe68: a knot 2e-13 m/s from the w_n kink gave a bound of 1e10)
     every_kink = sorted(kinks + [k for ks in hat_kinks.values() for k in ks])
-    schedules = [_snapped(weights[name], every_kink, merge) for name in names]
+    schedules = [_snapped(weights[name], every_kink, merge) for name in weights]
+    lyapunovs = [_snapped(given[name], every_kink, merge) for name in given]
     scheduled = any(len(knots) > 1 for knots in schedules)
-    knot_speeds = sorted({speed for knots in schedules if len(knots) > 1
+    knot_speeds = sorted({speed for knots in schedules + lyapunovs if len(knots) > 1
                           for speed, _ in knots if v_min < speed < v_max})
     grid_kinks: list[float] = []
     for k in sorted(knot_speeds + every_kink):
@@ -810,6 +870,7 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     worst_speed = np.full(len(names), v_min)
     lipschitz = np.zeros(len(names))
     across = np.zeros(len(names))       # the bound between accelerations (load transfer)
+    broken = np.zeros(len(names), dtype=bool)   # a given P whose Q is not positive definite
     previous: Optional[tuple[float, npt.NDArray[np.float64]]] = None
     for v in (float(s) for s in speeds):
         eig = float(np.max(np.linalg.eigvals(
@@ -817,9 +878,25 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
         worst_eig = max(worst_eig, eig)
         if worst_eig >= 0.0:
             break
-        stack = np.array([_weight_at(knots, v)[0] for knots in schedules])
+        stack = np.array([_weight_at(knots, v)[0] for knots in schedules]).reshape(-1, 5, 5)
+        held = np.array([_weight_at(knots, v)[0] for knots in lyapunovs]).reshape(-1, 5, 5)
+        everyone = stack
+        if lyapunovs:
+            a_0 = loop_in_coordinates(vehicle, controller, settings, v)
+            made = -(a_0.T @ held + held @ a_0)
+            made = 0.5 * (made + np.swapaxes(made, 1, 2))
+            # a given P that A_0 does not make decrease: no test (identity in its place,
+            # its value set infinite below)
+            failing = np.array([float(np.min(np.linalg.eigvalsh(m))) <= 0.0 for m in made])
+            # the first speed where it fails is the one reported (dev-probe69: the worst
+            # finite value's speed was)
+            first = failing & ~broken[len(schedules):]
+            worst_speed[len(schedules):][first] = v
+            broken[len(schedules):] |= failing
+            made[failing] = np.eye(5)
+            everyone = np.concatenate([stack, made])
         # Q^-1/2 in the Cholesky form: eig(Q^-1 N) = eig(C^-1 N C^-T), Q = C C^T
-        inverse = np.linalg.inv(np.linalg.cholesky(stack))
+        inverse = np.linalg.inv(np.linalg.cholesky(everyone))
         for side in (-1.0, 1.0):
             room = (v - breaks[breaks < v].max() if side < 0 and v > v_min else
                     breaks[breaks > v].min() - v if side > 0 and v < v_max else 0.0)
@@ -828,21 +905,30 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
             step = min(_STEP, room / 2.0)
             rates = (np.array([_weight_at(knots, v, side)[1] for knots in schedules])
                      if scheduled else None)
-            p, p_v, n = _lyapunov_rates(vehicle, controller, settings, v, side, stack, step,
-                                        rates)
+            terms = _loop_terms(vehicle, controller, settings, v, side, step)
+            p, p_v, n = (_lyapunov_rates(vehicle, controller, settings, v, side, stack,
+                                         step, rates, terms)
+                         if schedules else (stack, stack, stack))
+            if lyapunovs:
+                slopes = np.array([_weight_at(knots, v, side)[1] for knots in lyapunovs])
+                parts = _given_rates(terms, held, slopes)
+                p, p_v, n = (np.concatenate([mine, theirs]) for mine, theirs in
+                             zip((p, p_v, n), parts))
             if load_points:
                 scaled, spread = _loaded_terms(vehicle, controller, settings, v, side, step,
                                                p, p_v, inverse, a_max, a_error, load_points,
-                                               hat_kinks)
+                                               hat_kinks, zero)
                 across = np.maximum(across, spread)
             else:
                 # a P_v + a_hat M = a N + (a_hat - a) M in Q's coordinates, at the vertices
                 rate = inverse @ n @ np.swapaxes(inverse, 1, 2)
                 drift = inverse @ (n - p_v) @ np.swapaxes(inverse, 1, 2)
+                # a_hat = 0: a_hat - a = -a
                 scaled = np.stack([a * rate + e * drift for a in (-a_max, a_max)
-                                   for e in (-a_error, a_error)], axis=1)
+                                   for e in ((-a,) if zero else (-a_error, a_error))],
+                                  axis=1)
             value = np.max(np.linalg.eigvalsh(scaled), axis=(1, 2))
-            worst_speed = np.where(value > worst, v, worst_speed)
+            worst_speed = np.where((value > worst) & ~broken, v, worst_speed)
             worst = np.maximum(worst, value)
             # the difference quotient within one smooth piece (left side: the piece
             # that ends here, as the previous point's right side)
@@ -858,7 +944,7 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     for i, name in enumerate(names):
         top = float(worst[i])
         between = float(worst[i] + lipschitz[i] * spacing / 2.0 + across[i])
-        if worst_eig >= 0.0:     # no P(v) > 0 from the Lyapunov equation: no test value
+        if worst_eig >= 0.0 or broken[i]:   # no P(v) > 0 or Q(v) > 0: no test value
             top = between = float('inf')
         results.append(Certificate(v_min, v_max, a_max, a_error, worst_eig, top,
                                    float(worst_speed[i]), between, tuple(kinks),
@@ -867,18 +953,30 @@ def _certificates(vehicle: VehicleParams, controller: ControllerParams,
     return results
 
 
-def _load_grid(a_max: float, a_error: float,
-               points: int) -> tuple[npt.NDArray[np.float64], tuple[float, ...]]:
-    """Return the loaded certificate's accelerations and the law's errors on them."""
-    errors = (0.0,) if a_error == 0.0 else (-a_error, 0.0, a_error)
-    return np.linspace(-a_max, a_max, points), errors
+def _load_grid(a_max: float, a_error: float, points: int,
+               zero: bool = False) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """
+    Return the loaded certificate's accelerations and the law's ``a_hat`` at each.
+
+    :param a_max: acceleration bound [m/s^2].
+    :param a_error: bound on the law's error [m/s^2].
+    :param points: accelerations from ``-a_max`` to ``a_max``.
+    :param zero: ``a_hat = 0`` (``acceleration_source: zero``; ``a_error`` unused).
+    :return: the accelerations (``points``) and the ``a_hat`` (``points`` x 1 or 3: ``a``,
+        or ``a - a_error``, ``a``, ``a + a_error``).
+    """
+    accelerations = np.linspace(-a_max, a_max, points)
+    if zero:
+        return accelerations, np.zeros((points, 1))
+    errors = np.array([0.0] if a_error == 0.0 else [-a_error, 0.0, a_error])
+    return accelerations, accelerations[:, np.newaxis] + errors
 
 
 def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_x: float, side: float, step: float,
                   p: npt.NDArray[np.float64], p_v: npt.NDArray[np.float64],
                   inverse: npt.NDArray[np.float64], a_max: float, a_error: float,
-                  points: int, hat_kinks: dict[float, list[float]]
+                  points: int, hat_kinks: dict[float, list[float]], zero: bool = False
                   ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """
     Return the test's matrices with the load transfer, and their bound between points.
@@ -910,6 +1008,7 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
     :param points: accelerations on the grid (>= 2).
     :param hat_kinks: the kinks of the loop for each grid ``a_hat``: a slice's one-sided
         step stops short of its own (a third of the way).
+    :param zero: ``a_hat = 0`` at every ``a`` (``acceleration_source: zero``).
     :return: the matrices ``C^-1 (D^T P + P D + a P_v) C^-T`` (k x points x errors x
         5 x 5, flattened to k x (points errors) x 5 x 5) and, per ``Q``, the bound to
         add between accelerations.
@@ -934,15 +1033,15 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
         near, far = v_x + side * h, v_x + 2.0 * side * h
         return 2.0 * (loop(near, a, a_hat) - base(near)) - (loop(far, a, a_hat) - base(far))
 
-    accelerations, errors = _load_grid(a_max, a_error, points)
+    accelerations, hats = _load_grid(a_max, a_error, points, zero)
     terms = []
-    for a in accelerations:
-        for e in errors:
-            d = difference(float(a), float(a + e))
+    for a, row in zip(accelerations, hats):
+        for a_hat in row:
+            d = difference(float(a), float(a_hat))
             terms.append(d.T @ p + p @ d + a * p_v)
     stacked = np.stack(terms, axis=1)                   # k x (points errors) x 5 x 5
     scaled = inverse[:, np.newaxis] @ stacked @ np.swapaxes(inverse, 1, 2)[:, np.newaxis]
-    grid = scaled.reshape(scaled.shape[0], points, len(errors), 5, 5)
+    grid = scaled.reshape(scaled.shape[0], points, hats.shape[1], 5, 5)
     # lambda_max is convex in the matrix: on a segment, at most its ends' largest value
     # plus how far the matrix bends away from the chord, h^2 / 8 |M''| (M'' from the
     # second differences; 0 where A is affine, as without the transfer)
@@ -962,7 +1061,9 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
                 settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
                 a_max: float = 3.5, samples: int = 271, q: Optional[QRows] = None,
                 a_error: float = 0.0, load_points: int = 0,
-                q_knots: Optional[Iterable[tuple[float, QRows]]] = None) -> Certificate:
+                q_knots: Optional[Iterable[tuple[float, QRows]]] = None,
+                p_knots: Optional[Iterable[tuple[float, QRows]]] = None,
+                a_hat_zero: bool = False) -> Certificate:
     """
     Evaluate the Section 4 test, with ``A``'s dependence on ``a_x``, on the closed loop.
 
@@ -984,10 +1085,17 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     :param load_points: 0: static axle stiffnesses; else (>= 2) the load transfer of
         ``vehicle.cg_height`` in the plant and the law, checked at that many
         accelerations (:func:`_loaded_terms`).
+    :param p_knots: or, instead of ``Q``, a speed schedule of ``P`` itself, linear
+        between knots (:func:`~lookahead_control.core.lyapunov_search.search_lyapunov`;
+        its ``Q`` is ``-(A_0^T P + P A_0)``, :func:`_given_rates`).
+    :param a_hat_zero: the law's ``a_x`` is 0 (the node's ``acceleration_source: zero``):
+        the test at ``a_hat = 0`` exactly (``a_error`` must be 0). ``a_error >= a_max``
+        contains that case too, with every ``a_hat`` within ``a_max`` of ``a``.
     :return: the worst cases and whether the test holds.
     :raises ValueError: an envelope, bound or sample count outside its range, a ``Q``
-        that is not symmetric positive definite, knots' speeds not increasing, or both
-        ``q`` and ``q_knots``.
+        or ``P`` that is not symmetric positive definite, knots' speeds not increasing,
+        more than one of ``q``, ``q_knots`` and ``p_knots``, or ``a_error`` with
+        ``a_hat_zero``.
     """
     if not 0.0 < v_min < v_max < float('inf'):
         raise ValueError(f'speed envelope [{v_min!r}, {v_max!r}] m/s must satisfy '
@@ -1001,15 +1109,23 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
     if load_points < 0 or load_points == 1:
         raise ValueError(f'load_points = {load_points!r} must be 0 (static stiffnesses) '
                          'or >= 2')
-    if q is not None and q_knots is not None:
-        raise ValueError('give q (a constant Q) or q_knots (a schedule of it), not both')
+    if a_hat_zero and a_error != 0.0:
+        raise ValueError(f'a_error = {a_error!r} m/s^2 with a_hat_zero: the law a_x is 0, '
+                         'its error is the true a_x (give a_error 0)')
+    if sum(given is not None for given in (q, q_knots, p_knots)) > 1:
+        raise ValueError('give one of q (a constant Q), q_knots (a schedule of it) and '
+                         'p_knots (a schedule of P), not more')
+    if p_knots is not None:
+        return _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
+                             {}, a_error, load_points,
+                             {'given P': weight_schedule(p_knots, 'P')}, a_hat_zero)[0]
     if q is not None or q_knots is not None:
         given = weight_schedule(((v_min, q),) if q is not None else q_knots or ())
         return _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
-                             {'given': given}, a_error, load_points)[0]
+                             {'given': given}, a_error, load_points, zero=a_hat_zero)[0]
     weights = _shipped_weights(v_min)
     results = _certificates(vehicle, controller, settings, v_min, v_max, a_max, samples,
-                            weights, a_error, load_points)
+                            weights, a_error, load_points, zero=a_hat_zero)
     return min(results, key=lambda c: (c.between, list(weights).index(c.weight)))
 
 

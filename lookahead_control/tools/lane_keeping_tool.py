@@ -35,7 +35,7 @@ from lookahead_control.core.lane_keeping_stability import (certificate,
                                                            LOAD_POINTS, PERIOD, QRows,
                                                            robust_check, ROBUST_SPEEDS,
                                                            search_schedule, weight_schedule)
-from lookahead_control.core.params import ControllerParams, ParameterError
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 import numpy as np
 
@@ -92,16 +92,31 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     given_q.add_argument('--q-knots', type=Path, default=None, metavar='JSON',
                          help="certify with the schedule of Q in this file (--search-q's "
                          'output) instead of the shipped ones')
+    given_q.add_argument('--search-p', type=Path, default=None, metavar='JSON',
+                         help='search the Lyapunov matrix P(v) itself, linear between 12 '
+                         'speeds and the kinks, by semidefinite programming (cvxpy), write '
+                         'it to JSON and certify with it: wider than any Q, and seconds to '
+                         'a few minutes')
+    given_q.add_argument('--p-knots', type=Path, default=None, metavar='JSON',
+                         help="certify with the schedule of P in this file (--search-p's "
+                         'output)')
     p.add_argument('--search-evaluations', type=number(1, 1_000_000, integer=True),
                    default=None, metavar='N',
                    help='the most bounds --search-q computes (default 2000)')
+    p.add_argument('--search-p-knots', type=number(2, 1000, integer=True), default=None,
+                   metavar='N',
+                   help='uniform knots of the P(v) --search-p searches, beside the kinks '
+                   '(default 12; more where P must bend fast, e.g. the k_i schedule of '
+                   'low_speed_integral_gain: 80)')
     args = p.parse_args(argv)
     check_envelope(args)
     check_schedule_files(p, args)
     knots = read_knots(args.q_knots) if args.q_knots is not None else None
+    lyapunov = read_knots(args.p_knots, 'P') if args.p_knots is not None else None
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
     vehicle = load_vehicle(args.vehicle)
+    zero = False        # the law's a_x is 0 (acceleration_source: zero)
     if args.controller is None:
         loaded, controller = LaneKeepingParams(), ControllerParams()
     else:
@@ -122,13 +137,15 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         if both.law != 'cg_compensated':
             print(f'note: {args.controller} runs law {both.law} in the node; this checks '
                   "cg_compensated with the file's controller.* and lane_keeping.*")
-        if both.acceleration_source == 'zero' and args.a_error < args.a_max:
-            # the node's law then takes a_x = 0: its error is the whole |a_x| (before,
-            # the certificate was given for an exact a_x: 'HOLDS' where it does not;
-            # dev-probe55)
+        if both.acceleration_source == 'zero':
+            # the node's law then takes a_x = 0 (before dev-probe55 the certificate was
+            # given for an exact a_x: 'HOLDS' where it does not; until dev-sc32 as an
+            # error up to --a-max, which also holds every a_hat within a_max of a)
             print(f'acceleration_source zero in {args.controller}: the law takes a_x = 0, '
-                  f'so its a_x error is up to --a-max: --a-error {args.a_max:g} used')
-            args.a_error = args.a_max
+                  'so the certificate is checked at a_hat = 0'
+                  + (f' (--a-error {args.a_error:g} not used)' if args.a_error else ''))
+            zero = True
+            args.a_error = 0.0
         elif both.acceleration_source == 'differentiate' and args.a_error == 0.0:
             print(f'note: acceleration_source differentiate in {args.controller}: give the '
                   "differentiated speed's error in --a-error (checked here with an exact a_x)")
@@ -174,13 +191,16 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         print(f'searched a schedule of Q ({found.evaluations} bounds on 41 speeds): bound '
               f'{found.start:.4g} -> {found.found:.4g}; written to {args.search_q}; the '
               'certificate below is checked with it')
+    if args.search_p is not None:
+        lyapunov = search_p(args, vehicle, controller, settings, load_points, zero)
     try:
         cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
                            args.samples, a_error=args.a_error, load_points=load_points,
-                           q_knots=knots)
+                           q_knots=knots, p_knots=lyapunov, a_hat_zero=zero)
     except np.linalg.LinAlgError as err:   # a given schedule's entries beyond precision
-        raise ToolError(f'--q-knots {args.q_knots}: the certificate could not be computed '
-                        f'with this schedule: {err}') from err
+        raise ToolError(f'--{"q" if knots else "p"}-knots {args.q_knots or args.p_knots}: '
+                        'the certificate could not be computed with this schedule: '
+                        f'{err}') from err
     # the sampled loop's delay is whole periods (0.01 s): checked and printed as rounded
     # (half up), each once (dev-probe43: 0.095 and 0.105 were printed, 0.1 checked twice)
     delays = tuple(sorted({math.floor(d / PERIOD + 0.5 + 1e-9) * PERIOD for d in args.delays}))
@@ -221,7 +241,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
             return certificate(vehicle, controller, settings, args.v_min, args.v_max,
                                args.a_max * scale, args.samples,
                                a_error=args.a_error * scale, load_points=load_points,
-                               q_knots=knots).holds
+                               q_knots=knots, p_knots=lyapunov, a_hat_zero=zero).holds
 
         low, high = (1.0, 2.0) if cert.holds else (0.0, 1.0)
         while high < 64.0 and holds(high):
@@ -271,7 +291,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # every grid point that is not the uniform grid's is named (dev-probe67: "7 speeds
     # (kinks at 10.78, 21.43, 30.00 m/s)" with --samples 2 left out Q's knots)
     if cert.knots:
-        kinks += f'; the knots of Q at {", ".join(f"{k:g}" for k in cert.knots)} m/s'
+        kinks += (f'; the knots of {"Q" if lyapunov is None else "P"} at '
+                  f'{", ".join(f"{k:g}" for k in cert.knots)} m/s')
     if cert.load_kinks:
         kinks += (f'; {cert.load_kinks} more where d_v leaves its floor under an '
                   "acceleration's loads")
@@ -280,11 +301,17 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     if knots is not None:
         weight = (f'given ({args.search_q or args.q_knots}: knots at '
                   f'{", ".join(f"{speed:g}" for speed, _ in knots)} m/s)')
+    elif lyapunov is not None:
+        weight = (f'-(A_0^T P + P A_0) of the P given ({args.search_p or args.p_knots}: '
+                  f'linear in v_x between {len(lyapunov)} knot'
+                  f'{"" if len(lyapunov) == 1 else "s"})')
     elif weight in CERTIFICATE_SCHEDULES:         # a speed schedule of Q (dev-sc31)
         listed = ', '.join(f'{speed:g}' for speed, _ in CERTIFICATE_SCHEDULES[weight])
         weight += f' (linear in v_x between its knots at {listed} m/s)'
+    error = ('the law a_x 0' if zero else
+             f'error of the law a_x <= {cert.a_error:g} m/s^2')
     print(f'envelope: v_x in [{cert.v_min:g}, {cert.v_max:g}] m/s, |a_x| <= '
-          f'{cert.a_max:g} m/s^2, error of the law a_x <= {cert.a_error:g} m/s^2; '
+          f'{cert.a_max:g} m/s^2, {error}; '
           f'checked at {speeds} ({kinks}) with Q {weight}; worst value at '
           f'{cert.max_norm_speed:.2f} m/s; sampled checks at '
           f'{", ".join(f"{v:g}" for v in at)} m/s, plant delays '
@@ -293,6 +320,11 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     print('the certificate covers the law on exact states at varying speed; the sampled '
           'check covers the law on the estimate of the Kalman filter at frozen speeds')
     notes = exact_inverse_notes(settings)
+    if lyapunov is not None and cert.max_real_eig < 0.0 and math.isinf(cert.between):
+        # dev-probe69: only 'inf' and the worst finite value's speed were printed
+        notes.append(f'Q(v) = -(A_0^T P + P A_0) of the P given is not positive definite '
+                     f'at {cert.max_norm_speed:.4g} m/s: V = x^T P x does not fall there '
+                     'even at a constant speed, so this P is no certificate')
     if vehicle.cg_height > 0.0:
         # the law's stiffnesses then move with its a_x (core/params.py, loaded_vehicle)
         notes.append(f'vehicle.cg_height = {vehicle.cg_height:g} m: the certificate has '
@@ -327,7 +359,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
              f'; in the approach {"HOLDS" if approach.holds else "DOES NOT HOLD"}'))
     if args.json:
         write_json(args.json, {'certificate': cert._asdict(),
-                               'q': q_used(cert.weight, knots, args, cert.v_min),
+                               'q': q_used(cert.weight, knots, args, cert.v_min,
+                                           lyapunov),
+                               'law_a_x_zero': zero,
                                'robust': robust._asdict(),
                                'robust_filtered': filtered._asdict(),
                                'robust_curvature_estimated': estimated._asdict(),
@@ -372,67 +406,129 @@ def check_schedule_files(p: ArgumentParser, args: Any) -> None:
     """
     if args.search_evaluations is not None and args.search_q is None:
         p.error('--search-evaluations: only with --search-q')
-    for flag, path in (('--search-q', args.search_q), ('--q-knots', args.q_knots)):
+    if args.search_p_knots is not None and args.search_p is None:
+        p.error('--search-p-knots: only with --search-p')
+    for flag, path in (('--search-q', args.search_q), ('--q-knots', args.q_knots),
+                       ('--search-p', args.search_p), ('--p-knots', args.p_knots)):
         # dev-probe68: --json overwrote the schedule file it named
         if path is not None and args.json is not None and \
                 path.resolve() == args.json.resolve():
             p.error(f'--json {args.json}: the same file as {flag}')
-    if args.search_q is None:
+    flag, out = (('--search-q', args.search_q) if args.search_q is not None else
+                 ('--search-p', args.search_p))
+    if out is None:
         return
     # dev-probe68: a directory or an unwritable path failed only after the search
-    if args.search_q.is_dir():
-        p.error(f'--search-q {args.search_q}: is a folder')
-    folder = args.search_q.parent
+    if out.is_dir():
+        p.error(f'{flag} {out}: is a folder')
+    folder = out.parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
     if not folder.is_dir() or not os.access(folder, os.W_OK):
-        p.error(f'--search-q {args.search_q}: {folder} is not a folder this user may '
-                'write in')
+        p.error(f'{flag} {out}: {folder} is not a folder this user may write in')
+
+
+def search_p(args: Any, vehicle: VehicleParams, controller: ControllerParams,
+             settings: LaneKeepingParams, load_points: int,
+             zero: bool) -> tuple[tuple[float, QRows], ...]:
+    """
+    Search a schedule of ``P`` (``--search-p``), write it with its provenance, return it.
+
+    :param args: the parsed arguments (envelope, bounds, the output path).
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the law's settings.
+    :param load_points: the certificate's accelerations (0: static stiffnesses).
+    :param zero: the law's ``a_x`` is 0.
+    :return: the knots found.
+    :raises ToolError: without cvxpy, or no ``P`` found.
+    """
+    try:
+        from lookahead_control.core.lyapunov_search import search_lyapunov
+        found = search_lyapunov(vehicle, controller, settings, args.v_min, args.v_max,
+                                args.a_max, args.a_error, load_points,
+                                knots=args.search_p_knots or 12, a_hat_zero=zero)
+    except ImportError as err:      # cvxpy is the search's alone, not the node's
+        raise ToolError('--search-p needs cvxpy with its Clarabel solver (pip install '
+                        f'cvxpy clarabel): {err}') from err
+    except ValueError as err:
+        raise ToolError(f'--search-p: {err} (--search-p-knots, now '
+                        f'{args.search_p_knots or 12})') from err
+    # what it was searched for, to redo it; written whole or not at all
+    written = args.search_p.with_name(args.search_p.name + '.partial')
+    write_json(written, {
+        'knots': [[speed, [list(row) for row in m]] for speed, m in found.knots],
+        'matrix': 'P', 'sample_bound': found.target, 'solves': found.solves,
+        'samples': found.samples,
+        'searched_for': {'vehicle': args.vehicle and str(args.vehicle),
+                         'controller': args.controller and str(args.controller),
+                         'v_min': args.v_min, 'v_max': args.v_max, 'a_max': args.a_max,
+                         'a_error': args.a_error, 'law_a_x_zero': zero,
+                         'load_points': load_points, 'knots': args.search_p_knots or 12}})
+    os.replace(written, args.search_p)
+    print(f'searched P(v) linear between {len(found.knots)} knots ({found.solves} '
+          f'semidefinite programs on {found.samples} sample speeds): value {found.target:.4g} '
+          f'there; written to {args.search_p}; the certificate below is checked with it')
+    return found.knots
 
 
 def q_used(name: str, knots: Optional[tuple[tuple[float, QRows], ...]], args: Any,
-           v_min: float) -> dict[str, Any]:
+           v_min: float,
+           lyapunov: Optional[tuple[tuple[float, QRows], ...]] = None) -> dict[str, Any]:
     """
-    Return which ``Q`` gave the verdict, for the JSON report (to redo it).
+    Return which ``Q`` (or ``P``) gave the verdict, for the JSON report (to redo it).
 
     :param name: the certificate's ``weight``.
     :param knots: the schedule given or searched (None: the shipped ones).
     :param args: the parsed arguments.
     :param v_min: the envelope's lower speed (a constant ``Q``'s one knot).
-    :return: its name, source and knots.
+    :param lyapunov: a schedule of ``P`` given or searched (``--p-knots``,
+        ``--search-p``).
+    :return: its name, source, which matrix the knots hold and the knots.
     """
+    if lyapunov is not None:
+        return {'name': name, 'source': str(args.search_p or args.p_knots), 'matrix': 'P',
+                'knots': [[speed, [list(row) for row in m]] for speed, m in lyapunov]}
     if knots is not None:
         source = str(args.search_q or args.q_knots)
     elif name in CERTIFICATE_SCHEDULES:
         source, knots = 'shipped', CERTIFICATE_SCHEDULES[name]
     else:
         source, knots = 'shipped', ((v_min, CERTIFICATE_WEIGHTS[name]),)
-    return {'name': name, 'source': source,
+    return {'name': name, 'source': source, 'matrix': 'Q',
             'knots': [[speed, [list(row) for row in q]] for speed, q in knots]}
 
 
-def read_knots(path: Path) -> tuple[tuple[float, QRows], ...]:
+def read_knots(path: Path, symbol: str = 'Q') -> tuple[tuple[float, QRows], ...]:
     """
-    Return the speed schedule of ``Q`` in a file written by ``--search-q``.
+    Return the speed schedule of ``Q`` (or ``P``) in a file written by ``--search-q``.
 
     :param path: the JSON file (``{"knots": [[speed, [5 rows of 5]], ...]}``).
+    :param symbol: ``Q`` (``--q-knots``, ``--search-q``'s file) or ``P`` (``--p-knots``,
+        ``--search-p``'s).
     :return: the knots, checked as the certificate checks them.
     :raises ToolError: the file cannot be read or does not hold such a schedule.
     """
+    flag, writer = f'--{symbol.lower()}-knots', f'--search-{symbol.lower()}'
     try:
         data = json.loads(path.read_text(encoding='utf-8'))
+        held = data.get('matrix', 'Q')          # --search-q's files before dev-sc32: Q
+        if held != symbol:                      # a P file given as Q's, or Q's as P's
+            raise ValueError(f'it holds a schedule of {held!r}, not of {symbol}'
+                             + ('' if 'matrix' in data else ' (a file without "matrix": '
+                                '"P" holds Q, as --search-q writes them)'))
         knots = tuple((speed, tuple(tuple(row) for row in q)) for speed, q in data['knots'])
         entries = [w for _, q in knots for row in q for w in row]
         if not all(isinstance(w, (int, float)) and not isinstance(w, bool) for w in entries):
-            raise ValueError("Q's entries must be numbers")
-        for speed, q in weight_schedule(knots):
+            raise ValueError(f"{symbol}'s entries must be numbers")
+        for speed, q in weight_schedule(knots, symbol):
             if np.linalg.cond(q) > 1e12:     # the Lyapunov solves lose every digit
-                raise ValueError(f'Q at {speed:g} m/s has a condition number of '
+                raise ValueError(f'{symbol} at {speed:g} m/s has a condition number of '
                                  f'{np.linalg.cond(q):.3g}: above 1e12')
     except OSError as err:
-        raise ToolError(f'--q-knots {path}: {err.strerror or err}') from err
-    except (ValueError, TypeError, KeyError) as err:
-        raise ToolError(f'--q-knots {path}: not a schedule of Q as --search-q writes it '
+        raise ToolError(f'{flag} {path}: {err.strerror or err}') from err
+    except (ValueError, TypeError, KeyError, AttributeError) as err:
+        raise ToolError(f'{flag} {path}: not a schedule of {symbol} as {writer} writes it '
                         f'({{"knots": [[speed, [5 rows of 5]], ...]}}): {err}') from err
     return knots
 
