@@ -179,7 +179,7 @@ def test_the_search_s_refusals():
     assert stability.certificate(vehicle, controller, scheduled, a_max=2.0,
                                  p_knots=found.knots).holds
     # an acceleration no P of this form covers: said, not a P that fails later
-    with pytest.raises(ValueError, match='no P.v. linear between'):
+    with pytest.raises(ValueError, match='try more knots, or a smaller envelope'):
         search_lyapunov(vehicle, controller, settings, a_max=400.0, knots=4, per_piece=2,
                         bisections=0)
 
@@ -293,4 +293,33 @@ def test_the_p_search_without_cvxpy_is_one_line(tmp_path, capsys, monkeypatch):
     out = tmp_path / 'p.json'
     assert run_tool(stability_main, ['--samples', '2', '--search-p', str(out)]) == 2
     assert '--search-p needs cvxpy with its Clarabel solver' in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_the_tool_says_what_a_file_was_searched_for_and_when_knots_cannot_help(tmp_path,
+                                                                               capsys):
+    # dev-probe70: a P file searched for another car gave a DOES NOT HOLD with no hint;
+    # an unstable loop was told to try more knots
+    vehicle, controller = load_vehicle(None), load_controller(None)
+    settings = load_lane_keeping(None)
+    weight = stability.lyapunov_weight(stability.CERTIFICATE_Q_HIGH)
+    p = stability.lyapunov_matrix(vehicle, controller, settings, 20.0, weight)
+    path = tmp_path / 'p.json'
+    path.write_text(json.dumps({'knots': [[20.0, p.tolist()]], 'matrix': 'P',
+                                'searched_for': {'vehicle': 'soft.yaml', 'v_min': 15.0,
+                                                 'v_max': 37.0, 'law_a_x_zero': False}}))
+    run_tool(stability_main, ['--samples', '2', '--delays', '0', '--p-knots', str(path)])
+    said = capsys.readouterr().out
+    assert (f"note: --p-knots {path} was searched for vehicle 'soft.yaml' (here None), "
+            'v_min 15.0 (here 10.0): the verdict below is for this check') in said
+    # the same envelope and car: no note
+    path.write_text(json.dumps({'knots': [[20.0, p.tolist()]], 'matrix': 'P',
+                                'searched_for': {'vehicle': None, 'v_min': 10.0}}))
+    run_tool(stability_main, ['--samples', '2', '--delays', '0', '--p-knots', str(path)])
+    assert 'was searched for' not in capsys.readouterr().out
+    out = tmp_path / 'x.json'
+    assert run_tool(stability_main, ['--samples', '2', '--integral-gain', '0',
+                                     '--search-p', str(out)]) == 2
+    err = capsys.readouterr().err
+    assert 'the loop is not stable at' in err and '--search-p-knots' not in err
     assert not out.exists()

@@ -264,7 +264,8 @@ def search_lyapunov(vehicle: VehicleParams, controller: ControllerParams,
     if best is None or best_value >= 1.0:
         raise ValueError(f'no P(v) linear between {len(speeds)} knots meets the test at '
                          f'the {len(samples)} sample speeds (|a_x| <= {a_max:g} m/s^2, '
-                         f'a_x error <= {a_error:g} m/s^2): try more knots')
+                         f'a_x error <= {a_error:g} m/s^2): try more knots, or a '
+                         'smaller envelope (it may have no certificate of this form)')
     found = tuple((speed, tuple(tuple(float(w) for w in row) for row in m))
                   for speed, m in zip(speeds, best))
     return LyapunovSearch(found, best_value, solves, len(samples))

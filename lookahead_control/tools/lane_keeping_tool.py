@@ -193,6 +193,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
               'certificate below is checked with it')
     if args.search_p is not None:
         lyapunov = search_p(args, vehicle, controller, settings, load_points, zero)
+    for flag, path in (('--q-knots', args.q_knots), ('--p-knots', args.p_knots)):
+        if path is not None:
+            searched_note(flag, path, args, zero)
     try:
         cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
                            args.samples, a_error=args.a_error, load_points=load_points,
@@ -452,8 +455,11 @@ def search_p(args: Any, vehicle: VehicleParams, controller: ControllerParams,
         raise ToolError('--search-p needs cvxpy with its Clarabel solver (pip install '
                         f'cvxpy clarabel): {err}') from err
     except ValueError as err:
-        raise ToolError(f'--search-p: {err} (--search-p-knots, now '
-                        f'{args.search_p_knots or 12})') from err
+        # the knots only where more of them can help (dev-probe70: an unstable loop
+        # was told to try more knots)
+        more = ('' if 'try more knots' not in str(err) else
+                f' (--search-p-knots, now {args.search_p_knots or 12})')
+        raise ToolError(f'--search-p: {err}{more}') from err
     # what it was searched for, to redo it; written whole or not at all
     written = args.search_p.with_name(args.search_p.name + '.partial')
     write_json(written, {
@@ -497,6 +503,36 @@ def q_used(name: str, knots: Optional[tuple[tuple[float, QRows], ...]], args: An
         source, knots = 'shipped', ((v_min, CERTIFICATE_WEIGHTS[name]),)
     return {'name': name, 'source': source, 'matrix': 'Q',
             'knots': [[speed, [list(row) for row in q]] for speed, q in knots]}
+
+
+def searched_note(flag: str, path: Path, args: Any, zero: bool) -> None:
+    """
+    Print what a schedule file was searched for where it differs from this check.
+
+    A file used for another vehicle, law or envelope still gives a valid verdict for
+    this one (any ``Q > 0``, any ``P`` is a test), but one that may not hold: said, so
+    that a DOES NOT HOLD is not a puzzle (dev-probe70).
+
+    :param flag: ``--q-knots`` or ``--p-knots``.
+    :param path: the file (read already by :func:`read_knots`).
+    :param args: the parsed arguments.
+    :param zero: the law's ``a_x`` is 0 in this check.
+    """
+    try:
+        searched = json.loads(path.read_text(encoding='utf-8')).get('searched_for')
+    except (OSError, ValueError, AttributeError):
+        return
+    if not isinstance(searched, dict):
+        return
+    here = {'vehicle': args.vehicle and str(args.vehicle),
+            'controller': args.controller and str(args.controller), 'v_min': args.v_min,
+            'v_max': args.v_max, 'a_max': args.a_max, 'a_error': args.a_error,
+            'law_a_x_zero': zero}
+    differ = [f'{key} {searched[key]!r} (here {value!r})' for key, value in here.items()
+              if key in searched and searched[key] != value]
+    if differ:
+        print(f'note: {flag} {path} was searched for {", ".join(differ)}: the verdict '
+              'below is for this check')
 
 
 def read_knots(path: Path, symbol: str = 'Q') -> tuple[tuple[float, QRows], ...]:
