@@ -1057,6 +1057,34 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
     return scaled, np.sum(jumps, axis=0)
 
 
+def check_test_envelope(v_min: float, v_max: float, a_max: float, a_error: float,
+                        load_points: int, a_hat_zero: bool) -> None:
+    """
+    Refuse an envelope or bound the certificate (and its searches) cannot take.
+
+    :param v_min: lower speed [m/s].
+    :param v_max: upper speed [m/s].
+    :param a_max: acceleration bound [m/s^2].
+    :param a_error: bound on the error of the law's ``a_x`` [m/s^2].
+    :param load_points: 0 or the load transfer's accelerations (>= 2).
+    :param a_hat_zero: the law's ``a_x`` is 0 (then ``a_error`` must be 0).
+    :raises ValueError: naming the value and what is allowed.
+    """
+    if not 0.0 < v_min < v_max < float('inf'):
+        raise ValueError(f'speed envelope [{v_min!r}, {v_max!r}] m/s must satisfy '
+                         '0 < v_min < v_max, finite')
+    if not 0.0 <= a_max < float('inf'):
+        raise ValueError(f'a_max = {a_max!r} m/s^2 must be >= 0 and finite')
+    if not 0.0 <= a_error < float('inf'):
+        raise ValueError(f'a_error = {a_error!r} m/s^2 must be >= 0 and finite')
+    if load_points < 0 or load_points == 1:
+        raise ValueError(f'load_points = {load_points!r} must be 0 (static stiffnesses) '
+                         'or >= 2')
+    if a_hat_zero and a_error != 0.0:
+        raise ValueError(f'a_error = {a_error!r} m/s^2 with a_hat_zero: the law a_x is 0, '
+                         'its error is the true a_x (give a_error 0)')
+
+
 def certificate(vehicle: VehicleParams, controller: ControllerParams,
                 settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
                 a_max: float = 3.5, samples: int = 271, q: Optional[QRows] = None,
@@ -1097,21 +1125,9 @@ def certificate(vehicle: VehicleParams, controller: ControllerParams,
         more than one of ``q``, ``q_knots`` and ``p_knots``, or ``a_error`` with
         ``a_hat_zero``.
     """
-    if not 0.0 < v_min < v_max < float('inf'):
-        raise ValueError(f'speed envelope [{v_min!r}, {v_max!r}] m/s must satisfy '
-                         '0 < v_min < v_max, finite')
-    if not 0.0 <= a_max < float('inf'):
-        raise ValueError(f'a_max = {a_max!r} m/s^2 must be >= 0 and finite')
-    if not 0.0 <= a_error < float('inf'):
-        raise ValueError(f'a_error = {a_error!r} m/s^2 must be >= 0 and finite')
+    check_test_envelope(v_min, v_max, a_max, a_error, load_points, a_hat_zero)
     if samples < 2:
         raise ValueError(f'samples = {samples!r} must be >= 2')
-    if load_points < 0 or load_points == 1:
-        raise ValueError(f'load_points = {load_points!r} must be 0 (static stiffnesses) '
-                         'or >= 2')
-    if a_hat_zero and a_error != 0.0:
-        raise ValueError(f'a_error = {a_error!r} m/s^2 with a_hat_zero: the law a_x is 0, '
-                         'its error is the true a_x (give a_error 0)')
     if sum(given is not None for given in (q, q_knots, p_knots)) > 1:
         raise ValueError('give one of q (a constant Q), q_knots (a schedule of it) and '
                          'p_knots (a schedule of P), not more')

@@ -40,7 +40,8 @@ from typing import NamedTuple
 import warnings
 
 from lookahead_control.core.lane_keeping import LaneKeepingParams
-from lookahead_control.core.lane_keeping_stability import (_load_grid, integral_gain_at,
+from lookahead_control.core.lane_keeping_stability import (_load_grid, check_test_envelope,
+                                                           integral_gain_at,
                                                            loop_in_coordinates, QRows,
                                                            schedule_kinks)
 from lookahead_control.core.params import ControllerParams, loaded_vehicle, VehicleParams
@@ -148,19 +149,13 @@ def search_lyapunov(vehicle: VehicleParams, controller: ControllerParams,
     :param bisections: halvings of the value's interval after ``t = 1`` (>= 0).
     :param a_hat_zero: the law's ``a_x`` is 0, as :func:`certificate`'s.
     :return: the knots of ``P``, the value met and the work done.
-    :raises ValueError: an argument outside its range, a loop unstable at a frozen speed,
-        or no such ``P`` with these knots at ``t = 1`` (more knots, or no quadratic
-        certificate of this form).
+    :raises ValueError: an argument outside its range (:func:`check_test_envelope`, the
+        counts), a loop unstable at a frozen speed, or no ``P`` with these knots whose
+        value at the samples is below 1 (more knots, or no quadratic certificate of
+        this form).
     :raises ImportError: without cvxpy.
     """
-    if not 0.0 < v_min < v_max < float('inf'):
-        raise ValueError(f'speed envelope [{v_min!r}, {v_max!r}] m/s must satisfy '
-                         '0 < v_min < v_max, finite')
-    if not 0.0 <= a_max < float('inf') or not 0.0 <= a_error < float('inf'):
-        raise ValueError(f'a_max = {a_max!r} and a_error = {a_error!r} m/s^2 must be >= 0 '
-                         'and finite')
-    if load_points < 0 or load_points == 1:
-        raise ValueError(f'load_points = {load_points!r} must be 0 or >= 2')
+    check_test_envelope(v_min, v_max, a_max, a_error, load_points, a_hat_zero)
     for name, value, least in (('knots', knots, 2), ('per_piece', per_piece, 2),
                                ('bisections', bisections, 0)):
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
