@@ -253,6 +253,8 @@ def test_search_p_and_p_knots_in_the_tool(tmp_path, capsys, tall_zero):
     assert 'certificate HOLDS' in capsys.readouterr().out
     # without it the shipped Q do not hold (the exit code counts the certificate)
     assert run_tool(stability_main, common + ['--samples', '55']) == 1
+    assert 'no shipped Q certifies this loop: --search-p OUT.json searches P(v)' in \
+        capsys.readouterr().out
     # --a-error with a_x 0 is said not to be used
     run_tool(stability_main, common + ['--samples', '2', '--a-error', '1',
                                        '--p-knots', str(out)])

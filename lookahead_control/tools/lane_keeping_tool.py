@@ -328,6 +328,11 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         notes.append(f'Q(v) = -(A_0^T P + P A_0) of the P given is not positive definite '
                      f'at {cert.max_norm_speed:.4g} m/s: V = x^T P x does not fall there '
                      'even at a constant speed, so this P is no certificate')
+    if not cert.holds and cert.max_real_eig < 0.0 and knots is None and lyapunov is None:
+        # the shipped Q are the Table 1 car's: a stable loop they do not certify may have
+        # a P of its own (dev-sc32: 0.58 m with acceleration_source zero, 1.538 -> 0.323)
+        notes.append('no shipped Q certifies this loop: --search-p OUT.json searches P(v) '
+                     'for this vehicle and law (cvxpy; seconds to two minutes)')
     if vehicle.cg_height > 0.0:
         # the law's stiffnesses then move with its a_x (core/params.py, loaded_vehicle)
         notes.append(f'vehicle.cg_height = {vehicle.cg_height:g} m: the certificate has '
