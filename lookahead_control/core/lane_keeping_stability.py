@@ -598,16 +598,31 @@ def _loop_terms(vehicle: VehicleParams, controller: ControllerParams,
     a_1 = 2.0 * slope(v_x + side * step) - slope(v_x + 2.0 * side * step)
     a_v = side * (-3.0 * a_0 + 4.0 * matrix(v_x + side * step)
                   - matrix(v_x + 2.0 * side * step)) / (2.0 * step)
-    # the coordinates move with the true speed: u' = (S A S^-1 + v' G) u with
-    # G = S_v S^-1 = (s'/s) (E_55 - E_15), s'/s = k_i' / (2 k_i) (one-sided: k_i is
-    # piecewise linear in v)
+    return a_0, a_1, a_v, coordinates_rate(settings, v_x, side, step)
+
+
+def coordinates_rate(settings: LaneKeepingParams, v_x: float, side: float,
+                     step: float = _STEP) -> Matrix:
+    """
+    Return ``G = S_v S^-1``, the rate of the certificate's coordinates, one-sided.
+
+    The coordinates move with the true speed: ``u' = (S A S^-1 + v' G) u`` with
+    ``G = (s'/s) (E_55 - E_15)``, ``s'/s = k_i' / (2 k_i)`` (one-sided: ``k_i`` is
+    piecewise linear in ``v``); 0 with a constant ``k_i``.
+
+    :param settings: the law's settings.
+    :param v_x: speed [m/s].
+    :param side: +1 for the right limit, -1 for the left one.
+    :param step: the difference step [m/s].
+    :return: the 5x5 matrix.
+    """
     move = np.zeros((5, 5))
     k_0 = float(integral_gain_at(settings, v_x))
     if k_0 > 0.0:
         k_step = float(integral_gain_at(settings, v_x + side * step))
         log_rate = 0.5 * side * (k_step - k_0) / (step * k_0)
         move[4, 4], move[0, 4] = log_rate, -log_rate
-    return a_0, a_1, a_v, move
+    return move
 
 
 def _given_rates(terms: tuple[Matrix, Matrix, Matrix, Matrix],

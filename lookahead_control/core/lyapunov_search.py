@@ -41,7 +41,7 @@ import warnings
 
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.lane_keeping_stability import (_load_grid, check_test_envelope,
-                                                           integral_gain_at,
+                                                           coordinates_rate,
                                                            loop_in_coordinates, QRows,
                                                            schedule_kinks)
 from lookahead_control.core.params import ControllerParams, loaded_vehicle, VehicleParams
@@ -104,18 +104,6 @@ def _vertices(a_max: float, a_error: float, load_points: int,
     # affine in (a, a_hat): the vertices of the box
     errors = (0.0,) if a_error == 0.0 else (-a_error, a_error)
     return [(a, a + e) for a in (-a_max, a_max) for e in errors]
-
-
-def _coordinates_rate(settings: LaneKeepingParams, v_x: float, side: float) -> npt.NDArray:
-    """Return ``G = S_v S^-1`` of the integral's coordinates, one-sided (0: constant k_i)."""
-    move = np.zeros((5, 5))
-    k_0 = float(integral_gain_at(settings, v_x))
-    if k_0 > 0.0:
-        step = 1e-4
-        log_rate = 0.5 * side * (float(integral_gain_at(settings, v_x + side * step)) - k_0) \
-            / (step * k_0)
-        move[4, 4], move[0, 4] = log_rate, -log_rate
-    return move
 
 
 def search_lyapunov(vehicle: VehicleParams, controller: ControllerParams,
@@ -189,7 +177,7 @@ def search_lyapunov(vehicle: VehicleParams, controller: ControllerParams,
         if largest >= 0.0:
             raise ValueError(f'the loop is not stable at {at:.4g} m/s (largest real part '
                              f'{largest:.3g} 1/s): no P certifies it')
-        move = _coordinates_rate(settings, at, side)
+        move = coordinates_rate(settings, at, side)
         loops = []
         for a, a_hat in vertices:
             plant = loaded_vehicle(vehicle, a) if load_points else None
