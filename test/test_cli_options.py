@@ -472,6 +472,15 @@ def _lane_keeping():
         output(c, '--search-p', path, '--search-p-knots', '4')
         assert json.loads(path.read_text())['searched_for']['knots'] == 4
 
+    def shipped_only(c):
+        # dev-sc33: where the shipped Q fail a stable loop a P(v) is searched in the run
+        # (8 m/s^2 on the default car: the loaded schedule certifies 5.7, a P 19; on
+        # this coarse grid 1.75 and 0.83); --shipped-q-only keeps the shipped Q's verdict
+        said = output(c, '--a-max', '8', '--shipped-q-only')
+        assert 'certificate DOES NOT HOLD' in said and 'searching P(v)' not in said
+        said = output(c, '--a-max', '8')
+        assert 'searching P(v) for it' in said and 'certificate HOLDS' in said
+
     def given_p(c):
         path = c.folder(exe) / 'given_p.json'
         weight = stability.lyapunov_weight(stability.CERTIFICATE_Q_HIGH)
@@ -541,6 +550,7 @@ def _lane_keeping():
         '--q-knots': (('missing.json', '.'), given_knots),
         '--search-p': (('.',), searched_p),
         '--p-knots': (('missing.json', '.'), given_p),
+        '--shipped-q-only': ((), shipped_only),
         '--search-p-knots': (NON_NUMBERS + ('1', '-3', '2.5', '1e4'), searched_p_knots),
         '--search-evaluations': (NON_NUMBERS + ('0', '-3', '2.5'), searched),
     }

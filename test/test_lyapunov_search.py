@@ -251,10 +251,31 @@ def test_search_p_and_p_knots_in_the_tool(tmp_path, capsys, tall_zero):
     # the same P read back: the same verdict
     assert run_tool(stability_main, common + ['--p-knots', str(out)]) == 0
     assert 'certificate HOLDS' in capsys.readouterr().out
-    # without it the shipped Q do not hold (the exit code counts the certificate)
-    assert run_tool(stability_main, common + ['--samples', '55']) == 1
-    assert 'no shipped Q certifies this loop: --search-p OUT.json searches P(v)' in \
-        capsys.readouterr().out
+    # with the shipped Q alone it does not hold (the exit code counts the certificate)
+    assert run_tool(stability_main, common + ['--samples', '55', '--shipped-q-only']) == 1
+    said = capsys.readouterr().out
+    assert 'no shipped Q certifies this loop: without --shipped-q-only (or with ' \
+        '--search-p OUT.json) a P(v) is searched' in said
+    assert 'certificate DOES NOT HOLD' in said and 'searching P(v)' not in said
+    # dev-sc33: without --shipped-q-only the tool searches P itself where the shipped Q
+    # fail a loop stable at every frozen speed (before: DOES NOT HOLD and a note), and
+    # says it wrote nothing
+    report = tmp_path / 'fallback.json'
+    assert run_tool(stability_main, common + ['--samples', '55', '--json', str(report)]) == 0
+    said = capsys.readouterr().out
+    assert 'the shipped Q do not certify this loop (bound 1.5' in said
+    assert 'of the P searched in this run (not written: linear in v_x between 15 knots)' \
+        in said
+    assert 'the verdict is that of a P(v) searched in this run (0.3' in said
+    assert 'certificate HOLDS' in said
+    data = json.loads(report.read_text())
+    assert data['q']['source'] == 'searched in this run' and data['q']['matrix'] == 'P'
+    # the same P as the search run directly (55 speeds: a coarser bound than 271's 0.323)
+    assert data['certificate']['between'] == pytest.approx(0.359, abs=0.003)
+    np.testing.assert_allclose(np.array([m for _, m in data['q']['knots']]),
+                               np.array([m for _, m in tall_zero[3].knots]), rtol=1e-6)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ['tall.yaml', 'zero.yaml', 'p.json', 'report.json', 'fallback.json'])
     # --a-error with a_x 0 is said not to be used
     run_tool(stability_main, common + ['--samples', '2', '--a-error', '1',
                                        '--p-knots', str(out)])

@@ -29,7 +29,7 @@ from lookahead_control.core.cli import (markdown_table, number, parser, run_tool
                                         write_json)
 from lookahead_control.core.config import load_vehicle
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
-from lookahead_control.core.lane_keeping_stability import (certificate,
+from lookahead_control.core.lane_keeping_stability import (Certificate, certificate,
                                                            CERTIFICATE_SCHEDULES,
                                                            CERTIFICATE_WEIGHTS, DELAYS,
                                                            LOAD_POINTS, PERIOD, QRows,
@@ -100,6 +100,10 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     given_q.add_argument('--p-knots', type=Path, default=None, metavar='JSON',
                          help="certify with the schedule of P in this file (--search-p's "
                          'output)')
+    given_q.add_argument('--shipped-q-only', action='store_true',
+                         help='certify with the shipped Q only: without it, where they do '
+                         'not certify a loop stable at every frozen speed, a P(v) is '
+                         'searched in the run as --search-p does (not written)')
     p.add_argument('--search-evaluations', type=number(1, 1_000_000, integer=True),
                    default=None, metavar='N',
                    help='the most bounds --search-q computes (default 2000)')
@@ -204,6 +208,18 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         raise ToolError(f'--{"q" if knots else "p"}-knots {args.q_knots or args.p_knots}: '
                         'the certificate could not be computed with this schedule: '
                         f'{err}') from err
+    p_source = None if lyapunov is None else str(args.search_p or args.p_knots)
+    searched_notes: list[str] = []
+    if not cert.holds and cert.max_real_eig < 0.0 and knots is None and lyapunov is None \
+            and not args.shipped_q_only:
+        # the shipped Q are the Table 1 car's: a stable loop they do not certify may have
+        # a P of its own (dev-sc32: 0.58 m with acceleration_source zero, 1.538 -> 0.323);
+        # searched here since dev-sc33 (before, a note pointed to --search-p)
+        found_p = fallback_p(vehicle, controller, settings, args, load_points, zero, cert,
+                             searched_notes)
+        if found_p is not None:
+            lyapunov, cert = found_p
+            p_source = 'searched in this run'
     # the sampled loop's delay is whole periods (0.01 s): checked and printed as rounded
     # (half up), each once (dev-probe43: 0.095 and 0.105 were printed, 0.1 checked twice)
     delays = tuple(sorted({math.floor(d / PERIOD + 0.5 + 1e-9) * PERIOD for d in args.delays}))
@@ -305,9 +321,10 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         weight = (f'given ({args.search_q or args.q_knots}: knots at '
                   f'{", ".join(f"{speed:g}" for speed, _ in knots)} m/s)')
     elif lyapunov is not None:
-        weight = (f'-(A_0^T P + P A_0) of the P given ({args.search_p or args.p_knots}: '
-                  f'linear in v_x between {len(lyapunov)} knot'
-                  f'{"" if len(lyapunov) == 1 else "s"})')
+        source = ('searched in this run (not written' if p_source == 'searched in this run'
+                  else f'given ({p_source}')
+        weight = (f'-(A_0^T P + P A_0) of the P {source}: linear in v_x between '
+                  f'{len(lyapunov)} knot{"" if len(lyapunov) == 1 else "s"})')
     elif weight in CERTIFICATE_SCHEDULES:         # a speed schedule of Q (dev-sc31)
         listed = ', '.join(f'{speed:g}' for speed, _ in CERTIFICATE_SCHEDULES[weight])
         weight += f' (linear in v_x between its knots at {listed} m/s)'
@@ -328,11 +345,12 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         notes.append(f'Q(v) = -(A_0^T P + P A_0) of the P given is not positive definite '
                      f'at {cert.max_norm_speed:.4g} m/s: V = x^T P x does not fall there '
                      'even at a constant speed, so this P is no certificate')
-    if not cert.holds and cert.max_real_eig < 0.0 and knots is None and lyapunov is None:
-        # the shipped Q are the Table 1 car's: a stable loop they do not certify may have
-        # a P of its own (dev-sc32: 0.58 m with acceleration_source zero, 1.538 -> 0.323)
-        notes.append('no shipped Q certifies this loop: --search-p OUT.json searches P(v) '
-                     'for this vehicle and law (cvxpy; seconds to two minutes)')
+    notes += searched_notes
+    if not cert.holds and cert.max_real_eig < 0.0 and knots is None and lyapunov is None \
+            and args.shipped_q_only:
+        notes.append('no shipped Q certifies this loop: without --shipped-q-only (or with '
+                     '--search-p OUT.json) a P(v) is searched for this vehicle and law '
+                     '(cvxpy; seconds to two minutes)')
     if vehicle.cg_height > 0.0:
         # the law's stiffnesses then move with its a_x (core/params.py, loaded_vehicle)
         notes.append(f'vehicle.cg_height = {vehicle.cg_height:g} m: the certificate has '
@@ -368,7 +386,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         write_json(args.json, {'certificate': cert._asdict(),
                                'q': q_used(cert.weight, knots, args, cert.v_min,
-                                           lyapunov),
+                                           lyapunov, p_source),
                                'law_a_x_zero': zero,
                                'robust': robust._asdict(),
                                'robust_filtered': filtered._asdict(),
@@ -483,9 +501,62 @@ def search_p(args: Any, vehicle: VehicleParams, controller: ControllerParams,
     return found.knots
 
 
+def fallback_p(vehicle: VehicleParams, controller: ControllerParams,
+               settings: LaneKeepingParams, args: Any, load_points: int, zero: bool,
+               shipped: Certificate,
+               notes: list[str]) -> Optional[tuple[tuple[tuple[float, QRows], ...],
+                                                   Certificate]]:
+    """
+    Search ``P(v)`` for a loop the shipped ``Q`` do not certify; return it if it does better.
+
+    The shipped ``Q`` were searched for the Table 1 car: for another car or law the
+    certificate may exist and they miss it. The search (:func:`search_lyapunov`, as
+    ``--search-p`` with 12 knots) gives a ``P`` that the certificate then checks on its
+    own grid, so the verdict is the certificate's, whichever way ``P`` was found.
+
+    :param vehicle: the design vehicle.
+    :param controller: d_v schedule.
+    :param settings: the law's settings.
+    :param args: the parsed arguments (the envelope, ``--samples``).
+    :param load_points: the certificate's accelerations (0: static stiffnesses).
+    :param zero: the law's ``a_x`` is 0.
+    :param shipped: the certificate with the shipped ``Q``.
+    :param notes: the report's notes, appended to (why there is no ``P``, or which won).
+    :return: the knots and their certificate, or None (no cvxpy, none found, or not
+        better than the shipped ``Q``).
+    """
+    print(f'the shipped Q do not certify this loop (bound {shipped.between:.4g}): searching '
+          'P(v) for it (--shipped-q-only skips this; --search-p OUT.json writes it)',
+          flush=True)
+    try:
+        from lookahead_control.core.lyapunov_search import search_lyapunov
+        found = search_lyapunov(vehicle, controller, settings, args.v_min, args.v_max,
+                                args.a_max, args.a_error, load_points, a_hat_zero=zero)
+    except ImportError as err:          # cvxpy is the search's alone, not the node's
+        notes.append('no shipped Q certifies this loop, and no P(v) could be searched: '
+                     f'that needs cvxpy with its Clarabel solver ({err})')
+        return None
+    except ValueError as err:
+        notes.append(f'no shipped Q certifies this loop, nor a P(v) searched on 12 knots: '
+                     f'{err} (--search-p OUT.json --search-p-knots N)')
+        return None
+    cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
+                       args.samples, a_error=args.a_error, load_points=load_points,
+                       p_knots=found.knots, a_hat_zero=zero)
+    if not cert.between < shipped.between:
+        notes.append(f'a P(v) searched on 12 knots gave {cert.between:.4g} on the full grid, '
+                     f'no better than the shipped Q ({shipped.between:.4g}): not used')
+        return None
+    notes.append(f'the shipped Q do not certify this loop ({shipped.between:.4g}); the '
+                 f'verdict is that of a P(v) searched in this run ({cert.between:.4g}; '
+                 f'value {found.target:.4g} at its {found.samples} sample speeds): '
+                 '--search-p OUT.json writes it, --p-knots reads it back')
+    return found.knots, cert
+
+
 def q_used(name: str, knots: Optional[tuple[tuple[float, QRows], ...]], args: Any,
-           v_min: float,
-           lyapunov: Optional[tuple[tuple[float, QRows], ...]] = None) -> dict[str, Any]:
+           v_min: float, lyapunov: Optional[tuple[tuple[float, QRows], ...]] = None,
+           p_source: Optional[str] = None) -> dict[str, Any]:
     """
     Return which ``Q`` (or ``P``) gave the verdict, for the JSON report (to redo it).
 
@@ -494,11 +565,12 @@ def q_used(name: str, knots: Optional[tuple[tuple[float, QRows], ...]], args: An
     :param args: the parsed arguments.
     :param v_min: the envelope's lower speed (a constant ``Q``'s one knot).
     :param lyapunov: a schedule of ``P`` given or searched (``--p-knots``,
-        ``--search-p``).
+        ``--search-p``, or in the run where the shipped ``Q`` do not hold).
+    :param p_source: where ``lyapunov`` came from (its file, or ``searched in this run``).
     :return: its name, source, which matrix the knots hold and the knots.
     """
     if lyapunov is not None:
-        return {'name': name, 'source': str(args.search_p or args.p_knots), 'matrix': 'P',
+        return {'name': name, 'source': p_source, 'matrix': 'P',
                 'knots': [[speed, [list(row) for row in m]] for speed, m in lyapunov]}
     if knots is not None:
         source = str(args.search_q or args.q_knots)
