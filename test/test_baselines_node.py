@@ -135,6 +135,48 @@ def test_node_switches_law_while_active_through_the_rate_limiter(context):
         node.destroy_node()
 
 
+def test_probe71_lqr_weights_without_a_gain_are_refused_not_a_crash(context):
+    # dev-probe71: lqr.q_lateral 1e6, r 1e-6, period 1 s were each within range and
+    # accepted; the node then built the LQR (law lqr running, or switched to later) and
+    # died in the Riccati solver (LinAlgError: Singular matrix), the last command held
+    from lookahead_control.core.baselines import gain_table, LqrParams
+    with pytest.raises(ValueError, match='lqr.q_lateral = 1e.06.*r = 1e-06, period = 1: '
+                       'no LQR gain at 11 m/s'):
+        gain_table(VEHICLE, LqrParams(q_lateral=1e6, r=1e-6, period=1.0))
+    from lookahead_control.ros.controller_node import ControllerNode
+    for law in ('lqr', 'cg_compensated'):
+        node = ControllerNode(context=context, parameter_overrides=[
+            Parameter('use_sim_time', value=True), Parameter('law', value=law)])
+        try:
+            node.trigger_configure()
+            node.trigger_activate()
+            for k in range(1, 50):
+                feed(node, k * 10 * MS)
+            for params in ([Parameter('lqr.q_lateral', value=1e6),
+                            Parameter('lqr.r', value=1e-6), Parameter('lqr.period', value=1.0)],
+                           [Parameter('lqr.q_lateral', value=1e-6),
+                            Parameter('lqr.q_heading', value=1e6), Parameter('lqr.r', value=1e-6),
+                            Parameter('lqr.period', value=1.0)]):
+                refused = node.set_parameters_atomically(params)
+                assert not refused.successful and 'no LQR gain' in refused.reason, \
+                    (params, refused.reason)
+            # one at a time: the last one that would leave no gain is refused
+            assert node.set_parameters([Parameter('lqr.q_lateral', value=1e6)])[0].successful
+            assert node.set_parameters([Parameter('lqr.r', value=1e-6)])[0].successful
+            refused = node.set_parameters([Parameter('lqr.period', value=1.0)])[0]
+            assert not refused.successful and 'no LQR gain' in refused.reason
+            if law == 'cg_compensated':     # the LQR's weights are checked while it waits
+                refused = node.set_parameters([Parameter('law', value='lqr'),
+                                               Parameter('lqr.period', value=1.0)])
+                assert refused[0].successful and not refused[1].successful
+                assert node.core.law_name == 'lqr'
+            feed(node, 50 * 10 * MS)
+            assert math.isfinite(node.core.last.steering)
+            assert node.get_parameter('lqr.period').value == 0.01
+        finally:
+            node.destroy_node()
+
+
 def test_params_file_has_every_declared_baseline_parameter():
     import yaml
     from lookahead_control.ros.node_params import BASELINE_SPECS, LAW_SPEC

@@ -295,6 +295,40 @@ def test_diagnostics_say_when_the_sim_clock_stops(context):
         node.destroy_node()
 
 
+def test_probe71_use_sim_time_without_a_clock_is_an_error(context):
+    # dev-probe71: use_sim_time true and no /clock: the inputs (wall-clock stamps) were
+    # answered, the command froze under the rate limit, dead inputs never went stale and
+    # /diagnostics said ok
+    from diagnostic_msgs.msg import DiagnosticStatus
+    node = _default_node(context)
+    try:
+        stamp = 1_796_000_000 * S
+        for _ in range(3):
+            stamp += 10 * MS
+            node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
+            node.on_velocity(conv.to_velocity(stamp, 'base_link', 30.0, 0.0, 0.0))
+            node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', VEHICLE.d_s, 0.3))
+        assert node.get_clock().now().nanoseconds == 0 and node.sim_time()
+        assert node.diagnostics().level == DiagnosticStatus.OK      # not yet 0.5 s
+        time.sleep(0.6)
+        status = node.diagnostics()
+        assert status.level == DiagnosticStatus.ERROR, status.message
+        assert 'use_sim_time and no /clock: the sim clock reads 0 for ' in status.message
+        # the clock starts: the error ends
+        _send(node, stamp + 10 * MS, y=0.0, rho=0.0)
+        assert node.diagnostics().level == DiagnosticStatus.OK
+    finally:
+        node.destroy_node()
+    # a node that has received nothing is only waiting: no error
+    node = _default_node(context)
+    try:
+        node.diagnostics()
+        time.sleep(0.6)
+        assert node.diagnostics().level == DiagnosticStatus.OK
+    finally:
+        node.destroy_node()
+
+
 def test_diagnostics_say_the_speed_of_a_low_speed_hold_and_a_car_reversing(context):
     # dev-probe55: a velocity of -10 m/s was only 'low speed: N' in /diagnostics
     from diagnostic_msgs.msg import DiagnosticStatus

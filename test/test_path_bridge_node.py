@@ -323,6 +323,31 @@ def test_acceleration_without_imu_from_odometry_speeds(bridge):
     assert contract(node)['yaw'].accel_x == pytest.approx(1.0 - 0.02)
 
 
+def test_probe71_the_odometry_s_acceleration_is_taken_over_10_ms_and_clipped(bridge):
+    # dev-probe71: odometry at 700 Hz with 2 cm/s of speed noise made accel_x 1000 m/s^2
+    # and more (a derivative over 1.4 ms), which the controller refused as implausible in
+    # half the yaw messages; now as the controller differentiates: over >= 10 ms, clipped
+    node = bridge()
+    node.on_path(road_path())
+    rng = np.random.default_rng(3)
+    got = []
+    for k in range(1, 701):          # 1 s at 0.7 ms, 20 m/s, +1 m/s^2, noise 2 cm/s
+        stamp = 1_000_000_000 + k * 1_428_571
+        t = k * 1_428_571e-9
+        odom = vconv.to_odometry(stamp, 'map', 'base_link', *ROAD.global_pose(
+            20.0 + 20.0 * t, 0.0, 0.0), 20.0 + t + rng.normal(0.0, 0.02), 0.0, 0.0)
+        node.on_odometry(odom)
+        got.append(contract(node)['yaw'].accel_x)
+    got = np.array(got[20:])
+    assert np.max(np.abs(got)) <= 15.0
+    # over 10 ms the noise is 0.02 sqrt(2) / 0.01 = 2.8 m/s^2 rms around the true 1
+    assert abs(float(np.mean(got)) - 1.0) < 0.5 and float(np.std(got)) < 4.0
+    # odometry 0.6 s later: no derivative over the gap (0 until the next pair)
+    node.on_odometry(vconv.to_odometry(2_600_000_000, 'map', 'base_link',
+                                       *ROAD.global_pose(60.0, 0.0, 0.0), 30.0, 0.0, 0.0))
+    assert contract(node)['yaw'].accel_x == 0.0
+
+
 def test_rear_axle_odometry_is_moved_to_the_cg(bridge):
     node = bridge(base_to_cg=1.58)
     node.on_path(road_path())

@@ -478,7 +478,12 @@ def solve_dare(a: Array, b: Array, q: Array, r: Array, tolerance: float = 1e-12,
     eye = np.eye(ak.shape[0])
     for _ in range(max_iterations):
         with np.errstate(over='ignore', invalid='ignore'):   # divergence: caught below
-            w = np.linalg.inv(eye + gk @ hk)
+            try:
+                w = np.linalg.inv(eye + gk @ hk)
+            except np.linalg.LinAlgError:
+                # I + G H singular: weights beyond precision (dev-probe71: lqr.r 1e-6 with
+                # q_lateral 1e6 at period 1 s crashed the node a run-time set reached)
+                break
             a_next = ak @ w @ ak
             g_next = gk + ak @ w @ gk @ ak.T
             h_next = hk + ak.T @ hk @ w @ ak
@@ -505,8 +510,20 @@ def lqr_gain(vehicle: VehicleParams, params: LqrParams, v_x: float) -> Array:
     q = np.diag([params.q_lateral, params.q_lateral_rate, params.q_heading,
                  params.q_heading_rate])
     r = np.array([[params.r]])
-    p = solve_dare(ad, bd, q, r)
-    gain = np.asarray(np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad), dtype=np.float64)
+    try:
+        p = solve_dare(ad, bd, q, r)
+        gain = np.asarray(np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad),
+                          dtype=np.float64)
+    except ValueError as err:       # LinAlgError is one
+        raise ValueError(
+            f'lqr.q_lateral = {params.q_lateral:g}, q_lateral_rate = '
+            f'{params.q_lateral_rate:g}, q_heading = {params.q_heading:g}, q_heading_rate = '
+            f'{params.q_heading_rate:g}, r = {params.r:g}, period = {params.period:g}: no '
+            f'LQR gain at {v_x:g} m/s ({err}); weights within a few decades of each other '
+            'have one') from err
+    if not np.all(np.isfinite(gain)):
+        raise ValueError(f'lqr: the gain at {v_x:g} m/s is not finite with r = '
+                         f'{params.r:g} and period = {params.period:g}')
     return gain
 
 

@@ -29,9 +29,9 @@ from typing import Any, Callable, Mapping, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
-from lookahead_control.core.controller import (ACCELERATION_SOURCES, Command, LAW_NAMES,
-                                               SteeringController)
-from lookahead_control.core.lane_keeping import (CgCompensatedLaw, frequency_schedule_note,
+from lookahead_control.core.controller import (ACCELERATION_SOURCES, build_law, Command,
+                                               LAW_NAMES, SteeringController)
+from lookahead_control.core.lane_keeping import (frequency_schedule_note,
                                                  integral_schedule_note, LaneKeepingParams)
 from lookahead_control.core.params import ControllerParams, ParameterError, SCHEDULE_MODES
 from lookahead_control.core.safety import check_points
@@ -250,11 +250,16 @@ class ControllerNode(LifecycleNode):
             check_choices(ALL_SPECS, merged)
             vehicle, controller = vehicle_and_controller(merged)
             safety_params(merged)
-            baseline_params(merged)
+            baselines = baseline_params(merged)
             lane_keeping = lane_keeping_params(merged)
-            if merged['law'] == 'cg_compensated':
-                # its own checks across parameters (controller.reference)
-                CgCompensatedLaw(vehicle, controller, lane_keeping)
+            # the law the set selects is built here, so that what the node then builds
+            # cannot fail (its own checks across parameters, controller.reference; the
+            # LQR's Riccati equation: dev-probe71, lqr.r 1e-6 with q_lateral 1e6 at
+            # period 1 s was accepted and crashed the node building it)
+            build_law(merged['law'], vehicle, controller, baselines, lane_keeping)
+            if merged['law'] != 'lqr' and any(p.name.startswith('lqr.') for p in params):
+                # weights set for later: refused now, not when law lqr is selected
+                build_law('lqr', vehicle, controller, baselines, lane_keeping)
         except (ParameterError, ValueError) as err:
             return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
@@ -712,6 +717,16 @@ class ControllerNode(LifecycleNode):
             reasons.append(f'sim clock stopped at {sim_ns * 1e-9:.3f} s for {stopped:.1f} s '
                            '(wall): nothing is judged stale on it (use_sim_time; the '
                            'simulator or /clock gone?)')
+        elif self.active and sim_ns == 0 and stopped >= SIM_CLOCK_STOPPED and \
+                self.core.lateral is not None:
+            # dev-probe71: use_sim_time without a /clock: inputs were answered, the rate
+            # limit's time never ran (the command froze), dead inputs never went stale,
+            # and /diagnostics said ok throughout
+            level = max(level, DiagnosticStatus.ERROR)
+            reasons.append(f'use_sim_time and no /clock: the sim clock reads 0 for '
+                           f'{stopped:.1f} s (wall) while inputs arrive: no input is judged '
+                           "stale and the rate limit's time does not run (publish /clock, or "
+                           'use_sim_time false)')
         turning = {k: v - self._reported_turning.get(k, 0.0)
                    for k, v in self.core.turning.items()}
         self._reported_turning = dict(self.core.turning)

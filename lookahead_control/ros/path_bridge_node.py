@@ -34,9 +34,11 @@ from typing import Any, Callable, Mapping, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
+from lookahead_control.core.controller import differentiated_step
 from lookahead_control.core.params import ParameterError
 from lookahead_control.core.path_geometry import (cg_pose, PathError, PathFollower, PathParams,
                                                   ReferencePath, twist_in_parent_frame)
+from lookahead_control.core.safety import SafetyParams
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros import vehicle_conversions as vconv
 from lookahead_control.ros.controller_node import qos, writer_qos
@@ -95,6 +97,9 @@ NODE_SPECS = (
     EXECUTOR_SPEC,
 )
 ALL_SPECS = PATH_SPECS + NODE_SPECS
+#: odometry further apart than this [ns] starts the differentiated dv_x/dt again (0 until
+#: the next pair)
+ACCEL_GAP_NS = 500_000_000
 DEBUG_FIELDS = ('s', 'y_cg', 'eps_r', 'rho', 'path_heading', 'remaining', 'yaw_rate',
                 'accel_x')
 
@@ -136,7 +141,8 @@ class PathBridgeNode(LifecycleNode):
                          'imu_fallbacks': 0}
         self._reported: dict[str, int] = {}
         self._imu: Optional[tuple[int, float, float]] = None
-        self._prev_speed: Optional[tuple[int, float]] = None
+        # the differentiated dv_x/dt and the (stamp, v_x) it was last taken at
+        self._accel: tuple[float, Optional[tuple[int, float]]] = (0.0, None)
         self._prev_pose: Optional[vconv.OdometrySample] = None
         self._parent_twists = 0     # consecutive odometry messages whose twist looks wrong
         self._odometry_wall: Optional[float] = None
@@ -395,13 +401,22 @@ class PathBridgeNode(LifecycleNode):
         Return the yaw rate and the IMU's body longitudinal acceleration for ``odom``.
 
         From ``imu`` when used and within ``imu_timeout`` of the odometry stamp; else the
-        odometry's yaw rate and ``dv_x/dt - v_y r`` from consecutive odometry speeds.
+        odometry's yaw rate and ``dv_x/dt - v_y r``, with ``dv_x/dt`` differentiated
+        from the odometry speeds as the controller does it (over at least 10 ms, clipped
+        at 15 m/s^2: :func:`~lookahead_control.core.controller.differentiated_step`).
 
         :param odom: the odometry.
         :param v_y: lateral velocity at the CG [m/s].
         :return: yaw rate [rad/s], acceleration [m/s^2].
         """
-        prev, self._prev_speed = self._prev_speed, (odom.stamp_ns, odom.v_x)
+        estimate, anchor = self._accel
+        if anchor is not None and odom.stamp_ns - anchor[0] > ACCEL_GAP_NS:
+            estimate, anchor = 0.0, None            # after a gap: from the next pair on
+        # over at least 10 ms and clipped at the controller's believable |a_x|, as the
+        # controller differentiates (dev-probe71: a 700 Hz odometry with 2 cm/s of speed
+        # noise made 1000 m/s^2, the controller refused half the yaw messages)
+        self._accel = differentiated_step(estimate, anchor, odom.stamp_ns, odom.v_x,
+                                          SafetyParams().max_acceleration)
         if self.params['use_imu']:
             imu = self._imu
             if imu is not None and abs(imu[0] - odom.stamp_ns) <= \
@@ -411,10 +426,7 @@ class PathBridgeNode(LifecycleNode):
             age = ('none received' if imu is None
                    else f'{(odom.stamp_ns - imu[0]) * 1e-9:+.3f} s from the odometry')
             self._event('imu', f'imu not usable ({age}): yaw rate from odometry')
-        dv_dt = 0.0
-        if prev is not None and 0 < odom.stamp_ns - prev[0] <= 500_000_000:
-            dv_dt = (odom.v_x - prev[1]) / ((odom.stamp_ns - prev[0]) * 1e-9)
-        return odom.yaw_rate, dv_dt - v_y * odom.yaw_rate
+        return odom.yaw_rate, self._accel[0] - v_y * odom.yaw_rate
 
     # -- diagnostics ------------------------------------------------------------------
 
