@@ -346,3 +346,42 @@ def test_the_tool_says_what_a_file_was_searched_for_and_when_knots_cannot_help(t
     err = capsys.readouterr().err
     assert 'the loop is not stable at' in err and '--search-p-knots' not in err
     assert not out.exists()
+
+
+def test_the_in_run_search_without_a_better_p_keeps_the_shipped_verdict(capsys, monkeypatch):
+    # dev-sc33: the default run searches P where the shipped Q fail (8 m/s^2 on the
+    # default car: 1.75 on 21 speeds); without cvxpy, with no P found, or with a P no
+    # better than the shipped Q, the shipped Q's verdict stands and a note says why
+    import sys
+    from lookahead_control.core import lyapunov_search
+    argv = ['--samples', '21', '--a-max', '8', '--delays', '0']
+    monkeypatch.setitem(sys.modules, 'cvxpy', None)
+    assert run_tool(stability_main, argv) == 1
+    said = capsys.readouterr().out
+    assert 'no shipped Q certifies this loop, and no P(v) could be searched: that needs ' \
+        'cvxpy' in said and 'certificate DOES NOT HOLD' in said
+    monkeypatch.delitem(sys.modules, 'cvxpy')
+
+    def none_found(*args, **kwargs):
+        raise ValueError('no P(v) linear between 15 knots meets the test')
+
+    monkeypatch.setattr(lyapunov_search, 'search_lyapunov', none_found)
+    assert run_tool(stability_main, argv) == 1
+    said = capsys.readouterr().out
+    assert 'nor a P(v) searched on 12 knots: no P(v) linear between 15 knots meets the ' \
+        'test (--search-p OUT.json --search-p-knots N)' in said
+    # a P worse than the shipped Q (the shipped Q's own Lyapunov solution, scaled by a
+    # P that bends against it) is not used
+    vehicle, controller = load_vehicle(None), load_controller(None)
+    settings = load_lane_keeping(None)
+    weight = stability.lyapunov_weight(stability.CERTIFICATE_Q_HIGH)
+    worse = tuple((v, tuple(map(tuple, stability.lyapunov_matrix(
+        vehicle, controller, settings, v, weight) * (1.0 + 9.0 * (v == 37.0)))))
+        for v in (10.0, 37.0))
+    monkeypatch.setattr(lyapunov_search, 'search_lyapunov',
+                        lambda *a, **k: lyapunov_search.LyapunovSearch(worse, 0.5, 1, 2))
+    assert run_tool(stability_main, argv) == 1
+    said = capsys.readouterr().out
+    assert 'no better than the shipped Q (1.7' in said and ': not used' in said
+    assert 'certificate DOES NOT HOLD' in said and 'searched in this run (not written' \
+        not in said
