@@ -327,6 +327,30 @@ def test_probe71_use_sim_time_without_a_clock_is_an_error(context):
         assert node.diagnostics().level == DiagnosticStatus.OK
     finally:
         node.destroy_node()
+    # dev-probe72: a simulator holding /clock at 0 (lockstep, waiting at its start) is a
+    # stopped clock (WARN), not a missing one (it was the ERROR above)
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock as ClockMsg
+    node, sim = _default_node(context), Node('fake_sim', context=context)
+    try:
+        sim.create_publisher(ClockMsg, '/clock', 10)
+        deadline = time.monotonic() + 5.0
+        while node.count_publishers('/clock') == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert node.count_publishers('/clock') == 1
+        node.get_clock().set_ros_time_override(Time(nanoseconds=0))
+        node.on_yaw(conv.to_yaw(0, 'base_link', 0.0, 0.0, 0.0))
+        node.on_velocity(conv.to_velocity(0, 'base_link', 30.0, 0.0, 0.0))
+        node.on_lateral_error(conv.to_lateral_error(0, 'base_link', VEHICLE.d_s, 0.0))
+        node.diagnostics()
+        time.sleep(0.6)
+        status = node.diagnostics()
+        assert status.level == DiagnosticStatus.WARN, status.message
+        assert 'sim clock stopped at 0.000 s for ' in status.message
+        assert 'no /clock' not in status.message
+    finally:
+        node.destroy_node()
+        sim.destroy_node()
 
 
 def test_diagnostics_say_the_speed_of_a_low_speed_hold_and_a_car_reversing(context):

@@ -266,7 +266,7 @@ def test_search_p_and_p_knots_in_the_tool(tmp_path, capsys, tall_zero):
     assert 'the shipped Q do not certify this loop (bound 1.5' in said
     assert 'of the P searched in this run (not written: linear in v_x between 15 knots)' \
         in said
-    assert 'the verdict is that of a P(v) searched in this run (0.3' in said
+    assert 'the verdict is that of a P(v) searched in this run: bound 0.3' in said
     assert 'certificate HOLDS' in said
     data = json.loads(report.read_text())
     assert data['q']['source'] == 'searched in this run' and data['q']['matrix'] == 'P'
@@ -385,3 +385,40 @@ def test_the_in_run_search_without_a_better_p_keeps_the_shipped_verdict(capsys, 
     assert 'no better than the shipped Q (1.7' in said and ': not used' in said
     assert 'certificate DOES NOT HOLD' in said and 'searched in this run (not written' \
         not in said
+
+
+def test_the_in_run_search_tries_a_smaller_envelope_and_its_report_is_read_back(
+        tmp_path, capsys, monkeypatch):
+    # dev-probe72: with no P at --a-max (0.58 m, a_x 0, 12 m/s^2) the shipped Q's 2.3
+    # m/s^2 was the verdict where the P of 3.5 m/s^2 certifies 10.8; now the search halves
+    # the envelope (up to three times) and the better bound gives the verdict. Here the
+    # search is made to fail above 5 m/s^2 on the default car (8 m/s^2: shipped Q 1.75)
+    from lookahead_control.core import lyapunov_search
+    real = lyapunov_search.search_lyapunov
+    asked = []
+
+    def only_below_5(vehicle, controller, settings, v_min, v_max, a_max, *args, **kwargs):
+        asked.append(a_max)
+        if a_max > 5.0:
+            raise ValueError('no P(v) linear between 15 knots meets the test at the 56 '
+                             'sample speeds')
+        return real(vehicle, controller, settings, v_min, v_max, a_max, *args, **kwargs)
+
+    monkeypatch.setattr(lyapunov_search, 'search_lyapunov', only_below_5)
+    report = tmp_path / 'report.json'
+    argv = ['--samples', '21', '--a-max', '8', '--delays', '0']
+    assert run_tool(stability_main, argv + ['--json', str(report)]) == 0
+    said = capsys.readouterr().out
+    assert asked == [8.0, 4.0]
+    assert 'no P(v) on 12 knots meets the test at |a_x| 8 m/s^2: searching one at 4' in said
+    assert 'the verdict is that of a P(v) searched in this run, searched at |a_x| 4 m/s^2 ' \
+        '(none met the test at 8)' in said and 'certificate HOLDS' in said
+    between = json.loads(report.read_text())['certificate']['between']
+    # the report's P read back (--p-knots takes its "q"): the same bound, no search
+    monkeypatch.setattr(lyapunov_search, 'search_lyapunov', None)
+    again = tmp_path / 'again.json'
+    assert run_tool(stability_main, argv + ['--p-knots', str(report), '--json',
+                                            str(again)]) == 0
+    assert json.loads(again.read_text())['certificate']['between'] == between
+    assert f'of the P given ({report}: linear in v_x between 15 knots)' in \
+        capsys.readouterr().out

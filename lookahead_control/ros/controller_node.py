@@ -712,13 +712,11 @@ class ControllerNode(LifecycleNode):
         if sim_ns != self._sim_seen[0]:
             self._sim_seen = (sim_ns, steady)
         stopped = (steady - self._sim_seen[1]) * 1e-9
-        if self.active and sim_ns is not None and sim_ns > 0 and stopped >= SIM_CLOCK_STOPPED:
-            level = max(level, DiagnosticStatus.WARN)
-            reasons.append(f'sim clock stopped at {sim_ns * 1e-9:.3f} s for {stopped:.1f} s '
-                           '(wall): nothing is judged stale on it (use_sim_time; the '
-                           'simulator or /clock gone?)')
-        elif self.active and sim_ns == 0 and stopped >= SIM_CLOCK_STOPPED and \
-                self.core.lateral is not None:
+        # a clock reading 0 is one not started, or a simulator's /clock at 0 (a lockstep
+        # sim waiting at its start): only a /clock publisher tells them apart
+        at_zero = sim_ns == 0 and self.core.lateral is not None
+        no_clock = at_zero and self.count_publishers('/clock') == 0
+        if self.active and stopped >= SIM_CLOCK_STOPPED and no_clock:
             # dev-probe71: use_sim_time without a /clock: inputs were answered, the rate
             # limit's time never ran (the command froze), dead inputs never went stale,
             # and /diagnostics said ok throughout
@@ -727,6 +725,13 @@ class ControllerNode(LifecycleNode):
                            f'{stopped:.1f} s (wall) while inputs arrive: no input is judged '
                            "stale and the rate limit's time does not run (publish /clock, or "
                            'use_sim_time false)')
+        elif self.active and sim_ns is not None and (sim_ns > 0 or at_zero) and \
+                stopped >= SIM_CLOCK_STOPPED:
+            # (at 0 with inputs: dev-probe72, a /clock held at 0 was taken for none)
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'sim clock stopped at {sim_ns * 1e-9:.3f} s for {stopped:.1f} s '
+                           '(wall): nothing is judged stale on it (use_sim_time; the '
+                           'simulator or /clock gone?)')
         turning = {k: v - self._reported_turning.get(k, 0.0)
                    for k, v in self.core.turning.items()}
         self._reported_turning = dict(self.core.turning)

@@ -99,7 +99,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                          'a few minutes')
     given_q.add_argument('--p-knots', type=Path, default=None, metavar='JSON',
                          help="certify with the schedule of P in this file (--search-p's "
-                         'output)')
+                         "output, or a --json report's P)")
     given_q.add_argument('--shipped-q-only', action='store_true',
                          help='certify with the shipped Q only: without it, where they do '
                          'not certify a loop stable at every frozen speed, a P(v) is '
@@ -528,29 +528,44 @@ def fallback_p(vehicle: VehicleParams, controller: ControllerParams,
     print(f'the shipped Q do not certify this loop (bound {shipped.between:.4g}): searching '
           'P(v) for it (--shipped-q-only skips this; --search-p OUT.json writes it)',
           flush=True)
-    try:
-        from lookahead_control.core.lyapunov_search import search_lyapunov
-        found = search_lyapunov(vehicle, controller, settings, args.v_min, args.v_max,
-                                args.a_max, args.a_error, load_points, a_hat_zero=zero)
-    except ImportError as err:          # cvxpy is the search's alone, not the node's
-        notes.append('no shipped Q certifies this loop, and no P(v) could be searched: '
-                     f'that needs cvxpy with its Clarabel solver ({err})')
-        return None
-    except ValueError as err:
-        notes.append(f'no shipped Q certifies this loop, nor a P(v) searched on 12 knots: '
-                     f'{err} (--search-p OUT.json --search-p-knots N)')
-        return None
+    # none at --a-max: one at a smaller envelope may still certify more than the shipped
+    # Q do (dev-probe72: 0.58 m, a_x 0, --a-max 12: none at 12, the shipped Q certified
+    # 2.3 m/s^2 where the P of 3.5 m/s^2 certifies 10.8)
+    scales = (1.0, 0.5, 0.25, 0.125) if args.a_max > 0.0 else (1.0,)
+    for scale in scales:
+        at = args.a_max * scale
+        try:
+            from lookahead_control.core.lyapunov_search import search_lyapunov
+            found = search_lyapunov(vehicle, controller, settings, args.v_min, args.v_max,
+                                    at, args.a_error * scale, load_points, a_hat_zero=zero)
+        except ImportError as err:          # cvxpy is the search's alone, not the node's
+            notes.append('no shipped Q certifies this loop, and no P(v) could be searched: '
+                         f'that needs cvxpy with its Clarabel solver ({err})')
+            return None
+        except ValueError as err:
+            if 'meets the test' in str(err) and scale != scales[-1]:
+                print(f'no P(v) on 12 knots meets the test at |a_x| {at:g} m/s^2: searching '
+                      f'one at {0.5 * at:g}', flush=True)
+                continue
+            notes.append(f'no shipped Q certifies this loop, nor a P(v) searched on 12 '
+                         f'knots: {err} (--search-p OUT.json --search-p-knots N)')
+            return None
+        break
     cert = certificate(vehicle, controller, settings, args.v_min, args.v_max, args.a_max,
                        args.samples, a_error=args.a_error, load_points=load_points,
                        p_knots=found.knots, a_hat_zero=zero)
+    where = ('' if scale == 1.0 else
+             f', searched at |a_x| {at:g} m/s^2 (none met the test at {args.a_max:g})')
     if not cert.between < shipped.between:
-        notes.append(f'a P(v) searched on 12 knots gave {cert.between:.4g} on the full grid, '
-                     f'no better than the shipped Q ({shipped.between:.4g}): not used')
+        notes.append(f'a P(v) searched on 12 knots{where} gave {cert.between:.4g} on the '
+                     f'full grid, no better than the shipped Q ({shipped.between:.4g}): not '
+                     'used')
         return None
     notes.append(f'the shipped Q do not certify this loop ({shipped.between:.4g}); the '
-                 f'verdict is that of a P(v) searched in this run ({cert.between:.4g}; '
-                 f'value {found.target:.4g} at its {found.samples} sample speeds): '
-                 '--search-p OUT.json writes it, --p-knots reads it back')
+                 f'verdict is that of a P(v) searched in this run{where}: bound '
+                 f'{cert.between:.4g}, value {found.target:.4g} at its {found.samples} sample '
+                 'speeds; --search-p OUT.json writes it; --p-knots reads that file or the '
+                 '--json report back')
     return found.knots, cert
 
 
@@ -616,6 +631,9 @@ def read_knots(path: Path, symbol: str = 'Q') -> tuple[tuple[float, QRows], ...]
     """
     Return the speed schedule of ``Q`` (or ``P``) in a file written by ``--search-q``.
 
+    Also this tool's ``--json`` report: its ``"q"``, the ``Q`` or ``P`` that gave the
+    verdict (a ``P`` searched in the run included).
+
     :param path: the JSON file (``{"knots": [[speed, [5 rows of 5]], ...]}``).
     :param symbol: ``Q`` (``--q-knots``, ``--search-q``'s file) or ``P`` (``--p-knots``,
         ``--search-p``'s).
@@ -625,6 +643,9 @@ def read_knots(path: Path, symbol: str = 'Q') -> tuple[tuple[float, QRows], ...]
     flag, writer = f'--{symbol.lower()}-knots', f'--search-{symbol.lower()}'
     try:
         data = json.loads(path.read_text(encoding='utf-8'))
+        if isinstance(data, dict) and 'knots' not in data and \
+                isinstance(data.get('q'), dict):
+            data = data['q']        # this tool's --json report: the Q or P it used
         held = data.get('matrix', 'Q')          # --search-q's files before dev-sc32: Q
         if held != symbol:                      # a P file given as Q's, or Q's as P's
             raise ValueError(f'it holds a schedule of {held!r}, not of {symbol}'
