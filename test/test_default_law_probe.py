@@ -295,6 +295,13 @@ def test_diagnostics_say_when_the_sim_clock_stops(context):
         node.destroy_node()
 
 
+def _send_unclocked(node, stamp):
+    """Deliver yaw, velocity and a lateral error stamped ``stamp``, the clock untouched."""
+    node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
+    node.on_velocity(conv.to_velocity(stamp, 'base_link', 30.0, 0.0, 0.0))
+    node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', VEHICLE.d_s, 0.3))
+
+
 def test_probe71_use_sim_time_without_a_clock_is_an_error(context):
     # dev-probe71: use_sim_time true and no /clock: the inputs (wall-clock stamps) were
     # answered, the command froze under the rate limit, dead inputs never went stale and
@@ -305,9 +312,7 @@ def test_probe71_use_sim_time_without_a_clock_is_an_error(context):
         stamp = 1_796_000_000 * S
         for _ in range(3):
             stamp += 10 * MS
-            node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.0, 0.0, 0.0))
-            node.on_velocity(conv.to_velocity(stamp, 'base_link', 30.0, 0.0, 0.0))
-            node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', VEHICLE.d_s, 0.3))
+            _send_unclocked(node, stamp)
         assert node.get_clock().now().nanoseconds == 0 and node.sim_time()
         assert node.diagnostics().level == DiagnosticStatus.OK      # not yet 0.5 s
         time.sleep(0.6)
@@ -339,9 +344,7 @@ def test_probe71_use_sim_time_without_a_clock_is_an_error(context):
             time.sleep(0.01)
         assert node.count_publishers('/clock') == 1
         node.get_clock().set_ros_time_override(Time(nanoseconds=0))
-        node.on_yaw(conv.to_yaw(0, 'base_link', 0.0, 0.0, 0.0))
-        node.on_velocity(conv.to_velocity(0, 'base_link', 30.0, 0.0, 0.0))
-        node.on_lateral_error(conv.to_lateral_error(0, 'base_link', VEHICLE.d_s, 0.0))
+        _send_unclocked(node, 0)
         node.diagnostics()
         time.sleep(0.6)
         status = node.diagnostics()
