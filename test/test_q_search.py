@@ -214,3 +214,52 @@ def test_a_knot_next_to_a_kink_is_moved_onto_it():
                                                (high, q_high)))
         assert three.between == pytest.approx(two.between, rel=1e-6), speed
         assert three.knots == (low, pytest.approx(kink, abs=1e-12), high)
+
+
+def test_an_interrupted_search_keeps_its_best_schedule(tmp_path, capsys, monkeypatch):
+    # before: a Ctrl-C (or SIGTERM) in --search-q's minutes of Nelder-Mead lost every bound
+    # computed; now the best schedule so far is written, and the tool still stops (130)
+    import scipy.optimize
+    from lookahead_control.core.interrupts import Terminated
+    real = scipy.optimize.minimize
+
+    def stopped_after_12(fun, x0, **kwargs):
+        calls = {'n': 0}
+
+        def counted(x):
+            calls['n'] += 1
+            if calls['n'] > 12:
+                raise KeyboardInterrupt
+            return fun(x)
+        return real(counted, x0, **kwargs)
+
+    monkeypatch.setattr(scipy.optimize, 'minimize', stopped_after_12)
+    vehicle, controller = _soft_rear(), load_controller(None)
+    settings = load_lane_keeping(None)
+    found = stability.search_schedule(vehicle, controller, settings, evaluations=60,
+                                      samples=11)
+    assert isinstance(found.interrupted, KeyboardInterrupt)
+    assert found.evaluations == 13 and found.found < found.start
+    again = stability.certificate(vehicle, controller, settings, samples=11,
+                                  q_knots=found.knots)
+    assert again.between == pytest.approx(found.found, rel=1e-9)
+    soft = tmp_path / 'soft.yaml'
+    soft.write_text(SOFT_REAR)
+    out = tmp_path / 'q.json'
+    argv = ['--vehicle', str(soft), '--samples', '11', '--delays', '0.02', '--search-q',
+            str(out), '--search-evaluations', '60']
+    assert run_tool(stability_main, argv) == 130
+    said = capsys.readouterr()
+    data = json.loads(out.read_text())
+    assert data['interrupted'] is True and data['evaluations'] == 13
+    assert ('search interrupted after 13 bounds on 41 speeds: the best schedule so far '
+            f"(bound {data['start_bound']:.4g} -> {data['search_bound']:.4g}) written to "
+            f'{out}') in said.out and 'interrupted' in said.err
+    assert not out.with_name('q.json.partial').exists()
+
+    def terminated(fun, x0, **kwargs):
+        fun(x0)
+        raise Terminated
+    monkeypatch.setattr(scipy.optimize, 'minimize', terminated)
+    assert run_tool(stability_main, argv) == 143
+    assert json.loads(out.read_text())['evaluations'] == 2

@@ -1168,12 +1168,15 @@ class ScheduleSearch(NamedTuple):
     :param start: the search grid's bound of the schedule it started from.
     :param found: the search grid's bound of the one found.
     :param evaluations: how many bounds the search computed.
+    :param interrupted: the Ctrl-C (or SIGTERM) that stopped the search, which returned
+        its best point so far (None: it ran to its end).
     """
 
     knots: tuple[tuple[float, QRows], ...]
     start: float
     found: float
     evaluations: int
+    interrupted: Optional[KeyboardInterrupt] = None
 
 
 def search_schedule(vehicle: VehicleParams, controller: ControllerParams,
@@ -1266,16 +1269,22 @@ def search_schedule(vehicle: VehicleParams, controller: ControllerParams,
             best, best_x = value, np.array(x)
         return value
 
+    interrupted = None
     if evaluations > 1:
-        minimize(objective, start_x, method='Nelder-Mead',
-                 options={'maxfev': evaluations - 1, 'xatol': 1e-6, 'fatol': 1e-6,
-                          'adaptive': True})
+        try:
+            minimize(objective, start_x, method='Nelder-Mead',
+                     options={'maxfev': evaluations - 1, 'xatol': 1e-6, 'fatol': 1e-6,
+                              'adaptive': True})
+        except KeyboardInterrupt as err:
+            # minutes of search: the best point so far is returned with the signal, for
+            # the caller to keep and then stop (before, a Ctrl-C lost it)
+            interrupted = err
     found = knots_of(best_x)
     # scaled so that the first Q's first entry is 1 (the test does not see the scale)
     scale = found[0][1][0][0]
     knots = tuple((speed, tuple(tuple(w / scale for w in row) for row in q))
                   for speed, q in found)
-    return ScheduleSearch(knots, start, best, count)
+    return ScheduleSearch(knots, start, best, count, interrupted)
 
 
 def _shipped_weights(v_min: float) -> dict[str, Knots]:

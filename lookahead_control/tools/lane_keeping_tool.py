@@ -185,13 +185,19 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         write_json(written, {
             'knots': [[speed, [list(row) for row in q]] for speed, q in knots],
             'search_bound': found.found, 'start_bound': found.start,
-            'evaluations': found.evaluations,
+            'evaluations': found.evaluations, 'interrupted': found.interrupted is not None,
             'searched_for': {'vehicle': args.vehicle and str(args.vehicle),
                              'controller': args.controller and str(args.controller),
                              'v_min': args.v_min, 'v_max': args.v_max, 'a_max': args.a_max,
                              'a_error': args.a_error, 'samples': 41,
                              'load_points': min(load_points, 5)}})
         os.replace(written, args.search_q)
+        if found.interrupted is not None:
+            # the best point so far is kept (--q-knots reads it), then the tool stops
+            print(f'search interrupted after {found.evaluations} bounds on 41 speeds: the '
+                  f'best schedule so far (bound {found.start:.4g} -> {found.found:.4g}) '
+                  f'written to {args.search_q}', flush=True)
+            raise found.interrupted
         print(f'searched a schedule of Q ({found.evaluations} bounds on 41 speeds): bound '
               f'{found.start:.4g} -> {found.found:.4g}; written to {args.search_q}; the '
               'certificate below is checked with it')
