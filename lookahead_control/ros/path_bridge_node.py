@@ -100,6 +100,8 @@ ALL_SPECS = PATH_SPECS + NODE_SPECS
 #: odometry further apart than this [ns] starts the differentiated dv_x/dt again (0 until
 #: the next pair)
 ACCEL_GAP_NS = 500_000_000
+#: the believable |dv_x/dt| [m/s^2]: the controller's default, where it refuses an accel_x
+MAX_ACCELERATION = SafetyParams().max_acceleration
 DEBUG_FIELDS = ('s', 'y_cg', 'eps_r', 'rho', 'path_heading', 'remaining', 'yaw_rate',
                 'accel_x')
 
@@ -416,7 +418,7 @@ class PathBridgeNode(LifecycleNode):
         # controller differentiates (dev-probe71: a 700 Hz odometry with 2 cm/s of speed
         # noise made 1000 m/s^2, the controller refused half the yaw messages)
         self._accel = differentiated_step(estimate, anchor, odom.stamp_ns, odom.v_x,
-                                          SafetyParams().max_acceleration)
+                                          MAX_ACCELERATION)
         if self.params['use_imu']:
             imu = self._imu
             if imu is not None and abs(imu[0] - odom.stamp_ns) <= \
