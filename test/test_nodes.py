@@ -623,6 +623,7 @@ def _effect(node, name):
             'frame_id': lambda: node._frame,
             'wait_for_matching_stamps': lambda: node._wait_for_stamps,
             'sync_timeout': lambda: node._sync_timeout,
+            'max_answer_rate_hz': lambda: node._pacer.rate_hz,
             'acceleration_source': lambda: core.acceleration_source,
             'use_curvature_preview': lambda: core.use_preview}[name]()
 
@@ -874,5 +875,85 @@ def test_sim_plant_keeps_ground_truth_for_a_recorder_that_falls_behind(context):
         profile = node.pub_truth.qos_profile
         assert profile.history == HistoryPolicy.KEEP_LAST and profile.depth == TRUTH_DEPTH
         assert TRUTH_DEPTH >= 1000 and profile.reliability == ReliabilityPolicy.RELIABLE
+    finally:
+        node.destroy_node()
+
+
+class _SteadyClock:
+    """A steady clock set by hand (stands in for ``time.monotonic_ns`` of the node)."""
+
+    def __init__(self, now_ns):
+        self.now = now_ns
+
+    def monotonic_ns(self):
+        return self.now
+
+
+class _Collector:
+    """A steering publisher that keeps what it is given."""
+
+    def __init__(self):
+        self.sent = []
+
+    def publish(self, msg):
+        self.sent.append(msg)
+
+
+def test_a_flood_of_valid_lateral_errors_is_answered_at_the_answer_rate_bound(
+        context, monkeypatch):
+    # dev-probe71 / dev-sc34: a flood of valid lateral errors (470 msg/s) was answered
+    # message by message on the wall clock, 0.8 ms each: the node took a core and read its
+    # other inputs 104 ms late. Now at most max_answer_rate_hz answers; what comes sooner
+    # is answered at the period's end, the newest of it, the rest coalesced (counted)
+    import time
+    from lookahead_control.ros import controller_node
+    from rclpy.time import Time
+    steady = _SteadyClock(time.monotonic_ns())
+    monkeypatch.setattr(controller_node, 'time', steady)
+    node = _controller(context, Parameter('max_answer_rate_hz', value=100.0), sim=False)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        sent = node._steering_pub = _Collector()
+        start = node.get_clock().now().nanoseconds - 20_000_000
+        stamps = [start + k * 1_000_000 for k in range(10)]
+        for stamp in stamps:                # 10 within 1 ms of the steady clock
+            feed(node, stamp)
+        # a burst of 3 answered at once, the 4th deferred, the 5th to 10th left for it
+        assert len(sent.sent) == 3 and not node._answer_timer.is_canceled()
+        assert [Time.from_msg(m.header.stamp).nanoseconds for m in sent.sent] == stamps[:3]
+        assert node._pacer.coalesced == 6
+        steady.now += 10_000_000            # a period on: the deferred answer, the newest
+        node._answer_due()
+        assert len(sent.sent) == 4 and node._answer_timer.is_canceled()
+        assert Time.from_msg(sent.sent[3].header.stamp).nanoseconds == stamps[-1]
+        status = node.diagnostics()
+        assert status.level == status.WARN and 'coalesced: 6 lateral errors' in status.message
+        values = {kv.key: kv.value for kv in status.values}
+        assert values['coalesced'] == '6'
+        # a lateral error a period after the last answer is answered at once
+        steady.now += 10_000_000
+        feed(node, stamps[-1] + 1_000_000)
+        assert len(sent.sent) == 5 and node._pacer.coalesced == 6
+        # one sooner is deferred; cleaning up drops it and its timer
+        steady.now += 1_000_000
+        feed(node, stamps[-1] + 2_000_000)
+        assert len(sent.sent) == 5 and not node._answer_timer.is_canceled()
+        node.trigger_deactivate()
+        node.trigger_cleanup()
+        assert node._answer_timer is None and not node._pacer.deferred
+    finally:
+        node.destroy_node()
+
+
+def test_under_sim_time_every_lateral_error_is_answered_whatever_the_bound(context):
+    # a lockstep simulator waits for the answer to each step: no bound under sim time
+    node = _controller(context, Parameter('max_answer_rate_hz', value=1.0))
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        for k in range(1, 21):
+            feed(node, k * 1_000_000)
+        assert node.published == 20 and node._pacer.coalesced == 0
     finally:
         node.destroy_node()

@@ -660,3 +660,49 @@ def test_the_re_run_counts_the_inputs_its_checks_refuse():
     assert result.refused == {'yaw': 1} and 'yaw' in result.last_refusal
     clean = rerun(_bag(_inputs(100, math.inf), commands, {}, {'law': 'paper'}), order='stamp')
     assert clean.refused == {} and clean.max_diff == 0.0
+
+
+def _coalesced(law, skipped):
+    """
+    Return a run of the node whose answer-rate bound left the steps ``skipped`` unanswered.
+
+    :return: ``(rows, commands, debug columns, bag)``.
+    """
+    rows = _inputs(300, math.inf)
+    node, _ = controller_from_params({'law': law})
+    commands, counts, numbers, coalesced = {}, {}, {}, 0
+    for role, sample in _feed(rows):
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role != 'lateral_error':
+            continue
+        if sample.stamp_ns // PERIOD_NS in skipped:
+            coalesced += 1                      # taken in, left for a newer one
+            continue
+        commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+        counts[sample.stamp_ns] = float(coalesced)
+        numbers[sample.stamp_ns] = float(len(commands))
+    columns = {'activations': dict.fromkeys(counts, 1.0), 'coalesced': counts,
+               'answers': numbers}
+    return rows, commands, columns, _bag(rows, commands, columns, {'law': law})
+
+
+@pytest.mark.parametrize('skipped', [range(1, 4), range(100, 103), range(200, 260, 2)])
+def test_lateral_errors_the_answer_rate_bound_coalesced_are_not_re_run(skipped):
+    # dev-sc34: under max_answer_rate_hz the node leaves lateral errors that come too fast
+    # for a newer one; ~/debug coalesced counts them, and the re-run skips them as the
+    # node did (stepping the law on them moves its integral and estimate)
+    rows, commands, columns, run = _coalesced('cg_compensated', set(skipped))
+    result = rerun(run, order='stamp')
+    assert result.coalesced_skipped == len(skipped) and result.coalesced_lost == 0
+    assert result.inactive_skipped == 0
+    assert result.compared == 300 - len(skipped) and result.max_diff == 0.0, result.max_diff
+    blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
+    assert blind.coalesced_skipped == 0 and blind.max_diff > 1e-6, blind.max_diff
+    # an answer the recorder lost (steering and debug) in such a stretch: counted
+    last_before = sorted(commands)[skipped.start - 2] if skipped.start > 1 else None
+    if last_before is not None:
+        dropped = _bag(rows, {s: c for s, c in commands.items() if s != last_before},
+                       {name: {s: c for s, c in column.items() if s != last_before}
+                        for name, column in columns.items()}, {'law': 'cg_compensated'})
+        again = rerun(dropped, order='stamp')
+        assert again.coalesced_lost == 1, again.coalesced_lost

@@ -81,6 +81,8 @@ def offline(args: argparse.Namespace) -> int:
     report['parameter_sets_before_bag'] = result.parameter_sets_before_bag
     report['inputs_while_inactive'] = result.inactive_skipped
     report['answers_lost_next_to_inactive'] = result.inactive_lost
+    report['inputs_coalesced'] = result.coalesced_skipped
+    report['answers_lost_next_to_coalesced'] = result.coalesced_lost
     report['inputs_refused'] = result.refused
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
@@ -138,6 +140,15 @@ def offline(args: argparse.Namespace) -> int:
               f'{run.controller_node} next to a deactivation ({run.controller_node}/debug '
               'answers): those inputs were answered, which ones the bag does not say; '
               'the re-run skips them and is not exact there')
+    if result.coalesced_skipped or result.coalesced_lost:
+        print(f'replay: {run.controller_node} answered lateral errors faster than its '
+              f'max_answer_rate_hz only by the newest of each period: '
+              f'{result.coalesced_skipped} it left unanswered are not re-run '
+              f'({run.controller_node}/debug coalesced); a deferred answer read the yaw '
+              'and velocity of its own moment, the re-run those received before the lateral '
+              'error (not exact there)'
+              + (f'; the bag lost {result.coalesced_lost} answer(s) there'
+                 if result.coalesced_lost else ''))
     if result.parameter_sets_before_bag:
         # a recorder started after a set: its values are the bag's parameters
         print(f'replay: {run.controller_node} had applied '

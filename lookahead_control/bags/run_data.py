@@ -645,6 +645,10 @@ class Rerun:
         skipped inputs that many were answered (the re-run is not exact there).
     :param refused: inputs the re-run's checks refused, by input, and the last reason
         (a node older than a check used what the re-run refuses).
+    :param coalesced_skipped: lateral errors the recorded controller took in and left
+        for a newer one under its answer-rate bound (``inactive_inputs(run,
+        'coalesced')``), not computed, as the node did not.
+    :param coalesced_lost: answers the recorder lost among those stretches.
     """
 
     commands: dict[int, Command]
@@ -664,6 +668,8 @@ class Rerun:
     inactive_lost: int = 0
     refused: dict[str, int] = field(default_factory=dict)
     last_refusal: str = ''
+    coalesced_skipped: int = 0
+    coalesced_lost: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -758,6 +764,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     params, applied = dict(run.controller_params), 0
     followed = otherwise = switches = 0
     inactive, lost = inactive_inputs(run)
+    coalesced, coalesced_lost = inactive_inputs(run, 'coalesced')
     refusals: dict[str, int] = {}
     last_refusal = ''
     for _, role, sample in feed:
@@ -767,8 +774,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
         if refused is not None:
             refusals[role] = refusals.get(role, 0) + 1
             last_refusal = refused
-        if role == 'lateral_error' and sample.stamp_ns in inactive:
-            continue                # taken in, not answered: the node was inactive
+        if role == 'lateral_error' and (sample.stamp_ns in inactive
+                                        or sample.stamp_ns in coalesced):
+            continue                # taken in, not answered: inactive, or coalesced
         if role == 'lateral_error' and refused is None:
             due = min(sets.get(sample.stamp_ns, applied + before_bag) - before_bag,
                       len(events))
@@ -806,10 +814,11 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
                  switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
-                 last_refusal)
+                 last_refusal, len(coalesced), coalesced_lost)
 
 
-def inactive_inputs(run: RunData) -> tuple[frozenset[int], int]:
+def inactive_inputs(run: RunData, counter: str = 'activations'
+                    ) -> tuple[frozenset[int], int]:
     """
     Return the lateral-error stamps the recorded controller received while deactivated.
 
@@ -824,11 +833,18 @@ def inactive_inputs(run: RunData) -> tuple[frozenset[int], int]:
     law's answers so far) tells how many answers of such a stretch the recorder lost:
     those inputs were answered, but which of them the bag does not say (counted).
 
+    With ``counter='coalesced'`` the same for the lateral errors the node took in and
+    left for a newer one under its answer-rate bound (event mode on the wall clock:
+    ``max_answer_rate_hz``): unanswered between two answers whose ``coalesced`` counts
+    differ.
+
     :param run: the bag.
+    :param counter: the debug topic's count of the stretches: ``activations`` or
+        ``coalesced``.
     :return: the stamps (empty: none, or the bag does not say; an older bag), and the
         answers the recorder lost in those stretches.
     """
-    counts = run.debug.values.get('activations')
+    counts = run.debug.values.get(counter)
     lateral = run.inputs.get('lateral_error')
     if counts is None or lateral is None:
         return frozenset(), 0
@@ -849,7 +865,8 @@ def inactive_inputs(run: RunData) -> tuple[frozenset[int], int]:
         if at == len(answered):
             continue                # after the last answer: nothing to compare
         after = marked[answered[at]][0]
-        before = marked[answered[at - 1]][0] if at else 1.0
+        before = marked[answered[at - 1]][0] if at else (1.0 if counter == 'activations'
+                                                         else 0.0)
         if before != after:
             out.add(int(stamp))
             gaps.add(at)

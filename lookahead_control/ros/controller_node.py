@@ -29,6 +29,7 @@ from typing import Any, Callable, Mapping, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
+from lookahead_control.core.answer_rate import AnswerPacer
 from lookahead_control.core.controller import (ACCELERATION_SOURCES, build_law, Command,
                                                LAW_NAMES, SteeringController)
 from lookahead_control.core.lane_keeping import (frequency_schedule_note,
@@ -63,6 +64,10 @@ NODE_SPECS = (
          "curvature, once seen) carry the lateral error's stamp (lockstep simulation)"),
     Spec('sync_timeout', 0.05, 'longest wall-clock wait for matching stamps [s]',
          0.0, 1.0),
+    Spec('max_answer_rate_hz', 250.0, 'event mode on the wall clock: lateral errors '
+         'answered at most this often; one that comes sooner is answered at the end of '
+         'the period, or coalesced into a newer one (under use_sim_time: every one is '
+         'answered) [Hz]', 1.0, 100000.0),
     Spec('acceleration_source', 'imu', "a_x from the yaw topic's IMU acceleration, "
          'differentiated from v_x, or zero', choices=ACCELERATION_SOURCES),
     Spec('use_curvature_preview', False, 'feed d rho/dt forward from the curvature '
@@ -230,6 +235,8 @@ class ControllerNode(LifecycleNode):
         self.answers = 0
         self._last_publish: Optional[int] = None
         self._refusal_log = Throttle(1.0)
+        self._pacer = AnswerPacer(self.param('max_answer_rate_hz'))
+        self._answer_timer: Any = None
         self._cache_input_parameters()
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._parameters_set)
@@ -285,6 +292,7 @@ class ControllerNode(LifecycleNode):
         self._mode = self.param('mode')
         self._wait_for_stamps = self.param('wait_for_matching_stamps')
         self._sync_timeout = self.param('sync_timeout')
+        self._pacer.set_rate(self.param('max_answer_rate_hz'))
 
     def _apply_parameters(self) -> None:
         params = values(self, ALL_SPECS)
@@ -324,6 +332,11 @@ class ControllerNode(LifecycleNode):
                             for t, n, cb, raw in subs]
         if self.param('mode') == 'timer':
             self._timer = self.create_timer(1.0 / self.param('rate_hz'), self.on_timer)
+        else:
+            # the answer-rate bound's deferred answer (armed by _answer)
+            self._answer_timer = self.create_timer(
+                1.0, self._answer_due, clock=Clock(clock_type=ClockType.STEADY_TIME),
+                autostart=False)
         self._watchdog = self.create_timer(1.0 / self.param('watchdog_rate_hz'),
                                            self.on_watchdog)
         self._diag_timer = self.create_timer(1.0 / self.param('diagnostics_rate_hz'),
@@ -362,10 +375,13 @@ class ControllerNode(LifecycleNode):
         for sub in self._input_subs:
             self.destroy_subscription(sub)
         self._input_subs = []
-        for timer in (self._timer, self._sync_timer, self._watchdog, self._diag_timer):
+        for timer in (self._timer, self._sync_timer, self._watchdog, self._diag_timer,
+                      self._answer_timer):
             if timer is not None:
                 self.destroy_timer(timer)
         self._timer = self._sync_timer = self._watchdog = self._diag_timer = None
+        self._answer_timer = None
+        self._pacer.cancel()
         for pub in (self._steering_pub, self._debug_pub):
             if pub is not None:
                 self.destroy_publisher(pub)
@@ -451,7 +467,33 @@ class ControllerNode(LifecycleNode):
             self._pending_stamp = stamp
             self._arm_sync_timer()
             return
-        self.step()
+        self._answer()
+
+    def _answer(self) -> None:
+        """
+        Answer the newest lateral error now, or at the end of the answer-rate period.
+
+        Event mode on the wall clock (:mod:`lookahead_control.core.answer_rate`); under
+        sim time, and while inactive, at once as before.
+        """
+        if not self.active or self.sim_time():
+            self.step()
+            return
+        wait = self._pacer.arrived(time.monotonic_ns())
+        if wait is None:
+            self.step()
+        elif wait > 0 and self._answer_timer is not None:
+            # one timer, armed again per deferral (a timer made and destroyed per deferral
+            # is a wait set rebuilt each time, in a flood)
+            self._answer_timer.timer_period_ns = wait
+            self._answer_timer.reset()
+
+    def _answer_due(self) -> None:
+        if self._answer_timer is not None:
+            self._answer_timer.cancel()
+        if self._pacer.deferred:
+            self._pacer.due(time.monotonic_ns())
+            self.step()
 
     def _caught_up(self, stamp: int) -> bool:
         """
@@ -480,7 +522,7 @@ class ControllerNode(LifecycleNode):
             self._sync_timer = None
         if self._pending_stamp is not None:
             self._pending_stamp = None
-            self.step()
+            self._answer()
 
     def _maybe_release(self) -> None:
         if self._pending_stamp is not None and self._caught_up(self._pending_stamp):
@@ -488,7 +530,7 @@ class ControllerNode(LifecycleNode):
             if self._sync_timer is not None:
                 self.destroy_timer(self._sync_timer)
                 self._sync_timer = None
-            self.step()
+            self._answer()
 
     def on_yaw(self, msg: Imu) -> None:
         """Store the relative yaw, yaw rate and body acceleration."""
@@ -635,6 +677,9 @@ class ControllerNode(LifecycleNode):
         # of different counts came while the node was inactive (the re-run skips them)
         debug.append(('activations', float(self.activations)))
         debug.append(('answers', float(self.answers)))
+        # lateral errors left unanswered for a newer one (the answer-rate bound): the
+        # re-run skips those between two answers whose counts differ
+        debug.append(('coalesced', float(self._pacer.coalesced)))
         state = getattr(self.core.law, 'debug_values', None)
         if state is not None:       # a law with a state: cg_compensated (its estimate ...)
             debug += state()
@@ -661,7 +706,7 @@ class ControllerNode(LifecycleNode):
         causes = {f'law_restarts_{k}': v for k, v in self.core.law_restart_causes.items()}
         counts = {**self.counters, 'rejected': sum(self.core.rejected.values()),
                   'time_jumps': self.core.time_jumps, 'law_restarts': self.core.law_restarts,
-                  **causes}
+                  'coalesced': self._pacer.coalesced, **causes}
         new = {k: v - self._reported.get(k, 0) for k, v in counts.items()}
         self._reported = counts
         ages, latency = self.core.timing.take()
@@ -702,6 +747,12 @@ class ControllerNode(LifecycleNode):
                             if new[f'law_restarts_{cause}'] > 0]
                     text += f' ({"; ".join(each)}; integral and estimate start again)'
                 reasons.append(text)
+        if new['coalesced'] > 0:
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'coalesced: {new["coalesced"]} lateral errors came faster than '
+                           f'max_answer_rate_hz {self.param("max_answer_rate_hz"):g}: the '
+                           'newest of each period answered (a flood, or a faster sensor: '
+                           'raise the bound)')
         for key, setting in (('demand_capped', 'lane_keeping.demand_limit'),
                              ('approach_clipped', 'lane_keeping.approach_heading')):
             if new[key] > 0:
