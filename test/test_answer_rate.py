@@ -100,3 +100,34 @@ def test_a_rate_that_is_not_a_finite_positive_number_is_refused_by_name(rate):
     with pytest.raises(ValueError, match='max_answer_rate_hz'):
         pacer.set_rate(rate)
     assert pacer.rate_hz == 10.0
+
+
+def test_a_rate_changed_while_an_answer_waits_counts_for_it():
+    # dev-probe74: a bound raised from 1 Hz to 1e5 Hz still held the waiting answer
+    pacer = AnswerPacer(1.0, burst=1)
+    assert pacer.arrived(0) is None
+    assert pacer.arrived(10 * MS) == 990 * MS
+    pacer.set_rate(1.0e5)
+    assert pacer.wait(20 * MS) == 0                 # refilled long since at 1e5 Hz
+    slower = AnswerPacer(100.0, burst=1)
+    assert slower.arrived(0) is None
+    assert slower.arrived(MS) == 9 * MS
+    slower.set_rate(10.0)
+    assert slower.wait(2 * MS) == 89 * MS          # 0.1 + 0.01 of an answer refilled
+
+
+def test_a_dropped_deferred_answer_is_counted_as_coalesced():
+    pacer = AnswerPacer(10.0, burst=1)
+    assert pacer.arrived(0) is None
+    assert pacer.arrived(MS) == 99 * MS
+    pacer.drop()
+    assert not pacer.deferred and pacer.coalesced == 1
+    pacer.drop()                                    # nothing waits: nothing counted
+    assert pacer.coalesced == 1
+
+
+def test_a_rate_beyond_the_clock_s_resolution_is_no_bound_not_a_crash():
+    # dev-probe74: 3e9 Hz rounded the period to 0 ns and arrived() divided by it
+    pacer = AnswerPacer(3.0e9)
+    assert pacer.period_ns == 1
+    assert all(pacer.arrived(k) is None for k in range(0, 100, 2))

@@ -948,12 +948,85 @@ def test_a_flood_of_valid_lateral_errors_is_answered_at_the_answer_rate_bound(
 
 def test_under_sim_time_every_lateral_error_is_answered_whatever_the_bound(context):
     # a lockstep simulator waits for the answer to each step: no bound under sim time
-    node = _controller(context, Parameter('max_answer_rate_hz', value=1.0))
+    node = _controller(context, Parameter('max_answer_rate_hz', value=20.0))
     try:
         node.trigger_configure()
         node.trigger_activate()
         for k in range(1, 21):
             feed(node, k * 1_000_000)
         assert node.published == 20 and node._pacer.coalesced == 0
+    finally:
+        node.destroy_node()
+
+
+def _one_step(node, stamp, lateral=True, others=True):
+    """Deliver a step's yaw and velocity, and (or only) its lateral error."""
+    if others:
+        node.on_yaw(conv.to_yaw(stamp, 'base_link', 0.01, 0.02, 0.0))
+        node.on_velocity(conv.to_velocity(stamp, 'base_link', 25.0, 0.1, 0.02))
+    if lateral:
+        node.on_lateral_error(conv.to_lateral_error(stamp, 'base_link', 1.96, 0.5))
+
+
+def test_probe74_a_deferred_answer_never_answers_a_lateral_error_waiting_for_its_stamps(
+        context, monkeypatch):
+    # dev-probe74: with wait_for_matching_stamps on the wall clock, the deferred answer
+    # answered the newest lateral error while it still waited for its yaw and velocity
+    # (with the previous step's), and its release answered it again: stamps [0 1 2 4 4]
+    import time
+    from lookahead_control.ros import controller_node
+    from rclpy.time import Time
+    steady = _SteadyClock(time.monotonic_ns())
+    monkeypatch.setattr(controller_node, 'time', steady)
+    node = _controller(context, Parameter('max_answer_rate_hz', value=100.0),
+                       Parameter('wait_for_matching_stamps', value=True), sim=False)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        sent = node._steering_pub = _Collector()
+        start = node.get_clock().now().nanoseconds - 20_000_000
+        stamps = [start + k * 1_000_000 for k in range(5)]
+        for stamp in stamps[:4]:            # a burst of 3 answered, the 4th deferred
+            _one_step(node, stamp)
+        assert len(sent.sent) == 3 and node._pacer.deferred
+        _one_step(node, stamps[4], others=False)     # its yaw and velocity not yet in
+        assert node._pending_stamp == stamps[4]
+        steady.now += 10_000_000
+        node._answer_due()                  # the deferral ends: s3 left for s4, none sent
+        assert len(sent.sent) == 3 and node._pacer.coalesced == 1
+        _one_step(node, stamps[4], lateral=False)    # s4's inputs: released, answered
+        got = [Time.from_msg(m.header.stamp).nanoseconds for m in sent.sent]
+        assert got == stamps[:3] + [stamps[4]], got
+    finally:
+        node.destroy_node()
+
+
+def test_probe74_a_new_bound_counts_for_the_waiting_answer_and_a_deactivation_drops_it(
+        context, monkeypatch):
+    import time
+    from lookahead_control.ros import controller_node
+    steady = _SteadyClock(time.monotonic_ns())
+    monkeypatch.setattr(controller_node, 'time', steady)
+    node = _controller(context, Parameter('max_answer_rate_hz', value=20.0), sim=False)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        node._steering_pub = _Collector()
+        start = node.get_clock().now().nanoseconds - 20_000_000
+        for k in range(4):
+            feed(node, start + k * 1_000_000)
+        timer = node._answer_timer
+        assert node._pacer.deferred and timer.timer_period_ns == 50_000_000
+        # dev-probe74: raised at run time, the old wait still held the answer (965 ms)
+        assert node.set_parameters([Parameter('max_answer_rate_hz', value=1.0e5)])[0].successful
+        assert timer.timer_period_ns <= 10_000 and not timer.is_canceled()
+        # below 20 Hz the answers could be further apart than the law's max_gap
+        assert not node.set_parameters([Parameter('max_answer_rate_hz', value=5.0)])[0].successful
+        # dev-probe74: a deferral survived deactivate / activate (0.5-0.9 s late)
+        node.trigger_deactivate()
+        assert timer.is_canceled() and not node._pacer.deferred
+        node.trigger_activate()
+        feed(node, start + 10_000_000)     # answered at once: a full bucket
+        assert node.published == 4 and not node._pacer.deferred
     finally:
         node.destroy_node()

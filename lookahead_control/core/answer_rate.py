@@ -79,7 +79,8 @@ class AnswerPacer:
             raise ValueError(f'max_answer_rate_hz {max_rate_hz!r}: must be a finite number '
                              '> 0 [Hz]')
         self.rate_hz = max_rate_hz
-        self._period = int(round(1e9 / max_rate_hz))
+        # (at least 1 ns: a rate above 1e9 Hz is no bound, not a division by 0)
+        self._period = max(1, int(round(1e9 / max_rate_hz)))
 
     def _refill(self, steady_ns: int) -> None:
         if self._filled is None or steady_ns < self._filled:
@@ -109,6 +110,25 @@ class AnswerPacer:
             return None
         self.deferred = True
         return max(1, int(math.ceil((1.0 - self._tokens) * self._period)))
+
+    def wait(self, steady_ns: int) -> int:
+        """
+        Return the time until the deferred answer is allowed at the present rate [ns].
+
+        A rate changed while an answer is deferred counts at once (dev-probe74: a bound
+        raised from 1 Hz to 1e5 Hz still held the answer for 965 ms).
+
+        :param steady_ns: the steady clock now [ns].
+        :return: the wait (0: now).
+        """
+        self._refill(steady_ns)
+        return max(0, int(math.ceil((1.0 - self._tokens) * self._period)))
+
+    def drop(self) -> None:
+        """Leave the deferred answer's lateral error unanswered: a newer one will be."""
+        if self.deferred:
+            self.deferred = False
+            self.coalesced += 1
 
     def due(self, steady_ns: int) -> None:
         """

@@ -65,9 +65,10 @@ NODE_SPECS = (
     Spec('sync_timeout', 0.05, 'longest wall-clock wait for matching stamps [s]',
          0.0, 1.0),
     Spec('max_answer_rate_hz', 250.0, 'event mode on the wall clock: lateral errors '
-         'answered at most this often; one that comes sooner is answered at the end of '
-         'the period, or coalesced into a newer one (under use_sim_time: every one is '
-         'answered) [Hz]', 1.0, 100000.0),
+         'answered at most this often (bursts of 3); one that comes sooner is answered '
+         'when the bound allows, or coalesced into a newer one (under use_sim_time: every '
+         'one is answered); at least 20 Hz, so that the answers stay closer than the '
+         "law's max_gap [Hz]", 20.0, 100000.0),
     Spec('acceleration_source', 'imu', "a_x from the yaw topic's IMU acceleration, "
          'differentiated from v_x, or zero', choices=ACCELERATION_SOURCES),
     Spec('use_curvature_preview', False, 'feed d rho/dt forward from the curvature '
@@ -293,6 +294,9 @@ class ControllerNode(LifecycleNode):
         self._wait_for_stamps = self.param('wait_for_matching_stamps')
         self._sync_timeout = self.param('sync_timeout')
         self._pacer.set_rate(self.param('max_answer_rate_hz'))
+        if self._pacer.deferred and self._answer_timer is not None:
+            # a new bound counts for the answer already waiting, not after it
+            self._arm_answer(self._pacer.wait(time.monotonic_ns()))
 
     def _apply_parameters(self) -> None:
         params = values(self, ALL_SPECS)
@@ -368,6 +372,11 @@ class ControllerNode(LifecycleNode):
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Stop publishing."""
         self.active = False
+        # a deferred answer is not given after an activation (dev-probe74: 0.5-0.9 s
+        # late at a 1 Hz bound)
+        if self._answer_timer is not None:
+            self._answer_timer.cancel()
+        self._pacer.cancel()
         return super().on_deactivate(state)
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -482,18 +491,29 @@ class ControllerNode(LifecycleNode):
         wait = self._pacer.arrived(time.monotonic_ns())
         if wait is None:
             self.step()
-        elif wait > 0 and self._answer_timer is not None:
-            # one timer, armed again per deferral (a timer made and destroyed per deferral
-            # is a wait set rebuilt each time, in a flood)
-            self._answer_timer.timer_period_ns = wait
+        elif wait > 0:
+            self._arm_answer(wait)
+
+    def _arm_answer(self, wait: int) -> None:
+        # one timer, armed again per deferral (a timer made and destroyed per deferral
+        # is a wait set rebuilt each time, in a flood)
+        if self._answer_timer is not None:
+            self._answer_timer.timer_period_ns = max(1, wait)
             self._answer_timer.reset()
 
     def _answer_due(self) -> None:
         if self._answer_timer is not None:
             self._answer_timer.cancel()
-        if self._pacer.deferred:
-            self._pacer.due(time.monotonic_ns())
-            self.step()
+        if not self._pacer.deferred:
+            return
+        if self._pending_stamp is not None:
+            # a newer lateral error waits for its matching stamps and is answered when
+            # they are in (dev-probe74: answered here with the previous step's yaw and
+            # velocity, then again at its release)
+            self._pacer.drop()
+            return
+        self._pacer.due(time.monotonic_ns())
+        self.step()
 
     def _caught_up(self, stamp: int) -> bool:
         """
