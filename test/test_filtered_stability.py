@@ -49,12 +49,18 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
 
     Independent of ``filtered_loop``: the plant by ZOH, the delay as a list, the
     filter's class as the node runs it, the law's gain ``feedback_gain`` on the integral
-    updated by the step (as ``CgCompensatedLaw``; the matrix used the integral of the
-    step before until dev-predict, 1e-3 off the law). ``scale``
+    of the measured ``y_cg`` updated by the step (as ``CgCompensatedLaw``; the matrix
+    used the integral of the step before until dev-predict, 1e-3 off the law, and the
+    estimate's ``y_cg`` until dev-sc34). ``scale``
     shrinks the start (a diverging loop stays within the wheel angles the filter's
     actuator model takes, pi/2 rad).
     """
     k = stability.feedback_gain(VEHICLE, CONTROLLER, SETTINGS, v_x)
+    # the y_cg gain of the law without its integral: the rest, the reference's rate
+    # -k_i y_cg, is on the measured y_cg as the integral (dev-sc34)
+    without = stability.feedback_gain(
+        VEHICLE, CONTROLLER, dataclasses.replace(SETTINGS, integral_gain=0.0,
+                                                 low_speed_integral_gain=0.0), v_x)
     a_c, b_c = stability._actuated_plant(plant, v_x, lag)
     phi, gamma = stability._zoh(a_c, b_c, period)
     x = np.zeros(a_c.shape[0])
@@ -66,10 +72,12 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
     for _ in range(steps):
         trajectory.append(x.copy())
         est = kalman.step(LateralState(x[0], x[1], x[2], x[3], v_x, 0.0, 0.0, 0.0), period)
-        # the law's order: the integral takes this step's error, then the command uses it
-        integral += period * integral_gain_at(SETTINGS, v_x) * est.y_cg   # scheduled k_i
-        u = float(k[0] * est.y_cg + k[1] * est.eps_r + k[2] * est.v_y + k[3] * est.r
-                  + k[4] * integral)
+        # the law's order: the integral takes this step's measured error (the plant's
+        # y_cg: the sensor's error less d_s times the measured eps_r), then the command
+        # uses it
+        integral += period * integral_gain_at(SETTINGS, v_x) * x[0]   # scheduled k_i
+        u = float(without[0] * est.y_cg + (k[0] - without[0]) * x[0] + k[1] * est.eps_r
+                  + k[2] * est.v_y + k[3] * est.r + k[4] * integral)
         kalman.command(u)
         sent.append(u)
         x = phi @ x + gamma[:, 0] * sent.pop(0)

@@ -37,11 +37,13 @@ structure (eq. 15) but regulates ``y_v`` to ::
 - With ``rate_feedforward`` the zero dynamics' first-order inverse adds
   ``-(v_x I_z c / (m l_1) + (c v_x^2 - l_2) l_2 / v_x) rho'`` to ``eps_ss``, its
   curvature rate clipped to the lateral jerk ``max_lateral_jerk``.
-- ``I`` is the integral of the CG error, ``I' = k_i y_cg``: it removes what the model
-  gets wrong (cornering stiffness, tyre saturation, road bank) without knowing the tyre
-  model. It is clamped to ``integral_limit`` and frozen while the steering command is
-  at ``steering_limit``, the speed is below ``integral_min_speed`` or the CG error is
-  ``integral_band`` or more (anti-windup: a metre-sized error, a car engaged off the lane
+- ``I`` is the integral of the CG error, ``I' = k_i y_cg`` on the measured ``y_cg``
+  (the lateral sensor's, not the state filter's estimate, which a relative-yaw or
+  ``v_y`` bias moves): it removes what the model gets wrong (cornering stiffness, tyre
+  saturation, road bank) without knowing the tyre model. It is clamped to
+  ``integral_limit`` and frozen while the steering command is at ``steering_limit``,
+  the speed is below ``integral_min_speed`` or the CG error is ``integral_band`` or
+  more (anti-windup: a metre-sized error, a car engaged off the lane
   centre or a wrong curvature for a moment, is a transient for the feedback, not a
   model error; integrated, it overshot the lane by 15-45 cm for seconds) unless it has
   stood there ``integral_band_time`` (then it is the model's), and
@@ -1162,6 +1164,12 @@ class CgCompensatedLaw:
             self.restart_causes['gap'] += 1
             dt = 0.0
         estimating = self.estimating
+        # the integral sums the measured CG error, not the filter's estimate: the
+        # estimate fuses the relative yaw, v_y and the yaw rate through the kinematics,
+        # and a bias of one of them moved it (5 mrad of relative yaw: the CG settled
+        # 4.1 cm off on the goal plant at 30 m/s, now +1.0 cm = d_s x 5 mrad, where the
+        # lateral sensor puts it; dev-probe73)
+        measured_y = state.y_cg
         if self.state_filter is not None:
             state = self.state_filter.step(state, dt, estimating)
         elif self.curvature_filter is not None or np.count_nonzero(estimating):
@@ -1246,7 +1254,7 @@ class CgCompensatedLaw:
                       else (not outside) or bool(standing))
         rate = xp.where(active & inside & ((xp.absolute(self.integral) < s.integral_limit)
                                            | (self.integral * state.y_cg < 0.0)),
-                        integral_gain_at(s, v_x) * state.y_cg, zero)
+                        integral_gain_at(s, v_x) * measured_y, zero)
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         # the compliance at the rear axle's load under the a_x the law linearizes at
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref, law_state.a_x)

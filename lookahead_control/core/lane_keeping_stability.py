@@ -1336,7 +1336,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     ``s_k = [x_k (plant, actuator), I_k, x_hat_k (6), w_k (the filter's wheel angle, if
     its lag > 0), u_k-1 ... u_k-B]``. At each step the law computes
     ``u_k = K [x_hat_k[:4], I_k]``; the plant moves over the period under ``u_k-d``
-    (``d = delay_steps``, exact ZOH with the actuator), the integral sums the estimate's
+    (``d = delay_steps``, exact ZOH with the actuator), the integral sums the measured
     ``y_cg`` (forward Euler, as the law), the filter predicts with its model (the design
     vehicle's ``continuous_model`` and its own first-order wheel model, exact over each
     substep; the node's RK4 differs by ``O((lambda h)^5)``) under the command its
@@ -1450,16 +1450,18 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
             rho_path = unit[i_kin + 1] + (unit[i_rate] * middle if rated else 0.0)
             acted += gamma_a[:, 1:] @ rho_path.reshape(1, size)
     law = k[:4].reshape(1, 4) @ acted[:4]       # u_k over s_k
-    # the law integrates the present estimate (not the predicted one) and uses the
-    # integral updated by this step, I_k + h k_i y_k; its reference's rate -k_i y_cg
-    # (K's y_cg gain less that of the law without an integral) is on the present one too
+    # the law integrates the measured CG error (the plant's y_cg: the lateral sensor's
+    # error less d_s times the measured relative yaw; not the estimate, which a sensor
+    # bias moves) and uses the integral updated by this step, I_k + h k_i y_k; its
+    # reference's rate -k_i y_cg (K's y_cg gain less that of the law without an
+    # integral) is on the measured one too
     k_i = float(integral_gain_at(settings, v_x))
     without = feedback_gain(vehicle, controller,
                             replace(settings, integral_gain=0.0, low_speed_integral_gain=0.0),
                             v_x)
-    law += (k[0] - without[0]) * (unit[i_est] - acted[0])
+    law += (k[0] - without[0]) * (unit[0] - acted[0])
     law[0, i_int] += k[4]
-    law[0, i_est] += k[4] * period * k_i
+    law[0, 0] += k[4] * period * k_i
     if approach:                        # the clipped offset is a constant input
         law -= without[0] * acted[0]
     if curvature_estimated:
@@ -1479,7 +1481,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     m[:n, :n] = phi
     m[:n, :] += gamma @ command(delay_steps)
     m[i_int, i_int] = 1.0
-    m[i_int, i_est] = period * k_i
+    m[i_int, 0] = period * k_i
     # the true measurement H_plant x_k+1 (the plant's y_cg, eps_r, v_y, r) over s_k
     h_true = np.zeros((4, n))
     h_true[0, 0], h_true[0, 1] = 1.0, model.d_s
