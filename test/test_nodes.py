@@ -529,16 +529,20 @@ def test_issue11_old_and_frozen_stamps_are_refused(drive):
 
 def test_issue11_changing_the_mode_at_runtime_is_refused_and_steering_goes_on(drive):
     from diagnostic_msgs.msg import DiagnosticStatus
-    drive.tick(steps=50)
+    # the yaw rate of the fixture's curve (r = v_x rho, under the turning WARN's 0.02
+    # rad/s): a curvature that disagrees with the yaw measurements is a WARN of its own
+    # (dev-sc34)
+    drive.tick(steps=50, v_x=19.0, r=0.019)
     for name, value in (('mode', 'timer'), ('qos_reliability', 'best_effort'),
                         ('rate_hz', 10.0), ('watchdog_rate_hz', 5.0)):
         result = drive.node.set_parameters([Parameter(name, value=value)])[0]
         assert not result.successful and result.reason.startswith(f'{name}: read-only')
         assert '\n' not in result.reason
     start = drive.now
-    drive.tick(steps=300)
+    drive.tick(steps=300, v_x=19.0, r=0.019)
     assert len(drive.since(start + 1)) == 300
-    assert drive.node.diagnostics().level == DiagnosticStatus.OK
+    status = drive.node.diagnostics()
+    assert status.level == DiagnosticStatus.OK, status.message
 
 
 def test_issue11_a_long_polygon_is_refused_before_its_points_are_decoded(
@@ -1028,5 +1032,32 @@ def test_probe74_a_new_bound_counts_for_the_waiting_answer_and_a_deactivation_dr
         node.trigger_activate()
         feed(node, start + 10_000_000)     # answered at once: a full bucket
         assert node.published == 4 and not node._pacer.deferred
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('scale', [1.0, 0.8])
+def test_probe73_a_road_curvature_that_disagrees_with_the_yaw_rate_is_told(context, scale):
+    # dev-probe73: a map 20 % off put the default law's CG 0.7 m off an S-bend at 30 m/s
+    # and /diagnostics said ok. On an arc at 25 m/s (r = v rho) the curvature received
+    # at scale x its value: a WARN naming it after 0.5 s of disagreement, none when right
+    node = _controller(context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        rho = 0.004
+        for k in range(1, 301):             # 3 s at 100 Hz
+            feed(node, k * 10_000_000, y=0.0, d=1.96, eps=0.01, r=25.0 * rho, v_x=25.0,
+                 v_y=0.0, rho=scale * rho)
+        status = node.diagnostics()
+        told = 'road_curvature disagrees with the yaw rate' in status.message
+        values = {kv.key: kv.value for kv in status.values}
+        residual = float(values['road_curvature residual max [rad]'])
+        if scale == 1.0:
+            assert not told and abs(residual) < 1e-9, status.message
+        else:
+            assert told and status.level == status.WARN, status.message
+            assert float(values['curvature_disagrees [s]']) > 1.0
+            assert residual < -0.01, residual    # settles at -2 s x 25 x 0.2 rho = -40 mrad
     finally:
         node.destroy_node()

@@ -30,6 +30,7 @@ from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, Basel
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw, Preview
+from lookahead_control.core.map_check import MapCheck
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
 from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
                                            SafetyParams, stale_target)
@@ -279,7 +280,13 @@ class SteeringController:
         #: (``turning_without_curvature``: never received or lost) and with a ``v_y`` of
         #: exactly 0 (``v_y_exactly_zero``: a bridge that does not measure it)
         self.turning: dict[str, float] = {'turning_without_curvature': 0.0,
-                                          'v_y_exactly_zero': 0.0}
+                                          'v_y_exactly_zero': 0.0,
+                                          'curvature_disagrees': 0.0}
+        #: the received curvature against the yaw measurements (``core/map_check.py``):
+        #: seconds of answers with it over its threshold in ``curvature_disagrees``, the
+        #: largest residual since the caller last took it in ``map_residual``
+        self.map_check = MapCheck()
+        self.map_residual = 0.0
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
@@ -433,6 +440,7 @@ class SteeringController:
         if self._rate_angle is not None:
             self._hold_value = self._rate_angle
         self.law.reset()
+        self.map_check.reset()
         self._law_stamp = None
 
     def seed_output(self, angle: float, stamp_ns: int) -> None:
@@ -844,6 +852,14 @@ class SteeringController:
             if float(state.v_y) == 0.0:
                 self.turning['v_y_exactly_zero'] += dt
         self.curvature_in = self.curvature_received(now_ns)
+        if self.curvature_in and self.curvature is not None:
+            residual = self.map_check.step(dt, float(state.eps_r), r, v_x, float(state.rho))
+            if abs(residual) > abs(self.map_residual):
+                self.map_residual = residual
+            if self.map_check.disagrees and 0.0 < dt <= 1.0:
+                self.turning['curvature_disagrees'] += dt
+        else:
+            self.map_check.reset()
         note_curvature = getattr(self.law, 'note_curvature', None)
         if note_curvature is not None:      # a law that estimates a missing curvature
             note_curvature(self.curvature_in)

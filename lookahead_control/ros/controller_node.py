@@ -830,6 +830,18 @@ class ControllerNode(LifecycleNode):
             reasons.append(f'velocity v_y exactly 0 while turning for '
                            f'{turning["v_y_exactly_zero"]:.2f} s: {what} '
                            '(docs/vehicle_bridge.md)')
+        residual, self.core.map_residual = self.core.map_residual, 0.0
+        if turning['curvature_disagrees'] >= TURNING_WARN:
+            # dev-probe73: a map 20 % off, or 0.5 s ahead or behind, put the default law's
+            # CG 0.7-1 m off an S-bend at 30 m/s, worse than no map, and nothing said so
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'road_curvature disagrees with the yaw rate for '
+                           f'{turning["curvature_disagrees"]:.2f} s (relative yaw '
+                           f'{residual * 1e3:+.1f} mrad off what the curvature and the yaw rate '
+                           f'predict, > {self.core.map_check.settings.threshold * 1e3:g}): a map '
+                           'off in scale or position, or a yaw sensor off; the law '
+                           f'{self.core.law_name} takes the curvature as the truth '
+                           '(docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
@@ -843,6 +855,7 @@ class ControllerNode(LifecycleNode):
                    for k, v in sorted(ages.items())]
         if latency is not None:
             values.append(KeyValue(key='answer latency max [s]', value=f'{latency:.6f}'))
+        values.append(KeyValue(key='road_curvature residual max [rad]', value=f'{residual:.6f}'))
         values += [KeyValue(key=f'rejected {k}', value=str(v))
                    for k, v in sorted(self.core.rejected.items())]
         # what the car taught the law's compliance estimate, over the model's (a memory

@@ -1,0 +1,114 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A check of the received road curvature against the car's own yaw measurements.
+
+The relative yaw moves as ``eps_r' = r - v_x rho`` whatever the tyres do (kinematics).
+Predicted from the measured yaw rate and the curvature received, and pulled to the
+measured relative yaw over ``leak`` (a yaw-rate bias would otherwise integrate up), its
+distance from the measurement is a residual: about 0 with the right curvature, ``-leak
+v_x Delta rho`` under a curvature off by ``Delta rho`` on an arc (a map 20 % off on a
+3 m/s^2 curve at 30 m/s: 40 mrad), and a pulse of about ``v_x rho`` times the time by
+which a map is ahead or behind. The default law takes the curvature as the truth with the
+look-ahead distance as its lever (dev-probe73: a map 20 % off, 0.74 m off an S-bend at
+30 m/s): the controller tells when the map and the car disagree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+from lookahead_control.core.params import check_range
+
+
+@dataclass(frozen=True)
+class MapCheckParams:
+    """
+    Settings of the check.
+
+    :param leak: time over which the prediction is pulled to the measured relative
+        yaw (forgets a yaw-rate bias) [s].
+    :param smoothing: low pass of the residual (the relative yaw's noise) [s].
+    :param threshold: a residual this large or larger is a disagreement [rad].
+    :param min_speed: below this speed the check restarts [m/s].
+    """
+
+    leak: float = 2.0
+    smoothing: float = 0.2
+    threshold: float = 0.01
+    min_speed: float = 5.0
+
+    def __post_init__(self) -> None:
+        """Check the ranges."""
+        check_range('map_check.leak', self.leak, 0.1, 60.0, unit='s')
+        check_range('map_check.smoothing', self.smoothing, 0.0, 10.0, unit='s')
+        check_range('map_check.threshold', self.threshold, 1.0e-4, 1.0, unit='rad')
+        check_range('map_check.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
+
+
+class MapCheck:
+    """The residual of the curvature received against the yaw measurements."""
+
+    def __init__(self, settings: MapCheckParams | None = None) -> None:
+        """
+        Start without a prediction.
+
+        :param settings: the settings (defaults if None).
+        """
+        self.settings = settings or MapCheckParams()
+        self._predicted = math.nan
+        self._rate = math.nan
+        #: the smoothed residual: measured minus predicted relative yaw [rad]
+        self.residual = 0.0
+
+    def reset(self) -> None:
+        """Restart (no curvature, a gap, a slow car): the next step starts again."""
+        self._predicted = math.nan
+        self._rate = math.nan
+        self.residual = 0.0
+
+    def step(self, dt: float, eps_r: float, r: float, v_x: float, rho: float) -> float:
+        """
+        Take one measurement and the curvature at the CG received with it.
+
+        :param dt: time since the previous step [s] (not in ``(0, 1]``: a restart).
+        :param eps_r: measured relative yaw [rad].
+        :param r: measured yaw rate [rad/s].
+        :param v_x: speed [m/s].
+        :param rho: curvature received at the CG [1/m].
+        :return: the smoothed residual [rad].
+        """
+        s = self.settings
+        values = (dt, eps_r, r, v_x, rho)
+        if not all(math.isfinite(x) for x in values) or v_x < s.min_speed:
+            self.reset()
+            return self.residual
+        rate = r - v_x * rho
+        if math.isnan(self._predicted) or not 0.0 < dt <= 1.0:
+            self._predicted, self._rate, self.residual = eps_r, rate, 0.0
+            return self.residual
+        # the trapezoid of the last and this step's rate, then the pull to the measurement
+        predicted = self._predicted + dt * 0.5 * (self._rate + rate)
+        predicted += (eps_r - predicted) * min(1.0, dt / s.leak)
+        self._predicted, self._rate = predicted, rate
+        share = min(1.0, dt / s.smoothing) if s.smoothing > 0.0 else 1.0
+        self.residual += share * ((eps_r - predicted) - self.residual)
+        return self.residual
+
+    @property
+    def disagrees(self) -> bool:
+        """Return True while the residual is at the threshold or beyond."""
+        return abs(self.residual) >= self.settings.threshold

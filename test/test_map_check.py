@@ -1,0 +1,83 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The received curvature checked against the yaw measurements, without DDS."""
+
+from __future__ import annotations
+
+import math
+
+from lookahead_control.core.map_check import MapCheck, MapCheckParams
+from lookahead_control.core.params import ParameterError
+import numpy as np
+import pytest
+
+DT = 0.01
+V = 30.0
+RHO = 3.0 / V ** 2           # 3 m/s^2 at 30 m/s
+
+
+def _drive(check, seconds, rho_true, rho_map, eps0=0.01, r_bias=0.0, noise=0.0, seed=1):
+    """Drive a steady arc: eps_r constant, r = v rho (exact kinematics)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(int(round(seconds / DT))):
+        eps = eps0 + noise * rng.standard_normal()
+        out.append(check.step(DT if k else 0.0, eps, V * rho_true + r_bias, V, rho_map))
+    return np.array(out)
+
+
+def test_the_right_curvature_leaves_only_the_relative_yaw_s_noise():
+    check = MapCheck()
+    res = _drive(check, 20.0, RHO, RHO, noise=0.001)
+    assert np.max(np.abs(res)) < 0.004 and not check.disagrees
+
+
+@pytest.mark.parametrize('scale', [0.8, 1.2])
+def test_a_curvature_off_in_scale_settles_at_leak_times_the_rate_it_makes(scale):
+    # eps_r' = r - v rho: the received curvature off by (scale - 1) rho predicts a
+    # relative yaw moving at v (1 - scale) rho; pulled back over `leak`, the residual
+    # settles at -leak v (1 - scale) rho (40 mrad for 20 % at 3 m/s^2, 30 m/s)
+    check = MapCheck()
+    res = _drive(check, 20.0, RHO, scale * RHO)
+    expected = -2.0 * V * (1.0 - scale) * RHO
+    assert res[-1] == pytest.approx(expected, rel=0.02)
+    assert check.disagrees
+
+
+def test_a_yaw_rate_bias_shows_as_leak_times_the_bias():
+    # a gyro 5 mrad/s off (0.3 deg/s) is 10 mrad: at the threshold, told as a yaw sensor
+    # off, not integrated up without bound
+    check = MapCheck()
+    res = _drive(check, 30.0, RHO, RHO, r_bias=0.005)
+    assert res[-1] == pytest.approx(-0.010, rel=0.02)
+
+
+def test_a_gap_a_slow_car_or_a_non_finite_input_restarts_it():
+    check = MapCheck()
+    _drive(check, 10.0, RHO, 0.8 * RHO)
+    assert check.disagrees
+    for args in ((2.0, 0.01, V * RHO, V, RHO), (DT, math.nan, V * RHO, V, RHO),
+                 (DT, 0.01, V * RHO, 2.0, RHO), (DT, 0.01, V * RHO, V, math.inf)):
+        _drive(check, 10.0, RHO, 0.8 * RHO)
+        assert check.step(*args) == 0.0 and not check.disagrees
+    # and starts again from the next measurement, without a jump
+    assert check.step(DT, 0.01, V * RHO, V, RHO) == 0.0
+
+
+@pytest.mark.parametrize('field, value', [('leak', 0.0), ('smoothing', -1.0),
+                                          ('threshold', 0.0), ('min_speed', math.nan)])
+def test_settings_out_of_range_are_refused_by_name(field, value):
+    with pytest.raises(ParameterError, match=f'map_check.{field}'):
+        MapCheckParams(**{field: value})
