@@ -706,3 +706,30 @@ def test_lateral_errors_the_answer_rate_bound_coalesced_are_not_re_run(skipped):
                         for name, column in columns.items()}, {'law': 'cg_compensated'})
         again = rerun(dropped, order='stamp')
         assert again.coalesced_lost == 1, again.coalesced_lost
+
+
+@pytest.mark.parametrize('lost', [range(100, 103), range(150, 250, 3)])
+def test_lateral_errors_the_node_never_received_are_not_re_run(lost):
+    # dev-probe74: in a flood the node's keep-last-10 reader lost 490-658 of 1500 lateral
+    # errors that the recorder got; the re-run stepped the law on them (15.2 mrad apart,
+    # without a word). Between two answers numbered one after the other nothing was
+    # answered: those are skipped as the node never saw them
+    rows = _inputs(300, math.inf)
+    node, _ = controller_from_params({'law': 'cg_compensated'})
+    commands, numbers = {}, {}
+    for role, sample in _feed(rows):
+        k = sample.stamp_ns // PERIOD_NS
+        if role == 'lateral_error' and k in lost:
+            continue                            # lost by the node's reader
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role == 'lateral_error':
+            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+            numbers[sample.stamp_ns] = float(len(commands))
+    columns = {'activations': dict.fromkeys(numbers, 1.0), 'answers': numbers}
+    run = _bag(rows, commands, columns, {'law': 'cg_compensated'})
+    result = rerun(run, order='stamp')
+    assert result.unreceived_skipped == len(lost)
+    assert result.inactive_skipped == result.coalesced_skipped == 0
+    assert result.compared == 300 - len(lost) and result.max_diff == 0.0, result.max_diff
+    blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
+    assert blind.unreceived_skipped == 0 and blind.max_diff > 1e-6, blind.max_diff

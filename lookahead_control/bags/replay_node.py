@@ -83,6 +83,7 @@ def offline(args: argparse.Namespace) -> int:
     report['answers_lost_next_to_inactive'] = result.inactive_lost
     report['inputs_coalesced'] = result.coalesced_skipped
     report['answers_lost_next_to_coalesced'] = result.coalesced_lost
+    report['inputs_not_received'] = result.unreceived_skipped
     report['inputs_refused'] = result.refused
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
@@ -140,6 +141,12 @@ def offline(args: argparse.Namespace) -> int:
               f'{run.controller_node} next to a deactivation ({run.controller_node}/debug '
               'answers): those inputs were answered, which ones the bag does not say; '
               'the re-run skips them and is not exact there')
+    if result.unreceived_skipped:
+        print(f'replay: {result.unreceived_skipped} lateral error(s) of the bag '
+              f'{run.controller_node} left unanswered between two answers it numbered one '
+              'after the other (its reader fell behind and lost them, or it refused them) '
+              f'are not re-run, as it did not answer them ({run.controller_node}/debug '
+              'answers)')
     if result.coalesced_skipped or result.coalesced_lost:
         print(f'replay: {run.controller_node} answered lateral errors faster than its '
               f'max_answer_rate_hz only by the newest of each period: '

@@ -649,6 +649,10 @@ class Rerun:
         for a newer one under its answer-rate bound (``inactive_inputs(run,
         'coalesced')``), not computed, as the node did not.
     :param coalesced_lost: answers the recorder lost among those stretches.
+    :param unreceived_skipped: other lateral errors of the bag the node left unanswered
+        between two answers it numbered one after the other (:func:`unanswered_inputs`:
+        its reader fell behind and lost them, or it refused them), not computed, as the
+        node did not.
     """
 
     commands: dict[int, Command]
@@ -670,6 +674,7 @@ class Rerun:
     last_refusal: str = ''
     coalesced_skipped: int = 0
     coalesced_lost: int = 0
+    unreceived_skipped: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -765,6 +770,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     followed = otherwise = switches = 0
     inactive, lost = inactive_inputs(run)
     coalesced, coalesced_lost = inactive_inputs(run, 'coalesced')
+    unreceived = unanswered_inputs(run) - inactive - coalesced
     refusals: dict[str, int] = {}
     last_refusal = ''
     for _, role, sample in feed:
@@ -775,8 +781,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             refusals[role] = refusals.get(role, 0) + 1
             last_refusal = refused
         if role == 'lateral_error' and (sample.stamp_ns in inactive
-                                        or sample.stamp_ns in coalesced):
-            continue                # taken in, not answered: inactive, or coalesced
+                                        or sample.stamp_ns in coalesced
+                                        or sample.stamp_ns in unreceived):
+            continue                # not answered: inactive, coalesced, never received
         if role == 'lateral_error' and refused is None:
             due = min(sets.get(sample.stamp_ns, applied + before_bag) - before_bag,
                       len(events))
@@ -814,7 +821,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
                  switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
-                 last_refusal, len(coalesced), coalesced_lost)
+                 last_refusal, len(coalesced), coalesced_lost, len(unreceived))
 
 
 def inactive_inputs(run: RunData, counter: str = 'activations'
@@ -877,6 +884,45 @@ def inactive_inputs(run: RunData, counter: str = 'activations'
         if math.isfinite(number) and math.isfinite(earlier):
             lost += max(0, int(number - earlier) - 1)
     return frozenset(out), lost
+
+
+def unanswered_inputs(run: RunData) -> frozenset[int]:
+    """
+    Return the lateral-error stamps the recorded controller did not answer, by its count.
+
+    In event mode the node answers each lateral error it takes in (or leaves it for a
+    newer one: coalesced; or takes it in while inactive). Between two answers whose
+    ``~/debug`` ``answers`` counts follow one another (n, n + 1) it gave no answer, so a
+    lateral error of the bag there went unanswered: one the node never received (its
+    reader, keep-last 10, fell behind in a flood: dev-probe74, 490-658 of 1500, and the
+    re-run stepped the law on them, 15 mrad apart), one it refused, or one coalesced or
+    received while inactive. Before the first answer counted 1, every one. Where counts
+    skip a number the recorder lost answers: those are left to :func:`inactive_inputs`.
+
+    :param run: the bag.
+    :return: the stamps (empty where the bag has no debug ``answers``).
+    """
+    numbers = run.debug.values.get('answers')
+    lateral = run.inputs.get('lateral_error')
+    if numbers is None or lateral is None:
+        return frozenset()
+    marked = {int(t): n for t, n in zip(run.debug.stamp_ns.tolist(), numbers.tolist())
+              if math.isfinite(n)}
+    if not marked:
+        return frozenset()
+    answered = sorted(marked)
+    given = set(run.steering.stamp_ns.tolist()) | set(marked)
+    out = set()
+    for stamp in lateral.stamp_ns.tolist():
+        if stamp in given:
+            continue
+        at = bisect.bisect_left(answered, stamp)
+        if at == len(answered):
+            continue                # after the last answer: nothing to compare
+        earlier = marked[answered[at - 1]] if at else 0.0
+        if marked[answered[at]] - earlier == 1.0:
+            out.add(int(stamp))
+    return frozenset(out)
 
 
 def recorded_parameter_sets(run: RunData) -> dict[int, int]:
