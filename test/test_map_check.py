@@ -81,3 +81,42 @@ def test_a_gap_a_slow_car_or_a_non_finite_input_restarts_it():
 def test_settings_out_of_range_are_refused_by_name(field, value):
     with pytest.raises(ParameterError, match=f'map_check.{field}'):
         MapCheckParams(**{field: value})
+
+
+def test_probe75_a_timer_answering_twice_a_measurement_does_not_restart_it():
+    # dev-probe75: dt = 0 (a timer faster than the lateral error) restarted the check at
+    # every second answer: in timer mode a map x0.8 was never told (39.6 mrad -> 0)
+    once, twice = MapCheck(), MapCheck()
+    for k in range(2000):
+        args = (DT if k else 0.0, 0.01, V * RHO, V, 0.8 * RHO)
+        once.step(*args)
+        twice.step(*args)
+        twice.step(0.0, *args[1:])
+    assert twice.residual == once.residual and twice.disagrees
+
+
+def test_probe75_the_lane_s_frame_at_low_speed_leaves_a_perfect_map_quiet():
+    # 6 m/s on R 9 m, the CG 7 cm inside, eps_r 0.05, v_y 0.1 (exact kinematics of the
+    # lane's frame): the small-angle form was 10 mrad off; now nothing
+    check = MapCheck()
+    v, rho, y, eps, v_y = 6.0, 1.0 / 9.0, 0.07, 0.05, 0.1
+    along = (v * math.cos(eps) - v_y * math.sin(eps)) / (1.0 - rho * y)
+    for k in range(1000):
+        check.step(DT if k else 0.0, eps, along * rho, v, rho, y, v_y)
+    assert abs(check.residual) < 1e-9
+    small = MapCheck()
+    for k in range(1000):
+        small.step(DT if k else 0.0, eps, along * rho, v, rho)
+    assert abs(small.residual) > 0.005          # what the old form made of it
+
+
+def test_probe75_the_threshold_grows_below_20_m_s_as_the_residual_does():
+    check = MapCheck()
+    assert check.threshold_at(37.0) == check.threshold_at(20.0) == 0.01
+    assert check.threshold_at(10.0) == pytest.approx(0.04)
+    assert check.threshold_at(6.0) == pytest.approx(0.01 * (20.0 / 6.0) ** 2)
+    # a map x0.9 at 10 m/s on R 25 m (4 m/s^2): -2 s x 10 x 0.1 / 25 = 80 mrad, told
+    slow = MapCheck()
+    for k in range(2000):
+        slow.step(DT if k else 0.0, 0.01, 10.0 / 25.0, 10.0, 0.9 / 25.0)
+    assert slow.residual == pytest.approx(-0.08, rel=0.02) and slow.disagrees

@@ -83,3 +83,30 @@ def test_probe73_a_v_y_bias_leaves_the_cg_on_the_lane(road):
     base = _steady(ROADS[road])
     biased = _steady(ROADS[road], v_y_bias=0.05)
     assert abs(biased - base) < 1.5e-3, (base, biased)
+
+
+@pytest.mark.parametrize('speed', [10.0, 30.0])
+def test_probe75_one_lateral_error_far_off_moves_the_integral_by_its_band_only(speed):
+    # dev-probe75: with the integral on the measured CG error, one message 2 m off went
+    # into the reference's rate k_i y_cg and stepped the command by 50 mrad at 10 m/s
+    # (19 before); the measurement is taken within MEASURED_BAND of the filter's estimate
+    from lookahead_control.core.control_law import LateralState
+    from lookahead_control.core.lane_keeping import (CgCompensatedLaw, integral_gain_at,
+                                                     MEASURED_BAND)
+    from lookahead_control.core.params import ControllerParams
+    law = CgCompensatedLaw(VEHICLE, ControllerParams())
+    state = LateralState(0.02, 0.0, 0.0, 0.0, speed, 0.0, 0.0, 0.0)
+    for k in range(300):
+        law.step(state, None, 0.01 if k else 0.0)
+    before, steering = law.integral, law.last_steering
+    law.step(state._replace(y_cg=2.02), None, 0.01)
+    step = 0.01 * float(integral_gain_at(law.settings, speed))
+    # the filter's estimate moves some centimetres toward the spike, the band adds 0.1 m;
+    # without the band the step integrates all 2.02 m (0.006 m at 0.3 1/s)
+    assert abs(law.integral - before) < step * 0.25, (law.integral - before) / step
+    # and the command moves by what the filter makes of it, not by k_i times 2 m more
+    law_b = CgCompensatedLaw(VEHICLE, ControllerParams())
+    for k in range(300):
+        law_b.step(state, None, 0.01 if k else 0.0)
+    law_b.step(state._replace(y_cg=0.02 + MEASURED_BAND), None, 0.01)
+    assert abs(law.last_steering - steering) < abs(law_b.last_steering - steering) + 0.03

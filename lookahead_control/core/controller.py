@@ -853,7 +853,8 @@ class SteeringController:
                 self.turning['v_y_exactly_zero'] += dt
         self.curvature_in = self.curvature_received(now_ns)
         if self.curvature_in and self.curvature is not None:
-            residual = self.map_check.step(dt, float(state.eps_r), r, v_x, float(state.rho))
+            residual = self.map_check.step(dt, float(state.eps_r), r, v_x, float(state.rho),
+                                           float(state.y_cg), float(state.v_y))
             if abs(residual) > abs(self.map_residual):
                 self.map_residual = residual
             if self.map_check.disagrees and 0.0 < dt <= 1.0:

@@ -789,6 +789,11 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                      f_v, beta_1)
 
 
+#: the measured CG error the integral sums stays this close to the state filter's
+#: estimate [m]: a sensor bias (centimetres) passes, an outlier does not
+MEASURED_BAND = 0.1
+
+
 class CgCompensatedLaw:
     """
     The CG-compensated look-ahead law: preview, compliance estimate, CG-error integral.
@@ -1168,10 +1173,14 @@ class CgCompensatedLaw:
         # estimate fuses the relative yaw, v_y and the yaw rate through the kinematics,
         # and a bias of one of them moved it (5 mrad of relative yaw: the CG settled
         # 4.1 cm off on the goal plant at 30 m/s, now +1.0 cm = d_s x 5 mrad, where the
-        # lateral sensor puts it; dev-probe73)
+        # lateral sensor puts it; dev-probe73). Within MEASURED_BAND of the estimate: a
+        # lateral error 2 m off for one message stepped the command by 50 mrad at 10 m/s
+        # through the reference's rate k_i y_cg (dev-probe75); a bias is centimetres
         measured_y = state.y_cg
         if self.state_filter is not None:
             state = self.state_filter.step(state, dt, estimating)
+            measured_y = state.y_cg + xp.clip(measured_y - state.y_cg, -MEASURED_BAND,
+                                              MEASURED_BAND)
         elif self.curvature_filter is not None or np.count_nonzero(estimating):
             state = self._estimate_curvature(state, dt, estimating)
         if estimating is True:          # no preview without a curvature

@@ -838,8 +838,11 @@ class ControllerNode(LifecycleNode):
             reasons.append(f'road_curvature disagrees with the yaw rate for '
                            f'{turning["curvature_disagrees"]:.2f} s (relative yaw '
                            f'{residual * 1e3:+.1f} mrad off what the curvature and the yaw rate '
-                           f'predict, > {self.core.map_check.settings.threshold * 1e3:g}): a map '
-                           'off in scale or position, or a yaw sensor off; the law '
+                           'predict, over the threshold of '
+                           f'{self.core.map_check.settings.threshold * 1e3:g} mrad at 20 m/s '
+                           'and up): one of the three is off: the curvature (a map off in '
+                           'scale or position), the yaw rate (a gyro bias: 0.3 deg/s is 10 '
+                           'mrad), or the relative yaw (a jump, a relocalization); the law '
                            f'{self.core.law_name} takes the curvature as the truth '
                            '(docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
