@@ -903,23 +903,33 @@ class _Collector:
         self.sent.append(msg)
 
 
+def _paced(context, monkeypatch, *overrides):
+    """
+    Return an active wall-clock controller on a steady clock set by hand.
+
+    :return: ``(node, steady clock, its steering collector, a stamp 20 ms ago)``.
+    """
+    import time
+    from lookahead_control.ros import controller_node
+    steady = _SteadyClock(time.monotonic_ns())
+    monkeypatch.setattr(controller_node, 'time', steady)
+    node = _controller(context, *overrides, sim=False)
+    node.trigger_configure()
+    node.trigger_activate()
+    sent = node._steering_pub = _Collector()
+    return node, steady, sent, node.get_clock().now().nanoseconds - 20_000_000
+
+
 def test_a_flood_of_valid_lateral_errors_is_answered_at_the_answer_rate_bound(
         context, monkeypatch):
     # dev-probe71 / dev-sc34: a flood of valid lateral errors (470 msg/s) was answered
     # message by message on the wall clock, 0.8 ms each: the node took a core and read its
     # other inputs 104 ms late. Now at most max_answer_rate_hz answers; what comes sooner
     # is answered at the period's end, the newest of it, the rest coalesced (counted)
-    import time
-    from lookahead_control.ros import controller_node
     from rclpy.time import Time
-    steady = _SteadyClock(time.monotonic_ns())
-    monkeypatch.setattr(controller_node, 'time', steady)
-    node = _controller(context, Parameter('max_answer_rate_hz', value=100.0), sim=False)
+    node, steady, sent, start = _paced(context, monkeypatch,
+                                       Parameter('max_answer_rate_hz', value=100.0))
     try:
-        node.trigger_configure()
-        node.trigger_activate()
-        sent = node._steering_pub = _Collector()
-        start = node.get_clock().now().nanoseconds - 20_000_000
         stamps = [start + k * 1_000_000 for k in range(10)]
         for stamp in stamps:                # 10 within 1 ms of the steady clock
             feed(node, stamp)
@@ -977,18 +987,11 @@ def test_probe74_a_deferred_answer_never_answers_a_lateral_error_waiting_for_its
     # dev-probe74: with wait_for_matching_stamps on the wall clock, the deferred answer
     # answered the newest lateral error while it still waited for its yaw and velocity
     # (with the previous step's), and its release answered it again: stamps [0 1 2 4 4]
-    import time
-    from lookahead_control.ros import controller_node
     from rclpy.time import Time
-    steady = _SteadyClock(time.monotonic_ns())
-    monkeypatch.setattr(controller_node, 'time', steady)
-    node = _controller(context, Parameter('max_answer_rate_hz', value=100.0),
-                       Parameter('wait_for_matching_stamps', value=True), sim=False)
+    node, steady, sent, start = _paced(context, monkeypatch,
+                                       Parameter('max_answer_rate_hz', value=100.0),
+                                       Parameter('wait_for_matching_stamps', value=True))
     try:
-        node.trigger_configure()
-        node.trigger_activate()
-        sent = node._steering_pub = _Collector()
-        start = node.get_clock().now().nanoseconds - 20_000_000
         stamps = [start + k * 1_000_000 for k in range(5)]
         for stamp in stamps[:4]:            # a burst of 3 answered, the 4th deferred
             _one_step(node, stamp)
@@ -1007,16 +1010,9 @@ def test_probe74_a_deferred_answer_never_answers_a_lateral_error_waiting_for_its
 
 def test_probe74_a_new_bound_counts_for_the_waiting_answer_and_a_deactivation_drops_it(
         context, monkeypatch):
-    import time
-    from lookahead_control.ros import controller_node
-    steady = _SteadyClock(time.monotonic_ns())
-    monkeypatch.setattr(controller_node, 'time', steady)
-    node = _controller(context, Parameter('max_answer_rate_hz', value=20.0), sim=False)
+    node, steady, _, start = _paced(context, monkeypatch,
+                                    Parameter('max_answer_rate_hz', value=20.0))
     try:
-        node.trigger_configure()
-        node.trigger_activate()
-        node._steering_pub = _Collector()
-        start = node.get_clock().now().nanoseconds - 20_000_000
         for k in range(4):
             feed(node, start + k * 1_000_000)
         timer = node._answer_timer

@@ -31,7 +31,7 @@ import math
 from pathlib import Path
 import re
 import struct
-from typing import Any, Callable, Mapping, Optional, Sequence
+from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
 
 from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
@@ -824,6 +824,25 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  last_refusal, len(coalesced), coalesced_lost, len(unreceived))
 
 
+def _unanswered(run: RunData, lateral: Samples, answered: list[int]
+                ) -> Iterator[tuple[int, int]]:
+    """
+    Yield the lateral errors of the bag with neither a steering nor a debug answer.
+
+    :param run: the bag.
+    :param lateral: its lateral errors.
+    :param answered: the stamps of the debug answers, sorted.
+    :return: ``(stamp, index of the next answer in answered)``; none after the last.
+    """
+    given = set(run.steering.stamp_ns.tolist()) | set(answered)
+    for stamp in lateral.stamp_ns.tolist():
+        if stamp in given:
+            continue
+        at = bisect.bisect_left(answered, stamp)
+        if at < len(answered):      # after the last answer: nothing to compare
+            yield int(stamp), at
+
+
 def inactive_inputs(run: RunData, counter: str = 'activations'
                     ) -> tuple[frozenset[int], int]:
     """
@@ -863,14 +882,8 @@ def inactive_inputs(run: RunData, counter: str = 'activations'
     if not marked:
         return frozenset(), 0
     answered = sorted(marked)
-    given = set(run.steering.stamp_ns.tolist()) | set(marked)
     out, gaps = set(), set()
-    for stamp in lateral.stamp_ns.tolist():
-        if stamp in given:
-            continue
-        at = bisect.bisect_left(answered, stamp)
-        if at == len(answered):
-            continue                # after the last answer: nothing to compare
+    for stamp, at in _unanswered(run, lateral, answered):
         after = marked[answered[at]][0]
         before = marked[answered[at - 1]][0] if at else (1.0 if counter == 'activations'
                                                          else 0.0)
@@ -911,14 +924,8 @@ def unanswered_inputs(run: RunData) -> frozenset[int]:
     if not marked:
         return frozenset()
     answered = sorted(marked)
-    given = set(run.steering.stamp_ns.tolist()) | set(marked)
     out = set()
-    for stamp in lateral.stamp_ns.tolist():
-        if stamp in given:
-            continue
-        at = bisect.bisect_left(answered, stamp)
-        if at == len(answered):
-            continue                # after the last answer: nothing to compare
+    for stamp, at in _unanswered(run, lateral, answered):
         earlier = marked[answered[at - 1]] if at else 0.0
         if marked[answered[at]] - earlier == 1.0:
             out.add(int(stamp))
