@@ -52,9 +52,7 @@ class AnswerPacer:
         :param burst: answers at once before the rate holds them back.
         :raises ValueError: if the rate is not a finite number > 0.
         """
-        self.rate_hz = max_rate_hz
-        self._period = 0
-        self.set_rate(max_rate_hz)
+        self.set_rate(max_rate_hz)       # rate_hz and the period
         self.burst = burst
         self._tokens = float(burst)
         self._filled: Optional[int] = None
@@ -67,6 +65,9 @@ class AnswerPacer:
     def period_ns(self) -> int:
         """Return the time in which one answer is refilled [ns]."""
         return self._period
+
+    rate_hz: float
+    _period: int
 
     def set_rate(self, max_rate_hz: float) -> None:
         """

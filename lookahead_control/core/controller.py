@@ -857,7 +857,7 @@ class SteeringController:
                                            float(state.y_cg), float(state.v_y))
             if abs(residual) > abs(self.map_residual):
                 self.map_residual = residual
-            if self.map_check.disagrees and 0.0 < dt <= 1.0:
+            if self.map_check.disagrees:    # (0 after its restart on a gap; dt 0 adds 0)
                 self.turning['curvature_disagrees'] += dt
         else:
             self.map_check.reset()
