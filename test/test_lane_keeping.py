@@ -1027,9 +1027,12 @@ MS = 1_000_000
 
 
 def _core(law='cg_compensated'):
-    # the law on its raw inputs (state_filter: none): the integral checked to the digit
+    # the law on its raw inputs (state_filter: none): the integral checked to the digit.
+    # _feed's car does not turn (r = 0) on the map's arc: the map check's fallback would
+    # drop the map (test_map_fallback.py), off here
     return SteeringController(VEHICLE, ControllerParams(), 'zero', True, SafetyParams(),
-                              law, lane_keeping=LaneKeepingParams(state_filter='none'))
+                              law, lane_keeping=LaneKeepingParams(state_filter='none',
+                                                                  map_fallback=0.0))
 
 
 def _feed(core, stamp, y, rho=-1 / 400):

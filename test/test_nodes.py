@@ -1057,3 +1057,58 @@ def test_probe73_a_road_curvature_that_disagrees_with_the_yaw_rate_is_told(conte
             assert residual < -0.01, residual    # settles at -2 s x 25 x 0.2 rho = -40 mrad
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize('fallback', [2.5, 0.0])
+def test_sc35_the_default_law_drops_a_map_far_off_and_says_so(context, fallback):
+    # dev-sc35: a map the other way round on an arc at 25 m/s (-2 s x 25 x 2 rho = -400
+    # mrad): the default law runs on its own curvature estimate, and /diagnostics says it
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated'),
+        Parameter('lane_keeping.map_fallback', value=fallback)])
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        rho = 0.004
+        for k in range(1, 301):             # 3 s at 100 Hz
+            feed(node, k * 10_000_000, y=0.0, d=1.96, eps=0.01, r=25.0 * rho, v_x=25.0,
+                 v_y=0.0, rho=-rho)
+        estimated = dict(node.core.law.debug_values())['curvature_estimated']
+        status = node.diagnostics()
+        values = {kv.key: kv.value for kv in status.values}
+        assert status.level == status.WARN and 'disagrees' in status.message
+        if fallback:
+            assert estimated == 1.0 and float(values['curvature_dropped [s]']) > 2.0
+            assert 'dropped the curvature for' in status.message, status.message
+        else:
+            assert estimated == 0.0 and float(values['curvature_dropped [s]']) == 0.0
+            assert 'takes the curvature as the truth' in status.message, status.message
+    finally:
+        node.destroy_node()
+
+
+def test_probe76_a_drop_is_told_even_after_less_than_0_5_s_of_disagreement(context):
+    # dev-probe76: a drop after 0.33 s of disagreement showed only in the KeyValues; the
+    # message waits for 0.5 s of disagreement in a report period
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated')])
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        rho = 0.004
+        for k in range(1, 101):             # 1 s on the right map
+            feed(node, k * 10_000_000, y=0.0, eps=0.01, r=25.0 * rho, v_x=25.0, v_y=0.0,
+                 rho=rho)
+        assert 'disagrees' not in node.diagnostics().message
+        for k in range(101, 131):           # 0.3 s of a map the other way round
+            feed(node, k * 10_000_000, y=0.0, eps=0.01, r=25.0 * rho, v_x=25.0, v_y=0.0,
+                 rho=-rho)
+        status = node.diagnostics()
+        values = {kv.key: kv.value for kv in status.values}
+        assert float(values['curvature_disagrees [s]']) < 0.5
+        assert float(values['curvature_dropped [s]']) > 0.0
+        assert status.level == status.WARN and 'dropped the curvature for' in status.message
+    finally:
+        node.destroy_node()

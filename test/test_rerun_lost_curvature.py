@@ -52,7 +52,10 @@ def _inputs(steps, curvature_until_ns):
         rows['yaw'].append(YawSample(stamp, 0.002, SPEED * RHO if t < 2.0 else 0.0, 0.0))
         rows['velocity'].append(VelocitySample(stamp, SPEED, 0.0))
         if stamp < curvature_until_ns:
-            rows['road_curvature'].append(CurvatureSample(stamp, RHO, 0.0))
+            # the road's (a curvature of the curve after it ended: a map the map check
+            # drops, dev-sc35)
+            rows['road_curvature'].append(CurvatureSample(stamp, RHO if t < 2.0 else 0.0,
+                                                          0.0))
         rows['lateral_error'].append(
             LateralErrorSample(stamp, 0.0, 0.1 + 0.05 * math.sin(2.0 * math.pi * t)))
     return rows
@@ -733,3 +736,39 @@ def test_lateral_errors_the_node_never_received_are_not_re_run(lost):
     assert result.compared == 300 - len(lost) and result.max_diff == 0.0, result.max_diff
     blind = rerun(replace(run, debug=Samples.empty()), order='stamp')
     assert blind.unreceived_skipped == 0 and blind.max_diff > 1e-6, blind.max_diff
+
+
+def test_probe76_a_map_dropped_by_the_map_check_is_re_run_and_said_so(
+        monkeypatch, capsys, tmp_path):
+    # dev-probe76: the re-run of a bag whose map the node dropped matched, but replay said
+    # the curvature was not in the bag or lost. A map the other way round on the curve
+    import argparse
+    import json
+
+    from lookahead_control.bags import replay_node
+    rows = _inputs(300, math.inf)
+    rows['road_curvature'] = [CurvatureSample(c.stamp_ns, -RHO if c.stamp_ns * 1e-9 < 2.0
+                                              else 0.0, 0.0) for c in rows['road_curvature']]
+    params = {'law': 'cg_compensated'}
+    node, _ = controller_from_params(params)
+    commands, received, estimated, dropped = {}, {}, {}, 0
+    for role, sample in _feed(rows):
+        assert node.accept(role, sample, sample.stamp_ns) is None
+        if role == 'lateral_error':
+            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+            received[sample.stamp_ns] = float(node.curvature_in)
+            estimated[sample.stamp_ns] = dict(node.law.debug_values())['curvature_estimated']
+            dropped += node.map_check.dropped
+    assert dropped > 100 and node.turning['curvature_dropped'] > 1.0
+    run = _bag(rows, commands, {'curvature_received': received,
+                                'curvature_estimated': estimated}, params)
+    result = rerun(run, order='receive')
+    assert result.max_diff == 0.0 and result.compared == 300
+    assert result.dropped == dropped and result.estimated == sum(estimated.values())
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node: run)
+    args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
+                              json=tmp_path / 'report.json', check=0.0, node=None)
+    assert replay_node.offline(args) == 0
+    out = capsys.readouterr().out
+    assert f'in {dropped} of them it was received and dropped' in out, out
+    assert json.loads((tmp_path / 'report.json').read_text())['curvature_dropped'] == dropped

@@ -240,8 +240,9 @@ def test_the_node_retunes_without_a_restart_and_counts_the_sets_on_debug(context
         info = logger.info
         logger.info = lambda text, **kw: (logged.append(text), info(text, **kw))[1]
         ms = 1_000_000
+        # (the yaw rate of the curve: a car not turning on it has the map dropped)
         for k in range(200):
-            feed(node, (1000 + 10 * k) * ms, y=0.1, d=0.0, eps=0.0, r=0.0, v_x=30.0,
+            feed(node, (1000 + 10 * k) * ms, y=0.1, d=0.0, eps=0.0, r=-0.075, v_x=30.0,
                  v_y=0.0, rho=-0.0025)
         node.diagnostics()
         integral = float(node.core.law.integral)
@@ -253,7 +254,8 @@ def test_the_node_retunes_without_a_restart_and_counts_the_sets_on_debug(context
         assert any(line.startswith('cg_compensated retuned without a restart: carried '
                                    'integral, compliance estimate, actuator model, state '
                                    'filter estimate') for line in logged), logged
-        feed(node, 3000 * ms, y=0.1, d=0.0, eps=0.0, r=0.0, v_x=30.0, v_y=0.0, rho=-0.0025)
+        feed(node, 3000 * ms, y=0.1, d=0.0, eps=0.0, r=-0.075, v_x=30.0, v_y=0.0,
+             rho=-0.0025)
         assert conv.from_named_values(sent[-1])['parameter_sets'] == 1.0
         status = node.diagnostics()
         values = {kv.key: kv.value for kv in status.values}

@@ -72,7 +72,8 @@ def offline(args: argparse.Namespace) -> int:
               'compared': result.compared,
               'recorded': len(run.steering.by_stamp()), 'recomputed': len(result.commands),
               'max_diff_rad': result.max_diff, 'rms_diff_rad': result.rms_diff,
-              'curvature_estimated': result.estimated, 'overrides': overrides}
+              'curvature_estimated': result.estimated,
+              'curvature_dropped': result.dropped, 'overrides': overrides}
     report['curvature_judgment_followed'] = result.followed
     report['curvature_judged_otherwise_on_stamps'] = result.judged_otherwise
     report['law_switches_followed'] = result.law_switches
@@ -105,9 +106,12 @@ def offline(args: argparse.Namespace) -> int:
               f'{", ".join(f"{k}={v!r}" for k, v in filled.items())}; -p NAME=VALUE sets '
               'another)')
     if result.estimated:
+        dropped = (f'; in {result.dropped} of them it was received and dropped: the map '
+                   'check found it far off the yaw rate, lane_keeping.map_fallback'
+                   if result.dropped else '')
         print(f'replay: the law ran on its curvature estimate in {result.estimated} of '
               f'{len(result.commands)} answers (road_curvature not in the bag, or stamped '
-              'more than safety.input_timeout before the lateral error: lost)')
+              f'more than safety.input_timeout before the lateral error: lost{dropped})')
     if result.judged_otherwise:
         print("replay: the re-run took the recorded controller's own judgment of the "
               f'curvature (its {run.controller_node}/debug) in {result.followed} '

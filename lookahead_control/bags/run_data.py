@@ -621,8 +621,10 @@ class Rerun:
     :param rms_diff: RMS of the differences [rad].
     :param order: ``stamp`` (lockstep: inputs of a step first) or ``receive``.
     :param estimated: answers of a law that ran on its own curvature estimate (no
-        ``road_curvature`` received, or lost).
+        ``road_curvature`` received, lost, or dropped by the map check).
     :param estimated_at: their stamps.
+    :param dropped: of those, the answers with the curvature received but dropped by the
+        map check (``lane_keeping.map_fallback``).
     :param followed: answers where the re-run took the recorded controller's own
         judgment of the curvature (its debug ``curvature_estimated``) instead of judging
         it on the stamps.
@@ -675,6 +677,7 @@ class Rerun:
     coalesced_skipped: int = 0
     coalesced_lost: int = 0
     unreceived_skipped: int = 0
+    dropped: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -753,6 +756,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                              int(run.steering.stamp_ns[last]))
     commands: dict[int, Command] = {}
     estimated_at: set[int] = set()
+    dropped = 0
     judged = recorded_judgment(run)
     # a law set at run time: the node's debug names the law of each answer (an override
     # of ``law`` runs that law throughout)
@@ -815,13 +819,14 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                 estimates = getattr(core.law, 'curvature_estimated', None)
                 if estimates is not None and estimates():
                     estimated_at.add(command.stamp_ns)
+                    dropped += core.curvature_in and core.map_check.dropped
     recorded = {stamp: v['angle'] for stamp, v in run.steering.by_stamp().items()}
     diffs = [abs(recorded[s] - c.steering) for s, c in commands.items() if s in recorded]
     return Rerun(commands, len(diffs), max(diffs, default=math.nan),
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
                  switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
-                 last_refusal, len(coalesced), coalesced_lost, len(unreceived))
+                 last_refusal, len(coalesced), coalesced_lost, len(unreceived), dropped)
 
 
 def _unanswered(run: RunData, lateral: Samples, answered: list[int]

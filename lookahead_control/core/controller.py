@@ -281,10 +281,13 @@ class SteeringController:
         #: exactly 0 (``v_y_exactly_zero``: a bridge that does not measure it)
         self.turning: dict[str, float] = {'turning_without_curvature': 0.0,
                                           'v_y_exactly_zero': 0.0,
-                                          'curvature_disagrees': 0.0}
+                                          'curvature_disagrees': 0.0,
+                                          'curvature_dropped': 0.0}
         #: the received curvature against the yaw measurements (``core/map_check.py``):
-        #: seconds of answers with it over its threshold in ``curvature_disagrees``, the
-        #: largest residual since the caller last took it in ``map_residual``
+        #: seconds of answers with it over its threshold in ``curvature_disagrees``, and
+        #: with it dropped (the law on its own estimate, ``lane_keeping.map_fallback``) in
+        #: ``curvature_dropped``; the largest residual since the caller last took it in
+        #: ``map_residual``
         self.map_check = MapCheck()
         self.map_residual = 0.0
         self.timing = InputTiming()
@@ -852,18 +855,24 @@ class SteeringController:
             if float(state.v_y) == 0.0:
                 self.turning['v_y_exactly_zero'] += dt
         self.curvature_in = self.curvature_received(now_ns)
+        note_curvature = getattr(self.law, 'note_curvature', None)
         if self.curvature_in and self.curvature is not None:
+            # a law that estimates a missing curvature drops a map far off (dev-sc35)
+            settings = getattr(self.law, 'settings', None)
+            fallback = getattr(settings, 'map_fallback', 0.0) if note_curvature else 0.0
             residual = self.map_check.step(dt, float(state.eps_r), r, v_x, float(state.rho),
-                                           float(state.y_cg), float(state.v_y))
+                                           float(state.y_cg), float(state.v_y), fallback,
+                                           getattr(settings, 'map_recover', 0.0))
             if abs(residual) > abs(self.map_residual):
                 self.map_residual = residual
             if self.map_check.disagrees:    # (0 after its restart on a gap; dt 0 adds 0)
                 self.turning['curvature_disagrees'] += dt
-        else:
-            self.map_check.reset()
-        note_curvature = getattr(self.law, 'note_curvature', None)
+            if self.map_check.dropped:
+                self.turning['curvature_dropped'] += dt
+        else:       # a curvature lost and back: still dropped until the check is quiet
+            self.map_check.reset(keep_dropped=True)
         if note_curvature is not None:      # a law that estimates a missing curvature
-            note_curvature(self.curvature_in)
+            note_curvature(self.curvature_in and not self.map_check.dropped)
         resets = getattr(self.law, 'resets', 0)
         causes = dict(getattr(self.law, 'restart_causes', {}))
         law = self.law.step(state, self.preview(now_ns), dt)

@@ -211,6 +211,13 @@ class LaneKeepingParams:
         clipped to ``max_lateral_jerk``, and the law previews ``rho_hat + rho_hat' t``
         (its rate feedforward and the drift term's ``T_ff`` ahead) [s]; 0: the
         estimate's rate is taken as 0 (no preview without a curvature).
+    :param map_fallback: the controller's map check (``core/map_check.py``) at this
+        many times its threshold drops the curvature received: the law runs on its own
+        estimate, as without one, until the check has stayed below its threshold for
+        ``map_recover`` (a map off in sign, in scale by a third or more, a curve it does
+        not have); a yaw-rate bias of 0.72 deg/s or more drops it too (at 20 m/s and
+        up; more below, as the threshold grows); 0: never [-].
+    :param map_recover: the time below the threshold that takes the curvature again [s].
     :param delay_prediction: the law acts on the state filter's estimate predicted
         across the transport delay ``filter_delay`` (the filter's model under the
         commands already sent, :meth:`KalmanStateFilter.ahead`), on the road there: the
@@ -259,6 +266,8 @@ class LaneKeepingParams:
     state_filter: str = 'kalman'
     curvature_blend: float = 0.5
     estimate_rate_time: float = 0.5
+    map_fallback: float = 2.5
+    map_recover: float = 1.0
     delay_prediction: bool = False
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
@@ -362,6 +371,10 @@ class LaneKeepingParams:
                     unit='s')
         check_range('lane_keeping.estimate_rate_time', self.estimate_rate_time, 0.0, 10.0,
                     unit='s')
+        _check_off_or_range('lane_keeping.map_fallback', self.map_fallback, (1.0, 100.0),
+                            'x the threshold', 'the map is never dropped',
+                            'would drop a map the check does not call off')
+        check_range('lane_keeping.map_recover', self.map_recover, 0.0, 60.0, unit='s')
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
@@ -1034,7 +1047,8 @@ class CgCompensatedLaw:
         """
         Say whether a road curvature is received for the next steps.
 
-        Without one (never received, or lost) the state filter estimates it and the law
+        Without one (never received, lost, or dropped by the controller's map check,
+        ``map_fallback``) the state filter estimates it and the law
         uses the estimate at the CG where it would use the received curvature (the
         feed-forward and the reference), previewed along its rate (``estimate_rate_time``;
         0: no preview). With ``state_filter: none`` a filter
@@ -1070,7 +1084,8 @@ class CgCompensatedLaw:
         """
         Return the law's state after its last step, for the controller's debug topic.
 
-        ``curvature_estimated`` (1: it ran on its own estimate, no curvature received),
+        ``curvature_estimated`` (1: it ran on its own estimate: no curvature received, or
+        the one received dropped, ``map_fallback``),
         ``rho_used`` (the curvature at the CG it used [1/m]), ``integral`` (the CG-error
         integral's shift of the reference [m]), ``compliance_scale`` (the rear-compliance
         estimate over the model's ``eta``; with ``cg_height`` > 0 over the loaded ``eta`` at

@@ -24,7 +24,10 @@ v_x Delta rho`` under a curvature off by ``Delta rho`` on an arc (a map 20 % off
 3 m/s^2 curve at 30 m/s: 40 mrad), and a pulse of about ``v_x rho`` times the time by
 which a map is ahead or behind. The default law takes the curvature as the truth with the
 look-ahead distance as its lever (dev-probe73: a map 20 % off, 0.74 m off an S-bend at
-30 m/s): the controller tells when the map and the car disagree.
+30 m/s): the controller tells when the map and the car disagree, and at ``fallback``
+times the threshold (a map far off: in sign, in scale by a third, a curve it does not
+have) a law with its own curvature estimate drops the map (``dropped``) until the
+residual has stayed below the threshold for ``recover`` seconds.
 """
 
 from __future__ import annotations
@@ -79,17 +82,36 @@ class MapCheck:
         self._speed = math.inf
         #: the smoothed residual: measured minus predicted relative yaw [rad]
         self.residual = 0.0
+        #: whether the curvature received is dropped (``step``'s ``fallback``)
+        self.dropped = False
+        self._calm = 0.0
+        self._fallback = 0.0
 
-    def reset(self) -> None:
-        """Restart (no curvature, a gap, a slow car): the next step starts again."""
+    def reset(self, keep_dropped: bool = False) -> None:
+        """
+        Restart (no curvature, a gap, a slow car): the next step starts again.
+
+        :param keep_dropped: keep a dropped curvature dropped until the check, started
+            again, has been below the threshold for ``recover`` (a curvature lost for a
+            moment: dev-probe76, a wrong map back in use for 0.24 s after each loss).
+        """
         self._predicted = math.nan
         self._rate = math.nan
         self.residual = 0.0
+        self.dropped = self.dropped and keep_dropped
+        self._calm = 0.0
 
     def step(self, dt: float, eps_r: float, r: float, v_x: float, rho: float,
-             y_cg: float = 0.0, v_y: float = 0.0) -> float:
+             y_cg: float = 0.0, v_y: float = 0.0, fallback: float = 0.0,
+             recover: float = 1.0) -> float:
         """
         Take one measurement and the curvature at the CG received with it.
+
+        With ``fallback`` > 0 a residual of ``fallback`` times the threshold (at its
+        speed) or more sets ``dropped``; it clears once the
+        residual has stayed below the threshold for ``recover`` seconds, at a restart
+        (a gap, a slow car, a non-finite input; not a curvature lost, :meth:`reset`) and
+        when ``fallback`` changes.
 
         :param dt: time since the previous step [s] (0: the same measurement again, a
             timer faster than it: nothing moves; above 1 s: a restart).
@@ -99,6 +121,8 @@ class MapCheck:
         :param rho: curvature received at the CG [1/m].
         :param y_cg: measured CG error [m] (the lane's frame: ``1 / (1 - rho y_cg)``).
         :param v_y: measured lateral velocity [m/s].
+        :param fallback: the multiple of the threshold that drops the curvature; 0: never.
+        :param recover: seconds below the threshold that take it again [s].
         :return: the smoothed residual [rad].
         """
         s = self.settings
@@ -117,6 +141,8 @@ class MapCheck:
         rate = r - along * rho
         if math.isnan(self._predicted) or not 0.0 < dt <= 1.0:
             self._predicted, self._rate, self.residual = eps_r, rate, 0.0
+            self._calm = 0.0
+            self.dropped = self.dropped and 0.0 <= dt <= 1.0   # a gap takes it again
             return self.residual
         # the trapezoid of the last and this step's rate, then the pull to the measurement
         predicted = self._predicted + dt * 0.5 * (self._rate + rate)
@@ -124,7 +150,24 @@ class MapCheck:
         self._predicted, self._rate = predicted, rate
         share = min(1.0, dt / s.smoothing) if s.smoothing > 0.0 else 1.0
         self.residual += share * ((eps_r - predicted) - self.residual)
+        self._judge(dt, abs(self.residual), self.threshold_at(v_x), fallback, recover)
         return self.residual
+
+    def _judge(self, dt: float, size: float, threshold: float, fallback: float,
+               recover: float) -> None:
+        """Drop the curvature, or take it again, on the residual's ``size``."""
+        if fallback != self._fallback:
+            # dev-probe76: map_fallback set to 0 while dropped kept the map dropped for
+            # good; a new setting judges afresh
+            self._fallback, self.dropped, self._calm = fallback, False, 0.0
+        if fallback <= 0.0:
+            return
+        if size >= fallback * threshold:
+            self.dropped, self._calm = True, 0.0
+        elif self.dropped:
+            # below the threshold for recover seconds (recover 0: at once, below it)
+            self._calm = self._calm + dt if size < threshold else 0.0
+            self.dropped = size >= threshold or self._calm < recover
 
     def threshold_at(self, v_x: float) -> float:
         """

@@ -167,6 +167,11 @@ LANE_KEEPING_SPECS = tuple(
         ('estimate_rate_time', 'while the curvature is estimated (no road_curvature), its '
          'rate is the derivative of the estimate through a low pass of this time constant, and '
          'the law previews the estimate along it; 0: rate 0, no preview [s]', 0.0, 10.0),
+        ('map_fallback', "the controller's map check at this many times its threshold "
+         'drops road_curvature: the law runs on its own curvature estimate until the check '
+         'has stayed below its threshold for map_recover; 0: never [-]', 0.0, 100.0),
+        ('map_recover', 'the time the map check stays below its threshold before '
+         'road_curvature is taken again [s]', 0.0, 60.0),
         ('delay_prediction', "act on the state filter's estimate predicted across "
          'filter_delay under the commands already sent, on the road there (for a long '
          'transport delay); needs state_filter kalman', 0.0, 1.0),

@@ -831,10 +831,20 @@ class ControllerNode(LifecycleNode):
                            f'{turning["v_y_exactly_zero"]:.2f} s: {what} '
                            '(docs/vehicle_bridge.md)')
         residual, self.core.map_residual = self.core.map_residual, 0.0
-        if turning['curvature_disagrees'] >= TURNING_WARN:
+        # any drop is told (dev-probe76: a drop after 0.3 s of disagreement was not)
+        if turning['curvature_disagrees'] >= TURNING_WARN or turning['curvature_dropped'] > 0:
             # dev-probe73: a map 20 % off, or 0.5 s ahead or behind, put the default law's
             # CG 0.7-1 m off an S-bend at 30 m/s, worse than no map, and nothing said so
             level = max(level, DiagnosticStatus.WARN)
+            fallback = getattr(getattr(self.core.law, 'settings', None), 'map_fallback', 0.0)
+            if turning['curvature_dropped'] > 0.0:
+                acted = (f'the law {self.core.law_name} dropped the curvature for '
+                         f'{turning["curvature_dropped"]:.2f} s and ran on its own estimate '
+                         f'(lane_keeping.map_fallback {fallback:g} x the threshold)')
+            else:
+                acted = (f'the law {self.core.law_name} takes the curvature as the truth' + (
+                    f' below lane_keeping.map_fallback {fallback:g} x the threshold'
+                    if fallback > 0.0 else ''))
             reasons.append(f'road_curvature disagrees with the yaw rate for '
                            f'{turning["curvature_disagrees"]:.2f} s (relative yaw '
                            f'{residual * 1e3:+.1f} mrad off what the curvature and the yaw rate '
@@ -842,8 +852,7 @@ class ControllerNode(LifecycleNode):
                            f'{self.core.map_check.settings.threshold * 1e3:g} mrad at 20 m/s '
                            'and up): one of the three is off: the curvature (a map off in '
                            'scale or position), the yaw rate (a gyro bias: 0.3 deg/s is 10 '
-                           'mrad), or the relative yaw (a jump, a relocalization); the law '
-                           f'{self.core.law_name} takes the curvature as the truth '
+                           f'mrad), or the relative yaw (a jump, a relocalization); {acted} '
                            '(docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
