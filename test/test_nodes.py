@@ -1032,6 +1032,31 @@ def test_probe74_a_new_bound_counts_for_the_waiting_answer_and_a_deactivation_dr
         node.destroy_node()
 
 
+def _arc(node, steps, scale, first=1):
+    """Feed ``steps`` steps at 100 Hz on an arc at 25 m/s, the curvature at ``scale`` x."""
+    rho = 0.004                         # r = v rho: the yaw rate of the arc
+    for k in range(first, first + steps):
+        feed(node, k * 10_000_000, y=0.0, d=1.96, eps=0.01, r=25.0 * rho, v_x=25.0,
+             v_y=0.0, rho=scale * rho)
+
+
+def _status(node):
+    """Return the node's /diagnostics status and its values by key."""
+    status = node.diagnostics()
+    return status, {kv.key: kv.value for kv in status.values}
+
+
+def _lane_keeping(context, *overrides):
+    """Return an active controller with the default law, on a fake clock."""
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated'),
+        *overrides])
+    node.trigger_configure()
+    node.trigger_activate()
+    return node
+
+
 @pytest.mark.parametrize('scale', [1.0, 0.8])
 def test_probe73_a_road_curvature_that_disagrees_with_the_yaw_rate_is_told(context, scale):
     # dev-probe73: a map 20 % off put the default law's CG 0.7 m off an S-bend at 30 m/s
@@ -1041,13 +1066,9 @@ def test_probe73_a_road_curvature_that_disagrees_with_the_yaw_rate_is_told(conte
     try:
         node.trigger_configure()
         node.trigger_activate()
-        rho = 0.004
-        for k in range(1, 301):             # 3 s at 100 Hz
-            feed(node, k * 10_000_000, y=0.0, d=1.96, eps=0.01, r=25.0 * rho, v_x=25.0,
-                 v_y=0.0, rho=scale * rho)
-        status = node.diagnostics()
+        _arc(node, 300, scale)              # 3 s
+        status, values = _status(node)
         told = 'road_curvature disagrees with the yaw rate' in status.message
-        values = {kv.key: kv.value for kv in status.values}
         residual = float(values['road_curvature residual max [rad]'])
         if scale == 1.0:
             assert not told and abs(residual) < 1e-3, status.message
@@ -1063,20 +1084,11 @@ def test_probe73_a_road_curvature_that_disagrees_with_the_yaw_rate_is_told(conte
 def test_sc35_the_default_law_drops_a_map_far_off_and_says_so(context, fallback):
     # dev-sc35: a map the other way round on an arc at 25 m/s (-2 s x 25 x 2 rho = -400
     # mrad): the default law runs on its own curvature estimate, and /diagnostics says it
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated'),
-        Parameter('lane_keeping.map_fallback', value=fallback)])
+    node = _lane_keeping(context, Parameter('lane_keeping.map_fallback', value=fallback))
     try:
-        node.trigger_configure()
-        node.trigger_activate()
-        rho = 0.004
-        for k in range(1, 301):             # 3 s at 100 Hz
-            feed(node, k * 10_000_000, y=0.0, d=1.96, eps=0.01, r=25.0 * rho, v_x=25.0,
-                 v_y=0.0, rho=-rho)
+        _arc(node, 300, -1.0)               # 3 s
         estimated = dict(node.core.law.debug_values())['curvature_estimated']
-        status = node.diagnostics()
-        values = {kv.key: kv.value for kv in status.values}
+        status, values = _status(node)
         assert status.level == status.WARN and 'disagrees' in status.message
         if fallback:
             assert estimated == 1.0 and float(values['curvature_dropped [s]']) > 2.0
@@ -1091,24 +1103,42 @@ def test_sc35_the_default_law_drops_a_map_far_off_and_says_so(context, fallback)
 def test_probe76_a_drop_is_told_even_after_less_than_0_5_s_of_disagreement(context):
     # dev-probe76: a drop after 0.33 s of disagreement showed only in the KeyValues; the
     # message waits for 0.5 s of disagreement in a report period
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True), Parameter('law', value='cg_compensated')])
+    node = _lane_keeping(context)
     try:
-        node.trigger_configure()
-        node.trigger_activate()
-        rho = 0.004
-        for k in range(1, 101):             # 1 s on the right map
-            feed(node, k * 10_000_000, y=0.0, eps=0.01, r=25.0 * rho, v_x=25.0, v_y=0.0,
-                 rho=rho)
+        _arc(node, 100, 1.0)                # 1 s on the right map
         assert 'disagrees' not in node.diagnostics().message
-        for k in range(101, 131):           # 0.3 s of a map the other way round
-            feed(node, k * 10_000_000, y=0.0, eps=0.01, r=25.0 * rho, v_x=25.0, v_y=0.0,
-                 rho=-rho)
-        status = node.diagnostics()
-        values = {kv.key: kv.value for kv in status.values}
+        _arc(node, 30, -1.0, first=101)     # 0.3 s of a map the other way round
+        status, values = _status(node)
         assert float(values['curvature_disagrees [s]']) < 0.5
         assert float(values['curvature_dropped [s]']) > 0.0
         assert status.level == status.WARN and 'dropped the curvature for' in status.message
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('swing', [0.0, 0.3])
+def test_probe73_a_steering_that_oscillates_is_told(context, swing):
+    # dev-probe73: a steering limit cycle from an actuator delay beyond the law's margin
+    # went untold. A lateral error and a relative yaw swinging +-0.3 m and +-45 mrad at
+    # 1.5 Hz for 6 s: the paper law's commands swing +-29 mrad, /diagnostics WARNs with
+    # the amplitude and the frequency; none without
+    node = _controller(context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        for k in range(1, 601):
+            phase = math.sin(2 * math.pi * 1.5 * k * 0.01)
+            feed(node, k * 10_000_000, y=swing * phase, eps=0.15 * swing * phase, rho=0.0,
+                 r=0.0, v_y=0.0)
+        status, values = _status(node)
+        told = 'steering oscillates' in status.message
+        if swing:
+            assert told and status.level == status.WARN, status.message
+            assert float(values['steering_oscillates [s]']) > 2.0
+            assert float(values['steering oscillation frequency [Hz]']) == pytest.approx(
+                1.5, abs=0.1)
+            assert float(values['steering oscillation max [rad]']) > 0.015
+        else:
+            assert not told and float(values['steering oscillation max [rad]']) == 0.0
     finally:
         node.destroy_node()

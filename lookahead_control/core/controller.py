@@ -31,6 +31,7 @@ from lookahead_control.core.control_law import cg_error_from, LateralState, LawO
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
+from lookahead_control.core.oscillation_check import OscillationCheck
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
 from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
                                            SafetyParams, stale_target)
@@ -282,7 +283,8 @@ class SteeringController:
         self.turning: dict[str, float] = {'turning_without_curvature': 0.0,
                                           'v_y_exactly_zero': 0.0,
                                           'curvature_disagrees': 0.0,
-                                          'curvature_dropped': 0.0}
+                                          'curvature_dropped': 0.0,
+                                          'steering_oscillates': 0.0}
         #: the received curvature against the yaw measurements (``core/map_check.py``):
         #: seconds of answers with it over its threshold in ``curvature_disagrees``, and
         #: with it dropped (the law on its own estimate, ``lane_keeping.map_fallback``) in
@@ -290,6 +292,12 @@ class SteeringController:
         #: ``map_residual``
         self.map_check = MapCheck()
         self.map_residual = 0.0
+        #: the steering sent checked for a sustained oscillation (an actuator delay
+        #: beyond the law's margin, ``core/oscillation_check.py``): seconds of answers
+        #: with it in ``steering_oscillates``, the largest ``(amplitude [rad], frequency
+        #: [Hz])`` since the caller last took it in ``oscillation_seen``
+        self.oscillation = OscillationCheck()
+        self.oscillation_seen = (0.0, 0.0)
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
@@ -444,6 +452,7 @@ class SteeringController:
             self._hold_value = self._rate_angle
         self.law.reset()
         self.map_check.reset()
+        self.oscillation.reset()
         self._law_stamp = None
 
     def seed_output(self, angle: float, stamp_ns: int) -> None:
@@ -846,6 +855,8 @@ class SteeringController:
         if state is None or self.lateral is None:
             return None
         stamp = self.lateral.stamp_ns
+        if self._law_stamp is None:     # a start, or after the safe command: swings apart
+            self.oscillation.reset()    # (dev-probe77: counted as one run across a gap)
         dt = 0.0 if self._law_stamp is None else max(0, stamp - self._law_stamp) * 1e-9
         self._law_stamp = stamp
         v_x, r = float(state.v_x), float(state.r)
@@ -891,6 +902,10 @@ class SteeringController:
         wanted = raw if weight >= 1.0 else weight * raw + (1.0 - weight) * hold
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
+        if self.oscillation.step(dt, self.last.steering):
+            self.turning['steering_oscillates'] += dt
+            if self.oscillation.amplitude > self.oscillation_seen[0]:
+                self.oscillation_seen = (self.oscillation.amplitude, self.oscillation.frequency)
         if weight >= 1.0:
             # the command sent, not the law's: a command the angle limit cut at speed was
             # held at its uncut size as the speed fell and the limit widened (dev-probe58:

@@ -854,6 +854,17 @@ class ControllerNode(LifecycleNode):
                            'scale or position), the yaw rate (a gyro bias: 0.3 deg/s is 10 '
                            f'mrad), or the relative yaw (a jump, a relocalization); {acted} '
                            '(docs/safety.md)')
+        swing, self.core.oscillation_seen = self.core.oscillation_seen, (0.0, 0.0)
+        if turning['steering_oscillates'] >= TURNING_WARN:
+            # dev-probe73: from about 90 ms of actuator delay the default law's steering
+            # swings +-56 mrad at 1.5 Hz at 37 m/s, the CG within 1.1 cm: nothing told it
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'steering oscillates for {turning["steering_oscillates"]:.2f} s '
+                           f'(+-{swing[0] * 1e3:.0f} mrad at {swing[1]:.2f} Hz): an actuator '
+                           "delay beyond the law's margin (about 90 ms for cg_compensated: "
+                           'set lane_keeping.delay_prediction with filter_delay at the '
+                           "car's delay), a road that swings that fast, or the law ringing "
+                           'after a jump of its inputs (docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
@@ -868,6 +879,9 @@ class ControllerNode(LifecycleNode):
         if latency is not None:
             values.append(KeyValue(key='answer latency max [s]', value=f'{latency:.6f}'))
         values.append(KeyValue(key='road_curvature residual max [rad]', value=f'{residual:.6f}'))
+        values.append(KeyValue(key='steering oscillation max [rad]', value=f'{swing[0]:.6f}'))
+        values.append(KeyValue(key='steering oscillation frequency [Hz]',
+                               value=f'{swing[1]:.3f}'))
         values += [KeyValue(key=f'rejected {k}', value=str(v))
                    for k, v in sorted(self.core.rejected.items())]
         # what the car taught the law's compliance estimate, over the model's (a memory
