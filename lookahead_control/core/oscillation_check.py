@@ -62,7 +62,7 @@ class OscillationCheckParams:
 
 
 class OscillationCheck:
-    """Swings of the steering sent, from one side of its low pass to the other."""
+    """Swings of the steering sent, its high pass from one side to the other."""
 
     def __init__(self, settings: OscillationCheckParams | None = None) -> None:
         """
