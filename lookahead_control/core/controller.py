@@ -452,8 +452,7 @@ class SteeringController:
             self._hold_value = self._rate_angle
         self.law.reset()
         self.map_check.reset()
-        self.oscillation.reset()
-        self._law_stamp = None
+        self._law_stamp = None          # (the oscillation check restarts with it)
 
     def seed_output(self, angle: float, stamp_ns: int) -> None:
         """

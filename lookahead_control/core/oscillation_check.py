@@ -30,6 +30,7 @@ only as fast as the road does: a slalom is told too. Calibrated offline
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 import math
 
@@ -75,16 +76,10 @@ class OscillationCheck:
         self._low_high = 0.0            # ... of the command's first high pass [rad]
         self._side = 0
         self._since = 0.0       # time since the last swing (or the start) [s]
-        self._run: list[float] = []     # the intervals between the swings in a row [s]
         self._peak = 0.0        # the largest |high pass| since the last swing [rad]
-        self._peaks: list[float] = []
-        #: whether the command oscillates (``swings`` in a row)
-        self.oscillating = False
-        #: the oscillation's frequency [Hz] and the command's amplitude [rad]: the mean
-        #: high-passed peak over the high passes' gain at that frequency (0 when it does
-        #: not oscillate)
-        self.frequency = 0.0
-        self.amplitude = 0.0
+        # the last swings in a row: their intervals [s] and high-passed peaks [rad]
+        self._run: deque[float] = deque(maxlen=self.settings.swings)
+        self._peaks: deque[float] = deque(maxlen=self.settings.swings)
 
     def reset(self) -> None:
         """Restart (a gap, a restart of the law, a safe command): the next step starts."""
@@ -92,8 +87,28 @@ class OscillationCheck:
         self._side, self._since, self._peak = 0, 0.0, 0.0
         self._run.clear()
         self._peaks.clear()
-        self.oscillating = False
-        self.frequency = self.amplitude = 0.0
+
+    @property
+    def oscillating(self) -> bool:
+        """Return whether the command oscillates (``swings`` in a row)."""
+        return len(self._run) >= self.settings.swings
+
+    @property
+    def frequency(self) -> float:
+        """Return the oscillation's frequency [Hz] (0 when it does not oscillate)."""
+        return len(self._run) / (2.0 * sum(self._run)) if self.oscillating else 0.0
+
+    @property
+    def amplitude(self) -> float:
+        """
+        Return the command's amplitude [rad] (0 when it does not oscillate).
+
+        The mean high-passed peak over the two high passes' gain at the frequency.
+        """
+        if not self.oscillating:
+            return 0.0
+        wt = (2.0 * math.pi * self.frequency * self.settings.low_pass) ** 2
+        return sum(self._peaks) / len(self._peaks) * (1.0 + wt) / wt
 
     def step(self, dt: float, steering: float) -> bool:
         """
@@ -130,16 +145,8 @@ class OscillationCheck:
             if self._side and self._since <= s.half_period:     # a swing in time
                 self._run.append(self._since)
                 self._peaks.append(self._peak)
-                del self._run[:-s.swings], self._peaks[:-s.swings]
             self._side, self._since, self._peak = side, 0.0, abs(high)
         if self._since > s.half_period:  # no swing in time: the row ends
             self._run.clear()
             self._peaks.clear()
-        self.oscillating = len(self._run) >= s.swings
-        if self.oscillating:
-            self.frequency = len(self._run) / (2.0 * sum(self._run))
-            wt = (2.0 * math.pi * self.frequency * s.low_pass) ** 2
-            self.amplitude = sum(self._peaks) / len(self._peaks) * (1.0 + wt) / wt
-        else:
-            self.frequency = self.amplitude = 0.0
         return self.oscillating
