@@ -38,11 +38,12 @@ VEHICLE = load_vehicle(None)
 CONTROLLER = ControllerParams()
 #: the previous default (dev-wnflat): w_n falling to 3 rad/s below 12.9 m/s, no clip,
 #: no demand limit
-OLD = LaneKeepingParams(low_speed_frequency=3.0, approach_heading=0.0, demand_limit=0.0)
+OLD = LaneKeepingParams(low_speed_frequency=3.0, approach_heading=0.0, demand_limit=0.0,
+                        side_force=0.0)
 #: w_n 7 at every speed without the clip (f8dd7e1, withdrawn: it lost the lane from
 #: 1.2-2 m off at 4-12 m/s, dev-probe33), as it was: no demand limit
 UNCLIPPED = LaneKeepingParams(low_speed_frequency=7.0, approach_heading=0.0,
-                              demand_limit=0.0)
+                              demand_limit=0.0, side_force=0.0)
 SPEEDS = [5.0, 7.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0]
 
 

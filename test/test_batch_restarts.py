@@ -22,6 +22,7 @@ right after, and with ``state_filter: none`` a run's curvature estimate must sta
 where its single run's does.
 """
 
+from dataclasses import replace
 import math
 
 from lookahead_control.core.control_law import LateralState
@@ -36,16 +37,28 @@ RHO = -1.0 / 400.0
 FIELDS = ('y_cg', 'eps_r', 'v_y', 'r', 'v_x', 'rho')
 
 
-def _drive(settings, inputs):
+def _retuned(old, settings):
+    """Return a fresh law with ``settings`` that took over from ``old`` (a retune)."""
+    new = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
+    new.reset()
+    new.take_over(old)
+    return new
+
+
+def _drive(settings, inputs, plan=None):
     """
     Run a batch and its single runs on the same steps; return the first mismatch.
 
     :param inputs: per step ``(values, received, dt)``: arrays over the runs.
+    :param plan: ``{step: settings}``: retunes before those steps (all runs alike).
     :return: None, or ``(step, run, batch's steering, single's steering)``.
     """
     batch = CgCompensatedLaw(VEHICLE, ControllerParams(), settings)
     singles = [CgCompensatedLaw(VEHICLE, ControllerParams(), settings) for _ in range(RUNS)]
     for k, (values, received, dt) in enumerate(inputs):
+        if plan and k in plan:
+            batch = _retuned(batch, plan[k])
+            singles = [_retuned(single, plan[k]) for single in singles]
         state = LateralState(values['y_cg'], values['eps_r'], values['v_y'], values['r'],
                              values['v_x'], values.get('a_x', np.zeros(RUNS)), values['rho'],
                              np.zeros(RUNS))
@@ -110,6 +123,18 @@ def test_without_the_state_filter_a_run_s_first_estimate_starts_as_its_single_ru
     steps = _steps(np.random.default_rng(5), 250,
                    lambda k: np.array([k < 50, k < 150, True]))
     assert _drive(LaneKeepingParams(state_filter='none'), steps) is None
+
+
+@pytest.mark.parametrize('share', [0.0, 0.5])
+@pytest.mark.parametrize('before', [1, 2, 5])
+def test_probe79_a_run_restarted_just_before_a_side_force_retune(share, before):
+    # dev-probe79: run 1 restarted (a NaN) a step before side_force 1 -> 0 / 0.5: the
+    # batch kept that run's side-force shift from before the restart, which its single
+    # run's reset() clears, and moved it into the integral (0.42 / 0.25 mrad apart)
+    base = LaneKeepingParams()
+    steps = _steps(np.random.default_rng(3), 200, lambda k: np.ones(RUNS, bool),
+                   nan_at=[(100 - before, 1)])
+    assert _drive(base, steps, {100: replace(base, side_force=share)}) is None
 
 
 def _fuzzed(seed, count=250, a_x=0.0):

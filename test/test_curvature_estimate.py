@@ -206,11 +206,13 @@ def test_with_curvature_received_the_runs_are_those_of_the_old_code():
     for name, total, settings in (
             # (dev-sc34: the integral sums the measured y_cg; before, -18.67866522659203
             # and -0.1944498962871857)
+            # (side_force 0: the law before dev-sc36)
             ('s2_curve_entry', -18.678799055886273,
              LaneKeepingParams(state_preview=0.0, compliance_memory=0.0,
-                               curvature_smoothing=0.0)),
+                               curvature_smoothing=0.0, side_force=0.0)),
             ('s0_straight', -0.19385351996716746,
-             LaneKeepingParams(compliance_memory=0.0, curvature_smoothing=0.0))):
+             LaneKeepingParams(compliance_memory=0.0, curvature_smoothing=0.0,
+                               side_force=0.0))):
         scenario = load_scenarios([name])[name]
         result = run(scenario, VEHICLE, Told(settings), PlantParams(model='nonlinear'),
                      initial_speed=37.0, dt=0.001, delay=0.02, preview_distance=100.0,

@@ -314,15 +314,21 @@ def test_an_error_standing_outside_the_band_is_integrated_after_the_band_time():
         LaneKeepingParams(integral_band_time=-1.0)
 
 
-def _standing_crosswind(force, band_time):
-    """Return the CG error under a crosswind stepped on at 2 s (goal plant, 37 m/s)."""
+def _standing_crosswind(force, band_time, side_force=0.0):
+    """
+    Return the CG error under a crosswind stepped on at 2 s (goal plant, 37 m/s).
+
+    The integral's band alone: without the side force in the reference (dev-sc36) unless
+    ``side_force`` says.
+    """
     import dataclasses
     from lookahead_control.tools.compare import load_scenarios
     from sim_plant.sensors import NoiseParams
     scenario = dataclasses.replace(load_scenarios(['s0_straight'])['s0_straight'],
                                    duration=20.0)
     law = CgCompensatedLaw(VEHICLE, CONTROLLER,
-                           LaneKeepingParams(integral_band_time=band_time))
+                           LaneKeepingParams(integral_band_time=band_time,
+                                             side_force=side_force))
     return run(scenario, VEHICLE, law, PlantParams(model='nonlinear'), initial_speed=37.0,
                initial_error=0.0, dt=0.001, delay=0.02, preview_distance=100.0,
                noise=NoiseParams(), seed=1,
@@ -337,6 +343,9 @@ def test_a_crosswind_that_puts_the_cg_outside_the_band_at_once_is_removed():
     y = _standing_crosswind(3000.0, 2.0)
     assert abs(y[-100:].mean()) < 0.25
     assert abs(_standing_crosswind(3000.0, 0.0)[-100:].mean()) > 0.5
+    # the default takes the force into the reference (side_force, dev-sc36): the CG does
+    # not stand outside the band, and the integral's band matters no more here
+    assert abs(_standing_crosswind(3000.0, 0.0, side_force=1.0)[-100:].mean()) < 0.02
 
 
 def test_the_band_description_says_what_0_does():

@@ -119,11 +119,13 @@ def test_share_0_is_the_law_before_it():
     # figures of the code before the lead (2dfcd0d), to 1e-12 (a reduction's rounding
     # may differ between CPUs); likewise with the preview but no feedforward_preview.
     # Without the compliance memory (0 is the estimator before it, dev-memory) and the
-    # polygon as received (curvature_smoothing 0, the law before it)
+    # polygon as received (curvature_smoothing 0, the law before it), without the side
+    # force (side_force 0, dev-sc36)
     scen = load_scenarios(['s3_s_bend'])['s3_s_bend']
     for settings in (LaneKeepingParams(state_preview=0.0, compliance_memory=0.0,
-                                       curvature_smoothing=0.0),
-                     LaneKeepingParams(feedforward_preview=0.0, state_preview=3.0)):
+                                       curvature_smoothing=0.0, side_force=0.0),
+                     LaneKeepingParams(feedforward_preview=0.0, state_preview=3.0,
+                                       side_force=0.0)):
         law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
         result = run(scen, VEHICLE, law, NONLINEAR, dt=DT, preview_distance=PREVIEW_DISTANCE,
                      delay=DELAY, initial_speed=30.0)

@@ -218,6 +218,18 @@ class LaneKeepingParams:
         not have); a yaw-rate bias of 0.72 deg/s or more drops it too (at 20 m/s and
         up; more below, as the threshold grows); 0: never [-].
     :param map_recover: the time below the threshold that takes the curvature again [s].
+    :param side_force: share of the state filter's rear-axle force disturbance taken as
+        a side force (a crosswind, a bank) into the reference: the relative yaw
+        ``-F_r / C_r`` the car holds against it with the CG on the lane
+        (:meth:`CgCompensatedLaw._side_force`). It fades on a curve as ``p^2 / (a^2 +
+        p^2)`` with the lane's lateral acceleration ``a`` (``p``: ``compliance_prior``):
+        there the force is the tyres' softening, which the compliance estimate carries.
+        Without the state filter there is no force estimate and no share; 0: the
+        integral alone removes a side force (a 1.5 kN crosswind step at 37 m/s on the
+        goal plant: 25 cm, with it 11 cm; docs/lane_keeping.md, "Side forces") [-].
+    :param side_force_filter: low pass of that relative yaw [s]; the force estimate is
+        noisy (S0 at 37 m/s, 8 seeds, steering noise 1.08 mrad without the side force,
+        1.20 at 0.2 s, 1.41 at 0.1 s with the yaw rebound at 50 %, 2.6 unfiltered).
     :param delay_prediction: the law acts on the state filter's estimate predicted
         across the transport delay ``filter_delay`` (the filter's model under the
         commands already sent, :meth:`KalmanStateFilter.ahead`), on the road there: the
@@ -268,6 +280,8 @@ class LaneKeepingParams:
     estimate_rate_time: float = 0.5
     map_fallback: float = 2.5
     map_recover: float = 1.0
+    side_force: float = 1.0
+    side_force_filter: float = 0.2
     delay_prediction: bool = False
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
@@ -375,6 +389,9 @@ class LaneKeepingParams:
                             'x the threshold', 'the map is never dropped',
                             'would drop a map the check does not call off')
         check_range('lane_keeping.map_recover', self.map_recover, 0.0, 60.0, unit='s')
+        check_range('lane_keeping.side_force', self.side_force, 0.0, 1.0)
+        check_range('lane_keeping.side_force_filter', self.side_force_filter, 0.0, 5.0,
+                    unit='s')
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
@@ -717,7 +734,7 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        lead_time: float = 0.0,
                        lead_ff_rate: Optional[Real] = None,
                        gains: Optional[tuple[Real, Real]] = None,
-                       approach_heading: float = 0.0) -> LawOutput:
+                       approach_heading: float = 0.0, yaw_offset: Real = 0.0) -> LawOutput:
     """
     Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
 
@@ -775,7 +792,7 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     # d/dt (alpha_r(v_x^2 rho) - l_2 rho), alpha_r' = tangent (v_x^2 rho)'
     eps_ss_rate = (tangent * (2.0 * v_x * state.a_x * rho_ref + v_x * v_x * rho_ref_rate)
                    - vehicle.l2 * rho_ref_rate)
-    y_ref = d_v * eps_ss - offset
+    y_ref = d_v * (eps_ss + yaw_offset) - offset
     y_ref_rate = d_v_rate * eps_ss + d_v * eps_ss_rate - offset_rate
     f_v, beta_1 = drift_term(state._replace(rho=rho_ff, rho_rate=rho_ff_rate), vehicle,
                              d_v, d_v_rate, v_x)
@@ -802,6 +819,14 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                      f_v, beta_1)
 
 
+#: after a retune, the side force's changes move out of the integral for this long [s]:
+#: a filter restarted by it converges in about a second (dev-probe79)
+SIDE_HANDOVER = 1.5
+#: [rad/s] the side force's share halves at this rotation relative to the lane: a yaw
+#: gust of 6 kN m for 0.5 s on mu 0.4 at 30 / 37 m/s put the CG 1.2 / 1.9 m off without
+#: it (0.21 / 0.26 without the side force), 0.22 / 0.29 with it; the cost, a 1.5 kN
+#: crosswind step at 37 m/s 10.3 -> 11.4 cm (noise-free; 0.1 rad/s: 0.38 / 0.51 m)
+SIDE_ROTATION = 0.03
 #: the measured CG error the integral sums stays this close to the state filter's
 #: estimate [m]: a sensor bias (centimetres) passes, an outlier does not
 MEASURED_BAND = 0.1
@@ -897,6 +922,16 @@ class CgCompensatedLaw:
         #: the curvature seen at the CG over the last ``curvature_smoothing`` metres
         self._history = (CurvatureHistory(st.curvature_smoothing)
                          if st.curvature_smoothing > 0.0 else None)
+        #: the side force's relative yaw (low-passed); None or NaN: from the next target
+        self._side: Optional[Real] = None
+        #: its shift of the reference at the last step, ``d_v`` times it [m]
+        self._side_shift: Real = 0.0
+        #: after a retune, the time left in which the side force's changes move out of
+        #: the integral (:meth:`_take_over_side`) [s]
+        self._handover_left: Real = 0.0
+        #: a step has run since the start or the last reset (a retune before it is a
+        #: start; an array over a batch, False for the runs restarted)
+        self._stepped: Any = False
         self.resets = 0
         #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
         #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
@@ -920,6 +955,10 @@ class CgCompensatedLaw:
         self._blend_offset = self._blend_left = self._steer_offset = 0.0
         self._rate_last, self._rate = None, 0.0
         self._inverse = self._inverse_ff = None
+        self._side = None
+        self._side_shift = 0.0
+        self._handover_left = 0.0
+        self._stepped = False
         if self._history is not None:
             self._history.clear()
         self.resets += 1
@@ -1015,6 +1054,7 @@ class CgCompensatedLaw:
             self.curvature_filter.take_over(old.curvature_filter, same_vehicle)
             self._curvature_runs = old._curvature_runs
             carried.append('curvature filter')
+        self._take_over_side(old, carried)
         if self._history is not None and old._history is not None:
             # the road behind: the new half-width keeps what it reaches of it
             self._history.copy_from(old._history)
@@ -1024,6 +1064,48 @@ class CgCompensatedLaw:
             self._inverse, self._inverse_ff = old._inverse, old._inverse_ff
             carried.append('exact inverse')
         return carried, restarted
+
+    def _take_over_side(self, old: 'CgCompensatedLaw', carried: list[str]) -> None:
+        """
+        Carry the side force's shift of the reference across a retune (:meth:`take_over`).
+
+        The integral holds the same kind of reference shift (``y_ref = d_v (eps_ss +
+        side) - I``), so the shift moves through it: for :data:`SIDE_HANDOVER` after the
+        retune every change of the new law's shift from the old one's moves into the
+        integral (its first value, the new share's, the estimate of a filter that
+        restarted converging); switched off, the old shift moves into it at once. The
+        reference stays where it was and the integral gives up what the side force takes
+        over. A retune before the old law's first step (or after its restart) is a
+        start: nothing moves. dev-probe78 and dev-probe79 found, in a
+        1.5 kN crosswind at 37 m/s: 1 -> 0 stepped the command by 12.2 mrad, 0 -> 1
+        took the stale value of the last switch-off, 1 -> 0.5 moved the CG 11.8 cm and
+        ``state_filter`` none -> kalman 24.6 cm (the integral held the wind and the new
+        filter's estimate counted it again). Within ``integral_limit``; with
+        ``integral_gain`` 0 nothing moves (the shift is dropped or taken at once).
+
+        :param old: the law before the retune.
+        :param carried: the parts carried, for the node's log (appended to).
+        """
+        stepped = self._stepped = old._stepped
+        if not np.any(stepped):
+            return              # nothing ran: the new law starts as a fresh one
+        was_on = old.state_filter is not None and old.settings.side_force > 0.0
+        now_on = self.state_filter is not None and self.settings.side_force > 0.0
+        if now_on and was_on and old._side is not None and self.state_filter is not None \
+                and self.state_filter.x is not None:
+            self._side = old._side          # the low pass goes on from the old value
+            carried.append('side force')
+        # the shift the reference holds now; switched on, the new law's moves out of the
+        # integral from its first step; switched off, it moves in at once
+        self._side_shift = old._side_shift if was_on else 0.0
+        if self.settings.integral_gain <= 0.0:
+            return
+        if now_on:
+            self._handover_left = xp.where(stepped, SIDE_HANDOVER, 0.0)
+        elif was_on:
+            limit = self.settings.integral_limit
+            self.integral = xp.clip(self.integral - old._side_shift, -limit, limit)
+            self._side_shift = 0.0
 
     def start(self) -> None:
         """
@@ -1095,7 +1177,9 @@ class CgCompensatedLaw:
         clipped, ``approach_heading``), ``memory_generation`` (a number that changes
         whenever the memory starts from its seed again: a restart, a new law, a retune
         that restarted the estimate), ``memory_weight`` (how much of the memory is
-        learned rather than its seed, 0-1). One run (not a batch).
+        learned rather than its seed, 0-1), ``side_force_yaw`` (the side force's shift
+        of the reference's relative yaw [rad], ``side_force``; 0 while off). One run
+        (not a batch).
 
         :return: ``(name, value)`` pairs.
         """
@@ -1107,7 +1191,8 @@ class CgCompensatedLaw:
                 ('compliance_memory', one(self.estimator.memory()) / self.vehicle.eta),
                 ('demand_capped', one(self.capped)), ('approach_clipped', one(self.clipped)),
                 ('memory_generation', float(self.estimator.generation)),
-                ('memory_weight', one(self.estimator.memory_weight()))]
+                ('memory_weight', one(self.estimator.memory_weight())),
+                ('side_force_yaw', 0.0 if self._side is None else one(self._side))]
 
     def note_limited(self, cut: Any) -> None:
         """
@@ -1282,9 +1367,28 @@ class CgCompensatedLaw:
         integral = xp.clip(self.integral + rate * dt, -s.integral_limit, s.integral_limit)
         # the compliance at the rear axle's load under the a_x the law linearizes at
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref, law_state.a_x)
+        # the side force is held where the integral is, and while the CG is outside the
+        # integral's band: an error that large is a slide or a gust, not a steady force
+        # (dev-sc36: a 6 kN m yaw gust on mu 0.4 at 37 m/s, 0.26 -> 1.5 m)
+        near = _not(outside) if s.integral_band > 0.0 else True
+        yaw_offset = self._side_force(state, v_x, dt, active & near)
+        handing = np.greater(self._handover_left, 0.0)
+        if np.any(handing):
+            # after a retune: the side force's change moves out of the integral (its d_v
+            # as evaluate() takes it), the reference stays (_take_over_side)
+            d_v = look_ahead(xp.maximum(law_state.v_x, self.controller.min_speed),
+                             law_state.a_x, loaded_vehicle(self.vehicle, law_state.a_x),
+                             self.controller)[0]
+            moved = d_v * yaw_offset - self._side_shift
+            integral = xp.clip(integral + xp.where(handing & _finite(moved), moved, 0.0),
+                               -s.integral_limit, s.integral_limit)
+            self._handover_left = xp.maximum(self._handover_left - dt, 0.0)
         out = self.evaluate(law_state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
                             integral, rate, secant, tangent, lead_rate, lead_ff_rate,
-                            max(s.feedforward_preview - ahead, 0.0))
+                            max(s.feedforward_preview - ahead, 0.0), yaw_offset)
+        shift = out.d_v * yaw_offset
+        self._side_shift = xp.where(_finite(shift), shift, 0.0)
+        self._stepped = True
         if self._blending is not None:
             # what the curvature does not carry (its rate, the preview) blends on the
             # command: the jump at the switch-over taken out over the same time
@@ -1320,6 +1424,11 @@ class CgCompensatedLaw:
             self.clipped = np.where(finite, clipped, False)
             self.capped = np.where(finite, capped, False)
             self._restarted = ~finite
+            if self._side is not None:      # restarted: from the next target
+                self._side = np.where(finite, self._side, math.nan)
+            self._side_shift = np.where(finite, self._side_shift, 0.0)
+            self._handover_left = np.where(finite, self._handover_left, 0.0)
+            self._stepped = finite
             if self._blending is not None:
                 self._blend_left = np.where(finite, self._blend_left, 0.0)
             self.estimator.forget(~finite)
@@ -1350,8 +1459,8 @@ class CgCompensatedLaw:
     def evaluate(self, state: LateralState, dt: float, rho_ref: Real, rho_ref_rate: Real,
                  rho_ff: Real, rho_ff_rate: Real, offset: Real, offset_rate: Real,
                  secant: Real, tangent: Real, lead_rate: Optional[Real],
-                 lead_ff_rate: Optional[Real], lead_time: Optional[float] = None
-                 ) -> LawOutput:
+                 lead_ff_rate: Optional[Real], lead_time: Optional[float] = None,
+                 yaw_offset: Real = 0.0) -> LawOutput:
         """
         Return the law's output at this step from the values :meth:`step` worked out.
 
@@ -1388,7 +1497,8 @@ class CgCompensatedLaw:
                                  lead_time=(s.feedforward_preview if lead_time is None
                                             else lead_time),
                                  lead_ff_rate=lead_ff_rate,
-                                 approach_heading=s.approach_heading)
+                                 approach_heading=s.approach_heading,
+                                 yaw_offset=yaw_offset)
         if s.exact_inverse <= 0.0:
             return out
         # the exact inverse of the zero dynamics (core/cg_reference.py): its relative yaw
@@ -1419,7 +1529,7 @@ class CgCompensatedLaw:
                                            damping, ff_rate)[1]
                         - v_x * rho_ff_rate - state.a_x * rho_ff)
         y_ref_rate = out.y_v_rate - out.error_rate
-        y_ref = out.y_ref + share * (out.d_v * eps - offset - out.y_ref)
+        y_ref = out.y_ref + share * (out.d_v * (eps + yaw_offset) - offset - out.y_ref)
         y_ref_rate = y_ref_rate + share * (out.d_v_rate * eps + out.d_v * (r - v_x * rho_ref)
                                            - offset_rate - y_ref_rate)
         error, error_rate = out.y_v - y_ref, out.y_v_rate - y_ref_rate
@@ -1430,6 +1540,58 @@ class CgCompensatedLaw:
                     - k_d * error_rate) / out.beta_1
         return out._replace(steering=steering, y_ref=y_ref, error=error,
                             error_rate=error_rate)
+
+    def _side_force(self, state: LateralState, v_x: Real, dt: float, active: Any) -> Real:
+        """
+        Return the relative yaw a side force asks of the car with the CG on the lane.
+
+        The state filter's rear-axle force disturbance ``F_r`` is what the linear rear tyre
+        does not carry; held by the rear slip, it turns the car by ``-F_r / C_r`` (a
+        steady crosswind at the CG: ``-F l_1 / (L C_r)``; the front's share the steering
+        takes). On a curve the same force is the tyres' softening, which the compliance
+        estimate carries in ``eps_ss``: the share fades with the lane's lateral
+        acceleration ``a`` as ``p^2 / (a^2 + p^2)`` (``p`` = ``compliance_prior``), less
+        the part the estimate carries, and with the car's rotation relative to the lane
+        ``r'`` as ``q^2 / (r'^2 + q^2)`` (``q`` = :data:`SIDE_ROTATION`: a yaw gust, a
+        slide). Low-passed over ``side_force_filter``; 0 while the filter restarts.
+
+        :param state: the filtered state (``rho``: the curvature at the CG).
+        :param v_x: the floored speed [m/s].
+        :param dt: time since the previous step [s] (0: nothing advances).
+        :param active: where it is updated (the integral runs, the CG within its band);
+            elsewhere the value is held.
+        :return: the shift of the reference's relative yaw [rad].
+        """
+        s = self.settings
+        if self.state_filter is None or s.side_force <= 0.0:
+            return 0.0
+        vehicle = self.vehicle
+        accel = v_x * v_x * state.rho
+        # what the compliance estimate carries already at the lane's acceleration: its
+        # rear force beyond the linear tyre's (dev-probe78: with the memory at C_r x0.7
+        # the share counted it again, gentle S-bends 2.6 -> 5.3 cm)
+        carried = vehicle.c_r * (vehicle.eta - self.estimator.at(accel, state.a_x)[0]) * accel
+        rear = self.state_filter.disturbance()[1] - carried
+        prior = s.compliance_prior * s.compliance_prior
+        # and with the car's rotation relative to the lane: a yaw gust or a slide turns
+        # it at 0.1-0.3 rad/s (its rear force is the tyres' at their grip, and taken as a
+        # side force it steered the slide further), a crosswind of 3 kN at 37 m/s 0.04
+        turn = state.r - v_x * state.rho
+        rotation = SIDE_ROTATION * SIDE_ROTATION / (turn * turn + SIDE_ROTATION * SIDE_ROTATION)
+        target = (-s.side_force * prior / (accel * accel + prior) * rotation * rear
+                  / vehicle.c_r)
+        target = xp.where(_finite(target), target, 0.0)
+        last: Real = math.nan if self._side is None else self._side
+        step = min(dt / s.side_force_filter, 1.0) if s.side_force_filter > 0.0 else 1.0
+        # held where the integral is (the approach's clip, the steering or demand limit,
+        # a command cut outside the law, below integral_min_speed): a force estimate
+        # taken while the command is not the law's own is the clip's pace, not a force
+        # (dev-sc36: 4 m off on soft tyres at 30 m/s, 50 ms, 14 -> 21 cm of overshoot);
+        # and outside the band
+        self._side = xp.where(_finite(last),
+                              xp.where(active, last + (target - last) * step, last),
+                              xp.where(active, target, 0.0))
+        return self._side
 
     def _predicted(self, state: LateralState, ahead: float, v_x: Real,
                    road: Callable[[float], tuple[Real, Real]]) -> LateralState:

@@ -108,7 +108,7 @@ import itertools
 from numbers import Real
 from typing import Iterable, NamedTuple, Optional
 
-from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.control_law import axle_gains, LateralState
 from lookahead_control.core.lane_keeping import (cg_compensated_law, integral_gain_at,
                                                  LaneKeepingParams, loop_gains)
 from lookahead_control.core.params import ControllerParams, loaded_vehicle, VehicleParams
@@ -1368,7 +1368,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         straight.
     :param integral_frozen: the integral held (the CG error outside ``integral_band``):
         a constant input, not a state, and no ``k_i y_cg`` in the reference's rate; the
-        matrix without it.
+        matrix without it. The side force (``side_force``) is held with it: a constant
+        input too.
     :param approach: the approach phase (``approach_heading``: the CG's offset clipped,
         the integral held): the law without its ``y_cg`` gain, the integral frozen, and
         the matrix without the plant's ``y_cg`` (in the coordinates where the estimate's
@@ -1427,7 +1428,13 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     rated = curvature_estimated and settings.estimate_rate_time > 0.0
     i_rate = i_kin + 2                  # ... and the law's rate of the estimate
     i_buf = i_kin + (2 if curvature_estimated else 0) + (1 if rated else 0)
-    size = i_buf + depth
+    # the side force's relative yaw (side_force): a state with its low pass, else the
+    # present estimate's; held with the integral (outside its band, in the approach): a
+    # constant input
+    side = settings.side_force > 0.0 and not integral_frozen
+    side_state = side and settings.side_force_filter > 0.0
+    i_side = i_buf + depth
+    size = i_buf + depth + (1 if side_state else 0)
     gain = _filter_gain(model, fs, v_x, period, v_y_measured)
     h_model = measurement_matrix(model)
     k = feedback_gain(vehicle, controller, settings, v_x)
@@ -1468,6 +1475,17 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         law[0, i_kin + 1] += curvature_gain(vehicle, controller, settings, v_x)
     if rated:
         law[0, i_rate] += rate_gain(vehicle, controller, settings, v_x, ahead)
+    # the side force's shift of the reference's relative yaw on a straight, -s F_r / C_r
+    # of the present estimate (low-passed): d_v of it in y_ref, k_p d_v / beta_1 of it in
+    # the command (CgCompensatedLaw._side_force)
+    d_v = float(look_ahead(v_x, 0.0, vehicle, controller)[0])
+    side_gain = (float(loop_gains(settings, v_x)[0]) * d_v
+                 / float(axle_gains(vehicle, d_v)[0]))
+    side_target = -settings.side_force / vehicle.c_r * unit[i_est + 5]
+    if side_state:
+        law[0, i_side] += side_gain
+    elif side:
+        law += side_gain * side_target.reshape(1, size)
 
     def command(age: int) -> Matrix:
         """Return u_k-age as a row over s_k."""
@@ -1517,6 +1535,11 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     m[i_buf, :] = law[0]
     for j in range(1, depth):
         m[i_buf + j, i_buf + j - 1] = 1.0
+    if side_state:
+        # low-passed toward the target of the new estimate (posterior at k+1)
+        weight = min(period / settings.side_force_filter, 1.0)
+        m[i_side, :] = ((1.0 - weight) * unit[i_side]
+                        - weight * settings.side_force / vehicle.c_r * m[i_est + 5, :])
     if approach:
         # s' = T s with the estimate's y_cg replaced by its error (y_cg_hat - y_cg): a
         # shift of the plant's and the estimate's y_cg together leaves every innovation

@@ -172,6 +172,14 @@ LANE_KEEPING_SPECS = tuple(
          'has stayed below its threshold for map_recover; 0: never [-]', 0.0, 100.0),
         ('map_recover', 'the time the map check stays below its threshold before '
          'road_curvature is taken again [s]', 0.0, 60.0),
+        ('side_force', "share of the state filter's rear-axle force disturbance taken "
+         'as a side force (crosswind, bank) into the reference: the relative yaw the car '
+         'holds against it with the CG on the lane; on a curve it fades out with the '
+         'lateral acceleration past compliance_prior (the compliance estimate carries the '
+         'tyres there); needs state_filter kalman; 0: the integral alone removes a side '
+         'force [-]', 0.0, 1.0),
+        ('side_force_filter', 'low pass of that relative yaw (the force estimate is noisy) '
+         '[s]', 0.0, 5.0),
         ('delay_prediction', "act on the state filter's estimate predicted across "
          'filter_delay under the commands already sent, on the road there (for a long '
          'transport delay); needs state_filter kalman', 0.0, 1.0),
