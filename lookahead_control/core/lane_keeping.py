@@ -1368,8 +1368,8 @@ class CgCompensatedLaw:
         # the compliance at the rear axle's load under the a_x the law linearizes at
         secant, tangent = self.estimator.at(v_x * v_x * rho_ref, law_state.a_x)
         # the side force is held where the integral is, and while the CG is outside the
-        # integral's band: an error that large is a slide or a gust, not a steady force
-        # (dev-sc36: a 6 kN m yaw gust on mu 0.4 at 37 m/s, 0.26 -> 1.5 m)
+        # integral's band: an error that large is a slide, a gust or a car engaged off
+        # the lane, not a steady force (the sampled checks hold it there too)
         near = _not(outside) if s.integral_band > 0.0 else True
         yaw_offset = self._side_force(state, v_x, dt, active & near)
         handing = np.greater(self._handover_left, 0.0)
