@@ -1478,14 +1478,15 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     # the side force's shift of the reference's relative yaw on a straight, -s F_r / C_r
     # of the present estimate (low-passed): d_v of it in y_ref, k_p d_v / beta_1 of it in
     # the command (CgCompensatedLaw._side_force)
-    d_v = float(look_ahead(v_x, 0.0, vehicle, controller)[0])
-    side_gain = (float(loop_gains(settings, v_x)[0]) * d_v
-                 / float(axle_gains(vehicle, d_v)[0]))
-    side_target = -settings.side_force / vehicle.c_r * unit[i_est + 5]
-    if side_state:
-        law[0, i_side] += side_gain
-    elif side:
-        law += side_gain * side_target.reshape(1, size)
+    if side:
+        d_v = float(look_ahead(v_x, 0.0, vehicle, controller)[0])
+        side_gain = (float(loop_gains(settings, v_x)[0]) * d_v
+                     / float(axle_gains(vehicle, d_v)[0]))
+        if side_state:
+            law[0, i_side] += side_gain
+        else:
+            law -= side_gain * settings.side_force / vehicle.c_r * unit[i_est + 5].reshape(
+                1, size)
 
     def command(age: int) -> Matrix:
         """Return u_k-age as a row over s_k."""
