@@ -358,13 +358,20 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
     :param noise: sensor noise standard deviations (None: ideal sensors).
     :param seed: noise seed (sequence: one per run).
     :param disturbance: ``t -> (lateral force [N], yaw moment [N m])`` on the plant's
-        body (floats or batch arrays).
+        body (floats or batch arrays); None: the scenario's ``external_forces``, if any
+        (a scenario with them takes no second disturbance).
     :param preview_distance: the law's curvature preview reaches this far [m].
     :param preview_step: spacing of the preview points [m].
     :return: the time series.
     """
     plant = plant or PlantParams()
     law = _as_law(controller, vehicle)
+    if scenario.forces and disturbance is not None:
+        raise ParameterError(f'scenario {scenario.name!r} has external_forces: give the '
+                             'disturbance there or as the disturbance argument, not both')
+    external = bool(scenario.forces)        # the scenario's, which every plant takes
+    if external:
+        disturbance = scenario.external
     if initial_speed is not None and np.ndim(initial_speed) == 0:
         scenario = scenario.at_speed(float(initial_speed))     # its road for its speed
     ratio, n_steps = check_steps(dt, control_period, scenario.duration)
@@ -420,10 +427,12 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
                 fill(init.yaw_rate), fill(0.0))
     group = None
     if plant_model.model in COMMONROAD_MODELS:
-        if control_period == 0.0 or disturbance is not None or plant_vehicle is not None:
+        if control_period == 0.0 or plant_vehicle is not None or (
+                disturbance is not None and not external):
             raise ParameterError(f'the {plant_model.model} plant needs control_period > 0 '
-                                 'and takes no disturbance or plant_vehicle (its '
-                                 'parameters are the CommonRoad set, plant.vehicle_id)')
+                                 'and takes no plant_vehicle (its parameters are the '
+                                 'CommonRoad set, plant.vehicle_id) and no disturbance '
+                                 "but the scenario's external_forces")
         group = CommonRoadGroup(base, plants or [plant_model], v0, y0, shape)
         x = group.contract()
 

@@ -209,6 +209,39 @@ class CommonRoadPlant:
         v_x, _ = self.body_velocity(x)
         return [rate, float(a_ref) + SPEED_GAIN * (float(v_ref) - v_x)]
 
+    def _pushed(self, rates: Any, x: list[float], force: float,
+                moment: float) -> list[float]:
+        """
+        Return the model's rates with an external force and yaw moment on the body.
+
+        Multi-body: the force acts on the sprung mass at its CG (the body's lateral
+        velocity ``x[10]``), the moment about its yaw axis with the model's own roll-yaw
+        coupling (``I_xz_s``). Single track: the force in the body frame splits into the
+        speed's and the slip angle's rates. Below 0.1 m/s both models are kinematic (the
+        tyres hold the car): nothing is added there.
+
+        :param rates: the model's rates at ``x``.
+        :param x: model state.
+        :param force: lateral force [N, + left].
+        :param moment: yaw moment [N m, + left].
+        :return: the rates with the push.
+        """
+        out = [float(v) for v in rates]
+        p = self.p
+        if abs(x[3]) < 0.1:             # both models are kinematic there: no slip to push
+            return out
+        if self.multibody:
+            out[10] += force / p.m_s
+            # the model's yaw and roll rows: (I_z - I_xz^2 / I_Phi) r' = N + I_xz / I_Phi L
+            out[5] += moment / (p.I_z - p.I_xz_s ** 2 / p.I_Phi_s)
+            out[7] += (p.I_xz_s / p.I_z * moment) / (p.I_Phi_s - p.I_xz_s ** 2 / p.I_z)
+            return out
+        speed, beta = x[3], x[6]
+        out[3] += force * math.sin(beta) / p.m
+        out[6] += force * math.cos(beta) / (p.m * speed)
+        out[5] += moment / p.I_z
+        return out
+
     def advance(self, t: float, dt: float, command: float) -> bool:
         """
         Integrate one RK4 step of ``dt`` from ``t`` with a held steering command.
@@ -228,11 +261,16 @@ class CommonRoadPlant:
             return False
         self.command = command
         f, p = self._f, self.p
-        # the inputs are evaluated once per step (a zero-order hold at dt), as the
-        # CommonRoad examples do
+        # the inputs and the scenario's external force are evaluated once per step (a
+        # zero-order hold at dt), as the CommonRoad examples do with the inputs
+        force, moment = self.scenario.external(t)
         try:
             u = self._inputs(t, self.state, command)
-            state = _rk4(lambda z: [float(v) for v in f(z, u, p)], self.state, dt)
+            if force == 0.0 and moment == 0.0:
+                state = _rk4(lambda z: [float(v) for v in f(z, u, p)], self.state, dt)
+            else:
+                state = _rk4(lambda z: self._pushed(f(z, u, p), z, force, moment),
+                             self.state, dt)
         except (ZeroDivisionError, OverflowError, ValueError, FloatingPointError) as err:
             self.diverged_at, self.failure = t, f'{type(err).__name__}: {err}'
             return False

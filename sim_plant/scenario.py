@@ -40,6 +40,17 @@ The speed may have several phases (``speed: {initial: 10, phases: [{start, durat
 acceleration}, ...]}``, instead of one ``acceleration``/``start``/``duration``), and
 ``fixed: true`` marks a profile that is part of the scenario (no speed override).
 
+``external_forces`` (optional) push the car's body from outside: a crosswind, a banked
+or crowned road (``m g`` times the bank's slope), a gust. Each entry is ``{start,
+duration, force, moment, frequency}``: from ``start`` [s] for ``duration`` [s] (0: to
+the end) a lateral force [N, + left] and a yaw moment [N m, + left] act on the body at
+its CG, constant (``frequency`` 0) or as ``sin(2 pi frequency (t - start))`` times
+them; entries add. Every plant takes them, the simulator node too::
+
+      external_forces:
+        - {start: 2.0, force: 1500.0}                   # a 1.5 kN crosswind from 2 s
+        - {start: 10.0, duration: 20.0, force: 800.0, frequency: 0.2}
+
 Every speed-dependent entry is laid out for the run's own speed: the road is kept as a
 recipe (:meth:`Scenario.at_speed`) and a batch over speeds gives each run its road.
 """
@@ -59,6 +70,8 @@ from sim_plant.speed_profile import SpeedProfile
 
 
 MAX_CURVATURE = 1.0     # 1/m: a 1 m radius
+MAX_FORCE = 5.0e4       # N: an external lateral force (3 g on the paper's car)
+MAX_MOMENT = 1.0e5      # N m: an external yaw moment
 
 
 @dataclass(frozen=True)
@@ -86,6 +99,50 @@ class InitialState:
 
 
 @dataclass(frozen=True)
+class ExternalForce:
+    """
+    A lateral force and yaw moment on the car's body from outside (wind, a bank).
+
+    :param start: when it starts [s].
+    :param duration: how long it acts [s] (0: to the end of the run).
+    :param force: lateral force at the CG [N, + left].
+    :param moment: yaw moment [N m, + left].
+    :param frequency: 0: constant; else the force and moment are ``sin(2 pi frequency
+        (t - start))`` times their values [Hz].
+    """
+
+    start: float = 0.0
+    duration: float = 0.0
+    force: float = 0.0
+    moment: float = 0.0
+    frequency: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name, low, high, unit in (('start', 0.0, 1.0e5, 's'),
+                                      ('duration', 0.0, 1.0e5, 's'),
+                                      ('force', -MAX_FORCE, MAX_FORCE, 'N'),
+                                      ('moment', -MAX_MOMENT, MAX_MOMENT, 'N m'),
+                                      ('frequency', 0.0, 50.0, 'Hz')):
+            value = check_range(f'external_forces.{name}', getattr(self, name), low, high,
+                                unit=unit)
+            object.__setattr__(self, name, value)
+
+    def at(self, t: float) -> tuple[float, float]:
+        """
+        Return the force and moment at time ``t``.
+
+        :param t: time [s].
+        :return: ``(force [N], moment [N m])``; zeros outside its time.
+        """
+        if t < self.start or (self.duration > 0.0 and t >= self.start + self.duration):
+            return 0.0, 0.0
+        if self.frequency == 0.0:
+            return self.force, self.moment
+        wave = math.sin(2.0 * math.pi * self.frequency * (t - self.start))
+        return self.force * wave, self.moment * wave
+
+
+@dataclass(frozen=True)
 class Scenario:
     """
     A closed-loop scenario.
@@ -97,6 +154,7 @@ class Scenario:
     :param initial: the initial lateral state.
     :param layout: ``speed -> road`` laid out for that initial speed (None: the road
         does not depend on speed).
+    :param forces: forces on the body from outside (they add).
     """
 
     name: str
@@ -106,9 +164,24 @@ class Scenario:
     initial: InitialState = field(default_factory=InitialState)
     layout: Optional[Callable[[float], Road]] = field(
         default=None, compare=False, repr=False)
+    forces: tuple[ExternalForce, ...] = ()
 
     def __post_init__(self) -> None:
         check_range('scenario.duration', self.duration, 0.0, 1.0e5, low_open=True, unit='s')
+
+    def external(self, t: float) -> tuple[float, float]:
+        """
+        Return the sum of the external forces at time ``t``.
+
+        :param t: time [s].
+        :return: ``(lateral force [N], yaw moment [N m])`` on the body.
+        """
+        force = moment = 0.0
+        for entry in self.forces:
+            f, m = entry.at(t)
+            force += f
+            moment += m
+        return force, moment
 
     def at_speed(self, speed: float) -> 'Scenario':
         """
@@ -293,6 +366,22 @@ def _build(cls: Any, key: str, entry: Any) -> Any:
     return cls(**entry)
 
 
+def _external_forces(entries: Any) -> tuple[ExternalForce, ...]:
+    """Build the ``external_forces`` list, naming the entry at fault."""
+    if not isinstance(entries, list):
+        raise ParameterError(f'external_forces must be a list of mappings (start, '
+                             f'duration, force, moment, frequency), got {entries!r}')
+    forces = []
+    for i, entry in enumerate(entries):
+        key = f'external_forces[{i}]'
+        try:
+            forces.append(_build(ExternalForce, key, entry))
+        except ParameterError as err:
+            # a value out of range names the field: say which entry's
+            raise ParameterError(str(err).replace('external_forces.', f'{key}.', 1)) from err
+    return tuple(forces)
+
+
 def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
     """
     Build a scenario from its parsed YAML document.
@@ -308,10 +397,11 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
         body = document['scenario']
         if not isinstance(body, Mapping):
             raise ParameterError('scenario must be a mapping')
-        unknown = set(body) - {'name', 'duration', 'speed', 'initial', 'road'}
+        unknown = set(body) - {'name', 'duration', 'speed', 'initial', 'road',
+                               'external_forces'}
         if unknown:
             raise ParameterError(f'unknown keys {sorted(unknown)}; known: duration, '
-                                 'initial, name, road, speed')
+                                 'external_forces, initial, name, road, speed')
         speed = _speed_profile(body)
         initial = _build(InitialState, 'initial', body.get('initial', {}))
         road_entries = body.get('road')
@@ -328,7 +418,8 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
         return Scenario(str(body.get('name', Path(source).stem)),
                         check_range('scenario.duration', body.get('duration', 10.0), 0.0,
                                     1.0e5, low_open=True, unit='s'),
-                        road, speed, initial, layout)
+                        road, speed, initial, layout,
+                        _external_forces(body.get('external_forces', [])))
     except (KeyError, TypeError) as err:
         raise ConfigError(f'{source}: not a scenario ({err}); expected a mapping '
                           "'scenario:' with name, duration, speed, initial, road") from err

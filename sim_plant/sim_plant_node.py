@@ -130,7 +130,7 @@ ACK_TIMEOUT = 10.0
 TRUTH_DEPTH = WRITER_DEPTH
 ALL_SPECS = VEHICLE_SPECS + PLANT_SPECS + SIM_SPECS
 GROUND_TRUTH = ('time', 's', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'steering_cmd',
-                'v_x', 'a_x', 'rho', 'command_time')
+                'v_x', 'a_x', 'rho', 'command_time', 'external_force', 'external_moment')
 
 
 class Checked(NamedTuple):
@@ -220,10 +220,13 @@ class SimPlantNode(Node):
         self.commands: dict[int, float] = {}      # step -> command, for the delay
         speed = self.scenario.speed
         self._preview_rho = self.scenario.road.curvature_function()
+        # the scenario's external forces (a crosswind, a bank) act on every plant: the
+        # fast linear stepper has none, the generic right-hand side takes them
+        self.disturbance = self.scenario.external if self.scenario.forces else None
         self.stepper: Optional[Stepper] = (
             linear_plant_stepper(self.scenario, self.plant_vehicle, self.plant,
                                  float(speed.initial), float(speed.acceleration))
-            if self.plant.model == 'linear' else None)
+            if self.plant.model == 'linear' and self.disturbance is None else None)
         init = self.scenario.initial
         self.x: State = (0.0, init.lateral_error, init.relative_yaw, init.lateral_velocity,
                          init.yaw_rate, 0.0)
@@ -353,8 +356,10 @@ class SimPlantNode(Node):
             answered = self.answered_stamp
             command_time = (answered * 1e-9 if answered is not None and answered >= 0
                             else -1.0)
+            # the scenario's external force and moment over the step from t (held)
+            force, moment = scenario.external(t)
             truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, v_x, a_x,
-                     rho, command_time)
+                     rho, command_time, force, moment)
             self.pub_truth.publish(conv.to_named_values(stamp,
                                                         list(zip(GROUND_TRUTH, truth))))
         if self.vehicle_output:
@@ -454,7 +459,8 @@ class SimPlantNode(Node):
             self.x = self.stepper(self.x, t, dt, self.substeps, self.command)
         elif self.lag == 0:
             rhs = plant_derivatives(scenario, self.plant_vehicle, self.plant, self.command,
-                                    scenario.speed.initial, scenario.speed.acceleration)
+                                    scenario.speed.initial, scenario.speed.acceleration,
+                                    self.disturbance)
             self.x = advance(rhs, self.x, t, dt, self.substeps, self.plant, self.command)
         else:
             for j in range(self.substeps):
@@ -464,7 +470,7 @@ class SimPlantNode(Node):
                 else:
                     rhs = plant_derivatives(scenario, self.plant_vehicle, self.plant, u,
                                             scenario.speed.initial,
-                                            scenario.speed.acceleration)
+                                            scenario.speed.acceleration, self.disturbance)
                     self.x = advance(rhs, self.x, t + j * dt, dt, 1, self.plant, u)
         self.k += 1
 

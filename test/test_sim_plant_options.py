@@ -15,6 +15,7 @@
 """The sim_plant node's delay, noise, mismatch and CommonRoad options against the runner."""
 
 from dataclasses import replace
+import math
 from pathlib import Path
 
 from lookahead_control.core.control_law import cg_error_from, LateralState, steering_law
@@ -93,3 +94,58 @@ def test_node_noise_repeats_with_its_seed(context):
 def test_node_drives_a_commonroad_plant(context):
     y, _ = _drive(context, 120, **{'plant.model': 'commonroad_st', 'plant.vehicle_id': 2})
     assert np.all(np.isfinite(y)) and np.max(np.abs(y)) < 1.5
+
+
+def _windy(tmp_path):
+    """Write paper_r400 with a crosswind from 0.5 s and a gust from 1 s; return its path."""
+    from lookahead_control.core.config import read_yaml
+    import yaml
+    document = read_yaml(SCENARIO)
+    document['scenario']['external_forces'] = [
+        {'start': 0.5, 'force': 1500.0, 'moment': -200.0},
+        {'start': 1.0, 'duration': 1.0, 'force': 800.0, 'frequency': 1.5}]
+    path = tmp_path / 'windy.yaml'
+    path.write_text(yaml.safe_dump(document))
+    return path
+
+
+@pytest.mark.parametrize('model', ['linear', 'nonlinear'])
+def test_node_pushes_the_car_with_the_scenarios_forces_as_the_offline_runner(
+        context, tmp_path, model):
+    # dev-sc37: the simulator node had no side force (only the offline runner took one)
+    path = _windy(tmp_path)
+    steps = 250
+    options = {'plant.model': model, 'plant.delay': 0.02, 'scenario_file': str(path)}
+    y_node, _ = _drive(context, steps, **options)
+    y_calm, _ = _drive(context, steps, **{**options, 'scenario_file': str(SCENARIO)})
+    scenario = replace(load_scenario(path, 25.0), duration=(steps - 1) * 0.01)
+    offline = run(scenario, VEHICLE, CONTROLLER, PlantParams(model=model), delay=0.02)
+    np.testing.assert_allclose(y_node, offline['y_cg'], rtol=0, atol=1e-9)
+    assert np.max(np.abs(y_node - y_calm)) > 0.02
+
+
+def test_node_pushes_a_commonroad_car_and_its_ground_truth_says_with_what(context, tmp_path):
+    from sim_plant.sim_plant_node import GROUND_TRUTH, SimPlantNode
+    path = _windy(tmp_path)
+    options = {'plant.model': 'commonroad_st', 'plant.vehicle_id': 2}
+    y_wind, _ = _drive(context, 150, **options, scenario_file=str(path))
+    y_calm, _ = _drive(context, 150, **options)
+    assert np.all(np.isfinite(y_wind)) and np.max(np.abs(y_wind - y_calm)) > 0.01
+    node = SimPlantNode(context=context, parameter_overrides=[
+        Parameter('scenario_file', value=str(path))])
+    truth = []
+    try:
+        node.pub_truth.get_subscription_count = lambda: 1      # as if a recorder listened
+        node.pub_truth.publish = truth.append
+        for k in (0, 120, 150):
+            node.k = k
+            node.publish_measurements()
+    finally:
+        node.destroy_node()
+    rows = [dict(zip(msg.name, msg.position)) for msg in truth]
+    assert list(truth[0].name) == list(GROUND_TRUTH)
+    expected = [(0.0, 0.0), (1500.0 + 800.0 * math.sin(2 * math.pi * 1.5 * 0.2), -200.0),
+                (1500.0 + 800.0 * math.sin(2 * math.pi * 1.5 * 0.5), -200.0)]
+    for row, (force, moment) in zip(rows, expected):
+        assert row['external_force'] == pytest.approx(force, abs=1e-6)
+        assert row['external_moment'] == moment

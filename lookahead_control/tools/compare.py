@@ -63,6 +63,9 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENARIO_DIR = ROOT / 'config' / 'scenarios'
 SCENARIOS = ('s0_straight', 's1_paper_step', 's2_curve_entry', 's3_s_bend',
              's4_lane_change', 's5_envelope')
+#: more scenarios ``--scenarios`` takes, not in the league by default (no goal of issue 14
+#: is about them): a side force on the body the map cannot tell the law
+EXTRA_SCENARIOS = ('crosswind',)
 SPEEDS = (10.0, 20.0, 30.0, 37.0)
 PREVIEW_DISTANCE = 100.0        # [m] every law sees the curvature this far ahead
 DELAY = 0.02                    # [s] transport delay of the "nonlinear + delay + noise" plant
@@ -1152,7 +1155,7 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    scen = [s for s in SCENARIOS if any(r['scenario'] == s for r in rows)]
+    scen = [s for s in SCENARIOS + EXTRA_SCENARIOS if any(r['scenario'] == s for r in rows)]
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), gridspec_kw={'width_ratios': [3, 1, 1]})
     width = 0.8 / max(len(laws), 1)
     plotted = False
@@ -1401,7 +1404,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     p = parser('league table: every law x scenarios S0-S5 x plants x speeds', plot=False)
     p.add_argument('--laws', nargs='+', default=list(LAWS), choices=list(LAWS))
-    p.add_argument('--scenarios', nargs='+', default=list(SCENARIOS), choices=SCENARIOS)
+    p.add_argument('--scenarios', nargs='+', default=list(SCENARIOS),
+                   choices=SCENARIOS + EXTRA_SCENARIOS,
+                   help='default: S0-S5; crosswind (a 1.5 kN side force on a straight '
+                   'from 2 to 12 s) runs only when named')
     p.add_argument('--plants', nargs='+', default=[c.name for c in PLANTS],
                    choices=[c.name for c in PLANTS])
     p.add_argument('--speeds', type=number(0.0, MAX_SPEED, low_open=True, unit='m/s'),
