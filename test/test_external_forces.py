@@ -221,3 +221,16 @@ def test_over_dds_a_crosswind_is_recorded_and_the_default_laws_side_force_answer
         assert stamps[-1] == 6_990_000_000
         peaks[share] = np.max(np.abs([row['y_cg'] for _, row in truth]))
     assert peaks[0.0] > 0.15 and peaks[1.0] < 0.6 * peaks[0.0]
+
+
+def test_compare_runs_the_crosswind_when_named_and_says_so(tmp_path):
+    from lookahead_control.tools import compare
+    out = tmp_path / 'league'
+    assert compare.main(['--scenarios', 'crosswind', 's0_straight', '--laws', 'stanley',
+                         '--plants', 'linear', '--speeds', '37', '--duration', '3',
+                         '--out', str(out), '--no-plots', '--no-progress',
+                         '--workers', '1']) == 0
+    text = (out / 'league.md').read_text()
+    assert text.startswith('# League table: every law x crosswind, S0 x plants x speeds')
+    assert '| law | crosswind | S0 |' in text
+    assert 'crosswind' not in compare.SCENARIOS       # not in the default league

@@ -995,6 +995,16 @@ def summary(rows: Sequence[Mapping[str, Any]], laws: Sequence[str],
     return table
 
 
+def scenario_label(name: str) -> str:
+    """
+    Return a scenario's column label: ``S0``-``S5`` for the league's, else its name.
+
+    :param name: the scenario's name.
+    :return: the label.
+    """
+    return name[:2].upper() if name in SCENARIOS else name
+
+
 def per_scenario(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], plant: str,
                  speed: float) -> list[dict[str, Any]]:
     """
@@ -1012,7 +1022,7 @@ def per_scenario(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], plant: 
         mine = [r for r in rows if r['law'] == law and r['plant'] == plant and (
             r['speed_mps'] == speed or r['scenario'] == 's5_envelope')]
         for scenario in dict.fromkeys(r['scenario'] for r in mine):    # worst over seeds
-            entry[scenario[:2].upper()] = 100.0 * _worst(
+            entry[scenario_label(scenario)] = 100.0 * _worst(
                 [r for r in mine if r['scenario'] == scenario], 'peak_cg_error_m')
         table.append(entry)
     return table
@@ -1169,7 +1179,7 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
         axes[1].bar(j, 1000.0 * _worst(s0, 'steering_noise_rms_rad'))
         axes[2].bar(j, 100.0 * _worst(s0, 'yaw_rebound'))
     axes[0].set_xticks(np.arange(len(scen)) + 0.4 - width / 2)
-    axes[0].set_xticklabels([s[:2].upper() for s in scen])
+    axes[0].set_xticklabels([scenario_label(s) for s in scen])
     if plotted:             # log of nothing: matplotlib refuses (a league without the plant)
         axes[0].set_yscale('log')
     axes[0].set_ylabel('peak CG lateral error y_cg [cm] (log)' if plotted else
@@ -1216,7 +1226,10 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
     write_csv(out / 'goals_over_seeds.csv', cells, CELL_COLUMNS)
     plants = list(dict.fromkeys(r['plant'] for r in rows))
     text = [
-        '# League table: every law x S0-S5 x plants x speeds', '',
+        '# League table: every law x '
+        + ('S0-S5' if set(r['scenario'] for r in rows) <= set(SCENARIOS) else ', '.join(
+            scenario_label(name) for name in dict.fromkeys(r['scenario'] for r in rows)))
+        + ' x plants x speeds', '',
         'Same inputs (the contract through the same sensors; noise seeds per run), '
         f'curvature preview {PREVIEW_DISTANCE:g} m, the same plant and actuator for every '
         "law; every law's command passes the controller node's output stage (its angle "
