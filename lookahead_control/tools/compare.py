@@ -1227,7 +1227,7 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
     plants = list(dict.fromkeys(r['plant'] for r in rows))
     text = [
         '# League table: every law x '
-        + ('S0-S5' if set(r['scenario'] for r in rows) <= set(SCENARIOS) else ', '.join(
+        + ('S0-S5' if {r['scenario'] for r in rows} <= set(SCENARIOS) else ', '.join(
             scenario_label(name) for name in dict.fromkeys(r['scenario'] for r in rows)))
         + ' x plants x speeds', '',
         'Same inputs (the contract through the same sensors; noise seeds per run), '
