@@ -39,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 from sim_plant.commonroad_plant import COMMONROAD_MODELS, CommonRoadPlant
 from sim_plant.road import RoadBatch
-from sim_plant.scenario import Scenario
+from sim_plant.scenario import check_force_timing, Scenario
 from sim_plant.sensors import check_seed, noise_table, NoiseParams
 from sim_plant.speed_profile import profile_speed, ramps_speed
 from sim_plant.vehicle_model import derivatives, PlantParams, rk4_step, stack, State
@@ -371,6 +371,10 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
                              'disturbance there or as the disturbance argument, not both')
     external = bool(scenario.forces)        # the scenario's, which every plant takes
     if external:
+        if control_period == 0.0:
+            raise ParameterError(f'scenario {scenario.name!r} has external_forces: they '
+                                 'need a sampled controller (control_period > 0)')
+        check_force_timing(scenario.forces, dt)
         disturbance = scenario.external
     if initial_speed is not None and np.ndim(initial_speed) == 0:
         scenario = scenario.at_speed(float(initial_speed))     # its road for its speed
@@ -451,9 +455,11 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
         return truth._replace(y_cg=y_cg, eps_r=eps_r, v_y=truth.v_y + n[2],
                               r=truth.r + n[3])
 
-    def plant_rhs(command: Real) -> Callable[[float, State], State]:
+    def plant_rhs(command: Real, push: tuple[float, float] | None = None
+                  ) -> Callable[[float, State], State]:
+        # the scenario's forces are held over each plant step, from its start
         return plant_derivatives(scenario, body, plant_model, command, v0, accel,
-                                 disturbance)
+                                 disturbance if push is None else lambda _t: push)
 
     def continuous_rhs(t: float, state: State) -> State:
         command = law.step(measure(state, t, scenario, v0, accel),
@@ -491,6 +497,11 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
         with np.errstate(over='ignore', invalid='ignore'):   # a diverging run: below
             if control_period == 0.0:
                 x = advance(continuous_rhs, x, t, dt, ratio, plant_model, out.steering)
+            elif external:
+                for j in range(ratio):
+                    applied = _applied(commands, k * ratio + j, lag, ratio, fill)
+                    x = advance(plant_rhs(applied, scenario.external(t + j * dt)), x,
+                                t + j * dt, dt, 1, plant_model, applied)
             elif isinstance(lag, int) and lag == 0:
                 x = advance(plant_rhs(out.steering), x, t, dt, ratio, plant_model,
                             out.steering)

@@ -70,8 +70,14 @@ from sim_plant.speed_profile import SpeedProfile
 
 
 MAX_CURVATURE = 1.0     # 1/m: a 1 m radius
-MAX_FORCE = 5.0e4       # N: an external lateral force (3 g on the paper's car)
-MAX_MOMENT = 1.0e5      # N m: an external yaw moment
+MAX_FORCE = 5.0e4       # N: external lateral forces together (3 g on the paper's car)
+MAX_MOMENT = 1.0e5      # N m: external yaw moments together
+MAX_FORCES = 100        # entries of external_forces
+#: [s] a force's start and end are taken this close: ``start + duration`` in floating
+#: point (0.04 + 0.07 = 0.11000000000000001) left a force on at its end
+EDGE = 1e-9
+#: plant steps per period of a sinusoidal force at least (fewer: it aliases)
+STEPS_PER_PERIOD = 20
 
 
 @dataclass(frozen=True)
@@ -123,18 +129,27 @@ class ExternalForce:
                                       ('force', -MAX_FORCE, MAX_FORCE, 'N'),
                                       ('moment', -MAX_MOMENT, MAX_MOMENT, 'N m'),
                                       ('frequency', 0.0, 50.0, 'Hz')):
-            value = check_range(f'external_forces.{name}', getattr(self, name), low, high,
-                                unit=unit)
+            raw = getattr(self, name)
+            if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+                # YAML's true is no force of 1 N, nor '1500' (or 1.0e9, a string to
+                # PyYAML: write 1.0e+9) a number
+                raise ParameterError(f'external_forces.{name} = {raw!r} is not a number '
+                                     f'[{unit}]; write a real such as 1500.0 or 1.0e+3')
+            value = check_range(f'external_forces.{name}', raw, low, high, unit=unit)
             object.__setattr__(self, name, value)
+        if self.force == 0.0 and self.moment == 0.0:
+            raise ParameterError('external_forces: an entry with neither force nor moment '
+                                 'pushes nothing; give force [N] and/or moment [N m]')
 
     def at(self, t: float) -> tuple[float, float]:
         """
         Return the force and moment at time ``t``.
 
-        :param t: time [s].
+        :param t: time [s] (its start and end are taken within :data:`EDGE`).
         :return: ``(force [N], moment [N m])``; zeros outside its time.
         """
-        if t < self.start or (self.duration > 0.0 and t >= self.start + self.duration):
+        if t < self.start - EDGE or (self.duration > 0.0
+                                     and t >= self.start + self.duration - EDGE):
             return 0.0, 0.0
         if self.frequency == 0.0:
             return self.force, self.moment
@@ -355,7 +370,7 @@ def _build(cls: Any, key: str, entry: Any) -> Any:
     if not isinstance(entry, Mapping):
         raise ParameterError(f'{key} must be a mapping, got {entry!r}')
     known = [f.name for f in fields(cls)]
-    unknown = sorted(set(entry) - set(known))
+    unknown = sorted(set(entry) - set(known), key=str)     # a YAML key may be a number
     if unknown:
         raise ParameterError(f'{key}: unknown keys {unknown}; known: {known}')
     required = [f.name for f in fields(cls) if f.default is MISSING
@@ -366,20 +381,76 @@ def _build(cls: Any, key: str, entry: Any) -> Any:
     return cls(**entry)
 
 
-def _external_forces(entries: Any) -> tuple[ExternalForce, ...]:
-    """Build the ``external_forces`` list, naming the entry at fault."""
+def _external_forces(entries: Any, duration: float) -> tuple[ExternalForce, ...]:
+    """
+    Build the ``external_forces`` list, naming the entry at fault.
+
+    :param entries: the file's list (None, every entry commented out: none).
+    :param duration: the scenario's duration [s].
+    :return: the forces.
+    """
+    if entries is None:
+        return ()
     if not isinstance(entries, list):
         raise ParameterError(f'external_forces must be a list of mappings (start, '
                              f'duration, force, moment, frequency), got {entries!r}')
+    if len(entries) > MAX_FORCES:
+        raise ParameterError(f'external_forces has {len(entries)} entries; at most '
+                             f'{MAX_FORCES}')
     forces = []
     for i, entry in enumerate(entries):
         key = f'external_forces[{i}]'
         try:
-            forces.append(_build(ExternalForce, key, entry))
+            force = _build(ExternalForce, key, entry)
         except ParameterError as err:
             # a value out of range names the field: say which entry's
-            raise ParameterError(str(err).replace('external_forces.', f'{key}.', 1)) from err
+            text = str(err)
+            raise ParameterError(text if text.startswith(key) else
+                                 text.replace('external_forces', key, 1)) from err
+        if force.start >= duration - EDGE:
+            raise ParameterError(f'{key}.start = {force.start:g} s is at or after the '
+                                 f"scenario's end ({duration:g} s): it would push nothing")
+        forces.append(force)
+    for name, limit, unit in (('force', MAX_FORCE, 'N'), ('moment', MAX_MOMENT, 'N m')):
+        total = sum(abs(getattr(f, name)) for f in forces)
+        if total > limit:
+            raise ParameterError(f"external_forces: the entries' {name}s add up to "
+                                 f'{total:g} {unit} at most; allowed together: {limit:g} '
+                                 f'{unit}')
     return tuple(forces)
+
+
+def check_force_timing(forces: tuple[ExternalForce, ...], dt: float) -> None:
+    """
+    Refuse forces a plant step of ``dt`` cannot give as written.
+
+    Every plant holds the force over each step from the step's start (the CommonRoad
+    models' inputs are held so too): a start or an end between two steps would move by
+    up to a step, a gust shorter than a step be missed or stretched, and a sinusoid of
+    fewer than :data:`STEPS_PER_PERIOD` steps per period alias (dev-probe80: a 50 Hz
+    force at ``dt`` 0.01 s pushed the linear plant by its amplitude, the CommonRoad car
+    not at all).
+
+    :param forces: the scenario's forces.
+    :param dt: the plant's integration step [s].
+    :raises ParameterError: naming the entry and what ``dt`` allows.
+    """
+    def on_grid(value: float) -> bool:
+        return abs(value / dt - round(value / dt)) * dt <= EDGE
+
+    for i, force in enumerate(forces):
+        key = f'external_forces[{i}]'
+        for name in ('start', 'duration'):
+            value = getattr(force, name)
+            if not on_grid(value):
+                raise ParameterError(f'{key}.{name} = {value:g} s is not a whole number of '
+                                     f'plant steps (dt = {dt:g} s): the force would start '
+                                     'or end up to a step off; choose a multiple of dt')
+        if force.frequency * dt * STEPS_PER_PERIOD > 1.0 + 1e-12:
+            raise ParameterError(f'{key}.frequency = {force.frequency:g} Hz needs at least '
+                                 f'{STEPS_PER_PERIOD} plant steps per period: dt <= '
+                                 f'{1.0 / (STEPS_PER_PERIOD * force.frequency):g} s '
+                                 f'(dt = {dt:g} s)')
 
 
 def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
@@ -415,11 +486,12 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
                 return road_at(entries, v)
             except ParameterError as err:
                 raise ConfigError(f'{source} at {v:g} m/s: {err}') from err
-        return Scenario(str(body.get('name', Path(source).stem)),
-                        check_range('scenario.duration', body.get('duration', 10.0), 0.0,
-                                    1.0e5, low_open=True, unit='s'),
-                        road, speed, initial, layout,
-                        _external_forces(body.get('external_forces', [])))
+        scenario = Scenario(str(body.get('name', Path(source).stem)),
+                            check_range('scenario.duration', body.get('duration', 10.0),
+                                        0.0, 1.0e5, low_open=True, unit='s'),
+                            road, speed, initial, layout)
+        return replace(scenario, forces=_external_forces(body.get('external_forces'),
+                                                         scenario.duration))
     except (KeyError, TypeError) as err:
         raise ConfigError(f'{source}: not a scenario ({err}); expected a mapping '
                           "'scenario:' with name, duration, speed, initial, road") from err

@@ -57,7 +57,7 @@ from sim_plant.closed_loop_sim import (advance, check_steps, CommonRoadGroup, de
                                        linear_plant_stepper, measure, plant_derivatives,
                                        Stepper)
 from sim_plant.commonroad_plant import COMMONROAD_MODELS
-from sim_plant.scenario import load_scenario, Scenario
+from sim_plant.scenario import check_force_timing, load_scenario, Scenario
 from sim_plant.sensors import NoiseParams, NoiseStream
 from sim_plant.vehicle_model import KINEMATICS, PLANT_MODELS, PlantParams, State
 
@@ -180,6 +180,10 @@ def check_parameters(params: Mapping[str, Any]) -> Checked:
         raise ParameterError(f'rate_hz = {rate:g} Hz and dt = {dt!r} s: the period 1 / '
                              f'rate_hz must be a whole multiple of dt ({err})') from err
     try:
+        check_force_timing(scenario.forces, dt)
+    except ParameterError as err:
+        raise ParameterError(f'{path} with dt = {dt!r} s: {err}') from err
+    try:
         lag = delay_steps(params['plant.delay'], dt)
     except ParameterError as err:
         raise ParameterError(f"plant.delay = {params['plant.delay']!r} s is not a whole "
@@ -222,11 +226,10 @@ class SimPlantNode(Node):
         self._preview_rho = self.scenario.road.curvature_function()
         # the scenario's external forces (a crosswind, a bank) act on every plant: the
         # fast linear stepper has none, the generic right-hand side takes them
-        self.disturbance = self.scenario.external if self.scenario.forces else None
         self.stepper: Optional[Stepper] = (
             linear_plant_stepper(self.scenario, self.plant_vehicle, self.plant,
                                  float(speed.initial), float(speed.acceleration))
-            if self.plant.model == 'linear' and self.disturbance is None else None)
+            if self.plant.model == 'linear' and not self.scenario.forces else None)
         init = self.scenario.initial
         self.x: State = (0.0, init.lateral_error, init.relative_yaw, init.lateral_velocity,
                          init.yaw_rate, 0.0)
@@ -237,6 +240,7 @@ class SimPlantNode(Node):
             self.x = self.commonroad.contract()
         self.k = 0
         self.command = 0.0
+        self.failure = ''               # why the run stopped early (a diverged plant)
         self.missed = 0
         self.rejected = 0
         self.late = 0               # lockstep: good answers after their step's deadline
@@ -356,8 +360,9 @@ class SimPlantNode(Node):
             answered = self.answered_stamp
             command_time = (answered * 1e-9 if answered is not None and answered >= 0
                             else -1.0)
-            # the scenario's external force and moment over the step from t (held)
-            force, moment = scenario.external(t)
+            # the scenario's external force and moment: their mean over the period from
+            # t (its impulse: a gust shorter than a period is not missed by the sample)
+            force, moment = self.mean_external(t)
             truth = (t, x[0], x[1], x[2], x[3], x[4], steering, self.command, v_x, a_x,
                      rho, command_time, force, moment)
             self.pub_truth.publish(conv.to_named_values(stamp,
@@ -416,6 +421,21 @@ class SimPlantNode(Node):
             self.pub_curvature.publish(conv.to_curvature(stamp, self.frame,
                                                          self.preview(x[0])))
 
+    def mean_external(self, t: float) -> tuple[float, float]:
+        """
+        Return the mean external force and moment over the control period from ``t``.
+
+        :param t: the period's start [s].
+        :return: ``(force [N], moment [N m])``: the mean of the values held over its plant
+            steps.
+        """
+        if not self.scenario.forces:
+            return 0.0, 0.0
+        dt = self.params['dt']
+        pushes = [self.scenario.external(t + j * dt) for j in range(self.substeps)]
+        return (sum(f for f, _ in pushes) / self.substeps,
+                sum(m for _, m in pushes) / self.substeps)
+
     def preview(self, s: float) -> list[tuple[float, float]]:
         """
         Return (distance ahead, curvature) pairs from the CG to the preview distance.
@@ -451,27 +471,34 @@ class SimPlantNode(Node):
             for j in range(self.substeps):
                 self.commonroad.advance(t + j * dt, dt, self.applied(j))
             model = self.commonroad.plants[0]
-            if model.diverged_at is not None:       # as before: the node stops, one line
-                raise ParameterError(f'the {self.plant.model} plant diverged at t = '
-                                     f'{model.diverged_at:g} s ({model.failure})')
+            if model.diverged_at is not None:
+                # the node stops with one line: raised by main's done check, outside the
+                # executor's callback (raised here, rclpy logged it FATAL with its stack
+                # before the line; dev-probe80)
+                pushed = " under the scenario's external_forces" if scenario.forces else ''
+                self.failure = (f'the {self.plant.model} plant diverged at t = '
+                                f'{model.diverged_at:g} s{pushed} ({model.failure})')
+                self.done.set_result(False)
+                return
             self.x = self.commonroad.contract()
         elif self.lag == 0 and self.stepper is not None:
             self.x = self.stepper(self.x, t, dt, self.substeps, self.command)
-        elif self.lag == 0:
+        elif self.lag == 0 and not scenario.forces:
             rhs = plant_derivatives(scenario, self.plant_vehicle, self.plant, self.command,
-                                    scenario.speed.initial, scenario.speed.acceleration,
-                                    self.disturbance)
+                                    scenario.speed.initial, scenario.speed.acceleration)
             self.x = advance(rhs, self.x, t, dt, self.substeps, self.plant, self.command)
         else:
             for j in range(self.substeps):
                 u = self.applied(j)
                 if self.stepper is not None:
                     self.x = self.stepper(self.x, t + j * dt, dt, 1, u)
-                else:
-                    rhs = plant_derivatives(scenario, self.plant_vehicle, self.plant, u,
-                                            scenario.speed.initial,
-                                            scenario.speed.acceleration, self.disturbance)
-                    self.x = advance(rhs, self.x, t + j * dt, dt, 1, self.plant, u)
+                    continue
+                # the scenario's forces are held over each plant step, from its start
+                push = scenario.external(t + j * dt)
+                rhs = plant_derivatives(scenario, self.plant_vehicle, self.plant, u,
+                                        scenario.speed.initial, scenario.speed.acceleration,
+                                        (lambda _t: push) if scenario.forces else None)
+                self.x = advance(rhs, self.x, t + j * dt, dt, 1, self.plant, u)
         self.k += 1
 
     def finished(self) -> bool:
@@ -629,7 +656,7 @@ class SimPlantNode(Node):
     def lockstep_advance(self) -> None:
         """Integrate one period and publish the next step (or finish)."""
         self.integrate()
-        if self.finished():
+        if self.failure or self.finished():
             return
         self.waiting_stamp = self.publish_measurements()
         self.sent_at = time.monotonic()
@@ -676,6 +703,19 @@ class SimPlantNode(Node):
         return False
 
 
+def finished(node: SimPlantNode) -> bool:
+    """
+    Return True once the run is over; raise if it ended in a failure.
+
+    :param node: the simulator.
+    :return: the run is over.
+    :raises ParameterError: the plant diverged (``run_node`` prints it in one line).
+    """
+    if node.failure:
+        raise ParameterError(node.failure)
+    return node.done.done()
+
+
 def main(args: Optional[list[str]] = None) -> int:
     """
     Run the simulator until the scenario ends or it is stopped.
@@ -683,7 +723,7 @@ def main(args: Optional[list[str]] = None) -> int:
     :param args: command-line arguments (ROS arguments included).
     :return: exit code.
     """
-    return run_node('sim_plant', args, SimPlantNode, lambda node: node.done.done(),
+    return run_node('sim_plant', args, SimPlantNode, finished,
                     specs=ALL_SPECS, description='plant simulator: publishes the '
                     "controller's inputs for a scenario, integrates its steering",
                     check=check_parameters)

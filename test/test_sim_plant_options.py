@@ -144,8 +144,75 @@ def test_node_pushes_a_commonroad_car_and_its_ground_truth_says_with_what(contex
         node.destroy_node()
     rows = [dict(zip(msg.name, msg.position)) for msg in truth]
     assert list(truth[0].name) == list(GROUND_TRUTH)
-    expected = [(0.0, 0.0), (1500.0 + 800.0 * math.sin(2 * math.pi * 1.5 * 0.2), -200.0),
-                (1500.0 + 800.0 * math.sin(2 * math.pi * 1.5 * 0.5), -200.0)]
+    # the mean over the period's ten plant steps of 1 ms (each holds its start's value)
+    expected = [(0.0, 0.0)] + [
+        (1500.0 + 80.0 * sum(math.sin(2 * math.pi * 1.5 * (t + 0.001 * j)) for j in range(10)),
+         -200.0) for t in (0.2, 0.5)]
     for row, (force, moment) in zip(rows, expected):
         assert row['external_force'] == pytest.approx(force, abs=1e-6)
         assert row['external_moment'] == moment
+
+
+def test_node_ground_truth_gives_a_gust_shorter_than_a_period_as_its_impulse(
+        context, tmp_path):
+    # dev-probe80: a 20 kN gust of 3 ms between two 10 ms rows read -416 N in the bag
+    # while it moved v_y by 0.04 m/s: the truth sampled the force once per period
+    from lookahead_control.core.config import read_yaml
+    from sim_plant.sim_plant_node import SimPlantNode
+    import yaml
+    document = read_yaml(SCENARIO)
+    document['scenario']['external_forces'] = [{'start': 1.005, 'duration': 0.003,
+                                                'force': 20000.0}]
+    path = tmp_path / 'gust.yaml'
+    path.write_text(yaml.safe_dump(document))
+    node = SimPlantNode(context=context, parameter_overrides=[
+        Parameter('scenario_file', value=str(path))])
+    try:
+        forces = [node.mean_external(k * 0.01)[0] for k in range(98, 103)]
+    finally:
+        node.destroy_node()
+    assert forces == pytest.approx([0.0, 0.0, 6000.0, 0.0, 0.0])
+
+
+def test_node_refuses_a_force_its_plant_step_cannot_give(tmp_path):
+    from lookahead_control.core.config import read_yaml
+    from lookahead_control.core.params import ParameterError
+    from sim_plant.sim_plant_node import ALL_SPECS, check_parameters
+    import yaml
+    document = read_yaml(SCENARIO)
+    document['scenario']['external_forces'] = [{'start': 1.0, 'force': 100.0,
+                                                'frequency': 10.0}]
+    path = tmp_path / 'buzz.yaml'
+    path.write_text(yaml.safe_dump(document))
+    params = {spec.name: spec.default for spec in ALL_SPECS}
+    params.update({'scenario_file': str(path), 'dt': 0.01})
+    with pytest.raises(ParameterError, match=r'buzz\.yaml with dt = 0\.01 s: external_forces'
+                       r'\[0\]\.frequency = 10 Hz needs at least 20 plant steps'):
+        check_parameters(params)
+    params['dt'] = 0.001
+    assert check_parameters(params).scenario.forces[0].frequency == 10.0
+
+
+def test_a_diverged_plant_stops_the_node_with_one_line_not_from_a_callback(context, tmp_path):
+    # dev-probe80: 50 kN on the multi-body car made it diverge at 1.38 s; the node raised
+    # inside the steering callback, and rclpy logged FATAL with its stack before the line
+    from lookahead_control.core.params import ParameterError
+    from sim_plant.sim_plant_node import finished, SimPlantNode
+    path = tmp_path / 'storm.yaml'
+    path.write_text('scenario:\n  name: storm\n  duration: 4.0\n  speed: {initial: 37.0}\n'
+                    '  road:\n    - {type: straight, length: 500.0}\n'
+                    '  external_forces:\n    - {start: 1.0, force: 50000.0}\n')
+    node = SimPlantNode(context=context, parameter_overrides=[
+        Parameter('scenario_file', value=str(path)),
+        Parameter('plant.model', value='commonroad_mb'), Parameter('dt', value=0.002)])
+    try:
+        for _ in range(400):
+            node.integrate()                # raised ParameterError here (a callback)
+            if node.failure:
+                break
+        assert node.failure.startswith('the commonroad_mb plant diverged at t = ')
+        assert "under the scenario's external_forces" in node.failure
+        with pytest.raises(ParameterError, match='diverged'):
+            finished(node)
+    finally:
+        node.destroy_node()

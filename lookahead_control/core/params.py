@@ -51,6 +51,11 @@ def check_finite(name: str, value: float) -> float:
     except (TypeError, ValueError) as err:
         raise ParameterError(f'{name} = {value!r} is not a number; a finite real is '
                              'required') from err
+    except OverflowError as err:        # an integer of hundreds of digits (a YAML file)
+        text = repr(value)
+        shown = text if len(text) <= 20 else f'{text[:12]}...({len(text)} digits)'
+        raise ParameterError(f'{name} = {shown} is too large for a real number; a finite '
+                             'real is required') from err
     if not math.isfinite(number):
         raise ParameterError(f'{name} = {value!r} is not finite; a finite real is required')
     return number

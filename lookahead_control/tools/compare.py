@@ -995,6 +995,24 @@ def summary(rows: Sequence[Mapping[str, Any]], laws: Sequence[str],
     return table
 
 
+def extra_scenario(rows: Sequence[Mapping[str, Any]], laws: Sequence[str],
+                   scenario: str) -> list[dict[str, Any]]:
+    """
+    Return the peak CG error [cm] of each law on a scenario for every plant and speed.
+
+    :param rows: the runs.
+    :param laws: the laws.
+    :param scenario: the scenario (one of :data:`EXTRA_SCENARIOS`).
+    :return: one row per law, a column per plant and speed (worst over seeds).
+    """
+    mine = [r for r in rows if r['scenario'] == scenario]
+    columns = list(dict.fromkeys((r['plant'], r['speed_mps']) for r in mine))
+    return [{'law': law, **{f'{plant} {speed:g}': 100.0 * _worst(
+        [r for r in mine if r['law'] == law and r['plant'] == plant
+         and r['speed_mps'] == speed], 'peak_cg_error_m') for plant, speed in columns}}
+        for law in laws]
+
+
 def scenario_label(name: str) -> str:
     """
     Return a scenario's column label: ``S0``-``S5`` for the league's, else its name.
@@ -1285,6 +1303,13 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
     for plant in plants:
         text += [f'## Peak CG error [cm] at 37 m/s, plant `{plant}` (S5: its profile)', '',
                  markdown_table(per_scenario(rows, laws, plant, 37.0), digits=3), '']
+    for name in EXTRA_SCENARIOS:
+        if any(r['scenario'] == name for r in rows):
+            # no goal and no summary column is about it: every plant and speed here
+            text += [f'## `{name}`: peak CG error [cm] per plant and speed', '',
+                     'Worst over the noise seeds; no goal of issue 14 is about this '
+                     'scenario.', '',
+                     markdown_table(extra_scenario(rows, laws, name), digits=3), '']
     broken = [r for r in rows if math.isfinite(float(r['diverged_at_s']))
               or str(r['notes']).startswith(FAILED)]
     text += ['## Runs that diverged or failed', '',
