@@ -374,11 +374,11 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
         if control_period == 0.0:
             raise ParameterError(f'scenario {scenario.name!r} has external_forces: they '
                                  'need a sampled controller (control_period > 0)')
-        check_force_timing(scenario.forces, dt)
         disturbance = scenario.external
     if initial_speed is not None and np.ndim(initial_speed) == 0:
         scenario = scenario.at_speed(float(initial_speed))     # its road for its speed
     ratio, n_steps = check_steps(dt, control_period, scenario.duration)
+    check_force_timing(scenario.forces, dt)         # after the steps: dt itself first
     seeds = None if isinstance(seed, (int, np.integer)) else np.asarray(seed)
     plants = None if isinstance(plant, PlantParams) else list(plant)
     vehicles = (None if plant_vehicle is None or isinstance(plant_vehicle, VehicleParams)

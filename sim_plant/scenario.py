@@ -183,6 +183,13 @@ class Scenario:
 
     def __post_init__(self) -> None:
         check_range('scenario.duration', self.duration, 0.0, 1.0e5, low_open=True, unit='s')
+        late = [i for i, f in enumerate(self.forces) if f.start >= self.duration - EDGE]
+        if late:
+            # also a run cut short (compare's and sweep's --duration): it pushed nothing
+            # and said nothing (dev-probe81)
+            raise ParameterError(
+                f'external_forces[{late[0]}].start = {self.forces[late[0]].start!r} s is at '
+                f"or after the scenario's end ({self.duration:g} s): it would push nothing")
 
     def external(self, t: float) -> tuple[float, float]:
         """
@@ -408,16 +415,25 @@ def _external_forces(entries: Any, duration: float) -> tuple[ExternalForce, ...]
             raise ParameterError(text if text.startswith(key) else
                                  text.replace('external_forces', key, 1)) from err
         if force.start >= duration - EDGE:
-            raise ParameterError(f'{key}.start = {force.start:g} s is at or after the '
+            raise ParameterError(f'{key}.start = {force.start!r} s is at or after the '
                                  f"scenario's end ({duration:g} s): it would push nothing")
         forces.append(force)
     for name, limit, unit in (('force', MAX_FORCE, 'N'), ('moment', MAX_MOMENT, 'N m')):
-        total = sum(abs(getattr(f, name)) for f in forces)
+        total = _largest_sum(forces, name)
         if total > limit:
             raise ParameterError(f"external_forces: the entries' {name}s add up to "
-                                 f'{total:g} {unit} at most; allowed together: {limit:g} '
+                                 f'{total:g} {unit} at once; allowed together: {limit:g} '
                                  f'{unit}')
     return tuple(forces)
+
+
+def _largest_sum(forces: list[ExternalForce], name: str) -> float:
+    """Return the largest sum of the amplitudes ``name`` of the entries acting at once."""
+    def acting(f: ExternalForce, t: float) -> bool:
+        return f.start <= t and (f.duration == 0.0 or t < f.start + f.duration)
+    # the sum of amplitudes is piecewise constant: largest at some entry's start
+    return max((sum(abs(getattr(f, name)) for f in forces if acting(f, g.start))
+                for g in forces), default=0.0)
 
 
 def check_force_timing(forces: tuple[ExternalForce, ...], dt: float) -> None:
@@ -443,14 +459,19 @@ def check_force_timing(forces: tuple[ExternalForce, ...], dt: float) -> None:
         for name in ('start', 'duration'):
             value = getattr(force, name)
             if not on_grid(value):
-                raise ParameterError(f'{key}.{name} = {value:g} s is not a whole number of '
-                                     f'plant steps (dt = {dt:g} s): the force would start '
+                raise ParameterError(f'{key}.{name} = {value!r} s is not a whole number of '
+                                     f'plant steps (dt = {dt!r} s): the force would start '
                                      'or end up to a step off; choose a multiple of dt')
+        if 0.0 < force.duration < dt - EDGE or (force.duration > 0.0
+                                                and round(force.duration / dt) == 0):
+            raise ParameterError(f'{key}.duration = {force.duration!r} s is shorter than a '
+                                 f'plant step (dt = {dt!r} s): it would push nothing')
         if force.frequency * dt * STEPS_PER_PERIOD > 1.0 + 1e-12:
+            largest = 1.0 / (STEPS_PER_PERIOD * force.frequency)
             raise ParameterError(f'{key}.frequency = {force.frequency:g} Hz needs at least '
-                                 f'{STEPS_PER_PERIOD} plant steps per period: dt <= '
-                                 f'{1.0 / (STEPS_PER_PERIOD * force.frequency):g} s '
-                                 f'(dt = {dt:g} s)')
+                                 f'{STEPS_PER_PERIOD} plant steps per period: dt <= 1 / '
+                                 f'({STEPS_PER_PERIOD} x {force.frequency:g} Hz) = '
+                                 f'{math.floor(largest * 1e9) / 1e9:.9g} s (dt = {dt!r} s)')
 
 
 def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:

@@ -29,6 +29,7 @@ one step per wall-clock period with the latest command.
 from __future__ import annotations
 
 from dataclasses import replace
+import math
 from pathlib import Path
 import sys
 import time
@@ -499,6 +500,14 @@ class SimPlantNode(Node):
                                         scenario.speed.initial, scenario.speed.acceleration,
                                         (lambda _t: push) if scenario.forces else None)
                 self.x = advance(rhs, self.x, t + j * dt, dt, 1, self.plant, u)
+        if self.commonroad is None and not all(math.isfinite(float(v)) for v in self.x):
+            # dev-probe81: the linear plant at 0.05 m/s under a force blew up (|v_y| 1e111)
+            # and the run went on with every input refused, to rc 0
+            pushed = " under the scenario's external_forces" if scenario.forces else ''
+            self.failure = (f'the {self.plant.model} plant diverged between t = {t:g} and '
+                            f'{t + self.period:g} s{pushed} (a non-finite state)')
+            self.done.set_result(False)
+            return
         self.k += 1
 
     def finished(self) -> bool:

@@ -88,10 +88,10 @@ def test_the_shipped_crosswind_is_1_5_kN_from_2_to_12_s_and_kept_at_another_spee
      'too large for a real number'),
     ([{'start': 1.0}], 'external_forces[0]: an entry with neither force nor moment pushes '
      'nothing'),
-    ([{'start': 5.0, 'force': 100.0}], 'external_forces[0].start = 5 s is at or after the '
+    ([{'start': 5.0, 'force': 100.0}], 'external_forces[0].start = 5.0 s is at or after the '
      "scenario's end (5 s)"),
-    ([{'force': 30000.0}, {'force': -30000.0}], "the entries' forces add up to 60000 N at "
-     'most; allowed together: 50000 N'),
+    ([{'force': 30000.0}, {'start': 1.0, 'duration': 1.0, 'force': -30000.0}],
+     "the entries' forces add up to 60000 N at once; allowed together: 50000 N"),
     ([{'force': 1.0}] * 101, 'external_forces has 101 entries; at most 100'),
     ([{'start': 1.0, 1: 2.0, 'foo': 3.0}], "unknown keys [1, 'foo']"),
 ])
@@ -205,13 +205,17 @@ def test_the_runner_refuses_two_disturbances_and_a_continuous_law_with_forces():
      r'external_forces\[0\]\.duration = 0\.0005 s is not a whole number'),
     (ExternalForce(start=1.0, force=100.0, frequency=50.0), 0.005,
      r'external_forces\[0\]\.frequency = 50 Hz needs at least 20 plant steps per '
-     r'period: dt <= 0\.001 s'),
+     r'period: dt <= 1 / \(20 x 50 Hz\) = 0\.001 s'),
+    (ExternalForce(start=1.0, duration=1e-10, force=100.0), 0.001,
+     r'external_forces\[0\]\.duration = 1e-10 s is shorter than a plant step'),
+    (ExternalForce(start=123.4565, force=100.0), 0.001,
+     r'external_forces\[0\]\.start = 123\.4565 s is not a whole number'),
 ])
 def test_a_force_a_plant_step_cannot_give_is_refused(force, dt, message):
     # dev-probe80: a gust off the plant's grid or shorter than a step got 0 to 4 times its
     # impulse depending on the plant; a 50 Hz force at dt 0.01 s pushed the linear plant
     # by its amplitude and the CommonRoad car not at all
-    scenario = Scenario('s', 2.0, STRAIGHT, SpeedProfile(30.0), forces=(force,))
+    scenario = Scenario('s', 200.0, STRAIGHT, SpeedProfile(30.0), forces=(force,))
     with pytest.raises(ParameterError, match=message):
         run(scenario, VehicleParams(), ControllerParams(), dt=dt)
 
@@ -370,3 +374,87 @@ def test_compare_runs_the_crosswind_when_named_and_says_so(tmp_path):
     assert '## `crosswind`: peak CG error [cm] per plant and speed' in text
     assert '| law | linear 37 |' in text
     assert 'crosswind' not in compare.SCENARIOS       # not in the default league
+
+
+def test_forces_that_never_act_together_are_not_added():
+    # dev-probe81: two 30 kN gusts a second apart were refused as 60 kN
+    document = _document([{'start': 1.0, 'duration': 0.5, 'force': 30000.0},
+                          {'start': 2.0, 'duration': 0.5, 'force': -30000.0}])
+    assert len(scenario_from_dict(document).forces) == 2
+
+
+def test_the_suggested_step_for_a_sinusoid_is_one_that_is_taken():
+    # dev-probe81: 30 Hz suggested dt <= 0.00166667 s, rounded up: refused again
+    from sim_plant.scenario import check_force_timing
+    buzz = (ExternalForce(force=100.0, frequency=30.0),)
+    with pytest.raises(ParameterError, match=r'\) = 0\.001666666 s \(dt = 0\.002 s\)'):
+        check_force_timing(buzz, 0.002)
+    check_force_timing(buzz, 0.001666666)
+
+
+def test_a_run_cut_before_its_forces_is_refused_everywhere(tmp_path, capsys):
+    # dev-probe81: compare and sweep --duration 1.5 on the crosswind gave a league of
+    # zeros: the cut dropped the force without a word
+    from lookahead_control.core.cli import run_tool
+    from lookahead_control.tools import compare, sweep
+    with pytest.raises(ParameterError, match=r'external_forces\[0\]\.start = 2\.0 s is at '
+                       r"or after the scenario's end \(1\.5 s\)"):
+        replace(load_scenario(CROSSWIND), duration=1.5)
+    assert run_tool(compare.main, ['--scenarios', 'crosswind', '--laws', 'stanley',
+                                   '--plants', 'linear', '--speeds', '37', '--duration',
+                                   '1.5', '--out', str(tmp_path / 'c'), '--no-plots']) == 2
+    assert '--scenarios crosswind cut to --duration 1.5 s: external_forces[0].start' in (
+        capsys.readouterr().err)
+    assert not (tmp_path / 'c').exists()
+    assert run_tool(sweep.main, ['--out', str(tmp_path / 's'), '--runs', '2', '--batch', '1',
+                                 '--scenarios', 'crosswind', '--speeds', '20', '--laws',
+                                 'cg_compensated', '--duration', '1.5', '--workers', '0']) == 2
+    assert 'cut to --duration 1.5 s at --dt' in capsys.readouterr().err
+    assert not (tmp_path / 's').exists()
+
+
+def test_sweep_refuses_a_force_off_its_step_before_any_run(tmp_path, capsys):
+    # dev-probe81: the crosswind's tasks ran first; the refusal came last and did not
+    # name the file
+    from lookahead_control.core.cli import run_tool
+    from lookahead_control.tools import sweep
+    off = tmp_path / 'off.yaml'
+    off.write_text(CROSSWIND.read_text().replace('start: 2.0', 'start: 2.001'))
+    assert run_tool(sweep.main, ['--out', str(tmp_path / 's'), '--runs', '2', '--batch', '1',
+                                 '--scenarios', f'crosswind,{off}', '--speeds', '20',
+                                 '--laws', 'cg_compensated', '--dt', '0.002', '--workers',
+                                 '0']) == 2
+    err = capsys.readouterr().err
+    assert f'({off}) at --dt 0.002 s: external_forces[0].start = 2.001 s is not a whole' in err
+    assert not (tmp_path / 's').exists()
+
+
+def test_closed_loop_refuses_a_force_off_the_simulators_step_before_any_process(tmp_path):
+    # dev-probe81: every process started, the simulator refused, an empty bag was left
+    from lookahead_control.core.cli import ToolError
+    from lookahead_control.ros.closed_loop import LoopConfig, run_loop
+    off = tmp_path / 'off.yaml'
+    off.write_text(CROSSWIND.read_text().replace('start: 2.0', 'start: 2.0005'))
+    bag = tmp_path / 'bag'
+    with pytest.raises(ToolError, match=r"at the simulator's dt = 0\.001 s: "
+                       r'external_forces\[0\]\.start = 2\.0005 s'):
+        run_loop(LoopConfig(off, bag=bag))
+    assert not bag.exists()
+    # the simulator's own dt, when given, is the one checked
+    with pytest.raises(ToolError, match=r'dt = 0\.002 s: external_forces\[0\]\.start = 2\.001'):
+        run_loop(LoopConfig(_shifted(tmp_path, '2.001'), bag=bag,
+                            extra_sim_args=['-p', 'dt:=0.002']))
+
+
+def _shifted(tmp_path, start):
+    path = tmp_path / f'shifted_{start}.yaml'
+    path.write_text(CROSSWIND.read_text().replace('start: 2.0', f'start: {start}'))
+    return path
+
+
+def test_the_runner_checks_its_steps_before_the_forces():
+    # dev-probe81: dt 0.003 (not a divisor of the 10 ms period) blamed the force's start
+    scenario = load_scenario(CROSSWIND)
+    with pytest.raises(ParameterError) as err:
+        run(scenario, VehicleParams(), ControllerParams(), dt=0.003)
+    assert 'external_forces' not in str(err.value)

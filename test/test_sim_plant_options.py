@@ -216,3 +216,27 @@ def test_a_diverged_plant_stops_the_node_with_one_line_not_from_a_callback(conte
             finished(node)
     finally:
         node.destroy_node()
+
+
+def test_a_diverged_linear_plant_stops_the_node_too(context, tmp_path):
+    # dev-probe81: at 0.05 m/s a 1.5 kN force blew the (stiff) linear plant up, |v_y|
+    # 1e111; every input was refused and the run went on to rc 0 at its deadlines
+    from lookahead_control.core.params import ParameterError
+    from sim_plant.sim_plant_node import finished, SimPlantNode
+    path = tmp_path / 'crawl.yaml'
+    path.write_text('scenario:\n  name: crawl\n  duration: 3.0\n  speed: {initial: 0.05}\n'
+                    '  road:\n    - {type: straight, length: 50.0}\n'
+                    '  external_forces:\n    - {start: 1.0, force: 1500.0}\n')
+    node = SimPlantNode(context=context, parameter_overrides=[
+        Parameter('scenario_file', value=str(path)), Parameter('dt', value=0.005)])
+    try:
+        for _ in range(300):
+            node.integrate()
+            if node.failure:
+                break
+        assert node.failure.startswith('the linear plant diverged between t = 1.')
+        assert "under the scenario's external_forces (a non-finite state)" in node.failure
+        with pytest.raises(ParameterError, match='diverged'):
+            finished(node)
+    finally:
+        node.destroy_node()

@@ -40,8 +40,8 @@ from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolErr
 from lookahead_control.core.config import source_config_dir
 from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.interrupts import deferred
-from lookahead_control.core.params import SCHEDULE_MODES
-from sim_plant.scenario import load_scenario
+from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
+from sim_plant.scenario import check_force_timing, load_scenario
 
 MAX_SPEED = 90.0        # m/s, the scenarios' limit
 PR_SET_PDEATHSIG = 1    # prctl option (linux/prctl.h)
@@ -213,6 +213,24 @@ def write_controller_params(params: dict[str, Any]) -> Path:
     return path
 
 
+def simulator_step(extra_sim_args: Sequence[str]) -> float:
+    """
+    Return the simulator's plant step: its ``dt`` from ``-p dt:=X``, else its default.
+
+    :param extra_sim_args: the simulator's extra ROS arguments.
+    :return: ``dt`` [s] (the default where the value is not a number: the node says so).
+    """
+    from sim_plant.sim_plant_node import SIM_SPECS
+    step = float(next(spec.default for spec in SIM_SPECS if spec.name == 'dt'))
+    for flag, value in zip(extra_sim_args, extra_sim_args[1:]):
+        if flag == '-p' and value.startswith('dt:='):
+            try:
+                step = float(value[len('dt:='):])
+            except ValueError:
+                pass
+    return step
+
+
 def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
     """
     Return the command lines of the simulator and of the controller.
@@ -335,7 +353,15 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
         raise ToolError(f'{cfg.scenario}: no such scenario file')
     if not cfg.timeout > 0.0:
         raise ToolError(f'timeout {cfg.timeout:g} s: must be > 0')
-    load_scenario(cfg.scenario, cfg.speed or None)    # a bad file: one line, no processes
+    # a bad file or force: one line, no processes
+    scenario = load_scenario(cfg.scenario, cfg.speed or None)
+    dt = simulator_step(cfg.extra_sim_args)
+    try:
+        check_force_timing(scenario.forces, dt)
+    except ParameterError as err:
+        # dev-probe81: the simulator refused it after every process had started, and
+        # the bag was left behind empty
+        raise ToolError(f"{cfg.scenario} at the simulator's dt = {dt!r} s: {err}") from err
     sim_cmd, ctl_cmd = node_commands(cfg)
     processes: dict[str, subprocess.Popen] = {}
     why = ''

@@ -643,6 +643,33 @@ def load_scenarios(names: Iterable[str]) -> dict[str, Scenario]:
     return {name: load_scenario(SCENARIO_DIR / f'{name}.yaml') for name in names}
 
 
+def check_scenarios(names: Sequence[str], plants: Sequence[PlantCase], dt: float,
+                    duration: Optional[float]) -> None:
+    """
+    Refuse, before any run, a scenario every run of it would refuse.
+
+    A run cut by ``--duration`` before its external forces start, or a force off a
+    plant's step (dev-probe81: the crosswind cut to 1.5 s gave a league of zeros).
+
+    :param names: the scenarios.
+    :param plants: the plants (each has its own step, or ``dt``).
+    :param dt: the league's plant step [s].
+    :param duration: ``--duration`` (None: each scenario's own).
+    :raises ToolError: naming the scenario.
+    """
+    from sim_plant.scenario import check_force_timing
+    for name in names:
+        scenario = load_scenarios([name])[name]
+        try:
+            if duration is not None:
+                scenario = replace(scenario, duration=duration)
+            for case in plants:
+                check_force_timing(scenario.forces, case.dt or dt)
+        except ParameterError as err:
+            cut = '' if duration is None else f' cut to --duration {duration:g} s'
+            raise ToolError(f'--scenarios {name}{cut}: {err}') from err
+
+
 def scenario_speeds(scenario: Scenario, speeds: Sequence[float]) -> list[float]:
     """
     Return the speeds a scenario runs at (its own profile only, when it is fixed).
@@ -1509,6 +1536,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ToolError(f'--speeds: {twice[0]:g} m/s given twice: each run would be counted '
                         'twice (the same speed runs the same noise seeds); give each speed '
                         'once')
+    if not args.tune:
+        check_scenarios(args.scenarios, [c for c in PLANTS if c.name in args.plants],
+                        args.dt, args.duration)
     outputs = (['tuning.csv'] if args.tune else
                ['league.csv', 'league.md', 'goals_over_seeds.csv',
                 *(() if args.no_plots else ('league.png',))])

@@ -933,9 +933,23 @@ def main(argv: Sequence[str] | None = None) -> int:
                      args.speeds, args.laws, args.plant, args.cornering, args.mass,
                      args.friction, args.delay, not args.no_noise, args.batch, args.dt,
                      args.duration, args.max_error)
+    from dataclasses import replace
+
+    from sim_plant.scenario import check_force_timing, load_scenario
     for name in spec.scenarios:
         if not scenario_path(name).exists():
             raise ToolError(f'--scenarios: no scenario {name!r} ({scenario_path(name)})')
+        # what every run would refuse, before any runs (dev-probe81: the other scenarios'
+        # tasks ran first, then a line that did not name the file)
+        try:
+            scenario = load_scenario(scenario_path(name))
+            if spec.duration > 0.0:
+                scenario = replace(scenario, duration=spec.duration)
+            check_force_timing(scenario.forces, spec.dt)
+        except ParameterError as err:
+            cut = f' cut to --duration {spec.duration:g} s' if spec.duration > 0.0 else ''
+            raise ToolError(f'--scenarios {name} ({scenario_path(name)}){cut} at --dt '
+                            f'{spec.dt!r} s: {err}') from err
     vehicle = load_vehicle(args.vehicle)
     from lookahead_control.tools.compare import load_transfer_note
     note = load_transfer_note(vehicle, [spec.plant], spec.laws)
