@@ -366,15 +366,13 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
     """
     plant = plant or PlantParams()
     law = _as_law(controller, vehicle)
-    if scenario.forces and disturbance is not None:
+    external = bool(scenario.forces)        # the scenario's, which every plant takes
+    if external and disturbance is not None:
         raise ParameterError(f'scenario {scenario.name!r} has external_forces: give the '
                              'disturbance there or as the disturbance argument, not both')
-    external = bool(scenario.forces)        # the scenario's, which every plant takes
-    if external:
-        if control_period == 0.0:
-            raise ParameterError(f'scenario {scenario.name!r} has external_forces: they '
-                                 'need a sampled controller (control_period > 0)')
-        disturbance = scenario.external
+    if external and control_period == 0.0:
+        raise ParameterError(f'scenario {scenario.name!r} has external_forces: they need '
+                             'a sampled controller (control_period > 0)')
     if initial_speed is not None and np.ndim(initial_speed) == 0:
         scenario = scenario.at_speed(float(initial_speed))     # its road for its speed
     ratio, n_steps = check_steps(dt, control_period, scenario.duration)
@@ -431,8 +429,7 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
                 fill(init.yaw_rate), fill(0.0))
     group = None
     if plant_model.model in COMMONROAD_MODELS:
-        if control_period == 0.0 or plant_vehicle is not None or (
-                disturbance is not None and not external):
+        if control_period == 0.0 or plant_vehicle is not None or disturbance is not None:
             raise ParameterError(f'the {plant_model.model} plant needs control_period > 0 '
                                  'and takes no plant_vehicle (its parameters are the '
                                  'CommonRoad set, plant.vehicle_id) and no disturbance '
@@ -457,7 +454,7 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
 
     def plant_rhs(command: Real, push: tuple[float, float] | None = None
                   ) -> Callable[[float, State], State]:
-        # the scenario's forces are held over each plant step, from its start
+        # push: the scenario's forces, held over the plant step from its start
         return plant_derivatives(scenario, body, plant_model, command, v0, accel,
                                  disturbance if push is None else lambda _t: push)
 

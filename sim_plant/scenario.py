@@ -169,7 +169,8 @@ class Scenario:
     :param initial: the initial lateral state.
     :param layout: ``speed -> road`` laid out for that initial speed (None: the road
         does not depend on speed).
-    :param forces: forces on the body from outside (they add).
+    :param forces: forces on the body from outside (they add; none may start at or after
+        the end, also of a run cut short).
     """
 
     name: str
@@ -388,13 +389,12 @@ def _build(cls: Any, key: str, entry: Any) -> Any:
     return cls(**entry)
 
 
-def _external_forces(entries: Any, duration: float) -> tuple[ExternalForce, ...]:
+def _external_forces(entries: Any) -> tuple[ExternalForce, ...]:
     """
     Build the ``external_forces`` list, naming the entry at fault.
 
     :param entries: the file's list (None, every entry commented out: none).
-    :param duration: the scenario's duration [s].
-    :return: the forces.
+    :return: the forces (:class:`Scenario` refuses one starting at or after its end).
     """
     if entries is None:
         return ()
@@ -414,9 +414,6 @@ def _external_forces(entries: Any, duration: float) -> tuple[ExternalForce, ...]
             text = str(err)
             raise ParameterError(text if text.startswith(key) else
                                  text.replace('external_forces', key, 1)) from err
-        if force.start >= duration - EDGE:
-            raise ParameterError(f'{key}.start = {force.start!r} s is at or after the '
-                                 f"scenario's end ({duration:g} s): it would push nothing")
         forces.append(force)
     for name, limit, unit in (('force', MAX_FORCE, 'N'), ('moment', MAX_MOMENT, 'N m')):
         total = _largest_sum(forces, name)
@@ -462,8 +459,7 @@ def check_force_timing(forces: tuple[ExternalForce, ...], dt: float) -> None:
                 raise ParameterError(f'{key}.{name} = {value!r} s is not a whole number of '
                                      f'plant steps (dt = {dt!r} s): the force would start '
                                      'or end up to a step off; choose a multiple of dt')
-        if 0.0 < force.duration < dt - EDGE or (force.duration > 0.0
-                                                and round(force.duration / dt) == 0):
+        if force.duration > 0.0 and round(force.duration / dt) == 0:     # on the grid: 0
             raise ParameterError(f'{key}.duration = {force.duration!r} s is shorter than a '
                                  f'plant step (dt = {dt!r} s): it would push nothing')
         if force.frequency * dt * STEPS_PER_PERIOD > 1.0 + 1e-12:
@@ -511,8 +507,7 @@ def scenario_from_dict(document: Any, source: str = 'scenario') -> Scenario:
                             check_range('scenario.duration', body.get('duration', 10.0),
                                         0.0, 1.0e5, low_open=True, unit='s'),
                             road, speed, initial, layout)
-        return replace(scenario, forces=_external_forces(body.get('external_forces'),
-                                                         scenario.duration))
+        return replace(scenario, forces=_external_forces(body.get('external_forces')))
     except (KeyError, TypeError) as err:
         raise ConfigError(f'{source}: not a scenario ({err}); expected a mapping '
                           "'scenario:' with name, duration, speed, initial, road") from err
