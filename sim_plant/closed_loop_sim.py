@@ -494,18 +494,14 @@ def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams
         with np.errstate(over='ignore', invalid='ignore'):   # a diverging run: below
             if control_period == 0.0:
                 x = advance(continuous_rhs, x, t, dt, ratio, plant_model, out.steering)
-            elif external:
-                for j in range(ratio):
-                    applied = _applied(commands, k * ratio + j, lag, ratio, fill)
-                    x = advance(plant_rhs(applied, scenario.external(t + j * dt)), x,
-                                t + j * dt, dt, 1, plant_model, applied)
-            elif isinstance(lag, int) and lag == 0:
+            elif isinstance(lag, int) and lag == 0 and not external:
                 x = advance(plant_rhs(out.steering), x, t, dt, ratio, plant_model,
                             out.steering)
-            else:
+            else:       # a delay or the scenario's forces: one plant step at a time
                 for j in range(ratio):
                     applied = _applied(commands, k * ratio + j, lag, ratio, fill)
-                    x = advance(plant_rhs(applied), x, t + j * dt, dt, 1, plant_model,
+                    push = scenario.external(t + j * dt) if external else None
+                    x = advance(plant_rhs(applied, push), x, t + j * dt, dt, 1, plant_model,
                                 applied)
         x, lost = _hold_diverged(before, x, lost, t)
     if group is not None:

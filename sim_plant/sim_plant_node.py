@@ -473,13 +473,7 @@ class SimPlantNode(Node):
                 self.commonroad.advance(t + j * dt, dt, self.applied(j))
             model = self.commonroad.plants[0]
             if model.diverged_at is not None:
-                # the node stops with one line: raised by main's done check, outside the
-                # executor's callback (raised here, rclpy logged it FATAL with its stack
-                # before the line; dev-probe80)
-                pushed = " under the scenario's external_forces" if scenario.forces else ''
-                self.failure = (f'the {self.plant.model} plant diverged at t = '
-                                f'{model.diverged_at:g} s{pushed} ({model.failure})')
-                self.done.set_result(False)
+                self.stop_diverged(f'at t = {model.diverged_at:g} s', model.failure)
                 return
             self.x = self.commonroad.contract()
         elif self.lag == 0 and self.stepper is not None:
@@ -495,20 +489,33 @@ class SimPlantNode(Node):
                     self.x = self.stepper(self.x, t + j * dt, dt, 1, u)
                     continue
                 # the scenario's forces are held over each plant step, from its start
-                push = scenario.external(t + j * dt)
+                push = scenario.external(t + j * dt) if scenario.forces else None
                 rhs = plant_derivatives(scenario, self.plant_vehicle, self.plant, u,
                                         scenario.speed.initial, scenario.speed.acceleration,
-                                        (lambda _t: push) if scenario.forces else None)
+                                        None if push is None else lambda _t: push)
                 self.x = advance(rhs, self.x, t + j * dt, dt, 1, self.plant, u)
         if self.commonroad is None and not all(math.isfinite(float(v)) for v in self.x):
             # dev-probe81: the linear plant at 0.05 m/s under a force blew up (|v_y| 1e111)
             # and the run went on with every input refused, to rc 0
-            pushed = " under the scenario's external_forces" if scenario.forces else ''
-            self.failure = (f'the {self.plant.model} plant diverged between t = {t:g} and '
-                            f'{t + self.period:g} s{pushed} (a non-finite state)')
-            self.done.set_result(False)
+            self.stop_diverged(f'between t = {t:g} and {t + self.period:g} s',
+                               'a non-finite state')
             return
         self.k += 1
+
+    def stop_diverged(self, when: str, why: str) -> None:
+        """
+        End the run: the plant diverged (:func:`finished` raises it in one line).
+
+        Raised by main's done check, outside the executor's callback: raised in the
+        steering callback, rclpy logged it FATAL with its stack before the line
+        (dev-probe80).
+
+        :param when: when, e.g. ``at t = 1.384 s``.
+        :param why: what failed.
+        """
+        pushed = " under the scenario's external_forces" if self.scenario.forces else ''
+        self.failure = f'the {self.plant.model} plant diverged {when}{pushed} ({why})'
+        self.done.set_result(False)
 
     def finished(self) -> bool:
         """Return True (and stop) when the scenario's end is reached."""

@@ -96,17 +96,22 @@ def test_node_drives_a_commonroad_plant(context):
     assert np.all(np.isfinite(y)) and np.max(np.abs(y)) < 1.5
 
 
-def _windy(tmp_path):
-    """Write paper_r400 with a crosswind from 0.5 s and a gust from 1 s; return its path."""
+def _with_forces(tmp_path, name, forces):
+    """Write paper_r400 with ``forces`` as its external_forces; return its path."""
     from lookahead_control.core.config import read_yaml
     import yaml
     document = read_yaml(SCENARIO)
-    document['scenario']['external_forces'] = [
-        {'start': 0.5, 'force': 1500.0, 'moment': -200.0},
-        {'start': 1.0, 'duration': 1.0, 'force': 800.0, 'frequency': 1.5}]
-    path = tmp_path / 'windy.yaml'
+    document['scenario']['external_forces'] = forces
+    path = tmp_path / f'{name}.yaml'
     path.write_text(yaml.safe_dump(document))
     return path
+
+
+def _windy(tmp_path):
+    """Write paper_r400 with a crosswind from 0.5 s and a gust from 1 s; return its path."""
+    return _with_forces(tmp_path, 'windy', [
+        {'start': 0.5, 'force': 1500.0, 'moment': -200.0},
+        {'start': 1.0, 'duration': 1.0, 'force': 800.0, 'frequency': 1.5}])
 
 
 @pytest.mark.parametrize('model', ['linear', 'nonlinear'])
@@ -157,14 +162,9 @@ def test_node_ground_truth_gives_a_gust_shorter_than_a_period_as_its_impulse(
         context, tmp_path):
     # dev-probe80: a 20 kN gust of 3 ms between two 10 ms rows read -416 N in the bag
     # while it moved v_y by 0.04 m/s: the truth sampled the force once per period
-    from lookahead_control.core.config import read_yaml
     from sim_plant.sim_plant_node import SimPlantNode
-    import yaml
-    document = read_yaml(SCENARIO)
-    document['scenario']['external_forces'] = [{'start': 1.005, 'duration': 0.003,
-                                                'force': 20000.0}]
-    path = tmp_path / 'gust.yaml'
-    path.write_text(yaml.safe_dump(document))
+    path = _with_forces(tmp_path, 'gust', [{'start': 1.005, 'duration': 0.003,
+                                            'force': 20000.0}])
     node = SimPlantNode(context=context, parameter_overrides=[
         Parameter('scenario_file', value=str(path))])
     try:
@@ -175,15 +175,10 @@ def test_node_ground_truth_gives_a_gust_shorter_than_a_period_as_its_impulse(
 
 
 def test_node_refuses_a_force_its_plant_step_cannot_give(tmp_path):
-    from lookahead_control.core.config import read_yaml
     from lookahead_control.core.params import ParameterError
     from sim_plant.sim_plant_node import ALL_SPECS, check_parameters
-    import yaml
-    document = read_yaml(SCENARIO)
-    document['scenario']['external_forces'] = [{'start': 1.0, 'force': 100.0,
-                                                'frequency': 10.0}]
-    path = tmp_path / 'buzz.yaml'
-    path.write_text(yaml.safe_dump(document))
+    path = _with_forces(tmp_path, 'buzz', [{'start': 1.0, 'force': 100.0,
+                                            'frequency': 10.0}])
     params = {spec.name: spec.default for spec in ALL_SPECS}
     params.update({'scenario_file': str(path), 'dt': 0.01})
     with pytest.raises(ParameterError, match=r'buzz\.yaml with dt = 0\.01 s: external_forces'
@@ -193,50 +188,45 @@ def test_node_refuses_a_force_its_plant_step_cannot_give(tmp_path):
     assert check_parameters(params).scenario.forces[0].frequency == 10.0
 
 
-def test_a_diverged_plant_stops_the_node_with_one_line_not_from_a_callback(context, tmp_path):
-    # dev-probe80: 50 kN on the multi-body car made it diverge at 1.38 s; the node raised
-    # inside the steering callback, and rclpy logged FATAL with its stack before the line
+def _until_diverged(context, tmp_path, speed, force, steps, **params):
+    """
+    Integrate a straight at ``speed`` pushed by ``force`` from 1 s until the plant fails.
+
+    :return: the node's failure text (its done check raises it, checked here).
+    """
     from lookahead_control.core.params import ParameterError
     from sim_plant.sim_plant_node import finished, SimPlantNode
-    path = tmp_path / 'storm.yaml'
-    path.write_text('scenario:\n  name: storm\n  duration: 4.0\n  speed: {initial: 37.0}\n'
+    path = tmp_path / 'push.yaml'
+    path.write_text(f'scenario:\n  name: push\n  duration: 4.0\n  speed: {{initial: {speed}}}\n'
                     '  road:\n    - {type: straight, length: 500.0}\n'
-                    '  external_forces:\n    - {start: 1.0, force: 50000.0}\n')
+                    f'  external_forces:\n    - {{start: 1.0, force: {force}}}\n')
     node = SimPlantNode(context=context, parameter_overrides=[
         Parameter('scenario_file', value=str(path)),
-        Parameter('plant.model', value='commonroad_mb'), Parameter('dt', value=0.002)])
+        *(Parameter(name, value=value) for name, value in params.items())])
     try:
-        for _ in range(400):
+        for _ in range(steps):
             node.integrate()                # raised ParameterError here (a callback)
             if node.failure:
                 break
-        assert node.failure.startswith('the commonroad_mb plant diverged at t = ')
-        assert "under the scenario's external_forces" in node.failure
         with pytest.raises(ParameterError, match='diverged'):
             finished(node)
+        return node.failure
     finally:
         node.destroy_node()
+
+
+def test_a_diverged_plant_stops_the_node_with_one_line_not_from_a_callback(context, tmp_path):
+    # dev-probe80: 50 kN on the multi-body car made it diverge at 1.38 s; the node raised
+    # inside the steering callback, and rclpy logged FATAL with its stack before the line
+    failure = _until_diverged(context, tmp_path, 37.0, 50000.0, 400,
+                              **{'plant.model': 'commonroad_mb', 'dt': 0.002})
+    assert failure.startswith('the commonroad_mb plant diverged at t = ')
+    assert "under the scenario's external_forces" in failure
 
 
 def test_a_diverged_linear_plant_stops_the_node_too(context, tmp_path):
     # dev-probe81: at 0.05 m/s a 1.5 kN force blew the (stiff) linear plant up, |v_y|
     # 1e111; every input was refused and the run went on to rc 0 at its deadlines
-    from lookahead_control.core.params import ParameterError
-    from sim_plant.sim_plant_node import finished, SimPlantNode
-    path = tmp_path / 'crawl.yaml'
-    path.write_text('scenario:\n  name: crawl\n  duration: 3.0\n  speed: {initial: 0.05}\n'
-                    '  road:\n    - {type: straight, length: 50.0}\n'
-                    '  external_forces:\n    - {start: 1.0, force: 1500.0}\n')
-    node = SimPlantNode(context=context, parameter_overrides=[
-        Parameter('scenario_file', value=str(path)), Parameter('dt', value=0.005)])
-    try:
-        for _ in range(300):
-            node.integrate()
-            if node.failure:
-                break
-        assert node.failure.startswith('the linear plant diverged between t = 1.')
-        assert "under the scenario's external_forces (a non-finite state)" in node.failure
-        with pytest.raises(ParameterError, match='diverged'):
-            finished(node)
-    finally:
-        node.destroy_node()
+    failure = _until_diverged(context, tmp_path, 0.05, 1500.0, 300, dt=0.005)
+    assert failure.startswith('the linear plant diverged between t = 1.')
+    assert "under the scenario's external_forces (a non-finite state)" in failure
