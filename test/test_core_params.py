@@ -151,3 +151,32 @@ def test_bad_scenario_names_the_problem(tmp_path):
                     '    - {type: straight, length: 10.0}\n')
     with pytest.raises(ConfigError, match='speed.acceleration = 9.0'):
         load_scenario(path)
+
+
+def test_a_key_written_twice_in_a_scenario_is_refused_with_both_lines(tmp_path):
+    # before: PyYAML kept the later value without a word: a second 'speed:' ran the
+    # scenario at it, a second 'external_forces:' list dropped the first one's forces
+    # and a second 'force:' in one entry took the later force
+    crosswind = (ROOT / 'config' / 'scenarios' / 'crosswind.yaml').read_text()
+    path = tmp_path / 's.yaml'
+    for text, key, lines in [
+            (crosswind.replace('  speed: {initial: 37.0}\n',
+                               '  speed: {initial: 37.0, initial: 20.0}\n'), 'initial', (8, 8)),
+            (crosswind + '  external_forces: []\n', 'external_forces', None),
+            ('scenario:\n  duration: 5.0\n  speed: {initial: 20.0}\n  road:\n'
+             '    - {type: straight, length: 200.0}\n  external_forces:\n'
+             '    - {start: 1.0, duration: 1.0, force: 100.0, force: 1500.0}\n',
+             'force', (7, 7))]:
+        path.write_text(text)
+        with pytest.raises(ConfigError, match=f"'{key}' written twice in one map") as err:
+            load_scenario(path)
+        if lines is not None:
+            assert f'(line {lines[1]}): ' in str(err.value)
+            assert f'(first on line {lines[0]})' in str(err.value)
+    # a merge's keys are overridden by the map's own, as YAML means
+    path.write_text('scenario:\n  duration: 5.0\n  speed: {initial: 20.0}\n  road:\n'
+                    '    - {type: straight, length: 200.0}\n  external_forces:\n'
+                    '    - &gust {start: 1.0, duration: 0.5, force: 100.0}\n'
+                    '    - {<<: *gust, start: 3.0, force: 1500.0}\n')
+    forces = load_scenario(path).forces
+    assert [(f.start, f.force) for f in forces] == [(1.0, 100.0), (3.0, 1500.0)]

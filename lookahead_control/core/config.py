@@ -42,6 +42,7 @@ import yaml
 
 
 PACKAGE_NAME = 'lookahead_control'
+MERGE_TAG = 'tag:yaml.org,2002:merge'
 D = TypeVar('D')
 
 
@@ -69,9 +70,45 @@ def source_config_dir() -> Path:
     return Path(get_package_share_directory(PACKAGE_NAME)) / 'config'
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing a key written twice in one map."""
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        """
+        Return the map of ``node``, refusing a key written twice in it.
+
+        PyYAML keeps the later value without a word: a scenario with two ``speed:`` or
+        two ``external_forces:`` lists ran with the second alone. Keys a merge (``<<:
+        *base``) brings in are overridden by the map's own, as YAML means.
+
+        :param node: a mapping node.
+        :param deep: construct the values at once.
+        :return: the map.
+        :raises yaml.constructor.ConstructorError: a key written twice, with both lines.
+        """
+        if isinstance(node, yaml.MappingNode):
+            first: dict[Any, Any] = {}
+            for key_node, _ in node.value:
+                if key_node.tag == MERGE_TAG:
+                    continue                # '<<: *base': the keys after it override
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    earlier = first.setdefault(key, key_node)
+                except TypeError:
+                    continue                # unhashable: construct_mapping refuses it
+                if earlier is not key_node:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f'{key!r} written twice in one map (first on line '
+                        f'{earlier.start_mark.line + 1}): write it once',
+                        key_node.start_mark)
+        return super().construct_mapping(node, deep=deep)
+
+
 def read_yaml(path: Path | str) -> Any:
     """
     Read a YAML file, turning every failure into one :class:`ConfigError`.
+
+    A key written twice in one map is refused (PyYAML keeps the later one silently).
 
     :param path: the file.
     :return: the parsed document.
@@ -83,7 +120,7 @@ def read_yaml(path: Path | str) -> Any:
         raise ConfigError(f'{file}: cannot read: {getattr(err, "strerror", None) or err}'
                           ) from err
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a safe loader)
     except yaml.YAMLError as err:
         raise ConfigError(f'{file}: {yaml_problem(err)}') from err
 
