@@ -19,18 +19,49 @@ ros2 launch lookahead_control closed_loop.launch.py speed:=37.0 schedule:=paper
 
 Its arguments and their defaults are ``closed_loop``'s: ``law`` is ``paper`` (the paper's
 law with ``schedule``), as ``closed_loop`` runs it; ``law:=cg_compensated`` runs the
-controller's own default law.
+controller's own default law. ``plant:=commonroad_mb`` (or ``commonroad_st``) drives
+CommonRoad's car ``vehicle_id`` (1 Ford Escort, 2 BMW 320i, 3 VW Vanagon) and gives the
+controller that car's mapped model, as ``closed_loop --plant commonroad_mb`` does.
 """
 
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, EmitEvent, RegisterEventHandler
+from launch.actions import (DeclareLaunchArgument, EmitEvent, OpaqueFunction,
+                            RegisterEventHandler)
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+
+
+def _nodes(context, config):
+    """Return the two nodes, the controller's model the plant's car (CommonRoad: mapped)."""
+    plant = LaunchConfiguration('plant').perform(context)
+    mapped, chosen = {}, {}
+    if plant.startswith('commonroad_'):
+        from sim_plant.commonroad_plant import controller_vehicle_params
+        vehicle_id = int(LaunchConfiguration('vehicle_id').perform(context))
+        mapped = controller_vehicle_params(vehicle_id)
+        chosen = {'plant.vehicle_id': vehicle_id}
+    sim = Node(package='lookahead_control', executable='sim_plant', name='sim_plant',
+               parameters=[os.path.join(config, 'vehicle.yaml'), {
+                   'scenario_file': LaunchConfiguration('scenario'),
+                   'speed': LaunchConfiguration('speed'),
+                   'mode': LaunchConfiguration('mode'),
+                   'plant.model': plant, **chosen}])
+    controller = Node(package='lookahead_control', executable='controller',
+                      name='controller',
+                      parameters=[os.path.join(config, 'vehicle.yaml'),
+                                  os.path.join(config, 'controller.yaml'), mapped, {
+                                      'controller.schedule': LaunchConfiguration('schedule'),
+                                      'law': LaunchConfiguration('law'),
+                                      'wait_for_matching_stamps': True,
+                                      'use_sim_time': True}])
+    return [controller, sim,
+            RegisterEventHandler(OnProcessExit(target_action=sim,
+                                               on_exit=[EmitEvent(event=Shutdown())]))]
 
 
 def generate_launch_description():
@@ -39,24 +70,8 @@ def generate_launch_description():
     args = {
         'scenario': os.path.join(config, 'scenarios', 'paper_r400.yaml'),
         'speed': '0.0', 'schedule': 'paper', 'mode': 'lockstep', 'plant': 'linear',
-        'law': 'paper',
+        'law': 'paper', 'vehicle_id': '2',
     }
-    sim = Node(package='lookahead_control', executable='sim_plant', name='sim_plant',
-               parameters=[os.path.join(config, 'vehicle.yaml'), {
-                   'scenario_file': LaunchConfiguration('scenario'),
-                   'speed': LaunchConfiguration('speed'),
-                   'mode': LaunchConfiguration('mode'),
-                   'plant.model': LaunchConfiguration('plant')}])
-    controller = Node(package='lookahead_control', executable='controller',
-                      name='controller',
-                      parameters=[os.path.join(config, 'vehicle.yaml'),
-                                  os.path.join(config, 'controller.yaml'), {
-                                      'controller.schedule': LaunchConfiguration('schedule'),
-                                      'law': LaunchConfiguration('law'),
-                                      'wait_for_matching_stamps': True,
-                                      'use_sim_time': True}])
     return LaunchDescription(
         [DeclareLaunchArgument(k, default_value=v) for k, v in args.items()]
-        + [controller, sim,
-           RegisterEventHandler(OnProcessExit(target_action=sim,
-                                              on_exit=[EmitEvent(event=Shutdown())]))])
+        + [OpaqueFunction(function=_nodes, args=[config])])

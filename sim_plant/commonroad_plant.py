@@ -39,6 +39,7 @@ kinematic trailer model only) and is refused with that reason.
 
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 import math
 from typing import Any, Callable
@@ -99,6 +100,19 @@ def controller_vehicle(vehicle_id: int) -> VehicleParams:
     return VehicleParams(mass=p.m, yaw_inertia=p.I_z, l1=p.a, l2=p.b,
                          c_f=stiffness * p.b / wheelbase, c_r=stiffness * p.a / wheelbase,
                          d_s=0.5 * p.l, cg_height=height)
+
+
+def controller_vehicle_params(vehicle_id: int) -> dict[str, float]:
+    """
+    Return :func:`controller_vehicle` as the controller node's ``vehicle.*`` parameters.
+
+    What ``closed_loop --plant commonroad_*`` and the launch file give the controller.
+
+    :param vehicle_id: 1, 2 or 3.
+    :return: ``{'vehicle.mass': ..., ...}``.
+    """
+    car = controller_vehicle(vehicle_id)
+    return {f'vehicle.{f.name}': float(getattr(car, f.name)) for f in dataclasses.fields(car)}
 
 
 def _rk4(f: Callable[[list[float]], list[float]], x: list[float], h: float) -> list[float]:

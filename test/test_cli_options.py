@@ -347,6 +347,15 @@ def _closed_loop():
         sim, _ = recorded(c)
         assert sim['output'] != 'vehicle', sim['output']
 
+    def vehicle_id(c):
+        from sim_plant.commonroad_plant import controller_vehicle
+        bag = c.tmp / 'cl_vehicle_id'
+        _ok(run('closed_loop', '--scenario', c.scenario, '--plant', 'commonroad_st',
+                '--vehicle-id', '1', '--bag', bag, cwd=c.tmp))
+        assert node_parameters(bag, '/sim_plant')['plant.vehicle_id'] == 1
+        mass = node_parameters(bag, '/controller')['vehicle.mass']
+        assert mass == controller_vehicle(1).mass != controller_vehicle(2).mass, mass
+
     def no_record(c):
         folder = c.folder('cl_norecord')
         out = run('closed_loop', '--scenario', c.scenario, '--no-record', cwd=folder)
@@ -371,6 +380,7 @@ def _closed_loop():
         '--timeout': (NON_NUMBERS + ('0', '-1'), timeout),
         '--bag': ((), check(lambda s, ctl, c: None)),
         '--no-record': ((), no_record),
+        '--vehicle-id': (('4', '0', 'x'), vehicle_id),
         '--via-bridge': ((), via_bridge),
         '--controller': (('no_such.yaml',),
                          check(lambda s, ctl, c: ctl['controller.natural_frequency'] == 1.5

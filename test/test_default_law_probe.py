@@ -19,6 +19,7 @@ Probe of the default law (dev-probe16): a hostile new user's findings, one test 
 Each test fails on the code before its fix (named in the test).
 """
 
+import sys
 import time
 
 from lookahead_control.core.control_law import LateralState
@@ -116,6 +117,84 @@ def test_the_launch_file_runs_the_law_closed_loop_runs(monkeypatch):
     assert (args['schedule'], args['mode'], args['plant'], float(args['speed'])) == (
         cfg.schedule, cfg.mode, cfg.plant, cfg.speed)
     assert 'law' in keys            # handed to the controller
+
+
+def _launched(monkeypatch, **arguments):
+    """
+    Run the closed-loop launch file on stand-ins of launch and launch_ros.
+
+    Neither is on PyPI: the stand-ins record what the file builds, and a context holds
+    the launch arguments (its defaults, then ``arguments``) for ``perform``.
+
+    :return: the nodes' keyword arguments by executable.
+    """
+    import importlib.util
+    from pathlib import Path
+    import types
+
+    class Configuration:
+
+        def __init__(self, name):
+            self.name = name
+
+        def perform(self, context):
+            return context[self.name]
+
+    class Opaque:
+
+        def __init__(self, function, args=None, kwargs=None):
+            self.run = lambda context: function(context, *(args or ()), **(kwargs or {}))
+
+    def keep(*args, **kwargs):
+        return args, kwargs
+
+    def declared(name, default_value):
+        return (name, default_value)
+    stand_ins = {'launch': {'LaunchDescription': list},
+                 'launch.actions': {'DeclareLaunchArgument': declared, 'EmitEvent': keep,
+                                    'OpaqueFunction': Opaque, 'RegisterEventHandler': keep},
+                 'launch.event_handlers': {'OnProcessExit': keep},
+                 'launch.events': {'Shutdown': keep},
+                 'launch.substitutions': {'LaunchConfiguration': Configuration},
+                 'launch_ros': {}, 'launch_ros.actions': {'Node': lambda **kw: kw}}
+    for name, members in stand_ins.items():
+        module = types.ModuleType(name)
+        module.__dict__.update(members)
+        monkeypatch.setitem(sys.modules, name, module)
+    root = Path(__file__).resolve().parent.parent
+    import ament_index_python.packages as packages
+    monkeypatch.setattr(packages, 'get_package_share_directory', lambda name: str(root))
+    spec = importlib.util.spec_from_file_location('closed_loop_launch',
+                                                  root / 'launch' / 'closed_loop.launch.py')
+    launch_file = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(launch_file)
+    entities = launch_file.generate_launch_description()
+    context = {**dict(e for e in entities if isinstance(e, tuple)), **arguments}
+    opaque, = [e for e in entities if not isinstance(e, tuple)]
+    return {e['executable']: e for e in opaque.run(context) if isinstance(e, dict)}
+
+
+def test_the_launch_file_gives_a_commonroad_car_its_mapped_model(monkeypatch):
+    # dev-sc38: closed_loop --plant commonroad_mb gives the controller the car's mapped
+    # model; the launch file took plant:=commonroad_mb and steered CommonRoad's BMW with
+    # the package's car as the controller's model (and no way to choose the car)
+    from sim_plant.commonroad_plant import controller_vehicle
+    nodes = _launched(monkeypatch)                   # the defaults: the package's car
+    assert nodes['sim_plant']['parameters'][1]['plant.model'] == 'linear'
+    assert 'plant.vehicle_id' not in nodes['sim_plant']['parameters'][1]
+    assert not any('vehicle.mass' in p for p in nodes['controller']['parameters']
+                   if isinstance(p, dict))
+    for vehicle_id in (2, 3):
+        nodes = _launched(monkeypatch, plant='commonroad_mb', vehicle_id=str(vehicle_id))
+        sim = nodes['sim_plant']['parameters'][1]
+        assert (sim['plant.model'], sim['plant.vehicle_id']) == ('commonroad_mb', vehicle_id)
+        files, mapped, own = (nodes['controller']['parameters'][:2],
+                              *nodes['controller']['parameters'][2:])
+        assert all(str(f).endswith(('vehicle.yaml', 'controller.yaml')) for f in files)
+        car = controller_vehicle(vehicle_id)
+        assert mapped == {f'vehicle.{name}': getattr(car, name) for name in (
+            'mass', 'yaw_inertia', 'l1', 'l2', 'c_f', 'c_r', 'd_s', 'cg_height')}
+        assert 'controller.schedule' in own
 
 
 MS = 1_000_000

@@ -280,3 +280,50 @@ def test_closed_loop_executable_succeeds_and_fails_cleanly(tmp_path):
                           str(tmp_path / 'none.yaml')], cwd=ROOT, capture_output=True,
                          text=True, timeout=60)
     assert bad.returncode == 2 and 'none.yaml: no such scenario file' in bad.stderr
+
+
+def test_closed_loop_drives_a_commonroad_car_with_its_mapped_model(tmp_path):
+    # dev-sc37 left it open: --plant took linear and nonlinear only, so no ROS run of
+    # the package's loop drove the independent car; the controller needs the car's
+    # mapped model (a BMW 320i steered with the package's 1485 kg car as its model)
+    from lookahead_control.bags.run_data import rerun
+    from lookahead_control.core.baselines import BaselineParams
+    from lookahead_control.core.controller import build_law
+    from sim_plant.commonroad_plant import controller_vehicle
+    from sim_plant.vehicle_model import PlantParams
+    from sim_plant.scenario import load_scenario
+    scenario = tmp_path / 'curve.yaml'
+    scenario.write_text('scenario:\n  name: curve\n  duration: 4.0\n  speed: {initial: 30.0}\n'
+                        '  road:\n    - {type: straight, time: 1.0}\n'
+                        '    - {type: arc, curvature: 0.0025, time: 10.0}\n')
+    code = 'import sys\nfrom lookahead_control.ros.closed_loop import entry\nsys.exit(entry())'
+    bag = tmp_path / 'run'
+    out = subprocess.run([sys.executable, '-c', code, '--scenario', str(scenario),
+                          '--plant', 'commonroad_mb', '--law', 'cg_compensated', '--bag',
+                          str(bag)], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    car = controller_vehicle(2)
+    assert f'CommonRoad set 2: the controller models it as mass {car.mass:g}, ' in out.stdout
+    recorded = load_run(bag)
+    assert recorded.plant_params['plant.model'] == 'commonroad_mb'
+    assert recorded.plant_params['plant.vehicle_id'] == 2
+    for name in ('mass', 'yaw_inertia', 'l1', 'l2', 'c_f', 'c_r', 'd_s', 'cg_height'):
+        assert recorded.controller_params[f'vehicle.{name}'] == getattr(car, name), name
+    assert rerun(recorded).max_diff == 0.0
+    # the ROS loop is the offline runner's on the same car with the same model
+    law = build_law('cg_compensated', car, ControllerParams(), BaselineParams())
+    offline = run(load_scenario(scenario), car, law,
+                  plant=PlantParams(model='commonroad_mb', vehicle_id=2))
+    stamped = recorded.steering.by_stamp()
+    ros = np.array([stamped[s]['angle'] for s in sorted(stamped)])
+    index = np.round(np.array(sorted(stamped)) * 1e-9 / 0.01).astype(int)
+    gap = np.abs(offline['steering_cmd'][index] - ros)
+    assert ros.size == 400 and np.abs(ros).max() > 0.01 and gap.max() < 1e-6, gap.max()
+    # a set chosen for a plant that is not CommonRoad's: one line, nothing started
+    bad = subprocess.run([sys.executable, '-c', code, '--scenario', str(scenario),
+                          '--vehicle-id', '3', '--no-record'], cwd=ROOT,
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2
+    assert bad.stderr.strip().endswith('--vehicle-id 3 with --plant linear: a CommonRoad car '
+                                       'is chosen only for --plant commonroad_st or '
+                                       'commonroad_mb'), bad.stderr

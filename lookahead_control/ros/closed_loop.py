@@ -67,7 +67,9 @@ class LoopConfig:
     :param law: the controller's steering law (``law`` parameter; ``schedule`` is the
         paper law's d_v schedule).
     :param controller_params: the controller's one params file (None: the package's
-        ``vehicle.yaml`` and ``controller.yaml``): :func:`write_controller_params`.
+        ``vehicle.yaml`` and ``controller.yaml``, and on a CommonRoad plant the set's
+        mapped model after them): :func:`write_controller_params`.
+    :param vehicle_id: the CommonRoad parameter set of a ``commonroad_*`` plant.
     """
 
     scenario: Path
@@ -84,6 +86,31 @@ class LoopConfig:
     extra_bridge_args: list[str] = field(default_factory=list)
     law: str = 'paper'
     controller_params: Optional[Path] = None
+    vehicle_id: int = 2
+
+
+#: the simulator's plants ``closed_loop`` runs: the package's and CommonRoad's
+PLANTS = ('linear', 'nonlinear', 'commonroad_st', 'commonroad_mb')
+COMMONROAD_PREFIX = 'commonroad_'
+
+
+def mapped_vehicle(vehicle_id: int) -> dict[str, float]:
+    """
+    Return the controller's ``vehicle.*`` parameters for a CommonRoad car.
+
+    The set's single-track mapping (``sim_plant.commonroad_plant.controller_vehicle``,
+    docs/proving_ground.md): without it the controller steered a BMW 320i with the
+    package's car as its model.
+
+    :param vehicle_id: the CommonRoad parameter set (1, 2 or 3).
+    :return: ``{'vehicle.mass': ..., ...}``.
+    :raises ToolError: a set the package cannot map.
+    """
+    from sim_plant.commonroad_plant import controller_vehicle_params
+    try:
+        return controller_vehicle_params(vehicle_id)
+    except ParameterError as err:
+        raise ToolError(f'--vehicle-id {vehicle_id}: {err}') from err
 
 
 #: the controller parameters ``closed_loop`` sets itself: its options say the first
@@ -93,13 +120,15 @@ OWN_CONTROLLER_PARAMS = ('law', 'controller.schedule', 'wait_for_matching_stamps
 
 
 def controller_settings(params_file: Optional[Path], settings: Sequence[str], law: str,
-                        schedule: str) -> tuple[dict[str, Any], list[str]]:
+                        schedule: str, vehicle: Optional[dict[str, float]] = None
+                        ) -> tuple[dict[str, Any], list[str]]:
     """
     Return the controller's own settings, checked as the node checks them, before any start.
 
-    ``config/vehicle.yaml``, ``config/controller.yaml``, then the file, then the
-    settings, each replacing the one before; the run's own parameters
-    (:data:`OWN_CONTROLLER_PARAMS`) are left out of the file's and refused as settings.
+    ``config/vehicle.yaml``, ``config/controller.yaml``, ``vehicle`` (a CommonRoad car's
+    mapped model), then the file, then the settings, each replacing the one before; the
+    run's own parameters (:data:`OWN_CONTROLLER_PARAMS`) are left out of the file's and
+    refused as settings.
     The node is given the result as its one params file (:func:`write_controller_params`):
     it runs what was checked here, whatever rcl would make of several files and ``-p``.
     A name the node does not have, a value out of its range, and a combination the
@@ -109,6 +138,7 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
     :param settings: ``NAME:=VALUE`` items (``--param``).
     :param law: the run's law (``--law``).
     :param schedule: the run's d_v schedule (``--schedule``).
+    :param vehicle: ``vehicle.*`` parameters over the package's (None: none).
     :return: ``(parameters by name, the file's parameters left out)``.
     :raises ToolError: naming the file or setting and what is allowed.
     """
@@ -118,7 +148,7 @@ def controller_settings(params_file: Optional[Path], settings: Sequence[str], la
                                                      ROS_BUILTIN_PREFIXES)
     from lookahead_control.core.params import ParameterError
     from lookahead_control.ros.controller_node import ALL_SPECS, core_from_params
-    merged = package_controller_params()
+    merged = {**package_controller_params(), **(vehicle or {})}
     dropped: list[str] = []
     if params_file is not None:
         try:
@@ -246,8 +276,14 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
            '-p', f'plant.model:={cfg.plant}', '-p', 'use_sim_time:=false',
            '-p', f'subscribers:={2 if cfg.bag else 1}',
            *(['-p', 'output:=vehicle'] if cfg.via_bridge else []), *cfg.extra_sim_args]
+    commonroad = cfg.plant.startswith(COMMONROAD_PREFIX)
+    if commonroad:
+        sim += ['-p', f'plant.vehicle_id:={int(cfg.vehicle_id)}']
     files = (['--params-file', str(cfg.controller_params)] if cfg.controller_params else
-             [*common, '--params-file', str(config / 'controller.yaml')])
+             [*common, '--params-file', str(config / 'controller.yaml'),
+              *(arg for name, value in (mapped_vehicle(cfg.vehicle_id).items()
+                                        if commonroad else ())
+                for arg in ('-p', f'{name}:={value!r}'))])
     controller = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
                   *files,
                   '-p', f'controller.schedule:={cfg.schedule}', '-p', f'law:={cfg.law}',
@@ -443,8 +479,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep',
                    help='lockstep: the simulator waits for each answer; realtime: wall '
                    'clock (default lockstep)')
-    p.add_argument('--plant', choices=('linear', 'nonlinear'), default='linear',
-                   help='plant model (default linear)')
+    p.add_argument('--plant', choices=PLANTS, default='linear',
+                   help='plant model (default linear; commonroad_st / commonroad_mb: '
+                   "CommonRoad's single-track / multi-body car, the controller's model "
+                   'mapped from it)')
+    p.add_argument('--vehicle-id', type=int, choices=(1, 2, 3), default=None,
+                   help='the CommonRoad car of a commonroad_* plant: 1 Ford Escort, 2 BMW '
+                   '320i, 3 VW Vanagon (default 2)')
     p.add_argument('--rate', type=number(1.0, 2000.0, unit='Hz'), default=100.0,
                    metavar='HZ', help='measurement and control rate [Hz] (default 100)')
     p.add_argument('--timeout', type=number(0.0, 1.0e6, low_open=True, unit='s'),
@@ -468,14 +509,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.no_record and args.bag is not None:
         raise ToolError('--bag and --no-record contradict each other: give one')
+    commonroad = args.plant.startswith(COMMONROAD_PREFIX)
+    if args.vehicle_id is not None and not commonroad:
+        raise ToolError(f'--vehicle-id {args.vehicle_id} with --plant {args.plant}: a '
+                        'CommonRoad car is chosen only for --plant commonroad_st or '
+                        'commonroad_mb')
+    vehicle_id = 2 if args.vehicle_id is None else args.vehicle_id
+    mapped = mapped_vehicle(vehicle_id) if commonroad else None
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     if not args.scenario.is_file():
         raise ToolError(f'{args.scenario}: no such scenario file')
     scenario = load_scenario(args.scenario, args.speed or None)    # one line, no process
     own = None
-    if args.controller is not None or args.param:
+    if args.controller is not None or args.param or mapped is not None:
         own, dropped = controller_settings(args.controller, args.param, args.law,
-                                           args.schedule)
+                                           args.schedule, mapped)
         if dropped:
             print(f'closed_loop: --controller {args.controller}: {", ".join(dropped)} not '
                   'used (this run sets them: --law, --schedule; event mode, started by '
@@ -484,6 +532,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                           *(['--param'] if args.param else [])]) or 'config/controller.yaml'
     loop_compatibility(own if own is not None else controller_settings(
         None, [], args.law, args.schedule)[0], args.rate, given)
+    if mapped is not None and own is not None:
+        changed = [name for name, value in mapped.items() if own[name] != value]
+        print(f'closed_loop: CommonRoad set {vehicle_id}: the controller models it as '
+              + ', '.join(f'{name[len("vehicle."):]} {own[name]:g}' for name in mapped)
+              + (f' ({", ".join(changed)} from {given}, over the mapping)' if changed
+                 else ' (mapped)'))
     bag = None if args.no_record else (args.bag or default_bag(
         args.scenario, args.schedule if args.law == 'paper' else args.law,
         float(scenario.speed.initial),
@@ -499,7 +553,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = run_loop(LoopConfig(args.scenario, args.speed, args.schedule, args.mode,
                                    args.plant, args.rate, args.timeout, bag=bag,
                                    via_bridge=args.via_bridge, law=args.law,
-                                   controller_params=written))
+                                   controller_params=written, vehicle_id=vehicle_id))
     finally:
         if written is not None:
             written.unlink(missing_ok=True)
