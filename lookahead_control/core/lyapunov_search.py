@@ -36,7 +36,7 @@ needs numpy only.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 import warnings
 
 from lookahead_control.core.lane_keeping import LaneKeepingParams
@@ -106,6 +106,51 @@ def _vertices(a_max: float, a_error: float, load_points: int,
     return [(a, a + e) for a in (-a_max, a_max) for e in errors]
 
 
+#: the upper triangle of a symmetric 5 x 5 matrix, row by row
+_UPPER = [(r, c) for r in range(5) for c in range(r, 5)]
+
+
+def _unit(j: int) -> npt.NDArray[np.float64]:
+    """Return the symmetric unit matrix of upper-triangle entry ``j``."""
+    e = np.zeros((5, 5))
+    r, c = _UPPER[j]
+    e[r, c] = e[c, r] = 1.0
+    return e
+
+
+#: each unit matrix flattened column by column: the coefficients of P itself
+_BASIS = np.column_stack([_unit(j).flatten(order='F') for j in range(len(_UPPER))])
+
+
+def _coefficients(linear: Any) -> npt.NDArray[np.float64]:
+    """
+    Return the 25 x 15 matrix of a linear map of symmetric matrices.
+
+    :param linear: ``P -> L(P)``, linear.
+    :return: ``vec(L(P)) = G u`` for ``u`` the upper triangle of ``P`` (column-major vec).
+    """
+    return np.column_stack([np.asarray(linear(_unit(j))).flatten(order='F')
+                            for j in range(len(_UPPER))])
+
+
+def _symmetric(m: Any) -> Any:
+    """Return ``(m + m^T) / 2`` (cvxpy takes a PSD constraint on a symmetric expression)."""
+    return 0.5 * (m + m.T)
+
+
+class _KnotView:
+    """One knot's ``P`` of the stacked upper triangles (``.value`` as cvxpy's)."""
+
+    def __init__(self, x: Any, start: int) -> None:
+        self.x, self.start = x, start
+
+    @property
+    def value(self) -> npt.NDArray[np.float64]:
+        """Return the knot's symmetric matrix from the solution."""
+        u = np.asarray(self.x.value)[self.start:self.start + len(_UPPER)]
+        return np.asarray(sum(w * _unit(j) for j, w in enumerate(u)))
+
+
 def search_lyapunov(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_min: float = 10.0, v_max: float = 37.0,
                     a_max: float = 3.5, a_error: float = 0.0, load_points: int = 0,
@@ -156,7 +201,6 @@ def search_lyapunov(vehicle: VehicleParams, controller: ControllerParams,
         for a_hat in sorted({hat for _, hat in vertices}):
             extra += schedule_kinks(loaded_vehicle(vehicle, a_hat), controller, settings,
                                     v_min, v_max)
-    variables = [cp.Variable((5, 5), symmetric=True) for _ in speeds]
     # the samples: (piece, share along it, speed at which the loop is taken, side)
     samples = []
     for i, (low, high) in enumerate(zip(speeds, speeds[1:])):
@@ -185,20 +229,34 @@ def search_lyapunov(vehicle: VehicleParams, controller: ControllerParams,
             loops.append((a, loop_in_coordinates(law, controller, settings, at, a_hat,
                                                  plant=plant)))
         rows.append((i, share, a_0, move, loops))
+    # P(v) by its knots' upper triangles: every inequality is one matrix of coefficients
+    # times them (each LMI one affine map for cvxpy to take in: built from matrix
+    # expressions, its canonicalization took 23 of a search's 33 s)
+    size = len(_UPPER)
+    x = cp.Variable(size * len(speeds))
     target = cp.Parameter(nonneg=True)
     constraints = []
     for i, share, a_0, move, loops in rows:
         low, high = speeds[i], speeds[i + 1]
-        p = variables[i] + share * (variables[i + 1] - variables[i])
-        slope = (variables[i + 1] - variables[i]) / (high - low)
-        made = a_0.T @ p + p @ a_0
-        constraints.append(-made >> np.eye(5))
+        made = _coefficients(lambda e: a_0.T @ e + e @ a_0)
+        changed = _coefficients(lambda e: move.T @ e + e @ move)
+        piece = x[size * i:size * (i + 2)]
+        weights = ((1.0 - share, share), (-1.0 / (high - low), 1.0 / (high - low)))
+        at_p = np.hstack([w * made for w in weights[0]])
+        constraints.append(_symmetric(cp.reshape(-(at_p @ piece), (5, 5), order='F'))
+                           >> np.eye(5))
         for a, loop in loops:
-            rate = slope + move.T @ p + p @ move
-            m = loop.T @ p + p @ loop + a * rate - (1.0 - target) * made
-            constraints.append(0.5 * (m + m.T) << 0)
-    problem = cp.Problem(cp.Minimize(sum(cp.trace(v) for v in variables) / len(speeds)),
-                         constraints)
+            turned = _coefficients(lambda e: loop.T @ e + e @ loop)
+            fixed = np.hstack([w * (turned + a * changed) + a * r * _BASIS
+                               for w, r in zip(*weights)])
+            m = cp.reshape(fixed @ piece - (1.0 - target) * (at_p @ piece), (5, 5),
+                           order='F')
+            constraints.append(_symmetric(m) << 0)
+    trace = np.zeros(size * len(speeds))
+    for k in range(len(speeds)):
+        trace[[size * k + j for j, (r, c) in enumerate(_UPPER) if r == c]] = 1.0
+    problem = cp.Problem(cp.Minimize(trace @ x / len(speeds)), constraints)
+    variables = [_KnotView(x, size * k) for k in range(len(speeds))]
 
     def solve(t: float) -> bool:
         target.value = t
