@@ -21,7 +21,9 @@ Its arguments and their defaults are ``closed_loop``'s: ``law`` is ``paper`` (th
 law with ``schedule``), as ``closed_loop`` runs it; ``law:=cg_compensated`` runs the
 controller's own default law. ``plant:=commonroad_mb`` (or ``commonroad_st``) drives
 CommonRoad's car ``vehicle_id`` (1 Ford Escort, 2 BMW 320i, 3 VW Vanagon) and gives the
-controller that car's mapped model, as ``closed_loop --plant commonroad_mb`` does.
+controller (and the simulator's sensor) that car's mapped model, as ``closed_loop
+--plant commonroad_mb`` does; ``vehicle_id`` is 2 if not given, and refused with another
+plant.
 """
 
 import os
@@ -36,17 +38,29 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 
+CARS = {'1': 'Ford Escort', '2': 'BMW 320i', '3': 'VW Vanagon'}
+
+
 def _nodes(context, config):
     """Return the two nodes, the controller's model the plant's car (CommonRoad: mapped)."""
     plant = LaunchConfiguration('plant').perform(context)
+    text = LaunchConfiguration('vehicle_id').perform(context)
     mapped, chosen = {}, {}
     if plant.startswith('commonroad_'):
+        if text.strip() not in ('', *CARS):
+            raise ValueError(f'vehicle_id:={text}: a CommonRoad car is '
+                             + ', '.join(f'{k} ({v})' for k, v in CARS.items()))
         from sim_plant.commonroad_plant import controller_vehicle_params
-        vehicle_id = int(LaunchConfiguration('vehicle_id').perform(context))
+        vehicle_id = int(text.strip() or '2')
         mapped = controller_vehicle_params(vehicle_id)
         chosen = {'plant.vehicle_id': vehicle_id}
+    elif text.strip():
+        raise ValueError(f'vehicle_id:={text} with plant:={plant}: a CommonRoad car is '
+                         'chosen only for plant:=commonroad_st or commonroad_mb')
+    # the simulator waits for each answer in lockstep only (closed_loop's choice)
+    lockstep = LaunchConfiguration('mode').perform(context) == 'lockstep'
     sim = Node(package='lookahead_control', executable='sim_plant', name='sim_plant',
-               parameters=[os.path.join(config, 'vehicle.yaml'), {
+               parameters=[os.path.join(config, 'vehicle.yaml'), mapped, {
                    'scenario_file': LaunchConfiguration('scenario'),
                    'speed': LaunchConfiguration('speed'),
                    'mode': LaunchConfiguration('mode'),
@@ -57,7 +71,7 @@ def _nodes(context, config):
                                   os.path.join(config, 'controller.yaml'), mapped, {
                                       'controller.schedule': LaunchConfiguration('schedule'),
                                       'law': LaunchConfiguration('law'),
-                                      'wait_for_matching_stamps': True,
+                                      'wait_for_matching_stamps': lockstep,
                                       'use_sim_time': True}])
     return [controller, sim,
             RegisterEventHandler(OnProcessExit(target_action=sim,
@@ -70,7 +84,7 @@ def generate_launch_description():
     args = {
         'scenario': os.path.join(config, 'scenarios', 'paper_r400.yaml'),
         'speed': '0.0', 'schedule': 'paper', 'mode': 'lockstep', 'plant': 'linear',
-        'law': 'paper', 'vehicle_id': '2',
+        'law': 'paper', 'vehicle_id': '',
     }
     return LaunchDescription(
         [DeclareLaunchArgument(k, default_value=v) for k, v in args.items()]

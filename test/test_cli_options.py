@@ -24,6 +24,7 @@ any process or file is made.
 """
 
 from concurrent.futures import ThreadPoolExecutor
+import dataclasses
 import hashlib
 import json
 import math
@@ -1026,3 +1027,33 @@ def test_closed_loop_refuses_settings_its_simulator_is_never_answered_under():
     # the frame the simulator and the bridge publish in
     for specs in (SIM_SPECS, BRIDGE_SPECS):
         assert next(s.default for s in specs if s.name == 'frame_id') == closed_loop.SIM_FRAME
+
+
+def test_closed_loop_refuses_a_scenario_faster_than_the_controller_takes(monkeypatch):
+    # dev-probe82: --speed 75 (the controller's safety.max_speed: 70 m/s) started every
+    # process; the controller refused every velocity and the simulator waited 0.5 s for
+    # each answer until --timeout (5 minutes by default)
+    from lookahead_control.core.cli import ToolError
+    from lookahead_control.ros import closed_loop
+    from sim_plant.scenario import load_scenario
+    scenarios = Path(__file__).resolve().parent.parent / 'config' / 'scenarios'
+    s5 = load_scenario(scenarios / 's5_envelope.yaml')       # 10 -> 37 -> 10 m/s
+    assert closed_loop.peak_speed(s5) == pytest.approx(37.0, abs=1e-9)
+    # a ramp cut by the scenario's end: the speed at the end
+    ramp = load_scenario(scenarios / 'paper_r400.yaml', 20.0)
+    ramp = dataclasses.replace(ramp, speed=dataclasses.replace(
+        ramp.speed, acceleration=2.0, start=5.0, duration=30.0))
+    assert closed_loop.peak_speed(ramp) == pytest.approx(20.0 + 2.0 * (ramp.duration - 5.0))
+    closed_loop.loop_compatibility({'safety.max_speed': 37.0}, 100.0, 'x', s5)
+    with pytest.raises(ToolError, match='x: safety.max_speed = 36.9 m/s: scenario '
+                       "'s5_envelope' reaches 37 m/s"):
+        closed_loop.loop_compatibility({'safety.max_speed': 36.9}, 100.0, 'x', s5)
+    started = []
+    monkeypatch.setattr(closed_loop, 'run_loop', lambda cfg: started.append(cfg) or 0)
+    with pytest.raises(ToolError, match='config/controller.yaml: safety.max_speed = 70 m/s: '
+                       "scenario 's1_paper_step' reaches 75 m/s"):
+        closed_loop.main(['--scenario', str(scenarios / 's1_paper_step.yaml'), '--speed',
+                          '75', '--no-record'])
+    assert closed_loop.main(['--scenario', str(scenarios / 's1_paper_step.yaml'), '--speed',
+                             '75', '--no-record', '--param', 'safety.max_speed:=75.0']) == 0
+    assert len(started) == 1

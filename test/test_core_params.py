@@ -172,7 +172,7 @@ def test_a_key_written_twice_in_a_scenario_is_refused_with_both_lines(tmp_path):
             load_scenario(path)
         if lines is not None:
             assert f'(line {lines[1]}): ' in str(err.value)
-            assert f'(first on line {lines[0]})' in str(err.value)
+            assert f'(first on line {lines[0]}, column ' in str(err.value)
     # a merge's keys are overridden by the map's own, as YAML means
     path.write_text('scenario:\n  duration: 5.0\n  speed: {initial: 20.0}\n  road:\n'
                     '    - {type: straight, length: 200.0}\n  external_forces:\n'
@@ -180,3 +180,24 @@ def test_a_key_written_twice_in_a_scenario_is_refused_with_both_lines(tmp_path):
                     '    - {<<: *gust, start: 3.0, force: 1500.0}\n')
     forces = load_scenario(path).forces
     assert [(f.start, f.force) for f in forces] == [(1.0, 100.0), (3.0, 1500.0)]
+    # dev-probe82: a map merged into another and used again through its alias was read
+    # with the keys the merge had written into it: refused as 'force written twice'
+    head = ('scenario:\n  duration: 5.0\n  speed: {initial: 20.0}\n  road:\n'
+            '    - {type: straight, length: 200.0}\n  external_forces:\n')
+    path.write_text(head + '    - {<<: &strong {<<: {start: 1.0, duration: 0.5, force: '
+                    '100.0}, force: 1500.0, start: 2.0}, start: 4.0}\n    - *strong\n')
+    forces = load_scenario(path).forces
+    assert [(f.start, f.duration, f.force) for f in forces] == [(4.0, 0.5, 1500.0),
+                                                                (2.0, 0.5, 1500.0)]
+    # and two merges in one map: PyYAML kept the later one without a word
+    path.write_text(head + '    - &g {start: 1.0, duration: 0.5, force: 100.0}\n'
+                    '    - &h {start: 2.0, duration: 0.5, moment: 200.0}\n'
+                    '    - {<<: *g, <<: *h, start: 3.0}\n')
+    with pytest.raises(ConfigError, match=r"line 9\): '<<' written twice in one map \(first "
+                       r'on line 9, column 8\): merge several maps with <<: \[\*a, \*b\]'):
+        load_scenario(path)
+    path.write_text(head + '    - &g {start: 1.0, duration: 0.5, force: 100.0}\n'
+                    '    - &h {start: 2.0, duration: 0.5, moment: 200.0}\n'
+                    '    - {<<: [*g, *h], start: 3.0}\n')
+    last = load_scenario(path).forces[-1]
+    assert (last.start, last.force, last.moment) == (3.0, 100.0, 200.0)

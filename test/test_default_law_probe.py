@@ -19,6 +19,7 @@ Probe of the default law (dev-probe16): a hostile new user's findings, one test 
 Each test fails on the code before its fix (named in the test).
 """
 
+import re
 import sys
 import time
 
@@ -180,13 +181,14 @@ def test_the_launch_file_gives_a_commonroad_car_its_mapped_model(monkeypatch):
     # the package's car as the controller's model (and no way to choose the car)
     from sim_plant.commonroad_plant import controller_vehicle
     nodes = _launched(monkeypatch)                   # the defaults: the package's car
-    assert nodes['sim_plant']['parameters'][1]['plant.model'] == 'linear'
-    assert 'plant.vehicle_id' not in nodes['sim_plant']['parameters'][1]
-    assert not any('vehicle.mass' in p for p in nodes['controller']['parameters']
-                   if isinstance(p, dict))
-    for vehicle_id in (2, 3):
-        nodes = _launched(monkeypatch, plant='commonroad_mb', vehicle_id=str(vehicle_id))
-        sim = nodes['sim_plant']['parameters'][1]
+    sim_file, no_car, sim = nodes['sim_plant']['parameters']
+    assert str(sim_file).endswith('vehicle.yaml') and no_car == {}
+    assert sim['plant.model'] == 'linear' and 'plant.vehicle_id' not in sim
+    assert nodes['controller']['parameters'][2] == {}
+    assert nodes['controller']['parameters'][3]['wait_for_matching_stamps'] is True
+    for text, vehicle_id in (('', 2), ('2', 2), ('3', 3)):
+        nodes = _launched(monkeypatch, plant='commonroad_mb', vehicle_id=text)
+        _, sim_car, sim = nodes['sim_plant']['parameters']
         assert (sim['plant.model'], sim['plant.vehicle_id']) == ('commonroad_mb', vehicle_id)
         files, mapped, own = (nodes['controller']['parameters'][:2],
                               *nodes['controller']['parameters'][2:])
@@ -194,7 +196,23 @@ def test_the_launch_file_gives_a_commonroad_car_its_mapped_model(monkeypatch):
         car = controller_vehicle(vehicle_id)
         assert mapped == {f'vehicle.{name}': getattr(car, name) for name in (
             'mass', 'yaw_inertia', 'l1', 'l2', 'c_f', 'c_r', 'd_s', 'cg_height')}
+        # dev-probe82: the simulator's sensor at the car's bumper, its car in the bag
+        assert sim_car == mapped
         assert 'controller.schedule' in own
+    # dev-probe82: a bad car was a traceback of int() or of the mapping, a car with
+    # another plant was ignored, and realtime still waited for matching stamps
+    for arguments, said in (({'plant': 'commonroad_st', 'vehicle_id': '4'},
+                             'vehicle_id:=4: a CommonRoad car is 1 (Ford Escort), 2 (BMW '
+                             '320i), 3 (VW Vanagon)'),
+                            ({'plant': 'commonroad_st', 'vehicle_id': '2.0'},
+                             'vehicle_id:=2.0: a CommonRoad car is'),
+                            ({'plant': 'linear', 'vehicle_id': '3'},
+                             'vehicle_id:=3 with plant:=linear: a CommonRoad car is chosen '
+                             'only for plant:=commonroad_st or commonroad_mb')):
+        with pytest.raises(ValueError, match=re.escape(said)):
+            _launched(monkeypatch, **arguments)
+    realtime = _launched(monkeypatch, mode='realtime')
+    assert realtime['controller']['parameters'][3]['wait_for_matching_stamps'] is False
 
 
 MS = 1_000_000

@@ -309,6 +309,11 @@ def test_closed_loop_drives_a_commonroad_car_with_its_mapped_model(tmp_path):
     assert recorded.plant_params['plant.vehicle_id'] == 2
     for name in ('mass', 'yaw_inertia', 'l1', 'l2', 'c_f', 'c_r', 'd_s', 'cg_height'):
         assert recorded.controller_params[f'vehicle.{name}'] == getattr(car, name), name
+        # dev-probe82: the simulator kept the package's car (its sensor 1.96 m ahead,
+        # where the BMW's bumper is 2.25 m; the bag named a 1485 kg car)
+        assert recorded.plant_params[f'vehicle.{name}'] == getattr(car, name), name
+    distances = recorded.inputs['lateral_error'].values['distance']
+    assert np.all(distances == car.d_s), np.unique(distances)
     assert rerun(recorded).max_diff == 0.0
     # the ROS loop is the offline runner's on the same car with the same model
     law = build_law('cg_compensated', car, ControllerParams(), BaselineParams())

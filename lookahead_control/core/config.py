@@ -73,35 +73,48 @@ def source_config_dir() -> Path:
 class _UniqueKeyLoader(yaml.SafeLoader):
     """PyYAML's safe loader, refusing a key written twice in one map."""
 
-    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+    def __init__(self, stream: Any) -> None:
+        super().__init__(stream)
+        self._checked: dict[int, Any] = {}
+
+    def flatten_mapping(self, node: Any) -> None:
         """
-        Return the map of ``node``, refusing a key written twice in it.
+        Merge a map's ``<<`` keys into it, first refusing a key written twice in it.
 
         PyYAML keeps the later value without a word: a scenario with two ``speed:`` or
-        two ``external_forces:`` lists ran with the second alone. Keys a merge (``<<:
-        *base``) brings in are overridden by the map's own, as YAML means.
+        two ``external_forces:`` lists ran with the second alone. The check reads each
+        map once, as written, before PyYAML's merge rewrites its keys in place (so a map
+        merged into another and used again through its alias is not taken for one with
+        its merged keys written twice, dev-probe82). Keys a merge (``<<: *base``) brings
+        in are overridden by the map's own, as YAML means; two ``<<`` in one map are
+        refused (PyYAML kept the later one: ``<<: [*a, *b]`` merges both).
 
         :param node: a mapping node.
-        :param deep: construct the values at once.
-        :return: the map.
         :raises yaml.constructor.ConstructorError: a key written twice, with both lines.
         """
-        if isinstance(node, yaml.MappingNode):
+        if id(node) not in self._checked:
+            self._checked[id(node)] = node          # kept: its id stays its own
             first: dict[Any, Any] = {}
             for key_node, _ in node.value:
                 if key_node.tag == MERGE_TAG:
-                    continue                # '<<: *base': the keys after it override
-                key = self.construct_object(key_node, deep=True)
+                    key: Any = '<<'
+                    why = 'merge several maps with <<: [*a, *b]'
+                else:
+                    key = self.construct_object(key_node, deep=True)
+                    why = 'write it once'
                 try:
                     earlier = first.setdefault(key, key_node)
                 except TypeError:
                     continue                # unhashable: construct_mapping refuses it
                 if earlier is not key_node:
+                    mark = earlier.start_mark
+                    where = f'line {mark.line + 1}' + (
+                        f', column {mark.column + 1}'
+                        if mark.line == key_node.start_mark.line else '')
                     raise yaml.constructor.ConstructorError(
-                        None, None, f'{key!r} written twice in one map (first on line '
-                        f'{earlier.start_mark.line + 1}): write it once',
-                        key_node.start_mark)
-        return super().construct_mapping(node, deep=deep)
+                        None, None, f'{key!r} written twice in one map (first on {where}): '
+                        f'{why}', key_node.start_mark)
+        super().flatten_mapping(node)
 
 
 def read_yaml(path: Path | str) -> Any:

@@ -41,7 +41,7 @@ from lookahead_control.core.config import source_config_dir
 from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.interrupts import deferred
 from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
-from sim_plant.scenario import check_force_timing, load_scenario
+from sim_plant.scenario import check_force_timing, load_scenario, Scenario
 
 MAX_SPEED = 90.0        # m/s, the scenarios' limit
 PR_SET_PDEATHSIG = 1    # prctl option (linux/prctl.h)
@@ -195,16 +195,35 @@ SIM_FRAME = 'base_link'
 ANY_FRAME = ''
 
 
-def loop_compatibility(params: dict[str, Any], rate_hz: float, given: str) -> None:
+def peak_speed(scenario: Scenario) -> float:
+    """
+    Return the highest speed of a scenario's profile within its duration [m/s].
+
+    :param scenario: the scenario (its speed is piecewise linear in time).
+    :return: the largest ``v_x`` at its phases' ends and its own.
+    """
+    profile = scenario.speed
+    times = {0.0, scenario.duration}
+    for start, duration, _ in ((profile.start, profile.duration, profile.acceleration),
+                               *profile.ramps):
+        times |= {start, start + duration}
+    return max(float(profile.at(t)[0]) for t in times if 0.0 <= t <= scenario.duration)
+
+
+def loop_compatibility(params: dict[str, Any], rate_hz: float, given: str,
+                       scenario: Optional[Scenario] = None) -> None:
     """
     Refuse controller settings this loop's simulator can never be answered under.
 
     Until dev-loopcheck such a run started and then waited for each answer to its
-    deadline (0.5 s a step) until ``--timeout``: every input refused.
+    deadline (0.5 s a step) until ``--timeout``: every input refused. So did a scenario
+    faster than the controller's ``safety.max_speed`` from the moment it passed it
+    (dev-probe82: ``--speed 75``, every velocity refused, 5 minutes to ``--timeout``).
 
     :param params: the controller's settings (:func:`controller_settings`).
     :param rate_hz: the loop's rate [Hz].
     :param given: where the settings came from, for the message.
+    :param scenario: the run's scenario (None: its speed is not checked).
     :raises ToolError: naming the setting, its value and what is allowed.
     """
     period = 1.0 / rate_hz
@@ -219,6 +238,14 @@ def loop_compatibility(params: dict[str, Any], rate_hz: float, given: str) -> No
         raise ToolError(f'{given}: frame_id = {frame!r}: the simulator (and path_bridge) '
                         f'publish in {SIM_FRAME!r}, so the controller would refuse every '
                         f'input; allowed here: {SIM_FRAME!r} or {ANY_FRAME!r} (any)')
+    from lookahead_control.core.safety import SafetyParams
+    fastest = params.get('safety.max_speed', SafetyParams().max_speed)
+    if scenario is not None and peak_speed(scenario) > fastest:
+        raise ToolError(f'{given}: safety.max_speed = {fastest:g} m/s: scenario '
+                        f'{scenario.name!r} reaches {peak_speed(scenario):g} m/s, and the '
+                        'controller refuses every velocity above it (the simulator would '
+                        'wait for each answer until --timeout); allowed here: a --speed '
+                        'or scenario within it, or a larger safety.max_speed')
 
 
 def write_controller_params(params: dict[str, Any]) -> Path:
@@ -276,14 +303,16 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
            '-p', f'plant.model:={cfg.plant}', '-p', 'use_sim_time:=false',
            '-p', f'subscribers:={2 if cfg.bag else 1}',
            *(['-p', 'output:=vehicle'] if cfg.via_bridge else []), *cfg.extra_sim_args]
-    commonroad = cfg.plant.startswith(COMMONROAD_PREFIX)
-    if commonroad:
-        sim += ['-p', f'plant.vehicle_id:={int(cfg.vehicle_id)}']
+    # a CommonRoad car: the simulator's vehicle (its sensor at the car's d_s, its
+    # parameters in the bag) and the controller's model are the set's mapping
+    car = ([arg for name, value in mapped_vehicle(cfg.vehicle_id).items()
+            for arg in ('-p', f'{name}:={value!r}')]
+           if cfg.plant.startswith(COMMONROAD_PREFIX) else [])
+    if car:
+        sim[sim.index('--params-file') + 2:sim.index('--params-file') + 2] = car + [
+            '-p', f'plant.vehicle_id:={int(cfg.vehicle_id)}']
     files = (['--params-file', str(cfg.controller_params)] if cfg.controller_params else
-             [*common, '--params-file', str(config / 'controller.yaml'),
-              *(arg for name, value in (mapped_vehicle(cfg.vehicle_id).items()
-                                        if commonroad else ())
-                for arg in ('-p', f'{name}:={value!r}'))])
+             [*common, '--params-file', str(config / 'controller.yaml'), *car])
     controller = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
                   *files,
                   '-p', f'controller.schedule:={cfg.schedule}', '-p', f'law:={cfg.law}',
@@ -531,7 +560,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     given = ' and '.join([*([f'--controller {args.controller}'] if args.controller else []),
                           *(['--param'] if args.param else [])]) or 'config/controller.yaml'
     loop_compatibility(own if own is not None else controller_settings(
-        None, [], args.law, args.schedule)[0], args.rate, given)
+        None, [], args.law, args.schedule)[0], args.rate, given, scenario)
     if mapped is not None and own is not None:
         changed = [name for name, value in mapped.items() if own[name] != value]
         print(f'closed_loop: CommonRoad set {vehicle_id}: the controller models it as '
