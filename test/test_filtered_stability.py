@@ -44,7 +44,7 @@ START = np.array([0.5, 0.02, -0.1, 0.03])
 
 
 def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
-              filter_settings=None, lag=0.05, period=PERIOD, scale=1.0):
+              filter_settings=None, lag=0.05, period=PERIOD, scale=1.0, settings=SETTINGS):
     """
     Run the linear sampled loop with the node's own ``KalmanStateFilter`` (RK4 inside).
 
@@ -56,30 +56,40 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
     shrinks the start (a diverging loop stays within the wheel angles the filter's
     actuator model takes, pi/2 rad).
     """
-    k = stability.feedback_gain(VEHICLE, CONTROLLER, SETTINGS, v_x)
+    k = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v_x)
     # the y_cg gain of the law without its integral: the rest, the reference's rate
     # -k_i y_cg, is on the measured y_cg as the integral (dev-sc34)
     without = stability.feedback_gain(
-        VEHICLE, CONTROLLER, dataclasses.replace(SETTINGS, integral_gain=0.0,
+        VEHICLE, CONTROLLER, dataclasses.replace(settings, integral_gain=0.0,
                                                  low_speed_integral_gain=0.0), v_x)
     a_c, b_c = stability._actuated_plant(plant, v_x, lag)
     phi, gamma = stability._zoh(a_c, b_c, period)
     x = np.zeros(a_c.shape[0])
     x[:4] = START * scale
-    kalman = KalmanStateFilter(filter_vehicle, filter_settings or SETTINGS.filter_settings())
+    kalman = KalmanStateFilter(filter_vehicle, filter_settings or settings.filter_settings())
     # the side force's relative yaw (side_force): the law's steering per radian of it,
     # taken from the law itself
     law_controller = dataclasses.replace(CONTROLLER,
-                                         natural_frequency=SETTINGS.natural_frequency,
-                                         damping_ratio=SETTINGS.damping_ratio)
+                                         natural_frequency=settings.natural_frequency,
+                                         damping_ratio=settings.damping_ratio)
 
     def steering(offset):
         return float(cg_compensated_law(LateralState(0.0, 0.0, 0.0, 0.0, v_x, 0.0, 0.0, 0.0),
                                         VEHICLE, law_controller, 0.0, 0.0, 0.0, 0.0,
-                                        gains=loop_gains(SETTINGS, v_x),
+                                        gains=loop_gains(settings, v_x),
                                         yaw_offset=offset).steering)
 
     per_yaw = steering(1.0) - steering(0.0)
+
+    def forced(front, rear):
+        """Return the law's steering for these axle forces in its drift term."""
+        return float(cg_compensated_law(LateralState(0.0, 0.0, 0.0, 0.0, v_x, 0.0, 0.0, 0.0),
+                                        VEHICLE, law_controller, 0.0, 0.0, 0.0, 0.0,
+                                        gains=loop_gains(settings, v_x),
+                                        axle_forces=(front, rear)).steering)
+
+    per_force = (forced(1.0, 0.0) - forced(0.0, 0.0), forced(0.0, 1.0) - forced(0.0, 0.0))
+    forces = None
     side = None
     integral = 0.0
     sent = [0.0] * delay_steps
@@ -90,12 +100,20 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
         # the law's order: the integral takes this step's measured error (the plant's
         # y_cg: the sensor's error less d_s times the measured eps_r), then the command
         # uses it
-        integral += period * integral_gain_at(SETTINGS, v_x) * x[0]   # scheduled k_i
-        target = -SETTINGS.side_force * kalman.disturbance()[1] / VEHICLE.c_r
+        integral += period * integral_gain_at(settings, v_x) * x[0]   # scheduled k_i
+        target = -settings.side_force * kalman.disturbance()[1] / VEHICLE.c_r
         side = target if side is None else (
-            side + (target - side) * min(period / SETTINGS.side_force_filter, 1.0))
+            side + (target - side) * min(period / settings.side_force_filter, 1.0))
         u = float(without[0] * est.y_cg + (k[0] - without[0]) * x[0] + k[1] * est.eps_r
                   + k[2] * est.v_y + k[3] * est.r + k[4] * integral + per_yaw * side)
+        if settings.force_feedforward > 0.0:
+            # the force feedforward: the filter's forces, low-passed from the first
+            targets = [settings.force_feedforward * f for f in kalman.disturbance()]
+            lowpass = settings.force_feedforward_filter
+            weight = min(period / lowpass, 1.0) if lowpass > 0.0 else 1.0
+            forces = targets if forces is None else [f + (t - f) * weight
+                                                     for f, t in zip(forces, targets)]
+            u += per_force[0] * forces[0] + per_force[1] * forces[1]
         kalman.command(u)
         sent.append(u)
         x = phi @ x + gamma[:, 0] * sent.pop(0)
@@ -131,6 +149,42 @@ def test_filtered_loop_matches_the_node_filter_in_time(v_x, scale, delay_steps):
                                       delay_steps=delay_steps)
     assert stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, v_x, plant=plant,
                                      delay_steps=delay_steps) != exact
+
+
+@pytest.mark.parametrize('v_x, scale, delay_steps', [(20.0, 1.0, 2), (37.0, 0.7, 5)])
+def test_filtered_loop_with_the_force_feedforward_matches_the_node_filter_in_time(
+        v_x, scale, delay_steps):
+    # dev-sc38: force_feedforward puts the filter's axle-force estimates into the drift
+    # term; the matrix has their low pass as a state and must follow the filter class
+    settings = dataclasses.replace(SETTINGS, force_feedforward=1.0)
+    plant = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * scale, c_r=VEHICLE.c_r * scale,
+                                mass=VEHICLE.mass * 1.2, yaw_inertia=VEHICLE.yaw_inertia * 1.2)
+    m = stability.filtered_loop(VEHICLE, CONTROLLER, settings, v_x, plant=plant,
+                                delay_steps=delay_steps)
+    sim = _simulate(v_x, plant, delay_steps, 400, settings=settings)
+    mat = _matrix_run(m, 5, 400)
+    assert np.max(np.abs(sim - mat)) < 1e-6 * np.max(np.abs(sim))
+    # the feedforward is in both: without it the loop moves otherwise
+    without = _simulate(v_x, plant, delay_steps, 400)
+    assert np.max(np.abs(sim - without)) > 1e-3 * np.max(np.abs(sim))
+    assert m.shape[0] == stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, v_x,
+                                                 plant=plant,
+                                                 delay_steps=delay_steps).shape[0] + 1
+
+
+def test_filtered_loop_with_the_unfiltered_force_feedforward_matches_the_node_filter():
+    # force_feedforward_filter 0: the present estimate, no state of its own (at 37 m/s
+    # with C x0.7 its slow pair, |z| 0.9976, carries the filter class's first steps,
+    # whose gain is not yet the steady one, 2e-5 of the run after 800 steps)
+    direct = dataclasses.replace(SETTINGS, force_feedforward=1.0, force_feedforward_filter=0.0)
+    plant = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * 0.8, c_r=VEHICLE.c_r * 0.8,
+                                mass=VEHICLE.mass * 1.2, yaw_inertia=VEHICLE.yaw_inertia * 1.2)
+    m = stability.filtered_loop(VEHICLE, CONTROLLER, direct, 20.0, plant=plant,
+                                delay_steps=2)
+    assert m.shape[0] == stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, 20.0,
+                                                 plant=plant, delay_steps=2).shape[0]
+    sim = _simulate(20.0, plant, 2, 400, settings=direct)
+    assert np.max(np.abs(sim - _matrix_run(m, 5, 400))) < 1e-6 * np.max(np.abs(sim))
 
 
 def test_wrong_filter_model_fails_and_diverges_in_time():

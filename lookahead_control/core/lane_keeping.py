@@ -230,6 +230,16 @@ class LaneKeepingParams:
     :param side_force_filter: low pass of that relative yaw [s]; the force estimate is
         noisy (S0 at 37 m/s, 8 seeds, steering noise 1.08 mrad without the side force,
         1.20 at 0.2 s, 1.41 at 0.1 s with the yaw rebound at 50 %, 2.6 unfiltered).
+    :param force_feedforward: share of the state filter's axle-force disturbances
+        ``(F_f, F_r)`` added to the linearization's drift term: ``f_v`` gains ``(F_f +
+        F_r) / m + d_v (l_1 F_f - l_2 F_r) / I_z``, the part of ``y_v''`` the model's
+        linear tyres do not carry (a crosswind, softer or saturating tyres, a heavier
+        car), cancelled as the drift term cancels the rest
+        (:meth:`CgCompensatedLaw._force_feedforward`). Needs the state filter; 0: off
+        (the default: docs/lane_keeping.md, "Force feedforward") [-].
+    :param force_feedforward_filter: low pass of those forces [s]; with the full share
+        0.5 s or more (0.2 s fails the sampled robust check with the filter: stiff tyres,
+        a light car and 50 ms at 37 m/s).
     :param delay_prediction: the law acts on the state filter's estimate predicted
         across the transport delay ``filter_delay`` (the filter's model under the
         commands already sent, :meth:`KalmanStateFilter.ahead`), on the road there: the
@@ -282,6 +292,8 @@ class LaneKeepingParams:
     map_recover: float = 1.0
     side_force: float = 1.0
     side_force_filter: float = 0.2
+    force_feedforward: float = 0.0
+    force_feedforward_filter: float = 1.0
     delay_prediction: bool = False
     filter_min_speed: float = 3.0
     filter_actuator_lag: float = 0.05
@@ -392,6 +404,9 @@ class LaneKeepingParams:
         check_range('lane_keeping.side_force', self.side_force, 0.0, 1.0)
         check_range('lane_keeping.side_force_filter', self.side_force_filter, 0.0, 5.0,
                     unit='s')
+        check_range('lane_keeping.force_feedforward', self.force_feedforward, 0.0, 1.0)
+        check_range('lane_keeping.force_feedforward_filter', self.force_feedforward_filter,
+                    0.0, 5.0, unit='s')
         if not isinstance(self.rate_feedforward, bool):
             raise ParameterError(f'lane_keeping.rate_feedforward = {self.rate_feedforward!r} '
                                  'must be true or false')
@@ -734,7 +749,8 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
                        lead_time: float = 0.0,
                        lead_ff_rate: Optional[Real] = None,
                        gains: Optional[tuple[Real, Real]] = None,
-                       approach_heading: float = 0.0, yaw_offset: Real = 0.0) -> LawOutput:
+                       approach_heading: float = 0.0, yaw_offset: Real = 0.0,
+                       axle_forces: Optional[tuple[Real, Real]] = None) -> LawOutput:
     """
     Evaluate eq. 15 with the CG-compensating reference (stateless part of the law).
 
@@ -771,6 +787,10 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
     :param approach_heading: far off the lane the car closes on its target at this
         relative heading: the proportional term sees the CG's offset ``y_cg + offset``
         clipped to :func:`approach_limit` (:func:`approach_error`) [rad]; 0: unclipped.
+    :param yaw_offset: shift of the reference's relative yaw (the side force) [rad].
+    :param axle_forces: lateral forces ``(F_f, F_r)`` at the axles beyond the model's
+        linear tyres [N], added to ``f_v`` as ``y_v''`` takes them: ``(F_f + F_r) / m +
+        d_v (l_1 F_f - l_2 F_r) / I_z`` (None: none).
     :return: the steering angle and the intermediate values.
     """
     eta = vehicle.eta if compliance is None else compliance
@@ -809,6 +829,10 @@ def cg_compensated_law(state: LateralState, vehicle: VehicleParams,
         f_rho = beta_1 * (slope - vehicle.l1) + beta_2 * (slope + vehicle.l2)
         ff_rate = rho_ff_rate if lead_ff_rate is None else lead_ff_rate
         f_v = f_v + state_preview * lead_time * f_rho * ff_rate
+    if axle_forces is not None:
+        front, rear = axle_forces
+        f_v = f_v + ((front + rear) / vehicle.mass
+                     + d_v * (vehicle.l1 * front - vehicle.l2 * rear) / vehicle.yaw_inertia)
     error = y_v - y_ref
     error_rate = y_v_rate - y_ref_rate
     k_p, k_d = gains if gains is not None else (controller.k_p, controller.k_d)
@@ -926,6 +950,8 @@ class CgCompensatedLaw:
         self._side: Optional[Real] = None
         #: its shift of the reference at the last step, ``d_v`` times it [m]
         self._side_shift: Real = 0.0
+        #: the force feedforward's axle forces (low-passed); None or NaN: from the next
+        self._forces: Optional[tuple[Real, Real]] = None
         #: after a retune, the time left in which the side force's changes move out of
         #: the integral (:meth:`_take_over_side`) [s]
         self._handover_left: Real = 0.0
@@ -957,6 +983,7 @@ class CgCompensatedLaw:
         self._inverse = self._inverse_ff = None
         self._side = None
         self._side_shift = 0.0
+        self._forces = None
         self._handover_left = 0.0
         self._stepped = False
         if self._history is not None:
@@ -1055,6 +1082,12 @@ class CgCompensatedLaw:
             self._curvature_runs = old._curvature_runs
             carried.append('curvature filter')
         self._take_over_side(old, carried)
+        if self.settings.force_feedforward > 0.0 and old._forces is not None \
+                and old.state_filter is not None and self.state_filter is not None:
+            # the low pass goes on from the old forces (the filter's estimate carried):
+            # switched on, it starts from the estimate; off, the term leaves at once
+            self._forces = old._forces
+            carried.append('force feedforward')
         if self._history is not None and old._history is not None:
             # the road behind: the new half-width keeps what it reaches of it
             self._history.copy_from(old._history)
@@ -1385,7 +1418,8 @@ class CgCompensatedLaw:
             self._handover_left = xp.maximum(self._handover_left - dt, 0.0)
         out = self.evaluate(law_state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
                             integral, rate, secant, tangent, lead_rate, lead_ff_rate,
-                            max(s.feedforward_preview - ahead, 0.0), yaw_offset)
+                            max(s.feedforward_preview - ahead, 0.0), yaw_offset,
+                            self._force_feedforward(dt))
         shift = out.d_v * yaw_offset
         self._side_shift = xp.where(_finite(shift), shift, 0.0)
         self._stepped = True
@@ -1426,6 +1460,9 @@ class CgCompensatedLaw:
             self._restarted = ~finite
             if self._side is not None:      # restarted: from the next target
                 self._side = np.where(finite, self._side, math.nan)
+            if self._forces is not None:
+                self._forces = (np.where(finite, self._forces[0], math.nan),
+                                np.where(finite, self._forces[1], math.nan))
             self._side_shift = np.where(finite, self._side_shift, 0.0)
             self._handover_left = np.where(finite, self._handover_left, 0.0)
             self._stepped = finite
@@ -1460,7 +1497,8 @@ class CgCompensatedLaw:
                  rho_ff: Real, rho_ff_rate: Real, offset: Real, offset_rate: Real,
                  secant: Real, tangent: Real, lead_rate: Optional[Real],
                  lead_ff_rate: Optional[Real], lead_time: Optional[float] = None,
-                 yaw_offset: Real = 0.0) -> LawOutput:
+                 yaw_offset: Real = 0.0,
+                 axle_forces: Optional[tuple[Real, Real]] = None) -> LawOutput:
         """
         Return the law's output at this step from the values :meth:`step` worked out.
 
@@ -1482,6 +1520,8 @@ class CgCompensatedLaw:
         :param lead_ff_rate: the state preview's (clipped) curvature rate, None: unclipped.
         :param lead_time: how far ahead the state terms are previewed [s] (None:
             ``feedforward_preview``).
+        :param yaw_offset: the side force's shift of the reference's relative yaw [rad].
+        :param axle_forces: the force feedforward's axle forces [N] (None: none).
         :return: the steering angle and the intermediate values.
         """
         s = self.settings
@@ -1498,7 +1538,7 @@ class CgCompensatedLaw:
                                             else lead_time),
                                  lead_ff_rate=lead_ff_rate,
                                  approach_heading=s.approach_heading,
-                                 yaw_offset=yaw_offset)
+                                 yaw_offset=yaw_offset, axle_forces=axle_forces)
         if s.exact_inverse <= 0.0:
             return out
         # the exact inverse of the zero dynamics (core/cg_reference.py): its relative yaw
@@ -1592,6 +1632,32 @@ class CgCompensatedLaw:
                               xp.where(active, last + (target - last) * step, last),
                               xp.where(active, target, 0.0))
         return self._side
+
+    def _force_feedforward(self, dt: float) -> Optional[tuple[Real, Real]]:
+        """
+        Return the axle forces the drift term takes (``force_feedforward``), or None.
+
+        The state filter's axle-force disturbances (what the model's linear tyres do not
+        carry, as the filter sees it in the measured ``v_y`` and ``r``), times the share,
+        low-passed over ``force_feedforward_filter``; from the first estimate after a
+        start or a restart of the filter (0 while it restarts).
+
+        :param dt: time since the previous step [s] (0: nothing advances).
+        :return: ``(F_f, F_r)`` [N], or None without the filter or with the share 0.
+        """
+        s = self.settings
+        if self.state_filter is None or s.force_feedforward <= 0.0:
+            return None
+        step = (min(dt / s.force_feedforward_filter, 1.0) if s.force_feedforward_filter > 0.0
+                else 1.0)
+        last = self._forces
+        now = []
+        for i, force in enumerate(self.state_filter.disturbance()):
+            target = s.force_feedforward * force
+            before: Real = math.nan if last is None else last[i]
+            now.append(xp.where(_finite(before), before + (target - before) * step, target))
+        self._forces = (now[0], now[1])
+        return (xp.where(_finite(now[0]), now[0], 0.0), xp.where(_finite(now[1]), now[1], 0.0))
 
     def _predicted(self, state: LateralState, ahead: float, v_x: Real,
                    road: Callable[[float], tuple[Real, Real]]) -> LateralState:

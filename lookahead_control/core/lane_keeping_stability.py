@@ -1434,7 +1434,12 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     side = settings.side_force > 0.0 and not integral_frozen
     side_state = side and settings.side_force_filter > 0.0
     i_side = i_buf + depth
-    size = i_buf + depth + (1 if side_state else 0)
+    # the force feedforward (force_feedforward): the estimate's axle forces in the drift
+    # term, their y_v'' low-passed in a state of its own; not held with the integral
+    forced = settings.force_feedforward > 0.0
+    forced_state = forced and settings.force_feedforward_filter > 0.0
+    i_ff = i_side + (1 if side_state else 0)
+    size = i_ff + (1 if forced_state else 0)
     gain = _filter_gain(model, fs, v_x, period, v_y_measured)
     h_model = measurement_matrix(model)
     k = feedback_gain(vehicle, controller, settings, v_x)
@@ -1487,6 +1492,20 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         else:
             law -= side_gain * settings.side_force / vehicle.c_r * unit[i_est + 5].reshape(
                 1, size)
+    # the force feedforward's y_v'' of the estimate's (F_f, F_r), (F_f + F_r) / m + d_v
+    # (l_1 F_f - l_2 F_r) / I_z, in f_v: -1 / beta_1 of it in the command
+    # (CgCompensatedLaw._force_feedforward)
+    if forced:
+        d_v = float(look_ahead(v_x, 0.0, vehicle, controller)[0])
+        forced_gain = -1.0 / float(axle_gains(vehicle, d_v)[0])
+        y_v_of = settings.force_feedforward * (
+            (1.0 / vehicle.mass + d_v * vehicle.l1 / vehicle.yaw_inertia) * unit[i_est + 4]
+            + (1.0 / vehicle.mass - d_v * vehicle.l2 / vehicle.yaw_inertia)
+            * unit[i_est + 5])
+        if forced_state:
+            law[0, i_ff] += forced_gain
+        else:
+            law += forced_gain * y_v_of.reshape(1, size)
 
     def command(age: int) -> Matrix:
         """Return u_k-age as a row over s_k."""
@@ -1541,6 +1560,12 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         weight = min(period / settings.side_force_filter, 1.0)
         m[i_side, :] = ((1.0 - weight) * unit[i_side]
                         - weight * settings.side_force / vehicle.c_r * m[i_est + 5, :])
+    if forced_state:
+        # as the side force: toward the forces of the new estimate
+        weight = min(period / settings.force_feedforward_filter, 1.0)
+        m[i_ff, :] = (1.0 - weight) * unit[i_ff] + weight * (y_v_of[i_est + 4] * m[i_est + 4, :]
+                                                             + y_v_of[i_est + 5]
+                                                             * m[i_est + 5, :])
     if approach:
         # s' = T s with the estimate's y_cg replaced by its error (y_cg_hat - y_cg): a
         # shift of the plant's and the estimate's y_cg together leaves every innovation

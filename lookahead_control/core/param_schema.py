@@ -180,6 +180,12 @@ LANE_KEEPING_SPECS = tuple(
          'force [-]', 0.0, 1.0),
         ('side_force_filter', 'low pass of that relative yaw (the force estimate is noisy) '
          '[s]', 0.0, 5.0),
+        ('force_feedforward', "share of the state filter's axle-force disturbances added "
+         "to the linearization's drift term (what the model's linear tyres do not carry: "
+         'a crosswind, softer or saturating tyres); needs state_filter kalman; 0: off '
+         '[-]', 0.0, 1.0),
+        ('force_feedforward_filter', 'low pass of those forces; with the full share 0.5 s '
+         'or more (0.2 s fails the robust check with the filter) [s]', 0.0, 5.0),
         ('delay_prediction', "act on the state filter's estimate predicted across "
          'filter_delay under the commands already sent, on the road there (for a long '
          'transport delay); needs state_filter kalman', 0.0, 1.0),

@@ -346,6 +346,11 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     print('the certificate covers the law on exact states at varying speed; the sampled '
           'check covers the law on the estimate of the Kalman filter at frozen speeds')
     notes = exact_inverse_notes(settings)
+    if settings.force_feedforward > 0.0:
+        notes.append(f'lane_keeping.force_feedforward = {settings.force_feedforward:g}: the '
+                     "filter's force estimates in the drift term; the certificate and the "
+                     'robust check on exact states have no estimate (no filter): the '
+                     'checks with the filter contain it')
     if lyapunov is not None and cert.max_real_eig < 0.0 and math.isinf(cert.between):
         # dev-probe69: only 'inf' and the worst finite value's speed were printed
         notes.append(f'Q(v) = -(A_0^T P + P A_0) of the P given is not positive definite '
