@@ -43,8 +43,17 @@ CARS = {'1': 'Ford Escort', '2': 'BMW 320i', '3': 'VW Vanagon'}
 
 def _nodes(context, config):
     """Return the two nodes, the controller's model the plant's car (CommonRoad: mapped)."""
+    from lookahead_control.ros.closed_loop import PLANTS
     plant = LaunchConfiguration('plant').perform(context)
+    mode = LaunchConfiguration('mode').perform(context)
     text = LaunchConfiguration('vehicle_id').perform(context)
+    # checked here, so that both nodes get one reading of them (dev-probe83: ' lockstep'
+    # was lockstep to the simulator, whose parameter YAML strips it, and not to the
+    # controller's wait)
+    if plant not in PLANTS:
+        raise ValueError(f'plant:={plant}: one of {", ".join(PLANTS)}')
+    if mode not in ('lockstep', 'realtime'):
+        raise ValueError(f'mode:={mode}: lockstep or realtime')
     mapped, chosen = {}, {}
     if plant.startswith('commonroad_'):
         if text.strip() not in ('', *CARS):
@@ -58,13 +67,12 @@ def _nodes(context, config):
         raise ValueError(f'vehicle_id:={text} with plant:={plant}: a CommonRoad car is '
                          'chosen only for plant:=commonroad_st or commonroad_mb')
     # the simulator waits for each answer in lockstep only (closed_loop's choice)
-    lockstep = LaunchConfiguration('mode').perform(context) == 'lockstep'
+    lockstep = mode == 'lockstep'
     sim = Node(package='lookahead_control', executable='sim_plant', name='sim_plant',
                parameters=[os.path.join(config, 'vehicle.yaml'), mapped, {
                    'scenario_file': LaunchConfiguration('scenario'),
                    'speed': LaunchConfiguration('speed'),
-                   'mode': LaunchConfiguration('mode'),
-                   'plant.model': plant, **chosen}])
+                   'mode': mode, 'plant.model': plant, **chosen}])
     controller = Node(package='lookahead_control', executable='controller',
                       name='controller',
                       parameters=[os.path.join(config, 'vehicle.yaml'),

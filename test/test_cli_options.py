@@ -1057,3 +1057,12 @@ def test_closed_loop_refuses_a_scenario_faster_than_the_controller_takes(monkeyp
     assert closed_loop.main(['--scenario', str(scenarios / 's1_paper_step.yaml'), '--speed',
                              '75', '--no-record', '--param', 'safety.max_speed:=75.0']) == 0
     assert len(started) == 1
+    # dev-probe83: the CommonRoad single track runs 7 mm/s above its profile at 70 m/s:
+    # at 70 every velocity was refused from 70.01 on, and the run waited to --timeout
+    with pytest.raises(ToolError, match='reaches 70 m/s, .* within it \\(the CommonRoad car '
+                       'runs above its speed profile: 0.5 m/s below it\\)'):
+        closed_loop.main(['--scenario', str(scenarios / 'crosswind.yaml'), '--speed', '70',
+                          '--plant', 'commonroad_st', '--no-record'])
+    assert closed_loop.main(['--scenario', str(scenarios / 'crosswind.yaml'), '--speed', '70',
+                             '--no-record']) == 0
+    assert len(started) == 2

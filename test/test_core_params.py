@@ -201,3 +201,13 @@ def test_a_key_written_twice_in_a_scenario_is_refused_with_both_lines(tmp_path):
                     '    - {<<: [*g, *h], start: 3.0}\n')
     last = load_scenario(path).forces[-1]
     assert (last.start, last.force, last.moment) == (3.0, 100.0, 200.0)
+    # dev-probe83: a key written again through an alias of the first is the same node:
+    # the check by node identity took the later value
+    path.write_text(head.replace('  duration: 5.0\n', '  &d duration: 5.0\n')
+                    + '    - {start: 1.0, duration: 0.5, force: 100.0}\n  *d : 12.0\n')
+    with pytest.raises(ConfigError, match="'duration' written twice in one map"):
+        load_scenario(path)
+    # ... and YAML's '=' key, and a quoted '<<' (a string, not a merge), are keys as any
+    from lookahead_control.core.config import read_yaml
+    path.write_text('a: {=: 1}\nb: &b {x: 1}\nc: {<<: *b, "<<": 2}\n')
+    assert read_yaml(path) == {'a': {'=': 1}, 'b': {'x': 1}, 'c': {'x': 1, '<<': 2}}

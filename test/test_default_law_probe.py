@@ -208,11 +208,17 @@ def test_the_launch_file_gives_a_commonroad_car_its_mapped_model(monkeypatch):
                              'vehicle_id:=2.0: a CommonRoad car is'),
                             ({'plant': 'linear', 'vehicle_id': '3'},
                              'vehicle_id:=3 with plant:=linear: a CommonRoad car is chosen '
-                             'only for plant:=commonroad_st or commonroad_mb')):
+                             'only for plant:=commonroad_st or commonroad_mb'),
+                            # dev-probe83: the simulator read ' lockstep' as lockstep (its
+                            # parameter YAML strips it), the controller's wait did not
+                            ({'mode': ' lockstep'}, 'mode:= lockstep: lockstep or realtime'),
+                            ({'plant': 'commonroad_xx'}, 'plant:=commonroad_xx: one of linear, '
+                             'nonlinear, commonroad_st, commonroad_mb')):
         with pytest.raises(ValueError, match=re.escape(said)):
             _launched(monkeypatch, **arguments)
     realtime = _launched(monkeypatch, mode='realtime')
     assert realtime['controller']['parameters'][3]['wait_for_matching_stamps'] is False
+    assert realtime['sim_plant']['parameters'][2]['mode'] == 'realtime'
 
 
 MS = 1_000_000

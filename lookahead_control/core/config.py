@@ -43,6 +43,9 @@ import yaml
 
 PACKAGE_NAME = 'lookahead_control'
 MERGE_TAG = 'tag:yaml.org,2002:merge'
+VALUE_TAG = 'tag:yaml.org,2002:value'
+#: a map's merge key (``<<``) in the duplicate check
+_MERGE = object()
 D = TypeVar('D')
 
 
@@ -97,22 +100,29 @@ class _UniqueKeyLoader(yaml.SafeLoader):
             first: dict[Any, Any] = {}
             for key_node, _ in node.value:
                 if key_node.tag == MERGE_TAG:
-                    key: Any = '<<'
+                    key: Any = _MERGE          # not the string '<<' (a quoted key)
                     why = 'merge several maps with <<: [*a, *b]'
+                elif key_node.tag == VALUE_TAG:
+                    key = key_node.value       # '=': PyYAML's merge makes it a string
+                    why = 'write it once'
                 else:
                     key = self.construct_object(key_node, deep=True)
                     why = 'write it once'
                 try:
-                    earlier = first.setdefault(key, key_node)
+                    earlier = first.get(key)
+                    first.setdefault(key, key_node)
                 except TypeError:
                     continue                # unhashable: construct_mapping refuses it
-                if earlier is not key_node:
+                # by value: a key written again through an alias of the first is the
+                # same node (dev-probe83: {&k a: 1, *k : 2} took 2)
+                if earlier is not None:
                     mark = earlier.start_mark
                     where = f'line {mark.line + 1}' + (
                         f', column {mark.column + 1}'
                         if mark.line == key_node.start_mark.line else '')
+                    name = repr('<<') if key is _MERGE else repr(key)
                     raise yaml.constructor.ConstructorError(
-                        None, None, f'{key!r} written twice in one map (first on {where}): '
+                        None, None, f'{name} written twice in one map (first on {where}): '
                         f'{why}', key_node.start_mark)
         super().flatten_mapping(node)
 
