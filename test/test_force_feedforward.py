@@ -27,7 +27,7 @@ import math
 
 from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.config import load_vehicle
-from lookahead_control.core.control_law import axle_gains, LateralState
+from lookahead_control.core.control_law import axle_gains
 from lookahead_control.core.lane_keeping import (cg_compensated_law, CgCompensatedLaw,
                                                  LaneKeepingParams)
 from lookahead_control.core.params import ControllerParams, ParameterError
@@ -40,17 +40,11 @@ from sim_plant.road import Road, Segment
 from sim_plant.scenario import Scenario
 from sim_plant.speed_profile import SpeedProfile
 from sim_plant.vehicle_model import PlantParams
+from test_side_force import _state
 
 VEHICLE = load_vehicle(None)
 #: the documented setting (docs/lane_keeping.md, "Force feedforward")
 ON = {'force_feedforward': 1.0, 'force_feedforward_filter': 1.0}
-
-
-def _state(**values):
-    base = {'y_cg': 0.0, 'eps_r': 0.0, 'v_y': 0.0, 'r': 0.0, 'v_x': 30.0, 'a_x': 0.0,
-            'rho': 0.0, 'rho_rate': 0.0}
-    base.update(values)
-    return LateralState(**base)
 
 
 def test_the_forces_enter_the_drift_term_as_y_v_takes_them():
