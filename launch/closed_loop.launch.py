@@ -38,12 +38,11 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 
-CARS = {'1': 'Ford Escort', '2': 'BMW 320i', '3': 'VW Vanagon'}
-
-
 def _nodes(context, config):
     """Return the two nodes, the controller's model the plant's car (CommonRoad: mapped)."""
     from lookahead_control.ros.closed_loop import PLANTS
+    from sim_plant.commonroad_plant import COMMONROAD_MODELS, controller_vehicle_params
+    cars = {'1': 'Ford Escort', '2': 'BMW 320i', '3': 'VW Vanagon'}
     plant = LaunchConfiguration('plant').perform(context)
     mode = LaunchConfiguration('mode').perform(context)
     text = LaunchConfiguration('vehicle_id').perform(context)
@@ -55,11 +54,10 @@ def _nodes(context, config):
     if mode not in ('lockstep', 'realtime'):
         raise ValueError(f'mode:={mode}: lockstep or realtime')
     mapped, chosen = {}, {}
-    if plant.startswith('commonroad_'):
-        if text.strip() not in ('', *CARS):
+    if plant in COMMONROAD_MODELS:
+        if text.strip() not in ('', *cars):
             raise ValueError(f'vehicle_id:={text}: a CommonRoad car is '
-                             + ', '.join(f'{k} ({v})' for k, v in CARS.items()))
-        from sim_plant.commonroad_plant import controller_vehicle_params
+                             + ', '.join(f'{k} ({v})' for k, v in cars.items()))
         vehicle_id = int(text.strip() or '2')
         mapped = controller_vehicle_params(vehicle_id)
         chosen = {'plant.vehicle_id': vehicle_id}

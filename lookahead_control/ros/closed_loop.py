@@ -41,6 +41,7 @@ from lookahead_control.core.config import source_config_dir
 from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.interrupts import deferred
 from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
+from sim_plant.commonroad_plant import COMMONROAD_MODELS
 from sim_plant.scenario import check_force_timing, load_scenario, Scenario
 
 MAX_SPEED = 90.0        # m/s, the scenarios' limit
@@ -90,8 +91,7 @@ class LoopConfig:
 
 
 #: the simulator's plants ``closed_loop`` runs: the package's and CommonRoad's
-PLANTS = ('linear', 'nonlinear', 'commonroad_st', 'commonroad_mb')
-COMMONROAD_PREFIX = 'commonroad_'
+PLANTS = ('linear', 'nonlinear', *COMMONROAD_MODELS)
 
 
 def mapped_vehicle(vehicle_id: int) -> dict[str, float]:
@@ -247,12 +247,13 @@ def loop_compatibility(params: dict[str, Any], rate_hz: float, given: str,
                         f'input; allowed here: {SIM_FRAME!r} or {ANY_FRAME!r} (any)')
     from lookahead_control.core.safety import SafetyParams
     fastest = params.get('safety.max_speed', SafetyParams().max_speed)
-    margin = COMMONROAD_SPEED_MARGIN if plant.startswith(COMMONROAD_PREFIX) else 0.0
-    if scenario is not None and peak_speed(scenario) > fastest - margin:
+    margin = COMMONROAD_SPEED_MARGIN if plant in COMMONROAD_MODELS else 0.0
+    peak = peak_speed(scenario) if scenario is not None else 0.0
+    if scenario is not None and peak > fastest - margin:
         car = (f' (the CommonRoad car runs above its speed profile: {margin:g} m/s below '
                'it)' if margin else '')
         raise ToolError(f'{given}: safety.max_speed = {fastest:g} m/s: scenario '
-                        f'{scenario.name!r} reaches {peak_speed(scenario):g} m/s, and the '
+                        f'{scenario.name!r} reaches {peak:g} m/s, and the '
                         'controller refuses every velocity above it (the simulator would '
                         'wait for each answer until --timeout); allowed here: a --speed '
                         f'or scenario within it{car}, or a larger safety.max_speed')
@@ -307,20 +308,18 @@ def node_commands(cfg: LoopConfig) -> tuple[list[str], list[str]]:
     """
     config = source_config_dir()
     common = ['--params-file', str(config / 'vehicle.yaml')]
-    sim = [sys.executable, '-m', 'sim_plant.sim_plant_node', '--ros-args', *common,
+    # a CommonRoad car: the simulator's vehicle (its sensor at the car's d_s, its
+    # parameters in the bag) and the controller's model are the set's mapping
+    commonroad = cfg.plant in COMMONROAD_MODELS
+    car = ([arg for name, value in mapped_vehicle(cfg.vehicle_id).items()
+            for arg in ('-p', f'{name}:={value!r}')] if commonroad else [])
+    sim = [sys.executable, '-m', 'sim_plant.sim_plant_node', '--ros-args', *common, *car,
+           *(['-p', f'plant.vehicle_id:={int(cfg.vehicle_id)}'] if commonroad else []),
            '-p', f'scenario_file:={cfg.scenario}', '-p', f'speed:={float(cfg.speed)}',
            '-p', f'mode:={cfg.mode}', '-p', f'rate_hz:={float(cfg.rate_hz)}',
            '-p', f'plant.model:={cfg.plant}', '-p', 'use_sim_time:=false',
            '-p', f'subscribers:={2 if cfg.bag else 1}',
            *(['-p', 'output:=vehicle'] if cfg.via_bridge else []), *cfg.extra_sim_args]
-    # a CommonRoad car: the simulator's vehicle (its sensor at the car's d_s, its
-    # parameters in the bag) and the controller's model are the set's mapping
-    car = ([arg for name, value in mapped_vehicle(cfg.vehicle_id).items()
-            for arg in ('-p', f'{name}:={value!r}')]
-           if cfg.plant.startswith(COMMONROAD_PREFIX) else [])
-    if car:
-        sim[sim.index('--params-file') + 2:sim.index('--params-file') + 2] = car + [
-            '-p', f'plant.vehicle_id:={int(cfg.vehicle_id)}']
     files = (['--params-file', str(cfg.controller_params)] if cfg.controller_params else
              [*common, '--params-file', str(config / 'controller.yaml'), *car])
     controller = [sys.executable, '-m', 'lookahead_control.ros.controller_node', '--ros-args',
@@ -548,7 +547,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.no_record and args.bag is not None:
         raise ToolError('--bag and --no-record contradict each other: give one')
-    commonroad = args.plant.startswith(COMMONROAD_PREFIX)
+    commonroad = args.plant in COMMONROAD_MODELS
     if args.vehicle_id is not None and not commonroad:
         raise ToolError(f'--vehicle-id {args.vehicle_id} with --plant {args.plant}: a '
                         'CommonRoad car is chosen only for --plant commonroad_st or '
