@@ -578,6 +578,10 @@ def test_certificate_lyapunov_against_scipy():
         p, p_v, n = stability.lyapunov_rate(VEHICLE, CONTROLLER, settings, v, 1.0, weight)
         assert stability.integral_coordinates(settings, v) == pytest.approx(change(v),
                                                                             rel=1e-12)
+        # S^-1 in closed form (dev-sc39) is numpy's inverse
+        a_v = stability.closed_loop_matrix(VEHICLE, CONTROLLER, settings, v)
+        assert stability.loop_in_coordinates(VEHICLE, CONTROLLER, settings, v) == \
+            pytest.approx(change(v) @ a_v @ np.linalg.inv(change(v)), rel=1e-12, abs=1e-12)
         assert p == pytest.approx(reference(v), rel=1e-9, abs=1e-9)
         assert stability.lyapunov_matrix(VEHICLE, CONTROLLER, settings, v, weight) == \
             pytest.approx(change(v).T @ reference(v) @ change(v), rel=1e-9, abs=1e-9)
@@ -589,6 +593,10 @@ def test_certificate_lyapunov_against_scipy():
         assert left[2] == pytest.approx(n, rel=1e-6, abs=1e-6 * np.max(np.abs(n)))
     with pytest.raises(ValueError, match='positive definite'):
         stability.lyapunov_weight(((1.0,) * 5,) * 5)
+    # no integral at low speed: S is singular, as numpy says
+    with pytest.raises(np.linalg.LinAlgError):
+        stability.loop_in_coordinates(VEHICLE, CONTROLLER, replace(
+            settings, low_speed_integral_gain=0.0), 10.0)
 
 
 def test_every_q_on_one_grid_is_each_q_on_its_own(monkeypatch):

@@ -683,10 +683,17 @@ def loop_in_coordinates(vehicle: VehicleParams, controller: ControllerParams,
     :param plant: the plant's parameters (None: the design vehicle).
     :return: the 5x5 matrix (:func:`closed_loop_matrix` where ``S = I``).
     """
+    scale = integral_scale(settings, v_x)
+    loop = closed_loop_matrix(vehicle, controller, settings, v_x, plant=plant, a_x=a_x)
+    if scale == 1.0:            # S = I
+        return loop
     change = integral_coordinates(settings, v_x)
-    return (change @ closed_loop_matrix(vehicle, controller, settings, v_x, plant=plant,
-                                        a_x=a_x)
-            @ np.linalg.inv(change))
+    if scale == 0.0:            # S singular: no coordinates (numpy's error says so)
+        np.linalg.inv(change)
+    # S^-1 in closed form (S is the identity but for its last column)
+    inverse = np.eye(5)
+    inverse[0, 4], inverse[4, 4] = (scale - 1.0) / scale, 1.0 / scale
+    return change @ loop @ inverse
 
 
 def integral_coordinates(settings: LaneKeepingParams, v_x: float) -> Matrix:
@@ -1029,10 +1036,15 @@ def _loaded_terms(vehicle: VehicleParams, controller: ControllerParams,
         add between accelerations.
     """
     static: dict[float, Matrix] = {}        # A(v, 0, 0), the same for every slice
+    loaded: dict[float, VehicleParams] = {}  # the car at each grid acceleration, made once
+
+    def at(a: float) -> VehicleParams:
+        if a not in loaded:
+            loaded[a] = loaded_vehicle(vehicle, a)
+        return loaded[a]
 
     def loop(v: float, a: float, a_hat: float) -> Matrix:
-        return loop_in_coordinates(loaded_vehicle(vehicle, a_hat), controller, settings, v,
-                                   a_hat, plant=loaded_vehicle(vehicle, a))
+        return loop_in_coordinates(at(a_hat), controller, settings, v, a_hat, plant=at(a))
 
     def base(v: float) -> Matrix:
         if v not in static:
@@ -1320,6 +1332,20 @@ def _actuated_plant(plant: VehicleParams, v_x: float, lag: float) -> tuple[Matri
     return a_c, b_c
 
 
+@functools.lru_cache(maxsize=32)
+def _integral_off(settings: LaneKeepingParams, low: bool = False) -> LaneKeepingParams:
+    """
+    Return the settings with ``integral_gain`` 0 (made once: the sampled checks ask often).
+
+    :param settings: the law's settings.
+    :param low: also ``low_speed_integral_gain`` 0.
+    :return: the settings without the integral.
+    """
+    if low:
+        return replace(settings, integral_gain=0.0, low_speed_integral_gain=0.0)
+    return replace(settings, integral_gain=0.0)
+
+
 def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_x: float, *,
                   plant: Optional[VehicleParams] = None, period: float = PERIOD,
@@ -1383,7 +1409,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     fs = filter_settings or settings.filter_settings()
     integral_frozen = integral_frozen or approach
     if integral_frozen:                 # the law's rate term: k_i y_cg only while it runs
-        settings = replace(settings, integral_gain=0.0)
+        settings = _integral_off(settings)
     model = filter_vehicle or vehicle
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
     phi, gamma = _zoh(a_c, b_c, period)
@@ -1468,9 +1494,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     # reference's rate -k_i y_cg (K's y_cg gain less that of the law without an
     # integral) is on the measured one too
     k_i = float(integral_gain_at(settings, v_x))
-    without = feedback_gain(vehicle, controller,
-                            replace(settings, integral_gain=0.0, low_speed_integral_gain=0.0),
-                            v_x)
+    without = feedback_gain(vehicle, controller, _integral_off(settings, True), v_x)
     law += (k[0] - without[0]) * (unit[0] - acted[0])
     law[0, i_int] += k[4]
     law[0, 0] += k[4] * period * k_i
@@ -1730,7 +1754,7 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     :return: the spectral radius.
     """
     if integral_frozen or approach:
-        settings = replace(settings, integral_gain=0.0)
+        settings = _integral_off(settings)
     # actuator state: delta' = (u - delta) / lag
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
     n = a_c.shape[0]
