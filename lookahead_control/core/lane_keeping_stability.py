@@ -683,11 +683,11 @@ def loop_in_coordinates(vehicle: VehicleParams, controller: ControllerParams,
     :param plant: the plant's parameters (None: the design vehicle).
     :return: the 5x5 matrix (:func:`closed_loop_matrix` where ``S = I``).
     """
-    scale = integral_scale(settings, v_x)
+    change = integral_coordinates(settings, v_x)
+    scale = float(change[4, 4])
     loop = closed_loop_matrix(vehicle, controller, settings, v_x, plant=plant, a_x=a_x)
     if scale == 1.0:            # S = I
         return loop
-    change = integral_coordinates(settings, v_x)
     if scale == 0.0:            # S singular: no coordinates (numpy's error says so)
         np.linalg.inv(change)
     # S^-1 in closed form (S is the identity but for its last column)
