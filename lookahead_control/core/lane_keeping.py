@@ -66,8 +66,8 @@ from lookahead_control.core.control_law import (axle_gains, drift_term, LateralS
 from lookahead_control.core.curvature_smoothing import CurvatureHistory, smoothed_preview
 from lookahead_control.core.estimator import ComplianceEstimator
 from lookahead_control.core.numeric import Real
-from lookahead_control.core.params import (check_range, ControllerParams, loaded_vehicle,
-                                           ParameterError, VehicleParams)
+from lookahead_control.core.params import (axle_load_factors, check_range, ControllerParams,
+                                           loaded_vehicle, ParameterError, VehicleParams)
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.state_filter import (_bounded, FILTER_MODES, KalmanStateFilter,
                                                  MAX_PERIOD, StateFilterParams)
@@ -1419,7 +1419,7 @@ class CgCompensatedLaw:
         out = self.evaluate(law_state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
                             integral, rate, secant, tangent, lead_rate, lead_ff_rate,
                             max(s.feedforward_preview - ahead, 0.0), yaw_offset,
-                            self._force_feedforward(dt))
+                            self._force_feedforward(dt, state))
         shift = out.d_v * yaw_offset
         self._side_shift = xp.where(_finite(shift), shift, 0.0)
         self._stepped = True
@@ -1633,7 +1633,8 @@ class CgCompensatedLaw:
                               xp.where(active, target, 0.0))
         return self._side
 
-    def _force_feedforward(self, dt: float) -> Optional[tuple[Real, Real]]:
+    def _force_feedforward(self, dt: float,
+                           state: LateralState) -> Optional[tuple[Real, Real]]:
         """
         Return the axle forces the drift term takes (``force_feedforward``), or None.
 
@@ -1642,7 +1643,14 @@ class CgCompensatedLaw:
         low-passed over ``force_feedforward_filter``; from the first estimate after a
         start or a restart of the filter (0 while it restarts).
 
+        With ``cg_height`` > 0 the filter's forces are over the model at the axles'
+        static loads, the law's drift term is at their loads under ``a_x``
+        (:func:`loaded_vehicle`): the force the load moved, ``(C(a_x) - C) alpha`` at the
+        filter's slip angles, is the law's already and is taken out (dev-sc40: counted
+        twice it held the CommonRoad car 4-5 cm off in S5's accelerating curve).
+
         :param dt: time since the previous step [s] (0: nothing advances).
+        :param state: the filter's present estimate (its ``v_y``, ``r``, ``v_x``, ``a_x``).
         :return: ``(F_f, F_r)`` [N], or None without the filter or with the share 0.
         """
         s = self.settings
@@ -1651,8 +1659,17 @@ class CgCompensatedLaw:
         step = (min(dt / s.force_feedforward_filter, 1.0) if s.force_feedforward_filter > 0.0
                 else 1.0)
         last = self._forces
+        forces = self.state_filter.disturbance()
+        veh = self.vehicle
+        if veh.cg_height > 0.0:
+            front, rear = axle_load_factors(veh, state.a_x)
+            v_x = xp.maximum(state.v_x, self.controller.min_speed)
+            slip_f = self.state_filter.wheel - (state.v_y + veh.l1 * state.r) / v_x
+            slip_r = (veh.l2 * state.r - state.v_y) / v_x
+            forces = (forces[0] - (front - 1.0) * veh.c_f * slip_f,
+                      forces[1] - (rear - 1.0) * veh.c_r * slip_r)
         now = []
-        for i, force in enumerate(self.state_filter.disturbance()):
+        for i, force in enumerate(forces):
             target = s.force_feedforward * force
             before: Real = math.nan if last is None else last[i]
             now.append(xp.where(_finite(before), before + (target - before) * step, target))
