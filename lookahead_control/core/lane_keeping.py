@@ -1647,7 +1647,8 @@ class CgCompensatedLaw:
         static loads, the law's drift term is at their loads under ``a_x``
         (:func:`loaded_vehicle`): the force the load moved, ``(C(a_x) - C) alpha`` at the
         filter's slip angles, is the law's already and is taken out (dev-sc40: counted
-        twice it held the CommonRoad car 4-5 cm off in S5's accelerating curve).
+        twice it held the CommonRoad car 4-5 cm off in S5's accelerating curve); the low
+        pass starts from the filter's own estimate after a restart.
 
         :param dt: time since the previous step [s] (0: nothing advances).
         :param state: the filter's present estimate (its ``v_y``, ``r``, ``v_x``, ``a_x``).
@@ -1659,20 +1660,27 @@ class CgCompensatedLaw:
         step = (min(dt / s.force_feedforward_filter, 1.0) if s.force_feedforward_filter > 0.0
                 else 1.0)
         last = self._forces
-        forces = self.state_filter.disturbance()
+        estimate = self.state_filter.disturbance()
+        forces = estimate
         veh = self.vehicle
         if veh.cg_height > 0.0:
             front, rear = axle_load_factors(veh, state.a_x)
-            v_x = xp.maximum(state.v_x, self.controller.min_speed)
+            # the filter's own speed floor (below it its forces are NaN: nothing fed)
+            v_x = xp.maximum(state.v_x, s.filter_min_speed)
             slip_f = self.state_filter.wheel - (state.v_y + veh.l1 * state.r) / v_x
             slip_r = (veh.l2 * state.r - state.v_y) / v_x
-            forces = (forces[0] - (front - 1.0) * veh.c_f * slip_f,
-                      forces[1] - (rear - 1.0) * veh.c_r * slip_r)
+            forces = (estimate[0] - (front - 1.0) * veh.c_f * slip_f,
+                      estimate[1] - (rear - 1.0) * veh.c_r * slip_r)
         now = []
         for i, force in enumerate(forces):
             target = s.force_feedforward * force
             before: Real = math.nan if last is None else last[i]
-            now.append(xp.where(_finite(before), before + (target - before) * step, target))
+            # after a (re)start from the filter's estimate as it is: a restarted filter's
+            # forces start at 0 and take the load's part up only over its first steps,
+            # so the part taken out would push the full load force the wrong way at once
+            # (dev-probe86: one bad sample on an accelerating arc, 2.75 cm off, 5.44 on)
+            now.append(xp.where(_finite(before), before + (target - before) * step,
+                                s.force_feedforward * estimate[i]))
         self._forces = (now[0], now[1])
         return (xp.where(_finite(now[0]), now[0], 0.0), xp.where(_finite(now[1]), now[1], 0.0))
 
