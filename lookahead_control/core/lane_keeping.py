@@ -1678,7 +1678,7 @@ class CgCompensatedLaw:
             # after a (re)start from the filter's estimate as it is: a restarted filter's
             # forces start at 0 and take the load's part up only over its first steps,
             # so the part taken out would push the full load force the wrong way at once
-            # (dev-probe86: one bad sample on an accelerating arc, 2.75 cm off, 5.44 on)
+            # (dev-probe86: one bad sample on an accelerating arc, 1.47 cm off, 5.44 on)
             now.append(xp.where(_finite(before), before + (target - before) * step,
                                 s.force_feedforward * estimate[i]))
         self._forces = (now[0], now[1])
