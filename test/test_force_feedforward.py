@@ -138,6 +138,8 @@ class _Glitch:
         self.law, self.times, self.time = law, times, 0.0
 
     def __getattr__(self, name):
+        if name == 'law':           # before __init__ (a copy): no recursion
+            raise AttributeError(name)
         return getattr(self.law, name)
 
     def step(self, state, preview, dt):
