@@ -24,7 +24,7 @@ import pytest
 
 # A unique ROS_DOMAIN_ID per test session (0..101 are safe for Fast DDS ports), set
 # before anything imports rclpy, and discovery on loopback only. Under pytest-xdist
-# (`make test` runs two workers) each worker of a session gets its own domain: the
+# (`make test` runs three workers) each worker of a session gets its own domain: the
 # session's slot from the parent's pid, the worker's number within it.
 _WORKER = os.environ.get('PYTEST_XDIST_WORKER', '')
 if _WORKER.startswith('gw') and _WORKER[2:].isdigit():
