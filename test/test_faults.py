@@ -24,6 +24,7 @@ import signal
 import struct
 import subprocess
 import sys
+import tempfile
 import time
 import warnings
 
@@ -958,12 +959,19 @@ def _wait_for_bag_data(bag, proc, timeout=120):
 
 
 @pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGKILL, signal.SIGINT])
-def test_stopping_closed_loop_stops_its_nodes_and_finalizes_the_bag(tmp_path, sig):
-    bag = tmp_path / 'run'
+def test_stopping_closed_loop_stops_its_nodes_and_finalizes_the_bag(tmp_path, sig,
+                                                                    monkeypatch):
+    bag, temp = tmp_path / 'run', tmp_path / 'temp'
+    temp.mkdir()
+    # --param: the controller's parameters go to the node as a file in the temp folder
     proc = subprocess.Popen([str(EXES / 'closed_loop'), '--mode', 'realtime', '--bag',
-                             str(bag)], cwd=tmp_path, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_start_default_sigint)
+                             str(bag), '--param', 'lane_keeping.compliance_memory_seed:=1.3'],
+                            cwd=tmp_path, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_start_default_sigint,
+                            env={**os.environ, 'TMPDIR': str(temp)})
     _wait_for_bag_data(bag, proc)
+    written = list(temp.glob('closed_loop_controller_*.yaml'))
+    assert [p.name.split('_')[3] for p in written] == [str(proc.pid)], written
     children = _children(proc.pid)
     assert len(children) == 3, children         # recorder, controller, simulator
     proc.send_signal(sig)                       # to closed_loop only, as systemd would
@@ -978,6 +986,39 @@ def test_stopping_closed_loop_stops_its_nodes_and_finalizes_the_bag(tmp_path, si
     assert sum(c for _, c in __import__('lookahead_control.bags.rosbag_io', fromlist=['x'])
                .bag_topics(bag).values()) > 0
     assert 'Traceback' not in err and '[FATAL]' not in err, err
+    # a killed run cannot delete its params file: the next run removes it (before: left
+    # in the temp folder for good, one per killed run); a running one's file is kept
+    assert list(temp.iterdir()) == (written if sig == signal.SIGKILL else [])
+    mine = temp / f'closed_loop_controller_{os.getpid()}_x.yaml'
+    mine.write_text('{}\n')
+    from lookahead_control.ros import closed_loop
+    monkeypatch.setattr(tempfile, 'tempdir', str(temp))
+    new = closed_loop.write_controller_params({'lane_keeping.integral_gain': 0.5})
+    assert sorted(temp.iterdir()) == sorted([mine, new])
+
+
+def test_only_this_user_s_params_files_of_ended_runs_are_removed(tmp_path):
+    from lookahead_control.ros.closed_loop import remove_stale_params
+    dead = subprocess.Popen(['true'])                       # a pid no process has now
+    dead.wait()
+    outside = tmp_path / 'outside'
+    outside.mkdir()
+    target = outside / 'keep.yaml'
+    target.write_text('mine\n')
+    folder = tmp_path / 'temp'
+    folder.mkdir()
+    stale = folder / f'closed_loop_controller_{dead.pid}_ab12.yaml'
+    kept = [folder / f'closed_loop_controller_{os.getpid()}_cd34.yaml',   # running
+            folder / 'closed_loop_controller_ef56.yaml',     # a name without a pid
+            folder / 'closed_loop_controller_x1_gh78.yaml',
+            folder / f'closed_loop_controller_{dead.pid}_ij90.txt',
+            folder / f'other_{dead.pid}_kl12.yaml']
+    for path in [stale, *kept]:
+        path.write_text('{}\n')
+    link = folder / f'closed_loop_controller_{dead.pid}_mn34.yaml'
+    link.symlink_to(target)
+    assert remove_stale_params(folder) == [stale]
+    assert sorted(folder.iterdir()) == sorted([*kept, link]) and target.exists()
 
 
 def test_sigterm_to_demo_stops_its_nodes_and_keeps_what_it_recorded(tmp_path):

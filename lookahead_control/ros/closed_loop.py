@@ -259,9 +259,51 @@ def loop_compatibility(params: dict[str, Any], rate_hz: float, given: str,
                         f'or scenario within it{car}, or a larger safety.max_speed')
 
 
+PARAMS_PREFIX = 'closed_loop_controller_'
+
+
+def _running(pid: int) -> bool:
+    """Return whether a process of this pid exists (another user's counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def remove_stale_params(folder: Path) -> list[Path]:
+    """
+    Remove the params files of runs that were killed before they could delete them.
+
+    A file is stale when it is this user's, named ``closed_loop_controller_<pid>_*.yaml``
+    and no process of that pid runs (a run killed with SIGKILL leaves its file; a pid
+    used again keeps it until that process ends too).
+
+    :param folder: the folder the files are written to.
+    :return: the files removed.
+    """
+    removed = []
+    for path in folder.glob(PARAMS_PREFIX + '*_*.yaml'):
+        pid = path.name[len(PARAMS_PREFIX):].split('_', 1)[0]
+        try:
+            if (not pid.isdigit() or path.is_symlink()
+                    or path.stat().st_uid != os.getuid() or _running(int(pid))):
+                continue
+            path.unlink()
+        except OSError:                 # gone meanwhile, or not ours to remove
+            continue
+        removed.append(path)
+    return removed
+
+
 def write_controller_params(params: dict[str, Any]) -> Path:
     """
     Write the controller's parameters as one params file (the caller deletes it).
+
+    The file's name carries this process's id; the files of runs no longer running
+    (killed with SIGKILL) are removed first (:func:`remove_stale_params`).
 
     :param params: parameters by name (:func:`controller_settings`).
     :return: the file.
@@ -269,7 +311,9 @@ def write_controller_params(params: dict[str, Any]) -> Path:
     import tempfile
 
     from lookahead_control.ros.node_main import dump_params
-    handle = tempfile.NamedTemporaryFile('w', suffix='.yaml', prefix='closed_loop_controller_',
+    remove_stale_params(Path(tempfile.gettempdir()))
+    handle = tempfile.NamedTemporaryFile('w', suffix='.yaml',
+                                         prefix=f'{PARAMS_PREFIX}{os.getpid()}_',
                                          delete=False)
     path = Path(handle.name)
     try:
