@@ -413,7 +413,7 @@ def test_closed_loop_checks_what_the_node_runs_and_gives_it_that_alone(tmp_path)
         from lookahead_control.core.config import load_ros_params
         assert load_ros_params(written, 'controller') == params
     finally:
-        written.unlink()
+        closed_loop.release_controller_params(written)
     bad = tmp_path / 'ref.yaml'
     bad.write_text('controller:\n  ros__parameters:\n    controller:\n'
                    '      reference: arc_exact\n')
@@ -498,7 +498,7 @@ def test_closed_loop_s_one_file_reaches_the_node_as_checked(tmp_path):
     try:
         read = _node_reads(written)
     finally:
-        written.unlink()
+        closed_loop.release_controller_params(written)
     assert read['frame_id'] == 'y' and read['vehicle.mass'] == 1500.0
     assert {name: read[name] for name in params if name in read} == params
 
@@ -536,7 +536,7 @@ def test_closed_loop_gives_the_node_what_a_hand_run_with_the_file_would(tmp_path
     try:
         merged = _node_reads(written)
     finally:
-        written.unlink()
+        closed_loop.release_controller_params(written)
     own = set(closed_loop.OWN_CONTROLLER_PARAMS)
     differ = {name: (by_hand[name], merged[name]) for name in by_hand
               if name not in own and by_hand[name] != merged[name]}

@@ -995,6 +995,8 @@ def test_stopping_closed_loop_stops_its_nodes_and_finalizes_the_bag(tmp_path, si
     monkeypatch.setattr(tempfile, 'tempdir', str(temp))
     new = closed_loop.write_controller_params({'lane_keeping.integral_gain': 0.5})
     assert sorted(temp.iterdir()) == sorted([mine, new])
+    closed_loop.release_controller_params(new)
+    assert list(temp.iterdir()) == [mine]
 
 
 def test_only_this_user_s_params_files_of_ended_runs_are_removed(tmp_path):
@@ -1017,8 +1019,21 @@ def test_only_this_user_s_params_files_of_ended_runs_are_removed(tmp_path):
         path.write_text('{}\n')
     link = folder / f'closed_loop_controller_{dead.pid}_mn34.yaml'
     link.symlink_to(target)
-    assert remove_stale_params(folder) == [stale]
-    assert sorted(folder.iterdir()) == sorted([*kept, link]) and target.exists()
+    # dev-probe87: a name int() refuses stopped every run ('²'.isdigit()); a digit
+    # that is not ASCII or a leading 0 is not a pid this code writes
+    odd = [folder / f'closed_loop_controller_{name}_op56.yaml'
+           for name in ('\u00b2', '\u0661\u0662\u0663', f'0{dead.pid}')]
+    # dev-probe87: a run in another pid namespace (a container sharing /tmp) has a pid
+    # no process has here: its lock keeps its file
+    held = folder / f'closed_loop_controller_{dead.pid}_qr78.yaml'
+    for path in [*odd, held]:
+        path.write_text('{}\n')
+    import fcntl
+    with held.open() as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        assert remove_stale_params(folder) == [stale]
+    assert sorted(folder.iterdir()) == sorted([*kept, link, *odd, held]) and target.exists()
+    assert remove_stale_params(folder) == [held]
 
 
 def test_sigterm_to_demo_stops_its_nodes_and_keeps_what_it_recorded(tmp_path):

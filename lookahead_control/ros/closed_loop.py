@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import datetime
 import os
 from pathlib import Path
+import re
 import signal
 import subprocess
 import sys
@@ -273,13 +274,27 @@ def _running(pid: int) -> bool:
     return True
 
 
+def _unlocked(path: Path) -> bool:
+    """Return whether no process holds the file's lock (a run's, in any pid namespace)."""
+    import fcntl
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    finally:
+        os.close(fd)
+    return True
+
+
 def remove_stale_params(folder: Path) -> list[Path]:
     """
     Remove the params files of runs that were killed before they could delete them.
 
     A file is stale when it is this user's, named ``closed_loop_controller_<pid>_*.yaml``
-    and no process of that pid runs (a run killed with SIGKILL leaves its file; a pid
-    used again keeps it until that process ends too).
+    (``<pid>`` ASCII digits without a leading 0), no process of that pid runs and no
+    process holds its lock (a run holds it while it runs: a run in another pid
+    namespace sharing the folder, e.g. a container's, keeps its file).
 
     :param folder: the folder the files are written to.
     :return: the files removed.
@@ -287,9 +302,11 @@ def remove_stale_params(folder: Path) -> list[Path]:
     removed = []
     for path in folder.glob(PARAMS_PREFIX + '*_*.yaml'):
         pid = path.name[len(PARAMS_PREFIX):].split('_', 1)[0]
+        if re.fullmatch('[1-9][0-9]*', pid) is None:
+            continue
         try:
-            if (not pid.isdigit() or path.is_symlink()
-                    or path.stat().st_uid != os.getuid() or _running(int(pid))):
+            if (path.is_symlink() or path.stat().st_uid != os.getuid()
+                    or _running(int(pid)) or not _unlocked(path)):
                 continue
             path.unlink()
         except OSError:                 # gone meanwhile, or not ours to remove
@@ -298,16 +315,22 @@ def remove_stale_params(folder: Path) -> list[Path]:
     return removed
 
 
+# the open files of this process's params files: their locks last while it runs
+_HELD: dict[Path, int] = {}
+
+
 def write_controller_params(params: dict[str, Any]) -> Path:
     """
     Write the controller's parameters as one params file (the caller deletes it).
 
-    The file's name carries this process's id; the files of runs no longer running
-    (killed with SIGKILL) are removed first (:func:`remove_stale_params`).
+    The file's name carries this process's id and the process holds its lock until
+    :func:`release_controller_params`; the files of runs no longer running (killed with
+    SIGKILL) are removed first (:func:`remove_stale_params`).
 
     :param params: parameters by name (:func:`controller_settings`).
     :return: the file.
     """
+    import fcntl
     import tempfile
 
     from lookahead_control.ros.node_main import dump_params
@@ -318,11 +341,25 @@ def write_controller_params(params: dict[str, Any]) -> Path:
     path = Path(handle.name)
     try:
         with handle:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_EX)
+            _HELD[path] = os.dup(handle.fileno())     # the lock stays with the copy
             dump_params({'/**': params}, handle)
     except BaseException:
-        path.unlink(missing_ok=True)
+        release_controller_params(path)
         raise
     return path
+
+
+def release_controller_params(path: Path) -> None:
+    """
+    Delete a params file of :func:`write_controller_params` and drop its lock.
+
+    :param path: the file.
+    """
+    path.unlink(missing_ok=True)
+    fd = _HELD.pop(path, None)
+    if fd is not None:
+        os.close(fd)
 
 
 def simulator_step(extra_sim_args: Sequence[str]) -> float:
@@ -638,7 +675,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                    controller_params=written, vehicle_id=vehicle_id))
     finally:
         if written is not None:
-            written.unlink(missing_ok=True)
+            release_controller_params(written)
     if bag is not None and code == 0:
         print(f'closed_loop: recorded {bag}')
     return code
