@@ -266,6 +266,7 @@ class RoadBatch:
             self._slope[i, :m] = road._slope
         self.length = np.array([r.length for r in roads])
         self._end_rho = np.array([r._end_rho for r in roads])
+        self._rows = np.arange(n)
 
     def curvature(self, s: Real) -> tuple[Real, Real]:
         """
@@ -275,8 +276,9 @@ class RoadBatch:
         :return: curvature [1/m] and slope [1/m^2], shaped like ``s``.
         """
         s = np.asarray(s, dtype=float)
-        idx = np.clip(np.sum(s[..., None] >= self._starts, axis=-1) - 1, 0, None)
-        rows = np.arange(self.length.size)
-        rho = self._rho0[rows, idx] + self._slope[rows, idx] * (s - self._starts[rows, idx])
+        idx = np.maximum(np.count_nonzero(s[..., None] >= self._starts, axis=-1) - 1, 0)
+        rows = self._rows
+        slope = self._slope[rows, idx]
+        rho = self._rho0[rows, idx] + slope * (s - self._starts[rows, idx])
         past = s >= self.length
-        return np.where(past, self._end_rho, rho), np.where(past, 0.0, self._slope[rows, idx])
+        return np.where(past, self._end_rho, rho), np.where(past, 0.0, slope)

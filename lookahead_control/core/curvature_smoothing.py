@@ -266,7 +266,7 @@ def _road(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
 def _cut(x: np.ndarray, y: np.ndarray, start: float, end: float
          ) -> tuple[np.ndarray, np.ndarray]:
     """Return the road ``(x, y)`` on ``[start, end]``: its points there and both ends."""
-    y_start, y_end = _road_at(x, y, start), _road_at(x, y, end)
+    y_start, y_end = np.vsplit(_road_at(x, y, np.array([start, end])), 2)
     inside = (x > start) & (x < end)
     # the points outside move onto the ends, with the ends' values (pieces of length 0)
     y_in = np.where(inside, y, np.where(x <= start, y_start, y_end))
@@ -288,15 +288,15 @@ def _segment(x: np.ndarray, at: np.ndarray) -> np.ndarray:
     return np.clip(count - 1, 0, x.shape[0] - 1)
 
 
-def _road_at(x: np.ndarray, y: np.ndarray, at: float) -> np.ndarray:
-    """Return the road at ``at`` per run (linear, held beyond its ends), ``(1, N)``."""
-    i = _segment(x, np.array([at]))
+def _road_at(x: np.ndarray, y: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Return the road at the points ``at`` (``(M,)``) per run: linear, held beyond its ends."""
+    i = _segment(x, at)
     j = np.minimum(i + 1, x.shape[0] - 1)
     x0, x1 = np.take_along_axis(x, i, axis=0), np.take_along_axis(x, j, axis=0)
     y0, y1 = np.take_along_axis(y, i, axis=0), np.take_along_axis(y, j, axis=0)
     with np.errstate(invalid='ignore', divide='ignore'):
-        share = np.where(x1 > x0, np.clip((at - x0) / np.where(x1 > x0, x1 - x0, 1.0),
-                                          0.0, 1.0), 0.0)
+        share = np.where(x1 > x0, np.clip((at.reshape(-1, 1) - x0)
+                                          / np.where(x1 > x0, x1 - x0, 1.0), 0.0, 1.0), 0.0)
     return y0 + share * (y1 - y0)
 
 

@@ -752,8 +752,11 @@ class KalmanStateFilter:
             w = u - i
             gains = self._period_gains(table, bucket, between,
                                        np.concatenate([i.ravel(), i.ravel() + 1]))
-            return [[gains[i, row, col] + w * (gains[i + 1, row, col] - gains[i, row, col])
-                     for col in range(table.columns)] for row in range(table.states)]
+            # the whole matrix per run at once (the same operations per element)
+            low = gains[i]
+            mixed = low + w[..., None, None] * (gains[i + 1] - low)
+            return [[mixed[..., row, col] for col in range(table.columns)]
+                    for row in range(table.states)]
         u = min(max(float(u), 0.0), float(top))
         j = min(int(math.floor(u)), top - 1)
         f = u - j
