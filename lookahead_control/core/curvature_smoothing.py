@@ -201,20 +201,45 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
     out = low + step * np.arange(int(math.floor((high - low) / step)) + 1)
     if out[-1] < high:
         out = np.append(out, high)
-    x_road, y_road = _road(d, flat, history, low - half_width)
-    # the road over [low - W, high + W] only, measured from low: its integrals stay of
-    # the window's size wherever the polygon lies (from its first point they lost the
-    # curvature to rounding a billion metres away)
-    x_road, y_road = _cut(x_road, y_road, low - half_width, high + half_width)
-    at = out - low
-    values = _second_integral(x_road - low, y_road, np.concatenate(
-        [at - half_width, at, at + half_width])).reshape(3, at.size, -1)
-    smooth = (values[0] - 2.0 * values[1] + values[2]) / (half_width * half_width)
+    # a run whose road is one curvature (a straight, an arc) keeps it exactly: the
+    # average of a constant, without the integrals' rounding (and most steps of a run)
+    level = _level_runs(flat, history)
+    if np.all(level):
+        smooth = np.broadcast_to(flat[:1], (out.size, flat.shape[1]))
+    else:
+        x_road, y_road = _road(d, flat, history, low - half_width)
+        # the road over [low - W, high + W] only, measured from low: its integrals stay of
+        # the window's size wherever the polygon lies (from its first point they lost the
+        # curvature to rounding a billion metres away)
+        x_road, y_road = _cut(x_road, y_road, low - half_width, high + half_width)
+        at = out - low
+        values = _second_integral(x_road - low, y_road, np.concatenate(
+            [at - half_width, at, at + half_width])).reshape(3, at.size, -1)
+        smooth = (values[0] - 2.0 * values[1] + values[2]) / (half_width * half_width)
+        smooth = np.where(level, flat[:1], smooth)
     beyond = d > high
     out_d = np.concatenate([out, d[beyond]])
     out_k = np.vstack([smooth, flat[beyond]])
     out_k = np.where(usable.reshape(-1), out_k, math.nan)
     return out_d, (out_k.reshape(-1) if k.ndim == 1 else out_k)
+
+
+def _level_runs(k: np.ndarray, history: Optional[CurvatureHistory]) -> np.ndarray:
+    """
+    Return per run whether its road is one curvature: the polygon's and the history's.
+
+    :param k: the polygon's curvatures, ``(K, N)`` (finite where the run is usable).
+    :param history: the curvature behind the CG (another batch's: not this road).
+    :return: boolean ``(N,)``; a sample without a curvature (NaN) is not level.
+    """
+    level = np.all(k == k[:1], axis=0)
+    if history is None or history.travelled is None or not history.size:
+        return level
+    rho = history.behind()[1]
+    rho = rho.reshape(rho.shape[0], -1)
+    if rho.shape[1] != k.shape[1]:
+        return level
+    return level & np.all(rho == k[:1], axis=0)
 
 
 def _road(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
