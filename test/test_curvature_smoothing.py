@@ -141,6 +141,44 @@ def test_a_level_road_keeps_its_curvature_exactly_run_by_run():
     assert after[:, 0] == pytest.approx(np.full(after.shape[0], -0.0025), rel=1e-12)
 
 
+def test_on_a_level_road_a_run_of_a_batch_is_its_single_run_to_the_bit():
+    # dev-probe88: a batch keeps the samples its slowest run reads; the level test looked
+    # at them all, so the fast run, level over its own window, took the integrals in the
+    # batch and not alone (1.3e-18 apart; S1 closed loops 2.8e-16 m, before the shortcut
+    # 0). A restarted run's samples (NaN) are filled as its cleared single run holds back
+    c = -0.0025
+    batch, single, cleared = CurvatureHistory(W), CurvatureHistory(W), CurvatureHistory(W)
+    for i in range(40):                 # 0.2 s straight, then 0.2 s on the arc
+        rho = 0.0 if i < 20 else c
+        batch.record(np.array([10.0, 37.0, 37.0]), 0.01, np.array([rho, rho, rho]))
+        single.record(37.0, 0.01, rho)
+    cleared.record(37.0, 0.01, c)
+    batch.forget(np.array([False, False, True]))
+    level = np.full((D.size, 3), c)
+    _, both = smoothed_preview(D, level, W, batch, 37.0 * 0.3)
+    for j, alone in ((1, single), (2, cleared)):
+        _, one = smoothed_preview(D, level[:, j], W, alone, 37.0 * 0.3)
+        assert np.array_equal(both[:, j], one) and np.all(one == c), j
+    assert not np.all(both[:, 0] == c)  # the slow run has the straight in its window
+    # another batch's history is not this road: the polygon alone, level (0.0017: the
+    # integrals round it, -0.0025 they happen to keep)
+    _, other = smoothed_preview(D, np.full((D.size, 2), 0.0017), W, batch, 37.0 * 0.3)
+    assert np.all(other == 0.0017)
+
+
+def test_a_history_recorded_for_every_run_at_once_forgets_one_run():
+    # dev-probe88: recorded with one speed and curvature (shape ()), forget() of one run
+    # of two raised ValueError (the samples' axis did not broadcast to the runs')
+    history = CurvatureHistory(W)
+    for _ in range(30):
+        history.record(37.0, 0.01, -0.0025)
+    history.forget(np.array([True, False]))
+    where, rho = history.behind()
+    assert where.shape == rho.shape == (history.size, 2)
+    assert np.all(np.isnan(rho[:, 0])) and np.all(rho[:, 1] == -0.0025)
+    assert np.all(where[:, 0] == where[:, 1])
+
+
 def test_a_batch_is_its_single_runs_and_a_restarted_run_forgets_only_its_road():
     speeds = np.array([10.0, 37.0])
     batch = CurvatureHistory(W)

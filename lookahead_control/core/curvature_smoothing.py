@@ -130,9 +130,14 @@ class CurvatureHistory:
             except ValueError:
                 self.clear()
                 return
+            # the samples' run axes aligned to the right, as the runs' (dev-probe88: a
+            # history recorded with one speed for every run, shape (), raised here)
+            ones = (1,) * (len(shape) - self.travelled.ndim) + self.travelled.shape
             self.travelled = np.broadcast_to(self.travelled, shape).copy()
-            self._where = np.broadcast_to(self._where, (MAX_SAMPLES,) + shape).copy()
-            self._rho = np.broadcast_to(self._rho, (MAX_SAMPLES,) + shape).copy()
+            self._where = np.broadcast_to(self._where.reshape((MAX_SAMPLES,) + ones),
+                                          (MAX_SAMPLES,) + shape).copy()
+            self._rho = np.broadcast_to(self._rho.reshape((MAX_SAMPLES,) + ones),
+                                        (MAX_SAMPLES,) + shape).copy()
         self._rho[:self.size] = np.where(runs, math.nan, self._rho[:self.size])
 
     def copy_from(self, other: 'CurvatureHistory') -> None:
@@ -203,7 +208,7 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
         out = np.append(out, high)
     # a run whose road is one curvature (a straight, an arc) keeps it exactly: the
     # average of a constant, without the integrals' rounding (and most steps of a run)
-    level = _level_runs(flat, history)
+    level = _level_runs(d, flat, history, low - half_width)
     if np.all(level):
         smooth = np.broadcast_to(flat[:1], (out.size, flat.shape[1]))
     else:
@@ -224,22 +229,36 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
     return out_d, (out_k.reshape(-1) if k.ndim == 1 else out_k)
 
 
-def _level_runs(k: np.ndarray, history: Optional[CurvatureHistory]) -> np.ndarray:
+def _level_runs(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
+                start: float) -> np.ndarray:
     """
-    Return per run whether its road is one curvature: the polygon's and the history's.
+    Return per run whether its road in the window is one curvature, as :func:`_road` reads it.
 
-    :param k: the polygon's curvatures, ``(K, N)`` (finite where the run is usable).
+    A run's road is level when its polygon is one value and so is every history sample
+    its window reads: those behind the polygon's first point (and the CG) from the last
+    one at or before ``start``. A sample without a curvature (a restarted run's) is
+    filled from the others as :func:`_road` fills it, so it is not looked at: a run of a
+    batch is level exactly when its single run is (a batch keeps the samples its slowest
+    run reads, and a restarted run's single run has cleared them).
+
+    :param d: the polygon's distances, ``(K,)``.
+    :param k: its curvatures, ``(K, N)`` (finite where the run is usable).
     :param history: the curvature behind the CG (another batch's: not this road).
-    :return: boolean ``(N,)``; a sample without a curvature (NaN) is not level.
+    :param start: where the window starts [m] (from the CG).
+    :return: boolean ``(N,)``.
     """
     level = np.all(k == k[:1], axis=0)
     if history is None or history.travelled is None or not history.size:
         return level
-    rho = history.behind()[1]
+    where, rho = history.behind()
+    where = where.reshape(where.shape[0], -1)
     rho = rho.reshape(rho.shape[0], -1)
     if rho.shape[1] != k.shape[1]:
         return level
-    return level & np.all(rho == k[:1], axis=0)
+    last = np.count_nonzero(where <= start, axis=0) - 1         # per run, -1: none
+    read = ((np.arange(where.shape[0]).reshape(-1, 1) >= last) & (where < min(d[0], 0.0))
+            & ~np.isnan(rho))
+    return level & np.all(~read | (rho == k[:1]), axis=0)
 
 
 def _road(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
