@@ -696,27 +696,75 @@ def preview_curvature(distances: Any, curvatures: Any, ahead: Real, rho: Real,
     :param rho_slope: its slope d rho / ds, the fallback [1/m^2].
     :return: ``(rho_ahead [1/m], d rho / ds there [1/m^2])``.
     """
-    fallback = (rho + rho_slope * ahead, rho_slope + 0.0 * ahead)
+    return read_polygon(checked_polygon(distances, curvatures), ahead, rho, rho_slope)
+
+
+class Polygon:
+    """A ``road_curvature`` polygon checked once, read at several distances in a step."""
+
+    def __init__(self, d: np.ndarray, k: np.ndarray, usable: Optional[np.ndarray]) -> None:
+        """
+        Keep the polygon and its segments' slopes.
+
+        :param d: distances, increasing and finite, ``(K,)``.
+        :param k: curvatures, ``(K,)`` or ``(K, N)``; a run without finite ones: zeros.
+        :param usable: per run whether its curvatures were finite (None: every run).
+        """
+        self.d, self.k, self.usable = d, k, usable
+        self.slopes = (None if d.size == 1 else
+                       np.diff(k, axis=0) / np.diff(d).reshape((-1,) + (1,) * (k.ndim - 1)))
+
+
+def checked_polygon(distances: Any, curvatures: Any) -> Optional[Polygon]:
+    """
+    Return the polygon the law can read, or None (it falls back to the CG's curvature).
+
+    :param distances: preview distances [m].
+    :param curvatures: curvatures there [1/m].
+    :return: the checked polygon (see :func:`preview_curvature` for what is refused).
+    """
     if distances is None or curvatures is None:
-        return fallback
+        return None
     d = np.asarray(distances, dtype=float)
     k = np.asarray(curvatures, dtype=float)
     if (d.ndim != 1 or d.size == 0 or k.shape[:1] != d.shape or not np.all(np.isfinite(d))
             or np.any(np.diff(d) <= 0.0)):
-        return fallback
+        return None
     usable = np.all(np.isfinite(k), axis=0)
-    if not np.all(usable):
-        if k.ndim == 1:
-            return fallback
-        # a batch: the runs whose column is not finite fall back, the others are read
-        # (dev-probe43: one run's NaN made every run of the batch fall back)
-        value, slope = preview_curvature(d, np.where(usable, k, 0.0), ahead, rho, rho_slope)
-        return (_like(np.where(usable, value, fallback[0]), ahead, rho),
-                _like(np.where(usable, slope, fallback[1]), ahead, rho))
-    if d.size == 1:
+    if np.all(usable):
+        return Polygon(d, k, None)
+    if k.ndim == 1:
+        return None
+    # a batch: the runs whose column is not finite fall back, the others are read
+    # (dev-probe43: one run's NaN made every run of the batch fall back)
+    return Polygon(d, np.where(usable, k, 0.0), usable)
+
+
+def read_polygon(polygon: Optional[Polygon], ahead: Real, rho: Real,
+                 rho_slope: Real) -> tuple[Real, Real]:
+    """
+    Return the curvature ``ahead`` metres ahead and its slope: :func:`preview_curvature`.
+
+    :param polygon: :func:`checked_polygon`'s.
+    :param ahead: the distance wanted [m] (float or array per run).
+    :param rho: curvature at the CG, the fallback [1/m].
+    :param rho_slope: its slope d rho / ds, the fallback [1/m^2].
+    :return: ``(rho_ahead [1/m], d rho / ds there [1/m^2])``.
+    """
+    if polygon is None:
+        return rho + rho_slope * ahead, rho_slope + 0.0 * ahead
+    if polygon.usable is not None:
+        value, slope = _read_inside(polygon, ahead, rho)
+        return (_like(np.where(polygon.usable, value, rho + rho_slope * ahead), ahead, rho),
+                _like(np.where(polygon.usable, slope, rho_slope + 0.0 * ahead), ahead, rho))
+    return _read_inside(polygon, ahead, rho)
+
+
+def _read_inside(polygon: Polygon, ahead: Real, rho: Real) -> tuple[Real, Real]:
+    d, k, slopes = polygon.d, polygon.k, polygon.slopes
+    if slopes is None:
         value = k[0] + 0.0 * np.asarray(ahead)
         return _like(value, ahead, rho), _like(0.0 * value, ahead, rho)
-    slopes = np.diff(k, axis=0) / np.diff(d).reshape((-1,) + (1,) * (k.ndim - 1))
     a = np.clip(np.asarray(ahead, dtype=float), d[0], d[-1])
     i = np.clip(np.searchsorted(d, a, side='right') - 1, 0, d.size - 2)
     inside = (np.asarray(ahead) >= d[0]) & (np.asarray(ahead) < d[-1])
@@ -1339,11 +1387,11 @@ class CgCompensatedLaw:
                                                          s.curvature_smoothing, self._history,
                                                          reach)
         blending = self._blending
+        polygon = checked_polygon(distances, curvatures)    # read at several distances
 
         def road(time: float) -> tuple[Real, Real]:
             """Return the curvature ``v_x time`` ahead and its slope."""
-            rho_t, slope_t = preview_curvature(distances, curvatures, v_x * time, state.rho,
-                                               slope)
+            rho_t, slope_t = read_polygon(polygon, v_x * time, state.rho, slope)
             if rated and estimating is True:
                 # the estimate extrapolated along its rate (preview_curvature's fallback)
                 rho_t = _bounded(rho_t)
