@@ -647,6 +647,10 @@ def test_the_report_says_what_one_seed_and_a_noise_free_goal_mean(tmp_path):
     free = compare.write_report(rows('nonlinear', 1), ['lqr'], tmp_path / 'free',
                                 plot=False).read_text()
     assert 'One noise seed' not in free                 # no noisy run: nothing to say
+    # dev-probe89: without the goal plant the summary's metric columns were all '-' and
+    # nothing said why
+    assert f'**This league has no `{compare.GOAL_PLANT}` run (`--plants`)' in free
+    assert 'This league has no' not in one
     # before: the CommonRoad goal's one run per speed sat among the 'N noise seeds' rows
     text = compare.write_report(rows(compare.GOAL_PLANT, 2) + rows('commonroad_mb', 1),
                                 ['lqr'], tmp_path / 'two', plot=False, seeds=2).read_text()

@@ -16,8 +16,10 @@
 Executable ``compare``: every law x scenarios S0-S5 x plants x speeds, one league table.
 
 Each law gets the same inputs (the contract's measurements through the same sensors and
-noise, the same curvature preview), the same actuator, plant and safety-free offline
-loop (``sim_plant.closed_loop_sim.run``, vectorized over speeds). Writes ``league.md``
+noise, the same curvature preview), the same actuator and plant, and the controller
+node's output stage (its angle and rate limits, ``safety.*``:
+:class:`~lookahead_control.core.output_stage.NodeOutputStage`) in the offline loop
+(``sim_plant.closed_loop_sim.run``, vectorized over speeds). Writes ``league.md``
 (summary and goal rows), ``league.csv`` (one row per run) and ``league.png`` into
 ``--out``; ``--tune`` runs the baselines' tuning grids instead (``docs/baselines.md``).
 Every law runs its package defaults (the league's one tuning), or with ``--controller``
@@ -1301,6 +1303,12 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
                                       for r in rows) else [
             '**One noise seed per speed on the noisy plants: a goal met here may be missed '
             "with another seed (`--seeds N`: each goal's share of N runs).**", '']),
+        # dev-probe89: without the goal plant the summary's metric columns were all '-'
+        # and nothing said why
+        *([] if GOAL_PLANT in plants else [
+            f'**This league has no `{GOAL_PLANT}` run (`--plants`), so the metric columns '
+            "below, which are the goal plant's, are empty: the runs are in the per-plant "
+            'tables further down and in `league.csv`.**', '']),
         markdown_table(summary(rows, laws), digits=3), '']
     if INDEPENDENT_PLANT in plants:
         text += [f'## The same columns on `{INDEPENDENT_PLANT}`', '',
