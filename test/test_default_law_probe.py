@@ -474,5 +474,13 @@ def test_diagnostics_say_the_speed_of_a_low_speed_hold_and_a_car_reversing(conte
         stamp, status = _one_second(node, stamp, rho=0.0, v_x=1.0)
         assert 'low speed: 100 (v_x 1 m/s, below safety.low_speed 3: holding the ' \
             'command)' in status.message, status.message
+        # dev-probe90: the speed of the held answers, not of the newest velocity (it said
+        # 'v_x 30 m/s, below safety.low_speed 3' after a moment at -10)
+        for v_x in [-10.0] * 20 + [30.0] * 80:
+            stamp += 10 * MS
+            _send(node, stamp, y=0.0, rho=0.0, v_x=v_x)
+        status = node.diagnostics()
+        assert 'low speed: 20 (v_x -10 m/s, below safety.low_speed 3: holding the ' \
+            'command; reversing' in status.message, status.message
     finally:
         node.destroy_node()

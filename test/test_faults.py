@@ -1188,3 +1188,59 @@ def test_a_logger_interrupted_in_its_constructor_deletes_quietly():
     from rclpy.impl.rcutils_logger import RcutilsLogger
     half_built = RcutilsLogger.__new__(RcutilsLogger)
     half_built.__del__()
+
+
+def test_a_negative_sim_clock_is_dropped_not_a_crash(probe):
+    # dev-probe90: one /clock message with sec < 0 (a simulator's clock wrapped past int32,
+    # a bad bridge) raised ValueError in rclpy's time source: the controller died with a
+    # traceback, no command, no diagnostics. Now it is dropped, said, and the node runs on
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rosgraph_msgs.msg import Clock
+    node, executor = probe
+    diagnostics = []
+    node.create_subscription(DiagnosticArray, '/diagnostics',
+                             lambda m: diagnostics.append(m.status[0].message), 100)
+    clock = node.create_publisher(Clock, '/clock', 10)
+    now = [100.0]
+
+    def tick(seconds):
+        """Publish the sim clock for ``seconds`` of it, 10 ms a message."""
+        for _ in range(int(round(seconds / 0.01))):
+            now[0] += 0.01
+            message = Clock()
+            message.clock.sec, message.clock.nanosec = int(now[0]), int(now[0] % 1.0 * 1e9)
+            clock.publish(message)
+            executor.spin_once(timeout_sec=0.002)
+    import threading
+    controller = subprocess.Popen([str(EXES / 'controller'), '--ros-args', '-p',
+                                   'use_sim_time:=true'], stderr=subprocess.PIPE, text=True)
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(controller.stderr), daemon=True)
+    reader.start()
+    said = '/clock message with a negative time dropped (sec -1, nanosec 0)'
+    try:
+        assert spin_until(executor, lambda: clock.get_subscription_count() > 0, 30)
+        end = time.monotonic() + 30
+        while time.monotonic() < end and not diagnostics:
+            tick(0.5)
+        assert diagnostics, 'the controller never published diagnostics on the sim clock'
+        bad = Clock()
+        bad.clock.sec = -1
+        clock.publish(bad)
+        # nothing after it until the node has taken it (the time source keeps one message)
+        assert spin_until(executor, lambda: controller.poll() is not None or any(
+            said in line for line in lines), 30), lines
+        assert controller.poll() is None, ''.join(lines)
+        seen = len(diagnostics)
+        end = time.monotonic() + 30
+        while time.monotonic() < end and len(diagnostics) <= seen + 2:
+            tick(0.5)
+        assert controller.poll() is None, controller.stderr.read()
+        assert len(diagnostics) > seen + 2, 'no diagnostics after the negative clock'
+    finally:
+        controller.send_signal(signal.SIGINT)
+        controller.wait(timeout=30)
+        reader.join(timeout=10)
+    err = ''.join(lines)
+    assert controller.returncode == 0, err
+    assert 'Traceback' not in err and err.count(said) == 1, err

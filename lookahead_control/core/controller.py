@@ -291,6 +291,8 @@ class SteeringController:
         #: ``curvature_dropped``; the largest residual since the caller last took it in
         #: ``map_residual``
         self.map_check = MapCheck()
+        #: the v_x of the last answer held for low speed (``safety.low_speed``) [m/s]
+        self.low_speed_v_x: Optional[float] = None
         self.map_residual = 0.0
         #: the steering sent checked for a sustained oscillation (an actuator delay
         #: beyond the law's margin, ``core/oscillation_check.py``): seconds of answers
@@ -899,6 +901,10 @@ class SteeringController:
         raw = float(law.steering)
         hold = self._hold_value if self._hold_value is not None else 0.0
         wanted = raw if weight >= 1.0 else weight * raw + (1.0 - weight) * hold
+        if weight < 1.0:
+            # the speed the diagnostics name with the hold (dev-probe90: they named the
+            # speed of the newest velocity, 30 m/s, after a moment at -10)
+            self.low_speed_v_x = v_x
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
         if self.oscillation.step(dt, self.last.steering):

@@ -751,9 +751,10 @@ class ControllerNode(LifecycleNode):
                 text = f'{key.replace("_", " ")}: {new[key]}'
                 if key == 'rejected':
                     text += f' (last: {self.core.last_rejection})'
-                elif key == 'low_speed' and self.core.velocity is not None:
-                    # a car reversing was only 'low speed' (dev-probe55)
-                    v_x = self.core.velocity.v_x
+                elif key == 'low_speed' and self.core.low_speed_v_x is not None:
+                    # a car reversing was only 'low speed' (dev-probe55); the speed of the
+                    # last answer held, not of the newest velocity (dev-probe90)
+                    v_x = self.core.low_speed_v_x
                     text += (f' (v_x {v_x:.3g} m/s, below safety.low_speed '
                              f'{self.core.safety.low_speed:g}: holding the command'
                              + ('; reversing: the laws steer forward driving only'

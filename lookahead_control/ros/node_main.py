@@ -200,6 +200,40 @@ def spin_until(executor: Executor, done: Callable[[], bool], period: float = 0.1
         executor.spin_once(timeout_sec=period)
 
 
+def guard_clock(node: Node) -> int:
+    """
+    Drop ``/clock`` messages rclpy cannot take, instead of letting them stop the node.
+
+    rclpy's time source (``use_sim_time``) builds a ``Time`` from every ``/clock``
+    message, and a negative ``sec`` (a simulator's clock wrapped past int32, a bad
+    bridge) raised ``ValueError`` out of the executor: the node died with a traceback,
+    no command and no diagnostics (dev-probe90). Such a message is now dropped with an
+    error in the log; the clock keeps its last good time, so the node's own checks see
+    the inputs go stale and act as for a clock that stopped.
+
+    :param node: the node, after it is created (its ``/clock`` subscription, if any).
+    :return: how many ``/clock`` subscriptions were guarded (0 without sim time).
+    """
+    from rclpy.time_source import TimeSource
+    guarded = 0
+    for subscription in list(node.subscriptions):
+        callback = subscription.callback
+        if getattr(callback, '__func__', None) is not TimeSource.clock_callback:
+            continue
+
+        def checked(msg: Any, take: Callable[[Any], None] = callback) -> None:
+            if msg.clock.sec < 0:
+                node.get_logger().error(
+                    f'/clock message with a negative time dropped (sec {msg.clock.sec}, '
+                    f'nanosec {msg.clock.nanosec}): the clock keeps its last time',
+                    throttle_duration_sec=5.0)
+                return
+            take(msg)
+        subscription.callback = checked
+        guarded += 1
+    return guarded
+
+
 def now_ns(node: Node) -> int:
     """
     Return a node's clock in nanoseconds, as ``node.get_clock().now().nanoseconds``.
@@ -635,6 +669,7 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
     executor: Optional[Executor] = None
     try:
         node = make()
+        guard_clock(node)
         kind = (node.get_parameter('executor').value if node.has_parameter('executor')
                 else 'single_threaded')
         executor = make_executor(kind)
