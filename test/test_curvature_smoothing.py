@@ -393,18 +393,48 @@ def test_a_polygon_a_billion_metres_off_is_averaged_without_rounding_away():
 
 def test_a_polygon_behind_the_cg_is_averaged_at_the_cg():
     # it was averaged at its last point (0.00907 where the road at the CG averages to
-    # 0.00953), and the law held that ahead
+    # 0.00953), and the law held that ahead. Since dev-probe90 the road behind the CG is
+    # the road driven (0.01 here), the polygon's value at the CG held ahead: 0.01
     history = CurvatureHistory(W)
     for _ in range(100):
         history.record(10.0, 0.01, 0.01)
     d, k = np.array([-10.0, -1.0]), np.array([0.0, 0.01])
     out_d, out_k = smoothed_preview(d, k, W, history, reach=2.6)
     assert out_d[0] == 0.0 and out_d[-1] > 2.6
-    where, rho = history.behind()
-    behind = where < d[0]
-    road = np.concatenate([where[behind], d]), np.concatenate([rho[behind], k])
-    assert out_k[0] == pytest.approx(triangle_average(
-        0.0, lambda u: np.interp(u, *road), breaks=road[0]), abs=1e-15)
+    assert out_k == pytest.approx(np.full(out_k.size, 0.01), abs=1e-15)
+
+
+def test_a_polygon_s_points_behind_the_cg_are_not_the_road_driven():
+    # dev-probe90: a bridge's polygon (-50 m, 0.19), (0, 1/400), (20 m, 1/400) on a 400 m
+    # curve: the window behind the CG read the ramp to 0.19, the average's slope at the
+    # CG swung the default law's command to -0.039 rad (0.0136 on the curve)
+    rho = 1.0 / 400.0
+    history = CurvatureHistory(W)
+    for _ in range(100):
+        history.record(30.0, 0.01, rho)
+    d, k = np.array([-50.0, 0.0, 20.0]), np.array([0.19, rho, rho])
+    out_d, out_k = smoothed_preview(d, k, W, history, reach=12.0)
+    assert out_d[0] == 0.0 and np.all(out_k == rho)
+    # a point behind between two ahead: the polygon's value at the CG, then its points
+    d, k = np.array([-3.0, 2.0, 20.0]), np.array([0.19, 0.0, 0.0])
+    trimmed = smoothed_preview(np.array([0.0, 2.0, 20.0]),
+                               np.array([0.19 * 2.0 / 5.0, 0.0, 0.0]), W, history, 12.0)
+    got = smoothed_preview(d, k, W, history, 12.0)
+    np.testing.assert_array_equal(got[0], trimmed[0])
+    np.testing.assert_allclose(got[1], trimmed[1], rtol=1e-12, atol=1e-17)
+    # the law: the command of the polygon with the point behind is that without it
+    commands = []
+    for points in (np.array([-50.0, 0.0, 20.0, 40.0]), np.array([0.0, 20.0, 40.0])):
+        curvatures = np.where(points < 0.0, 0.19, rho)
+        law = CgCompensatedLaw(load_vehicle(None), load_controller(None),
+                               LaneKeepingParams())
+        eps = -0.0132                    # the steady relative yaw at 30 m/s on it
+        state = LateralState(y_cg=0.0, eps_r=eps, v_y=0.0, r=30.0 * rho, v_x=30.0,
+                             a_x=0.0, rho=rho, rho_rate=0.0)
+        for _ in range(50):
+            out = law.step(state, Preview(points, curvatures), 0.01)
+        commands.append(out.steering)
+    assert commands[0] == commands[1] and commands[0] > 0.0, commands
 
 
 def test_reach_not_finite_is_the_polygon_s_end_within_a_bound():

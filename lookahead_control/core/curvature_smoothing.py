@@ -172,8 +172,10 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
     samples before its oldest finite one kept take that one's value; with none, the
     polygon's first value is held back), then the polygon as the law reads it (its first
     value held from the CG to its first point, linear, its last value held beyond its
-    end). The average is exact over the road's linear pieces, integrated from ``W``
-    before the first point given. It is given every ``half_width / STEPS`` from the CG
+    end). Of a polygon that starts behind the CG only its value at the CG and its points
+    ahead are read: behind the CG the road is the one driven. The average is exact over
+    the road's linear pieces, integrated from ``W`` before the first point given. It is
+    given every ``half_width / STEPS`` from the CG
     (or the polygon's first point ahead of it) to one step past ``reach`` (the farthest
     point the law reads; at most the polygon's end if that is ahead, and at most
     :data:`MAX_OUTPUT` steps: a ``reach`` not finite is the polygon's end), and the
@@ -195,13 +197,23 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
         return d, k
     usable = np.all(np.isfinite(k), axis=0)
     flat = np.where(usable, k, 0.0).reshape(d.size, -1)          # (K, N)
+    end = d[-1]
+    if d[0] < 0.0:
+        # the road behind the CG is the road driven (the history), not the polygon's
+        # points there: its value at the CG, then its points ahead (dev-probe90: a point
+        # 50 m behind at 0.19 1/m made the average's slope swing the command to the
+        # other side of a 400 m curve)
+        at_cg = _road_at(np.broadcast_to(d.reshape(-1, 1), flat.shape), flat,
+                         np.zeros(1))
+        ahead = d > 0.0
+        d, flat = np.concatenate([np.zeros(1), d[ahead]]), np.vstack([at_cg, flat[ahead]])
     step = half_width / STEPS
     low = max(0.0, d[0])
-    far = reach if math.isfinite(reach) else d[-1]
+    far = reach if math.isfinite(reach) else end
     # one step past the farthest read: its segment (the slope read there) is averaged too
     high = max(far, low) + step
-    if d[-1] >= low:
-        high = min(high, d[-1])
+    if end >= low:
+        high = min(high, end)
     high = min(high, low + MAX_OUTPUT * step)
     out = low + step * np.arange(int(math.floor((high - low) / step)) + 1)
     if out[-1] < high:
