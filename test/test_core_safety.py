@@ -575,3 +575,25 @@ def test_a_differentiated_a_x_is_taken_over_10_ms_and_within_the_believable():
     # a stop harder than the bound reads as the bound, not as 0
     seen = feed_through([(k * 10 * MS, 30.0 - 0.16 * k) for k in range(50)])
     assert seen[-1] == -most
+
+
+def test_a_sim_clock_starting_after_the_inputs_does_not_freeze_the_command():
+    # dev-probe91: inputs stamped 100 s received while the sim clock read 0 (not
+    # started), then the clock starts at 101 s: the watchdog's command was stamped 100 s
+    # + 101 s (the time 'since arrival' on a clock that had not run), and every answer
+    # after it was held by the rate limit until the stamps reached 201 s
+    core = _core()
+    sim = 100_000 * MS
+    for k in range(10):
+        _step_at(core, 0, sim + k * 10 * MS, 0.5)
+    held = core.last.steering
+    watchdog = core.safe_command(sim + 1000 * MS)     # the clock starts: inputs stale
+    assert watchdog.steering == held and watchdog.stamp_ns == sim + 90 * MS
+    answers = [_step_at(core, sim + 1000 * MS + k * 10 * MS,
+                        sim + 1000 * MS + k * 10 * MS, -0.5) for k in range(1, 21)]
+    # back on the inputs: the command moves toward the new error, within the rate limit
+    # (0.1 rad/s over 0.2 s); before, all 20 were the held command
+    moved = [a.steering - held for a in answers]
+    assert moved[0] == pytest.approx(0.1 * 0.01, rel=1e-9) and answers[0].rate_limited
+    assert all(b >= a for a, b in zip(moved, moved[1:]))
+    assert not answers[-1].rate_limited and answers[-1].steering == answers[-1].law.steering

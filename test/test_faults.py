@@ -1244,3 +1244,34 @@ def test_a_negative_sim_clock_is_dropped_not_a_crash(probe):
     err = ''.join(lines)
     assert controller.returncode == 0, err
     assert 'Traceback' not in err and err.count(said) == 1, err
+
+
+def test_a_clock_subscription_made_at_run_time_is_guarded_too():
+    # dev-probe91: the guard wrapped the /clock subscriptions there were when the node was
+    # made; use_sim_time set later (a set, a lifecycle node configured again) made an
+    # unguarded one, and a negative /clock raised out of the executor again
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+    from lookahead_control.ros.node_main import install_clock_guard
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node('clock_guard_probe', context=ctx)
+    try:
+        install_clock_guard(node)
+        assert not [s for s in node.subscriptions if s.topic_name == '/clock']
+        node.set_parameters([Parameter('use_sim_time', value=True)])
+        clocks = [s for s in node.subscriptions if s.topic_name == '/clock']
+        assert len(clocks) == 1
+        bad, good = Clock(), Clock()
+        bad.clock.sec, good.clock.sec = -1, 5
+        clocks[0].callback(bad)                 # before: ValueError
+        clocks[0].callback(good)
+        assert node.get_clock().now().nanoseconds == 5_000_000_000
+        clocks[0].callback(bad)                 # the clock keeps its last time
+        assert node.get_clock().now().nanoseconds == 5_000_000_000
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)

@@ -679,7 +679,11 @@ class SteeringController:
         """
         received = self._received.get('lateral_error')
         if self.lateral is not None and received is not None:
-            return self.lateral.stamp_ns + max(0, now_ns - received)
+            # received while a sim clock read 0 (not started): the time since is unknown,
+            # not the whole sim time (dev-probe91: a clock starting at 101 s stamped the
+            # watchdog's command 101 s ahead of the inputs, and the rate limit held every
+            # answer at that command until their stamps caught up)
+            return self.lateral.stamp_ns + (max(0, now_ns - received) if received else 0)
         return max(self._rate_time, now_ns) if self._rate_time is not None else now_ns
 
     def _limited(self, wanted: float, stamp_ns: int, now_ns: Optional[int],

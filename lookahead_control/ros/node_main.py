@@ -234,6 +234,24 @@ def guard_clock(node: Node) -> int:
     return guarded
 
 
+def install_clock_guard(node: Node) -> None:
+    """
+    Guard the node's ``/clock`` subscription now and whenever ``use_sim_time`` is set.
+
+    rclpy's time source subscribes to ``/clock`` when ``use_sim_time`` becomes true,
+    also at run time (a set, a lifecycle node configured again): that subscription is
+    guarded too (:func:`guard_clock`; guarding again leaves a guarded one as it is).
+
+    :param node: the node.
+    """
+    guard_clock(node)
+
+    def after_set(parameters: list[Any]) -> None:
+        if any(parameter.name == 'use_sim_time' for parameter in parameters):
+            guard_clock(node)
+    node.add_post_set_parameters_callback(after_set)
+
+
 def now_ns(node: Node) -> int:
     """
     Return a node's clock in nanoseconds, as ``node.get_clock().now().nanoseconds``.
@@ -669,7 +687,7 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
     executor: Optional[Executor] = None
     try:
         node = make()
-        guard_clock(node)
+        install_clock_guard(node)
         kind = (node.get_parameter('executor').value if node.has_parameter('executor')
                 else 'single_threaded')
         executor = make_executor(kind)
