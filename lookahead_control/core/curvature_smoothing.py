@@ -175,13 +175,13 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
     end). Of a polygon that starts behind the CG only its value at the CG and its points
     ahead are read: behind the CG the road is the one driven. The average is exact over
     the road's linear pieces, integrated from ``W`` before the first point given. It is
-    given every ``half_width / STEPS`` from the CG
-    (or the polygon's first point ahead of it) to one step past ``reach`` (the farthest
-    point the law reads; at most the polygon's end if that is ahead, and at most
-    :data:`MAX_OUTPUT` steps: a ``reach`` not finite is the polygon's end), and the
-    polygon's own points beyond that follow unchanged. A polygon the law would not read
-    (not 1-D, empty, not increasing, a non-finite distance) is returned unchanged, and a
-    run whose curvatures are not all finite keeps NaN (the law's fallback for it stays).
+    given every ``half_width / STEPS`` from the CG (or the polygon's first point ahead
+    of it) to one step past ``reach`` (the farthest point the law reads; at most the
+    polygon's end if that is ahead, and at most :data:`MAX_OUTPUT` steps: a ``reach``
+    not finite is the polygon's end), and the polygon's own points beyond that follow
+    unchanged. A polygon the law would not read (not 1-D, empty, not increasing, a
+    non-finite distance) is returned unchanged, and a run whose curvatures are not all
+    finite keeps NaN (the law's fallback for it stays).
 
     :param distances: the polygon's distances ahead of the CG [m], shape ``(K,)``.
     :param curvatures: its curvatures [1/m], ``(K,)`` or ``(K, N)``.
