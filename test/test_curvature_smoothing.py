@@ -457,7 +457,7 @@ def test_a_stopped_run_keeps_the_batch_s_road_short():
         history.record(speeds, 0.01, np.full(96, 0.001))
     assert history.size == MAX_SAMPLES
     k = np.full((D.size, 96), 0.001)
-    x, _ = curvature_smoothing._road(D, k, history, -W)
+    x, _ = curvature_smoothing._road(D, k, curvature_smoothing._behind(history, 96), -W)
     assert x.shape[0] <= W / 0.3 + 2 + D.size
     _, out = smoothed_preview(D, k, W, history, reach=2.6)
     assert out == pytest.approx(np.full(out.shape, 0.001), abs=1e-15)

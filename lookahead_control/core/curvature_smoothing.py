@@ -220,11 +220,12 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
         out = np.append(out, high)
     # a run whose road is one curvature (a straight, an arc) keeps it exactly: the
     # average of a constant, without the integrals' rounding (and most steps of a run)
-    level = _level_runs(d, flat, history, low - half_width)
+    behind = _behind(history, flat.shape[1])
+    level = _level_runs(d, flat, behind, low - half_width)
     if np.all(level):
         smooth = np.broadcast_to(flat[:1], (out.size, flat.shape[1]))
     else:
-        x_road, y_road = _road(d, flat, history, low - half_width)
+        x_road, y_road = _road(d, flat, behind, low - half_width)
         # the road over [low - W, high + W] only, measured from low: its integrals stay of
         # the window's size wherever the polygon lies (from its first point they lost the
         # curvature to rounding a billion metres away)
@@ -241,8 +242,28 @@ def smoothed_preview(distances: Any, curvatures: Any, half_width: float,
     return out_d, (out_k.reshape(-1) if k.ndim == 1 else out_k)
 
 
-def _level_runs(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
-                start: float) -> np.ndarray:
+def _behind(history: Optional[CurvatureHistory],
+            runs: int) -> Optional[tuple[np.ndarray, np.ndarray]]:
+    """
+    Return the history's samples as ``(where, rho)`` of shape ``(P, runs)``, or None.
+
+    :param history: the curvature behind the CG.
+    :param runs: the runs of the polygon.
+    :return: None without samples, or for another batch's history (not this road).
+    """
+    if history is None:
+        return None
+    where, rho = history.behind()
+    if where.size == 0:
+        return None
+    where = where.reshape(where.shape[0], -1)
+    if where.shape[1] != runs:
+        return None
+    return where, rho.reshape(rho.shape[0], -1)
+
+
+def _level_runs(d: np.ndarray, k: np.ndarray,
+                behind: Optional[tuple[np.ndarray, np.ndarray]], start: float) -> np.ndarray:
     """
     Return per run whether its road in the window is one curvature, as :func:`_road` reads it.
 
@@ -255,32 +276,28 @@ def _level_runs(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory
 
     :param d: the polygon's distances, ``(K,)``.
     :param k: its curvatures, ``(K, N)`` (finite where the run is usable).
-    :param history: the curvature behind the CG (another batch's: not this road).
+    :param behind: the history's samples (:func:`_behind`).
     :param start: where the window starts [m] (from the CG).
     :return: boolean ``(N,)``.
     """
     level = np.all(k == k[:1], axis=0)
-    if history is None or history.travelled is None or not history.size:
+    if behind is None:
         return level
-    where, rho = history.behind()
-    where = where.reshape(where.shape[0], -1)
-    rho = rho.reshape(rho.shape[0], -1)
-    if rho.shape[1] != k.shape[1]:
-        return level
+    where, rho = behind
     last = np.count_nonzero(where <= start, axis=0) - 1         # per run, -1: none
     read = ((np.arange(where.shape[0]).reshape(-1, 1) >= last) & (where < min(d[0], 0.0))
             & ~np.isnan(rho))
     return level & np.all(~read | (rho == k[:1]), axis=0)
 
 
-def _road(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
+def _road(d: np.ndarray, k: np.ndarray, behind: Optional[tuple[np.ndarray, np.ndarray]],
           start: float) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the road's breakpoints per run: the history behind the polygon, the polygon.
 
     :param d: the polygon's distances, ``(K,)``.
     :param k: its curvatures, ``(K, N)``.
-    :param history: the curvature behind the CG.
+    :param behind: the history's samples (:func:`_behind`).
     :param start: where the road is wanted from [m]: the samples before the last one
         before it are left out (a stopped run of a batch keeps every run's samples).
     :return: ``(x, y)``, shape ``(B, N)``, ``x`` non-decreasing per run (a piece of
@@ -291,13 +308,9 @@ def _road(d: np.ndarray, k: np.ndarray, history: Optional[CurvatureHistory],
     if d[0] > 0.0:                      # the polygon's first value, held from the CG
         x_poly, y_poly = np.append(0.0, d), np.vstack([k[:1], k])
     x = np.broadcast_to(x_poly.reshape(-1, 1), (x_poly.size, runs))
-    where, rho = (np.zeros(0), np.zeros(0)) if history is None else history.behind()
-    if where.size == 0:
+    if behind is None:                  # none, or another batch's: none of this road's
         return x, y_poly
-    where = where.reshape(where.shape[0], -1)
-    rho = rho.reshape(rho.shape[0], -1)
-    if where.shape[1] != runs:
-        return x, y_poly                # another batch's history: none of this one's
+    where, rho = behind
     needed = np.flatnonzero(np.any((where >= start) & (where < x_poly[0]), axis=1))
     if needed.size:
         first = max(int(needed[0]) - 1, 0)
