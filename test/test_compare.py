@@ -775,6 +775,15 @@ def test_a_low_speed_integral_gain_above_integral_gain_is_told_as_what_runs():
     runs = LaneKeepingParams(natural_frequency=5.0)
     assert 'capped' not in ' '.join(compare.settings_changes(
         compare.LawSettings(ControllerParams(), runs)))
+    # a force share without the state filter runs as 0 (dev-probe91): told on the
+    # state_filter line
+    off = LaneKeepingParams(state_filter='none')
+    assert compare.settings_changes(compare.LawSettings(ControllerParams(), off)) == [
+        "lane_keeping.state_filter = 'none' (side_force runs as 0: its force estimate is the "
+        "state filter's (state_filter none))"]
+    off = LaneKeepingParams(state_filter='none', side_force=0.0)
+    assert compare.settings_changes(compare.LawSettings(ControllerParams(), off)) == [
+        "lane_keeping.state_filter = 'none'", 'lane_keeping.side_force = 0.0']
 
 
 def test_the_independent_plant_runs_with_the_goal_plant_s_delay_and_noise(tmp_path):

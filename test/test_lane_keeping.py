@@ -185,6 +185,32 @@ def test_nonlinear_plant_delay_steady_error_centimetre():
     assert np.max(np.abs(result['y_cg'])) < 0.10
 
 
+def test_engaged_in_a_curve_s_steady_state_the_fresh_law_answers_the_steady_angle():
+    # dev-probe91 saw a fresh law's first answers peak at 0.032 rad against 0.0136 steady
+    # on a 400 m curve at 30 m/s, fed measurements that were no steady state of the car
+    # (the CG on the lane with no relative yaw nor sideslip). Fed the steady state the
+    # nonlinear plant settles in under the default law (20 s closed loop, 20 ms delay:
+    # y_cg -1.2e-5 m, eps_r -0.014702 rad, v_y 0.4411 m/s, r -0.0750082 rad/s, wheel
+    # -0.014838 rad), the fresh node core answers that wheel angle from its first answer:
+    # its filter, integral and actuator model start without a kick
+    steady, d_s, rho = -0.014838, 1.96, -1.0 / 400.0
+    eps_r, v_y, yaw_rate = -0.014702, 0.4411, -0.0750082
+    core = SteeringController(VEHICLE, CONTROLLER, 'imu', True, SafetyParams(),
+                              law='cg_compensated')
+    answers = []
+    for k in range(300):
+        stamp = 100_000_000_000 + 10_000_000 * k
+        for name, sample in (
+                ('yaw', YawSample(stamp, eps_r, yaw_rate, 0.0)),
+                ('velocity', VelocitySample(stamp, 30.0, v_y)),
+                ('road_curvature', CurvatureSample(stamp, rho, 0.0, ((0.0, rho), (50.0, rho)))),
+                ('lateral_error', LateralErrorSample(stamp, d_s, -1.2e-5 + d_s * eps_r))):
+            assert core.accept(name, sample, stamp) is None, name
+        answers.append(core.compute(stamp).steering)
+    assert np.all(np.abs(np.array(answers) - steady) < 0.03 * abs(steady)), \
+        (min(answers), max(answers))
+
+
 def test_preview_interpolation_hand_values():
     d = np.array([0.0, 10.0, 20.0])
     k = np.array([0.0, 0.01, 0.01])

@@ -122,6 +122,31 @@ def test_the_applied_parameters_log_names_the_running_law_s_gains():
         'low_speed_integral_gain is capped at integral_gain')
 
 
+def test_a_force_share_without_the_state_filter_is_told():
+    # dev-probe91: side_force (default 1) with state_filter none was accepted and had no
+    # effect (its force estimate is the Kalman filter's), with nothing in the log
+    from lookahead_control.core.lane_keeping import LaneKeepingParams
+    from lookahead_control.core.params import ControllerParams
+    from lookahead_control.ros.controller_node import applied_summary
+    controller = ControllerParams()
+    line = applied_summary('cg_compensated', controller, LaneKeepingParams(state_filter='none'))
+    assert line.endswith("; side_force runs as 0: its force estimate is the state filter's "
+                         '(state_filter none)'), line
+    both = LaneKeepingParams(state_filter='none', force_feedforward=0.5)
+    assert applied_summary('cg_compensated', controller, both).endswith(
+        '; side_force and force_feedforward run as 0: their force estimates are the state '
+        "filter's (state_filter none)")
+    alone = LaneKeepingParams(state_filter='none', side_force=0.0, force_feedforward=1.0)
+    assert applied_summary('cg_compensated', controller, alone).endswith(
+        "; force_feedforward runs as 0: its force estimate is the state filter's "
+        '(state_filter none)')
+    # nothing to tell: both shares 0, the filter on, or another law
+    for quiet, law in ((LaneKeepingParams(state_filter='none', side_force=0.0), 'cg_compensated'),
+                       (LaneKeepingParams(force_feedforward=1.0), 'cg_compensated'),
+                       (LaneKeepingParams(state_filter='none'), 'paper')):
+        assert 'runs as 0' not in applied_summary(law, controller, quiet)
+
+
 def _active_node_keeping_debug(context):
     """Return an active controller node on sim time and the list its ~/debug goes to."""
     from lookahead_control.ros.controller_node import ControllerNode
@@ -196,6 +221,9 @@ def test_a_capped_low_speed_w_n_is_told_at_startup(context):
             ([Parameter('lane_keeping.natural_frequency', value=2.0)], None),
             ([Parameter('lane_keeping.low_speed_frequency', value=9.0)],
              'w_n 7 rad/s at every speed: low_speed_frequency is capped at natural_frequency'),
+            ([Parameter('lane_keeping.state_filter', value='none')],
+             "side_force runs as 0: its force estimate is the state filter's "
+             '(state_filter none)'),
             ([], None)):
         node = ControllerNode(context=context, parameter_overrides=[
             Parameter('use_sim_time', value=True), *overrides])
@@ -207,7 +235,7 @@ def test_a_capped_low_speed_w_n_is_told_at_startup(context):
             node.trigger_configure()
             line = next(text for text in logged if text.startswith('configured: '))
             if note is None:
-                assert 'capped' not in line, line
+                assert 'capped' not in line and 'runs as 0' not in line, line
             else:
                 assert line.endswith(f'; {note}'), line
         finally:

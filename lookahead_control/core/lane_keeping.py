@@ -523,6 +523,31 @@ def frequency_schedule_note(settings: LaneKeepingParams) -> str:
             'is capped at natural_frequency')
 
 
+def filterless_note(settings: LaneKeepingParams) -> str:
+    """
+    Return what does not run of the force estimates with ``state_filter: none``.
+
+    ``side_force`` and ``force_feedforward`` take the Kalman filter's force estimates:
+    without the filter they run as 0, and a settings line with either above 0 would tell
+    of a share that never acts (dev-probe91: the default ``side_force`` 1 with the filter
+    off ran silently).
+
+    :param settings: the law's settings.
+    :return: e.g. ``side_force runs as 0: its force estimate is the state filter's
+        (state_filter none)`` ('' with the filter on, or both shares 0).
+    """
+    if settings.state_filter == 'kalman':
+        return ''
+    unused = [name for name, share in (('side_force', settings.side_force),
+                                       ('force_feedforward', settings.force_feedforward))
+              if share > 0.0]
+    if not unused:
+        return ''
+    return (f"{' and '.join(unused)} run{'' if len(unused) > 1 else 's'} as 0: "
+            f"{'their force estimates are' if len(unused) > 1 else 'its force estimate is'}"
+            f" the state filter's (state_filter {settings.state_filter})")
+
+
 def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -> Real:
     """
     Return the clip of the CG's offset that makes the car close at ``heading``.

@@ -32,7 +32,7 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.answer_rate import AnswerPacer
 from lookahead_control.core.controller import (ACCELERATION_SOURCES, build_law, Command,
                                                LAW_NAMES, SteeringController)
-from lookahead_control.core.lane_keeping import (frequency_schedule_note,
+from lookahead_control.core.lane_keeping import (filterless_note, frequency_schedule_note,
                                                  integral_schedule_note, LaneKeepingParams)
 from lookahead_control.core.params import ControllerParams, ParameterError, SCHEDULE_MODES
 from lookahead_control.core.safety import check_points
@@ -137,7 +137,8 @@ def applied_summary(law: str, controller: ControllerParams,
 
     With ``cg_compensated`` and a ``lane_keeping.low_speed_frequency`` above
     ``natural_frequency`` or a ``low_speed_integral_gain`` above ``integral_gain``
-    (capped: w_n or ``k_i`` constant) also the w_n or ``k_i`` that runs.
+    (capped: w_n or ``k_i`` constant) also the w_n or ``k_i`` that runs, and with
+    ``state_filter: none`` a force share that runs as 0 (:func:`settings_notes`).
 
     :param law: the running law.
     :param controller: the paper law's parameters (schedule, gains).
@@ -146,24 +147,27 @@ def applied_summary(law: str, controller: ControllerParams,
     """
     gains: ControllerParams | LaneKeepingParams = (
         lane_keeping if law == 'cg_compensated' else controller)
-    note = capped_notes(law, lane_keeping)
+    note = settings_notes(law, lane_keeping)
     return (f'parameters applied: law={law}, schedule={controller.schedule}, '
             f'w_n={gains.natural_frequency:g}, zeta={gains.damping_ratio:g}'
             + (f'; {note}' if note else ''))
 
 
-def capped_notes(law: str, lane_keeping: LaneKeepingParams) -> str:
+def settings_notes(law: str, lane_keeping: LaneKeepingParams) -> str:
     """
-    Return what runs of a capped low-speed w_n or integral gain ('' if none is capped).
+    Return what runs otherwise than set ('' if everything runs as set).
 
-    :param law: the running law (only ``cg_compensated`` has the two schedules).
+    A capped low-speed w_n or integral gain, and a force share without the state filter.
+
+    :param law: the running law (only ``cg_compensated`` has these settings).
     :param lane_keeping: its settings.
     :return: the notes, joined by ``'; '``.
     """
     if law != 'cg_compensated':
         return ''
     return '; '.join(n for n in (frequency_schedule_note(lane_keeping),
-                                 integral_schedule_note(lane_keeping)) if n)
+                                 integral_schedule_note(lane_keeping),
+                                 filterless_note(lane_keeping)) if n)
 
 
 def core_from_params(params: Mapping[str, Any]) -> SteeringController:
@@ -354,9 +358,10 @@ class ControllerNode(LifecycleNode):
                           on_clock_change=False),
             post_callback=lambda jump: self._maybe_release())
         self.configured = True
-        # a capped low-speed w_n or k_i is told at startup too (dev-probe33: only a
-        # run-time change said so, and a file lowering natural_frequency alone ran silently)
-        notes = capped_notes(self.core.law_name, self.core.lane_keeping)
+        # a capped low-speed w_n or k_i, a force share without the filter, are told at
+        # startup too (dev-probe33: only a run-time change said so, and a file lowering
+        # natural_frequency alone ran silently)
+        notes = settings_notes(self.core.law_name, self.core.lane_keeping)
         self.get_logger().info(
             f'configured: mode={self.param("mode")}, law={self.core.law_name}, schedule='
             f'{self.core.params.schedule}, inputs {self.param("qos_reliability")}'

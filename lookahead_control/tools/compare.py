@@ -258,7 +258,7 @@ def settings_changes(settings: LawSettings) -> list[str]:
     if settings.curvature_rate:
         lines.append('use_curvature_preview = True')
     lines += safety_changes(settings.safety)
-    return with_schedule_note(lines, settings.lane_keeping)
+    return with_settings_notes(lines, settings.lane_keeping)
 
 
 def safety_changes(safety: SafetyParams) -> list[str]:
@@ -301,22 +301,27 @@ def load_transfer_note(vehicle: VehicleParams, plants: Sequence[str],
             '(the nonlinear plant moves its tyres with the load)')
 
 
-def with_schedule_note(lines: list[str], lane_keeping: LaneKeepingParams) -> list[str]:
+def with_settings_notes(lines: list[str], lane_keeping: LaneKeepingParams) -> list[str]:
     """
-    Return the settings lines with what runs of a capped low-speed w_n or integral gain.
+    Return the settings lines with what runs otherwise than set.
 
     :param lines: ``namespace.name = value`` lines.
     :param lane_keeping: the CG-compensated law's settings.
     :return: the lines, the low-speed value's (else the capping value's) with the note of
         :func:`~lookahead_control.core.lane_keeping.frequency_schedule_note` or
-        :func:`~lookahead_control.core.lane_keeping.integral_schedule_note`.
+        :func:`~lookahead_control.core.lane_keeping.integral_schedule_note`, the
+        ``state_filter`` line with the note of
+        :func:`~lookahead_control.core.lane_keeping.filterless_note`.
     """
-    from lookahead_control.core.lane_keeping import (frequency_schedule_note,
+    from lookahead_control.core.lane_keeping import (filterless_note,
+                                                     frequency_schedule_note,
                                                      integral_schedule_note)
     for note, names in ((frequency_schedule_note(lane_keeping),
                          ('low_speed_frequency', 'natural_frequency')),
                         (integral_schedule_note(lane_keeping),
-                         ('low_speed_integral_gain', 'integral_gain'))):
+                         ('low_speed_integral_gain', 'integral_gain')),
+                        (filterless_note(lane_keeping),
+                         ('state_filter', 'side_force', 'force_feedforward'))):
         if not note:
             continue
         for name in names:

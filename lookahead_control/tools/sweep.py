@@ -763,9 +763,9 @@ def settings_note(spec: SweepSpec, controller: ControllerParams | None,
     if 'cg_compensated' in spec.laws:
         shown = [f'controller.{k} = {v!r}' for k, v in control.items()
                  if k not in ('natural_frequency', 'damping_ratio', 'reference')]
-        from lookahead_control.tools.compare import with_schedule_note
-        shown += with_schedule_note([f'lane_keeping.{k} = {v!r}' for k, v in mine.items()],
-                                    lane_keeping or LaneKeepingParams())
+        from lookahead_control.tools.compare import with_settings_notes
+        shown += with_settings_notes([f'lane_keeping.{k} = {v!r}' for k, v in mine.items()],
+                                     lane_keeping or LaneKeepingParams())
         text += ' cg_compensated: ' + (', '.join(shown) + ' (the rest default).' if shown
                                        else 'the default settings.')
     from lookahead_control.tools.compare import safety_changes
