@@ -190,3 +190,78 @@ def test_a_recovered_bag_says_it_is_cut_short(tmp_path):
     assert 'recovered' not in bag_row(run, run_series(run))['notes']
     (tmp_path / 'run.mcap.truncated').write_bytes(b'')
     assert 'recovered: the recorder was killed' in bag_row(run, run_series(run))['notes']
+
+
+@pytest.mark.parametrize('first,last,said', [
+    (0.0, 2.99, ()),
+    (0.0, 1.5, ("stopped early: the run ends at t = 1.5 s of the scenario's 3 s",)),
+    (0.8, 2.99, ('late start: the bag begins at t = 0.8 s of the run',)),
+    (0.8, 1.5, ('late start: the bag begins at t = 0.8 s', 'stopped early: the run ends at '
+                't = 1.5 s'))])
+def test_a_run_stopped_early_or_recorded_late_says_so(first, last, said):
+    # dev-probe93: closed_loop stopped with SIGINT at 5.3 s of a 12 s scenario (and a
+    # recorder started 3 s into a run) gave rows like a complete run's; the simulator's
+    # ground truth has its clock from the scenario's start, the bag the scenario
+    from lookahead_control.bags.rosbag_io import SCENARIO_KEY
+    from lookahead_control.bags.run_data import plant_node
+    run = _curve_run([])
+    time = np.round(np.arange(first, last + 0.005, 0.01), 6)
+    stamp = np.round(time * 1e9).astype(np.int64)
+    run.truth = Samples(stamp + 500_000, stamp, np.arange(time.size, dtype=np.int64),
+                        {'time': time, 'command_time': time - 0.01})
+    run.description = {SCENARIO_KEY + plant_node(run.controller_node):
+                       'scenario:\n  name: s\n  duration: 3.0\n'}
+    notes = bag_row(run, run_series(run))['notes']
+    for text in said:
+        assert text in notes, notes
+    if not said:
+        assert 'stopped early' not in notes and 'late start' not in notes, notes
+    # a bag without the scenario (a real vehicle's) says nothing of it
+    run.description = {}
+    notes = bag_row(run, run_series(run))['notes']
+    assert 'stopped early' not in notes and 'late start' not in notes
+
+
+def test_recorded_commands_that_are_not_finite_are_named():
+    # dev-probe93: ten NaN commands gave the clean bag's metrics and no note
+    run = _curve_run([])
+    assert 'not finite' not in bag_row(run, run_series(run))['notes']
+    angle = run.steering.values['angle'].copy()
+    angle[[10, 11, 50]] = [np.nan, np.inf, np.nan]
+    run.steering = Samples(run.steering.recv_ns, run.steering.stamp_ns, run.steering.order,
+                           {'angle': angle})
+    row = bag_row(run, run_series(run))
+    assert 'steering: 3 of 300 recorded commands are not finite (NaN or inf)' in row['notes']
+    assert row['peak_steering_cmd_rad'] == math.inf
+    angle[11] = 0.0
+    run.steering = Samples(run.steering.recv_ns, run.steering.stamp_ns, run.steering.order,
+                           {'angle': angle})
+    row = bag_row(run, run_series(run))
+    assert 'steering: 2 of 300 recorded commands are not finite' in row['notes']
+    assert row['peak_steering_cmd_rad'] == pytest.approx(0.02 + 0.001 * 299 * 0.01)
+
+
+def test_replay_tells_a_recorder_that_started_after_the_run():
+    # dev-probe93: a recorder started 3 s into a run: replay --offline re-ran the law
+    # fresh from the bag's first input, 3.86 mrad off the recorded one, and said nothing.
+    # The debug's answer count tells: 100 answers before the bag's first lateral error;
+    # a debug subscription that matched late (its inputs in the bag) is no late recorder
+    from lookahead_control.bags.replay_node import late_join
+    run = _curve_run([])
+    stamp = run.inputs['lateral_error'].stamp_ns
+    assert late_join(run) == 0                                  # no debug topic
+    count = np.arange(stamp.size, dtype=float)
+
+    def debug(first_answer, start):
+        keep = slice(start, None)
+        return Samples(stamp[keep] + 3_000_000, stamp[keep], count[keep].astype(np.int64),
+                       {'answers': first_answer + count[keep] - start})
+
+    run.debug = debug(101.0, 0)
+    assert late_join(run) == 100
+    run.debug = debug(1.0, 0)
+    assert late_join(run) == 0
+    run.debug = debug(41.0, 40)         # subscribed late: the 40 inputs before are in the bag
+    assert late_join(run) == 0
+    run.debug = debug(141.0, 40)
+    assert late_join(run) == 100

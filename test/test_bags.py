@@ -452,8 +452,12 @@ def test_recover_and_analyze_fail_in_one_line(tmp_path):
 
 
 def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steering=True,
-                   stall=(math.inf, 0), twin=False):
-    """20 m/s, y_cg = 0.1 sin(t) measured at the CG, eps_r = 0, 2 ms latency."""
+                   stall=(math.inf, 0), twin=False, nan_at=(), without=()):
+    """
+    20 m/s, y_cg = 0.1 sin(t) measured at the CG, eps_r = 0, 2 ms latency.
+
+    ``nan_at``: steps whose steering is NaN; ``without``: topics not written.
+    """
     store = typestore()
 
     def serialize_message(msg):
@@ -464,6 +468,7 @@ def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steerin
     types = {'/lateral_error': 'geometry_msgs/msg/PointStamped',
              '/yaw': 'sensor_msgs/msg/Imu', '/velocity': 'geometry_msgs/msg/TwistStamped',
              '/steering': 'sensor_msgs/msg/JointState'}
+    types = {topic: msgtype for topic, msgtype in types.items() if topic not in without}
     for topic, msgtype in types.items():
         writer.add_topic(topic, msgtype, qos)
     start = 1_000_000_000_000
@@ -473,17 +478,20 @@ def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steerin
         stamp = k * 10_000_000
         t = stamp * 1e-9
         recv = start + stamp + (stall[1] if k >= stall[0] else 0)
-        writer.write('/yaw', recv, serialize_message(conv.to_yaw(stamp, 'b', 0, 0, 0)))
-        writer.write('/velocity', recv, serialize_message(
-            conv.to_velocity(stamp, 'b', 20.0, 0.0, 0.0)))
+        if '/yaw' in types:
+            writer.write('/yaw', recv, serialize_message(conv.to_yaw(stamp, 'b', 0, 0, 0)))
+        if '/velocity' in types:
+            writer.write('/velocity', recv, serialize_message(
+                conv.to_velocity(stamp, 'b', 20.0, 0.0, 0.0)))
         writer.write('/lateral_error', recv + 1, serialize_message(
             conv.to_lateral_error(stamp, 'b', 0.0, 0.1 * math.sin(2 * math.pi * t / 10))))
         if twin:                              # a second source on the same topic
             writer.write('/lateral_error', recv + 3, serialize_message(
                 conv.to_lateral_error(stamp, 'b', 0.0, 0.5)))
         if steering:
+            angle = math.nan if k in nan_at else 0.01 * math.cos(2 * math.pi * t / 10)
             writer.write('/steering', recv + answer_delay_ns, serialize_message(
-                conv.to_steering(stamp, 0.01 * math.cos(2 * math.pi * t / 10), 0.0)))
+                conv.to_steering(stamp, angle, 0.0)))
     writer.close()
 
 
@@ -787,6 +795,36 @@ def test_replay_offline_json_is_strict_json_when_nothing_compares(tmp_path):
 
     report = json.loads((tmp_path / 'report.json').read_text(), parse_constant=refuse)
     assert report['compared'] == 0 and report['max_diff_rad'] is None
+
+
+def test_replay_check_fails_on_recorded_commands_that_are_not_finite(tmp_path):
+    # dev-probe93: ten NaN commands in a bag passed --check (max() stepped over NaN:
+    # "max |diff| 0 rad, RMS nan rad", exit 0); a tolerance of 1 rad passes every finite
+    # difference of this synthetic bag, so only the NaN can fail it
+    _synthetic_bag(tmp_path / 'nan', steps=400, nan_at=range(300, 310))
+    out = _tool('lookahead_control.bags.replay_node', tmp_path / 'nan', '--offline',
+                '--check', '1', '--json', tmp_path / 'report.json')
+    assert out.returncode == 1, (out.stdout, out.stderr)
+    assert 'check failed: 10 compared command(s) not finite' in out.stderr
+    assert '10 of the 400 compared commands are not finite' in out.stdout
+    report = json.loads((tmp_path / 'report.json').read_text())
+    assert report['commands_not_finite'] == 10 and report['max_diff_rad'] is None
+    _synthetic_bag(tmp_path / 'finite', steps=400)
+    out = _tool('lookahead_control.bags.replay_node', tmp_path / 'finite', '--offline',
+                '--check', '1')
+    assert out.returncode == 0 and 'not finite' not in out.stdout + out.stderr, out.stdout
+
+
+def test_replay_names_the_input_a_bag_lacks_when_nothing_is_answered(tmp_path):
+    # dev-probe93: a bag without /yaw re-ran to "0 commands compared ... nan rad" and,
+    # with --check, "no command to compare": the commands are there, an input is not
+    _synthetic_bag(tmp_path / 'blind', steps=200, without=('/yaw',))
+    out = _tool('lookahead_control.bags.replay_node', tmp_path / 'blind', '--offline',
+                '--check', '1')
+    assert out.returncode == 1
+    assert ('the re-run answered none of the 200 lateral errors: the bag has no yaw '
+            'messages') in out.stdout, out.stdout
+    assert 'check failed: no command to compare (no yaw in the bag)' in out.stderr
 
 
 def test_the_default_bag_name_has_the_speed_of_the_run():

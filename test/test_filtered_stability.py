@@ -316,6 +316,36 @@ def test_tool_reports_both_robust_checks(capsys, tmp_path):
     assert held['cases'] == 486 and held['holds']
 
 
+def test_with_the_filter_off_the_tool_counts_the_loop_that_runs(capsys, tmp_path):
+    # dev-probe93: state_filter none with a force feedforward of 0.2 s (which runs as 0
+    # without the filter) failed on the Kalman rows (1.004 at 37 m/s, 50 ms) while the
+    # loop that runs, the law on the measurements, holds (0.9968): exit 1
+    import json
+
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    controller = tmp_path / 'c.yaml'
+    controller.write_text('controller:\n  ros__parameters:\n    lane_keeping:\n'
+                          '      state_filter: none\n      force_feedforward: 1.0\n'
+                          '      force_feedforward_filter: 0.2\n')
+    path = tmp_path / 's.json'
+    args = ['--samples', '21', '--delays', '0.05', '--controller', str(controller)]
+    assert stability_main([*args, '--json', str(path)]) == 0
+    out = capsys.readouterr().out
+    assert 'mismatch cases, Kalman estimate (not counted: state_filter none) | 1.004' in out
+    assert 'exact states, integral held' in out and 'exact states, approach' in out
+    assert 'robust check with the filter DOES NOT HOLD (not counted: state_filter none)' \
+        in out
+    assert 'lane_keeping.state_filter = none: the law acts on the measurements' in out
+    data = json.loads(path.read_text())
+    assert not data['robust_filtered']['holds'] and data['robust']['holds']
+    # the loop on the measurements held is checked and counted: the same file with the
+    # filter on fails on it, as before
+    controller.write_text(controller.read_text().replace('none', 'kalman'))
+    assert stability_main(args) == 1
+    out = capsys.readouterr().out
+    assert 'not counted' not in out and 'Kalman estimate, integral held' in out
+
+
 @pytest.mark.parametrize('filtered', [False, True])
 def test_the_loop_with_the_integral_held_is_the_loop_without_its_unit_root(filtered):
     # with k_i = 0 the integral is decoupled: its root is exactly 1 and the others are

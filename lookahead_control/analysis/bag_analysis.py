@@ -455,6 +455,41 @@ def final_compliance_memory(run: RunData) -> tuple[float, str]:
         f'at the end of the stretch that {how}')
 
 
+def run_span(run: RunData) -> list[str]:
+    """
+    Return what the bag misses of its simulator's scenario: a late start, an early end.
+
+    The ground truth's ``time`` is the simulator's clock from the scenario's start; a
+    complete run's steps reach its ``duration`` to a step. A run stopped or killed
+    before (SIGINT to ``closed_loop``), or a recorder started after the run began, read
+    like a complete run before (dev-probe93).
+
+    :param run: the run.
+    :return: the notes (none without ground truth or a scenario with a duration).
+    """
+    time = run.truth.values.get('time')
+    text = scenario_text(run)
+    if time is None or text is None:
+        return []
+    steps = np.unique(time[np.isfinite(time)])
+    try:
+        duration = float((yaml.safe_load(text) or {})['scenario']['duration'])
+    except (yaml.YAMLError, KeyError, TypeError, ValueError):
+        return []
+    if steps.size < 2 or not math.isfinite(duration):
+        return []
+    period = float(np.median(np.diff(steps)))
+    notes = []
+    if steps[0] > 1.5 * period:
+        notes.append(f'late start: the bag begins at t = {steps[0]:.3g} s of the run (a '
+                     'recorder started after it); the metrics cover only what it holds')
+    if steps[-1] < duration - 1.5 * period:
+        notes.append(f'stopped early: the run ends at t = {steps[-1]:.3g} s of the '
+                     f"scenario's {duration:g} s (stopped or killed before its end); the "
+                     'metrics cover only that')
+    return notes
+
+
 def bag_row(run: RunData, series: RunSeries,
             label: Optional[str] = None) -> dict[str, Any]:
     """
@@ -505,6 +540,14 @@ def bag_row(run: RunData, series: RunSeries,
     row['compliance_memory_final_ratio'], said = final_compliance_memory(run)
     if said:
         notes.append(said)
+    angles = run.steering.values.get('angle', np.zeros(0))
+    bad = int((~np.isfinite(angles)).sum())
+    if bad:
+        # a controller sent NaN: before, the metrics stepped over them unsaid
+        # (dev-probe93: a bag with 10 NaN commands gave the clean bag's row)
+        notes.append(f'steering: {bad} of {angles.size} recorded commands are not finite '
+                     '(NaN or inf): the steering metrics skip a NaN, an inf is their '
+                     'peak')
     row['steps'] = int(series.time.size)
     row['unanswered'] = series.unanswered
     drops = recorder_drops(run)
@@ -521,6 +564,8 @@ def bag_row(run: RunData, series: RunSeries,
         notes.append(f'recovered: the recorder was killed and the bag recovered; it ends '
                      f'{float(series.time[-1]):.3g} s after its first step, and the '
                      'metrics cover only that')
+    else:
+        notes += run_span(run)
     missed, applied = missed_deadlines(run)
     if missed:
         notes.append(f'missed deadlines: {missed} of {applied} simulator steps applied an '

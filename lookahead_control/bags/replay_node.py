@@ -33,7 +33,8 @@ from typing import Any, Optional, Sequence
 
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
-from lookahead_control.bags.run_data import as_it_ran, CONTROLLER_NODE, load_run, rerun
+from lookahead_control.bags.run_data import (as_it_ran, CONTROLLER_NODE, load_run, rerun,
+                                             RunData)
 from lookahead_control.core import interrupts
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
                                         ToolError, write_json)
@@ -41,6 +42,7 @@ from lookahead_control.core.config import ConfigError, rcl_param_value
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.node_main import (parameter_reason, program_arguments,
                                              rcl_log_held, tool_arguments)
+import numpy as np
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
@@ -86,11 +88,30 @@ def offline(args: argparse.Namespace) -> int:
     report['answers_lost_next_to_coalesced'] = result.coalesced_lost
     report['inputs_not_received'] = result.unreceived_skipped
     report['inputs_refused'] = result.refused
+    report['commands_not_finite'] = result.not_finite
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
+    if result.not_finite:
+        print(f'replay: {result.not_finite} of the {result.compared} compared commands are '
+              'not finite (NaN or inf) in the bag or the re-run: max |diff| is nan')
+    # the law needs every input: a bag without one has lateral errors and no answer
+    # (before: "0 commands compared ... nan rad", exit 0, dev-probe93)
+    missing = [role for role in ('yaw', 'velocity') if not len(run.inputs.get(role, ()))]
+    if missing and not result.commands:
+        print(f'replay: the re-run answered none of the {len(run.inputs["lateral_error"])} '
+              f'lateral errors: the bag has no {" and no ".join(missing)} messages (the '
+              "controller's inputs; --topic ROLE=NAME remaps)")
+    joined = late_join(run)
+    report['answers_before_bag'] = joined
+    if joined:
+        # dev-probe93: a recorder started 3 s into a run re-ran 3.86 mrad apart, unsaid
+        print(f"replay: {run.controller_node} had answered {joined} times before the bag's "
+              'first lateral error (a recorder started after the run): the re-run starts '
+              'the law fresh there, the recorded one ran on (its integral, filter and '
+              'estimates had moved); the commands differ until those forget their start')
     if not run.controller_params:
         # a recorder that joined late, or not asked (--describe): the re-run is the
         # default controller, which is not what ran
@@ -176,13 +197,40 @@ def offline(args: argparse.Namespace) -> int:
         write_json(Path(args.json), report)         # NaN (nothing compared) as null
     if args.check is not None:
         if result.compared == 0:
-            print('replay: check failed: no command to compare', file=sys.stderr)
+            why = (f' (no {" and no ".join(missing)} in the bag)'
+                   if missing and not result.commands else '')
+            print(f'replay: check failed: no command to compare{why}', file=sys.stderr)
+            return EXIT_CHECK_FAILED
+        if result.not_finite:
+            print(f'replay: check failed: {result.not_finite} compared command(s) not '
+                  'finite', file=sys.stderr)
             return EXIT_CHECK_FAILED
         if not result.max_diff <= args.check:
             print(f'replay: check failed: max |diff| {result.max_diff:.3g} rad > '
                   f'{args.check:g} rad', file=sys.stderr)
             return EXIT_CHECK_FAILED
     return 0
+
+
+def late_join(run: RunData) -> int:
+    """
+    Return how many answers the controller had sent before the bag's first input.
+
+    The recorded debug's first ``answers`` count, less the lateral errors of the bag
+    before it (a debug subscription that matched late is no late recorder).
+
+    :param run: the run.
+    :return: the answers without a recorded lateral error (0 without debug).
+    """
+    answers = run.debug.values.get('answers')
+    if answers is None:
+        return 0
+    known = np.isfinite(answers)
+    if not known.any():
+        return 0
+    first = int(np.argmin(np.where(known, run.debug.stamp_ns, np.iinfo(np.int64).max)))
+    before = int((run.inputs['lateral_error'].stamp_ns < run.debug.stamp_ns[first]).sum())
+    return max(int(answers[first]) - 1 - before, 0)
 
 
 def qos_of(connection: Any) -> QoSProfile:

@@ -617,7 +617,8 @@ class Rerun:
 
     :param commands: stamp -> the re-computed command.
     :param compared: number of stamps with both a recorded and a re-computed command.
-    :param max_diff: largest |recorded - re-computed| steering [rad].
+    :param max_diff: largest |recorded - re-computed| steering [rad]; NaN if a compared
+        angle is not finite (``not_finite``) or nothing was compared.
     :param rms_diff: RMS of the differences [rad].
     :param order: ``stamp`` (lockstep: inputs of a step first) or ``receive``.
     :param estimated: answers of a law that ran on its own curvature estimate (no
@@ -655,6 +656,8 @@ class Rerun:
         between two answers it numbered one after the other (:func:`unanswered_inputs`:
         its reader fell behind and lost them, or it refused them), not computed, as the
         node did not.
+    :param not_finite: compared commands whose recorded (or re-computed) angle is not
+        finite; ``max_diff`` is NaN then.
     """
 
     commands: dict[int, Command]
@@ -678,6 +681,7 @@ class Rerun:
     coalesced_lost: int = 0
     unreceived_skipped: int = 0
     dropped: int = 0
+    not_finite: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -822,11 +826,16 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                     dropped += core.curvature_in and core.map_check.dropped
     recorded = {stamp: v['angle'] for stamp, v in run.steering.by_stamp().items()}
     diffs = [abs(recorded[s] - c.steering) for s, c in commands.items() if s in recorded]
-    return Rerun(commands, len(diffs), max(diffs, default=math.nan),
+    # a command recorded as NaN (or inf) differs from every finite re-run: before, max()
+    # stepped over its NaN and --check passed a bag of NaN commands (dev-probe93)
+    not_finite = sum(not math.isfinite(d) for d in diffs)
+    largest = math.nan if not_finite else max(diffs, default=math.nan)
+    return Rerun(commands, len(diffs), largest,
                  math.sqrt(sum(d * d for d in diffs) / len(diffs)) if diffs else math.nan,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
                  switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
-                 last_refusal, len(coalesced), coalesced_lost, len(unreceived), dropped)
+                 last_refusal, len(coalesced), coalesced_lost, len(unreceived), dropped,
+                 not_finite)
 
 
 def _unanswered(run: RunData, lateral: Samples, answered: list[int]

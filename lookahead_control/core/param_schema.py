@@ -193,7 +193,9 @@ LANE_KEEPING_SPECS = tuple(
     Spec('lane_keeping.state_filter', LaneKeepingParams().state_filter,
          'kalman: the law uses the estimate of y_cg, eps_r, v_y, r of the Kalman filter, '
          'and of the road curvature while none is received (docs/lane_keeping.md, State '
-         'filter); none: the measurements (curvature 0 while none is received)',
+         'filter); none: the measurements, and a filter of the curvature alone while '
+         'none is received; side_force and force_feedforward run as 0 (no force '
+         'estimate)',
          choices=FILTER_MODES),
 ) + tuple(
     Spec(f'lane_keeping.filter_{name}', getattr(LaneKeepingParams(), f'filter_{name}'),
