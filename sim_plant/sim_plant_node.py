@@ -244,6 +244,8 @@ class SimPlantNode(Node):
         self.failure = ''               # why the run stopped early (a diverged plant)
         self.missed = 0
         self.rejected = 0
+        self.clipped = 0            # commands beyond plant.max_steering_angle (applied at it)
+        self._rejected_seen = 0     # rejections told in the last missed-step line
         self.late = 0               # lockstep: good answers after their step's deadline
         self._missed_sent: dict[int, float] = {}    # lockstep: missed stamp -> sent at
         self.answered_stamp: Optional[int] = None
@@ -252,6 +254,7 @@ class SimPlantNode(Node):
         self._connected_since: Optional[float] = None
         self.started_at = 0.0       # wall clock of the first step of the loop
         self._miss_log = Throttle(1.0)
+        self._command_log = Throttle(1.0)
         # a graph query for another /clock publisher: once a second, not at every poll
         self._clock_check = Throttle(1.0)
         self.done = Future()
@@ -517,18 +520,26 @@ class SimPlantNode(Node):
         self.failure = f'the {self.plant.model} plant diverged {when}{pushed} ({why})'
         self.done.set_result(False)
 
+    def _refused_since(self) -> str:
+        """Return ``', N commands refused'`` since the last missed-step line ('' if none)."""
+        refused, self._rejected_seen = self.rejected - self._rejected_seen, self.rejected
+        return f', {refused} commands refused meanwhile' if refused else ''
+
+    def summary(self) -> str:
+        """Return the run's counts: steps, missed deadlines, refused / clipped / late."""
+        wall = time.monotonic() - self.started_at if self.started_at else 0.0
+        return (f'{self.k} steps, {self.missed} missed deadlines, {self.rejected} rejected '
+                f'commands, {self.clipped} clipped at plant.max_steering_angle, {self.late} '
+                f'late answers; {wall:.3f} s wall ({self.k / max(wall, 1e-9):.0f} steps/s)')
+
     def finished(self) -> bool:
         """Return True (and stop) when the scenario's end is reached."""
         if self.k < self.n_steps or not self.params['exit_at_end']:
             return False
         if not self.done.done():
-            wall = time.monotonic() - self.started_at
             self.get_logger().info(
                 f'scenario {self.scenario.name!r} finished at t = '
-                f'{self.k * self.period:g} s: {self.k} steps, {self.missed} missed '
-                f'deadlines, {self.rejected} rejected commands, {self.late} late '
-                f'answers; {wall:.3f} s wall '
-                f'({self.k / max(wall, 1e-9):.0f} steps/s)')
+                f'{self.k * self.period:g} s: {self.summary()}')
             self.done.set_result(True)
         return True
 
@@ -542,6 +553,11 @@ class SimPlantNode(Node):
         are acknowledged; ``ACK_TIMEOUT`` (for all publishers together) only bounds it
         for a subscriber that died without the middleware noticing yet.
         """
+        if self.k and not self.done.done():
+            # stopped before the scenario's end (a signal): the counts are said all the
+            # same (dev-probe92: 1010 refused commands of a stopped run were never told)
+            self.get_logger().info(f'stopped at t = {self.k * self.period:g} s of '
+                                   f'{self.scenario.duration:g} s: {self.summary()}')
         end = time.monotonic() + ACK_TIMEOUT
         for pub in list(self.publishers):
             left = end - time.monotonic()
@@ -560,7 +576,22 @@ class SimPlantNode(Node):
         stamp, angle = parsed
         if not (abs(angle) < 10.0 and angle == angle):
             self.rejected += 1
+            if self._command_log.ready():
+                self.get_logger().error(f'steering {angle!r} rad for t = {stamp * 1e-9:g} s '
+                                        'refused (not finite, or 10 rad or more): holding '
+                                        f'{self.command:+.4f} rad ({self.rejected} refused)')
             return
+        limit = self.plant.max_steering_angle
+        if abs(angle) > limit:
+            # no wheel turns further (dev-probe92: the linear plant integrated 9.9 rad,
+            # a yaw rate of 75 rad/s, without a word); the nonlinear actuator clips too
+            self.clipped += 1
+            if self._command_log.ready():
+                self.get_logger().warn(f'steering {angle:+.4f} rad for t = '
+                                       f'{stamp * 1e-9:g} s beyond plant.max_steering_angle '
+                                       f'{limit:g} rad: applied at the limit ({self.clipped} '
+                                       'clipped)')
+            angle = math.copysign(limit, angle)
         if self.params['mode'] == 'realtime':
             self.command = angle
             self.answered_stamp = stamp
@@ -663,9 +694,11 @@ class SimPlantNode(Node):
                 and time.monotonic() - self.sent_at > deadline):
             self.missed += 1
             self._missed_sent[self.waiting_stamp] = self.sent_at
+            # one line a miss (a miss costs the deadline's wall time): which steps missed
             self.get_logger().warn(f'no steering for t = {self.waiting_stamp * 1e-9:g} s '
                                    f'within {self.params["deadline"]:g} s: holding '
-                                   f'{self.command:+.4f} rad')
+                                   f'{self.command:+.4f} rad ({self.missed} missed'
+                                   f'{self._refused_since()})')
             self.waiting_stamp = None
             self.lockstep_advance()
 
@@ -692,7 +725,8 @@ class SimPlantNode(Node):
             if self._miss_log.ready():
                 self.get_logger().warn(
                     f'no steering for t = {(self.k - 1) * self.period:g} s within one '
-                    f'period: applying {self.command:+.4f} rad ({self.missed} missed)')
+                    f'period: applying {self.command:+.4f} rad ({self.missed} missed'
+                    f'{self._refused_since()})')
         self.publish_measurements()
         self.integrate()
         self.finished()

@@ -23,9 +23,9 @@ by 3 h^2 / (14 R^3); on a clothoid the same with R = 1 / max |curvature|.
 
 import math
 
-from lookahead_control.core.path_geometry import (cg_pose, PathError, PathFollower, PathParams,
-                                                  ReferencePath, three_point_curvature,
-                                                  wrap_angle)
+from lookahead_control.core.path_geometry import (cg_pose, drop_duplicates, PathError,
+                                                  PathFollower, PathParams, ReferencePath,
+                                                  three_point_curvature, wrap_angle)
 import numpy as np
 import pytest
 from scipy.special import fresnel
@@ -283,6 +283,81 @@ def test_duplicates_are_dropped_and_a_cusp_ends_the_path():
     # forward to x = 3, then back (a reversing manoeuvre): only the forward part is used
     path = ReferencePath([(0, 0), (1, 0), (2, 0), (3, 0), (2, 0.1), (1, 0.1)])
     assert path.cusp_at == pytest.approx(3.0) and path.length == pytest.approx(3.0)
+
+
+def test_a_duplicate_is_judged_against_the_last_point_kept():
+    # dev-probe92: (0, 0), (9e-5, 0), (1.8e-4, 0), (0, 0) at the default 1e-4 m kept the
+    # second (0, 0) next to the first (each dropped point within 1e-4 m of the one given
+    # before it): a segment of length 0, direction 0 / 0; a car facing against the path
+    # raised ValueError (argmin of nothing) or got NaN offsets
+    points = [(0.0, 0.0), (0.9e-4, 0.0), (1.8e-4, 0.0), (0.0, 0.0)]
+    points += [(float(i), 0.0) for i in range(1, 60)]
+    path = ReferencePath(points)
+    assert path.duplicates == 3 and path.size == 60 and np.all(path.seg_length > 1e-4)
+    follower = PathFollower(path)
+    with pytest.raises(PathError, match='faces against the path'):
+        follower.locate(0, 5.0, 0.2, math.pi)
+    place = follower.locate(10_000_000, 5.0, 0.2, 0.0)
+    assert place.s == pytest.approx(5.0) and place.lateral_error == pytest.approx(0.2)
+    with pytest.raises(PathError, match='faces against the path'):
+        follower.locate(20_000_000, 5.1, 0.2, math.pi)
+    # duplicate_distance 0: only equal points are duplicates; a chain the passes do not
+    # settle is judged point by point against the last kept
+    assert ReferencePath([(0, 0), (1e-9, 0), (1e-9, 0), (1, 0)],
+                         PathParams(duplicate_distance=0.0)).size == 3
+    # each pass drops one point of 0, 0.9, -0.15, 0.9, -0.15 ... (1 m): 60 passes
+    chain = np.array([(0.0, 0.0)] + [(0.9, 0.0), (-0.15, 0.0)] * 60 + [(5.0, 0.0)])
+    assert drop_duplicates(chain, 1.0).tolist() == [[0.0, 0.0], [5.0, 0.0]]
+
+
+def test_paths_that_revisit_their_points_give_a_place_or_a_path_error():
+    # dev-probe92's fuzz: paths of tiny steps that revisit earlier points, far from the
+    # origin, raised ZeroDivisionError (a segment shorter than the arc length's rounding)
+    # or gave NaN; every pose now gives finite values or a PathError
+    # (on the old code 16-21 of 300 paths raised or gave NaN, for each of five seeds)
+    rng = np.random.default_rng(92)
+    for _ in range(300):
+        n = int(rng.choice([3, 6, 30]))
+        step = float(rng.choice([1e-5, 1e-3, 0.1, 1.0]))
+        duplicate = float(rng.choice([0.0, 1e-4, 1e-4, 0.01]))
+        pts, heading = [(0.0, 0.0)], 0.0
+        for _ in range(n - 1):
+            heading += float(rng.choice([0.0, rng.uniform(-3, 3), math.pi / 2]))
+            length = step * float(rng.choice([1.0, 0.5, 1e-3]))
+            pts.append((pts[-1][0] + length * math.cos(heading),
+                        pts[-1][1] + length * math.sin(heading)))
+            if rng.random() < 0.2:
+                pts.append(pts[int(rng.integers(len(pts)))])
+            if rng.random() < 0.2:      # a jitter that creeps past the distance and returns
+                start = pts[-1]
+                for _ in range(int(rng.integers(1, 4))):
+                    angle = float(rng.uniform(-math.pi, math.pi))
+                    pts.append((pts[-1][0] + 0.9 * duplicate * math.cos(angle),
+                                pts[-1][1] + 0.9 * duplicate * math.sin(angle)))
+                pts.append(start)
+        origin = float(rng.choice([0.0, 1e6, 5e8]))
+        params = PathParams(fit_half_window=float(rng.choice([0.01, 5.0])),
+                            duplicate_distance=duplicate,
+                            search_distance=float(rng.choice([0.1, 10.0])),
+                            jump_distance=float(rng.choice([0.01, 100.0])))
+        try:
+            path = ReferencePath(np.array(pts) + origin, params)
+        except PathError:
+            continue
+        follower = PathFollower(path)
+        x, y = pts[int(rng.integers(len(pts)))]
+        x, y, yaw, stamp = x + origin, y + origin, float(rng.uniform(-3, 3)), 0
+        for _ in range(20):
+            stamp += int(rng.choice([10_000_000, 0, -10_000_000, 2_000_000_000]))
+            x, y = x + float(rng.uniform(-1, 1)) * step, y + float(rng.uniform(-1, 1)) * step
+            yaw += float(rng.choice([0.0, 0.1, math.pi]))
+            try:
+                place = follower.locate(stamp, x, y, yaw, float(rng.choice([0.0, 10.0])))
+            except PathError:
+                continue
+            assert all(math.isfinite(v) for v in (place.s, place.lateral_error, place.relative_yaw,
+                                                  place.curvature, place.heading)), place
+            assert all(math.isfinite(k) for _, k in path.preview(place.s, 50.0, 5.0))
 
 
 def test_poses_without_a_place_on_the_path_are_refused():

@@ -801,7 +801,13 @@ def test_sim_plant_ignores_bad_commands_and_holds_on_missing_answers(probe, tmp_
     assert sorted(missed) == sorted(refused | set(late)), err
     # NaN and 50 rad are refused (6), and those steps and the silent ones time out (11)
     assert (f'finished at t = 1 s: 100 steps, {11 + len(late)} missed deadlines, '
-            f'6 rejected commands, {len(late)} late answers') in err, err
+            f'6 rejected commands, 0 clipped at plant.max_steering_angle, {len(late)} late '
+            'answers') in err, err
+    # the refusals are said when they come, and in the misses they cause (dev-probe92:
+    # the log said only "no steering" while NaN answers came every step)
+    assert 'steering nan rad for t = 0.1 s refused (not finite, or 10 rad or more)' in err
+    assert re.search(r'no steering for t = 0.1 s within 0.5 s: holding \S+ rad \(\d+ missed, '
+                     r'1 commands refused meanwhile\)', err), err
     assert sorted(set(seen)) == list(range(100))
 
 

@@ -166,6 +166,40 @@ def test_duplicate_points_are_dropped_with_a_warning(bridge):
     assert node.diagnostics().level == DiagnosticStatus.OK       # reported once
 
 
+def test_a_jitter_that_folds_back_neither_crashes_the_bridge_nor_publishes_nan(bridge):
+    # dev-probe92: duplicates judged against the point given before them kept (0, 0)
+    # twice; a car facing against the path crashed the node (ValueError) or, after one
+    # good pose, published NaN lateral error, yaw and curvature with /diagnostics ok
+    node = bridge()
+    points = [(0.0, 0.0, 0.0), (0.9e-4, 0.0, 0.0), (1.8e-4, 0.0, 0.0), (0.0, 0.0, 0.0)]
+    node.on_path(vconv.to_path(0, 'map', points + [(float(i), 0.0, 0.0)
+                                                   for i in range(1, 60)]))
+
+    def pose(k, x, yaw):
+        return vconv.to_odometry(k * PERIOD, 'map', 'base_link', x, 0.2, yaw, 10.0, 0.0, 0.0)
+
+    node.on_odometry(pose(1, 5.0, math.pi))
+    assert node.out == [] and 'faces against the path' in node.problem
+    node.on_odometry(pose(2, 5.1, 0.0))
+    assert contract(node)['lateral_error'].value == pytest.approx(0.2, abs=1e-9)
+    node.out.clear()
+    node.on_odometry(pose(3, 5.2, math.pi))
+    assert node.out == [] and 'faces against the path' in node.problem
+    assert node.diag[-1].level == DiagnosticStatus.ERROR
+
+
+def test_a_curvature_preview_that_is_not_finite_is_never_published(bridge, monkeypatch):
+    # the last guard before the controller: whatever the fit gives, no NaN goes out
+    node = bridge()
+    node.on_path(road_path())
+    monkeypatch.setattr(node.follower.path, 'preview',
+                        lambda s, distance, step: [(0.0, -0.01), (5.0, math.nan)])
+    node.on_odometry(odometry(1, 20.0))
+    assert node.out == []
+    assert 'no finite curvature 5 m ahead of s = 20.00 m' in node.problem
+    assert node.diag[-1].level == DiagnosticStatus.ERROR
+
+
 @pytest.mark.parametrize('s, lateral, yaw, reason', [
     (352.0, 0.0, 0.0, 'past the end of the path'),
     (-4.0, 0.0, 0.0, 'the path starts 4.00 m ahead of the vehicle'),
@@ -398,6 +432,23 @@ def test_parameters_are_checked_and_a_new_fit_window_refits_the_path(bridge):
     assert node.path.params.fit_half_window == 2.0
     node.on_odometry(odometry(1, 20.0))
     assert len(node.out) == 4
+
+
+def test_a_preview_longer_than_the_controller_takes_is_refused(bridge):
+    # dev-probe92: preview_distance 1000 m at preview_step 0.1 m (each in its range) gave
+    # 10001 points a message: the controller refused every polygon (max_curvature_points
+    # 256), the bridge answered 79 of 228 odometry messages, and nothing said why
+    node = bridge()
+    refused = node.set_parameters([Parameter('preview_step', value=0.1)])[0]
+    assert not refused.successful
+    assert ('preview_distance = 50 m at preview_step = 0.1 m gives 501 curvature points a '
+            'message; at most 256') in refused.reason, refused.reason
+    assert 'a preview_step of at least 0.196 m' in refused.reason
+    assert node.set_parameters([Parameter('preview_distance', value=25.5),
+                                Parameter('preview_step', value=0.1)])[0].successful
+    node.on_path(road_path())
+    node.on_odometry(odometry(1, 20.0))
+    assert len(contract(node)['road_curvature'].ahead) == 256
 
 
 # -- sim_plant speaks like a vehicle ----------------------------------------------------------

@@ -230,3 +230,22 @@ def test_a_diverged_linear_plant_stops_the_node_too(context, tmp_path):
     failure = _until_diverged(context, tmp_path, 0.05, 1500.0, 300, dt=0.005)
     assert failure.startswith('the linear plant diverged between t = 1.')
     assert "under the scenario's external_forces (a non-finite state)" in failure
+
+
+def test_a_command_beyond_the_wheel_s_limit_is_applied_at_it_and_counted(context):
+    # dev-probe92: the linear plant integrated 9.9 rad (a yaw rate of 75 rad/s, the car
+    # 49 m off) without a word; no wheel turns further than plant.max_steering_angle
+    from sim_plant.sim_plant_node import SimPlantNode
+    node = SimPlantNode(context=context, parameter_overrides=[
+        Parameter('speed', value=25.0), Parameter('mode', value='realtime')])
+    try:
+        limit = node.plant.max_steering_angle
+        assert node.plant.model == 'linear' and limit == 0.6
+        for k, angle in enumerate((0.3, 9.9, -0.7, float('nan'), 12.0)):
+            node.on_steering(conv.to_steering(k * 10_000_000, angle, 0.0))
+            if k < 3:
+                assert node.command == (0.3, 0.6, -0.6)[k]
+        assert node.command == -0.6 and (node.clipped, node.rejected) == (2, 2)
+        assert '2 rejected commands, 2 clipped at plant.max_steering_angle' in node.summary()
+    finally:
+        node.destroy_node()

@@ -61,6 +61,8 @@ Array = npt.NDArray[np.float64]
 # more (UTM northings are < 1e7 m), and the projection's products of such coordinates
 # overflow no float (beyond, inf - inf gave NaN output or an uncaught ValueError)
 MAX_COORDINATE = 1e9
+#: passes of the duplicate filter before it judges each point against the last kept
+MAX_DUPLICATE_PASSES = 20
 
 
 class PathError(ValueError):
@@ -170,6 +172,47 @@ def three_point_curvature(points: Array) -> Array:
     return np.asarray(2.0 * cross / norms, dtype=float)
 
 
+def preview_points(distance: float, step: float) -> int:
+    """
+    Return the points of a curvature preview of ``distance`` at ``step``.
+
+    :param distance: how far ahead [m].
+    :param step: spacing [m].
+    :return: the count (:meth:`ReferencePath.preview`; the path's end may cut it shorter).
+    """
+    return int(distance / step + 1e-9) + 1 if step > 0.0 else 1
+
+
+def drop_duplicates(points: Array, distance: float) -> Array:
+    """
+    Return the points less the duplicates: consecutive kept points more than ``distance`` apart.
+
+    A point within ``distance`` of the one given before it is dropped, and again among
+    the points kept, until none is: ``(0, 0), (9e-5, 0), (1.8e-4, 0), (0, 0)`` at 1e-4 m
+    keeps one ``(0, 0)``. Before, one pass kept the second ``(0, 0)`` next to the first
+    (each dropped point within 1e-4 of its predecessor): a segment of length 0, direction
+    0 / 0, and the bridge published NaN, then raised (dev-probe92).
+
+    :param points: ``(x, y)`` rows, finite.
+    :param distance: the duplicate distance [m] (0: only equal points are duplicates).
+    :return: the points kept.
+    """
+    for _ in range(MAX_DUPLICATE_PASSES):
+        steps = np.hypot(*np.diff(points, axis=0).T)
+        keep = np.concatenate(([True], steps > distance))
+        if keep.all():
+            return points
+        points = points[keep]
+    # a chain the passes do not settle: each point against the last one kept
+    kept = [0]
+    last_x, last_y = points[0]
+    for i, (x, y) in enumerate(points[1:].tolist(), start=1):
+        if math.hypot(x - last_x, y - last_y) > distance:
+            kept.append(i)
+            last_x, last_y = x, y
+    return points[kept]
+
+
 class ReferencePath:
     """A reference path: its points, arc lengths and a lazily computed smooth fit."""
 
@@ -202,9 +245,7 @@ class ReferencePath:
             i = int(far[0])
             raise PathError(f'path point {i} is out of range ({raw[i, 0]:g}, {raw[i, 1]:g}): '
                             f'coordinates must be within +-{MAX_COORDINATE:g} m')
-        steps = np.hypot(*np.diff(raw, axis=0).T)
-        keep = np.concatenate(([True], steps > self.params.duplicate_distance))
-        pts = raw[keep]
+        pts = drop_duplicates(raw, self.params.duplicate_distance)
         self.given = len(raw)
         self.duplicates = int(len(raw) - len(pts))
         if len(pts) < 2:
@@ -286,7 +327,8 @@ class ReferencePath:
                              heading, curvature)
         i = min(max(bisect.bisect_right(self._s_list, s) - 1, 0), self.size - 2)
         s0, s1 = self._s_list[i], self._s_list[i + 1]
-        w = (s - s0) / (s1 - s0)
+        # a segment shorter than the arc length's rounding (far from the origin) adds 0
+        w = (s - s0) / (s1 - s0) if s1 > s0 else 0.0
         xa, ya, ha, ka = self._local(i, s - s0)
         xb, yb, hb, kb = self._local(i + 1, s - s1)
         return PathPoint(s, xa + w * (xb - xa), ya + w * (yb - ya),
@@ -331,7 +373,9 @@ class ReferencePath:
         a, d = self.points[i0:i1], self.seg[i0:i1]
         length2 = self.seg_length[i0:i1] ** 2
         rx, ry = x - a[:, 0], y - a[:, 1]
-        t = np.clip((rx * d[:, 0] + ry * d[:, 1]) / length2, 0.0, 1.0)
+        dot = rx * d[:, 0] + ry * d[:, 1]
+        t = np.clip(np.divide(dot, length2, out=np.zeros_like(dot), where=length2 > 0.0),
+                    0.0, 1.0)
         dist = np.hypot(rx - t * d[:, 0], ry - t * d[:, 1])
         ahead = d[:, 0] * math.cos(heading) + d[:, 1] * math.sin(heading) > 0.0
         if ahead.any():
@@ -389,9 +433,8 @@ class ReferencePath:
         :param step: spacing [m].
         :return: the pairs, the first at distance 0.
         """
-        count = int(distance / step + 1e-9) + 1 if step > 0.0 else 1
         out = []
-        for k in range(count):
+        for k in range(preview_points(distance, step)):
             ahead = k * step
             if k and s + ahead > self.length:
                 break
@@ -501,6 +544,13 @@ class PathFollower:
             self.reset()
             raise PathError(f'the vehicle faces against the path (relative yaw '
                             f'{relative_yaw:+.2f} rad)')
+        values = (point.s, lateral, relative_yaw, point.curvature, point.heading)
+        if not all(math.isfinite(v) for v in values):
+            # never a NaN to the controller, whatever the path's points (dev-probe92)
+            self.reset()
+            raise PathError(f'the path gives no finite place for the vehicle (s, offset, '
+                            f'relative yaw, curvature, heading = {values}): its points are '
+                            'degenerate there')
         self.matched = True
         if note == 'first match':
             note = ''

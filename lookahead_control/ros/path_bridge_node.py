@@ -37,7 +37,8 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.controller import differentiated_step
 from lookahead_control.core.params import ParameterError
 from lookahead_control.core.path_geometry import (cg_pose, PathError, PathFollower, PathParams,
-                                                  ReferencePath, twist_in_parent_frame)
+                                                  preview_points, ReferencePath,
+                                                  twist_in_parent_frame)
 from lookahead_control.core.safety import SafetyParams
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros import vehicle_conversions as vconv
@@ -97,6 +98,8 @@ NODE_SPECS = (
     EXECUTOR_SPEC,
 )
 ALL_SPECS = PATH_SPECS + NODE_SPECS
+#: the most curvature points a message: the controller's default max_curvature_points
+MAX_PREVIEW_POINTS = SafetyParams().max_curvature_points
 #: odometry further apart than this [ns] starts the differentiated dv_x/dt again (0 until
 #: the next pair)
 ACCEL_GAP_NS = 500_000_000
@@ -116,6 +119,17 @@ def check_parameters(params: Mapping[str, Any]) -> None:
     """
     check_choices(ALL_SPECS, params)
     build(PathParams, params, 'path')
+    distance, step = params['preview_distance'], params['preview_step']
+    points = preview_points(distance, step)
+    if points > MAX_PREVIEW_POINTS:
+        # dev-probe92: 1000 m at 0.1 m gave 10001 points a message: the controller refused
+        # every polygon (its max_curvature_points) and the bridge fell behind, unsaid
+        raise ParameterError(f'preview_distance = {distance:g} m at preview_step = '
+                             f'{step:g} m gives {points} curvature points a message; at '
+                             f'most {MAX_PREVIEW_POINTS} (the controller refuses a longer '
+                             'polygon at its default safety.max_curvature_points): a '
+                             f'preview_step of at least {distance / (MAX_PREVIEW_POINTS - 1):.3g}'
+                             ' m or a shorter preview_distance')
 
 
 class PathBridgeNode(LifecycleNode):
@@ -353,17 +367,24 @@ class PathBridgeNode(LifecycleNode):
         if lane.note:
             self.counters['rematches'] += self.follower.rematches - rematches
             self._event('rematch', lane.note)
+        path = self.follower.path
+        preview = path.preview(lane.s, p['preview_distance'], p['preview_step'])
+        bad = next((point for point in preview if not math.isfinite(point[1])), None)
+        if bad is not None:
+            # never a NaN to the controller, whatever the path's points (dev-probe92)
+            self.follower.reset()
+            self._refuse(f'the path gives no finite curvature {bad[0]:g} m ahead of '
+                         f's = {lane.s:.2f} m: its points are degenerate there')
+            return
         yaw_rate, accel = self._rates(odom, v_y)
         stamp, frame = odom.stamp_ns, p['frame_id']
-        path = self.follower.path
         pubs = self._pubs
         pubs['yaw'].publish(conv.to_yaw(stamp, frame, lane.relative_yaw, yaw_rate, accel))
         # a linear.y of exactly 0 is not measured (wheel odometry, an EKF without it): sent
         # on as 0, not as base_to_cg * r, which the controller would take as measured
         sent_v_y = v_y if odom.v_y != 0.0 else 0.0
         pubs['velocity'].publish(conv.to_velocity(stamp, frame, odom.v_x, sent_v_y, yaw_rate))
-        pubs['road_curvature'].publish(conv.to_curvature(
-            stamp, frame, path.preview(lane.s, p['preview_distance'], p['preview_step'])))
+        pubs['road_curvature'].publish(conv.to_curvature(stamp, frame, preview))
         distance = p['sensor_distance']
         # last: the controller answers the lateral error
         pubs['lateral_error'].publish(conv.to_lateral_error(
