@@ -438,7 +438,7 @@ def load_floats(bag):
     return [int(m.msg.data) for m in read_messages(bag)]
 
 
-def test_recover_and_analyze_fail_in_one_line(tmp_path):
+def test_recover_and_analyze_fail_in_one_line(tmp_path, capsys):
     for module, args in (('lookahead_control.bags.recorder_node', ['--recover', tmp_path / 'x']),
                          ('lookahead_control.tools.analyze_tool', [tmp_path / 'x']),
                          ('lookahead_control.bags.replay_node', [tmp_path / 'x', '--offline'])):
@@ -449,6 +449,20 @@ def test_recover_and_analyze_fail_in_one_line(tmp_path):
     (tmp_path / 'junk' / 'metadata.yaml').write_text('not: [a bag')
     out = _tool('lookahead_control.tools.analyze_tool', tmp_path / 'junk')
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    # dev-probe93: a file given as the bag was 'no such bag directory'; recover's lines
+    # said 'record:'
+    (tmp_path / 'afile').write_text('')
+    out = _tool('lookahead_control.bags.recorder_node', '--recover', tmp_path / 'afile')
+    assert out.returncode == 2 and 'afile: a file, not a bag directory' in out.stderr
+    from lookahead_control.bags.recorder_node import recover_entry
+    _synthetic_bag(tmp_path / 'whole', steps=10)
+    argv = sys.argv
+    sys.argv = ['recover', str(tmp_path / 'whole')]
+    try:
+        assert recover_entry() == 0
+    finally:
+        sys.argv = argv
+    assert capsys.readouterr().out.startswith(f'recover: {tmp_path / "whole"} is complete')
 
 
 def _synthetic_bag(path, steps=2000, skip=(), answer_delay_ns=2_000_001, steering=True,
@@ -825,6 +839,24 @@ def test_replay_names_the_input_a_bag_lacks_when_nothing_is_answered(tmp_path):
     assert ('the re-run answered none of the 200 lateral errors: the bag has no yaw '
             'messages') in out.stdout, out.stdout
     assert 'check failed: no command to compare (no yaw in the bag)' in out.stderr
+
+
+def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys):
+    # dev-probe93: two closed_loop runs on one --bag: the loser's recorder refused the
+    # folder the winner had made, and the loser said that bag 'holds what was recorded
+    # until then' (the other run's complete bag). run_loop is what runs after main's
+    # check of the bag: here the folder is there already, as the winner left it
+    scenario = tmp_path / 'short.yaml'
+    scenario.write_text(SCENARIO.read_text().replace('duration: 10.0', 'duration: 1.0'))
+    taken = tmp_path / 'taken'
+    taken.mkdir()
+    (taken / 'theirs.txt').write_text('the other run')
+    assert run_loop(LoopConfig(scenario, speed=30.0, bag=taken)) == 1
+    said = capsys.readouterr().err
+    assert f'record refused {taken} (its line above): nothing of this run was recorded' \
+        in said, said
+    assert 'holds what was recorded' not in said
+    assert sorted(p.name for p in taken.iterdir()) == ['theirs.txt']
 
 
 def test_the_default_bag_name_has_the_speed_of_the_run():

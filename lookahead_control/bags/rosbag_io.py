@@ -494,7 +494,9 @@ def recover(path: Path) -> Recovery:
 
     path = Path(path)
     if not path.is_dir():
-        raise BagError(f'{path}: no such bag directory')
+        raise BagError(f'{path}: a file, not a bag directory (a bag is the folder of '
+                       'metadata.yaml and the .mcap)' if path.exists() else
+                       f'{path}: no such bag directory')
     source = _mcap_file(path)
     schemas: dict[int, Schema] = {}
     channels: dict[int, McapChannel] = {}

@@ -37,7 +37,7 @@ import sys
 import time
 from typing import Any, Optional, Sequence
 
-from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
+from lookahead_control.core.cli import ArgumentParser, EXIT_USAGE, number, run_tool, ToolError
 from lookahead_control.core.config import source_config_dir
 from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.interrupts import deferred
@@ -552,9 +552,14 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     failed = {name: code for name, code in codes.items() if code != 0}
     if why or failed:
         detail = ', '.join(f'{name} exit code {code}' for name, code in failed.items())
+        # a recorder that refused its output (exit 2: another run took the bag between
+        # our check and its start, dev-probe93) recorded nothing of this run
+        refused = codes.get('record') == EXIT_USAGE
         print(f'closed_loop: failed: {why or "a node failed"}'
               + (f' ({detail})' if detail else '')
-              + (f'; the bag {cfg.bag} holds what was recorded until then'
+              + (f'; record refused {cfg.bag} (its line above): nothing of this run was '
+                 'recorded' if refused else
+                 f'; the bag {cfg.bag} holds what was recorded until then'
                  if cfg.bag and cfg.bag.is_dir() else ''), file=sys.stderr)
         return 1
     return 0
