@@ -38,11 +38,12 @@ from typing import Any, Mapping, NamedTuple, Optional
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.config import ConfigError, source_config_dir
 from lookahead_control.core.params import ParameterError, VehicleParams
+from lookahead_control.core.safety import check_preview_points
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.controller_node import qos, WRITER_DEPTH, writer_qos
 from lookahead_control.ros.node_main import run_node, Throttle
-from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, Spec, values,
-                                               VEHICLE_SPECS)
+from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, MAX_PREVIEW_SPEC,
+                                               Spec, values, VEHICLE_SPECS)
 from lookahead_control.ros.vehicle_conversions import to_odometry, to_path
 from nav_msgs.msg import Odometry, Path as PathMsg
 from rcl_interfaces.msg import SetParametersResult
@@ -56,7 +57,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu, JointState
 from sim_plant.closed_loop_sim import (advance, check_steps, CommonRoadGroup, delay_steps,
                                        linear_plant_stepper, measure, plant_derivatives,
-                                       Stepper)
+                                       preview_distances, Stepper)
 from sim_plant.commonroad_plant import COMMONROAD_MODELS
 from sim_plant.scenario import check_force_timing, load_scenario, Scenario
 from sim_plant.sensors import NoiseParams, NoiseStream
@@ -71,7 +72,9 @@ PLANT_SPECS = (
          choices=KINEMATICS),
     Spec('plant.friction', 1.0, 'tyre-road friction mu (nonlinear) [-]', 0.01, 2.0),
     Spec('plant.steering_time_constant', 0.05, 'actuator lag (nonlinear) [s]', 0.001, 2.0),
-    Spec('plant.max_steering_angle', 0.6, 'actuator angle limit (nonlinear) [rad]',
+    Spec('plant.max_steering_angle', 0.6, 'actuator angle limit of the nonlinear and '
+         'CommonRoad plants [rad]; a command beyond it is counted and said (the linear '
+         'plant, without an actuator, applies it as sent)',
          0.01, 1.2),
     Spec('plant.max_steering_rate', 0.8, 'actuator rate limit (nonlinear) [rad/s]',
          0.01, 20.0),
@@ -112,6 +115,7 @@ SIM_SPECS = (
          'this scenario time (a map lost mid-run: the default controller then estimates the '
          'curvature) [s]; 0: to the end', 0.0, 1.0e6),
     Spec('preview_step', 5.0, 'spacing of the curvature preview points [m]', 0.1, 100.0),
+    MAX_PREVIEW_SPEC,
     Spec('subscribers', 1, 'start once each contract topic has this many matched '
          'subscriptions (2: controller and recorder)', 1, 100),
     Spec('output', 'contract', 'contract: the lane-relative topics; vehicle: odometry, '
@@ -164,6 +168,10 @@ def check_parameters(params: Mapping[str, Any]) -> Checked:
                              "= 'contract' (road_curvature); output = 'vehicle' sends the "
                              "road once as a path, the curvature is path_bridge's")
     build(NoiseParams, params, 'noise')
+    # as path_bridge (dev-probe94: 1000 m at 0.1 m went out as 10001 points a message)
+    check_preview_points(params['preview_distance'], params['preview_step'],
+                         lambda distance, step: len(preview_distances(distance, step)),
+                         params['max_preview_points'])
     path = Path(params['scenario_file']) if params['scenario_file'] else (
         source_config_dir() / 'scenarios' / 'paper_r400.yaml')
     speed = params['speed'] or None
@@ -244,7 +252,7 @@ class SimPlantNode(Node):
         self.failure = ''               # why the run stopped early (a diverged plant)
         self.missed = 0
         self.rejected = 0
-        self.clipped = 0            # commands beyond plant.max_steering_angle (applied at it)
+        self.beyond = 0             # commands beyond plant.max_steering_angle
         self._rejected_seen = 0     # rejections told in the last missed-step line
         self.late = 0               # lockstep: good answers after their step's deadline
         self._missed_sent: dict[int, float] = {}    # lockstep: missed stamp -> sent at
@@ -254,7 +262,8 @@ class SimPlantNode(Node):
         self._connected_since: Optional[float] = None
         self.started_at = 0.0       # wall clock of the first step of the loop
         self._miss_log = Throttle(1.0)
-        self._command_log = Throttle(1.0)
+        self._refusal_log = Throttle(1.0)
+        self._beyond_log = Throttle(1.0)
         # a graph query for another /clock publisher: once a second, not at every poll
         self._clock_check = Throttle(1.0)
         self.done = Future()
@@ -529,7 +538,7 @@ class SimPlantNode(Node):
         """Return the run's counts: steps, missed deadlines, refused / clipped / late."""
         wall = time.monotonic() - self.started_at if self.started_at else 0.0
         return (f'{self.k} steps, {self.missed} missed deadlines, {self.rejected} rejected '
-                f'commands, {self.clipped} clipped at plant.max_steering_angle, {self.late} '
+                f'commands, {self.beyond} beyond plant.max_steering_angle, {self.late} '
                 f'late answers; {wall:.3f} s wall ({self.k / max(wall, 1e-9):.0f} steps/s)')
 
     def finished(self) -> bool:
@@ -556,8 +565,10 @@ class SimPlantNode(Node):
         if self.k and not self.done.done():
             # stopped before the scenario's end (a signal): the counts are said all the
             # same (dev-probe92: 1010 refused commands of a stopped run were never told)
-            self.get_logger().info(f'stopped at t = {self.k * self.period:g} s of '
-                                   f'{self.scenario.duration:g} s: {self.summary()}')
+            where = (f' of {self.scenario.duration:g} s' if self.k < self.n_steps else
+                     f' (the scenario ended at {self.scenario.duration:g} s)')
+            self.get_logger().info(f'stopped at t = {self.k * self.period:g} s{where}: '
+                                   f'{self.summary()}')
         end = time.monotonic() + ACK_TIMEOUT
         for pub in list(self.publishers):
             left = end - time.monotonic()
@@ -576,22 +587,25 @@ class SimPlantNode(Node):
         stamp, angle = parsed
         if not (abs(angle) < 10.0 and angle == angle):
             self.rejected += 1
-            if self._command_log.ready():
+            if self._refusal_log.ready():
                 self.get_logger().error(f'steering {angle!r} rad for t = {stamp * 1e-9:g} s '
                                         'refused (not finite, or 10 rad or more): holding '
                                         f'{self.command:+.4f} rad ({self.rejected} refused)')
             return
         limit = self.plant.max_steering_angle
         if abs(angle) > limit:
-            # no wheel turns further (dev-probe92: the linear plant integrated 9.9 rad,
-            # a yaw rate of 75 rad/s, without a word); the nonlinear actuator clips too
-            self.clipped += 1
-            if self._command_log.ready():
+            # said and counted (dev-probe92: the linear plant integrated 9.9 rad, a yaw
+            # rate of 75 rad/s, without a word); applied as the plant does: the linear
+            # (the paper's model) has no actuator, the others' actuators clip there
+            self.beyond += 1
+            if self._beyond_log.ready():
+                applied = ('as sent: the linear plant has no actuator' if self.plant.model
+                           == 'linear' else f'at the limit by the {self.plant.model} '
+                           "plant's actuator")
                 self.get_logger().warn(f'steering {angle:+.4f} rad for t = '
                                        f'{stamp * 1e-9:g} s beyond plant.max_steering_angle '
-                                       f'{limit:g} rad: applied at the limit ({self.clipped} '
-                                       'clipped)')
-            angle = math.copysign(limit, angle)
+                                       f'{limit:g} rad: applied {applied} ({self.beyond} '
+                                       'beyond)')
         if self.params['mode'] == 'realtime':
             self.command = angle
             self.answered_stamp = stamp

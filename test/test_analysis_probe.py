@@ -241,27 +241,33 @@ def test_recorded_commands_that_are_not_finite_are_named():
     assert row['peak_steering_cmd_rad'] == pytest.approx(0.02 + 0.001 * 299 * 0.01)
 
 
-def test_replay_tells_a_recorder_that_started_after_the_run():
+def test_replay_tells_a_controller_that_ran_before_the_bag():
     # dev-probe93: a recorder started 3 s into a run: replay --offline re-ran the law
     # fresh from the bag's first input, 3.86 mrad off the recorded one, and said nothing.
-    # The debug's answer count tells: 100 answers before the bag's first lateral error;
-    # a debug subscription that matched late (its inputs in the bag) is no late recorder
-    from lookahead_control.bags.replay_node import late_join
+    # The debug's first answer count tells that the controller ran before; it matters
+    # where the re-run differs over its first answers (dev-probe94: counting the bag's
+    # inputs before it missed a deactivation before the recorder started, and took a
+    # node configured again for one whose law ran on)
+    from lookahead_control.bags.replay_node import late_join, START_ANSWERS
+    from lookahead_control.bags.run_data import Rerun
+    from lookahead_control.core.controller import Command
     run = _curve_run([])
     stamp = run.inputs['lateral_error'].stamp_ns
-    assert late_join(run) == 0                                  # no debug topic
+    recorded = run.steering.values['angle']
+
+    def rerun_of(offset_at):
+        shift = {offset_at: 1e-3}
+        commands = {int(t): Command(int(t), float(a) + shift.get(i, 0.0), 0.0, None)
+                    for i, (t, a) in enumerate(zip(stamp, recorded))}
+        return Rerun(commands, len(commands), 0.0, 0.0, 'stamp')
+
     count = np.arange(stamp.size, dtype=float)
-
-    def debug(first_answer, start):
-        keep = slice(start, None)
-        return Samples(stamp[keep] + 3_000_000, stamp[keep], count[keep].astype(np.int64),
-                       {'answers': first_answer + count[keep] - start})
-
-    run.debug = debug(101.0, 0)
-    assert late_join(run) == 100
-    run.debug = debug(1.0, 0)
-    assert late_join(run) == 0
-    run.debug = debug(41.0, 40)         # subscribed late: the 40 inputs before are in the bag
-    assert late_join(run) == 0
-    run.debug = debug(141.0, 40)
-    assert late_join(run) == 100
+    run.debug = Samples(stamp + 3_000_000, stamp, count.astype(np.int64),
+                        {'answers': 342.0 + count})
+    assert late_join(run, rerun_of(START_ANSWERS - 1)) == (341, pytest.approx(1e-3))
+    # equal over the first answers (a fresh law: a new configuration, a late debug)
+    assert late_join(run, rerun_of(START_ANSWERS)) == (0, 0.0)
+    run.debug = Samples(run.debug.recv_ns, stamp, run.debug.order, {'answers': 1.0 + count})
+    assert late_join(run, rerun_of(0)) == (0, 0.0)           # the bag has the first answer
+    run.debug = Samples.empty()
+    assert late_join(run, rerun_of(0)) == (0, 0.0)           # no debug topic

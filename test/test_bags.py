@@ -841,7 +841,7 @@ def test_replay_names_the_input_a_bag_lacks_when_nothing_is_answered(tmp_path):
     assert 'check failed: no command to compare (no yaw in the bag)' in out.stderr
 
 
-def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys):
+def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys, monkeypatch):
     # dev-probe93: two closed_loop runs on one --bag: the loser's recorder refused the
     # folder the winner had made, and the loser said that bag 'holds what was recorded
     # until then' (the other run's complete bag). run_loop is what runs after main's
@@ -857,6 +857,17 @@ def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys):
         in said, said
     assert 'holds what was recorded' not in said
     assert sorted(p.name for p in taken.iterdir()) == ['theirs.txt']
+    # dev-probe94: a recorder that fails mid-run (a full disk) exits 2 as well, and its
+    # bag holds what it wrote: that is said, not 'nothing of this run'
+    import lookahead_control.ros.closed_loop as closed_loop
+    failing = tmp_path / 'failing'
+    monkeypatch.setattr(closed_loop, 'recorder_command', lambda bag: [
+        sys.executable, '-c', f'import os, sys, time; os.mkdir({str(bag)!r}); time.sleep(0.5); '
+        "print('record: write failed', file=sys.stderr); sys.exit(2)"])
+    assert run_loop(LoopConfig(scenario, speed=30.0, bag=failing)) == 1
+    said = capsys.readouterr().err
+    assert f'the bag {failing} holds what was recorded until then' in said, said
+    assert 'nothing of this run' not in said
 
 
 def test_the_default_bag_name_has_the_speed_of_the_run():

@@ -801,7 +801,7 @@ def test_sim_plant_ignores_bad_commands_and_holds_on_missing_answers(probe, tmp_
     assert sorted(missed) == sorted(refused | set(late)), err
     # NaN and 50 rad are refused (6), and those steps and the silent ones time out (11)
     assert (f'finished at t = 1 s: 100 steps, {11 + len(late)} missed deadlines, '
-            f'6 rejected commands, 0 clipped at plant.max_steering_angle, {len(late)} late '
+            f'6 rejected commands, 0 beyond plant.max_steering_angle, {len(late)} late '
             'answers') in err, err
     # the refusals are said when they come, and in the misses they cause (dev-probe92:
     # the log said only "no steering" while NaN answers came every step)

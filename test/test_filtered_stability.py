@@ -338,6 +338,7 @@ def test_with_the_filter_off_the_tool_counts_the_loop_that_runs(capsys, tmp_path
     assert 'lane_keeping.state_filter = none: the law acts on the measurements' in out
     data = json.loads(path.read_text())
     assert not data['robust_filtered']['holds'] and data['robust']['holds']
+    assert data['verdict'] and not data['kalman_rows_counted']
     # the loop on the measurements held is checked and counted: the same file with the
     # filter on fails on it, as before
     controller.write_text(controller.read_text().replace('none', 'kalman'))

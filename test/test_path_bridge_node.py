@@ -442,13 +442,28 @@ def test_a_preview_longer_than_the_controller_takes_is_refused(bridge):
     refused = node.set_parameters([Parameter('preview_step', value=0.1)])[0]
     assert not refused.successful
     assert ('preview_distance = 50 m at preview_step = 0.1 m gives 501 curvature points a '
-            'message; at most 256') in refused.reason, refused.reason
-    assert 'a preview_step of at least 0.196 m' in refused.reason
+            'message, more than max_preview_points = 256') in refused.reason, refused.reason
+    assert 'a preview_step of at least 0.197 m' in refused.reason    # 50 / 255 rounded up
     assert node.set_parameters([Parameter('preview_distance', value=25.5),
                                 Parameter('preview_step', value=0.1)])[0].successful
     node.on_path(road_path())
     node.on_odometry(odometry(1, 20.0))
     assert len(contract(node)['road_curvature'].ahead) == 256
+    # dev-probe94: a controller whose max_curvature_points is raised takes more: so does
+    # the bridge, with its max_preview_points (the limit was fixed at 256)
+    assert node.set_parameters([Parameter('max_preview_points', value=501),
+                                Parameter('preview_distance', value=50.0)])[0].successful
+    node.on_odometry(odometry(2, 20.2))
+    assert len(contract(node)['road_curvature'].ahead) == 501
+    # the least step named always fits (rounded up: 32 m at 0.1 m said 0.125, 257 points)
+    from lookahead_control.core.params import ParameterError
+    from lookahead_control.core.path_geometry import preview_points
+    from lookahead_control.core.safety import check_preview_points
+    for distance in np.arange(25.6, 1000.0, 0.1):
+        with pytest.raises(ParameterError) as refusal:
+            check_preview_points(float(distance), 0.1, preview_points, 256)
+        least = float(str(refusal.value).split('at least ')[1].split(' m')[0])
+        assert preview_points(float(distance), least) <= 256, refusal.value
 
 
 # -- sim_plant speaks like a vehicle ----------------------------------------------------------

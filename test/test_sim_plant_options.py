@@ -188,6 +188,20 @@ def test_node_refuses_a_force_its_plant_step_cannot_give(tmp_path):
     assert check_parameters(params).scenario.forces[0].frequency == 10.0
 
 
+def test_a_preview_longer_than_the_controller_takes_is_refused():
+    # dev-probe94: as path_bridge's, sim_plant's preview of 1000 m at 0.1 m went out as
+    # 10001 points a message, every one refused by the controller (256 by default)
+    from lookahead_control.core.params import ParameterError
+    from sim_plant.sim_plant_node import ALL_SPECS, check_parameters
+    params = {spec.name: spec.default for spec in ALL_SPECS}
+    params.update({'preview_distance': 1000.0, 'preview_step': 0.1})
+    with pytest.raises(ParameterError, match='gives 10001 curvature points a message, more '
+                       'than max_preview_points = 256'):
+        check_parameters(params)
+    params['max_preview_points'] = 10001
+    check_parameters(params)
+
+
 def _until_diverged(context, tmp_path, speed, force, steps, **params):
     """
     Integrate a straight at ``speed`` pushed by ``force`` from 1 s until the plant fails.
@@ -232,20 +246,30 @@ def test_a_diverged_linear_plant_stops_the_node_too(context, tmp_path):
     assert "under the scenario's external_forces (a non-finite state)" in failure
 
 
-def test_a_command_beyond_the_wheel_s_limit_is_applied_at_it_and_counted(context):
+def test_a_command_beyond_the_wheel_s_limit_is_counted_and_said(context):
     # dev-probe92: the linear plant integrated 9.9 rad (a yaw rate of 75 rad/s, the car
-    # 49 m off) without a word; no wheel turns further than plant.max_steering_angle
+    # 49 m off) without a word. It has no actuator (the paper's model) and applies what
+    # it is sent (dev-probe94: clipping it changed runs with a controller limit above
+    # 0.6 rad); a command beyond plant.max_steering_angle is counted and said, and a
+    # refusal is said at once even right after such a warning
     from sim_plant.sim_plant_node import SimPlantNode
     node = SimPlantNode(context=context, parameter_overrides=[
         Parameter('speed', value=25.0), Parameter('mode', value='realtime')])
+    logged = []
+    logger = node.get_logger()
+    warn, error = logger.warn, logger.error
+    logger.warn = lambda text, **kw: (logged.append(text), warn(text, **kw))[1]
+    logger.error = lambda text, **kw: (logged.append(text), error(text, **kw))[1]
     try:
-        limit = node.plant.max_steering_angle
-        assert node.plant.model == 'linear' and limit == 0.6
-        for k, angle in enumerate((0.3, 9.9, -0.7, float('nan'), 12.0)):
+        assert node.plant.model == 'linear' and node.plant.max_steering_angle == 0.6
+        for k, angle in enumerate((0.3, 9.9, float('nan'), -0.7, 12.0)):
             node.on_steering(conv.to_steering(k * 10_000_000, angle, 0.0))
-            if k < 3:
-                assert node.command == (0.3, 0.6, -0.6)[k]
-        assert node.command == -0.6 and (node.clipped, node.rejected) == (2, 2)
-        assert '2 rejected commands, 2 clipped at plant.max_steering_angle' in node.summary()
+        assert node.command == -0.7 and (node.beyond, node.rejected) == (2, 2)
+        assert logged[0] == ('steering +9.9000 rad for t = 0.01 s beyond '
+                             'plant.max_steering_angle 0.6 rad: applied as sent: the linear '
+                             'plant has no actuator (1 beyond)')
+        assert logged[1].startswith('steering nan rad for t = 0.02 s refused'), logged
+        assert len(logged) == 2                               # each kind throttled
+        assert '2 rejected commands, 2 beyond plant.max_steering_angle' in node.summary()
     finally:
         node.destroy_node()

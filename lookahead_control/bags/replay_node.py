@@ -33,8 +33,8 @@ from typing import Any, Optional, Sequence
 
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
-from lookahead_control.bags.run_data import (as_it_ran, CONTROLLER_NODE, load_run, rerun,
-                                             RunData)
+from lookahead_control.bags.run_data import (as_it_ran, CONTROLLER_NODE, load_run, Rerun,
+                                             rerun, RunData)
 from lookahead_control.core import interrupts
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
                                         ToolError, write_json)
@@ -104,14 +104,17 @@ def offline(args: argparse.Namespace) -> int:
         print(f'replay: the re-run answered none of the {len(run.inputs["lateral_error"])} '
               f'lateral errors: the bag has no {" and no ".join(missing)} messages (the '
               "controller's inputs; --topic ROLE=NAME remaps)")
-    joined = late_join(run)
+    joined, first_diff = late_join(run, result)
     report['answers_before_bag'] = joined
     if joined:
         # dev-probe93: a recorder started 3 s into a run re-ran 3.86 mrad apart, unsaid
-        print(f"replay: {run.controller_node} had answered {joined} times before the bag's "
-              'first lateral error (a recorder started after the run): the re-run starts '
-              'the law fresh there, the recorded one ran on (its integral, filter and '
-              'estimates had moved); the commands differ until those forget their start')
+        print(f"replay: the bag's first answer of {run.controller_node} was its answer "
+              f'{joined + 1}, and the re-run differs by up to {first_diff:.3g} rad over its '
+              f'first {START_ANSWERS} answers: the controller ran before the bag began (a '
+              'recorder started after it, a deactivation or a new configuration in '
+              'between); the re-run starts the law and the output limits fresh, the '
+              "recorded ones had run on (its integral, filter, estimates, the rate limit's "
+              'last angle)')
     if not run.controller_params:
         # a recorder that joined late, or not asked (--describe): the re-run is the
         # default controller, which is not what ran
@@ -212,25 +215,39 @@ def offline(args: argparse.Namespace) -> int:
     return 0
 
 
-def late_join(run: RunData) -> int:
-    """
-    Return how many answers the controller had sent before the bag's first input.
+#: the re-run's first answers in which a bag that begins after the controller's first
+#: answer is looked at for the controller's earlier state (1 s at 100 Hz)
+START_ANSWERS = 100
 
-    The recorded debug's first ``answers`` count, less the lateral errors of the bag
-    before it (a debug subscription that matched late is no late recorder).
+
+def late_join(run: RunData, rerun_result: Rerun) -> tuple[int, float]:
+    """
+    Return the recorded controller's answers before the bag's, if the re-run differs there.
+
+    The debug's first ``answers`` count says how many answers came before the bag's
+    first; they moved the controller's state only if the re-run differs over its first
+    :data:`START_ANSWERS` compared commands (a debug subscription matched late, its
+    inputs in the bag, re-runs equal there).
 
     :param run: the run.
-    :return: the answers without a recorded lateral error (0 without debug).
+    :param rerun_result: its re-run.
+    :return: ``(answers before the bag's first, largest |difference| of those commands)``;
+        ``(0, 0.0)`` when the bag starts with the first answer, has no debug count, or
+        the re-run is equal there.
     """
     answers = run.debug.values.get('answers')
-    if answers is None:
-        return 0
+    if answers is None or not np.isfinite(answers).any():
+        return 0, 0.0
     known = np.isfinite(answers)
-    if not known.any():
-        return 0
     first = int(np.argmin(np.where(known, run.debug.stamp_ns, np.iinfo(np.int64).max)))
-    before = int((run.inputs['lateral_error'].stamp_ns < run.debug.stamp_ns[first]).sum())
-    return max(int(answers[first]) - 1 - before, 0)
+    before = int(answers[first]) - 1
+    recorded = run.steering.by_stamp()
+    compared = sorted(stamp for stamp in rerun_result.commands if stamp in recorded)
+    if before < 1 or not compared:
+        return 0, 0.0
+    difference = max(abs(recorded[stamp]['angle'] - rerun_result.commands[stamp].steering)
+                     for stamp in compared[:START_ANSWERS])
+    return (before, difference) if difference > 0.0 else (0, 0.0)
 
 
 def qos_of(connection: Any) -> QoSProfile:

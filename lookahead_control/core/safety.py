@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 from lookahead_control.core.params import check_finite, check_range, ParameterError
 import numpy as np
@@ -210,6 +210,40 @@ def check_points(count: int, params: SafetyParams) -> Optional[str]:
         return (f'road_curvature: points = {count} > max_curvature_points '
                 f'{params.max_curvature_points}')
     return None
+
+
+def check_preview_points(distance: float, step: float, count: Callable[[float, float], int],
+                         limit: int) -> None:
+    """
+    Refuse a curvature preview of more points a message than ``limit``.
+
+    A publisher's ``preview_distance`` at ``preview_step`` each in range could give
+    10001 points a message, which the controller refuses past its
+    ``safety.max_curvature_points`` (dev-probe92: every polygon refused, unsaid).
+
+    :param distance: ``preview_distance`` [m].
+    :param step: ``preview_step`` [m].
+    :param count: the publisher's point count of a ``(distance, step)``.
+    :param limit: ``max_preview_points``.
+    :raises ParameterError: too many points; the message names the least step that fits
+        (rounded up, checked with ``count``).
+    """
+    points = count(distance, step)
+    if points <= limit:
+        return
+    fits = distance / (limit - 1) if limit > 1 else math.inf
+    if math.isfinite(fits):
+        scale = 10.0 ** (math.floor(math.log10(fits)) - 2)
+        fits = math.ceil(fits / scale) * scale
+        while count(distance, fits) > limit:
+            fits += scale
+    advice = (f'a preview_step of at least {fits:.3g} m or a shorter preview_distance'
+              if math.isfinite(fits) else 'preview_distance 0')
+    raise ParameterError(f'preview_distance = {distance:g} m at preview_step = {step:g} m '
+                         f'gives {points} curvature points a message, more than '
+                         f'max_preview_points = {limit} (the controller refuses a polygon '
+                         'longer than its safety.max_curvature_points, 256 by default; '
+                         f'raise both together): {advice}')
 
 
 def angle_limit(v_x: float, wheelbase: float, params: SafetyParams) -> float:

@@ -520,10 +520,15 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     sim_cmd, ctl_cmd = node_commands(cfg)
     processes: dict[str, subprocess.Popen] = {}
     why = ''
+    taken = False
     start = time.monotonic()
     try:
         # the recorder first: the simulator starts once it and the controller are matched
         if cfg.bag:
+            # main checked the place; another run may have taken it since (the recorder
+            # then refuses it): known here, as the recorder's exit code 2 is also that of
+            # a write failure mid-run, whose bag holds data (dev-probe94)
+            taken = cfg.bag.exists()
             processes['record'] = spawn(recorder_command(cfg.bag), env)
         processes['controller'] = spawn(ctl_cmd, env)
         if cfg.via_bridge:
@@ -552,9 +557,9 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     failed = {name: code for name, code in codes.items() if code != 0}
     if why or failed:
         detail = ', '.join(f'{name} exit code {code}' for name, code in failed.items())
-        # a recorder that refused its output (exit 2: another run took the bag between
-        # our check and its start, dev-probe93) recorded nothing of this run
-        refused = codes.get('record') == EXIT_USAGE
+        # a recorder that refused its output (another run took the bag after main's
+        # check, dev-probe93) recorded nothing of this run
+        refused = taken and codes.get('record') == EXIT_USAGE
         print(f'closed_loop: failed: {why or "a node failed"}'
               + (f' ({detail})' if detail else '')
               + (f'; record refused {cfg.bag} (its line above): nothing of this run was '

@@ -42,13 +42,19 @@ from rclpy.parameter import Parameter
 
 __all__ = ['baseline_params', 'BASELINE_SPECS', 'build', 'check_choices',
            'CONTROLLER_SPECS', 'declare', 'descriptor', 'EXECUTOR_SPEC', 'EXECUTORS',
-           'lane_keeping_params', 'LANE_KEEPING_SPECS', 'LAW_SPEC', 'SAFETY_SPECS',
+           'lane_keeping_params', 'LANE_KEEPING_SPECS', 'LAW_SPEC', 'MAX_PREVIEW_SPEC',
+           'SAFETY_SPECS',
            'safety_params', 'Spec', 'values', 'VEHICLE_SPECS', 'vehicle_and_controller']
 
 EXECUTORS = ('events', 'single_threaded')
 EXECUTOR_SPEC = Spec('executor', 'events', 'rclpy executor: events '
                      '(rclpy.experimental.EventsExecutor: lower latency, no loss at 1 kHz) '
                      'or single_threaded', choices=EXECUTORS)
+#: a curvature publisher's points a message at most (path_bridge, sim_plant)
+MAX_PREVIEW_SPEC = Spec('max_preview_points', 256, 'most road_curvature points a message '
+                        '(preview_distance / preview_step + 1): more is refused; the '
+                        "controller's safety.max_curvature_points must be as high",
+                        1, 100000)
 
 
 def descriptor(spec: Spec) -> ParameterDescriptor:

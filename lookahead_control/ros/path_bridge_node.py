@@ -39,13 +39,13 @@ from lookahead_control.core.params import ParameterError
 from lookahead_control.core.path_geometry import (cg_pose, PathError, PathFollower, PathParams,
                                                   preview_points, ReferencePath,
                                                   twist_in_parent_frame)
-from lookahead_control.core.safety import SafetyParams
+from lookahead_control.core.safety import check_preview_points, SafetyParams
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros import vehicle_conversions as vconv
 from lookahead_control.ros.controller_node import qos, writer_qos
 from lookahead_control.ros.node_main import run_node, Throttle
 from lookahead_control.ros.node_params import (build, check_choices, declare, EXECUTOR_SPEC,
-                                               Spec, values)
+                                               MAX_PREVIEW_SPEC, Spec, values)
 from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -80,6 +80,7 @@ NODE_SPECS = (
     Spec('preview_distance', 50.0, 'curvature preview published ahead of the CG [m]',
          0.0, 1000.0),
     Spec('preview_step', 5.0, 'spacing of the curvature preview points [m]', 0.1, 100.0),
+    MAX_PREVIEW_SPEC,
     Spec('use_imu', False, 'yaw rate and body acceleration from imu (else: yaw rate from '
          'the odometry twist, acceleration from its v_x differences)'),
     Spec('imu_timeout', 0.05, 'an imu message further than this from the odometry stamp '
@@ -98,8 +99,7 @@ NODE_SPECS = (
     EXECUTOR_SPEC,
 )
 ALL_SPECS = PATH_SPECS + NODE_SPECS
-#: the most curvature points a message: the controller's default max_curvature_points
-MAX_PREVIEW_POINTS = SafetyParams().max_curvature_points
+
 #: odometry further apart than this [ns] starts the differentiated dv_x/dt again (0 until
 #: the next pair)
 ACCEL_GAP_NS = 500_000_000
@@ -119,17 +119,10 @@ def check_parameters(params: Mapping[str, Any]) -> None:
     """
     check_choices(ALL_SPECS, params)
     build(PathParams, params, 'path')
-    distance, step = params['preview_distance'], params['preview_step']
-    points = preview_points(distance, step)
-    if points > MAX_PREVIEW_POINTS:
-        # dev-probe92: 1000 m at 0.1 m gave 10001 points a message: the controller refused
-        # every polygon (its max_curvature_points) and the bridge fell behind, unsaid
-        raise ParameterError(f'preview_distance = {distance:g} m at preview_step = '
-                             f'{step:g} m gives {points} curvature points a message; at '
-                             f'most {MAX_PREVIEW_POINTS} (the controller refuses a longer '
-                             'polygon at its default safety.max_curvature_points): a '
-                             f'preview_step of at least {distance / (MAX_PREVIEW_POINTS - 1):.3g}'
-                             ' m or a shorter preview_distance')
+    # dev-probe92: 1000 m at 0.1 m gave 10001 points a message: the controller refused
+    # every polygon (its max_curvature_points) and the bridge fell behind, unsaid
+    check_preview_points(params['preview_distance'], params['preview_step'], preview_points,
+                         params['max_preview_points'])
 
 
 class PathBridgeNode(LifecycleNode):

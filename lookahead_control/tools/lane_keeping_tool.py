@@ -52,7 +52,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                'law (V = x^T P(v) x, A_0^T P + P A_0 = -Q), and the sampled loop over '
                'plant mismatch, actuator lag and delay, with the law on exact states and on '
                'the estimate of the Kalman filter (lane_keeping.state_filter: kalman, the '
-               'default; the exit code counts the filtered check), and with the filter '
+               'default; the exit code counts the checks of the loop that runs: with '
+               'state_filter none the law on the measurements), and with the filter '
                'estimating the road curvature (no road_curvature received). The '
                'varying-speed certificate covers the law on exact states only; the sampled '
                'check covers the filter at frozen speeds', plot=False)
@@ -415,7 +416,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         write_json(args.json, {'certificate': cert._asdict(),
                                'q': q_used(cert.weight, knots, args, cert.v_min,
                                            lyapunov, p_source),
-                               'law_a_x_zero': zero,
+                               'law_a_x_zero': zero, 'verdict': verdict,
+                               'kalman_rows_counted': kalman,
                                'robust': robust._asdict(),
                                'robust_filtered': filtered._asdict(),
                                'robust_curvature_estimated': estimated._asdict(),
