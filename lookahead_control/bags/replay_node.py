@@ -236,9 +236,10 @@ def late_join(run: RunData, rerun_result: Rerun) -> tuple[int, float]:
         the re-run is equal there.
     """
     answers = run.debug.values.get('answers')
-    if answers is None or not np.isfinite(answers).any():
+    known = np.zeros(0, dtype=bool) if answers is None else np.isfinite(answers)
+    if not known.any():
         return 0, 0.0
-    known = np.isfinite(answers)
+    assert answers is not None
     first = int(np.argmin(np.where(known, run.debug.stamp_ns, np.iinfo(np.int64).max)))
     before = int(answers[first]) - 1
     recorded = run.steering.by_stamp()

@@ -43,8 +43,8 @@ from rclpy.parameter import Parameter
 __all__ = ['baseline_params', 'BASELINE_SPECS', 'build', 'check_choices',
            'CONTROLLER_SPECS', 'declare', 'descriptor', 'EXECUTOR_SPEC', 'EXECUTORS',
            'lane_keeping_params', 'LANE_KEEPING_SPECS', 'LAW_SPEC', 'MAX_PREVIEW_SPEC',
-           'SAFETY_SPECS',
-           'safety_params', 'Spec', 'values', 'VEHICLE_SPECS', 'vehicle_and_controller']
+           'SAFETY_SPECS', 'safety_params', 'Spec', 'values', 'VEHICLE_SPECS',
+           'vehicle_and_controller']
 
 EXECUTORS = ('events', 'single_threaded')
 EXECUTOR_SPEC = Spec('executor', 'events', 'rclpy executor: events '

@@ -99,7 +99,6 @@ NODE_SPECS = (
     EXECUTOR_SPEC,
 )
 ALL_SPECS = PATH_SPECS + NODE_SPECS
-
 #: odometry further apart than this [ns] starts the differentiated dv_x/dt again (0 until
 #: the next pair)
 ACCEL_GAP_NS = 500_000_000
