@@ -265,6 +265,8 @@ def test_replay_tells_a_controller_that_ran_before_the_bag():
     run.debug = Samples(stamp + 3_000_000, stamp, count.astype(np.int64),
                         {'answers': 342.0 + count})
     assert late_join(run, rerun_of(START_ANSWERS - 1)) == (341, pytest.approx(1e-3))
+    # a re-run with -p values differs by them (dev-probe95): not told as a late start
+    assert late_join(run, rerun_of(0), overridden=True) == (0, 0.0)
     # equal over the first answers (a fresh law: a new configuration, a late debug)
     assert late_join(run, rerun_of(START_ANSWERS)) == (0, 0.0)
     run.debug = Samples(run.debug.recv_ns, stamp, run.debug.order, {'answers': 1.0 + count})

@@ -349,3 +349,19 @@ def test_a_rerun_of_a_late_recording_moves_from_the_answer_it_holds():
                   controller_params=full.controller_params)
     result = rerun(run, order='stamp')
     assert result.compared > 50 and result.max_diff == 0.0
+
+
+def test_a_sqlite3_bag_is_named_not_called_corrupt(tmp_path):
+    # dev-probe95: a valid sqlite3 bag (rosbags' default storage) read as 'corrupt MCAP
+    # data: not an MCAP file (bad magic) (truncated? try recover ...)'
+    from rosbags.rosbag2 import StoragePlugin, Writer as RosbagsWriter
+    store = typestore()
+    bag = tmp_path / 'sqlite_bag'
+    with RosbagsWriter(bag, version=9, storage_plugin=StoragePlugin.SQLITE3) as writer:
+        topic = writer.add_connection('/lateral_error', 'geometry_msgs/msg/PointStamped',
+                                      typestore=store)
+        writer.write(topic, 1, serialize_cdr(conv.to_lateral_error(0, 'b', 0.0, 0.1), store))
+    with pytest.raises(BagError, match='a sqlite3 bag; these tools read MCAP bags'):
+        mcap_columns.mcap_files(bag)
+    with pytest.raises(ConfigError, match='a sqlite3 bag'):
+        load_run(bag)

@@ -853,8 +853,8 @@ def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys, 
     (taken / 'theirs.txt').write_text('the other run')
     assert run_loop(LoopConfig(scenario, speed=30.0, bag=taken)) == 1
     said = capsys.readouterr().err
-    assert f'record refused {taken} (its line above): nothing of this run was recorded' \
-        in said, said
+    assert (f'record refused {taken} (it was there before the recorder started): nothing '
+            'of this run was recorded') in said, said
     assert 'holds what was recorded' not in said
     assert sorted(p.name for p in taken.iterdir()) == ['theirs.txt']
     # dev-probe94: a recorder that fails mid-run (a full disk) exits 2 as well, and its
@@ -866,8 +866,18 @@ def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys, 
         "print('record: write failed', file=sys.stderr); sys.exit(2)"])
     assert run_loop(LoopConfig(scenario, speed=30.0, bag=failing)) == 1
     said = capsys.readouterr().err
-    assert f'the bag {failing} holds what was recorded until then' in said, said
+    assert (f"{failing} holds what this run's recorder wrote, if it started (record exit "
+            'code 2: a refused output or a write failure') in said, said
+    assert f'(no metadata.yaml: run recover {failing})' in said
     assert 'nothing of this run' not in said
+
+
+def test_closed_loop_waits_for_the_simulator_longer_than_it_waits_for_acknowledgements():
+    # dev-probe95: a recorder killed mid-run never acknowledges; sim_plant waited its 10 s
+    # for it and closed_loop killed it at the same 10 s ('ignored SIGTERM', exit 1)
+    from lookahead_control.ros.closed_loop import SIM_STOP_GRACE
+    from sim_plant.sim_plant_node import ACK_TIMEOUT
+    assert SIM_STOP_GRACE >= ACK_TIMEOUT + 2.0
 
 
 def test_the_default_bag_name_has_the_speed_of_the_run():

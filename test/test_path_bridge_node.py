@@ -443,7 +443,9 @@ def test_a_preview_longer_than_the_controller_takes_is_refused(bridge):
     assert not refused.successful
     assert ('preview_distance = 50 m at preview_step = 0.1 m gives 501 curvature points a '
             'message, more than max_preview_points = 256') in refused.reason, refused.reason
-    assert 'a preview_step of at least 0.197 m' in refused.reason    # 50 / 255 rounded up
+    # the least step that fits (50 / 256, up to 4 digits) and the longest distance
+    assert ('a preview_step of at least 0.1954 m or a preview_distance of at most 25.5 m'
+            in refused.reason)
     assert node.set_parameters([Parameter('preview_distance', value=25.5),
                                 Parameter('preview_step', value=0.1)])[0].successful
     node.on_path(road_path())
@@ -455,15 +457,33 @@ def test_a_preview_longer_than_the_controller_takes_is_refused(bridge):
                                 Parameter('preview_distance', value=50.0)])[0].successful
     node.on_odometry(odometry(2, 20.2))
     assert len(contract(node)['road_curvature'].ahead) == 501
-    # the least step named always fits (rounded up: 32 m at 0.1 m said 0.125, 257 points)
+    # what the refusal names fits, as printed, and is the least step (to 0.1 %) within
+    # the step's range (dev-probe94/95: 32 m at 0.1 m said 0.125, 257 points; 1000 m
+    # said 3.93 where 3.91 fits; 1000 m with 2 points said 1e+03, beyond 100 m)
     from lookahead_control.core.params import ParameterError
     from lookahead_control.core.path_geometry import preview_points
     from lookahead_control.core.safety import check_preview_points
-    for distance in np.arange(25.6, 1000.0, 0.1):
-        with pytest.raises(ParameterError) as refusal:
-            check_preview_points(float(distance), 0.1, preview_points, 256)
-        least = float(str(refusal.value).split('at least ')[1].split(' m')[0])
-        assert preview_points(float(distance), least) <= 256, refusal.value
+    from sim_plant.closed_loop_sim import preview_distances
+    rng = np.random.default_rng(95)
+    for count in (preview_points, lambda d, s: len(preview_distances(d, s))):
+        for _ in range(3000):
+            distance = float(np.round(rng.uniform(0.0, 1000.0), int(rng.integers(0, 3))))
+            step = max(float(np.round(rng.uniform(0.1, 100.0), int(rng.integers(0, 3)))), 0.1)
+            limit = int(rng.choice([1, 2, 3, 10, 256, 100000]))
+            if count(distance, step) <= limit:
+                check_preview_points(distance, step, count, limit)
+                continue
+            with pytest.raises(ParameterError) as refusal:
+                check_preview_points(distance, step, count, limit)
+            said = str(refusal.value)
+            longest = float(said.split('at most ')[1].split(' m')[0])
+            assert count(longest, step) <= limit, said
+            if 'at least ' in said:
+                least = float(said.split('at least ')[1].split(' m')[0])
+                assert least <= 100.0 and count(distance, least) <= limit, said
+                assert count(distance, least * 0.999) > limit, said
+            else:
+                assert count(distance, 100.0) > limit, said
 
 
 # -- sim_plant speaks like a vehicle ----------------------------------------------------------

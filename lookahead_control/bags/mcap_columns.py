@@ -102,14 +102,22 @@ def mcap_files(path: Path) -> list[Path]:
     if path.is_file():
         return [path]
     listed: list[str] = []
+    storage = 'mcap'
     meta = path / 'metadata.yaml'
     try:
         if meta.is_file():
             info = (yaml.safe_load(meta.read_text()) or {}).get(
                 'rosbag2_bagfile_information', {}) or {}
             listed = [str(name) for name in info.get('relative_file_paths') or []]
+            storage = info.get('storage_identifier', 'mcap')
     except (OSError, yaml.YAMLError) as err:
         raise BagError(f'{meta}: unreadable: {err}') from err
+    if listed and storage != 'mcap':
+        # dev-probe95: a sqlite3 bag was 'corrupt MCAP data: bad magic (truncated? try
+        # recover)'
+        raise BagError(f'{path}: a {storage} bag; these tools read MCAP bags (rosbag2 '
+                       "with storage 'mcap', as record writes them): convert it with "
+                       '`ros2 bag convert`')
     files = [path / name for name in listed] or sorted(path.glob('*.mcap'))
     if not files or not all(f.is_file() for f in files):
         raise BagError(f'{path}: no .mcap file (expected {listed or "*.mcap"})')

@@ -104,7 +104,7 @@ def offline(args: argparse.Namespace) -> int:
         print(f'replay: the re-run answered none of the {len(run.inputs["lateral_error"])} '
               f'lateral errors: the bag has no {" and no ".join(missing)} messages (the '
               "controller's inputs; --topic ROLE=NAME remaps)")
-    joined, first_diff = late_join(run, result)
+    joined, first_diff = late_join(run, result, bool(overrides))
     report['answers_before_bag'] = joined
     if joined:
         # dev-probe93: a recorder started 3 s into a run re-ran 3.86 mrad apart, unsaid
@@ -220,7 +220,8 @@ def offline(args: argparse.Namespace) -> int:
 START_ANSWERS = 100
 
 
-def late_join(run: RunData, rerun_result: Rerun) -> tuple[int, float]:
+def late_join(run: RunData, rerun_result: Rerun, overridden: bool = False
+              ) -> tuple[int, float]:
     """
     Return the recorded controller's answers before the bag's, if the re-run differs there.
 
@@ -231,10 +232,14 @@ def late_join(run: RunData, rerun_result: Rerun) -> tuple[int, float]:
 
     :param run: the run.
     :param rerun_result: its re-run.
+    :param overridden: the re-run has ``-p`` values: it differs by them (dev-probe95: a
+        late debug subscription and ``-p vehicle.mass=2500`` were taken for a late start).
     :return: ``(answers before the bag's first, largest |difference| of those commands)``;
-        ``(0, 0.0)`` when the bag starts with the first answer, has no debug count, or
-        the re-run is equal there.
+        ``(0, 0.0)`` when the bag starts with the first answer, has no debug count, the
+        re-run is equal there, or ``overridden``.
     """
+    if overridden:
+        return 0, 0.0
     answers = run.debug.values.get('answers')
     known = np.zeros(0, dtype=bool) if answers is None else np.isfinite(answers)
     if not known.any():

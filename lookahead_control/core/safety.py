@@ -213,7 +213,7 @@ def check_points(count: int, params: SafetyParams) -> Optional[str]:
 
 
 def check_preview_points(distance: float, step: float, count: Callable[[float, float], int],
-                         limit: int) -> None:
+                         limit: int, max_step: float = 100.0) -> None:
     """
     Refuse a curvature preview of more points a message than ``limit``.
 
@@ -225,25 +225,43 @@ def check_preview_points(distance: float, step: float, count: Callable[[float, f
     :param step: ``preview_step`` [m].
     :param count: the publisher's point count of a ``(distance, step)``.
     :param limit: ``max_preview_points``.
+    :param max_step: the largest ``preview_step`` the publisher takes [m].
     :raises ParameterError: too many points; the message names the least step that fits
-        (rounded up, checked with ``count``).
+        (4 significant digits, rounded up, checked with ``count``; if within
+        ``max_step``) and the longest distance at this step.
     """
     points = count(distance, step)
     if points <= limit:
         return
-    fits = distance / (limit - 1) if limit > 1 else math.inf
-    if math.isfinite(fits):
-        scale = 10.0 ** (math.floor(math.log10(fits)) - 2)
-        fits = math.ceil(fits / scale) * scale
-        while count(distance, fits) > limit:
-            fits += scale
-    advice = (f'a preview_step of at least {fits:.3g} m or a shorter preview_distance'
-              if math.isfinite(fits) else 'preview_distance 0')
+    # int(d / s) + 1 <= L for s > d / L: up from there, and (L - 1) s down, in the
+    # 4 digits printed, each checked as printed
+    least = _digits(distance / limit, math.ceil)
+    while count(distance, least) > limit:
+        least = _digits(least * (1.0 + 1e-4), math.ceil)
+    longest = _digits((limit - 1) * step, math.floor)
+    while count(longest, step) > limit:
+        longest = _digits(longest * (1.0 - 1e-4), math.floor)
+    advice = (f'a preview_step of at least {least:g} m or ' if least <= max_step else '')
     raise ParameterError(f'preview_distance = {distance:g} m at preview_step = {step:g} m '
                          f'gives {points} curvature points a message, more than '
                          f'max_preview_points = {limit} (the controller refuses a polygon '
                          'longer than its safety.max_curvature_points, 256 by default; '
-                         f'raise both together): {advice}')
+                         f'raise both together): {advice}a preview_distance of at most '
+                         f'{longest:g} m')
+
+
+def _digits(value: float, rounding: Callable[[float], int]) -> float:
+    """
+    Return ``value`` rounded to 4 significant digits by ``rounding`` (ceil or floor).
+
+    :param value: a positive number, or 0.
+    :param rounding: ``math.ceil`` or ``math.floor``.
+    :return: the rounded value (0 for 0).
+    """
+    if value <= 0.0:
+        return 0.0
+    scale = 10.0 ** (math.floor(math.log10(value)) - 3)
+    return float(f'{rounding(value / scale) * scale:.4g}')
 
 
 def angle_limit(v_x: float, wheelbase: float, params: SafetyParams) -> float:

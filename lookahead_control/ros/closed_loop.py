@@ -466,7 +466,15 @@ def spawn(command: list[str], env: Optional[dict[str, str]] = None) -> subproces
     return subprocess.Popen(command, env=env, preexec_fn=_child_setup)
 
 
-def stop(process: subprocess.Popen, name: str, grace: float = 10.0) -> int:
+#: [s] a node's time to end after SIGTERM before it is killed
+NODE_STOP_GRACE = 10.0
+#: [s] the simulator's: beyond its wait for its subscribers' acknowledgements (10 s,
+#: sim_plant_node.ACK_TIMEOUT), which a recorder killed mid-run never sends (dev-probe95:
+#: 'sim_plant ignored SIGTERM for 10 s: killed', exit code 1, while it was waiting)
+SIM_STOP_GRACE = 15.0
+
+
+def stop(process: subprocess.Popen, name: str, grace: float = NODE_STOP_GRACE) -> int:
     """
     Stop a node with SIGTERM (then SIGKILL after ``grace`` seconds).
 
@@ -551,23 +559,52 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
         with deferred():
             # the simulator first (it drives the loop), the bridge right after it (it
             # reports silent odometry after 0.5 s), the recorder last
-            codes = {name: stop(processes[name], name)
+            codes = {name: stop(processes[name], name,
+                                SIM_STOP_GRACE if name == 'sim_plant' else NODE_STOP_GRACE)
                      for name in ('sim_plant', 'path_bridge', 'controller', 'record')
                      if name in processes}
     failed = {name: code for name, code in codes.items() if code != 0}
     if why or failed:
         detail = ', '.join(f'{name} exit code {code}' for name, code in failed.items())
-        # a recorder that refused its output (another run took the bag after main's
-        # check, dev-probe93) recorded nothing of this run
-        refused = taken and codes.get('record') == EXIT_USAGE
         print(f'closed_loop: failed: {why or "a node failed"}'
-              + (f' ({detail})' if detail else '')
-              + (f'; record refused {cfg.bag} (its line above): nothing of this run was '
-                 'recorded' if refused else
-                 f'; the bag {cfg.bag} holds what was recorded until then'
-                 if cfg.bag and cfg.bag.is_dir() else ''), file=sys.stderr)
+              + (f' ({detail})' if detail else '') + bag_note(cfg.bag, taken,
+                                                              codes.get('record')),
+              file=sys.stderr)
         return 1
     return 0
+
+
+def bag_note(bag: Optional[Path], taken: bool, code: Optional[int]) -> str:
+    """
+    Return what a failed run's bag holds, for its failure line.
+
+    :param bag: the run's bag (None: not recorded).
+    :param taken: the bag was there before the recorder started (another run took it
+        after main's check: the recorder refuses it).
+    :param code: the recorder's exit code (None: not started).
+    :return: ``'; ...'`` or ''.
+    """
+    if bag is None:
+        return ''
+    if taken and code == EXIT_USAGE:
+        # dev-probe93: the other run's complete bag was called this run's
+        return (f'; record refused {bag} (it was there before the recorder started): '
+                'nothing of this run was recorded')
+    if not bag.is_dir():
+        return ''
+    if code == EXIT_USAGE:
+        # a refusal (the bag taken while the recorder started) or a write failure (a
+        # full disk): exit 2 both (dev-probe94, dev-probe95); its line says which
+        return (f"; {bag} holds what this run's recorder wrote, if it started (record "
+                'exit code 2: a refused output or a write failure, its line above says '
+                'which)' + _recover_hint(bag))
+    return f'; the bag {bag} holds what was recorded until then' + _recover_hint(bag)
+
+
+def _recover_hint(bag: Path) -> str:
+    """Return the advice to recover a bag without ``metadata.yaml`` ('' with it)."""
+    # a recorder killed with SIGKILL leaves no metadata.yaml (dev-probe95)
+    return '' if (bag / 'metadata.yaml').exists() else f' (no metadata.yaml: run recover {bag})'
 
 
 def default_bag(scenario: Path, schedule: str, speed: float, tag: str = '') -> Path:
