@@ -535,7 +535,7 @@ class SimPlantNode(Node):
         return f', {refused} commands refused meanwhile' if refused else ''
 
     def summary(self) -> str:
-        """Return the run's counts: steps, missed deadlines, refused / clipped / late."""
+        """Return the run's counts: steps, missed deadlines, refused, beyond the limit, late."""
         wall = time.monotonic() - self.started_at if self.started_at else 0.0
         return (f'{self.k} steps, {self.missed} missed deadlines, {self.rejected} rejected '
                 f'commands, {self.beyond} beyond plant.max_steering_angle, {self.late} '

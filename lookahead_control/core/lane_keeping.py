@@ -776,16 +776,15 @@ def read_polygon(polygon: Optional[Polygon], ahead: Real, rho: Real,
     :param rho_slope: its slope d rho / ds, the fallback [1/m^2].
     :return: ``(rho_ahead [1/m], d rho / ds there [1/m^2])``.
     """
-    usable = None if polygon is None else polygon.usable
-    if polygon is not None and usable is None:
-        return _read_inside(polygon, ahead, rho)
     # without the polygon (or a run's column): the curvature at the CG along its slope
-    fallback = (rho + rho_slope * ahead, rho_slope + 0.0 * ahead)
-    if polygon is None or usable is None:
-        return fallback
+    if polygon is None:
+        return rho + rho_slope * ahead, rho_slope + 0.0 * ahead
     value, slope = _read_inside(polygon, ahead, rho)
-    return (_like(np.where(usable, value, fallback[0]), ahead, rho),
-            _like(np.where(usable, slope, fallback[1]), ahead, rho))
+    usable = polygon.usable
+    if usable is None:
+        return value, slope
+    return (_like(np.where(usable, value, rho + rho_slope * ahead), ahead, rho),
+            _like(np.where(usable, slope, rho_slope + 0.0 * ahead), ahead, rho))
 
 
 def _read_inside(polygon: Polygon, ahead: Real, rho: Real) -> tuple[Real, Real]:

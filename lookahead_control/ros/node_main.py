@@ -220,13 +220,18 @@ def guard_clock(node: Node) -> int:
         callback = subscription.callback
         if getattr(callback, '__func__', None) is not TimeSource.clock_callback:
             continue
+        # this module's Throttle, not rclpy's throttle_duration_sec: a flood of bad
+        # /clock messages would pay its frame inspection on each
+        said = Throttle(5.0)
 
-        def checked(msg: Any, take: Callable[[Any], None] = callback) -> None:
+        def checked(msg: Any, take: Callable[[Any], None] = callback,
+                    said: Throttle = said) -> None:
             if msg.clock.sec < 0:
-                node.get_logger().error(
-                    f'/clock message with a negative time dropped (sec {msg.clock.sec}, '
-                    f'nanosec {msg.clock.nanosec}): the clock keeps its last time',
-                    throttle_duration_sec=5.0)
+                if said.ready():
+                    node.get_logger().error(
+                        f'/clock message with a negative time dropped (sec '
+                        f'{msg.clock.sec}, nanosec {msg.clock.nanosec}): the clock keeps its '
+                        'last time')
                 return
             take(msg)
         subscription.callback = checked
