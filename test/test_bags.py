@@ -853,8 +853,8 @@ def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys, 
     (taken / 'theirs.txt').write_text('the other run')
     assert run_loop(LoopConfig(scenario, speed=30.0, bag=taken)) == 1
     said = capsys.readouterr().err
-    assert (f'record refused {taken} (it was there before the recorder started): nothing '
-            'of this run was recorded') in said, said
+    assert (f'record refused {taken} (another run made it after the check): nothing of '
+            'this run was recorded') in said, said
     assert 'holds what was recorded' not in said
     assert sorted(p.name for p in taken.iterdir()) == ['theirs.txt']
     # dev-probe94: a recorder that fails mid-run (a full disk) exits 2 as well, and its
@@ -866,10 +866,46 @@ def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys, 
         "print('record: write failed', file=sys.stderr); sys.exit(2)"])
     assert run_loop(LoopConfig(scenario, speed=30.0, bag=failing)) == 1
     said = capsys.readouterr().err
-    assert (f"{failing} holds what this run's recorder wrote, if it started (record exit "
-            'code 2: a refused output or a write failure') in said, said
+    assert (f"{failing} holds what this run's recorder wrote before it failed (record exit "
+            'code 2: its line above says why)') in said, said
     assert f'(no metadata.yaml: run recover {failing})' in said
     assert 'nothing of this run' not in said
+    # dev-probe95: the place taken while the recorder started (not there when closed_loop
+    # started it, there when it opened its bag) was left to the recorder's line; record
+    # exits 3 for an output that exists, 2 for a write failure: the refusal is said
+    raced = tmp_path / 'raced'
+    monkeypatch.setattr(closed_loop, 'recorder_command', lambda bag: [
+        sys.executable, '-c', f'import os, sys, time; time.sleep(0.3); os.mkdir({str(bag)!r}); '
+        "print('record: error: exists', file=sys.stderr); sys.exit(3)"])
+    assert run_loop(LoopConfig(scenario, speed=30.0, bag=raced)) == 1
+    said = capsys.readouterr().err
+    assert (f'record refused {raced} (another run made it after the check): nothing of this '
+            'run was recorded') in said, said
+    assert 'holds' not in said
+
+
+def test_record_refuses_an_output_that_exists_with_its_own_exit_code(tmp_path, monkeypatch):
+    # exit 3, not 2 (a write failure mid-run is 2): closed_loop tells the two apart
+    from lookahead_control.bags import rosbag_io
+    from lookahead_control.core.cli import EXIT_OUTPUT_EXISTS, run_tool
+    taken = tmp_path / 'taken'
+    taken.mkdir()
+    with pytest.raises(rosbag_io.BagExistsError, match='exists: a bag is never written over'):
+        rosbag_io.BagWriter(taken)
+    (tmp_path / 'file').write_text('theirs')
+    with pytest.raises(rosbag_io.BagExistsError):
+        rosbag_io.BagWriter(tmp_path / 'file')
+    # made by another process between the check and the writer's own mkdir
+    monkeypatch.setattr(rosbag_io.os.path, 'lexists', lambda path: False)
+    with pytest.raises(rosbag_io.BagExistsError) as raised:
+        rosbag_io.BagWriter(taken)
+    assert raised.value.exit_code == EXIT_OUTPUT_EXISTS == 3
+
+    def refuse(argv):
+        raise rosbag_io.BagExistsError('taken')
+    assert run_tool(refuse, []) == EXIT_OUTPUT_EXISTS
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['file', 'taken']
+    assert list(taken.iterdir()) == []
 
 
 def test_closed_loop_waits_for_the_simulator_longer_than_it_waits_for_acknowledgements():

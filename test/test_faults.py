@@ -133,6 +133,20 @@ def _drop_root_file_override():
             raise OSError(ctypes.get_errno(), 'prctl(PR_CAPBSET_DROP)')
 
 
+def test_record_given_an_output_that_exists_exits_3_and_leaves_it(tmp_path):
+    # 3, not 2 as a write failure mid-run: closed_loop tells a bag another run took
+    theirs = tmp_path / 'theirs'
+    theirs.mkdir()
+    (theirs / 'data.mcap').write_bytes(b'theirs')
+    for output in (theirs, theirs / 'data.mcap'):
+        out = _run('record', '/talk', '-o', output)
+        assert out.returncode == 3, out.stderr
+        assert out.stderr.strip() == (f'record: error: {output}: exists: a bag is never '
+                                      'written over (choose another output)'), out.stderr
+    assert [p.name for p in theirs.iterdir()] == ['data.mcap']
+    assert (theirs / 'data.mcap').read_bytes() == b'theirs'
+
+
 def test_unwritable_bags_dir_is_one_line_and_records_nothing(tmp_path):
     bags = tmp_path / 'bags'
     bags.mkdir()

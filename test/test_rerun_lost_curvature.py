@@ -626,6 +626,30 @@ def test_answers_lost_next_to_a_deactivation():
     assert again.inactive_skipped == 21 and again.inactive_lost == 1
 
 
+def test_a_bag_begun_while_the_node_was_deactivated_lost_no_answers():
+    # dev-probe94 (lj4): a recorder started while the node was deactivated, after its
+    # first answers: the bag's first answer counts them, and the lateral errors before
+    # it came while inactive; replay said "the bag lost 284 answers next to a
+    # deactivation" of answers given before the bag began
+    from lookahead_control.bags.replay_node import late_join
+    rows, commands, columns, _ = _deactivated('cg_compensated', range(100, 150))
+    begun = 120 * PERIOD_NS                     # the recorder's start, while inactive
+    late_rows = {role: [row for row in samples if row.stamp_ns >= begun]
+                 for role, samples in rows.items()}
+    kept = {s: c for s, c in commands.items() if s >= begun}
+    bag = _bag(late_rows, kept, {name: {s: v for s, v in column.items() if s >= begun}
+                                 for name, column in columns.items()},
+               {'law': 'cg_compensated'})
+    assert columns['answers'][min(kept)] == 100.0       # 99 answers before the bag
+    result = rerun(bag, order='stamp')
+    assert result.inactive_skipped == 30 and result.inactive_lost == 0
+    assert result.compared == len(kept)
+    # the re-run starts the law fresh where the node restarted its own (a time jump):
+    # what differs is told as a late start, with the answers before the bag
+    joined, first_diff = late_join(bag, result)
+    assert joined == 99 and first_diff == result.max_diff > 0.0, (joined, first_diff)
+
+
 def _paper_run(steps):
     """Return the inputs of a curve and the paper law's answers as the node gave them."""
     rows = _inputs(steps, math.inf)

@@ -42,6 +42,7 @@ import tempfile
 import time
 from typing import Any, Callable, Iterator, Mapping, NamedTuple, Optional, Sequence
 
+from lookahead_control.core.cli import EXIT_OUTPUT_EXISTS
 from lookahead_control.core.config import ConfigError
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.interfaces import (Connection, Qos, QosDurability, QosHistory, QosLiveliness,
@@ -65,6 +66,12 @@ RECORDER_KEY = KEY_PREFIX + 'recorder'
 
 class BagError(ConfigError):
     """A bag that cannot be written or read; the message names the bag."""
+
+
+class BagExistsError(BagError):
+    """An output bag directory that exists: a bag is never written over."""
+
+    exit_code = EXIT_OUTPUT_EXISTS
 
 
 def typestore() -> Typestore:
@@ -145,17 +152,24 @@ class BagWriter:
         :param path: the bag directory; must not exist, its parent must be writable.
         :param chunk_interval: longest time a message waits in memory [s].
         :param chunk_bytes: largest chunk kept in memory [bytes].
-        :raises BagError: the directory exists or cannot be created.
+        :raises BagExistsError: the directory exists (or a file, or a link by that name).
+        :raises BagError: it cannot be created.
         """
         self.path = Path(path)
         self.chunk_interval = chunk_interval
         self.chunk_bytes = chunk_bytes
         self.store = typestore()
+        taken = f'{self.path}: exists: a bag is never written over (choose another output)'
+        if os.path.lexists(self.path):
+            raise BagExistsError(taken)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self.writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
             self.writer.open()
         except (WriterError, OSError) as err:
+            if isinstance(err, WriterError) and 'exists already' in str(err):
+                # made by another process since the check (the writer's own mkdir)
+                raise BagExistsError(taken) from err
             raise BagError(f'{self.path}: cannot create bag: {err}') from err
         self.connections: dict[str, Connection] = {}
         self.custom: dict[str, str] = {}

@@ -871,7 +871,8 @@ def inactive_inputs(run: RunData, counter: str = 'activations'
     was deactivated before it answered; dev-probe52: 4 mrad). An answer whose steering
     the recorder lost but whose debug it has was given. The debug's ``answers`` (the
     law's answers so far) tells how many answers of such a stretch the recorder lost:
-    those inputs were answered, but which of them the bag does not say (counted).
+    those inputs were answered, but which of them the bag does not say (counted; not
+    before the bag's first answer, whose count also holds the answers before the bag).
 
     With ``counter='coalesced'`` the same for the lateral errors the node took in and
     left for a newer one under its answer-rate bound (event mode on the wall clock:
@@ -906,8 +907,13 @@ def inactive_inputs(run: RunData, counter: str = 'activations'
             gaps.add(at)
     lost = 0
     for at in gaps:
+        if not at:
+            # before the bag's first answer its count tells answers given before the
+            # bag began (a recorder started while the node was deactivated: dev-probe94,
+            # "lost 284 answers"), not lost by it; replay's late_join tells those
+            continue
         number = marked[answered[at]][1]
-        earlier = marked[answered[at - 1]][1] if at else 0.0
+        earlier = marked[answered[at - 1]][1]
         if math.isfinite(number) and math.isfinite(earlier):
             lost += max(0, int(number - earlier) - 1)
     return frozenset(out), lost

@@ -30,6 +30,10 @@ from lookahead_control.core.interrupts import exit_code, install, raise_if_recei
 from lookahead_control.core.params import ParameterError
 
 EXIT_USAGE = 2
+#: ``record`` refusing an output that exists: not 2, which is also a write failure
+#: mid-run, so that ``closed_loop`` tells a bag another run took (nothing of this run in
+#: it) from one that holds what its recorder wrote
+EXIT_OUTPUT_EXISTS = 3
 EXIT_BROKEN_PIPE = 128 + 13     # as a shell reports a process ended by SIGPIPE
 
 
@@ -89,7 +93,7 @@ def run_tool(main: Callable[[Sequence[str] | None], int],
         return EXIT_BROKEN_PIPE
     except (ConfigError, ParameterError, ToolError, ValueError) as err:
         print(f'{prog}: error: {one_line(str(err))}', file=sys.stderr)
-        return EXIT_USAGE
+        return err.exit_code if isinstance(err, ConfigError) else EXIT_USAGE
     except OSError as err:
         where = f'{err.filename}: ' if err.filename else ''
         print(f'{prog}: error: {where}{err.strerror or err}', file=sys.stderr)

@@ -59,6 +59,9 @@ SPECS_BY_NAMESPACE = {'vehicle': VEHICLE_SPECS, 'controller': CONTROLLER_SPECS,
 class ConfigError(ValueError):
     """A configuration file that is missing, malformed or holds bad values."""
 
+    #: the exit code of a tool or node that stops on it (bad usage, as argparse's)
+    exit_code = 2
+
 
 def source_config_dir() -> Path:
     """Return the ``config/`` folder of the source tree (or of the installed share)."""

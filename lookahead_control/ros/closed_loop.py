@@ -37,7 +37,8 @@ import sys
 import time
 from typing import Any, Optional, Sequence
 
-from lookahead_control.core.cli import ArgumentParser, EXIT_USAGE, number, run_tool, ToolError
+from lookahead_control.core.cli import (ArgumentParser, EXIT_OUTPUT_EXISTS, EXIT_USAGE, number,
+                                        run_tool, ToolError)
 from lookahead_control.core.config import source_config_dir
 from lookahead_control.core.controller import LAW_NAMES
 from lookahead_control.core.interrupts import deferred
@@ -528,15 +529,12 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     sim_cmd, ctl_cmd = node_commands(cfg)
     processes: dict[str, subprocess.Popen] = {}
     why = ''
-    taken = False
     start = time.monotonic()
     try:
         # the recorder first: the simulator starts once it and the controller are matched
         if cfg.bag:
-            # main checked the place; another run may have taken it since (the recorder
-            # then refuses it): known here, as the recorder's exit code 2 is also that of
-            # a write failure mid-run, whose bag holds data (dev-probe94)
-            taken = cfg.bag.exists()
+            # main checked the place; another run may take it since (the recorder then
+            # refuses it, exit code 3: bag_note)
             processes['record'] = spawn(recorder_command(cfg.bag), env)
         processes['controller'] = spawn(ctl_cmd, env)
         if cfg.via_bridge:
@@ -567,37 +565,33 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     if why or failed:
         detail = ', '.join(f'{name} exit code {code}' for name, code in failed.items())
         print(f'closed_loop: failed: {why or "a node failed"}'
-              + (f' ({detail})' if detail else '') + bag_note(cfg.bag, taken,
-                                                              codes.get('record')),
+              + (f' ({detail})' if detail else '') + bag_note(cfg.bag, codes.get('record')),
               file=sys.stderr)
         return 1
     return 0
 
 
-def bag_note(bag: Optional[Path], taken: bool, code: Optional[int]) -> str:
+def bag_note(bag: Optional[Path], code: Optional[int]) -> str:
     """
     Return what a failed run's bag holds, for its failure line.
 
     :param bag: the run's bag (None: not recorded).
-    :param taken: the bag was there before the recorder started (another run took it
-        after main's check: the recorder refuses it).
     :param code: the recorder's exit code (None: not started).
     :return: ``'; ...'`` or ''.
     """
     if bag is None:
         return ''
-    if taken and code == EXIT_USAGE:
-        # dev-probe93: the other run's complete bag was called this run's
-        return (f'; record refused {bag} (it was there before the recorder started): '
-                'nothing of this run was recorded')
+    if code == EXIT_OUTPUT_EXISTS:
+        # another run took the place after main's check, before or while the recorder
+        # started (dev-probe93, dev-probe95): its bag was called this run's
+        return (f'; record refused {bag} (another run made it after the check): nothing '
+                'of this run was recorded')
     if not bag.is_dir():
         return ''
     if code == EXIT_USAGE:
-        # a refusal (the bag taken while the recorder started) or a write failure (a
-        # full disk): exit 2 both (dev-probe94, dev-probe95); its line says which
-        return (f"; {bag} holds what this run's recorder wrote, if it started (record "
-                'exit code 2: a refused output or a write failure, its line above says '
-                'which)' + _recover_hint(bag))
+        # a write failure mid-run (a full disk): its bag holds data (dev-probe94)
+        return (f"; {bag} holds what this run's recorder wrote before it failed (record "
+                'exit code 2: its line above says why)' + _recover_hint(bag))
     return f'; the bag {bag} holds what was recorded until then' + _recover_hint(bag)
 
 

@@ -707,7 +707,8 @@ def _run(name: str, args: Optional[list[str]], make: Callable[[], N],
             raise
     except (ConfigError, ParameterError) as err:
         print(f'{name}: error: {one_line(str(err))}', file=sys.stderr)
-        return 2
+        # 3 for a recorder's output that exists (BagExistsError), else 2
+        return err.exit_code if isinstance(err, ConfigError) else 2
     except (InvalidParameterTypeException, InvalidParameterValueException) as err:
         # a parameter override out of its descriptor's range or of the wrong type
         reason = parameter_reason(err)
