@@ -564,6 +564,24 @@ def test_a_gap_in_every_input_is_named(tmp_path):
         assert f'{role} (arrival) 0.51 s at t = 4.99 s' in row['notes']
 
 
+def test_a_gap_before_the_first_lateral_error_is_said_to_be_before_it(tmp_path):
+    # dev-probe93: t is measured from the first lateral error; a gap of another input
+    # before it read 't = -1.51 s' without a word
+    _synthetic_bag(tmp_path / 'early', steps=600, skip=range(50, 100))
+    run = load_run(tmp_path / 'early')
+    lateral = run.inputs['lateral_error']
+    late = lateral.stamp_ns >= 200 * 10_000_000            # its first 2 s not recorded
+    run.inputs['lateral_error'] = Samples(
+        lateral.recv_ns[late], lateral.stamp_ns[late], lateral.order[late],
+        {name: column[late] for name, column in lateral.values.items()})
+    row = bag_row(run, run_series(run))
+    assert 'yaw (stamps) 0.51 s at t = -1.51 s (before the first lateral error)' in row['notes']
+    assert 'lateral_error' not in row['notes'].partition('gaps: ')[2]
+    _synthetic_bag(tmp_path / 'inside', steps=600, skip=range(300, 350))
+    inside = load_run(tmp_path / 'inside')
+    assert 'before the first' not in bag_row(inside, run_series(inside))['notes']
+
+
 def test_a_stalled_link_is_a_gap_even_with_contiguous_stamps(tmp_path):
     # a publisher or link that stalls 0.5 s and then delivers every step late
     _synthetic_bag(tmp_path / 'stall', steps=400, stall=(200, 500_000_000))

@@ -784,6 +784,16 @@ def test_a_low_speed_integral_gain_above_integral_gain_is_told_as_what_runs():
     off = LaneKeepingParams(state_filter='none', side_force=0.0)
     assert compare.settings_changes(compare.LawSettings(ControllerParams(), off)) == [
         "lane_keeping.state_filter = 'none'", 'lane_keeping.side_force = 0.0']
+    # filter_* settings with the filter off act only on the curvature estimate: told on
+    # the first of their lines
+    off = LaneKeepingParams(state_filter='none', side_force=0.0, filter_yaw_noise=0.004,
+                            filter_force_noise=50.0)
+    where = ('filter_yaw_noise, filter_force_noise act only on the curvature estimate, '
+             'which runs while road_curvature is not received (state_filter none)')
+    assert compare.settings_changes(compare.LawSettings(ControllerParams(), off)) == [
+        "lane_keeping.state_filter = 'none'", 'lane_keeping.side_force = 0.0',
+        f'lane_keeping.filter_yaw_noise = 0.004 ({where})',
+        'lane_keeping.filter_force_noise = 50.0']
 
 
 def test_the_independent_plant_runs_with_the_goal_plant_s_delay_and_noise(tmp_path):

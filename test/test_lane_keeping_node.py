@@ -147,6 +147,27 @@ def test_a_force_share_without_the_state_filter_is_told():
         assert 'runs as 0' not in applied_summary(law, controller, quiet)
 
 
+def test_filter_settings_without_the_state_filter_are_told_where_they_act():
+    # dev-probe93: with state_filter none the filter_* settings act only on the curvature
+    # estimate, which runs while road_curvature is not received; set and untold before
+    from lookahead_control.core.lane_keeping import LaneKeepingParams
+    from lookahead_control.core.params import ControllerParams
+    from lookahead_control.ros.controller_node import applied_summary
+    controller = ControllerParams()
+    one = LaneKeepingParams(state_filter='none', side_force=0.0, filter_lateral_noise=0.05)
+    assert applied_summary('cg_compensated', controller, one).endswith(
+        '; filter_lateral_noise acts only on the curvature estimate, which runs while '
+        'road_curvature is not received (state_filter none)')
+    two = LaneKeepingParams(state_filter='none', side_force=0.0, filter_delay=0.05,
+                            filter_curvature_drift=1.0)
+    assert applied_summary('cg_compensated', controller, two).endswith(
+        '; filter_delay, filter_curvature_drift act only on the curvature estimate, which '
+        'runs while road_curvature is not received (state_filter none)')
+    for quiet in (LaneKeepingParams(filter_lateral_noise=0.05),       # the filter on
+                  LaneKeepingParams(state_filter='none', side_force=0.0)):  # defaults
+        assert 'curvature estimate' not in applied_summary('cg_compensated', controller, quiet)
+
+
 def _active_node_keeping_debug(context):
     """Return an active controller node on sim time and the list its ~/debug goes to."""
     from lookahead_control.ros.controller_node import ControllerNode

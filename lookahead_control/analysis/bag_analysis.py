@@ -574,8 +574,12 @@ def bag_row(run: RunData, series: RunSeries,
     gaps = input_gaps(run, arrival=run.plant_params.get('mode') != 'lockstep')
     row['max_gap_s'] = max((g for g, _ in gaps.values()), default=0.0)
     if gaps:
-        notes.append('gaps: ' + ', '.join(f'{role} {gap:.3g} s at t = {start:.3g} s'
-                                          for role, (gap, start) in gaps.items()))
+        # a gap of another input before the first lateral error starts at a negative t:
+        # said so (dev-probe93: 't = -0.5 s' unexplained)
+        notes.append('gaps: ' + ', '.join(
+            f'{role} {gap:.3g} s at t = {start:.3g} s'
+            + (' (before the first lateral error)' if start < 0.0 else '')
+            for role, (gap, start) in gaps.items()))
     row['notes'] = '; '.join(notes)
     return row
 

@@ -548,6 +548,32 @@ def filterless_note(settings: LaneKeepingParams) -> str:
             f" the state filter's (state_filter {settings.state_filter})")
 
 
+def curvature_filter_note(settings: LaneKeepingParams) -> str:
+    """
+    Return where the ``filter_*`` settings act with ``state_filter: none``.
+
+    Without the state filter a Kalman filter of the same settings still estimates the
+    road's curvature, but only while ``road_curvature`` is not received (dev-probe93: a
+    ``filter_lateral_noise`` set with the filter off and a map received changed nothing,
+    untold).
+
+    :param settings: the law's settings.
+    :return: e.g. ``filter_lateral_noise acts only on the curvature estimate, which runs
+        while road_curvature is not received (state_filter none)`` ('' with the filter
+        on, or no ``filter_*`` setting changed).
+    """
+    if settings.state_filter == 'kalman':
+        return ''
+    default = LaneKeepingParams()
+    changed = [item.name for item in fields(settings) if item.name.startswith('filter_')
+               and getattr(settings, item.name) != getattr(default, item.name)]
+    if not changed:
+        return ''
+    return (f"{', '.join(changed)} act{'' if len(changed) > 1 else 's'} only on the curvature "
+            'estimate, which runs while road_curvature is not received (state_filter '
+            f'{settings.state_filter})')
+
+
 def approach_limit(heading: float, d_v: Real, v_x: Real, k_p: Real, k_d: Real) -> Real:
     """
     Return the clip of the CG's offset that makes the car close at ``heading``.

@@ -32,8 +32,9 @@ from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.answer_rate import AnswerPacer
 from lookahead_control.core.controller import (ACCELERATION_SOURCES, build_law, Command,
                                                LAW_NAMES, SteeringController)
-from lookahead_control.core.lane_keeping import (filterless_note, frequency_schedule_note,
-                                                 integral_schedule_note, LaneKeepingParams)
+from lookahead_control.core.lane_keeping import (curvature_filter_note, filterless_note,
+                                                 frequency_schedule_note, integral_schedule_note,
+                                                 LaneKeepingParams)
 from lookahead_control.core.params import ControllerParams, ParameterError, SCHEDULE_MODES
 from lookahead_control.core.safety import check_points
 from lookahead_control.core.samples import curvature_from_points
@@ -157,7 +158,8 @@ def settings_notes(law: str, lane_keeping: LaneKeepingParams) -> str:
     """
     Return what runs otherwise than set ('' if everything runs as set).
 
-    A capped low-speed w_n or integral gain, and a force share without the state filter.
+    A capped low-speed w_n or integral gain, a force share without the state filter, and
+    ``filter_*`` settings that act only on the curvature estimate without it.
 
     :param law: the running law (only ``cg_compensated`` has these settings).
     :param lane_keeping: its settings.
@@ -167,7 +169,8 @@ def settings_notes(law: str, lane_keeping: LaneKeepingParams) -> str:
         return ''
     return '; '.join(n for n in (frequency_schedule_note(lane_keeping),
                                  integral_schedule_note(lane_keeping),
-                                 filterless_note(lane_keeping)) if n)
+                                 filterless_note(lane_keeping),
+                                 curvature_filter_note(lane_keeping)) if n)
 
 
 def core_from_params(params: Mapping[str, Any]) -> SteeringController:
