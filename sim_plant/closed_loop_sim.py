@@ -46,6 +46,8 @@ from sim_plant.vehicle_model import derivatives, PlantParams, rk4_step, stack, S
 
 
 Array = npt.NDArray[np.float64]
+#: the controller's period when a caller gives none [s] (the node's 100 Hz)
+CONTROL_PERIOD = 0.01
 CHANNELS = ('s', 'y_cg', 'eps_r', 'v_y', 'r', 'steering', 'v_x', 'a_x', 'rho',
             'steering_cmd', 'd_v', 'y_v', 'y_ref', 'error', 'error_rate')
 Disturbance = Callable[[float], tuple[Real, Real]]
@@ -324,7 +326,7 @@ def _as_law(controller: ControllerParams | Law, vehicle: VehicleParams) -> Law:
 
 def run(scenario: Scenario, vehicle: VehicleParams, controller: ControllerParams | Law,
         plant: PlantParams | Sequence[PlantParams] | None = None, *, dt: float = 0.001,
-        control_period: float = 0.01, initial_speed: Real | None = None,
+        control_period: float = CONTROL_PERIOD, initial_speed: Real | None = None,
         initial_error: Real | None = None, progress: bool = False,
         plant_vehicle: VehicleParams | Sequence[VehicleParams] | None = None,
         delay: Real = 0.0, noise: NoiseParams | None = None,

@@ -169,6 +169,29 @@ def test_bag_describes_its_run(loop_bag):
     assert scenario['scenario']['duration'] == 4.0
 
 
+def test_ground_truth_that_is_not_finite_is_told_and_the_measurements_stand_in(loop_bag):
+    # dev-probe96: ten inf eps_r in the ground truth gave inf errors, a yaw excursion of
+    # 1.8e308, a settling time and RuntimeWarnings; a NaN y_cg was replaced silently
+    import warnings
+    run = load_run(loop_bag)
+    clean = bag_row(run, run_series(run))
+    truth = {name: column.copy() for name, column in run.truth.values.items()}
+    truth['eps_r'][300:310] = math.inf
+    truth['y_cg'][350] = math.nan
+    broken = dataclasses.replace(run, truth=dataclasses.replace(run.truth, values=truth))
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        row = bag_row(broken, run_series(broken))
+    assert ('ground truth: 1 y_cg, 10 eps_r value(s) not finite (NaN or inf): the '
+            'measurements stand in there') in row['notes'], row['notes']
+    assert 'ground truth' not in clean['notes']
+    from lookahead_control.analysis.metrics import METRIC_COLUMNS
+    assert math.isfinite(clean['peak_cg_error_m']) and math.isfinite(clean['rms_cg_error_m'])
+    for name in METRIC_COLUMNS:
+        # noise-free: the measurements are the truth to the sensor model's digits
+        assert row[name] == pytest.approx(clean[name], rel=1e-3, abs=1e-9, nan_ok=True), name
+
+
 def test_offline_rerun_reproduces_the_steering_exactly(loop_bag):
     result = rerun(load_run(loop_bag))
     assert result.order == 'stamp' and result.compared == 400
@@ -813,6 +836,16 @@ def test_direct_cdr_decoding_equals_the_general_deserializer():
         assert cdr.named_values(cdr_bytes(named)) == (stamp, conv.from_named_values(
             general(named)))
         assert cdr.steering(cdr_bytes(named)) == conv.from_steering(general(named))
+
+
+def test_a_bag_without_steering_commands_says_so(tmp_path):
+    # dev-probe96: 'steering_cmd: the plant does not report its commanded' (cut off, and
+    # the commands are the controller's, not the plant's)
+    _synthetic_bag(tmp_path / 'quiet', steps=200, steering=False)
+    run = load_run(tmp_path / 'quiet')
+    notes = bag_row(run, run_series(run))['notes']
+    assert 'steering_cmd: the bag has no steering commands' in notes, notes
+    assert 'does not report its commanded' not in notes
 
 
 def test_replay_offline_json_is_strict_json_when_nothing_compares(tmp_path):

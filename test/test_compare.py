@@ -21,7 +21,7 @@ from pathlib import Path
 import time
 
 from conftest import Swerve
-from lookahead_control.core.cli import run_tool
+from lookahead_control.core.cli import run_tool, ToolError
 from lookahead_control.core.config import ConfigError
 from lookahead_control.core.params import VehicleParams
 from lookahead_control.tools import compare
@@ -796,6 +796,39 @@ def test_a_low_speed_integral_gain_above_integral_gain_is_told_as_what_runs():
         'lane_keeping.filter_force_noise = 50.0']
 
 
+def test_compare_refuses_a_step_or_duration_no_run_can_take_before_any_run(
+        tmp_path, capsys):
+    # dev-probe96: --duration 0.005 and --dt 0.003 ran the league, every run 'failed'
+    # (IndexError, ParameterError: what the docs call a tool's bug), exit 1; a --json
+    # under a file failed after the runs ('File exists')
+    (tmp_path / 'a_file').write_text('x')
+    quick = ['--laws', 'stanley', '--scenarios', 's1_paper_step', '--plants', 'linear',
+             '--speeds', '37', '--workers', '1', '--no-plots', '--no-progress']
+    for args, said in (
+            (['--duration', '0.005'], 'argument --duration: 0.005 s is out of range; '
+             'allowed: [1, 600] s'),
+            (['--dt', '0.003'], '--dt 0.003: control_period = 0.01 s is not a whole multiple '
+             'of dt = 0.003 s'),
+            (['--dt', '0.0015', '--plants', 'nonlinear_delay_noise'],
+             '--dt 0.0015: control_period = 0.01 s is not a whole multiple'),
+            (['--json', str(tmp_path / 'a_file' / 'x.json')],
+             f'{tmp_path / "a_file"} is not a folder this user may write in')):
+        out = tmp_path / 'league'
+        try:
+            code = run_tool(compare.main, [*quick, '--out', str(out), *args])
+        except SystemExit as exit_:         # argparse's refusal
+            code = exit_.code
+        assert code == 2, args
+        assert said in capsys.readouterr().err, args
+        assert not out.exists(), args
+    # a plant's delay the step is no multiple of (no shipped plant has one: the check
+    # is the helper's)
+    goal = next(c for c in compare.PLANTS if c.name == compare.GOAL_PLANT)
+    with pytest.raises(ToolError, match='--dt 0.0025: delay = 0.021 s is not a whole '
+                       'multiple of dt = 0.0025'):
+        compare.check_scenarios(['s1_paper_step'], [replace(goal, delay=0.021)], 0.0025, None)
+
+
 def test_the_independent_plant_runs_with_the_goal_plant_s_delay_and_noise(tmp_path):
     # before: the CommonRoad multi-body plant ran only without delay and noise, so every
     # figure under the goal's conditions was one of the package's own Fiala plant
@@ -1023,7 +1056,7 @@ def test_a_setting_is_refused_only_where_a_tool_does_not_run_it(tmp_path):
     preview = tmp_path / 'preview.yaml'
     preview.write_text('/**:\n  ros__parameters:\n    use_curvature_preview: true\n')
     tiny = ['--mode', 'monte_carlo', '--runs', '1', '--scenarios', 's0_straight', '--speeds',
-            '20', '--duration', '0.2', '--workers', '0', '--no-plots', '--no-progress']
+            '20', '--duration', '1', '--workers', '0', '--no-plots', '--no-progress']
     assert run_tool(sweep.main, [*tiny, '--laws', 'paper_eq26', '--controller', str(preview),
                                  '--out', str(tmp_path / 'a')]) == 2
     assert run_tool(sweep.main, [*tiny, '--laws', 'cg_compensated', '--controller',

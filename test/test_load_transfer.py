@@ -461,7 +461,7 @@ def test_compare_and_sweep_say_the_linear_plant_has_no_load_transfer(tmp_path, c
     tall.write_text('/**:\n  ros__parameters:\n    vehicle:\n      cg_height: 0.58\n')
     note = ('vehicle.cg_height = 0.58 m: the linear plant has no load transfer')
     quick = ['--laws', 'cg_compensated', '--scenarios', 's0_straight', '--speeds', '37',
-             '--duration', '0.2', '--workers', '1', '--no-plots', '--no-progress']
+             '--duration', '1', '--workers', '1', '--no-plots', '--no-progress']
     for plant, vehicle, said in (('linear', tall, True), ('nonlinear', tall, False),
                                  ('linear', None, False)):
         given = ['--vehicle', str(vehicle)] if vehicle else []
@@ -476,7 +476,7 @@ def test_compare_and_sweep_say_the_linear_plant_has_no_load_transfer(tmp_path, c
             '--out', str(tmp_path / f's_{plant}_{said}'), '--workers', '0', '--mode', 'grid',
             '--levels', '2', '--cornering', '0:0', '--mass', '0:0', '--friction', '1:1',
             '--delay', '0:0', '--speeds', '37', '--scenarios', 's0_straight', '--duration',
-            '0.2', '--laws', 'cg_compensated', '--plant', plant, '--no-plots',
+            '1', '--laws', 'cg_compensated', '--plant', plant, '--no-plots',
             '--no-progress']) == 0
         assert (f'sweep: note: {note}' in capsys.readouterr().err) == said
 

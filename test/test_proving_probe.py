@@ -48,6 +48,14 @@ def test_default_speeds_keep_their_seeds() -> None:
     (['--max-error', 'nan'], '--max-error nan: a peak CG error in (0, 100] m'),
     (['--dt', '0'], '--dt 0.0: a plant step in (0, 0.01] s'),
     (['--duration', '-5'], "--duration -5.0: 0 (each scenario's own) or a time"),
+    # dev-probe96: 0.001 s ran (every metric NaN, no run failed); 1e9 runs were told 'a
+    # whole number >= 1 is required'; a step the control period is no multiple of
+    (['--duration', '0.001'], "--duration 0.001: 0 (each scenario's own) or a time in "
+     '[1, 1e5] s (what the metrics need)'),
+    (['--runs', '1000000000'], '--runs 1000000000 is out of range; allowed: a whole number '
+     'in [1, 1000000]'),
+    (['--dt', '0.003'], '--dt 0.003: control_period = 0.01 s is not a whole multiple of '
+     'dt = 0.003 s'),
 ])
 def test_sweep_refuses_bad_numbers(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                    args: list[str], expected: str) -> None:

@@ -51,6 +51,67 @@ def test_schedule_tool_table_and_plot(tmp_path):
     assert [r['speed_mps'] for r in rows] == [10.0, 20.0, 30.0]
 
 
+def test_an_output_file_replaces_only_an_earlier_output(tmp_path, capsys):
+    # dev-probe96: `--json README.md` replaced the README (exit 0), and a --json under a
+    # file failed only after a whole league ('File exists'); now refused when read
+    from lookahead_control.tools.analysis_tools import schedule_main as schedule
+    readme = tmp_path / 'README.md'
+    readme.write_text('# mine\n')
+    notes = tmp_path / 'notes.json'
+    notes.write_text('my notes, not JSON\n')
+    picture = tmp_path / 'photo.png'
+    picture.write_bytes(b'GIF89a, named .png')
+    (tmp_path / 'a_file').write_text('x')
+    (tmp_path / 'a_folder.json').mkdir()
+    base = ['--v-min', '10', '--v-max', '20', '--step', '10']
+    for args, said in (
+            (['--json', str(readme)], 'README.md: expected a .json file name'),
+            (['--json', str(notes)], 'notes.json: exists and is no JSON file a tool wrote'),
+            (['--plot', str(picture)], 'photo.png: exists and is no PNG file a tool wrote'),
+            (['--json', str(tmp_path / 'a_file' / 'x.json')],
+             f'{tmp_path / "a_file"} is not a folder this user may write in'),
+            (['--json', str(tmp_path / 'a_folder.json')], 'a_folder.json: is a folder')):
+        with pytest.raises(SystemExit) as exit_:
+            schedule([*base, *args])
+        assert exit_.value.code == 2, args
+        assert said in capsys.readouterr().err, args
+    from lookahead_control.bags import replay_node
+    with pytest.raises(SystemExit) as exit_:      # the option is read before the bag
+        replay_node.main([str(tmp_path / 'no_bag'), '--offline', '--json', str(readme)])
+    assert exit_.value.code == 2 and 'expected a .json file name' in capsys.readouterr().err
+    assert readme.read_text() == '# mine\n' and notes.read_text() == 'my notes, not JSON\n'
+    assert picture.read_bytes() == b'GIF89a, named .png'
+    # an earlier output is replaced: the same command twice
+    out, png = tmp_path / 'new' / 'table.json', tmp_path / 'table.png'
+    for _ in range(2):
+        assert schedule([*base, '--json', str(out), '--plot', str(png)]) == 0
+        assert [r['speed_mps'] for r in json.loads(out.read_text())] == [10.0, 20.0]
+        assert png.read_bytes()[:4] == b'\x89PNG'
+
+
+def test_files_an_earlier_run_left_in_the_output_folder_are_named(tmp_path, capsys):
+    # dev-probe96: analyze of two bags, then of one into the same --out: the first run's
+    # fig_fixed.png stayed beside the new report, listed, unsaid (nothing is deleted)
+    from lookahead_control.core.cli import claim_output, record_output
+    out = tmp_path / 'report'
+    first = [out / 'report.md', out / 'fig_fixed.png', out / 'fig_paper.png']
+    assert claim_output(out, 'analyze', names=[p.name for p in first]) == frozenset()
+    for path in first:
+        path.write_text('first')
+    record_output(out, 'analyze', first)
+    assert capsys.readouterr().err == ''
+    second = [out / 'report.md', out / 'fig_paper.png']
+    previous = claim_output(out, 'analyze', names=[p.name for p in second])
+    record_output(out, 'analyze', second, previous)
+    assert capsys.readouterr().err == (
+        f'analyze: note: {out} keeps 1 file(s) of an earlier analyze run that this one did '
+        "not write: fig_fixed.png (a new --out has only this run's)\n")
+    assert (out / 'fig_fixed.png').read_text() == 'first'           # nothing deleted
+    (out / 'fig_fixed.png').unlink()                                # moved away: quiet
+    record_output(out, 'analyze', second, claim_output(out, 'analyze'))
+    assert capsys.readouterr().err == ''
+
+
 def test_zero_dynamics_tool_plot(tmp_path):
     result = _tool(ZERO, '--plot', str(tmp_path / 'roots.png'))
     assert result.returncode == 0, result.stderr

@@ -142,8 +142,11 @@ def run_series(run: RunData) -> RunSeries:
     truth_at = _exact(run.truth.stamp_ns, kept)
 
     def truth(name: str, otherwise: Array | float) -> Array:
+        # not recorded at a stamp, or recorded non-finite (told by truth_not_finite: an
+        # inf eps_r gave inf errors, a yaw excursion of 1.8e308 and RuntimeWarnings,
+        # dev-probe96): the measurements stand in
         recorded = _take(run.truth.values.get(name), truth_at)
-        return np.where(np.isnan(recorded), otherwise, recorded)
+        return np.where(np.isfinite(recorded), recorded, otherwise)
 
     channels: dict[str, Array] = {}
     channels['eps_r'] = truth('eps_r', yaw.values['relative_yaw'][yaw_at])
@@ -362,6 +365,31 @@ def law_label(row: Mapping[str, Any]) -> str:
     return str(row['schedule']) if law in ('paper', 'n/a') else str(law)
 
 
+#: the ground truth's channels the metrics read (the wheel angle has no stand-in)
+TRUTH_CHANNELS = ('y_cg', 'eps_r', 'rho', 'steering')
+
+
+def truth_not_finite(run: RunData) -> str:
+    """
+    Return the note on ground-truth values that are not finite ('' if none).
+
+    :func:`run_series` takes the measurements in their place (the wheel angle: missing),
+    as where the ground truth is not recorded.
+
+    :param run: the run.
+    :return: e.g. ``ground truth: 10 eps_r values not finite (NaN or inf): the
+        measurements stand in there``.
+    """
+    counts = {name: int(np.count_nonzero(~np.isfinite(run.truth.values[name])))
+              for name in TRUTH_CHANNELS if name in run.truth.values}
+    bad = {name: count for name, count in counts.items() if count}
+    if not bad:
+        return ''
+    listed = ', '.join(f'{count} {name}' for name, count in bad.items())
+    return (f'ground truth: {listed} value(s) not finite (NaN or inf): the measurements '
+            'stand in there' + (' (the wheel angle: missing)' if 'steering' in bad else ''))
+
+
 def _assumptions(run: RunData) -> list[str]:
     """Return what the analysis assumes because the bag does not record it."""
     params = run.controller_params
@@ -512,6 +540,9 @@ def bag_row(run: RunData, series: RunSeries,
                            'speed_mps': round(float(series.channels['v_x'][0]), 3)}
     metrics = run_metrics(series.time, series.channels, d_s)
     notes = _assumptions(run)
+    broken = truth_not_finite(run)
+    if broken:
+        notes.append(broken)
     measured = metrics.pop('notes')
     if measured:
         notes.append(measured)

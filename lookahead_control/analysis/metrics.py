@@ -475,7 +475,8 @@ def run_metrics(time: Array, channels: Mapping[str, Array], d_s: float) -> dict[
     row.update(yaw_final_rad=yaw.final, yaw_excursion_rad=yaw.excursion,
                yaw_overshoot=yaw.overshoot, yaw_damping_ratio=yaw.damping_ratio,
                yaw_settling_s=yaw.settling_time)
-    for name, unit in (('steering_cmd', 'commanded'), ('steering', 'wheel angle')):
+    for name, missing in (('steering_cmd', 'the bag has no steering commands'),
+                          ('steering', 'the plant does not report its wheel angle')):
         series = channels.get(name, np.zeros(0))
         valid = ~np.isnan(series) if series.size == time.size else np.zeros(0, dtype=bool)
         known = enough and int(valid.sum()) >= 2
@@ -485,7 +486,8 @@ def run_metrics(time: Array, channels: Mapping[str, Array], d_s: float) -> dict[
         row[f'peak_{name}_rate_rad_per_s'] = (peak(rate(time, series)[steps])
                                               if known else math.nan)
         if enough and not known:
-            notes.append(f'{name}: the plant does not report its {unit}')
+            # dev-probe96: 'steering_cmd: the plant does not report its commanded'
+            notes.append(f'{name}: {missing}')
     row['d_v_final_m'] = float(channels['d_v'][-1]) if time.size else math.nan
     row['notes'] = '; '.join(notes)
     return row

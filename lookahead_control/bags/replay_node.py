@@ -36,8 +36,8 @@ from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
 from lookahead_control.bags.run_data import (as_it_ran, CONTROLLER_NODE, load_run, Rerun,
                                              rerun, RunData)
 from lookahead_control.core import interrupts
-from lookahead_control.core.cli import (ArgumentParser, assignments, number, run_tool,
-                                        ToolError, write_json)
+from lookahead_control.core.cli import (ArgumentParser, assignments, number, output_file,
+                                        run_tool, ToolError, write_json)
 from lookahead_control.core.config import ConfigError, rcl_param_value
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.node_main import (parameter_reason, program_arguments,
@@ -409,8 +409,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     offline_only.add_argument('--check', type=number(0.0, unit='rad'), default=None,
                               metavar='TOL', help='exit 1 if any |recorded - recomputed| '
                               'steering > TOL [rad]; implies --offline')
-    offline_only.add_argument('--json', type=Path, default=None, metavar='FILE',
-                              help='write the comparison as JSON')
+    offline_only.add_argument('--json', type=output_file('.json'), default=None,
+                              metavar='FILE', help='write the comparison as JSON (a .json '
+                              'file: an earlier one is replaced, no other file)')
     # before, a file holding only a string played, a directory or a malformed file gave
     # rcl's raw message, and record let rcl's parser read a pipe before the node
     with tool_arguments(full, 'replay') as checked:

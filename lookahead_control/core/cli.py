@@ -150,18 +150,48 @@ def number(low: float = -math.inf, high: float = math.inf, *, low_open: bool = F
     return convert
 
 
+#: what a file an output option may replace starts with, by suffix (a tool's earlier
+#: output; anything else is refused: dev-probe96's ``--json README.md`` replaced it)
+OUTPUT_KINDS = {'.png': (b'\x89PNG\r\n\x1a\n',), '.json': (b'[', b'{')}
+
+
 def output_file(suffix: str) -> Callable[[str], Path]:
     """
     Return an argparse ``type`` for an output file that must end with ``suffix``.
 
-    :param suffix: e.g. ``.png``.
-    :return: the converter (a name with another suffix is refused: matplotlib would
-        pick the format from it, or fail late).
+    Refused when the option is read, before any work: another suffix (matplotlib would
+    pick the format from it, or fail late; a ``--json README.md`` replaced the README),
+    a folder, a path under a file or in a folder this user may not write in (before:
+    ``File exists`` after a whole league, dev-probe96), and an existing file that is
+    not of the kind (a PNG's signature, a JSON array or object): a tool's earlier output
+    is replaced, nothing else.
+
+    :param suffix: ``.png`` or ``.json``.
+    :return: the converter.
     """
     def convert(text: str) -> Path:
         path = Path(text)
         if path.suffix.lower() != suffix:
             raise argparse.ArgumentTypeError(f'{text}: expected a {suffix} file name')
+        if path.is_dir():
+            raise argparse.ArgumentTypeError(f'{text}: is a folder')
+        folder = path.parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+        if not folder.is_dir() or not os.access(folder, os.W_OK):
+            raise argparse.ArgumentTypeError(f'{text}: {folder} is not a folder this user '
+                                             'may write in')
+        if path.exists():
+            try:
+                with path.open('rb') as handle:
+                    head = handle.read(64).lstrip()
+            except OSError as err:
+                raise argparse.ArgumentTypeError(f'{text}: cannot read it to check what it '
+                                                 f'holds ({err.strerror})') from err
+            if not head.startswith(OUTPUT_KINDS[suffix]):
+                raise argparse.ArgumentTypeError(
+                    f'{text}: exists and is no {suffix[1:].upper()} file a tool wrote (only '
+                    'such a file is replaced); choose another name or move it away')
         return path
     convert.__name__ = 'path'
     return convert
@@ -181,8 +211,9 @@ def parser(description: str, plot: bool = True) -> ArgumentParser:
     if plot:
         p.add_argument('--plot', type=output_file('.png'), default=None, metavar='PNG',
                        help='also write a PNG plot to this path')
-    p.add_argument('--json', type=Path, default=None, metavar='FILE',
-                   help='also write the table as JSON')
+    p.add_argument('--json', type=output_file('.json'), default=None, metavar='FILE',
+                   help='also write the table as JSON (a .json file: an earlier one is '
+                   'replaced, no other file)')
     return p
 
 
@@ -329,7 +360,9 @@ def record_output(out: Path, tool: str, written: Sequence[Path],
     """
     List what ``tool`` wrote into ``out`` (its previous runs' files stay listed).
 
-    Nothing is deleted: a file an earlier run wrote and this one did not stays, listed.
+    Nothing is deleted: a file an earlier run wrote and this one did not stays, listed,
+    and is named on stderr (dev-probe96: an earlier run's ``fig_fixed.png`` stayed beside
+    a report of other bags, unsaid).
 
     :param out: the output folder.
     :param tool: the tool's name.
@@ -337,6 +370,12 @@ def record_output(out: Path, tool: str, written: Sequence[Path],
     :param previous: :func:`claim_output`'s answer (the previous runs' files).
     """
     mine = {p.name for p in written if p.parent.resolve() == out.resolve()}
+    stale = sorted(name for name in previous - mine if (out / name).exists())
+    if stale:
+        more = ' ...' if len(stale) > 5 else ''
+        print(f'{tool}: note: {out} keeps {len(stale)} file(s) of an earlier {tool} run '
+              f'that this one did not write: {", ".join(stale[:5])}{more} (a new --out has '
+              "only this run's)", file=sys.stderr)
     manifest = output_manifest(out, tool)
     tmp = manifest.with_name(manifest.name + '.tmp')
     tmp.write_text('\n'.join(sorted(mine | previous)) + '\n', encoding='utf-8')

@@ -40,7 +40,7 @@ import sys
 import time
 from typing import Any, Callable, Iterable, Iterator, Mapping, Optional, Sequence
 
-from lookahead_control.analysis.metrics import step_metrics
+from lookahead_control.analysis.metrics import MIN_DURATION, step_metrics
 from lookahead_control.core.baselines import (baseline_law, BaselineParams, LqrParams,
                                               PurePursuitParams, StanleyParams)
 from lookahead_control.core.cli import (claim_output, markdown_table, number, one_line, parser,
@@ -661,7 +661,9 @@ def check_scenarios(names: Sequence[str], plants: Sequence[PlantCase], dt: float
     Refuse, before any run, a scenario every run of it would refuse.
 
     A run cut by ``--duration`` before its external forces start, or a force off a
-    plant's step (dev-probe81: the crosswind cut to 1.5 s gave a league of zeros).
+    plant's step (dev-probe81: the crosswind cut to 1.5 s gave a league of zeros); a
+    ``--dt`` the control period or a plant's delay is no whole multiple of (dev-probe96:
+    every run "failed: ParameterError", exit 1, after the whole league).
 
     :param names: the scenarios.
     :param plants: the plants (each has its own step, or ``dt``).
@@ -669,7 +671,16 @@ def check_scenarios(names: Sequence[str], plants: Sequence[PlantCase], dt: float
     :param duration: ``--duration`` (None: each scenario's own).
     :raises ToolError: naming the scenario.
     """
+    from sim_plant.closed_loop_sim import check_steps, CONTROL_PERIOD, delay_steps
     from sim_plant.scenario import check_force_timing
+    for case in plants:
+        try:
+            check_steps(case.dt or dt, CONTROL_PERIOD, 1.0)
+            delay_steps(case.delay, case.dt or dt)
+        except ParameterError as err:
+            given = (f"the {case.name} plant's step {case.dt:g} s" if case.dt
+                     else f'--dt {dt:g}')
+            raise ToolError(f'{given}: {err}') from err
     for name in names:
         scenario = load_scenarios([name])[name]
         try:
@@ -1499,10 +1510,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                    help='plant step [s] (CommonRoad: 0.002)')
     p.add_argument('--workers', type=number(1, 256, integer=True), default=2,
                    help='processes')
-    p.add_argument('--duration', type=number(0.0, MAX_DURATION, low_open=True, unit='s'),
+    p.add_argument('--duration', type=number(MIN_DURATION, MAX_DURATION, unit='s'),
                    default=None, metavar='S',
                    help='cut every scenario to S seconds of simulated time (a quick look; '
-                   "default: each scenario's own, which the goal rows assume)")
+                   f'at least {MIN_DURATION:g} s, what the metrics need; default: each '
+                   "scenario's own, which the goal rows assume)")
     p.add_argument('--out', type=Path, default=Path('bags') / 'compare',
                    help='folder for league.md, league.csv, league.png (new, empty or '
                    'written by compare; see --overwrite)')

@@ -44,7 +44,7 @@ import sys
 import time
 from typing import Any, Callable, Mapping, Optional, Sequence
 
-from lookahead_control.analysis.metrics import rms, run_metrics
+from lookahead_control.analysis.metrics import MIN_DURATION, rms, run_metrics
 from lookahead_control.core.cli import (ArgumentParser, markdown_table, number, run_tool,
                                         ToolError, write_csv)
 from lookahead_control.core.config import (changed_fields, load_controller, load_lane_keeping,
@@ -55,6 +55,7 @@ from lookahead_control.core.output_stage import NodeOutputStage, OUTPUT_STAGE
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.safety import SafetyParams
 import numpy as np
+from sim_plant.closed_loop_sim import check_steps, CONTROL_PERIOD
 
 PLANTS = ('nonlinear', 'linear')
 #: ``sweep.json``'s ``load_transfer_estimate`` since dev-sc29
@@ -154,7 +155,9 @@ class SweepSpec:
         for name, count in (('runs', self.runs), ('levels', self.levels),
                             ('batch', self.batch)):
             if not 1 <= count <= 1_000_000:
-                raise ToolError(f'--{name} {count!r}: a whole number >= 1 is required')
+                # dev-probe96: 1e9 was told 'a whole number >= 1 is required'
+                raise ToolError(f'--{name} {count!r} is out of range; allowed: a whole '
+                                'number in [1, 1000000]')
         for name in RANGES:
             low, high = getattr(self, name)
             if not (math.isfinite(low) and math.isfinite(high) and low <= high):
@@ -172,12 +175,18 @@ class SweepSpec:
         if not 0.0 < self.max_error <= 100.0:
             raise ToolError(f'--max-error {self.max_error!r}: a peak CG error in (0, 100] m '
                             'is required')
-        if not 0.0 < self.dt <= 0.01:
-            raise ToolError(f'--dt {self.dt!r}: a plant step in (0, 0.01] s (at most the '
-                            'control period) is required')
-        if not 0.0 <= self.duration <= 1.0e5:
+        if not 0.0 < self.dt <= CONTROL_PERIOD:
+            raise ToolError(f'--dt {self.dt!r}: a plant step in (0, {CONTROL_PERIOD:g}] s (at '
+                            'most the control period) is required')
+        try:
+            check_steps(self.dt, CONTROL_PERIOD, 1.0)
+        except ParameterError as err:
+            raise ToolError(f'--dt {self.dt!r}: {err}') from err
+        if not (self.duration == 0.0 or MIN_DURATION <= self.duration <= 1.0e5):
+            # dev-probe96: 0.001 s ran, every metric NaN and no run failed
             raise ToolError(f"--duration {self.duration!r}: 0 (each scenario's own) or a "
-                            'time in (0, 1e5] s is required')
+                            f'time in [{MIN_DURATION:g}, 1e5] s (what the metrics need) is '
+                            'required')
 
     def to_json(self) -> dict[str, Any]:
         """Return the spec as JSON-able data."""
