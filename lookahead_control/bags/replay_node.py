@@ -88,6 +88,7 @@ def offline(args: argparse.Namespace) -> int:
     report['answers_lost_next_to_coalesced'] = result.coalesced_lost
     report['inputs_not_received'] = result.unreceived_skipped
     report['inputs_refused'] = result.refused
+    report['inputs_repeated'] = result.repeated
     report['commands_not_finite'] = result.not_finite
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
@@ -151,6 +152,11 @@ def offline(args: argparse.Namespace) -> int:
               f'input(s) ({counts}; last: {result.last_refusal}), as the node does; a node '
               'older than a check (an orientation that is no unit quaternion, an empty '
               'road_curvature: since dev-sections) used them, and the re-run differs there')
+    if result.repeated:
+        print(f'replay: {result.repeated} input(s) repeat the stamp of the one before them '
+              '(the same message recorded twice: two recorders on one domain, or a '
+              'publisher that sent it again); the node refuses a repeated stamp, and so does '
+              'the re-run')
     if result.law_switches:
         print(f'replay: the law was set at run time: the re-run switched it where the '
               f'recorded controller did ({result.law_switches} switches, '
