@@ -118,6 +118,31 @@ def test_stamps_are_judged_on_both_sides_of_the_node_clock():
     assert check_stamp('yaw', 1, None, None, params) is None
 
 
+@pytest.mark.parametrize('offset_ms, why', [(200, 'ahead of the node clock'),
+                                             (-300, 'behind the node clock')])
+def test_a_sensor_clock_off_from_the_start_is_stale_and_told(offset_ms, why):
+    # dev-probe97: a sensor clock 0.2 s ahead of the node's from start-up had every input
+    # refused; nothing was ever taken, so nothing went stale: the node sent nothing and
+    # said only WARN 'rejected: N', never ERROR (before, one good step was needed)
+    core = _core()
+    for k in range(40):
+        now = (1000_000 + 10 * k) * MS
+        command, reasons = _live(core, now, stamp=now + offset_ms * MS)
+        assert command is None and all(r and why in r for r in reasons)
+        stale = core.stale(now)
+        # stale from input_timeout (0.2 s) after the first input came in
+        assert stale == ([] if 10 * k <= 200 else ['lateral_error', 'yaw', 'velocity']), k
+    assert core.describe_stale(['yaw']).startswith(
+        f'yaw none taken (last refused: yaw: stamp {abs(offset_ms) / 1000:.3f} s {why}')
+    # never commanded: no safe command to send (the car was never steered by it)
+    assert core.safe_command(1000_400 * MS) is None
+    # the clocks agree again: fresh inputs, the law answers
+    now = 1000_400 * MS
+    command, reasons = _live(core, now)
+    assert reasons == [None, None, None] and command is not None and command.law is not None
+    assert core.stale(now) == []
+
+
 def test_a_sensor_clock_off_by_more_than_the_tolerance_gives_the_safe_behaviour():
     # a node clock at 1000 s, sensors 1.5 s behind it after one good step
     core = _core()
@@ -260,7 +285,7 @@ def test_inputs_refused_after_a_time_jump_go_stale_and_ramp():
     assert core.stale(back + 200 * MS) == []            # within input_timeout of the jump
     stale = core.stale(back + 210 * MS)
     assert stale == ['lateral_error', 'yaw', 'velocity']
-    assert 'lateral_error never received (last refused: lateral_error: stamp' in \
+    assert 'lateral_error none taken (last refused: lateral_error: stamp' in \
         core.describe_stale(stale)
     # hold for hold_time (0.5 s), then ramp to 0 at 0.1 rad/s
     ramp = [core.safe_command(back + k * 100 * MS).steering for k in range(3, 10)]

@@ -504,11 +504,16 @@ class SteeringController:
         clock = now_ns if now_ns is not None and now_ns > 0 else None
         reason = check_sample(name, sample, self.safety) or check_stamp(
             name, sample.stamp_ns, current.stamp_ns if current else None, clock, self.safety)
+        received = 0 if now_ns is None else now_ns
         if reason is not None:
             self.refusals[name] = reason
             self.count_rejection(reason)
+            if self._first_received is None:
+                # an input came in: the inputs' timeout runs from it, taken or not
+                # (dev-probe97: a sensor clock 0.2 s ahead from the start had every
+                # input refused, and the node stayed silent with a WARN, no ERROR)
+                self._first_received = received
             return reason
-        received = 0 if now_ns is None else now_ns
         if clock is not None:
             self.timing.note_age(name, (clock - sample.stamp_ns) * 1e-9)
         self._received[name] = received
@@ -558,11 +563,11 @@ class SteeringController:
 
         Stale: received (on the node's clock) more than ``input_timeout`` ago or before
         the clock went back, stamped more than ``input_timeout`` ago, or never received
-        although another input came in (or the time jumped) more than ``input_timeout``
-        ago or before the clock went back. An input refused over and over, or whose
-        stamps stopped advancing (refused as repeated), therefore goes stale too, also
-        after a time jump. ``road_curvature`` is
-        optional: see :meth:`curvature_lost`.
+        although another input came in, taken or refused (or the time jumped), more than
+        ``input_timeout`` ago or before the clock went back. An input refused over and
+        over, or whose stamps stopped advancing (refused as repeated), therefore goes
+        stale too, also after a time jump or when none was ever taken.
+        ``road_curvature`` is optional: see :meth:`curvature_lost`.
 
         :param now_ns: the node's clock [ns] (None: not running, nothing is stale).
         :return: their names, in the order of ``REQUIRED_INPUTS``.
@@ -623,7 +628,10 @@ class SteeringController:
         parts = []
         for name in names:
             why = self.refusals.get(name)
-            never = '' if name in self._received else ' never received'
+            # refused every time: received, but none taken (dev-probe97 read 'never
+            # received (last refused: ...)')
+            never = ('' if name in self._received else ' none taken' if why
+                     else ' never received')
             parts.append(f'{name}{never}' + (f' (last refused: {why})' if why else ''))
         return ', '.join(parts)
 
