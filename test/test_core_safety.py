@@ -119,7 +119,7 @@ def test_stamps_are_judged_on_both_sides_of_the_node_clock():
 
 
 @pytest.mark.parametrize('offset_ms, why', [(200, 'ahead of the node clock'),
-                                             (-300, 'behind the node clock')])
+                                            (-300, 'behind the node clock')])
 def test_a_sensor_clock_off_from_the_start_is_stale_and_told(offset_ms, why):
     # dev-probe97: a sensor clock 0.2 s ahead of the node's from start-up had every input
     # refused; nothing was ever taken, so nothing went stale: the node sent nothing and

@@ -37,6 +37,7 @@ from lookahead_control.core.safety import (check_sample, check_stamp, limit, low
                                            SafetyParams, stale_target)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
+from lookahead_control.core.yaw_check import YawCheck
 import numpy as np
 
 ACCELERATION_SOURCES = ('imu', 'differentiate', 'zero')
@@ -300,6 +301,12 @@ class SteeringController:
         #: [Hz])`` since the caller last took it in ``oscillation_seen``
         self.oscillation = OscillationCheck()
         self.oscillation_seen = (0.0, 0.0)
+        #: the measured yaw rate against the steering sent (``core/yaw_check.py``): once
+        #: it runs against it, ``yaw_fault`` holds why and the yaw input is refused (stale
+        #: at once: the safe behaviour) until a restart (a time jump, a new core)
+        self.yaw_check = YawCheck()
+        self.yaw_fault: Optional[str] = None
+        self._fault_hold: Optional[float] = None
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
@@ -454,6 +461,8 @@ class SteeringController:
             self._hold_value = self._rate_angle
         self.law.reset()
         self.map_check.reset()
+        self.yaw_check.reset()
+        self.yaw_fault = self._fault_hold = None
         self._law_stamp = None          # (the oscillation check restarts with it)
 
     def seed_output(self, angle: float, stamp_ns: int) -> None:
@@ -504,6 +513,8 @@ class SteeringController:
         clock = now_ns if now_ns is not None and now_ns > 0 else None
         reason = check_sample(name, sample, self.safety) or check_stamp(
             name, sample.stamp_ns, current.stamp_ns if current else None, clock, self.safety)
+        if reason is None and name == 'yaw' and self.yaw_fault is not None:
+            reason = self.yaw_fault
         received = 0 if now_ns is None else now_ns
         if reason is not None:
             self.refusals[name] = reason
@@ -654,7 +665,10 @@ class SteeringController:
             return None
         if self._stale_since is None:
             self._stale_since, self._stale_ns = now_ns, 0
-            self._held = sent
+            # after a yaw rate found of the wrong sign the last command is one of the
+            # shaking (dev-sc44: 0.089 rad held for 0.5 s at 30 m/s put the car off the
+            # lane 0.7 s later): the mean command before the fault is held instead
+            self._held = sent if self._fault_hold is None else self._fault_hold
             self.law.reset()            # a law with state restarts after stale inputs
             self._law_stamp = None
         # time stale, on the node's clock, counted forwards only (a clock going back
@@ -673,6 +687,31 @@ class SteeringController:
         if note is not None:                # a state filter models the command sent
             note(self.last.steering, since)
         return self.last
+
+    def _judge_yaw_rate(self, dt: float, state: LateralState, sent: float) -> None:
+        """
+        Step the yaw-rate check; once the yaw rate runs against the car, refuse it.
+
+        :param dt: time since the law's previous answer [s].
+        :param state: the measurements of this answer (its curvature: the one received,
+            0 without or lost).
+        :param sent: the command sent before this answer [rad].
+        """
+        check = self.yaw_check
+        if self.yaw_fault or not check.step(
+                dt, float(state.r), sent, float(state.v_x), self.vehicle.wheelbase,
+                float(state.eps_r), float(state.rho)):
+            return
+        # dev-probe97: a yaw rate of the wrong sign shook the car off the road, told only
+        # as a map WARN; now the yaw input is refused from here on: stale at once
+        self.yaw_fault = (f'yaw: yaw_rate runs against the steering and the relative yaw '
+                          f'(correlations {check.correlation:.2f}, '
+                          f'{check.kinematic_correlation:.2f} for {check.opposed_for:.2g} s; '
+                          'its sign wrong?)')
+        self.refusals['yaw'] = self.yaw_fault
+        self.count_rejection(self.yaw_fault)
+        self._voided.add('yaw')
+        self._fault_hold = check.command_mean
 
     def _measurement_time(self, now_ns: int) -> int:
         """
@@ -917,8 +956,11 @@ class SteeringController:
             # the speed the diagnostics name with the hold (dev-probe90: they named the
             # speed of the newest velocity, 30 m/s, after a moment at -10)
             self.low_speed_v_x = v_x
+        sent_before = self._rate_angle
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
+        if sent_before is not None:
+            self._judge_yaw_rate(dt, state, sent_before)
         if self.oscillation.step(dt, self.last.steering):
             self.turning['steering_oscillates'] += dt
             if self.oscillation.amplitude > self.oscillation_seen[0]:

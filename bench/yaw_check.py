@@ -1,0 +1,130 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The yaw-rate sign check's margin on the league's runs (``core/yaw_check.py``).
+
+``python -m bench.yaw_check [LAW,LAW... [PLANT,PLANT...]]``: every law of ``compare``
+(default all), S0-S5 at 10 / 20 / 30 / 37 m/s, on the plants given (default the goal
+plant, the noise-free nonlinear plant and the CommonRoad multi-body plant with delay and
+noise; noise seed 11), run as ``compare`` runs them; then :class:`YawCheck` on each run's
+yaw rate and relative yaw (with the default sensor noise on both, seed 5) and the
+command sent before them, once as they are and once with the yaw rate's sign flipped
+(the loop itself is right: a check of the verdict, not of a shaking car). Prints per
+run where a witness fell below -0.5, any run refused with the right sign (none may be),
+and the smallest over all runs and steps of the larger of the two correlations (both
+negative together is the fault). About 10 minutes on one core.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import Sequence
+
+from lookahead_control.core.params import VehicleParams
+from lookahead_control.core.yaw_check import YawCheck
+from lookahead_control.tools import compare
+import numpy as np
+from sim_plant.closed_loop_sim import run
+from sim_plant.sensors import NoiseParams
+
+PLANTS = ('nonlinear_delay_noise', 'nonlinear', 'commonroad_mb_delay_noise')
+NOISE = 0.002                   # [rad/s, rad] the default sensor noise of r and eps_r
+
+
+def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.ndarray,
+              v_x: np.ndarray, rho: np.ndarray, wheelbase: float
+              ) -> tuple[float, float, float, float | None]:
+    """
+    Run the check over one run.
+
+    :param time: sample times [s].
+    :param r: yaw rate as measured [rad/s].
+    :param eps_r: relative yaw as measured [rad].
+    :param command: the command sent at each sample [rad].
+    :param v_x: speed [m/s].
+    :param rho: the curvature received [1/m].
+    :param wheelbase: ``L`` [m].
+    :return: the smallest steering correlation, the smallest relative-yaw correlation,
+        the smallest over the steps of the larger of the two, and the first time the yaw
+        rate was refused (None: never).
+    """
+    check = YawCheck()
+    low_steering = low_kinematic = joint = 2.0
+    refused = None
+    for k in range(1, time.size):
+        opposed = check.step(float(time[k] - time[k - 1]), float(r[k]), float(command[k - 1]),
+                             float(v_x[k]), wheelbase, float(eps_r[k]), float(rho[k]))
+        if not math.isnan(check.correlation):
+            low_steering = min(low_steering, check.correlation)
+            low_kinematic = min(low_kinematic, check.kinematic_correlation)
+            joint = min(joint, max(check.correlation, check.kinematic_correlation))
+        if opposed and refused is None:
+            refused = float(time[k])
+    return low_steering, low_kinematic, joint, refused
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """
+    Print the margin.
+
+    :param argv: ``[LAW,LAW... [PLANT,PLANT...]]``.
+    :return: 0, or 1 if a yaw rate of the right sign was refused.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    laws = args[0].split(',') if args else list(compare.LAWS)
+    plants = [c for c in compare.PLANTS if c.name in (args[1].split(',') if len(args) > 1
+                                                      else PLANTS)]
+    vehicle = VehicleParams()
+    scenarios = compare.load_scenarios(compare.SCENARIOS)
+    rng = np.random.default_rng(5)
+    worst, false_refusals, flipped, refused = 2.0, 0, 0, 0
+    for law_name in laws:
+        for case in plants:
+            law_vehicle = case.law_vehicle(vehicle)
+            for name, scenario in scenarios.items():
+                speeds = compare.scenario_speeds(scenario, compare.SPEEDS)
+                law = compare.league_law(law_name, law_vehicle, compare.LawSettings())
+                noise = {'noise': NoiseParams(), 'seed': [11] * len(speeds)} if case.noisy else {}
+                result = run(scenario, law_vehicle, law, case.plant,
+                             initial_speed=np.asarray(speeds, dtype=float),
+                             dt=case.dt or compare.DT, delay=case.delay,
+                             preview_distance=compare.PREVIEW_DISTANCE, **noise)
+                time = np.asarray(result.time)
+                for i, speed in enumerate(speeds):
+                    def column(channel: str) -> np.ndarray:
+                        return np.asarray(result[channel])[:, i]
+                    r = column('r') + rng.normal(0.0, NOISE, time.size)
+                    eps_r = column('eps_r') + rng.normal(0.0, NOISE, time.size)
+                    given = (column('steering_cmd'), column('v_x'), column('rho'),
+                             law_vehicle.wheelbase)
+                    steering, kinematic, joint, at = check_run(time, r, eps_r, *given)
+                    worst = min(worst, joint)
+                    where = f'{law_name} {case.name} {name} {speed:g} m/s'
+                    if min(steering, kinematic) < -0.5:
+                        print(f'a witness below -0.5: {where}: steering {steering:.2f}, '
+                              f'relative yaw {kinematic:.2f}')
+                    if at is not None:
+                        false_refusals += 1
+                        print(f'REFUSED WITH THE RIGHT SIGN: {where} at {at:.2f} s')
+                    flipped += 1
+                    refused += check_run(time, -r, eps_r, *given)[3] is not None
+    print(f'smallest over runs and steps of the larger correlation (right sign): {worst:.2f}')
+    print(f'right sign refused: {false_refusals}; flipped sign refused: {refused} of {flipped}')
+    return 1 if false_refusals else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,183 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A check of the measured yaw rate's sign against the steering and the relative yaw.
+
+A yaw rate of the wrong sign (a bridge that flips it, an IMU mounted upside down) makes
+every law that feeds it back unstable, and neither the map check (which blames the map)
+nor the stamps see it (dev-probe97: the steering shook on a straight from 1.2 s, the
+car left the lane at 5.5 s, and the only word was a map WARN). Two witnesses are asked,
+each correlated with the measured yaw rate over ``memory``, centred (a yaw-rate bias, a
+constant curve and a steady side force drop out):
+
+- the steering: a car turns the way it is steered, its yaw rate following the wheel
+  angle with a positive gain (``v_x delta / L`` through ``lag``: actuator and yaw mode;
+  its scale does not matter, only the correlation's sign is used). But a car that
+  oversteers, and is steered against it, turns against the steering (dev-sc44 measured
+  -0.79 for the paper law on the CommonRoad car braking in S5's arc);
+- the relative yaw: ``eps_r' = r - v_x rho`` holds whatever the tyres do, so the
+  relative yaw's rate plus ``v_x rho`` (both through ``lag``; ``rho`` the curvature
+  received, 0 without) is the yaw rate. A map of the wrong sign, or a curve without a
+  map, is a term of its own there, which the steering witness does not have.
+
+Only while all three signals vary by ``excitation`` or more, at or above ``min_speed``,
+is a correlation judged; the relative yaw's at or below ``limit`` and the steering's at
+or below ``steering_limit``, for ``hold`` seconds: the yaw rate runs against the car. A
+correct yaw rate gives correlations near +1 wherever the car is steered, a flipped one
+near -1 with both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+from lookahead_control.core.params import check_range
+
+
+@dataclass(frozen=True)
+class YawCheckParams:
+    """
+    Settings of the check.
+
+    :param lag: first-order lag from the command to its yaw rate (actuator and yaw
+        mode), and of the kinematic witness's signals [s].
+    :param memory: time constant of the correlation's statistics [s].
+    :param excitation: the standard deviation the yaw rate and both witnesses need
+        before the correlations are judged [rad/s] (the steering's in yaw rate at the
+        speed, by ``v_x / L``).
+    :param limit: a correlation with the relative yaw's witness at or below it is
+        opposed [-].
+    :param steering_limit: the same for the steering's witness, whose model is cruder
+        (a lag, no actuator rate limit: a command saturating from side to side made
+        -0.6 to -0.98 of a flipped yaw rate in dev-probe97's car) [-].
+    :param hold: opposed this long is the fault [s].
+    :param min_speed: below it the check restarts [m/s].
+    """
+
+    lag: float = 0.2
+    memory: float = 1.0
+    excitation: float = 0.02
+    limit: float = -0.8
+    steering_limit: float = -0.5
+    hold: float = 0.5
+    min_speed: float = 5.0
+
+    def __post_init__(self) -> None:
+        """Check the ranges."""
+        check_range('yaw_check.lag', self.lag, 0.0, 5.0, unit='s')
+        check_range('yaw_check.memory', self.memory, 0.05, 60.0, unit='s')
+        check_range('yaw_check.excitation', self.excitation, 1.0e-4, 10.0, unit='rad/s')
+        check_range('yaw_check.limit', self.limit, -1.0, 0.0)
+        check_range('yaw_check.steering_limit', self.steering_limit, -1.0, 0.0)
+        check_range('yaw_check.hold', self.hold, 0.0, 60.0, unit='s')
+        check_range('yaw_check.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
+
+
+class YawCheck:
+    """The correlations of the measured yaw rate with the steering's and the relative yaw's."""
+
+    def __init__(self, settings: YawCheckParams | None = None) -> None:
+        """
+        Start without statistics.
+
+        :param settings: the settings (defaults if None).
+        """
+        self.settings = settings or YawCheckParams()
+        self.reset()
+
+    def reset(self) -> None:
+        """Restart (a gap, a slow car, a non-finite input): statistics from the next step."""
+        self._steered = math.nan        # the steering's yaw rate through the lag
+        self._eps = self._turn = self._rate = math.nan      # the kinematic witness's filters
+        self._mean = [0.0, 0.0, 0.0, 0.0]           # steered, r, kinematic, r filtered
+        self._var = [0.0, 0.0, 0.0, 0.0]
+        self._cov = [0.0, 0.0]                      # steered x r, kinematic x r filtered
+        self._weight = 0.0
+        #: the mean command over ``memory`` (what the safe behaviour holds after a fault:
+        #: the last command is one of the shaking)
+        self.command_mean = math.nan
+        #: the correlation with the steering's yaw rate (NaN until excited)
+        self.correlation = math.nan
+        #: the correlation with the relative yaw's kinematic yaw rate (NaN until excited)
+        self.kinematic_correlation = math.nan
+        #: seconds both have been at or below the limit
+        self.opposed_for = 0.0
+
+    @property
+    def opposed(self) -> bool:
+        """Return True once the yaw rate has run against both witnesses for ``hold``."""
+        return self.opposed_for > 0.0 and self.opposed_for >= self.settings.hold
+
+    def step(self, dt: float, r: float, steering: float, v_x: float, wheelbase: float,
+             eps_r: float, rho: float) -> bool:
+        """
+        Take one measured yaw rate and relative yaw, and the steering sent before them.
+
+        :param dt: time since the previous step [s] (0: nothing moves; above 1 s: a
+            restart).
+        :param r: measured yaw rate [rad/s].
+        :param steering: the command sent last [rad].
+        :param v_x: speed [m/s].
+        :param wheelbase: ``L`` [m] (the steering's kinematic yaw rate ``v_x delta / L``).
+        :param eps_r: measured relative yaw [rad].
+        :param rho: the road's curvature received at the CG (0: none) [1/m].
+        :return: :attr:`opposed`.
+        """
+        s = self.settings
+        if (not all(math.isfinite(x) for x in (dt, r, steering, v_x, eps_r, rho))
+                or v_x < s.min_speed or not 0.0 <= dt <= 1.0):
+            self.reset()
+            return False
+        if dt == 0.0:
+            return self.opposed
+        steered, turn = v_x * steering / wheelbase, v_x * rho
+        if math.isnan(self._steered):
+            self._steered, self._eps, self._turn, self._rate = steered, eps_r, turn, r
+            self._mean = [steered, r, turn, r]
+            self.command_mean = steering
+            return False
+        b = min(1.0, dt / s.lag) if s.lag > 0.0 else 1.0
+        self._steered += b * (steered - self._steered)
+        # eps_r through the lag: its rate is the lagged eps_r', so the lagged r - v_x rho
+        eps_before = self._eps
+        self._eps += b * (eps_r - self._eps)
+        self._turn += b * (turn - self._turn)
+        self._rate += b * (r - self._rate)
+        kinematic = (self._eps - eps_before) / dt + self._turn
+        # exponentially weighted, centred moments over ``memory``
+        a = min(1.0, dt / s.memory)
+        self.command_mean += a * (steering - self.command_mean)
+        values = (self._steered, r, kinematic, self._rate)
+        deltas = [x - m for x, m in zip(values, self._mean)]
+        self._mean = [m + a * d for m, d in zip(self._mean, deltas)]
+        self._var = [(1.0 - a) * (v + a * d * d) for v, d in zip(self._var, deltas)]
+        self._cov = [(1.0 - a) * (self._cov[0] + a * deltas[0] * deltas[1]),
+                     (1.0 - a) * (self._cov[1] + a * deltas[2] * deltas[3])]
+        self._weight = min(1.0, self._weight + a)
+        excited = (self._weight >= 1.0 - math.exp(-1.0)
+                   and min(self._var[:3]) >= s.excitation ** 2)
+        if not excited:
+            # no evidence either way: an opposition already seen stays
+            self.correlation = self.kinematic_correlation = math.nan
+            return self.opposed
+        self.correlation = self._cov[0] / math.sqrt(self._var[0] * self._var[1])
+        self.kinematic_correlation = self._cov[1] / math.sqrt(
+            max(self._var[2] * self._var[3], 1e-300))
+        if self.correlation <= s.steering_limit and self.kinematic_correlation <= s.limit:
+            self.opposed_for += dt
+        else:
+            self.opposed_for = 0.0
+        return self.opposed

@@ -1,0 +1,210 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The yaw-rate sign check (``core/yaw_check.py``) and the controller core's answer to it."""
+
+from __future__ import annotations
+
+import math
+
+from lookahead_control.core.controller import SteeringController
+from lookahead_control.core.lane_keeping import LaneKeepingParams
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.core.safety import SafetyParams
+from lookahead_control.core.samples import (curvature_from_points, LateralErrorSample,
+                                            VelocitySample, YawSample)
+from lookahead_control.core.yaw_check import YawCheck, YawCheckParams
+import numpy as np
+import pytest
+from sim_plant.closed_loop_sim import check_steps, linear_plant_stepper, measure
+from sim_plant.road import Road, Segment
+from sim_plant.scenario import Scenario
+from sim_plant.speed_profile import SpeedProfile
+from sim_plant.vehicle_model import PlantParams
+
+PERIOD, SPEED, WHEELBASE = 0.01, 30.0, 2.7
+
+
+def _synthetic(sign: float, amplitude: float = 0.01, bias: float = 0.0, seconds: float = 6.0,
+               noise: float = 0.002, seed: int = 3) -> tuple[YawCheck, list[bool]]:
+    """Run the check on a weaving steering on a straight and the yaw rate it makes."""
+    rng = np.random.default_rng(seed)
+    check, opposed, r, eps = YawCheck(), [], 0.0, 0.0
+    for k in range(int(seconds / PERIOD)):
+        t = k * PERIOD
+        steering = amplitude * math.sin(2.0 * math.pi * 0.4 * t)
+        r += (SPEED * steering / WHEELBASE - r) * PERIOD / 0.25    # the car's yaw mode
+        eps += r * PERIOD                                          # eps_r' = r on a straight
+        measured = sign * r + bias + rng.normal(0.0, noise)
+        opposed.append(check.step(PERIOD, measured, steering, SPEED, WHEELBASE,
+                                  eps + rng.normal(0.0, noise), 0.0))
+    return check, opposed
+
+
+def test_a_yaw_rate_that_follows_the_steering_is_never_opposed():
+    check, opposed = _synthetic(1.0)
+    assert not any(opposed) and check.correlation > 0.95, check.correlation
+    assert check.kinematic_correlation > 0.9, check.kinematic_correlation
+    # a gyro bias and a steady curve drop out (centred statistics)
+    check, opposed = _synthetic(1.0, bias=0.1)
+    assert not any(opposed) and check.correlation > 0.95
+
+
+def test_a_yaw_rate_of_the_wrong_sign_is_opposed_after_the_hold():
+    check, opposed = _synthetic(-1.0)
+    first = opposed.index(True) * PERIOD
+    # the statistics need about a memory (1 s) of excitation, then the hold (0.5 s)
+    assert 1.0 < first < 2.5, first
+    assert check.correlation < -0.95 and check.kinematic_correlation < -0.9
+    assert all(opposed[opposed.index(True):])
+
+
+def test_a_car_turning_against_its_steering_is_not_opposed():
+    # an oversteering car steered against its yaw (dev-sc44: the paper law on the
+    # CommonRoad car braking in S5's arc, -0.79 with the steering): the relative yaw
+    # moves with the yaw rate, so the kinematic witness says the yaw rate is right
+    rng = np.random.default_rng(4)
+    check, r, eps = YawCheck(), 0.0, 0.0
+    for k in range(600):
+        t = k * PERIOD
+        steering = -0.01 * math.sin(2.0 * math.pi * 0.4 * t)        # against the yaw
+        r += (-SPEED * steering / WHEELBASE - r) * PERIOD / 0.25
+        eps += r * PERIOD
+        assert not check.step(PERIOD, r + rng.normal(0.0, 0.002), steering, SPEED, WHEELBASE,
+                              eps + rng.normal(0.0, 0.002), 0.0)
+    assert check.correlation < -0.9 and check.kinematic_correlation > 0.9
+
+
+def test_a_map_of_the_wrong_sign_is_not_taken_for_a_yaw_rate_of_the_wrong_sign():
+    # the relative yaw against a map of the other sign runs against the yaw rate; the
+    # car still turns the way it is steered (the map check drops that map)
+    rng = np.random.default_rng(5)
+    check, r, eps = YawCheck(), 0.0, 0.0
+    for k in range(600):
+        t = k * PERIOD
+        rho = 3.0 / SPEED ** 2 * math.sin(2.0 * math.pi * 0.2 * t)     # an S-bend
+        steering = WHEELBASE * rho                                   # the car follows it
+        r += (SPEED * steering / WHEELBASE - r) * PERIOD / 0.25
+        eps += (r - SPEED * rho) * PERIOD
+        assert not check.step(PERIOD, r + rng.normal(0.0, 0.002), steering, SPEED, WHEELBASE,
+                              eps + rng.normal(0.0, 0.002), -rho)
+    assert check.correlation > 0.9 and check.kinematic_correlation < -0.5
+
+
+def test_too_little_steering_is_not_judged():
+    # 1 mrad of weave at 30 m/s: 0.011 rad/s of yaw rate, under the excitation 0.02
+    check, opposed = _synthetic(-1.0, amplitude=0.001)
+    assert not any(opposed) and math.isnan(check.correlation)
+
+
+def test_a_slow_car_a_gap_or_a_bad_value_restarts_it():
+    check, _ = _synthetic(-1.0)
+    assert check.opposed
+    assert not check.step(PERIOD, 0.1, 0.01, 2.0, WHEELBASE, 0.0, 0.0) and not check.opposed
+    check, _ = _synthetic(-1.0)
+    assert not check.step(1.5, 0.1, 0.01, SPEED, WHEELBASE, 0.0, 0.0) and not check.opposed
+    check, _ = _synthetic(-1.0)
+    assert not check.step(PERIOD, 0.1, 0.01, SPEED, WHEELBASE, math.nan, 0.0)
+    assert not check.opposed
+
+
+@pytest.mark.parametrize('field, value', [('lag', -1.0), ('memory', 0.0), ('limit', 0.5),
+                                          ('excitation', 0.0), ('hold', math.nan)])
+def test_its_settings_are_checked(field, value):
+    with pytest.raises(ParameterError, match=f'yaw_check.{field}'):
+        YawCheckParams(**{field: value})
+
+
+def _s_bend(v: float = SPEED) -> Scenario:
+    """Return an S-bend at 3 m/s^2 laid out for ``v`` (clothoids, arcs, a reversal)."""
+    k = 3.0 / v ** 2
+    road = Road([Segment('straight', 2 * v), Segment('clothoid', 1.5 * v, 0.0, k),
+                 Segment('arc', 3 * v, k, k), Segment('clothoid', 2 * v, k, -k),
+                 Segment('arc', 3 * v, -k, -k), Segment('clothoid', 1.5 * v, -k, 0.0),
+                 Segment('straight', 6 * v)])
+    return Scenario('s_bend', 16.0, road, SpeedProfile(v))
+
+
+def _loop(law: str, flip_at: float, seed: int = 1) -> dict[str, object]:
+    """
+    Run the controller core and the linear plant; the yaw rate's sign flipped from ``flip_at``.
+
+    :return: the core, the first time a command was not the law's, the peak CG error
+        before it, the largest command step after it, the stale inputs then, the angle
+        the safe behaviour holds, and the commands of its first 0.4 s.
+    """
+    scenario, vehicle = _s_bend(), VehicleParams()
+    core = SteeringController(vehicle, ControllerParams(), 'imu', False, SafetyParams(), law,
+                              None, LaneKeepingParams())
+    stepper = linear_plant_stepper(scenario, vehicle, PlantParams(), SPEED, 0.0)
+    substeps, n_steps = check_steps(0.002, PERIOD, scenario.duration)
+    rng = np.random.default_rng(seed)
+    x = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    safe_at, peak, steps, last, stale, hold, held = None, 0.0, 0.0, None, [], None, []
+    for k in range(n_steps):
+        t = k * PERIOD
+        stamp = int(round(t * 1e9))
+        inputs = measure(x, t, scenario, SPEED, 0.0)
+        preview = [(float(d), float(scenario.road.curvature(x[0] + d)[0]))
+                   for d in np.arange(0.0, 50.01, 5.0)]
+        sign = -1.0 if t >= flip_at else 1.0
+        r = sign * x[4] + rng.normal(0.0, 0.002)            # the default sensor noise's
+        core.accept('yaw', YawSample(stamp, x[2] + rng.normal(0.0, 0.002), r,
+                                     float(inputs.a_x) - x[3] * x[4]), stamp)
+        core.accept('velocity', VelocitySample(stamp, float(inputs.v_x), x[3]), stamp)
+        core.accept('road_curvature', curvature_from_points(stamp, preview), stamp)
+        core.accept('lateral_error', LateralErrorSample(stamp, 0.0, x[1] + rng.normal(0.0, 0.03)),
+                    stamp)
+        command = core.compute(stamp)
+        if command.law is None and safe_at is None:
+            safe_at, stale, hold = t, core.stale(stamp), core._fault_hold
+        if safe_at is not None and t < safe_at + 0.4:
+            held.append(command.steering)
+        if safe_at is None:
+            peak = max(peak, abs(x[1]))
+        elif last is not None:
+            steps = max(steps, abs(command.steering - last))
+        last = command.steering
+        x = stepper(x, t, 0.002, substeps, command.steering)
+    return {'core': core, 'safe_at': safe_at, 'peak': peak, 'steps': steps, 'stale': stale,
+            'hold': hold, 'held': held}
+
+
+@pytest.mark.parametrize('law', ['cg_compensated', 'paper', 'stanley'])
+def test_the_core_refuses_a_yaw_rate_of_the_wrong_sign_and_takes_the_safe_behaviour(law):
+    # dev-probe97: a bridge that flipped the yaw rate's sign shook the car off a straight
+    # (steering at its cap from 1.2 s, off the lane at 5.5 s); the only word was a map
+    # WARN blaming the map, ERROR only once the lateral error was implausible (> 5 m)
+    run = _loop(law, flip_at=3.0)
+    core = run['core']
+    assert core.yaw_fault is not None and 'runs against the steering and the relative yaw' in \
+        core.yaw_fault
+    assert 3.0 < run['safe_at'] < 5.0, run['safe_at']
+    assert run['peak'] < 1.0, run['peak']       # refused before the car was far off
+    # stale at once, the cause named; then hold and ramp: no more shaking
+    assert run['stale'] == ['yaw']
+    assert 'yaw_rate runs against the steering' in core.describe_stale(['yaw'])
+    assert run['steps'] <= SafetyParams().max_steering_rate * PERIOD + 1e-12
+    # the hold is the mean command before the fault, not the last of the shaking: the
+    # commands go there within the rate limit and stay
+    assert abs(run['hold']) < 0.02 and run['held'][-1] == pytest.approx(run['hold'], abs=1e-9)
+    # a restart (a time jump) forgets it
+    core.reset()
+    assert core.yaw_fault is None
+
+
+@pytest.mark.parametrize('law', ['cg_compensated', 'paper', 'stanley'])
+def test_a_right_yaw_rate_is_never_refused(law):
+    run = _loop(law, flip_at=math.inf)
+    assert run['core'].yaw_fault is None and run['safe_at'] is None
