@@ -81,6 +81,26 @@ def test_an_output_file_replaces_only_an_earlier_output(tmp_path, capsys):
     assert exit_.value.code == 2 and 'expected a .json file name' in capsys.readouterr().err
     assert readme.read_text() == '# mine\n' and notes.read_text() == 'my notes, not JSON\n'
     assert picture.read_bytes() == b'GIF89a, named .png'
+    # dev-probe98: a FIFO hung the check (it read it), links were followed (a JSON file
+    # elsewhere rewritten; a dangling x.json -> NOTES.md wrote NOTES.md), a file that
+    # only began with [ (a git config) passed
+    import os
+    os.mkfifo(tmp_path / 'pipe.json')
+    elsewhere = tmp_path / 'cfg'
+    elsewhere.mkdir()
+    (elsewhere / 'settings.json').write_text('{"mine": 1}')
+    (tmp_path / 'link.json').symlink_to(elsewhere / 'settings.json')
+    (tmp_path / 'dangling.json').symlink_to(elsewhere / 'NOTES.md')
+    (tmp_path / 'gitcfg.json').write_text('[core]\n\tbare = false\n')
+    for args, said in ((['--json', str(tmp_path / 'pipe.json')], 'is not a regular file'),
+                       (['--json', str(tmp_path / 'link.json')], 'is a symbolic link'),
+                       (['--json', str(tmp_path / 'dangling.json')], 'is a symbolic link'),
+                       (['--json', str(tmp_path / 'gitcfg.json')], 'is no JSON file')):
+        with pytest.raises(SystemExit) as exit_:
+            schedule([*base, *args])
+        assert exit_.value.code == 2 and said in capsys.readouterr().err, args
+    assert (elsewhere / 'settings.json').read_text() == '{"mine": 1}'
+    assert not (elsewhere / 'NOTES.md').exists()
     # an earlier output is replaced: the same command twice
     out, png = tmp_path / 'new' / 'table.json', tmp_path / 'table.png'
     for _ in range(2):

@@ -150,9 +150,27 @@ def number(low: float = -math.inf, high: float = math.inf, *, low_open: bool = F
     return convert
 
 
-#: what a file an output option may replace starts with, by suffix (a tool's earlier
-#: output; anything else is refused: dev-probe96's ``--json README.md`` replaced it)
-OUTPUT_KINDS = {'.png': (b'\x89PNG\r\n\x1a\n',), '.json': (b'[', b'{')}
+#: the signature of a PNG file: only such a file is replaced by ``--plot``
+PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
+
+
+def _written_by_a_tool(path: Path, suffix: str) -> bool:
+    """
+    Return whether an existing regular file is of the kind a tool writes there.
+
+    :param path: the file (regular, not a link).
+    :param suffix: ``.png`` (its signature) or ``.json`` (a JSON array or object).
+    :return: whether it is.
+    :raises OSError: it cannot be read.
+    """
+    with path.open('rb') as handle:
+        if suffix == '.png':
+            return handle.read(len(PNG_SIGNATURE)) == PNG_SIGNATURE
+        try:
+            data = json.load(handle)
+        except ValueError:      # not JSON, not UTF-8: someone's file
+            return False
+    return isinstance(data, (list, dict))
 
 
 def output_file(suffix: str) -> Callable[[str], Path]:
@@ -162,9 +180,12 @@ def output_file(suffix: str) -> Callable[[str], Path]:
     Refused when the option is read, before any work: another suffix (matplotlib would
     pick the format from it, or fail late; a ``--json README.md`` replaced the README),
     a folder, a path under a file or in a folder this user may not write in (before:
-    ``File exists`` after a whole league, dev-probe96), and an existing file that is
-    not of the kind (a PNG's signature, a JSON array or object): a tool's earlier output
-    is replaced, nothing else.
+    ``File exists`` after a whole league, dev-probe96), a symbolic link (it was followed:
+    a JSON file elsewhere rewritten, a dangling ``x.json -> NOTES.md`` wrote ``NOTES.md``),
+    something that is not a regular file (a FIFO: reading it to check it hung the tool,
+    dev-probe98), and an existing file that is not of the kind (a PNG's signature; a
+    JSON array or object, the whole file parsed): a tool's earlier output is replaced,
+    nothing else.
 
     :param suffix: ``.png`` or ``.json``.
     :return: the converter.
@@ -173,6 +194,9 @@ def output_file(suffix: str) -> Callable[[str], Path]:
         path = Path(text)
         if path.suffix.lower() != suffix:
             raise argparse.ArgumentTypeError(f'{text}: expected a {suffix} file name')
+        if path.is_symlink():
+            raise argparse.ArgumentTypeError(f'{text}: is a symbolic link (to '
+                                             f'{os.readlink(path)}); give the file itself')
         if path.is_dir():
             raise argparse.ArgumentTypeError(f'{text}: is a folder')
         folder = path.parent
@@ -181,14 +205,16 @@ def output_file(suffix: str) -> Callable[[str], Path]:
         if not folder.is_dir() or not os.access(folder, os.W_OK):
             raise argparse.ArgumentTypeError(f'{text}: {folder} is not a folder this user '
                                              'may write in')
+        if path.exists() and not path.is_file():
+            raise argparse.ArgumentTypeError(f'{text}: exists and is not a regular file (a '
+                                             'device, a FIFO, a socket)')
         if path.exists():
             try:
-                with path.open('rb') as handle:
-                    head = handle.read(64).lstrip()
+                ours = _written_by_a_tool(path, suffix)
             except OSError as err:
                 raise argparse.ArgumentTypeError(f'{text}: cannot read it to check what it '
                                                  f'holds ({err.strerror})') from err
-            if not head.startswith(OUTPUT_KINDS[suffix]):
+            if not ours:
                 raise argparse.ArgumentTypeError(
                     f'{text}: exists and is no {suffix[1:].upper()} file a tool wrote (only '
                     'such a file is replaced); choose another name or move it away')
