@@ -653,13 +653,7 @@ def test_a_bag_begun_while_the_node_was_deactivated_lost_no_answers():
 def test_inputs_recorded_twice_are_counted_apart_from_refusals():
     # dev-probe96: a bag with every message twice re-ran equal, but replay put the 4000
     # refused copies down to 'a node older than a check'
-    rows = _inputs(100, math.inf)
-    node, _ = controller_from_params({'law': 'cg_compensated'})
-    commands = {}
-    for role, sample in _feed(rows):
-        assert node.accept(role, sample, sample.stamp_ns) is None
-        if role == 'lateral_error':
-            commands[sample.stamp_ns] = node.compute(sample.stamp_ns).steering
+    rows, commands = _paper_run(100, 'cg_compensated')
     twice = {role: [row for row in samples for _ in range(2)] for role, samples in rows.items()}
     result = rerun(_bag(twice, commands, {}, {'law': 'cg_compensated'}), order='stamp')
     assert result.compared == 100 and result.max_diff == 0.0, result.max_diff
@@ -669,10 +663,10 @@ def test_inputs_recorded_twice_are_counted_apart_from_refusals():
     assert once.repeated == 0 and once.max_diff == 0.0
 
 
-def _paper_run(steps):
-    """Return the inputs of a curve and the paper law's answers as the node gave them."""
+def _paper_run(steps, law='paper'):
+    """Return the inputs of a curve and a law's answers (the paper's) as the node gave them."""
     rows = _inputs(steps, math.inf)
-    node, _ = controller_from_params({'law': 'paper'})
+    node, _ = controller_from_params({'law': law})
     commands = {}
     for role, sample in _feed(rows):
         assert node.accept(role, sample, sample.stamp_ns) is None

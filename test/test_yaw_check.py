@@ -28,10 +28,8 @@ from lookahead_control.core.yaw_check import YawCheck, YawCheckParams
 import numpy as np
 import pytest
 from sim_plant.closed_loop_sim import check_steps, linear_plant_stepper, measure
-from sim_plant.road import Road, Segment
-from sim_plant.scenario import Scenario
-from sim_plant.speed_profile import SpeedProfile
 from sim_plant.vehicle_model import PlantParams
+from test_map_fallback import _s_bend      # the S-bend at 3 m/s^2 of the map check's tests
 
 PERIOD, SPEED, WHEELBASE = 0.01, 30.0, 2.7
 
@@ -124,16 +122,6 @@ def test_a_slow_car_a_gap_or_a_bad_value_restarts_it():
 def test_its_settings_are_checked(field, value):
     with pytest.raises(ParameterError, match=f'yaw_check.{field}'):
         YawCheckParams(**{field: value})
-
-
-def _s_bend(v: float = SPEED) -> Scenario:
-    """Return an S-bend at 3 m/s^2 laid out for ``v`` (clothoids, arcs, a reversal)."""
-    k = 3.0 / v ** 2
-    road = Road([Segment('straight', 2 * v), Segment('clothoid', 1.5 * v, 0.0, k),
-                 Segment('arc', 3 * v, k, k), Segment('clothoid', 2 * v, k, -k),
-                 Segment('arc', 3 * v, -k, -k), Segment('clothoid', 1.5 * v, -k, 0.0),
-                 Segment('straight', 6 * v)])
-    return Scenario('s_bend', 16.0, road, SpeedProfile(v))
 
 
 def _loop(law: str, flip_at: float, seed: int = 1) -> dict[str, object]:
