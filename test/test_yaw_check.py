@@ -187,7 +187,11 @@ def test_the_core_refuses_a_yaw_rate_of_the_wrong_sign_and_takes_the_safe_behavi
     # the hold is the mean command before the fault, not the last of the shaking: the
     # commands go there within the rate limit and stay
     assert abs(run['hold']) < 0.02 and run['held'][-1] == pytest.approx(run['hold'], abs=1e-9)
-    # a restart (a time jump) forgets it
+    # a restart (a time jump) forgets it, and so does the node's activation
+    core.clear_yaw_fault()
+    assert core.yaw_fault is None and core._fault_hold is None
+    assert 'yaw' not in core.refusals and math.isnan(core.yaw_check.correlation)
+    core.yaw_fault = 'yaw: a fault'
     core.reset()
     assert core.yaw_fault is None
 
@@ -196,3 +200,23 @@ def test_the_core_refuses_a_yaw_rate_of_the_wrong_sign_and_takes_the_safe_behavi
 def test_a_right_yaw_rate_is_never_refused(law):
     run = _loop(law, flip_at=math.inf)
     assert run['core'].yaw_fault is None and run['safe_at'] is None
+
+
+def test_the_node_judges_the_yaw_rate_afresh_when_activated_again(context):
+    # deactivate, fix the bridge, activate: the fault is forgotten (a parameter set is
+    # no fix of the bridge: it keeps it)
+    from lookahead_control.ros.controller_node import ControllerNode
+    from rclpy.parameter import Parameter
+    node = ControllerNode(context=context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        node.core.yaw_fault = 'yaw: yaw_rate runs against the steering (a test)'
+        assert node.set_parameters([Parameter('safety.hold_time', value=0.4)])[0].successful
+        assert node.core.yaw_fault is not None
+        node.trigger_deactivate()
+        assert node.core.yaw_fault is not None
+        node.trigger_activate()
+        assert node.core.yaw_fault is None
+    finally:
+        node.destroy_node()

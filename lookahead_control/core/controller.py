@@ -303,7 +303,8 @@ class SteeringController:
         self.oscillation_seen = (0.0, 0.0)
         #: the measured yaw rate against the steering sent (``core/yaw_check.py``): once
         #: it runs against it, ``yaw_fault`` holds why and the yaw input is refused (stale
-        #: at once: the safe behaviour) until a restart (a time jump, a new core)
+        #: at once: the safe behaviour) until a restart (a time jump, the node activated
+        #: again: :meth:`clear_yaw_fault`)
         self.yaw_check = YawCheck()
         self.yaw_fault: Optional[str] = None
         self._fault_hold: Optional[float] = None
@@ -461,8 +462,7 @@ class SteeringController:
             self._hold_value = self._rate_angle
         self.law.reset()
         self.map_check.reset()
-        self.yaw_check.reset()
-        self.yaw_fault = self._fault_hold = None
+        self.clear_yaw_fault()
         self._law_stamp = None          # (the oscillation check restarts with it)
 
     def seed_output(self, angle: float, stamp_ns: int) -> None:
@@ -687,6 +687,13 @@ class SteeringController:
         if note is not None:                # a state filter models the command sent
             note(self.last.steering, since)
         return self.last
+
+    def clear_yaw_fault(self) -> None:
+        """Forget a yaw rate refused for its sign (the node's activation: the bridge fixed)."""
+        if self.yaw_fault is not None and self.refusals.get('yaw') == self.yaw_fault:
+            del self.refusals['yaw']
+        self.yaw_check.reset()
+        self.yaw_fault = self._fault_hold = None
 
     def _judge_yaw_rate(self, dt: float, state: LateralState, sent: float) -> None:
         """

@@ -372,8 +372,9 @@ class ControllerNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Start publishing."""
+        """Start publishing; a yaw rate refused for its sign is judged afresh."""
         self.active = True
+        self.core.clear_yaw_fault()     # deactivate, fix the bridge, activate
         self.activations += 1
         return super().on_activate(state)
 
