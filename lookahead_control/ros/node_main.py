@@ -658,7 +658,7 @@ def run_node(name: str, args: Optional[list[str]], make: Callable[[], N],
     :param description: what the node does, for ``--help``.
     :param check: the node's check of its whole parameter set before ROS starts
         (:func:`checked_arguments`).
-    :return: 0, or 2 for bad parameters or config.
+    :return: 0, or 2 for bad parameters or config (3: a recorder's output that exists).
     """
     if wants_help([name, *(args or [])[1:]]):
         print(help_text(name, description or f'the {name} node', specs), end='')
