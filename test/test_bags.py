@@ -911,12 +911,17 @@ def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys, 
     # dev-probe94: a recorder that fails mid-run (a full disk) exits 2 as well, and its
     # bag holds what it wrote: that is said, not 'nothing of this run'
     import lookahead_control.ros.closed_loop as closed_loop
+
+    def stand_in(bag, steps, code):
+        """Run the loop with a recorder that does ``steps`` (on ``b``) and exits ``code``."""
+        monkeypatch.setattr(closed_loop, 'recorder_command', lambda b: [
+            sys.executable, '-c', f'import os, sys, time; b = {str(b)!r}; {steps}; '
+            f"print('record: failed', file=sys.stderr); sys.exit({code})"])
+        assert run_loop(LoopConfig(scenario, speed=30.0, bag=bag)) == 1
+        return capsys.readouterr().err
+
     failing = tmp_path / 'failing'
-    monkeypatch.setattr(closed_loop, 'recorder_command', lambda bag: [
-        sys.executable, '-c', f'import os, sys, time; os.mkdir({str(bag)!r}); time.sleep(0.5); '
-        "print('record: write failed', file=sys.stderr); sys.exit(2)"])
-    assert run_loop(LoopConfig(scenario, speed=30.0, bag=failing)) == 1
-    said = capsys.readouterr().err
+    said = stand_in(failing, 'os.mkdir(b); time.sleep(0.5)', 2)
     assert (f"{failing} holds what this run's recorder wrote before it failed (record exit "
             'code 2: its line above says why)') in said, said
     assert f'(no metadata.yaml: run recover {failing})' in said
@@ -925,11 +930,7 @@ def test_a_bag_taken_after_the_check_is_not_called_this_run_s(tmp_path, capsys, 
     # started it, there when it opened its bag) was left to the recorder's line; record
     # exits 3 for an output that exists, 2 for a write failure: the refusal is said
     raced = tmp_path / 'raced'
-    monkeypatch.setattr(closed_loop, 'recorder_command', lambda bag: [
-        sys.executable, '-c', f'import os, sys, time; time.sleep(0.3); os.mkdir({str(bag)!r}); '
-        "print('record: error: exists', file=sys.stderr); sys.exit(3)"])
-    assert run_loop(LoopConfig(scenario, speed=30.0, bag=raced)) == 1
-    said = capsys.readouterr().err
+    said = stand_in(raced, 'time.sleep(0.3); os.mkdir(b)', 3)
     assert (f'record refused {raced} (another run made it after the check): nothing of this '
             'run was recorded') in said, said
     assert 'holds' not in said

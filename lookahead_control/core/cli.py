@@ -205,10 +205,10 @@ def output_file(suffix: str) -> Callable[[str], Path]:
         if not folder.is_dir() or not os.access(folder, os.W_OK):
             raise argparse.ArgumentTypeError(f'{text}: {folder} is not a folder this user '
                                              'may write in')
-        if path.exists() and not path.is_file():
-            raise argparse.ArgumentTypeError(f'{text}: exists and is not a regular file (a '
-                                             'device, a FIFO, a socket)')
         if path.exists():
+            if not path.is_file():
+                raise argparse.ArgumentTypeError(f'{text}: exists and is not a regular file '
+                                                 '(a device, a FIFO, a socket)')
             try:
                 ours = _written_by_a_tool(path, suffix)
             except OSError as err:

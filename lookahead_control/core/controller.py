@@ -307,7 +307,6 @@ class SteeringController:
         #: again: :meth:`clear_yaw_fault`)
         self.yaw_check = YawCheck()
         self.yaw_fault: Optional[str] = None
-        self._fault_hold: Optional[float] = None
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
@@ -688,12 +687,18 @@ class SteeringController:
             note(self.last.steering, since)
         return self.last
 
+    @property
+    def _fault_hold(self) -> Optional[float]:
+        """Return the angle the safe behaviour holds after a yaw fault (None: no fault)."""
+        # the check is not stepped once it found the fault: its mean command is frozen
+        return self.yaw_check.command_mean if self.yaw_fault is not None else None
+
     def clear_yaw_fault(self) -> None:
         """Forget a yaw rate refused for its sign (the node's activation: the bridge fixed)."""
         if self.yaw_fault is not None and self.refusals.get('yaw') == self.yaw_fault:
             del self.refusals['yaw']
         self.yaw_check.reset()
-        self.yaw_fault = self._fault_hold = None
+        self.yaw_fault = None
 
     def _judge_yaw_rate(self, dt: float, state: LateralState, sent: float) -> None:
         """
@@ -718,7 +723,6 @@ class SteeringController:
         self.refusals['yaw'] = self.yaw_fault
         self.count_rejection(self.yaw_fault)
         self._voided.add('yaw')
-        self._fault_hold = check.command_mean
 
     def _measurement_time(self, now_ns: int) -> int:
         """
