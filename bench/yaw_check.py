@@ -13,18 +13,21 @@
 # limitations under the License.
 
 """
-The yaw-rate sign check's margin on the league's runs (``core/yaw_check.py``).
+The yaw-rate check's margin on the league's runs (``core/yaw_check.py``).
 
 ``python -m bench.yaw_check [LAW,LAW... [PLANT,PLANT...]]``: every law of ``compare``
 (default all), S0-S5 at 10 / 20 / 30 / 37 m/s, on the plants given (default the goal
 plant, the noise-free nonlinear plant and the CommonRoad multi-body plant with delay and
 noise; noise seed 11), run as ``compare`` runs them; then :class:`YawCheck` on each run's
 yaw rate and relative yaw (with the default sensor noise on both, seed 5) and the
-command sent before them, once as they are and once with the yaw rate's sign flipped
-(the loop itself is right: a check of the verdict, not of a shaking car). Prints per
-run where a witness fell below -0.5, any run refused with the right sign (none may be),
-and the smallest over all runs and steps of the larger of the two correlations (both
-negative together is the fault). About 10 minutes on one core.
+command sent before them, once as they are, once with the yaw rate's sign flipped and
+once each with it in deg/s (x 57.3) and 10 times too large (the loop itself is right:
+a check of the verdict, not of a shaking car). Prints per run where a witness fell
+below -0.5, any run refused as it is (none may be), the smallest over all runs and steps
+of the larger of the two correlations (both negative together is the fault), and the
+largest of the scale's evidence: the spread (the yaw rate's standard deviation over the
+larger witness's) and the smaller of ``|gain|`` and ``1 / |kinematic gain|`` (either at
+``scale_limit`` is the fault). About 15 minutes on one core.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ NOISE = 0.002                   # [rad/s, rad] the default sensor noise of r and
 
 def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.ndarray,
               v_x: np.ndarray, rho: np.ndarray, wheelbase: float
-              ) -> tuple[float, float, float, float | None]:
+              ) -> tuple[float, float, float, float | None, float, float]:
     """
     Run the check over one run.
 
@@ -58,11 +61,13 @@ def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.nd
     :param rho: the curvature received [1/m].
     :param wheelbase: ``L`` [m].
     :return: the smallest steering correlation, the smallest relative-yaw correlation,
-        the smallest over the steps of the larger of the two, and the first time the yaw
-        rate was refused (None: never).
+        the smallest over the steps of the larger of the two, the first time the yaw
+        rate was refused (None: never), the largest spread and the largest of the smaller
+        of ``|gain|`` and ``1 / |kinematic gain|``.
     """
     check = YawCheck()
     low_steering = low_kinematic = joint = 2.0
+    spread = gains = 0.0
     refused = None
     for k in range(1, time.size):
         opposed = check.step(float(time[k] - time[k - 1]), float(r[k]), float(command[k - 1]),
@@ -71,9 +76,14 @@ def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.nd
             low_steering = min(low_steering, check.correlation)
             low_kinematic = min(low_kinematic, check.kinematic_correlation)
             joint = min(joint, max(check.correlation, check.kinematic_correlation))
+        if not math.isnan(check.spread):
+            spread = max(spread, check.spread)
+        if not math.isnan(check.gain):
+            gains = max(gains, min(abs(check.gain),
+                                   1.0 / max(abs(check.kinematic_gain), 1e-300)))
         if opposed and refused is None:
             refused = float(time[k])
-    return low_steering, low_kinematic, joint, refused
+    return low_steering, low_kinematic, joint, refused, spread, gains
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -81,7 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     Print the margin.
 
     :param argv: ``[LAW,LAW... [PLANT,PLANT...]]``.
-    :return: 0, or 1 if a yaw rate of the right sign was refused.
+    :return: 0, or 1 if a yaw rate as it is was refused.
     """
     args = list(sys.argv[1:] if argv is None else argv)
     laws = args[0].split(',') if args else list(compare.LAWS)
@@ -90,7 +100,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     vehicle = VehicleParams()
     scenarios = compare.load_scenarios(compare.SCENARIOS)
     rng = np.random.default_rng(5)
-    worst, false_refusals, flipped, refused = 2.0, 0, 0, 0
+    worst, false_refusals, runs, spread, gains = 2.0, 0, 0, 0.0, 0.0
+    refused = {'flipped': 0, 'deg/s': 0, 'x10': 0}
     for law_name in laws:
         for case in plants:
             law_vehicle = case.law_vehicle(vehicle)
@@ -110,19 +121,25 @@ def main(argv: Sequence[str] | None = None) -> int:
                     eps_r = column('eps_r') + rng.normal(0.0, NOISE, time.size)
                     given = (column('steering_cmd'), column('v_x'), column('rho'),
                              law_vehicle.wheelbase)
-                    steering, kinematic, joint, at = check_run(time, r, eps_r, *given)
-                    worst = min(worst, joint)
+                    steering, kinematic, joint, at, wide, large = check_run(
+                        time, r, eps_r, *given)
+                    worst, spread, gains = min(worst, joint), max(spread, wide), max(gains,
+                                                                                     large)
                     where = f'{law_name} {case.name} {name} {speed:g} m/s'
                     if min(steering, kinematic) < -0.5:
                         print(f'a witness below -0.5: {where}: steering {steering:.2f}, '
                               f'relative yaw {kinematic:.2f}')
                     if at is not None:
                         false_refusals += 1
-                        print(f'REFUSED WITH THE RIGHT SIGN: {where} at {at:.2f} s')
-                    flipped += 1
-                    refused += check_run(time, -r, eps_r, *given)[3] is not None
-    print(f'smallest over runs and steps of the larger correlation (right sign): {worst:.2f}')
-    print(f'right sign refused: {false_refusals}; flipped sign refused: {refused} of {flipped}')
+                        print(f'REFUSED AS IT IS: {where} at {at:.2f} s')
+                    runs += 1
+                    for fault, scale in (('flipped', -1.0), ('deg/s', math.degrees(1.0)),
+                                         ('x10', 10.0)):
+                        refused[fault] += check_run(time, scale * r, eps_r, *given)[3] is not None
+    print(f'smallest over runs and steps of the larger correlation (as it is): {worst:.2f}')
+    print(f'largest spread (as it is): {spread:.2f}; largest smaller gain: {gains:.2f}')
+    print(f'refused as it is: {false_refusals}; of {runs} refused: '
+          + ', '.join(f'{fault} {count}' for fault, count in refused.items()))
     return 1 if false_refusals else 0
 
 

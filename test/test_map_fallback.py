@@ -36,9 +36,9 @@ SPEED = 30.0
 PERIOD = 0.01
 
 
-def _s_bend(v: float = SPEED) -> Scenario:
-    """Return an S-bend at 3 m/s^2 laid out for ``v`` (clothoids, arcs, a reversal)."""
-    k = 3.0 / v ** 2
+def _s_bend(v: float = SPEED, acceleration: float = 3.0) -> Scenario:
+    """Return an S-bend at ``acceleration`` laid out for ``v`` (clothoids, arcs, a reversal)."""
+    k = acceleration / v ** 2
     road = Road([Segment('straight', 2 * v), Segment('clothoid', 1.5 * v, 0.0, k),
                  Segment('arc', 3 * v, k, k), Segment('clothoid', 2 * v, k, -k),
                  Segment('arc', 3 * v, -k, -k), Segment('clothoid', 1.5 * v, -k, 0.0),

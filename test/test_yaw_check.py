@@ -36,7 +36,11 @@ PERIOD, SPEED, WHEELBASE = 0.01, 30.0, 2.7
 
 def _synthetic(sign: float, amplitude: float = 0.01, bias: float = 0.0, seconds: float = 6.0,
                noise: float = 0.002, seed: int = 3) -> tuple[YawCheck, list[bool]]:
-    """Run the check on a weaving steering on a straight and the yaw rate it makes."""
+    """
+    Run the check on a weaving steering on a straight and the yaw rate it makes.
+
+    :param sign: the factor on the yaw rate measured (-1: its sign wrong; 57.3: deg/s).
+    """
     rng = np.random.default_rng(seed)
     check, opposed, r, eps = YawCheck(), [], 0.0, 0.0
     for k in range(int(seconds / PERIOD)):
@@ -66,6 +70,52 @@ def test_a_yaw_rate_of_the_wrong_sign_is_opposed_after_the_hold():
     assert 1.0 < first < 2.5, first
     assert check.correlation < -0.95 and check.kinematic_correlation < -0.9
     assert all(opposed[opposed.index(True):])
+
+
+@pytest.mark.parametrize('scale', [math.degrees(1.0), -math.degrees(1.0), 10.0])
+def test_a_yaw_rate_out_of_scale_is_found_after_the_hold(scale):
+    # dev-sc45: a yaw rate in deg/s (either sign) or 10 times too large is found by the
+    # gains: the yaw rate's on the steering's `scale` times, the relative yaw's on the
+    # yaw rate's 1 / `scale` times what they are
+    check, faulty = _synthetic(scale)
+    first = faulty.index(True) * PERIOD
+    assert 1.0 < first < 2.5, first
+    assert check.out_of_scale and check.faulty and all(faulty[faulty.index(True):])
+    assert abs(check.gain) > 5.0 and abs(check.kinematic_gain) < 0.2
+    # its sign does not matter: a flipped one is out of scale too (and opposed)
+    assert check.opposed == (scale < 0.0)
+    assert check.verdict().startswith('yaw_rate ') and ('out of scale' in check.verdict())
+    # right: both gains about 1 (the car's yaw gain a little under it)
+    check, faulty = _synthetic(1.0)
+    assert not any(faulty) and not check.out_of_scale
+    assert 0.8 < check.gain < 1.0 and 0.9 < check.kinematic_gain < 1.1, (
+        check.gain, check.kinematic_gain)
+    assert 0.7 < check.spread < 1.1, check.spread
+
+
+def test_a_curve_without_a_map_or_a_gust_is_not_out_of_scale():
+    # a curve without a map: the relative yaw's witness stands still while the yaw rate
+    # follows the road, but the steering's explains it; a gust turns the car with
+    # little steering, but the relative yaw's witness follows it
+    rng = np.random.default_rng(6)
+    for case in ('curve', 'gust'):
+        check, r, eps = YawCheck(), 0.0, 0.0
+        for k in range(1000):
+            t = k * PERIOD
+            rho = 2.0 / SPEED ** 2 * math.sin(2.0 * math.pi * 0.15 * t) if case == 'curve' else 0.0
+            gust = 0.1 * math.sin(2.0 * math.pi * 0.5 * t) if case == 'gust' else 0.0
+            steering = WHEELBASE * rho - 0.1 * gust * WHEELBASE / SPEED
+            r += (SPEED * steering / WHEELBASE + gust - r) * PERIOD / 0.25
+            eps += (r - SPEED * rho) * PERIOD
+            assert not check.step(PERIOD, r + rng.normal(0.0, 0.002), steering, SPEED, WHEELBASE,
+                                  eps + rng.normal(0.0, 0.002), 0.0), (case, t)
+        if case == 'curve':
+            assert abs(check.kinematic_gain) < 0.2 and 0.5 < check.gain < 2.0, check.gain
+        else:
+            # the steering hardly varies: no gain; the relative yaw's follows the yaw rate
+            assert math.isnan(check.gain) and 0.9 < check.kinematic_gain < 1.1, (
+                check.kinematic_gain)
+            assert 0.8 < check.spread < 1.2, check.spread
 
 
 def test_a_car_turning_against_its_steering_is_not_opposed():
@@ -124,15 +174,19 @@ def test_its_settings_are_checked(field, value):
         YawCheckParams(**{field: value})
 
 
-def _loop(law: str, flip_at: float, seed: int = 1) -> dict[str, object]:
+def _loop(law: str, flip_at: float, seed: int = 1, scale: float = -1.0,
+          acceleration: float = 3.0) -> dict[str, object]:
     """
     Run the controller core and the linear plant; the yaw rate's sign flipped from ``flip_at``.
+
+    :param scale: the factor on the yaw rate from ``flip_at`` (-1: the sign flipped).
+    :param acceleration: the S-bend's lateral acceleration [m/s^2].
 
     :return: the core, the first time a command was not the law's, the peak CG error
         before it, the largest command step after it, the stale inputs then, the angle
         the safe behaviour holds, and the commands of its first 0.4 s.
     """
-    scenario, vehicle = _s_bend(), VehicleParams()
+    scenario, vehicle = _s_bend(acceleration=acceleration), VehicleParams()
     core = SteeringController(vehicle, ControllerParams(), 'imu', False, SafetyParams(), law,
                               None, LaneKeepingParams())
     stepper = linear_plant_stepper(scenario, vehicle, PlantParams(), SPEED, 0.0)
@@ -146,8 +200,8 @@ def _loop(law: str, flip_at: float, seed: int = 1) -> dict[str, object]:
         inputs = measure(x, t, scenario, SPEED, 0.0)
         preview = [(float(d), float(scenario.road.curvature(x[0] + d)[0]))
                    for d in np.arange(0.0, 50.01, 5.0)]
-        sign = -1.0 if t >= flip_at else 1.0
-        r = sign * x[4] + rng.normal(0.0, 0.002)            # the default sensor noise's
+        # the default sensor noise's, in the yaw rate's unit
+        r = (scale if t >= flip_at else 1.0) * (x[4] + rng.normal(0.0, 0.002))
         core.accept('yaw', YawSample(stamp, x[2] + rng.normal(0.0, 0.002), r,
                                      float(inputs.a_x) - x[3] * x[4]), stamp)
         core.accept('velocity', VelocitySample(stamp, float(inputs.v_x), x[3]), stamp)
@@ -194,6 +248,25 @@ def test_the_core_refuses_a_yaw_rate_of_the_wrong_sign_and_takes_the_safe_behavi
     core.yaw_fault = 'yaw: a fault'
     core.reset()
     assert core.yaw_fault is None
+
+
+@pytest.mark.parametrize('law, acceleration', [('cg_compensated', 0.0), ('paper', 1.0),
+                                               ('stanley', 1.0)])
+def test_the_core_refuses_a_yaw_rate_in_degrees_per_second(law, acceleration):
+    # dev-sc45: a bridge sending deg/s from 2 s at 30 m/s. The default law shook the car
+    # on a straight until the range check (2 rad/s) refused enough samples for the input
+    # to go stale (3.6 s), held a command of the shaking and took the law back whenever
+    # a sample passed (66 m off by 16 s); the paper law barely steered on an S-bend at 1
+    # m/s^2 (0.033 rad/s of yaw rate, 1.9 in deg/s: under 2) and drove straight out of
+    # it, 5.6 m off before the safe behaviour
+    run = _loop(law, flip_at=2.0, scale=math.degrees(1.0), acceleration=acceleration)
+    core = run['core']
+    assert core.yaw_fault is not None and 'out of scale' in core.yaw_fault, core.yaw_fault
+    assert 'in deg/s' in core.describe_stale(['yaw'])
+    assert 2.0 < run['safe_at'] < 4.0, run['safe_at']
+    assert run['peak'] < 0.6, run['peak']
+    assert run['stale'] == ['yaw']
+    assert run['steps'] <= SafetyParams().max_steering_rate * PERIOD + 1e-12
 
 
 @pytest.mark.parametrize('law', ['cg_compensated', 'paper', 'stanley'])

@@ -302,9 +302,9 @@ class SteeringController:
         self.oscillation = OscillationCheck()
         self.oscillation_seen = (0.0, 0.0)
         #: the measured yaw rate against the steering sent (``core/yaw_check.py``): once
-        #: it runs against it, ``yaw_fault`` holds why and the yaw input is refused (stale
-        #: at once: the safe behaviour) until a restart (a time jump, the node activated
-        #: again: :meth:`clear_yaw_fault`)
+        #: it runs against it or is out of scale, ``yaw_fault`` holds why and the yaw
+        #: input is refused (stale at once: the safe behaviour) until a restart (a time
+        #: jump, the node activated again: :meth:`clear_yaw_fault`)
         self.yaw_check = YawCheck()
         self.yaw_fault: Optional[str] = None
         self.timing = InputTiming()
@@ -702,7 +702,7 @@ class SteeringController:
 
     def _judge_yaw_rate(self, dt: float, state: LateralState, sent: float) -> None:
         """
-        Step the yaw-rate check; once the yaw rate runs against the car, refuse it.
+        Step the yaw-rate check; refuse a yaw rate running against the car or out of scale.
 
         :param dt: time since the law's previous answer [s].
         :param state: the measurements of this answer (its curvature: the one received,
@@ -715,11 +715,10 @@ class SteeringController:
                 float(state.eps_r), float(state.rho)):
             return
         # dev-probe97: a yaw rate of the wrong sign shook the car off the road, told only
-        # as a map WARN; now the yaw input is refused from here on: stale at once
-        self.yaw_fault = (f'yaw: yaw_rate runs against the steering and the relative yaw '
-                          f'(correlations {check.correlation:.2f}, '
-                          f'{check.kinematic_correlation:.2f} for {check.opposed_for:.2g} s; '
-                          'its sign wrong?)')
+        # as a map WARN; dev-sc45: one in deg/s shook it off a straight, the range check
+        # refusing its large samples only; now the yaw input is refused from here on:
+        # stale at once
+        self.yaw_fault = f'yaw: {check.verdict()}'
         self.refusals['yaw'] = self.yaw_fault
         self.count_rejection(self.yaw_fault)
         self._voided.add('yaw')

@@ -37,6 +37,19 @@ is a correlation judged; the relative yaw's at or below ``limit`` and the steeri
 or below ``steering_limit``, for ``hold`` seconds: the yaw rate runs against the car. A
 correct yaw rate gives correlations near +1 wherever the car is steered, a flipped one
 near -1 with both.
+
+The correlations do not see a yaw rate's scale. A yaw rate in deg/s (57 times too large)
+made every law shake the car off a straight (dev-sc45: the default law at 30 m/s, off
+the lane 2.5 s after the switch), while the range check refused only its large samples,
+so the input never went stale. Its scale is judged by the two witnesses' gains, the
+regressions (over the same statistics) of the yaw rate on the steering's yaw rate and of
+the relative yaw's kinematic yaw rate on the yaw rate: a yaw rate ``k`` times too large
+makes the first ``k`` times and the second ``1 / k`` times what they are, about 1 each
+(the first is the car's yaw gain, under 1 where it understeers). A map error or a curve
+without a map moves the second, a gust, an oversteering car or a skid the first, none
+both. Once the steering's yaw rate and the lagged yaw rate vary by ``excitation`` or
+more, ``|gain|`` at or above ``scale_limit`` and ``|kinematic gain|`` at or below its
+inverse for ``hold`` seconds: the yaw rate is out of scale (either sign).
 """
 
 from __future__ import annotations
@@ -63,7 +76,10 @@ class YawCheckParams:
     :param steering_limit: the same for the steering's witness, whose model is cruder
         (a lag, no actuator rate limit: a command saturating from side to side made
         -0.6 to -0.98 of a flipped yaw rate in dev-probe97's car) [-].
-    :param hold: opposed this long is the fault [s].
+    :param scale_limit: a yaw rate this many times larger than the steering's (the gain)
+        while the relative yaw's is at most its inverse (the kinematic gain) is out of
+        scale [-].
+    :param hold: opposed (or out of scale) this long is the fault [s].
     :param min_speed: below it the check restarts [m/s].
     """
 
@@ -72,6 +88,7 @@ class YawCheckParams:
     excitation: float = 0.02
     limit: float = -0.8
     steering_limit: float = -0.5
+    scale_limit: float = 5.0
     hold: float = 0.5
     min_speed: float = 5.0
 
@@ -82,12 +99,13 @@ class YawCheckParams:
         check_range('yaw_check.excitation', self.excitation, 1.0e-4, 10.0, unit='rad/s')
         check_range('yaw_check.limit', self.limit, -1.0, 0.0)
         check_range('yaw_check.steering_limit', self.steering_limit, -1.0, 0.0)
+        check_range('yaw_check.scale_limit', self.scale_limit, 1.5, 1000.0)
         check_range('yaw_check.hold', self.hold, 0.0, 60.0, unit='s')
         check_range('yaw_check.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
 
 
 class YawCheck:
-    """The correlations of the measured yaw rate with the steering's and the relative yaw's."""
+    """The measured yaw rate against the steering's and the relative yaw's: sign and scale."""
 
     def __init__(self, settings: YawCheckParams | None = None) -> None:
         """
@@ -113,13 +131,51 @@ class YawCheck:
         self.correlation = math.nan
         #: the correlation with the relative yaw's kinematic yaw rate (NaN until excited)
         self.kinematic_correlation = math.nan
+        #: the regression of the yaw rate on the steering's yaw rate (NaN until both vary)
+        self.gain = math.nan
+        #: the regression of the relative yaw's kinematic yaw rate on the lagged yaw rate
+        #: (NaN until the yaw rate varies)
+        self.kinematic_gain = math.nan
+        #: the lagged yaw rate's standard deviation over the larger of the witnesses' (NaN
+        #: until the yaw rate varies)
+        self.spread = math.nan
         #: seconds both have been at or below the limit
         self.opposed_for = 0.0
+        #: seconds the gains have been out of scale
+        self.scaled_for = 0.0
 
     @property
     def opposed(self) -> bool:
         """Return True once the yaw rate has run against both witnesses for ``hold``."""
         return self.opposed_for > 0.0 and self.opposed_for >= self.settings.hold
+
+    @property
+    def out_of_scale(self) -> bool:
+        """Return True once the yaw rate has been out of scale with both for ``hold``."""
+        return self.scaled_for > 0.0 and self.scaled_for >= self.settings.hold
+
+    @property
+    def faulty(self) -> bool:
+        """Return True once the yaw rate runs against the car or is out of scale."""
+        return self.opposed or self.out_of_scale
+
+    def verdict(self) -> str:
+        """Return what is wrong with the yaw rate, ``yaw_rate ...`` (empty: nothing)."""
+        found = []
+        if self.opposed:
+            found.append(f'runs against the steering and the relative yaw (correlations '
+                         f'{self.correlation:.2f}, {self.kinematic_correlation:.2f} for '
+                         f'{self.opposed_for:.2g} s; its sign wrong?)')
+        if self.out_of_scale:
+            # dev-sc45: the gains where the law shook the car, the spread where it hardly
+            # steered while the car drove straight out of a curve
+            gains = ('' if math.isnan(self.gain) else
+                     f'; gains {self.gain:.3g} and {self.kinematic_gain:.2g}, right: about '
+                     '1 each')
+            found.append(f'out of scale with the steering and the relative yaw for '
+                         f'{self.scaled_for:.2g} s (it varies {self.spread:.3g} times as '
+                         f'much as they do{gains}; in deg/s, its scale wrong or noise?)')
+        return 'yaw_rate ' + ' and '.join(found) if found else ''
 
     def step(self, dt: float, r: float, steering: float, v_x: float, wheelbase: float,
              eps_r: float, rho: float) -> bool:
@@ -134,7 +190,7 @@ class YawCheck:
         :param wheelbase: ``L`` [m] (the steering's kinematic yaw rate ``v_x delta / L``).
         :param eps_r: measured relative yaw [rad].
         :param rho: the road's curvature received at the CG (0: none) [1/m].
-        :return: :attr:`opposed`.
+        :return: :attr:`faulty`.
         """
         s = self.settings
         if (not all(math.isfinite(x) for x in (dt, r, steering, v_x, eps_r, rho))
@@ -142,7 +198,7 @@ class YawCheck:
             self.reset()
             return False
         if dt == 0.0:
-            return self.opposed
+            return self.faulty
         steered, turn = v_x * steering / wheelbase, v_x * rho
         if math.isnan(self._steered):
             self._steered, self._eps, self._turn, self._rate = steered, eps_r, turn, r
@@ -167,17 +223,26 @@ class YawCheck:
         self._cov = [(1.0 - a) * (self._cov[0] + a * deltas[0] * deltas[1]),
                      (1.0 - a) * (self._cov[1] + a * deltas[2] * deltas[3])]
         self._weight = min(1.0, self._weight + a)
-        excited = (self._weight >= 1.0 - math.exp(-1.0)
-                   and min(self._var[:3]) >= s.excitation ** 2)
-        if not excited:
-            # no evidence either way: an opposition already seen stays
-            self.correlation = self.kinematic_correlation = math.nan
-            return self.opposed
-        self.correlation = self._cov[0] / math.sqrt(self._var[0] * self._var[1])
-        self.kinematic_correlation = self._cov[1] / math.sqrt(
-            max(self._var[2] * self._var[3], 1e-300))
-        if self.correlation <= s.steering_limit and self.kinematic_correlation <= s.limit:
-            self.opposed_for += dt
-        else:
-            self.opposed_for = 0.0
-        return self.opposed
+        ready, floor = self._weight >= 1.0 - math.exp(-1.0), s.excitation ** 2
+        # no evidence either way: an opposition or a scale already seen stays
+        self.correlation = self.kinematic_correlation = math.nan
+        self.gain = self.kinematic_gain = self.spread = math.nan
+        if ready and min(self._var[:3]) >= floor:
+            self.correlation = self._cov[0] / math.sqrt(self._var[0] * self._var[1])
+            self.kinematic_correlation = self._cov[1] / math.sqrt(
+                max(self._var[2] * self._var[3], 1e-300))
+            opposed = (self.correlation <= s.steering_limit
+                       and self.kinematic_correlation <= s.limit)
+            self.opposed_for = self.opposed_for + dt if opposed else 0.0
+        # the witnesses need not vary: their standing still while the yaw rate varies is
+        # the evidence
+        if ready and self._var[3] >= floor:
+            self.spread = math.sqrt(self._var[3] / max(self._var[0], self._var[2], 1e-300))
+            self.kinematic_gain = self._cov[1] / self._var[3]
+            scaled = self.spread >= s.scale_limit
+            if self._var[0] >= floor:
+                self.gain = self._cov[0] / self._var[0]
+                scaled = scaled or (abs(self.gain) >= s.scale_limit
+                                    and abs(self.kinematic_gain) <= 1.0 / s.scale_limit)
+            self.scaled_for = self.scaled_for + dt if scaled else 0.0
+        return self.faulty
