@@ -24,10 +24,11 @@ command sent before them, once as they are, once with the yaw rate's sign flippe
 once each with it in deg/s (x 57.3) and 10 times too large (the loop itself is right:
 a check of the verdict, not of a shaking car). Prints per run where a witness fell
 below -0.5, any run refused as it is (none may be), the smallest over all runs and steps
-of the larger of the two correlations (both negative together is the fault), and the
-largest of the scale's evidence: the spread (the yaw rate's standard deviation over the
-larger witness's) and the smaller of ``|gain|`` and ``1 / |kinematic gain|`` (either at
-``scale_limit`` is the fault). About 15 minutes on one core.
+of the larger of the two correlations (both negative together is the fault), the
+largest inverse of the kinematic gain (5 is the fault: a yaw rate out of scale), and the
+heading check (``core/heading_check.py``) on the run's lateral error (default noise; at
+the CG and 20 m ahead) with the relative yaw and the lateral speed, as they are and with
+either sign flipped. About 15 minutes on one core.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import math
 import sys
 from typing import Sequence
 
+from lookahead_control.core.heading_check import HeadingCheck
 from lookahead_control.core.params import VehicleParams
 from lookahead_control.core.yaw_check import YawCheck
 from lookahead_control.tools import compare
@@ -45,11 +47,14 @@ from sim_plant.sensors import NoiseParams
 
 PLANTS = ('nonlinear_delay_noise', 'nonlinear', 'commonroad_mb_delay_noise')
 NOISE = 0.002                   # [rad/s, rad] the default sensor noise of r and eps_r
+LATERAL_NOISE = 0.03            # [m] the default sensor noise of the lateral error
+V_Y_NOISE = 0.02                # [m/s] ... of v_y
+DISTANCE = 20.0                 # [m] a camera's look-ahead, for the heading check
 
 
 def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.ndarray,
               v_x: np.ndarray, rho: np.ndarray, wheelbase: float
-              ) -> tuple[float, float, float, float | None, float, float]:
+              ) -> tuple[float, float, float, float | None, float]:
     """
     Run the check over one run.
 
@@ -62,12 +67,11 @@ def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.nd
     :param wheelbase: ``L`` [m].
     :return: the smallest steering correlation, the smallest relative-yaw correlation,
         the smallest over the steps of the larger of the two, the first time the yaw
-        rate was refused (None: never), the largest spread and the largest of the smaller
-        of ``|gain|`` and ``1 / |kinematic gain|``.
+        rate was refused (None: never) and the largest ``1 / |kinematic gain|``.
     """
     check = YawCheck()
     low_steering = low_kinematic = joint = 2.0
-    spread = gains = 0.0
+    scale = 0.0
     refused = None
     for k in range(1, time.size):
         opposed = check.step(float(time[k] - time[k - 1]), float(r[k]), float(command[k - 1]),
@@ -76,14 +80,38 @@ def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.nd
             low_steering = min(low_steering, check.correlation)
             low_kinematic = min(low_kinematic, check.kinematic_correlation)
             joint = min(joint, max(check.correlation, check.kinematic_correlation))
-        if not math.isnan(check.spread):
-            spread = max(spread, check.spread)
-        if not math.isnan(check.gain):
-            gains = max(gains, min(abs(check.gain),
-                                   1.0 / max(abs(check.kinematic_gain), 1e-300)))
+        if not math.isnan(check.kinematic_gain):
+            scale = max(scale, 1.0 / max(abs(check.kinematic_gain), 1e-300))
         if opposed and refused is None:
             refused = float(time[k])
-    return low_steering, low_kinematic, joint, refused, spread, gains
+    return low_steering, low_kinematic, joint, refused, scale
+
+
+def heading_run(time: np.ndarray, lateral_error: np.ndarray, distance: float,
+                eps_r: np.ndarray, v_x: np.ndarray, v_y: np.ndarray
+                ) -> tuple[float, float | None]:
+    """
+    Run the heading check over one run.
+
+    :param time: sample times [s].
+    :param lateral_error: the lateral error as measured [m].
+    :param distance: where it is measured, ahead of the CG [m].
+    :param eps_r: relative yaw as measured [rad].
+    :param v_x: speed [m/s].
+    :param v_y: lateral speed as measured [m/s].
+    :return: the smallest correlation and the first time the inputs were refused (None:
+        never).
+    """
+    check = HeadingCheck()
+    low, refused = 2.0, None
+    for k in range(1, time.size):
+        opposed = check.step(float(time[k] - time[k - 1]), float(lateral_error[k]), distance,
+                             float(eps_r[k]), float(v_x[k]), float(v_y[k]))
+        if not math.isnan(check.correlation):
+            low = min(low, check.correlation)
+        if opposed and refused is None:
+            refused = float(time[k])
+    return low, refused
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -100,8 +128,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     vehicle = VehicleParams()
     scenarios = compare.load_scenarios(compare.SCENARIOS)
     rng = np.random.default_rng(5)
-    worst, false_refusals, runs, spread, gains = 2.0, 0, 0, 0.0, 0.0
-    refused = {'flipped': 0, 'deg/s': 0, 'x10': 0}
+    worst, false_refusals, runs, scale = 2.0, 0, 0, 0.0
+    refused = {'flipped': 0, 'deg/s': 0, 'x10': 0, 'relative yaw flipped': 0,
+               'lateral error flipped': 0}
+    heading = 2.0
     for law_name in laws:
         for case in plants:
             law_vehicle = case.law_vehicle(vehicle)
@@ -121,10 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     eps_r = column('eps_r') + rng.normal(0.0, NOISE, time.size)
                     given = (column('steering_cmd'), column('v_x'), column('rho'),
                              law_vehicle.wheelbase)
-                    steering, kinematic, joint, at, wide, large = check_run(
-                        time, r, eps_r, *given)
-                    worst, spread, gains = min(worst, joint), max(spread, wide), max(gains,
-                                                                                     large)
+                    steering, kinematic, joint, at, large = check_run(time, r, eps_r, *given)
+                    worst, scale = min(worst, joint), max(scale, large)
                     where = f'{law_name} {case.name} {name} {speed:g} m/s'
                     if min(steering, kinematic) < -0.5:
                         print(f'a witness below -0.5: {where}: steering {steering:.2f}, '
@@ -133,13 +161,34 @@ def main(argv: Sequence[str] | None = None) -> int:
                         false_refusals += 1
                         print(f'REFUSED AS IT IS: {where} at {at:.2f} s')
                     runs += 1
-                    for fault, scale in (('flipped', -1.0), ('deg/s', math.degrees(1.0)),
-                                         ('x10', 10.0)):
-                        refused[fault] += check_run(time, scale * r, eps_r, *given)[3] is not None
+                    for fault, factor in (('flipped', -1.0), ('deg/s', math.degrees(1.0)),
+                                          ('x10', 10.0)):
+                        refused[fault] += check_run(time, factor * r, eps_r,
+                                                    *given)[3] is not None
+                    # the heading check: at the CG and at a camera's look-ahead
+                    v_y = column('v_y') + rng.normal(0.0, V_Y_NOISE, time.size)
+                    for distance in (0.0, DISTANCE):
+                        lateral = (column('y_cg') + distance * column('eps_r')
+                                   + rng.normal(0.0, LATERAL_NOISE, time.size))
+                        low, at = heading_run(time, lateral, distance, eps_r, column('v_x'), v_y)
+                        heading = min(heading, low)
+                        if low < -0.5:
+                            print(f'heading below -0.5: {where}, d {distance:g} m: {low:.2f}')
+                        if at is not None:
+                            false_refusals += 1
+                            print(f'HEADING REFUSED AS IT IS: {where}, d {distance:g} m, at '
+                                  f'{at:.2f} s (lowest {low:.2f})')
+                        refused['relative yaw flipped'] += heading_run(
+                            time, lateral, distance, -eps_r, column('v_x'), v_y)[1] is not None
+                        refused['lateral error flipped'] += heading_run(
+                            time, -lateral, distance, eps_r, column('v_x'), v_y)[1] is not None
     print(f'smallest over runs and steps of the larger correlation (as it is): {worst:.2f}')
-    print(f'largest spread (as it is): {spread:.2f}; largest smaller gain: {gains:.2f}')
-    print(f'refused as it is: {false_refusals}; of {runs} refused: '
-          + ', '.join(f'{fault} {count}' for fault, count in refused.items()))
+    print(f'largest 1 / |kinematic gain| (as it is): {scale:.2f} (the fault: 5)')
+    print(f'smallest heading correlation (as it is; 2 distances a run): {heading:.2f}')
+    # the heading check's faults are tried at two distances a run
+    print(f'refused as it is: {false_refusals}; refused: ' + ', '.join(
+        f'{fault} {count} of {runs * (2 if "error" in fault or "yaw" in fault else 1)}'
+        for fault, count in refused.items()))
     return 1 if false_refusals else 0
 
 

@@ -22,12 +22,14 @@ and the whole input -> command path testable without DDS.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, replace
 import math
 from typing import Any, Optional
 
 from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, BaselineParams
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput
+from lookahead_control.core.heading_check import HeadingCheck
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
@@ -99,6 +101,11 @@ def law_key(name: str, vehicle: VehicleParams, controller: ControllerParams,
 TURN_RATE = 0.02        # [rad/s]
 TURN_SPEED = 10.0       # [m/s]
 REQUIRED_INPUTS = ('lateral_error', 'yaw', 'velocity')
+#: yaw rates the yaw-rate check takes the median of (a glitch of two samples drops out)
+YAW_MEDIAN = 5
+#: ... each clipped to this many times ``max_yaw_rate`` (a yaw rate in deg/s at full lock
+#: at 10 m/s is 78 "rad/s": clipped to the range, it looked in scale)
+YAW_CLIP = 10.0
 JUMP_NS = 1_000_000_000         # the node's clock going back further is a time jump
 # per input: the attribute holding its latest sample, and the method storing a new one
 _LATEST = {'lateral_error': 'lateral', 'yaw': 'yaw', 'velocity': 'velocity',
@@ -306,7 +313,17 @@ class SteeringController:
         #: input is refused (stale at once: the safe behaviour) until a restart (a time
         #: jump, the node activated again: :meth:`clear_yaw_fault`)
         self.yaw_check = YawCheck()
+        #: the relative yaw against the lateral error's motion (``core/heading_check.py``):
+        #: once one runs against the other, ``yaw_fault`` holds why, as above
+        self.heading_check = HeadingCheck()
         self.yaw_fault: Optional[str] = None
+        # what the yaw-rate check is given: the yaw rates received, taken or refused
+        # (clipped), and the last yaw sample received (dev-probe99: given
+        # only the ones taken, a yaw rate in deg/s whose large samples the range check
+        # refused was a held value most of the time, and never judged)
+        self._yaw_rates: deque[float] = deque(maxlen=YAW_MEDIAN)
+        self._yaw_received: Optional[YawSample] = None
+        self._judged_stamp: Optional[int] = None
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
@@ -507,6 +524,11 @@ class SteeringController:
             current = None
         if now_ns is not None:
             self._last_now = now_ns     # the node's clock, whether the sample is used or not
+        if name == 'yaw' and math.isfinite(sample.yaw_rate) and math.isfinite(
+                sample.relative_yaw):
+            bound = YAW_CLIP * self.safety.max_yaw_rate
+            self._yaw_rates.append(min(bound, max(-bound, sample.yaw_rate)))
+            self._yaw_received = sample
         # a clock reading 0 is not running yet (sim time before the first /clock): the
         # stamps cannot be judged against it
         clock = now_ns if now_ns is not None and now_ns > 0 else None
@@ -691,37 +713,66 @@ class SteeringController:
     def _fault_hold(self) -> Optional[float]:
         """Return the angle the safe behaviour holds after a yaw fault (None: no fault)."""
         # the check is not stepped once it found the fault: its mean command is frozen
-        return self.yaw_check.command_mean if self.yaw_fault is not None else None
+        # (NaN: the yaw-rate check restarted just before, e.g. slower than its min_speed)
+        mean = self.yaw_check.command_mean
+        return mean if self.yaw_fault is not None and math.isfinite(mean) else None
 
     def clear_yaw_fault(self) -> None:
-        """Forget a yaw rate refused for its sign (the node's activation: the bridge fixed)."""
+        """Forget a yaw input refused by its checks (the node's activation: the bridge fixed)."""
         if self.yaw_fault is not None and self.refusals.get('yaw') == self.yaw_fault:
             del self.refusals['yaw']
         self.yaw_check.reset()
+        self.heading_check.reset()
+        self._yaw_rates.clear()
+        self._yaw_received = None
+        self._judged_stamp = None
         self.yaw_fault = None
 
-    def _judge_yaw_rate(self, dt: float, state: LateralState, sent: float) -> None:
+    def _judge_yaw_input(self, state: LateralState, sent: float, stale: bool) -> None:
         """
-        Step the yaw-rate check; refuse a yaw rate running against the car or out of scale.
+        Step the yaw input's checks; refuse it once one finds it wrong.
 
-        :param dt: time since the law's previous answer [s].
+        The yaw rate against the steering and the relative yaw (sign, scale: stepped
+        also while an input is stale, on the yaw samples received, taken or refused),
+        the relative yaw against the lateral error's motion (sign: only while the law
+        answers). Their time axis is the lateral errors' stamps.
+
         :param state: the measurements of this answer (its curvature: the one received,
             0 without or lost).
         :param sent: the command sent before this answer [rad].
+        :param stale: whether an input is stale (the safe behaviour answers).
         """
+        if self.yaw_fault or self.lateral is None or self._yaw_received is None:
+            return
+        stamp = self.lateral.stamp_ns
+        dt = 0.0 if self._judged_stamp is None else max(0, stamp - self._judged_stamp) * 1e-9
+        self._judged_stamp = stamp
         check = self.yaw_check
-        if self.yaw_fault or not check.step(
-                dt, float(state.r), sent, float(state.v_x), self.vehicle.wheelbase,
-                float(state.eps_r), float(state.rho)):
+        v_x = float(state.v_x)
+        rates = sorted(self._yaw_rates)
+        wrong = check.step(dt, rates[len(rates) // 2], sent, v_x, self.vehicle.wheelbase,
+                           self._yaw_received.relative_yaw, float(state.rho))
+        if not stale:
+            # dev-sc45: a relative yaw or a lateral error of the wrong sign steered every
+            # law out of the lane, told only once the car was 5 m off
+            wrong = self.heading_check.step(dt, self.lateral.value, self.lateral.distance,
+                                            float(state.eps_r), v_x,
+                                            float(state.v_y)) or wrong
+        if not wrong:
             return
         # dev-probe97: a yaw rate of the wrong sign shook the car off the road, told only
         # as a map WARN; dev-sc45: one in deg/s shook it off a straight, the range check
         # refusing its large samples only; now the yaw input is refused from here on:
         # stale at once
-        self.yaw_fault = f'yaw: {check.verdict()}'
+        found = [v for v in (check.verdict(), self.heading_check.verdict()) if v]
+        self.yaw_fault = 'yaw: ' + '; '.join(found)
         self.refusals['yaw'] = self.yaw_fault
         self.count_rejection(self.yaw_fault)
         self._voided.add('yaw')
+        if self._stale_since is not None and self._fault_hold is not None:
+            # found while the safe behaviour holds a command of the shaking (the range
+            # check made the input stale first): it holds the mean command from here
+            self._held = self._fault_hold
 
     def _measurement_time(self, now_ns: int) -> int:
         """
@@ -910,6 +961,12 @@ class SteeringController:
 
     def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):
+            state = self.state(now_ns)
+            if state is not None and self._rate_angle is not None:
+                # (dev-probe99: a yaw rate in deg/s made the input stale, the law came
+                # back at full lock whenever a sample passed, and the check, stepped only
+                # then, never saw 0.5 s of it)
+                self._judge_yaw_input(state, self._rate_angle, stale=True)
             fresh = self._fresh('lateral_error', now_ns)
             return self.safe_command(now_ns, steady_ns,
                                      self.lateral.stamp_ns if fresh else None)
@@ -970,7 +1027,7 @@ class SteeringController:
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
         if sent_before is not None:
-            self._judge_yaw_rate(dt, state, sent_before)
+            self._judge_yaw_input(state, sent_before, stale=False)
         if self.oscillation.step(dt, self.last.steering):
             self.turning['steering_oscillates'] += dt
             if self.oscillation.amplitude > self.oscillation_seen[0]:
