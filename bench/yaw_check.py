@@ -25,10 +25,12 @@ once each with it in deg/s (x 57.3) and 10 times too large (the loop itself is r
 a check of the verdict, not of a shaking car). Prints per run where a witness fell
 below -0.5, any run refused as it is (none may be), the smallest over all runs and steps
 of the larger of the two correlations (both negative together is the fault), the
-largest inverse of the kinematic gain (5 is the fault: a yaw rate out of scale), and the
-heading check (``core/heading_check.py``) on the run's lateral error (default noise; at
-the CG and 20 m ahead) with the relative yaw and the lateral speed, as they are and with
-either sign flipped. About 15 minutes on one core.
+largest of the scale's evidence: the spread (the yaw rate's standard deviation over the
+larger witness's) and the smaller of ``|gain|`` and ``1 / |kinematic gain|`` (either at
+``scale_limit`` is the fault), and the heading check (``core/heading_check.py``) on the
+run's lateral error (default noise; at the CG and 20 m ahead) with the relative yaw and
+the lateral speed, as they are and with either sign flipped. About 15 minutes on one
+core.
 """
 
 from __future__ import annotations
@@ -54,7 +56,7 @@ DISTANCE = 20.0                 # [m] a camera's look-ahead, for the heading che
 
 def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.ndarray,
               v_x: np.ndarray, rho: np.ndarray, wheelbase: float
-              ) -> tuple[float, float, float, float | None, float]:
+              ) -> tuple[float, float, float, float | None, float, float]:
     """
     Run the check over one run.
 
@@ -67,11 +69,12 @@ def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.nd
     :param wheelbase: ``L`` [m].
     :return: the smallest steering correlation, the smallest relative-yaw correlation,
         the smallest over the steps of the larger of the two, the first time the yaw
-        rate was refused (None: never) and the largest ``1 / |kinematic gain|``.
+        rate was refused (None: never), the largest spread and the largest of the smaller
+        of ``|gain|`` and ``1 / |kinematic gain|``.
     """
     check = YawCheck()
     low_steering = low_kinematic = joint = 2.0
-    scale = 0.0
+    spread = gains = 0.0
     refused = None
     for k in range(1, time.size):
         opposed = check.step(float(time[k] - time[k - 1]), float(r[k]), float(command[k - 1]),
@@ -80,11 +83,14 @@ def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.nd
             low_steering = min(low_steering, check.correlation)
             low_kinematic = min(low_kinematic, check.kinematic_correlation)
             joint = min(joint, max(check.correlation, check.kinematic_correlation))
-        if not math.isnan(check.kinematic_gain):
-            scale = max(scale, 1.0 / max(abs(check.kinematic_gain), 1e-300))
+        if not math.isnan(check.spread):
+            spread = max(spread, check.spread)
+        if not math.isnan(check.gain):
+            gains = max(gains, min(abs(check.gain),
+                                   1.0 / max(abs(check.kinematic_gain), 1e-300)))
         if opposed and refused is None:
             refused = float(time[k])
-    return low_steering, low_kinematic, joint, refused, scale
+    return low_steering, low_kinematic, joint, refused, spread, gains
 
 
 def heading_run(time: np.ndarray, lateral_error: np.ndarray, distance: float,
@@ -128,7 +134,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     vehicle = VehicleParams()
     scenarios = compare.load_scenarios(compare.SCENARIOS)
     rng = np.random.default_rng(5)
-    worst, false_refusals, runs, scale = 2.0, 0, 0, 0.0
+    worst, false_refusals, runs, spread, gains = 2.0, 0, 0, 0.0, 0.0
     refused = {'flipped': 0, 'deg/s': 0, 'x10': 0, 'relative yaw flipped': 0,
                'lateral error flipped': 0}
     heading = 2.0
@@ -151,8 +157,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     eps_r = column('eps_r') + rng.normal(0.0, NOISE, time.size)
                     given = (column('steering_cmd'), column('v_x'), column('rho'),
                              law_vehicle.wheelbase)
-                    steering, kinematic, joint, at, large = check_run(time, r, eps_r, *given)
-                    worst, scale = min(worst, joint), max(scale, large)
+                    steering, kinematic, joint, at, wide, large = check_run(
+                        time, r, eps_r, *given)
+                    worst, spread = min(worst, joint), max(spread, wide)
+                    gains = max(gains, large)
                     where = f'{law_name} {case.name} {name} {speed:g} m/s'
                     if min(steering, kinematic) < -0.5:
                         print(f'a witness below -0.5: {where}: steering {steering:.2f}, '
@@ -183,7 +191,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         refused['lateral error flipped'] += heading_run(
                             time, -lateral, distance, eps_r, column('v_x'), v_y)[1] is not None
     print(f'smallest over runs and steps of the larger correlation (as it is): {worst:.2f}')
-    print(f'largest 1 / |kinematic gain| (as it is): {scale:.2f} (the fault: 5)')
+    print(f'largest spread (as it is): {spread:.2f}; largest smaller of |gain| and '
+          f'1 / |kinematic gain|: {gains:.2f} (the fault: 5)')
     print(f'smallest heading correlation (as it is; 2 distances a run): {heading:.2f}')
     # the heading check's faults are tried at two distances a run
     print(f'refused as it is: {false_refusals}; refused: ' + ', '.join(

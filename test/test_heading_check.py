@@ -61,7 +61,6 @@ def _weave(lateral_sign: float = 1.0, yaw_sign: float = 1.0, distance: float = 0
 def test_a_lateral_error_that_follows_the_relative_yaw_is_never_opposed(distance):
     check = _weave(distance=distance)
     assert not check.opposed and check.correlation > 0.9, check.correlation
-    assert check.verdict() == ''
 
 
 @pytest.mark.parametrize('distance', [0.0, 20.0])
@@ -70,7 +69,6 @@ def test_either_sign_flipped_is_opposed(flipped, distance):
     check = _weave(lateral_sign=-1.0 if flipped == 'lateral_error' else 1.0,
                    yaw_sign=-1.0 if flipped == 'relative_yaw' else 1.0, distance=distance)
     assert check.opposed and check.correlation < -0.9, check.correlation
-    assert 'the sign of relative_yaw or of lateral_error wrong' in check.verdict()
 
 
 def test_a_lateral_speed_of_exactly_zero_is_no_witness():
@@ -107,12 +105,17 @@ def test_its_settings_are_checked(field, value):
         HeadingCheckParams(**{field: value})
 
 
-def _loop(law: str, flipped: str, acceleration: float, seed: int = 1) -> dict[str, object]:
+def _loop(law: str, flipped: str, acceleration: float, seed: int = 1,
+          shift: float = 0.0) -> dict[str, object]:
     """
     Run the controller core and the linear plant at 30 m/s, ``flipped``'s sign wrong from 2 s.
 
-    :return: the core, the first time a command was not the law's, the peak CG error
-        before it, and the time the CG was first 1 m off (None: never).
+    :param shift: a lane change to a path this far left of the lane, from 3 s over 3 s
+        (quintic), the lateral error measured from the path and the relative yaw from
+        the lane [m].
+    :return: the core, the first time a command was not the law's, the first time the
+        core told the heading disagreeing, the peak CG error before it, the time the CG
+        was first 1 m off (None: never) and the CG's offset at the end.
     """
     scenario, vehicle = _s_bend(acceleration=acceleration), VehicleParams()
     core = SteeringController(vehicle, ControllerParams(), 'imu', False, SafetyParams(), law,
@@ -121,7 +124,7 @@ def _loop(law: str, flipped: str, acceleration: float, seed: int = 1) -> dict[st
     substeps, n_steps = check_steps(0.002, PERIOD, scenario.duration)
     rng = np.random.default_rng(seed)
     x = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    safe_at, peak, off_at = None, 0.0, None
+    safe_at, told_at, peak, off_at = None, None, 0.0, None
     for k in range(n_steps):
         t = k * PERIOD
         stamp = int(round(t * 1e9))
@@ -130,6 +133,8 @@ def _loop(law: str, flipped: str, acceleration: float, seed: int = 1) -> dict[st
                    for d in np.arange(0.0, 50.01, 5.0)]
         eps_sign = -1.0 if t >= 2.0 and flipped == 'relative_yaw' else 1.0
         y_sign = -1.0 if t >= 2.0 and flipped == 'lateral_error' else 1.0
+        u = min(1.0, max(0.0, (t - 3.0) / 3.0))
+        path = shift * (10.0 * u ** 3 - 15.0 * u ** 4 + 6.0 * u ** 5)
         core.accept('yaw', YawSample(stamp, eps_sign * (x[2] + rng.normal(0.0, 0.002)),
                                      x[4] + rng.normal(0.0, 0.002),
                                      float(inputs.a_x) - x[3] * x[4]), stamp)
@@ -137,37 +142,71 @@ def _loop(law: str, flipped: str, acceleration: float, seed: int = 1) -> dict[st
                                                x[3] + rng.normal(0.0, 0.02)), stamp)
         core.accept('road_curvature', curvature_from_points(stamp, preview), stamp)
         core.accept('lateral_error', LateralErrorSample(
-            stamp, 0.0, y_sign * (x[1] + rng.normal(0.0, 0.03))), stamp)
+            stamp, 0.0, y_sign * (x[1] - path + rng.normal(0.0, 0.03))), stamp)
         command = core.compute(stamp)
         if command.law is None and safe_at is None:
             safe_at = t
-        if safe_at is None:
+        if core.turning['heading_disagrees'] > 0.0 and told_at is None:
+            told_at = t
+        if told_at is None:
             peak = max(peak, abs(x[1]))
         if off_at is None and abs(x[1]) > 1.0:
             off_at = t
         x = stepper(x, t, 0.002, substeps, command.steering)
-    return {'core': core, 'safe_at': safe_at, 'peak': peak, 'off_at': off_at}
+    return {'core': core, 'safe_at': safe_at, 'told_at': told_at, 'peak': peak,
+            'off_at': off_at, 'end': x[1]}
 
 
 @pytest.mark.parametrize('law', ['cg_compensated', 'paper', 'stanley'])
 @pytest.mark.parametrize('flipped', ['lateral_error', 'relative_yaw'])
-def test_the_core_refuses_a_flipped_relative_yaw_or_lateral_error(law, flipped):
+def test_the_core_tells_a_flipped_relative_yaw_or_lateral_error(law, flipped):
     # dev-sc45: with either sign flipped from 2 s every law steered the car out of the
     # lane (off by 1 m 1.4-6.7 s later on straights and S-bends at 20-30 m/s), told only
-    # once the lateral error was past 5 m
+    # once the lateral error was past 5 m. Told now while the CG is under 1 m off; not
+    # refused (a refusal of inputs that were right put the car off the road:
+    # dev-probe100)
     run = _loop(law, flipped, acceleration=1.0)
     core = run['core']
-    assert core.yaw_fault is not None and 'relative_yaw runs against the lateral error' in \
-        core.yaw_fault, core.yaw_fault
-    assert 'relative_yaw or of lateral_error wrong' in core.describe_stale(['yaw'])
-    assert 2.0 < run['safe_at'] < 8.0, run['safe_at']
-    # refused before the car was 1 m off, or at most 0.4 s after (the default law
-    # turns a flipped relative yaw into a spin: 2.2 m at the refusal at 30 m/s)
-    if run['off_at'] is not None:
-        assert run['safe_at'] < run['off_at'] + 0.4, (run['safe_at'], run['off_at'])
+    assert run['told_at'] is not None and 2.0 < run['told_at'] < 8.0, run['told_at']
+    assert run['peak'] < 1.0, run['peak']
+    assert core.yaw_fault is None
+    assert core.heading_seen < -0.9, core.heading_seen
 
 
 @pytest.mark.parametrize('law', ['cg_compensated', 'paper', 'stanley'])
-def test_right_signs_are_never_refused(law):
+def test_right_signs_are_never_told(law):
     run = _loop(law, 'nothing', acceleration=3.0)
+    core = run['core']
+    assert core.turning['heading_disagrees'] == 0.0 and core.heading_seen == 1.0
+    assert core.yaw_fault is None and run['safe_at'] is None
+
+
+@pytest.mark.parametrize('law', ['cg_compensated', 'paper', 'stanley'])
+def test_a_lane_change_along_a_shifted_path_is_driven(law):
+    # dev-probe100: the lateral error from a path shifted 3.5 m over 3 s, the relative
+    # yaw from the lane: the tracking lag runs against the prediction (-0.90..-0.96) and
+    # the refusal of c525b0f put the car 8-50 m off; told at most, the law drives it
+    run = _loop(law, 'nothing', acceleration=0.0, shift=3.5)
     assert run['core'].yaw_fault is None and run['safe_at'] is None
+    assert abs(run['end'] - 3.5) < 0.3, run['end']
+
+
+def test_the_node_warns_with_the_lowest_correlation(context):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        assert 'lateral_error moves against' not in node.diagnostics().message
+        node.core.turning['heading_disagrees'] += 0.4
+        node.core.heading_seen = -0.97
+        status = node.diagnostics()
+        assert status.level == DiagnosticStatus.WARN
+        assert ('lateral_error moves against relative_yaw for 0.40 s (correlation down to '
+                '-0.97') in status.message
+        assert 'the sign of relative_yaw or of lateral_error wrong' in status.message
+        # told once: the next report has nothing new
+        assert 'lateral_error moves against' not in node.diagnostics().message
+    finally:
+        node.destroy_node()

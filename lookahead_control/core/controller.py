@@ -292,7 +292,8 @@ class SteeringController:
                                           'v_y_exactly_zero': 0.0,
                                           'curvature_disagrees': 0.0,
                                           'curvature_dropped': 0.0,
-                                          'steering_oscillates': 0.0}
+                                          'steering_oscillates': 0.0,
+                                          'heading_disagrees': 0.0}
         #: the received curvature against the yaw measurements (``core/map_check.py``):
         #: seconds of answers with it over its threshold in ``curvature_disagrees``, and
         #: with it dropped (the law on its own estimate, ``lane_keeping.map_fallback``) in
@@ -314,8 +315,13 @@ class SteeringController:
         #: jump, the node activated again: :meth:`clear_yaw_fault`)
         self.yaw_check = YawCheck()
         #: the relative yaw against the lateral error's motion (``core/heading_check.py``):
-        #: once one runs against the other, ``yaw_fault`` holds why, as above
+        #: seconds of answers with one running against the other in
+        #: ``heading_disagrees`` (told, not refused: dev-probe100 found lane changes along
+        #: a shifted path, a relative-yaw bias and a flickering lane reference taken for a
+        #: wrong sign, and a refusal puts the car off the road)
         self.heading_check = HeadingCheck()
+        #: the lowest correlation it was opposed at since the caller last took it (1: none)
+        self.heading_seen = 1.0
         self.yaw_fault: Optional[str] = None
         # what the yaw-rate check is given: the yaw rates received, taken or refused
         # (clipped), and the last yaw sample received (dev-probe99: given
@@ -730,12 +736,13 @@ class SteeringController:
 
     def _judge_yaw_input(self, state: LateralState, sent: float, stale: bool) -> None:
         """
-        Step the yaw input's checks; refuse it once one finds it wrong.
+        Step the yaw input's checks; refuse it once the yaw rate is found wrong.
 
         The yaw rate against the steering and the relative yaw (sign, scale: stepped
-        also while an input is stale, on the yaw samples received, taken or refused),
-        the relative yaw against the lateral error's motion (sign: only while the law
-        answers). Their time axis is the lateral errors' stamps.
+        also while an input is stale, on the yaw samples received, taken or refused):
+        refused once wrong. The relative yaw against the lateral error's motion (sign:
+        only while the law answers): told in ``heading_disagrees``. Their time axis is
+        the lateral errors' stamps.
 
         :param state: the measurements of this answer (its curvature: the one received,
             0 without or lost).
@@ -747,25 +754,24 @@ class SteeringController:
         stamp = self.lateral.stamp_ns
         dt = 0.0 if self._judged_stamp is None else max(0, stamp - self._judged_stamp) * 1e-9
         self._judged_stamp = stamp
-        check = self.yaw_check
-        v_x = float(state.v_x)
-        rates = sorted(self._yaw_rates)
-        wrong = check.step(dt, rates[len(rates) // 2], sent, v_x, self.vehicle.wheelbase,
-                           self._yaw_received.relative_yaw, float(state.rho))
-        if not stale:
+        if not stale and self.heading_check.step(
+                dt, self.lateral.value, self.lateral.distance, float(state.eps_r),
+                float(state.v_x), float(state.v_y)):
             # dev-sc45: a relative yaw or a lateral error of the wrong sign steered every
             # law out of the lane, told only once the car was 5 m off
-            wrong = self.heading_check.step(dt, self.lateral.value, self.lateral.distance,
-                                            float(state.eps_r), v_x,
-                                            float(state.v_y)) or wrong
-        if not wrong:
+            self.turning['heading_disagrees'] += dt
+            self.heading_seen = min(self.heading_seen, self.heading_check.correlation)
+        check = self.yaw_check
+        rates = sorted(self._yaw_rates)
+        if not check.step(dt, rates[len(rates) // 2], sent, float(state.v_x),
+                          self.vehicle.wheelbase, self._yaw_received.relative_yaw,
+                          float(state.rho)):
             return
         # dev-probe97: a yaw rate of the wrong sign shook the car off the road, told only
         # as a map WARN; dev-sc45: one in deg/s shook it off a straight, the range check
         # refusing its large samples only; now the yaw input is refused from here on:
         # stale at once
-        found = [v for v in (check.verdict(), self.heading_check.verdict()) if v]
-        self.yaw_fault = 'yaw: ' + '; '.join(found)
+        self.yaw_fault = f'yaw: {check.verdict()}'
         self.refusals['yaw'] = self.yaw_fault
         self.count_rejection(self.yaw_fault)
         self._voided.add('yaw')

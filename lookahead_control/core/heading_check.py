@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-A check of the relative yaw's sign against the lateral error's motion.
+A check of the relative yaw's sign against the lateral error's motion: told, not refused.
 
 A relative yaw or a lateral error of the wrong sign (a bridge that flips one of them)
 makes every law steer the car out of the lane: dev-sc45 measured the departure 1.4-6.7 s
@@ -21,19 +21,27 @@ after a flipped relative yaw and 2.9-9.7 s after a flipped lateral error (core, 
 plant, 20-30 m/s, straights and S-bends), and the only word was the lateral error's range
 check once the car was more than 5 m off. The yaw-rate check does not see it (the yaw
 rate is right; its relative-yaw witness runs at -1 alone, as a curve without a map can
-make it). The lane's kinematics do not need the road: the CG's offset moves as
-``y_cg' = v_x sin eps_r + v_y cos eps_r`` whatever the curvature and the tyres, and a
-lateral error measured ``d`` ahead on the tangent at the CG is ``y_cg + d eps_r``. So
+make it). The controller tells it (``/diagnostics`` WARN) and does not refuse the
+input: dev-probe100 found a lane change along a path shifted from the lane the relative
+yaw is measured from, a relative-yaw bias of 0.02 rad or a ``v_y`` bias of 0.3 m/s at
+start-up, a lane reference flickering between two lanes, and a lateral error measured
+from the curved lane 40 m ahead taken for a wrong sign, and a refusal there (the safe
+behaviour) put the car 3.5-50 m off the road where the law alone kept it.
+
+The lane's kinematics do not need the road: the CG's offset moves as ``y_cg' = v_x sin
+eps_r + v_y cos eps_r`` whatever the curvature and the tyres, and a lateral error
+measured ``d`` ahead on the tangent at the CG is ``y_cg + d eps_r``. So
 the lateral error is predicted, up to a constant, by ``q = int (v_x sin eps_r + v_y cos
 eps_r) dt + d eps_r`` from the relative yaw and the lateral speed alone, and follows the
 prediction with a correlation near +1 wherever the car moves in the lane; with either
 sign wrong, near -1.
 
 Both go through the same band pass (a lag of ``lag`` minus a lag of ``washout``: the
-lateral error's noise, a relative-yaw or lateral-speed bias and the integral's drift
-drop out) and are correlated over ``memory``, centred. Only while both vary by
-``excitation`` or more, at or above ``min_speed``, is the correlation judged; at or
-below ``limit`` for ``hold`` seconds the two inputs run against each other. A lateral
+lateral error's noise and the integral's drift drop out; a relative-yaw or
+lateral-speed bias does once the band pass has settled, not in the first seconds) and
+are correlated over ``memory``, centred. Only while both vary by ``excitation`` or
+more, at or above ``min_speed``, is the correlation judged; at or below ``limit`` for
+``hold`` seconds the two inputs run against each other. A lateral
 speed of exactly 0 (a bridge that has none) is no witness and the check restarts: the
 sideslip it leaves out of ``q`` is ``-v_x eps_r`` where the car tracks the lane, so that
 ``q`` moves against the lateral error in a lane change (dev-sc45: -0.91 at 37 m/s).
@@ -114,15 +122,6 @@ class HeadingCheck:
     def opposed(self) -> bool:
         """Return True once the lateral error has run against its prediction for ``hold``."""
         return self.opposed_for > 0.0 and self.opposed_for >= self.settings.hold
-
-    def verdict(self) -> str:
-        """Return what is wrong, ``relative_yaw ...`` (empty: nothing)."""
-        if not self.opposed:
-            return ''
-        return (f'relative_yaw runs against the lateral error (the lateral error moves '
-                f'against the relative yaw, correlation {self.correlation:.2f} for '
-                f'{self.opposed_for:.2g} s; the sign of relative_yaw or of lateral_error '
-                'wrong?)')
 
     def step(self, dt: float, lateral_error: float, distance: float, eps_r: float,
              v_x: float, v_y: float) -> bool:

@@ -875,6 +875,18 @@ class ControllerNode(LifecycleNode):
                            'set lane_keeping.delay_prediction with filter_delay at the '
                            "car's delay), a road that swings that fast, or the law ringing "
                            'after a jump of its inputs (docs/safety.md)')
+        lowest, self.core.heading_seen = self.core.heading_seen, 1.0
+        if turning['heading_disagrees'] > 0.0:
+            # dev-sc45: a relative yaw or a lateral error of the wrong sign steered every
+            # law out of the lane, told only once the lateral error was past 5 m
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'lateral_error moves against relative_yaw for '
+                           f'{turning["heading_disagrees"]:.2f} s (correlation down to '
+                           f'{lowest:.2f} with the motion the relative yaw and v_y '
+                           'predict): the sign of relative_yaw or of '
+                           'lateral_error wrong, or the two measured from different '
+                           'references (a lane change along a shifted path), or a bias in '
+                           'relative_yaw or v_y (docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
