@@ -18,18 +18,15 @@ from __future__ import annotations
 
 import math
 
-from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.heading_check import HeadingCheck, HeadingCheckParams
-from lookahead_control.core.lane_keeping import LaneKeepingParams
-from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
-from lookahead_control.core.safety import SafetyParams
+from lookahead_control.core.params import ParameterError
 from lookahead_control.core.samples import (curvature_from_points, LateralErrorSample,
                                             VelocitySample, YawSample)
 import numpy as np
 import pytest
-from sim_plant.closed_loop_sim import check_steps, linear_plant_stepper, measure
-from sim_plant.vehicle_model import PlantParams
-from test_map_fallback import _s_bend      # the S-bend of the map check's tests
+from sim_plant.closed_loop_sim import measure
+# the core with the linear plant on the S-bend of the map check's tests
+from test_map_fallback import _core_on_s_bend
 
 PERIOD, SPEED = 0.01, 30.0
 
@@ -117,12 +114,8 @@ def _loop(law: str, flipped: str, acceleration: float, seed: int = 1,
         core told the heading disagreeing, the peak CG error before it, the time the CG
         was first 1 m off (None: never) and the CG's offset at the end.
     """
-    scenario, vehicle = _s_bend(acceleration=acceleration), VehicleParams()
-    core = SteeringController(vehicle, ControllerParams(), 'imu', False, SafetyParams(), law,
-                              None, LaneKeepingParams())
-    stepper = linear_plant_stepper(scenario, vehicle, PlantParams(), SPEED, 0.0)
-    substeps, n_steps = check_steps(0.002, PERIOD, scenario.duration)
-    rng = np.random.default_rng(seed)
+    scenario, core, stepper, substeps, n_steps, rng = _core_on_s_bend(law, SPEED,
+                                                                      acceleration, seed)
     x = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     safe_at, told_at, peak, off_at = None, None, 0.0, None
     for k in range(n_steps):

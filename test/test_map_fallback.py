@@ -46,6 +46,23 @@ def _s_bend(v: float = SPEED, acceleration: float = 3.0) -> Scenario:
     return Scenario('s_bend', 16.0, road, SpeedProfile(v))
 
 
+def _core_on_s_bend(law: str, speed: float = SPEED, acceleration: float = 3.0,
+                    seed: int = 1) -> tuple[Scenario, SteeringController, Any, int, int,
+                                            np.random.Generator]:
+    """
+    Set up the controller core with the default settings and the linear plant on the S-bend.
+
+    :return: the scenario, the core, the plant's stepper (2 ms substeps), the substeps
+        and control steps (10 ms) of the run, and a noise generator seeded ``seed``.
+    """
+    scenario, vehicle = _s_bend(speed, acceleration), VehicleParams()
+    core = SteeringController(vehicle, ControllerParams(), 'imu', False, SafetyParams(), law,
+                              None, LaneKeepingParams())
+    stepper = linear_plant_stepper(scenario, vehicle, PlantParams(), speed, 0.0)
+    substeps, n_steps = check_steps(0.002, PERIOD, scenario.duration)
+    return scenario, core, stepper, substeps, n_steps, np.random.default_rng(seed)
+
+
 def _loop(scale: float, fallback: float, sent: Any = None) -> dict[str, float]:
     """
     Run the controller core and the linear plant with the map at ``scale`` times the road.

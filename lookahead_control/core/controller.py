@@ -22,7 +22,6 @@ and the whole input -> command path testable without DDS.
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, replace
 import math
 from typing import Any, Optional
@@ -101,11 +100,6 @@ def law_key(name: str, vehicle: VehicleParams, controller: ControllerParams,
 TURN_RATE = 0.02        # [rad/s]
 TURN_SPEED = 10.0       # [m/s]
 REQUIRED_INPUTS = ('lateral_error', 'yaw', 'velocity')
-#: yaw rates the yaw-rate check takes the median of (a glitch of two samples drops out)
-YAW_MEDIAN = 5
-#: ... each clipped to this many times ``max_yaw_rate`` (a yaw rate in deg/s at full lock
-#: at 10 m/s is 78 "rad/s": clipped to the range, it looked in scale)
-YAW_CLIP = 10.0
 JUMP_NS = 1_000_000_000         # the node's clock going back further is a time jump
 # per input: the attribute holding its latest sample, and the method storing a new one
 _LATEST = {'lateral_error': 'lateral', 'yaw': 'yaw', 'velocity': 'velocity',
@@ -323,13 +317,6 @@ class SteeringController:
         #: the lowest correlation it was opposed at since the caller last took it (1: none)
         self.heading_seen = 1.0
         self.yaw_fault: Optional[str] = None
-        # what the yaw-rate check is given: the yaw rates received, taken or refused
-        # (clipped), and the last yaw sample received (dev-probe99: given
-        # only the ones taken, a yaw rate in deg/s whose large samples the range check
-        # refused was a held value most of the time, and never judged)
-        self._yaw_rates: deque[float] = deque(maxlen=YAW_MEDIAN)
-        self._yaw_received: Optional[YawSample] = None
-        self._judged_stamp: Optional[int] = None
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
         self._first_received: Optional[int] = None
@@ -530,11 +517,6 @@ class SteeringController:
             current = None
         if now_ns is not None:
             self._last_now = now_ns     # the node's clock, whether the sample is used or not
-        if name == 'yaw' and math.isfinite(sample.yaw_rate) and math.isfinite(
-                sample.relative_yaw):
-            bound = YAW_CLIP * self.safety.max_yaw_rate
-            self._yaw_rates.append(min(bound, max(-bound, sample.yaw_rate)))
-            self._yaw_received = sample
         # a clock reading 0 is not running yet (sim time before the first /clock): the
         # stamps cannot be judged against it
         clock = now_ns if now_ns is not None and now_ns > 0 else None
@@ -729,42 +711,32 @@ class SteeringController:
             del self.refusals['yaw']
         self.yaw_check.reset()
         self.heading_check.reset()
-        self._yaw_rates.clear()
-        self._yaw_received = None
-        self._judged_stamp = None
         self.yaw_fault = None
 
-    def _judge_yaw_input(self, state: LateralState, sent: float, stale: bool) -> None:
+    def _judge_yaw_input(self, dt: float, state: LateralState, sent: float) -> None:
         """
         Step the yaw input's checks; refuse it once the yaw rate is found wrong.
 
-        The yaw rate against the steering and the relative yaw (sign, scale: stepped
-        also while an input is stale, on the yaw samples received, taken or refused):
-        refused once wrong. The relative yaw against the lateral error's motion (sign:
-        only while the law answers): told in ``heading_disagrees``. Their time axis is
-        the lateral errors' stamps.
+        The yaw rate against the steering and the relative yaw (sign, scale): refused
+        once wrong. The relative yaw against the lateral error's motion (sign): told in
+        ``heading_disagrees``.
 
+        :param dt: time since the law's previous answer [s].
         :param state: the measurements of this answer (its curvature: the one received,
             0 without or lost).
         :param sent: the command sent before this answer [rad].
-        :param stale: whether an input is stale (the safe behaviour answers).
         """
-        if self.yaw_fault or self.lateral is None or self._yaw_received is None:
+        if self.yaw_fault or self.lateral is None:
             return
-        stamp = self.lateral.stamp_ns
-        dt = 0.0 if self._judged_stamp is None else max(0, stamp - self._judged_stamp) * 1e-9
-        self._judged_stamp = stamp
-        if not stale and self.heading_check.step(
-                dt, self.lateral.value, self.lateral.distance, float(state.eps_r),
-                float(state.v_x), float(state.v_y)):
+        v_x, eps_r = float(state.v_x), float(state.eps_r)
+        if self.heading_check.step(dt, self.lateral.value, self.lateral.distance, eps_r, v_x,
+                                   float(state.v_y)):
             # dev-sc45: a relative yaw or a lateral error of the wrong sign steered every
             # law out of the lane, told only once the car was 5 m off
             self.turning['heading_disagrees'] += dt
             self.heading_seen = min(self.heading_seen, self.heading_check.correlation)
         check = self.yaw_check
-        rates = sorted(self._yaw_rates)
-        if not check.step(dt, rates[len(rates) // 2], sent, float(state.v_x),
-                          self.vehicle.wheelbase, self._yaw_received.relative_yaw,
+        if not check.step(dt, float(state.r), sent, v_x, self.vehicle.wheelbase, eps_r,
                           float(state.rho)):
             return
         # dev-probe97: a yaw rate of the wrong sign shook the car off the road, told only
@@ -775,10 +747,6 @@ class SteeringController:
         self.refusals['yaw'] = self.yaw_fault
         self.count_rejection(self.yaw_fault)
         self._voided.add('yaw')
-        if self._stale_since is not None and self._fault_hold is not None:
-            # found while the safe behaviour holds a command of the shaking (the range
-            # check made the input stale first): it holds the mean command from here
-            self._held = self._fault_hold
 
     def _measurement_time(self, now_ns: int) -> int:
         """
@@ -967,12 +935,6 @@ class SteeringController:
 
     def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):
-            state = self.state(now_ns)
-            if state is not None and self._rate_angle is not None:
-                # (dev-probe99: a yaw rate in deg/s made the input stale, the law came
-                # back at full lock whenever a sample passed, and the check, stepped only
-                # then, never saw 0.5 s of it)
-                self._judge_yaw_input(state, self._rate_angle, stale=True)
             fresh = self._fresh('lateral_error', now_ns)
             return self.safe_command(now_ns, steady_ns,
                                      self.lateral.stamp_ns if fresh else None)
@@ -1033,7 +995,7 @@ class SteeringController:
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
         if sent_before is not None:
-            self._judge_yaw_input(state, sent_before, stale=False)
+            self._judge_yaw_input(dt, state, sent_before)
         if self.oscillation.step(dt, self.last.steering):
             self.turning['steering_oscillates'] += dt
             if self.oscillation.amplitude > self.oscillation_seen[0]:

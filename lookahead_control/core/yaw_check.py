@@ -51,16 +51,17 @@ both. Once the steering's yaw rate and the lagged yaw rate vary by ``excitation`
 more, ``|gain|`` at or above ``scale_limit`` and ``|kinematic gain|`` at or below its
 inverse for ``hold`` seconds: the yaw rate is out of scale (either sign).
 
-The check is given the yaw rates received, taken or refused, through a median of five
-(a glitch of two samples drops out), each clipped to ten times the range check's
-``max_yaw_rate``, and it is stepped while the safe behaviour answers too (dev-probe99:
-given the ones taken only and stepped with the law only, a yaw rate in deg/s that the
-range check made stale was a held value most of the time, the law coming back at full
-lock whenever a sample passed, and never judged; clipped to the range, 78 "rad/s" of a
-car at full lock at 10 m/s looked in scale). The moments start once the lags have
-settled after a restart, each sample of the first ``memory`` weighed alike
-(dev-probe99: a first yaw rate 0.1 rad/s off, the rest quiet, was weighed 0.53 when the
-moments were first judged, and out of scale 1.1 s later, for good).
+The check is given the yaw rates taken, while the law answers. dev-probe99 found it
+starved there: a yaw rate in deg/s that the range check made stale was a held value
+most of the time, the law coming back at full lock whenever a sample passed, and 0.5 s
+of evidence never gathered (the default law at 10-20 m/s, 50 m off). Given the yaw rates
+received, refused or not (clipped, the median of five) and stepped while stale too,
+dev-sc45 caught those, but dev-probe101 found three samples of a range-refused glitch
+then taken for a scale, for good (the car 8-14 m off a curve under the safe behaviour):
+not done. The moments start once the lags have settled after a restart, each sample of
+the first ``memory`` weighed alike (dev-probe99: a first yaw rate 0.1 rad/s off, the
+rest quiet, was weighed 0.53 when the moments were first judged, and out of scale 1.1 s
+later, for good).
 """
 
 from __future__ import annotations
