@@ -727,7 +727,8 @@ class ControllerNode(LifecycleNode):
         d_v, time jumps or law restarts since the last report (the law's own clips since
         then, the demand band and the approach clip, are told at OK), a sim clock that has
         not moved for :data:`SIM_CLOCK_STOPPED` (``use_sim_time``), answers while turning
-        without a curvature or with a ``v_y`` of exactly 0 (:data:`TURNING_WARN`), or an
+        without a curvature or with a ``v_y`` of exactly 0 (:data:`TURNING_WARN`), a
+        lateral error moving against the relative yaw (``core/heading_check.py``), or an
         input age or answer latency above ``safety.latency_warn``; else OK.
 
         :return: the status with its reasons and counters.
