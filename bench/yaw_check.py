@@ -105,19 +105,19 @@ def heading_run(time: np.ndarray, lateral_error: np.ndarray, distance: float,
     :param eps_r: relative yaw as measured [rad].
     :param v_x: speed [m/s].
     :param v_y: lateral speed as measured [m/s].
-    :return: the smallest correlation and the first time the inputs were refused (None:
-        never).
+    :return: the smallest correlation and the first time it told the two running against
+        each other (None: never).
     """
     check = HeadingCheck()
-    low, refused = 2.0, None
+    low, told = 2.0, None
     for k in range(1, time.size):
         opposed = check.step(float(time[k] - time[k - 1]), float(lateral_error[k]), distance,
                              float(eps_r[k]), float(v_x[k]), float(v_y[k]))
         if not math.isnan(check.correlation):
             low = min(low, check.correlation)
-        if opposed and refused is None:
-            refused = float(time[k])
-    return low, refused
+        if opposed and told is None:
+            told = float(time[k])
+    return low, told
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -125,7 +125,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     Print the margin.
 
     :param argv: ``[LAW,LAW... [PLANT,PLANT...]]``.
-    :return: 0, or 1 if a yaw rate as it is was refused.
+    :return: 0, or 1 if a yaw rate as it is was refused (or a heading as it is told).
     """
     args = list(sys.argv[1:] if argv is None else argv)
     laws = args[0].split(',') if args else list(compare.LAWS)
@@ -184,7 +184,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                             print(f'heading below -0.5: {where}, d {distance:g} m: {low:.2f}')
                         if at is not None:
                             false_refusals += 1
-                            print(f'HEADING REFUSED AS IT IS: {where}, d {distance:g} m, at '
+                            print(f'HEADING TOLD AS IT IS: {where}, d {distance:g} m, at '
                                   f'{at:.2f} s (lowest {low:.2f})')
                         refused['relative yaw flipped'] += heading_run(
                             time, lateral, distance, -eps_r, column('v_x'), v_y)[1] is not None
@@ -194,8 +194,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f'largest spread (as it is): {spread:.2f}; largest smaller of |gain| and '
           f'1 / |kinematic gain|: {gains:.2f} (the fault: 5)')
     print(f'smallest heading correlation (as it is; 2 distances a run): {heading:.2f}')
-    # the heading check's faults are tried at two distances a run
-    print(f'refused as it is: {false_refusals}; refused: ' + ', '.join(
+    # the heading check's faults (told, not refused) are tried at two distances a run
+    print(f'refused or told as it is: {false_refusals}; refused or told: ' + ', '.join(
         f'{fault} {count} of {runs * (2 if "error" in fault or "yaw" in fault else 1)}'
         for fault, count in refused.items()))
     return 1 if false_refusals else 0
