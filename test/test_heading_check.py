@@ -20,13 +20,12 @@ import math
 
 from lookahead_control.core.heading_check import HeadingCheck, HeadingCheckParams
 from lookahead_control.core.params import ParameterError
-from lookahead_control.core.samples import (curvature_from_points, LateralErrorSample,
-                                            VelocitySample, YawSample)
+from lookahead_control.core.samples import LateralErrorSample, VelocitySample, YawSample
 import numpy as np
 import pytest
 from sim_plant.closed_loop_sim import measure
-# the core with the linear plant on the S-bend of the map check's tests
-from test_map_fallback import _core_on_s_bend
+# the core with the linear plant on the map check's S-bend, and the map of the road
+from test_map_fallback import _core_on_s_bend, _map
 
 PERIOD, SPEED = 0.01, 30.0
 
@@ -122,8 +121,6 @@ def _loop(law: str, flipped: str, acceleration: float, seed: int = 1,
         t = k * PERIOD
         stamp = int(round(t * 1e9))
         inputs = measure(x, t, scenario, SPEED, 0.0)
-        preview = [(float(d), float(scenario.road.curvature(x[0] + d)[0]))
-                   for d in np.arange(0.0, 50.01, 5.0)]
         eps_sign = -1.0 if t >= 2.0 and flipped == 'relative_yaw' else 1.0
         y_sign = -1.0 if t >= 2.0 and flipped == 'lateral_error' else 1.0
         u = min(1.0, max(0.0, (t - 3.0) / 3.0))
@@ -133,7 +130,7 @@ def _loop(law: str, flipped: str, acceleration: float, seed: int = 1,
                                      float(inputs.a_x) - x[3] * x[4]), stamp)
         core.accept('velocity', VelocitySample(stamp, float(inputs.v_x),
                                                x[3] + rng.normal(0.0, 0.02)), stamp)
-        core.accept('road_curvature', curvature_from_points(stamp, preview), stamp)
+        core.accept('road_curvature', _map(stamp, scenario, x[0]), stamp)
         core.accept('lateral_error', LateralErrorSample(
             stamp, 0.0, y_sign * (x[1] - path + rng.normal(0.0, 0.03))), stamp)
         command = core.compute(stamp)

@@ -22,8 +22,8 @@ from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.safety import SafetyParams
-from lookahead_control.core.samples import (curvature_from_points, LateralErrorSample,
-                                            VelocitySample, YawSample)
+from lookahead_control.core.samples import (curvature_from_points, CurvatureSample,
+                                            LateralErrorSample, VelocitySample, YawSample)
 import numpy as np
 import pytest
 from sim_plant.closed_loop_sim import check_steps, linear_plant_stepper, measure
@@ -44,6 +44,16 @@ def _s_bend(v: float = SPEED, acceleration: float = 3.0) -> Scenario:
                  Segment('arc', 3 * v, -k, -k), Segment('clothoid', 1.5 * v, -k, 0.0),
                  Segment('straight', 6 * v)])
     return Scenario('s_bend', 16.0, road, SpeedProfile(v))
+
+
+def _map(stamp: int, scenario: Scenario, s: float, scale: float = 1.0) -> CurvatureSample:
+    """
+    Return the road's curvature 0-50 m ahead of arc length ``s``, every 5 m, as received.
+
+    :param scale: the map's factor on the road's curvature.
+    """
+    return curvature_from_points(stamp, [(float(d), scale * float(scenario.road.curvature(
+        s + d)[0])) for d in np.arange(0.0, 50.01, 5.0)])
 
 
 def _core_on_s_bend(law: str, speed: float = SPEED, acceleration: float = 3.0,
@@ -82,14 +92,11 @@ def _loop(scale: float, fallback: float, sent: Any = None) -> dict[str, float]:
     for k in range(n_steps):
         stamp = int(round(k * PERIOD * 1e9))
         inputs = measure(x, k * PERIOD, scenario, SPEED, 0.0)
-        road = scenario.road
-        preview = [(float(d), scale * float(road.curvature(x[0] + d)[0]))
-                   for d in np.arange(0.0, 50.01, 5.0)]
         core.accept('yaw', YawSample(stamp, x[2], x[4], float(inputs.a_x) - x[3] * x[4]),
                     stamp)
         core.accept('velocity', VelocitySample(stamp, float(inputs.v_x), x[3]), stamp)
         if sent is None or sent(k * PERIOD):
-            core.accept('road_curvature', curvature_from_points(stamp, preview), stamp)
+            core.accept('road_curvature', _map(stamp, scenario, x[0], scale), stamp)
         core.accept('lateral_error', LateralErrorSample(stamp, 0.0, x[1]), stamp)
         command = core.compute(stamp)
         on_estimate = int(dict(core.law.debug_values())['curvature_estimated'])

@@ -20,14 +20,13 @@ import math
 
 from lookahead_control.core.params import ParameterError
 from lookahead_control.core.safety import SafetyParams
-from lookahead_control.core.samples import (curvature_from_points, LateralErrorSample,
-                                            VelocitySample, YawSample)
+from lookahead_control.core.samples import LateralErrorSample, VelocitySample, YawSample
 from lookahead_control.core.yaw_check import YawCheck, YawCheckParams
 import numpy as np
 import pytest
 from sim_plant.closed_loop_sim import measure
-# the S-bend of the map check's tests, and the core on it with the linear plant
-from test_map_fallback import _core_on_s_bend
+# the core with the linear plant on the map check's S-bend, and the map of the road
+from test_map_fallback import _core_on_s_bend, _map
 
 PERIOD, SPEED, WHEELBASE = 0.01, 30.0, 2.7
 
@@ -208,8 +207,6 @@ def _loop(law: str, flip_at: float, seed: int = 1, scale: float = -1.0,
         t = k * PERIOD
         stamp = int(round(t * 1e9))
         inputs = measure(x, t, scenario, speed, 0.0)
-        preview = [(float(d), float(scenario.road.curvature(x[0] + d)[0]))
-                   for d in np.arange(0.0, 50.01, 5.0)]
         # the default sensor noise's, in the yaw rate's unit
         r = (scale if t >= flip_at else 1.0) * (x[4] + rng.normal(0.0, 0.002))
         if glitch is not None and glitch[0] <= t < glitch[0] + 2.5 * PERIOD:
@@ -217,7 +214,7 @@ def _loop(law: str, flip_at: float, seed: int = 1, scale: float = -1.0,
         core.accept('yaw', YawSample(stamp, x[2] + rng.normal(0.0, 0.002), r,
                                      float(inputs.a_x) - x[3] * x[4]), stamp)
         core.accept('velocity', VelocitySample(stamp, float(inputs.v_x), x[3]), stamp)
-        core.accept('road_curvature', curvature_from_points(stamp, preview), stamp)
+        core.accept('road_curvature', _map(stamp, scenario, x[0]), stamp)
         core.accept('lateral_error', LateralErrorSample(stamp, 0.0, x[1] + rng.normal(0.0, 0.03)),
                     stamp)
         command = core.compute(stamp)

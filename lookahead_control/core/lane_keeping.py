@@ -442,9 +442,13 @@ class LaneKeepingParams:
 
         :return: the settings.
         """
-        return StateFilterParams(**{item.name[len('filter_'):]: getattr(self, item.name)
-                                    for item in fields(self)
-                                    if item.name.startswith('filter_')})
+        return StateFilterParams(**{name[len('filter_'):]: getattr(self, name)
+                                    for name in FILTER_SETTINGS})
+
+
+#: the state filter's settings among :class:`LaneKeepingParams`' (``filter_*``)
+FILTER_SETTINGS = tuple(item.name for item in fields(LaneKeepingParams)
+                        if item.name.startswith('filter_'))
 
 
 def loop_gains(settings: LaneKeepingParams, v_x: Real) -> tuple[Real, Real]:
@@ -565,8 +569,8 @@ def curvature_filter_note(settings: LaneKeepingParams) -> str:
     if settings.state_filter == 'kalman':
         return ''
     default = LaneKeepingParams()
-    changed = [item.name for item in fields(settings) if item.name.startswith('filter_')
-               and getattr(settings, item.name) != getattr(default, item.name)]
+    changed = [name for name in FILTER_SETTINGS
+               if getattr(settings, name) != getattr(default, name)]
     if not changed:
         return ''
     return (f"{', '.join(changed)} act{'' if len(changed) > 1 else 's'} only on the curvature "

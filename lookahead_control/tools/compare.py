@@ -32,7 +32,7 @@ from __future__ import annotations
 from collections import Counter
 from concurrent.futures import as_completed, ProcessPoolExecutor
 from contextlib import contextmanager
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 import math
 from pathlib import Path
@@ -315,18 +315,17 @@ def with_settings_notes(lines: list[str], lane_keeping: LaneKeepingParams) -> li
         ``filter_*`` line with that of
         :func:`~lookahead_control.core.lane_keeping.curvature_filter_note`.
     """
-    from lookahead_control.core.lane_keeping import (curvature_filter_note, filterless_note,
+    from lookahead_control.core.lane_keeping import (curvature_filter_note, FILTER_SETTINGS,
+                                                     filterless_note,
                                                      frequency_schedule_note,
                                                      integral_schedule_note)
-    filter_names = tuple(item.name for item in fields(lane_keeping)
-                         if item.name.startswith('filter_'))
     for note, names in ((frequency_schedule_note(lane_keeping),
                          ('low_speed_frequency', 'natural_frequency')),
                         (integral_schedule_note(lane_keeping),
                          ('low_speed_integral_gain', 'integral_gain')),
                         (filterless_note(lane_keeping),
                          ('state_filter', 'side_force', 'force_feedforward')),
-                        (curvature_filter_note(lane_keeping), filter_names)):
+                        (curvature_filter_note(lane_keeping), FILTER_SETTINGS)):
         if not note:
             continue
         for name in names:
