@@ -41,7 +41,7 @@ from lookahead_control.core.params import ParameterError, VehicleParams
 from lookahead_control.core.safety import check_preview_points
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.controller_node import qos, WRITER_DEPTH, writer_qos
-from lookahead_control.ros.node_main import run_node, Throttle
+from lookahead_control.ros.node_main import end_process, run_node, Throttle
 from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, MAX_PREVIEW_SPEC,
                                                Spec, values, VEHICLE_SPECS)
 from lookahead_control.ros.vehicle_conversions import to_odometry, to_path
@@ -795,7 +795,7 @@ def main(args: Optional[list[str]] = None) -> int:
 
 def entry() -> int:
     """Entry point of ``sim_plant``."""
-    return main(sys.argv)
+    return end_process(main(sys.argv))
 
 
 if __name__ == '__main__':

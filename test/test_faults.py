@@ -909,6 +909,83 @@ def test_shutdown_while_a_callback_uses_the_context_is_a_clean_stop():
     assert 'Traceback' not in out.stderr
 
 
+HANGING_STOP = """
+import threading
+from rclpy.node import Node
+from lookahead_control.ros import node_main
+
+
+class Stuck(Node):
+    def __init__(self):
+        super().__init__('stuck')
+        self.create_timer(0.05, lambda: None)
+
+    def destroy_node(self):
+        threading.Event().wait()            # a stop that never ends (a middleware hang)
+
+
+node_main.STOP_DEADLINE = 2.0
+raise SystemExit(node_main.run_node('stuck', [], Stuck, lambda node: True))
+"""
+
+
+def test_a_node_whose_stop_hangs_ends_with_its_stacks():
+    # CI (stop 54): a child of a SIGKILLed closed_loop ran on for over 60 s after its
+    # SIGTERM, nobody left to kill it, and nothing said where it was stuck
+    proc = subprocess.Popen([sys.executable, '-c', HANGING_STOP], stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 1, err
+    assert 'Timeout' in err and 'in destroy_node' in err, err
+
+
+# what a node's console script runs, with two markers: ROS started, interpreter finalized
+NODE_ENTRY = """
+import atexit, importlib, sys
+import rclpy
+start = rclpy.init
+
+
+def init(*args, **kwargs):
+    start(*args, **kwargs)
+    print('ROS started', file=sys.stderr, flush=True)
+
+
+rclpy.init = init
+atexit.register(lambda: print('finalized', file=sys.stderr, flush=True))
+module, *sys.argv = sys.argv[1:]
+print('before the end', end='')        # not flushed: a pipe buffers it
+sys.exit(importlib.import_module(module).entry())
+"""
+
+
+@pytest.mark.parametrize('module, args', [
+    ('lookahead_control.ros.controller_node', []),
+    ('sim_plant.sim_plant_node', []),
+    ('lookahead_control.ros.path_bridge_node', []),
+    ('lookahead_control.bags.recorder_node', ['-o', 'bag', '/steering'])])
+def test_a_node_process_ends_without_python_s_finalization(module, args, tmp_path):
+    # CI (stop 54): the controller died of SIGSEGV while "Garbage-collecting" after a
+    # clean stop on SIGINT: rclpy's C++ objects freed by the interpreter's finalization.
+    # A node's process now ends once it has stopped, its output flushed.
+    proc = subprocess.Popen([sys.executable, '-c', NODE_ENTRY, module, module, *args],
+                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        assert proc.stderr.readline().strip() == 'ROS started'
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert out == 'before the end' and 'finalized' not in err, (out, err)
+    assert 'Traceback' not in err, err
+
+
 FLOODER = """
 import sys, time, rclpy
 from rclpy.node import Node

@@ -39,8 +39,8 @@ from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAM
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import ConfigError, source_config_dir
-from lookahead_control.ros.node_main import (now_ns, program_arguments, rcl_reason, RCLError,
-                                             run_node, tool_arguments)
+from lookahead_control.ros.node_main import (end_process, now_ns, program_arguments,
+                                             rcl_reason, RCLError, run_node, tool_arguments)
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidHandle
@@ -580,7 +580,7 @@ def _main(p: ArgumentParser, full: list[str]) -> int:
 
 def entry() -> int:
     """Entry point of ``record``."""
-    return run_tool(main)
+    return end_process(run_tool(main))
 
 
 def recover_entry() -> int:

@@ -39,7 +39,7 @@ from lookahead_control.core.params import ControllerParams, ParameterError, SCHE
 from lookahead_control.core.safety import check_points
 from lookahead_control.core.samples import curvature_from_points
 from lookahead_control.ros import conversions as conv
-from lookahead_control.ros.node_main import now_ns, run_node, Throttle
+from lookahead_control.ros.node_main import end_process, now_ns, run_node, Throttle
 from lookahead_control.ros.node_params import (baseline_params, BASELINE_SPECS, check_choices,
                                                CONTROLLER_SPECS, declare, EXECUTOR_SPEC,
                                                lane_keeping_params, LANE_KEEPING_SPECS,
@@ -945,7 +945,7 @@ def main(args: Optional[list[str]] = None) -> int:
 
 def entry() -> int:
     """Entry point of ``controller``."""
-    return main(sys.argv)
+    return end_process(main(sys.argv))
 
 
 if __name__ == '__main__':

@@ -43,7 +43,7 @@ from lookahead_control.core.safety import check_preview_points, SafetyParams
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros import vehicle_conversions as vconv
 from lookahead_control.ros.controller_node import qos, writer_qos
-from lookahead_control.ros.node_main import run_node, Throttle
+from lookahead_control.ros.node_main import end_process, run_node, Throttle
 from lookahead_control.ros.node_params import (build, check_choices, declare, EXECUTOR_SPEC,
                                                MAX_PREVIEW_SPEC, Spec, values)
 from nav_msgs.msg import Odometry, Path
@@ -532,7 +532,7 @@ def main(args: Optional[list[str]] = None) -> int:
 
 def entry() -> int:
     """Entry point of ``path_bridge``."""
-    return main(sys.argv)
+    return end_process(main(sys.argv))
 
 
 if __name__ == '__main__':
