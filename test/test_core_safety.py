@@ -103,6 +103,76 @@ def test_an_input_that_stops_after_a_refusal_is_not_blamed_on_the_refusal():
     assert 'last refused: yaw: stamp 0.500 s behind' in core.describe_stale(['yaw'])
 
 
+def _yaw_run(core, rates, start=0):
+    """Give 100 Hz inputs from 1000 s, the yaw rate of step k ``rates(k)``; the stale lists."""
+    stale = []
+    for k in range(start, start + 400):
+        now = (1000_000 + 10 * k) * MS
+        _live(core, now, names=('velocity', 'lateral_error'))
+        core.accept('yaw', YawSample(now, 0.0, rates(k), 0.0), now)
+        stale.append(core.stale(now))
+    return stale
+
+
+def test_an_input_stale_from_values_beyond_its_limits_is_back_after_a_clean_second():
+    # dev-sc45: a yaw rate in deg/s (x -57.3) went stale when the range check (2 rad/s)
+    # refused its large samples, came back with its next small one and shook the car
+    # until refused again: 3-31 switches between the safe behaviour and the law, the law
+    # 0.5-3.6 s on the bad yaw rate (three laws, 10-37 m/s, straight and S-bends)
+    core = _core()
+    # 0.3 s beyond the limit (stale after 0.2 s), then believable; one more beyond at 0.6 s
+    stale = _yaw_run(core, lambda k: 3.0 if k < 30 or k == 60 else 0.01)
+    first = next(k for k, names in enumerate(stale) if names == ['yaw'])
+    assert 20 <= first <= 22
+    back = next(k for k, names in enumerate(stale) if k > first and not names)
+    assert back == 60 + 100                     # a second after the last refusal
+    assert all(names == ['yaw'] for names in stale[first:back])
+    # without the second refusal: a second after the first run's last (k = 29)
+    stale = _yaw_run(_core(), lambda k: 3.0 if k < 30 else 0.01)
+    assert stale[128] == ['yaw'] and stale[129:] == [[]] * (400 - 129)
+    # while held out the refusal is the cause, with when it comes back
+    probe = _core()
+    for k in range(120):
+        now = (1000_000 + 10 * k) * MS
+        _live(probe, now, names=('velocity', 'lateral_error'))
+        probe.accept('yaw', YawSample(now, 0.0, 3.0 if k < 30 else 0.01, 0.0), now)
+    assert probe.stale(now) == ['yaw']
+    assert probe.describe_stale(['yaw']) == (
+        'yaw (last refused: yaw: |yaw_rate| = 3 > 2; back after 1 s without one)')
+
+
+@pytest.mark.parametrize('refused, why', [
+    (YawSample(0, 0.0, math.nan, 0.0), 'not finite: no value, as a dead input'),
+    (None, 'stamps behind the clock: a clock, not a sensor to distrust')])
+def test_an_input_stale_for_other_refusals_is_back_at_its_next_sample(refused, why):
+    core = _core()
+    stale = []
+    for k in range(200):
+        now = (1000_000 + 10 * k) * MS
+        _live(core, now, names=('velocity', 'lateral_error'))
+        if k < 30:
+            sample = (YawSample(now - 500 * MS, 0.0, 0.0, 0.0) if refused is None
+                      else refused._replace(stamp_ns=now))
+            assert core.accept('yaw', sample, now) is not None
+        else:
+            assert core.accept('yaw', YawSample(now, 0.0, 0.01, 0.0), now) is None
+        stale.append(core.stale(now))
+    assert stale[25] == ['yaw'] and stale[30] == [], why
+
+
+def test_recovery_time_0_and_a_time_jump_take_an_input_back_at_once():
+    core = SteeringController(VehicleParams(), ControllerParams(), 'imu', True,
+                              SafetyParams(max_steering_rate=0.1, recovery_time=0.0))
+    stale = _yaw_run(core, lambda k: 3.0 if k < 30 else 0.01)
+    assert stale[25] == ['yaw'] and stale[30] == []
+    core = _core()
+    stale = _yaw_run(core, lambda k: 3.0 if k < 30 else 0.01)
+    assert stale[50] == ['yaw']
+    # a restart (the time jumps back 2 s) forgets it
+    after = _yaw_run(core, lambda k: 0.01, start=-200)
+    assert core.time_jumps == 1 and after == [[]] * 400
+
+
 def test_stamps_are_judged_on_both_sides_of_the_node_clock():
     params = SafetyParams()                 # input_timeout 0.2 s, max_future 0.1 s
     now = 50_000 * MS

@@ -278,6 +278,38 @@ def test_the_core_refuses_a_yaw_rate_in_degrees_per_second(law, acceleration):
     assert run['steps'] <= SafetyParams().max_steering_rate * PERIOD + 1e-12
 
 
+@pytest.mark.parametrize('speed', [30.0, 37.0])
+def test_a_yaw_rate_refused_now_and_then_does_not_flap_the_steering(speed):
+    # dev-sc45: a bridge sending the yaw rate in deg/s with its sign flipped (x -57.3),
+    # on a straight: the range check (2 rad/s) refused its large samples and made the
+    # input stale, its next small sample made it fresh, the law shook the car until it was
+    # refused again: 19 (30 m/s) and 29 (37 m/s) switches between the law and the safe
+    # behaviour, the law 2.2 and 3.5 s on the bad yaw rate; now the input is back only
+    # after a second without such a refusal (safety.recovery_time)
+    scenario, core, stepper, substeps, n_steps, rng = _core_on_s_bend('cg_compensated',
+                                                                      speed, 0.0)
+    x = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    switches, on_bad, previous = 0, 0.0, True
+    for k in range(n_steps):
+        t = k * PERIOD
+        stamp = int(round(t * 1e9))
+        inputs = measure(x, t, scenario, speed, 0.0)
+        r = (-math.degrees(1.0) if t >= 2.0 else 1.0) * (x[4] + rng.normal(0.0, 0.002))
+        core.accept('yaw', YawSample(stamp, x[2] + rng.normal(0.0, 0.002), r,
+                                     float(inputs.a_x) - x[3] * x[4]), stamp)
+        core.accept('velocity', VelocitySample(stamp, float(inputs.v_x), x[3]), stamp)
+        core.accept('road_curvature', _map(stamp, scenario, x[0]), stamp)
+        core.accept('lateral_error', LateralErrorSample(stamp, 0.0, x[1] + rng.normal(0.0, 0.03)),
+                    stamp)
+        command = core.compute(stamp)
+        on_law = command.law is not None
+        switches += on_law != previous
+        on_bad += PERIOD * (on_law and t >= 2.0)
+        previous = on_law
+        x = stepper(x, t, 0.002, substeps, command.steering)
+    assert switches <= 3 and on_bad <= 0.5, (switches, on_bad)
+
+
 @pytest.mark.parametrize('value', [2.5, 100.0])
 def test_a_glitch_of_refused_yaw_rates_is_no_scale(value):
     # dev-probe101: c525b0f gave the check the yaw rates received, refused or not (the

@@ -34,8 +34,8 @@ from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
 from lookahead_control.core.oscillation_check import OscillationCheck
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
-from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
-                                           SafetyParams, stale_target)
+from lookahead_control.core.safety import (all_finite, check_sample, check_stamp, limit,
+                                           low_speed_weight, SafetyParams, stale_target)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
 from lookahead_control.core.yaw_check import YawCheck
@@ -324,6 +324,11 @@ class SteeringController:
         # input is received again; the same for the start of the wait for the others
         self._voided: set[str] = set()
         self._first_voided = False
+        #: input -> node clock of its last sample refused for a value beyond its limit
+        self._value_refused: dict[str, int] = {}
+        #: inputs that went stale while their values were so refused: fresh again only
+        #: after ``safety.recovery_time`` without such a refusal
+        self._held_out: set[str] = set()
         self._last_now: Optional[int] = None
         self._held: Optional[float] = None
         self._stale_since: Optional[int] = None
@@ -465,6 +470,8 @@ class SteeringController:
         self._first_received = None
         self._voided.clear()
         self._first_voided = False
+        self._value_refused.clear()
+        self._held_out.clear()
         self._last_now = None
         self._stale_since = None
         if self._rate_angle is not None:
@@ -520,12 +527,16 @@ class SteeringController:
         # a clock reading 0 is not running yet (sim time before the first /clock): the
         # stamps cannot be judged against it
         clock = now_ns if now_ns is not None and now_ns > 0 else None
-        reason = check_sample(name, sample, self.safety) or check_stamp(
+        valued = check_sample(name, sample, self.safety)
+        reason = valued or check_stamp(
             name, sample.stamp_ns, current.stamp_ns if current else None, clock, self.safety)
         if reason is None and name == 'yaw' and self.yaw_fault is not None:
             reason = self.yaw_fault
         received = 0 if now_ns is None else now_ns
         if reason is not None:
+            if valued is not None and now_ns is not None and all_finite(name, sample):
+                # beyond a limit: a sensor to distrust for a while (a NaN says no value)
+                self._value_refused[name] = received
             self.refusals[name] = reason
             self.count_rejection(reason)
             if self._first_received is None:
@@ -539,8 +550,10 @@ class SteeringController:
         self._received[name] = received
         # why its samples were refused is told only while it is why the input is stale:
         # once one is taken, an older refusal is history (dev-probe37: a yaw input that
-        # simply stopped was reported stale with a refusal a second older)
-        self.refusals.pop(name, None)
+        # simply stopped was reported stale with a refusal a second older); one held out
+        # is still stale for its refusals
+        if name not in self._held_out:
+            self.refusals.pop(name, None)
         self._voided.discard(name)
         if self._first_received is None:
             self._first_received = received
@@ -560,22 +573,34 @@ class SteeringController:
         if name in _LATEST:
             self.refusals[name] = reason
 
-    def _fresh(self, name: str, now_ns: int) -> bool:
+    def _fresh(self, name: str, now_ns: int, held_out: bool = True) -> bool:
         """
         Return whether an input's last sample is fresh at ``now_ns``.
 
         Fresh: received within ``input_timeout`` before ``now`` on the node's clock and
         stamped no more than ``input_timeout`` ago. A sample received after ``now``
         came before the clock went back: it stays stale until the input is received
-        again (also once the clock is past its reception time again).
+        again (also once the clock is past its reception time again). An input that went
+        stale while its values were refused beyond their limits is fresh again only after
+        ``safety.recovery_time`` without such a refusal (``held_out``: False to ask
+        about its last sample only).
         """
         received = self._received.get(name)
         sample = getattr(self, _LATEST[name])
         if received is not None and received > now_ns:
             self._voided.add(name)
         timeout = self.safety.input_timeout * 1e9
-        return (received is not None and sample is not None and name not in self._voided
-                and now_ns - received <= timeout and now_ns - sample.stamp_ns <= timeout)
+        fresh = (received is not None and sample is not None and name not in self._voided
+                 and now_ns - received <= timeout and now_ns - sample.stamp_ns <= timeout)
+        if fresh and held_out and name in self._held_out:
+            # dev-sc45: a yaw rate in deg/s, refused when large, went stale, came back
+            # with its next small sample and shook the car until refused again: the
+            # steering flapped between the safe behaviour and the law at full lock
+            if now_ns - self._value_refused[name] < self.safety.recovery_time * 1e9:
+                return False
+            self._held_out.discard(name)
+            self.refusals.pop(name, None)
+        return fresh
 
     def stale(self, now_ns: Optional[int]) -> list[str]:
         """
@@ -586,7 +611,9 @@ class SteeringController:
         although another input came in, taken or refused (or the time jumped), more than
         ``input_timeout`` ago or before the clock went back. An input refused over and
         over, or whose stamps stopped advancing (refused as repeated), therefore goes
-        stale too, also after a time jump or when none was ever taken.
+        stale too, also after a time jump or when none was ever taken; one that went stale
+        while its values were refused beyond their limits stays so until none has been
+        for ``safety.recovery_time``.
         ``road_curvature`` is optional: see :meth:`curvature_lost`.
 
         :param now_ns: the node's clock [ns] (None: not running, nothing is stale).
@@ -598,9 +625,14 @@ class SteeringController:
         if self._first_received > now_ns:
             self._first_voided = True
         waited = self._first_voided or now_ns - self._first_received > timeout
-        return [name for name in REQUIRED_INPUTS
-                if (name in self._received and not self._fresh(name, now_ns))
-                or (name not in self._received and waited)]
+        stale = [name for name in REQUIRED_INPUTS
+                 if (name in self._received and not self._fresh(name, now_ns))
+                 or (name not in self._received and waited)]
+        for name in stale:
+            refused = self._value_refused.get(name)
+            if refused is not None and now_ns - refused <= timeout:
+                self._held_out.add(name)    # stale while its values were refused
+        return stale
 
     def curvature_received(self, now_ns: Optional[int]) -> bool:
         """
@@ -652,7 +684,9 @@ class SteeringController:
             # received (last refused: ...)')
             never = ('' if name in self._received else ' none taken' if why
                      else ' never received')
-            parts.append(f'{name}{never}' + (f' (last refused: {why})' if why else ''))
+            back = (f'; back after {self.safety.recovery_time:g} s without one'
+                    if name in self._held_out else '')
+            parts.append(f'{name}{never}' + (f' (last refused: {why}{back})' if why else ''))
         return ', '.join(parts)
 
     def safe_command(self, now_ns: int, steady_ns: Optional[int] = None,
@@ -935,7 +969,8 @@ class SteeringController:
 
     def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):
-            fresh = self._fresh('lateral_error', now_ns)
+            # (a held-out lateral error's answers still carry its stamps: lockstep)
+            fresh = self._fresh('lateral_error', now_ns, held_out=False)
             return self.safe_command(now_ns, steady_ns,
                                      self.lateral.stamp_ns if fresh else None)
         state = self.state(now_ns)
