@@ -27,7 +27,9 @@ below -0.5, any run refused as it is (none may be), the smallest over all runs a
 of the larger of the two correlations (both negative together is the fault), the
 largest of the scale's evidence: the spread (the yaw rate's standard deviation over the
 larger witness's) and the smaller of ``|gain|`` and ``1 / |kinematic gain|`` (either at
-``scale_limit`` is the fault), and the heading check (``core/heading_check.py``) on the
+``scale_limit`` is the fault), the stillness (the smaller witness's standard deviation
+over the yaw rate's; ``scale_limit`` is told) with the yaw rate as it is, frozen from 2 s
+and 10 times too small, and the heading check (``core/heading_check.py``) on the
 run's lateral error (default noise; at the CG and 20 m ahead) with the relative yaw and
 the lateral speed, as they are and with either sign flipped. About 15 minutes on one
 core.
@@ -56,7 +58,7 @@ DISTANCE = 20.0                 # [m] a camera's look-ahead, for the heading che
 
 def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.ndarray,
               v_x: np.ndarray, rho: np.ndarray, wheelbase: float
-              ) -> tuple[float, float, float, float | None, float, float]:
+              ) -> tuple[float, float, float, float | None, float, float, float, float | None]:
     """
     Run the check over one run.
 
@@ -69,13 +71,14 @@ def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.nd
     :param wheelbase: ``L`` [m].
     :return: the smallest steering correlation, the smallest relative-yaw correlation,
         the smallest over the steps of the larger of the two, the first time the yaw
-        rate was refused (None: never), the largest spread and the largest of the smaller
-        of ``|gain|`` and ``1 / |kinematic gain|``.
+        rate was refused (None: never), the largest spread, the largest of the smaller
+        of ``|gain|`` and ``1 / |kinematic gain|``, the largest finite stillness and the
+        first time the yaw rate was told too still (None: never).
     """
     check = YawCheck()
     low_steering = low_kinematic = joint = 2.0
-    spread = gains = 0.0
-    refused = None
+    spread = gains = still = 0.0
+    refused = still_at = None
     for k in range(1, time.size):
         opposed = check.step(float(time[k] - time[k - 1]), float(r[k]), float(command[k - 1]),
                              float(v_x[k]), wheelbase, float(eps_r[k]), float(rho[k]))
@@ -88,9 +91,13 @@ def check_run(time: np.ndarray, r: np.ndarray, eps_r: np.ndarray, command: np.nd
         if not math.isnan(check.gain):
             gains = max(gains, min(abs(check.gain),
                                    1.0 / max(abs(check.kinematic_gain), 1e-300)))
+        if math.isfinite(check.stillness):
+            still = max(still, check.stillness)
         if opposed and refused is None:
             refused = float(time[k])
-    return low_steering, low_kinematic, joint, refused, spread, gains
+        if check.too_still and still_at is None:
+            still_at = float(time[k])
+    return low_steering, low_kinematic, joint, refused, spread, gains, still, still_at
 
 
 def heading_run(time: np.ndarray, lateral_error: np.ndarray, distance: float,
@@ -125,7 +132,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     Print the margin.
 
     :param argv: ``[LAW,LAW... [PLANT,PLANT...]]``.
-    :return: 0, or 1 if a yaw rate as it is was refused (or a heading as it is told).
+    :return: 0, or 1 if a yaw rate as it is was refused or told too still (or a heading
+        as it is told).
     """
     args = list(sys.argv[1:] if argv is None else argv)
     laws = args[0].split(',') if args else list(compare.LAWS)
@@ -134,9 +142,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     vehicle = VehicleParams()
     scenarios = compare.load_scenarios(compare.SCENARIOS)
     rng = np.random.default_rng(5)
-    worst, false_refusals, runs, spread, gains = 2.0, 0, 0, 0.0, 0.0
+    worst, false_refusals, runs, spread, gains, still = 2.0, 0, 0, 0.0, 0.0, 0.0
     refused = {'flipped': 0, 'deg/s': 0, 'x10': 0, 'relative yaw flipped': 0,
                'lateral error flipped': 0}
+    told_still = {'frozen': 0, 'x0.1': 0}
     heading = 2.0
     for law_name in laws:
         for case in plants:
@@ -157,10 +166,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     eps_r = column('eps_r') + rng.normal(0.0, NOISE, time.size)
                     given = (column('steering_cmd'), column('v_x'), column('rho'),
                              law_vehicle.wheelbase)
-                    steering, kinematic, joint, at, wide, large = check_run(
+                    steering, kinematic, joint, at, wide, large, calm, calm_at = check_run(
                         time, r, eps_r, *given)
                     worst, spread = min(worst, joint), max(spread, wide)
-                    gains = max(gains, large)
+                    gains, still = max(gains, large), max(still, calm)
                     where = f'{law_name} {case.name} {name} {speed:g} m/s'
                     if min(steering, kinematic) < -0.5:
                         print(f'a witness below -0.5: {where}: steering {steering:.2f}, '
@@ -168,7 +177,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                     if at is not None:
                         false_refusals += 1
                         print(f'REFUSED AS IT IS: {where} at {at:.2f} s')
+                    if calm_at is not None:
+                        false_refusals += 1
+                        print(f'TOLD TOO STILL AS IT IS: {where} at {calm_at:.2f} s')
                     runs += 1
+                    # frozen at its value at 2 s (a bridge repeating it), 10 times too small
+                    frozen, at_2 = r.copy(), int(np.searchsorted(time, 2.0))
+                    frozen[at_2:] = r[at_2]
+                    told_still['frozen'] += check_run(time, frozen, eps_r, *given)[7] is not None
+                    told_still['x0.1'] += check_run(time, 0.1 * r, eps_r, *given)[7] is not None
                     for fault, factor in (('flipped', -1.0), ('deg/s', math.degrees(1.0)),
                                           ('x10', 10.0)):
                         refused[fault] += check_run(time, factor * r, eps_r,
@@ -193,6 +210,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f'smallest over runs and steps of the larger correlation (as it is): {worst:.2f}')
     print(f'largest spread (as it is): {spread:.2f}; largest smaller of |gain| and '
           f'1 / |kinematic gain|: {gains:.2f} (the fault: 5)')
+    print(f'largest stillness (as it is): {still:.2f} (told: 5); told too still: '
+          + ', '.join(f'{fault} {count} of {runs}' for fault, count in told_still.items()))
     print(f'smallest heading correlation (as it is; 2 distances a run): {heading:.2f}')
     # the heading check's faults (told, not refused) are tried at two distances a run
     print(f'refused or told as it is: {false_refusals}; refused or told: ' + ', '.join(

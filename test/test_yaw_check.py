@@ -166,6 +166,24 @@ def test_too_little_steering_is_not_judged():
     assert not any(opposed) and math.isnan(check.correlation)
 
 
+@pytest.mark.parametrize('sign, bias, noise', [(0.0, 0.05, 0.0), (0.0, 0.0, 0.002),
+                                               (0.1, 0.0, 0.002)])
+def test_a_yaw_rate_frozen_or_too_small_is_told_too_still_not_refused(sign, bias, noise):
+    # dev-sc46: a yaw rate frozen (a bridge repeating its last value) or 10 times too
+    # small put the default law's CG up to 2 m off S-bends at 30-37 m/s, and nothing
+    # said so; told (not a fault: the safe behaviour would put the car off the curve)
+    check, opposed = _synthetic(sign, bias=bias, noise=noise)
+    assert check.too_still and not any(opposed) and not check.faulty
+    assert check.stillness >= 5.0, check.stillness
+    assert math.isinf(check.stillness) == (noise == 0.0)
+    # about a memory (1 s) of excitation, then the hold (0.5 s)
+    assert 1.0 < check.still_for < 6.0 - 1.0, check.still_for
+    right, _ = _synthetic(1.0)
+    assert not right.too_still and right.still_for == 0.0 and right.stillness < 2.0
+    little, _ = _synthetic(0.0, amplitude=0.001)        # too little steering: not judged
+    assert not little.too_still and math.isnan(little.stillness)
+
+
 def test_a_slow_car_a_gap_or_a_bad_value_restarts_it():
     check, _ = _synthetic(-1.0)
     assert check.opposed
@@ -325,6 +343,19 @@ def test_a_glitch_of_refused_yaw_rates_is_no_scale(value):
 def test_a_right_yaw_rate_is_never_refused(law):
     run = _loop(law, flip_at=math.inf)
     assert run['core'].yaw_fault is None and run['safe_at'] is None
+    assert run['core'].turning['yaw_rate_still'] == 0.0 and run['core'].still_seen == 0.0
+
+
+@pytest.mark.parametrize('law', ['cg_compensated', 'paper'])
+@pytest.mark.parametrize('scale', [0.0, 0.1])
+def test_the_core_tells_a_yaw_rate_frozen_or_too_small(law, scale):
+    # dev-sc46: from 2 s on the S-bend at 3 m/s^2, 30 m/s: the default law 0.9-1.1 m off
+    # (0.05 with the right yaw rate), the paper law 0.4-0.45 m; told from about 3 s, the
+    # law left to drive (the safe behaviour would keep the wheel straight on the curve)
+    run = _loop(law, flip_at=2.0, scale=scale)
+    core = run['core']
+    assert core.turning['yaw_rate_still'] > 5.0, core.turning
+    assert core.still_seen >= 5.0 and core.yaw_fault is None and run['safe_at'] is None
 
 
 def test_the_node_judges_the_yaw_rate_afresh_when_activated_again(context):
@@ -343,5 +374,27 @@ def test_the_node_judges_the_yaw_rate_afresh_when_activated_again(context):
         assert node.core.yaw_fault is not None
         node.trigger_activate()
         assert node.core.yaw_fault is None
+    finally:
+        node.destroy_node()
+
+
+def test_the_node_warns_of_a_still_yaw_rate_once(context):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        assert 'yaw_rate hardly varies' not in node.diagnostics().message
+        node.core.turning['yaw_rate_still'] += 0.7
+        node.core.still_seen = 11.4
+        status = node.diagnostics()
+        assert status.level == DiagnosticStatus.WARN
+        assert ('yaw_rate hardly varies while the steering and the relative yaw do, for '
+                '0.70 s (they vary 11.4 times as much as it does): frozen') in status.message
+        assert 'yaw_rate hardly varies' not in node.diagnostics().message     # told once
+        node.core.turning['yaw_rate_still'] += 0.2
+        node.core.still_seen = math.inf
+        assert '(it does not vary at all)' in node.diagnostics().message
     finally:
         node.destroy_node()

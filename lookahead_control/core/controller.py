@@ -287,7 +287,8 @@ class SteeringController:
                                           'curvature_disagrees': 0.0,
                                           'curvature_dropped': 0.0,
                                           'steering_oscillates': 0.0,
-                                          'heading_disagrees': 0.0}
+                                          'heading_disagrees': 0.0,
+                                          'yaw_rate_still': 0.0}
         #: the received curvature against the yaw measurements (``core/map_check.py``):
         #: seconds of answers with it over its threshold in ``curvature_disagrees``, and
         #: with it dropped (the law on its own estimate, ``lane_keeping.map_fallback``) in
@@ -316,6 +317,11 @@ class SteeringController:
         self.heading_check = HeadingCheck()
         #: the lowest correlation it was opposed at since the caller last took it (1: none)
         self.heading_seen = 1.0
+        #: a yaw rate that hardly varies while the steering and the relative yaw do (frozen,
+        #: too small): seconds in ``yaw_rate_still`` (told, not refused: the safe behaviour
+        #: puts the car off a curve, the laws on a still yaw rate 0.01-2 m off), and the
+        #: largest stillness (:attr:`YawCheck.stillness`) since the caller last took it
+        self.still_seen = 0.0
         self.yaw_fault: Optional[str] = None
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
@@ -770,8 +776,12 @@ class SteeringController:
             self.turning['heading_disagrees'] += dt
             self.heading_seen = min(self.heading_seen, self.heading_check.correlation)
         check = self.yaw_check
-        if not check.step(dt, float(state.r), sent, v_x, self.vehicle.wheelbase, eps_r,
-                          float(state.rho)):
+        faulty = check.step(dt, float(state.r), sent, v_x, self.vehicle.wheelbase, eps_r,
+                            float(state.rho))
+        if check.too_still:
+            self.turning['yaw_rate_still'] += dt
+            self.still_seen = max(self.still_seen, check.stillness)
+        if not faulty:
             return
         # dev-probe97: a yaw rate of the wrong sign shook the car off the road, told only
         # as a map WARN; dev-sc45: one in deg/s shook it off a straight, the range check

@@ -51,6 +51,14 @@ both. Once the steering's yaw rate and the lagged yaw rate vary by ``excitation`
 more, ``|gain|`` at or above ``scale_limit`` and ``|kinematic gain|`` at or below its
 inverse for ``hold`` seconds: the yaw rate is out of scale (either sign).
 
+The other way, a yaw rate frozen (a bridge repeating its last value with new stamps) or
+too small (x 0.1, deg/s read as rad/s twice) leaves the laws without their yaw damping
+(dev-sc46: the default law up to 2 m off S-bends at 30-37 m/s): while both witnesses
+vary by ``excitation`` or more, the smaller one's standard deviation over the lagged yaw
+rate's (the stillness) at or above ``scale_limit`` for ``hold`` seconds is
+:attr:`YawCheck.too_still`. Told, not a fault: refusing the yaw input would take the
+safe behaviour, a straight wheel on the curve the law still follows.
+
 The check is given the yaw rates taken, while the law answers. dev-probe99 found it
 starved there: a yaw rate in deg/s that the range check made stale was a held value
 most of the time, the law coming back at full lock whenever a sample passed, and 0.5 s
@@ -162,6 +170,11 @@ class YawCheck:
         self.scaled_for = 0.0
         #: what found it out of scale: ``gains`` or ``spread`` (empty: not found)
         self.scaled_by = ''
+        #: the smaller witness's standard deviation over the lagged yaw rate's (NaN until
+        #: both witnesses vary; inf for a yaw rate that does not vary at all)
+        self.stillness = math.nan
+        #: seconds the yaw rate has hardly varied while both witnesses did
+        self.still_for = 0.0
 
     @property
     def opposed(self) -> bool:
@@ -172,6 +185,11 @@ class YawCheck:
     def out_of_scale(self) -> bool:
         """Return True once the yaw rate has been out of scale with both for ``hold``."""
         return self.scaled_for > 0.0 and self.scaled_for >= self.settings.hold
+
+    @property
+    def too_still(self) -> bool:
+        """Return True once the yaw rate has hardly varied while both witnesses did, ``hold``."""
+        return self.still_for > 0.0 and self.still_for >= self.settings.hold
 
     @property
     def faulty(self) -> bool:
@@ -276,4 +294,13 @@ class YawCheck:
                     by = 'gains'
             self.scaled_for = self.scaled_for + dt if by else 0.0
             self.scaled_by = by
+        # the other way: a yaw rate frozen (a bridge repeating its last value with new
+        # stamps) or too small while the car is steered and turns (told, not refused)
+        self.stillness = math.nan
+        if ready and min(self._var[0], self._var[2]) >= floor:
+            witness = min(self._var[0], self._var[2])
+            self.stillness = (math.sqrt(witness / self._var[3]) if self._var[3] > 0.0
+                              else math.inf)
+            still = self.stillness >= s.scale_limit
+            self.still_for = self.still_for + dt if still else 0.0
         return self.faulty

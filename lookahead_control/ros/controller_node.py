@@ -22,6 +22,7 @@ remap them), publishes ``steering`` and ``~/debug``. Auto-activates unless
 
 from __future__ import annotations
 
+import math
 import struct
 import sys
 import time
@@ -888,6 +889,17 @@ class ControllerNode(LifecycleNode):
                            'lateral_error wrong, or the two measured from different '
                            'references (a lane change along a shifted path), or a bias in '
                            'relative_yaw or v_y (docs/safety.md)')
+        stillness, self.core.still_seen = self.core.still_seen, 0.0
+        if turning['yaw_rate_still'] > 0.0:
+            # dev-sc46: a yaw rate frozen (or 10 times too small) put the default law's CG
+            # up to 2 m off S-bends at 30-37 m/s, and nothing said so
+            level = max(level, DiagnosticStatus.WARN)
+            how = ('it does not vary at all' if math.isinf(stillness) else
+                   f'they vary {stillness:.3g} times as much as it does')
+            reasons.append(f'yaw_rate hardly varies while the steering and the relative yaw '
+                           f'do, for {turning["yaw_rate_still"]:.2f} s ({how}): frozen (a '
+                           'bridge repeating its last value), or its scale too small; the '
+                           "law's yaw feedback is missing (docs/safety.md)")
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
