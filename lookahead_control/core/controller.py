@@ -101,6 +101,15 @@ TURN_RATE = 0.02        # [rad/s]
 TURN_SPEED = 10.0       # [m/s]
 REQUIRED_INPUTS = ('lateral_error', 'yaw', 'velocity')
 JUMP_NS = 1_000_000_000         # the node's clock going back further is a time jump
+#: an input stale with values refused beyond their limits again within this long of
+#: coming back from the same is a sensor flapping: held out (``safety.recovery_time``)
+#: [ns]; the law on a yaw rate in deg/s with its sign flipped came back calm for 1-2 s
+#: on a straight before it shook the car again (dev-sc46)
+AGAIN_NS = 10_000_000_000
+#: held out this many times in a row (each within :data:`AGAIN_NS` of coming back), the
+#: input is refused for good, until a restart: in dev-sc46's loops the law came back for
+#: 0.22 s every 2.4 s on a yaw rate in deg/s, swinging the car +-2-4 m on a straight
+HOLDS_TO_FAULT = 2
 # per input: the attribute holding its latest sample, and the method storing a new one
 _LATEST = {'lateral_error': 'lateral', 'yaw': 'yaw', 'velocity': 'velocity',
            'road_curvature': 'curvature'}
@@ -330,11 +339,21 @@ class SteeringController:
         # input is received again; the same for the start of the wait for the others
         self._voided: set[str] = set()
         self._first_voided = False
-        #: input -> node clock of its last sample refused for a value beyond its limit
+        #: input -> node clock of its last sample refused for a value beyond its limit,
+        #: since its last sample taken (kept while it is held out)
         self._value_refused: dict[str, int] = {}
-        #: inputs that went stale while their values were so refused: fresh again only
-        #: after ``safety.recovery_time`` without such a refusal
+        #: inputs found stale with such a refusal since their last sample taken
+        self._value_stale: set[str] = set()
+        #: input -> node clock it last came back from that
+        self._returned: dict[str, int] = {}
+        #: inputs stale so again within :data:`AGAIN_NS` of coming back: fresh again
+        #: only after ``safety.recovery_time`` without such a refusal
         self._held_out: set[str] = set()
+        #: input -> times held out in a row
+        self._holds: dict[str, int] = {}
+        #: input -> why it is refused for good (held out :data:`HOLDS_TO_FAULT` times in
+        #: a row), until a restart (a time jump, the node activated again)
+        self.input_faults: dict[str, str] = {}
         self._last_now: Optional[int] = None
         self._held: Optional[float] = None
         self._stale_since: Optional[int] = None
@@ -477,7 +496,10 @@ class SteeringController:
         self._voided.clear()
         self._first_voided = False
         self._value_refused.clear()
+        self._value_stale.clear()
+        self._returned.clear()
         self._held_out.clear()
+        self._holds.clear()
         self._last_now = None
         self._stale_since = None
         if self._rate_angle is not None:
@@ -538,6 +560,7 @@ class SteeringController:
             name, sample.stamp_ns, current.stamp_ns if current else None, clock, self.safety)
         if reason is None and name == 'yaw' and self.yaw_fault is not None:
             reason = self.yaw_fault
+        reason = self.input_faults.get(name, reason)
         received = 0 if now_ns is None else now_ns
         if reason is not None:
             if valued is not None and now_ns is not None and all_finite(name, sample):
@@ -560,6 +583,7 @@ class SteeringController:
         # is still stale for its refusals
         if name not in self._held_out:
             self.refusals.pop(name, None)
+            self._value_refused.pop(name, None)
         self._voided.discard(name)
         if self._first_received is None:
             self._first_received = received
@@ -586,10 +610,10 @@ class SteeringController:
         Fresh: received within ``input_timeout`` before ``now`` on the node's clock and
         stamped no more than ``input_timeout`` ago. A sample received after ``now``
         came before the clock went back: it stays stale until the input is received
-        again (also once the clock is past its reception time again). An input that went
-        stale while its values were refused beyond their limits is fresh again only after
-        ``safety.recovery_time`` without such a refusal (``held_out``: False to ask
-        about its last sample only).
+        again (also once the clock is past its reception time again). An input held out
+        (:meth:`stale`) is fresh again only after ``safety.recovery_time`` without a
+        value refused beyond its limits (``held_out``: False to ask about its last
+        sample only).
         """
         received = self._received.get(name)
         sample = getattr(self, _LATEST[name])
@@ -598,14 +622,20 @@ class SteeringController:
         timeout = self.safety.input_timeout * 1e9
         fresh = (received is not None and sample is not None and name not in self._voided
                  and now_ns - received <= timeout and now_ns - sample.stamp_ns <= timeout)
-        if fresh and held_out and name in self._held_out:
+        if not (fresh and held_out):
+            return fresh
+        if name in self._held_out:
             # dev-sc45: a yaw rate in deg/s, refused when large, went stale, came back
             # with its next small sample and shook the car until refused again: the
             # steering flapped between the safe behaviour and the law at full lock
-            if now_ns - self._value_refused[name] < self.safety.recovery_time * 1e9:
+            if 0 <= now_ns - self._value_refused[name] < self.safety.recovery_time * 1e9:
                 return False
             self._held_out.discard(name)
+            self._value_refused.pop(name, None)
             self.refusals.pop(name, None)
+        if name in self._value_stale:
+            self._value_stale.discard(name)
+            self._returned[name] = now_ns
         return fresh
 
     def stale(self, now_ns: Optional[int]) -> list[str]:
@@ -617,9 +647,10 @@ class SteeringController:
         although another input came in, taken or refused (or the time jumped), more than
         ``input_timeout`` ago or before the clock went back. An input refused over and
         over, or whose stamps stopped advancing (refused as repeated), therefore goes
-        stale too, also after a time jump or when none was ever taken; one that went stale
-        while its values were refused beyond their limits stays so until none has been
-        for ``safety.recovery_time``.
+        stale too, also after a time jump or when none was ever taken. One that goes stale
+        with values refused beyond their limits again within 10 s (:data:`AGAIN_NS`) of
+        coming back from the same stays so until none has been for
+        ``safety.recovery_time``.
         ``road_curvature`` is optional: see :meth:`curvature_lost`.
 
         :param now_ns: the node's clock [ns] (None: not running, nothing is stale).
@@ -635,9 +666,27 @@ class SteeringController:
                  if (name in self._received and not self._fresh(name, now_ns))
                  or (name not in self._received and waited)]
         for name in stale:
-            refused = self._value_refused.get(name)
-            if refused is not None and now_ns - refused <= timeout:
-                self._held_out.add(name)    # stale while its values were refused
+            if name not in self._value_refused or name in self._value_stale:
+                continue
+            # stale with values refused beyond their limits since its last sample taken:
+            # once is a glitch, ridden through as any stale input (dev-probe102: held
+            # out, a 0.5 s burst cost a second of straight wheel on a curve, 0.04 -> 0.9
+            # m); again soon after coming back, a sensor flapping
+            self._value_stale.add(name)
+            back = self._returned.get(name)
+            if (back is None or not 0 <= now_ns - back <= AGAIN_NS
+                    or self.safety.recovery_time <= 0.0):
+                self._holds[name] = 0
+                continue
+            self._held_out.add(name)
+            self._holds[name] = self._holds.get(name, 0) + 1
+            if self._holds[name] >= HOLDS_TO_FAULT:
+                fault = (f'{name}: values beyond their limits again and again (stale so '
+                         f'{self._holds[name] + 1} times, each within {AGAIN_NS * 1e-9:g} s '
+                         f'of coming back; the last: {self.refusals.get(name, "?")}): '
+                         'refused until a restart (the node activated again)')
+                self.input_faults[name] = self.refusals[name] = fault
+                self.count_rejection(fault)
         return stale
 
     def curvature_received(self, now_ns: Optional[int]) -> bool:
@@ -691,7 +740,7 @@ class SteeringController:
             never = ('' if name in self._received else ' none taken' if why
                      else ' never received')
             back = (f'; back after {self.safety.recovery_time:g} s without one'
-                    if name in self._held_out else '')
+                    if name in self._held_out and name not in self.input_faults else '')
             parts.append(f'{name}{never}' + (f' (last refused: {why}{back})' if why else ''))
         return ', '.join(parts)
 
@@ -746,9 +795,19 @@ class SteeringController:
         return mean if self.yaw_fault is not None and math.isfinite(mean) else None
 
     def clear_yaw_fault(self) -> None:
-        """Forget a yaw input refused by its checks (the node's activation: the bridge fixed)."""
+        """
+        Forget the inputs refused for good (the node's activation: the bridge fixed).
+
+        The yaw input refused by its checks, and an input whose values went beyond their
+        limits again and again (:data:`HOLDS_TO_FAULT`).
+        """
         if self.yaw_fault is not None and self.refusals.get('yaw') == self.yaw_fault:
             del self.refusals['yaw']
+        for name, fault in self.input_faults.items():
+            if self.refusals.get(name) == fault:
+                del self.refusals[name]
+        self.input_faults.clear()
+        self._holds.clear()
         self.yaw_check.reset()
         self.heading_check.reset()
         self.yaw_fault = None

@@ -65,9 +65,10 @@ class SafetyParams:
     :param hold_time: on stale inputs, hold the command this long, then ramp [s] (0:
         ramp at once).
     :param safe_angle: where the ramp goes [rad].
-    :param recovery_time: an input that went stale while its values were refused beyond
-        their limits (finite, unbelievable) is fresh again only once none has been so
-        refused for this long [s] (0: at its next sample taken).
+    :param recovery_time: an input that goes stale with values refused beyond their
+        limits (finite, unbelievable) again within 10 s of coming back from the same is
+        fresh again only once none has been so refused for this long [s] (0: at its
+        next sample taken, as after a first such stale).
     :param max_steering_angle: actuator angle limit [rad].
     :param max_steering_rate: actuator rate limit [rad/s].
     :param max_lateral_acceleration: speed-dependent angle limit a_lat [m/s^2].
