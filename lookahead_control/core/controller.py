@@ -101,14 +101,10 @@ TURN_RATE = 0.02        # [rad/s]
 TURN_SPEED = 10.0       # [m/s]
 REQUIRED_INPUTS = ('lateral_error', 'yaw', 'velocity')
 JUMP_NS = 1_000_000_000         # the node's clock going back further is a time jump
-#: an input stale with values refused beyond their limits again within this long of
-#: coming back from the same is a sensor flapping: held out (``safety.recovery_time``)
-#: [ns]; the law on a yaw rate in deg/s with its sign flipped came back calm for 1-2 s
-#: on a straight before it shook the car again (dev-sc46)
-AGAIN_NS = 10_000_000_000
-#: held out this many times in a row (each within :data:`AGAIN_NS` of coming back), the
-#: input is refused for good, until a restart: in dev-sc46's loops the law came back for
-#: 0.22 s every 2.4 s on a yaw rate in deg/s, swinging the car +-2-4 m on a straight
+#: held out this many times in a row (each stale again within ``safety.recovery_time``
+#: of coming back), the input is refused for good, until a restart: in dev-sc46's loops
+#: the law came back for 0.22 s every 2.4 s on a yaw rate in deg/s, swinging the car
+#: +-2-4 m on a straight
 HOLDS_TO_FAULT = 2
 # per input: the attribute holding its latest sample, and the method storing a new one
 _LATEST = {'lateral_error': 'lateral', 'yaw': 'yaw', 'velocity': 'velocity',
@@ -346,8 +342,8 @@ class SteeringController:
         self._value_stale: set[str] = set()
         #: input -> node clock it last came back from that
         self._returned: dict[str, int] = {}
-        #: inputs stale so again within :data:`AGAIN_NS` of coming back: fresh again
-        #: only after ``safety.recovery_time`` without such a refusal
+        #: inputs stale so again within ``safety.recovery_time`` of coming back: fresh
+        #: again only after ``safety.recovery_time`` without such a refusal
         self._held_out: set[str] = set()
         #: input -> times held out in a row
         self._holds: dict[str, int] = {}
@@ -648,9 +644,8 @@ class SteeringController:
         ``input_timeout`` ago or before the clock went back. An input refused over and
         over, or whose stamps stopped advancing (refused as repeated), therefore goes
         stale too, also after a time jump or when none was ever taken. One that goes stale
-        with values refused beyond their limits again within 10 s (:data:`AGAIN_NS`) of
-        coming back from the same stays so until none has been for
-        ``safety.recovery_time``.
+        with values refused beyond their limits again within ``safety.recovery_time`` of
+        coming back from the same stays so until none has been for that long.
         ``road_curvature`` is optional: see :meth:`curvature_lost`.
 
         :param now_ns: the node's clock [ns] (None: not running, nothing is stale).
@@ -671,20 +666,24 @@ class SteeringController:
             # stale with values refused beyond their limits since its last sample taken:
             # once is a glitch, ridden through as any stale input (dev-probe102: held
             # out, a 0.5 s burst cost a second of straight wheel on a curve, 0.04 -> 0.9
-            # m); again soon after coming back, a sensor flapping
+            # m), and so are glitches seconds apart (dev-probe103: three 0.3 s bursts 7 s
+            # apart latched a lateral error that was right between them, the car 37 m
+            # off a winding road); again at once after coming back (the law on what was
+            # taken drove it there: 0.22 s for a yaw rate in deg/s), a sensor flapping
             self._value_stale.add(name)
             back = self._returned.get(name)
-            if (back is None or not 0 <= now_ns - back <= AGAIN_NS
-                    or self.safety.recovery_time <= 0.0):
+            if (back is None
+                    or not 0 <= now_ns - back <= self.safety.recovery_time * 1e9):
                 self._holds[name] = 0
                 continue
             self._held_out.add(name)
             self._holds[name] = self._holds.get(name, 0) + 1
             if self._holds[name] >= HOLDS_TO_FAULT:
                 fault = (f'{name}: values beyond their limits again and again (stale so '
-                         f'{self._holds[name] + 1} times, each within {AGAIN_NS * 1e-9:g} s '
-                         f'of coming back; the last: {self.refusals.get(name, "?")}): '
-                         'refused until a restart (the node activated again)')
+                         f'{self._holds[name] + 1} times, each within '
+                         f'{self.safety.recovery_time:g} s of coming back; the last: '
+                         f'{self.refusals.get(name, "?")}): refused until a restart (the '
+                         'node activated again)')
                 self.input_faults[name] = self.refusals[name] = fault
                 self.count_rejection(fault)
         return stale

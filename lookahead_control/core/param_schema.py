@@ -263,7 +263,7 @@ SAFETY_SPECS = tuple(
          0.0, 10.0),
         ('safe_angle', 0.0, 'stale inputs: the ramp goes to this angle [rad]', -1.0, 1.0),
         ('recovery_time', 1.0, 'an input stale with values refused beyond their limits '
-         'again within 10 s of coming back from it is fresh again once none was so '
+         'again within this long of coming back from it is fresh again once none was so '
          'refused this long [s]', 0.0, 60.0),
         ('max_steering_angle', 0.6, 'output: angle limit [rad]', 0.01, 1.2),
         ('max_steering_rate', 5.0, 'output: rate limit [rad/s]', 0.01, 50.0),

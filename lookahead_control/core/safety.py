@@ -66,8 +66,8 @@ class SafetyParams:
         ramp at once).
     :param safe_angle: where the ramp goes [rad].
     :param recovery_time: an input that goes stale with values refused beyond their
-        limits (finite, unbelievable) again within 10 s of coming back from the same is
-        fresh again only once none has been so refused for this long [s] (0: at its
+        limits (finite, unbelievable) again within this long of coming back from the same
+        is fresh again only once none has been so refused for this long [s] (0: at its
         next sample taken, as after a first such stale).
     :param max_steering_angle: actuator angle limit [rad].
     :param max_steering_rate: actuator rate limit [rad/s].
