@@ -500,9 +500,8 @@ def _decode(pieces: _Pieces, role: str, raw: RawColumns,
 # future-stamp check and no timer mode; overriding them would report a difference of 0
 NOT_MODELED = frozenset({
     'safety.input_timeout', 'safety.hold_time', 'safety.safe_angle', 'safety.max_future',
-    'safety.recovery_time', 'watchdog_rate_hz', 'mode', 'rate_hz', 'sync_timeout',
-    'qos_reliability', 'frame_id', 'autostart', 'diagnostics_rate_hz', 'executor',
-    'use_sim_time'})
+    'watchdog_rate_hz', 'mode', 'rate_hz', 'sync_timeout', 'qos_reliability', 'frame_id',
+    'autostart', 'diagnostics_rate_hz', 'executor', 'use_sim_time'})
 # node parameters it models besides the parameter sets of LAW_SETS
 MODELED = ('law', 'acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps')
 # the parameter sets (namespaces) the re-run builds the controller and every law from

@@ -34,8 +34,8 @@ from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
 from lookahead_control.core.oscillation_check import OscillationCheck
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
-from lookahead_control.core.safety import (all_finite, check_sample, check_stamp, limit,
-                                           low_speed_weight, SafetyParams, stale_target)
+from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
+                                           SafetyParams, stale_target)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
 from lookahead_control.core.yaw_check import YawCheck
@@ -101,11 +101,6 @@ TURN_RATE = 0.02        # [rad/s]
 TURN_SPEED = 10.0       # [m/s]
 REQUIRED_INPUTS = ('lateral_error', 'yaw', 'velocity')
 JUMP_NS = 1_000_000_000         # the node's clock going back further is a time jump
-#: held out this many times in a row (each stale again within ``safety.recovery_time``
-#: of coming back), the input is refused for good, until a restart: in dev-sc46's loops
-#: the law came back for 0.22 s every 2.4 s on a yaw rate in deg/s, swinging the car
-#: +-2-4 m on a straight
-HOLDS_TO_FAULT = 2
 # per input: the attribute holding its latest sample, and the method storing a new one
 _LATEST = {'lateral_error': 'lateral', 'yaw': 'yaw', 'velocity': 'velocity',
            'road_curvature': 'curvature'}
@@ -335,21 +330,6 @@ class SteeringController:
         # input is received again; the same for the start of the wait for the others
         self._voided: set[str] = set()
         self._first_voided = False
-        #: input -> node clock of its last sample refused for a value beyond its limit,
-        #: since its last sample taken (kept while it is held out)
-        self._value_refused: dict[str, int] = {}
-        #: inputs found stale with such a refusal since their last sample taken
-        self._value_stale: set[str] = set()
-        #: input -> node clock it last came back from that
-        self._returned: dict[str, int] = {}
-        #: inputs stale so again within ``safety.recovery_time`` of coming back: fresh
-        #: again only after ``safety.recovery_time`` without such a refusal
-        self._held_out: set[str] = set()
-        #: input -> times held out in a row
-        self._holds: dict[str, int] = {}
-        #: input -> why it is refused for good (held out :data:`HOLDS_TO_FAULT` times in
-        #: a row), until a restart (a time jump, the node activated again)
-        self.input_faults: dict[str, str] = {}
         self._last_now: Optional[int] = None
         self._held: Optional[float] = None
         self._stale_since: Optional[int] = None
@@ -491,11 +471,6 @@ class SteeringController:
         self._first_received = None
         self._voided.clear()
         self._first_voided = False
-        self._value_refused.clear()
-        self._value_stale.clear()
-        self._returned.clear()
-        self._held_out.clear()
-        self._holds.clear()
         self._last_now = None
         self._stale_since = None
         if self._rate_angle is not None:
@@ -551,17 +526,12 @@ class SteeringController:
         # a clock reading 0 is not running yet (sim time before the first /clock): the
         # stamps cannot be judged against it
         clock = now_ns if now_ns is not None and now_ns > 0 else None
-        valued = check_sample(name, sample, self.safety)
-        reason = valued or check_stamp(
+        reason = check_sample(name, sample, self.safety) or check_stamp(
             name, sample.stamp_ns, current.stamp_ns if current else None, clock, self.safety)
         if reason is None and name == 'yaw' and self.yaw_fault is not None:
             reason = self.yaw_fault
-        reason = self.input_faults.get(name, reason)
         received = 0 if now_ns is None else now_ns
         if reason is not None:
-            if valued is not None and now_ns is not None and all_finite(name, sample):
-                # beyond a limit: a sensor to distrust for a while (a NaN says no value)
-                self._value_refused[name] = received
             self.refusals[name] = reason
             self.count_rejection(reason)
             if self._first_received is None:
@@ -575,11 +545,8 @@ class SteeringController:
         self._received[name] = received
         # why its samples were refused is told only while it is why the input is stale:
         # once one is taken, an older refusal is history (dev-probe37: a yaw input that
-        # simply stopped was reported stale with a refusal a second older); one held out
-        # is still stale for its refusals
-        if name not in self._held_out:
-            self.refusals.pop(name, None)
-            self._value_refused.pop(name, None)
+        # simply stopped was reported stale with a refusal a second older)
+        self.refusals.pop(name, None)
         self._voided.discard(name)
         if self._first_received is None:
             self._first_received = received
@@ -599,40 +566,22 @@ class SteeringController:
         if name in _LATEST:
             self.refusals[name] = reason
 
-    def _fresh(self, name: str, now_ns: int, held_out: bool = True) -> bool:
+    def _fresh(self, name: str, now_ns: int) -> bool:
         """
         Return whether an input's last sample is fresh at ``now_ns``.
 
         Fresh: received within ``input_timeout`` before ``now`` on the node's clock and
         stamped no more than ``input_timeout`` ago. A sample received after ``now``
         came before the clock went back: it stays stale until the input is received
-        again (also once the clock is past its reception time again). An input held out
-        (:meth:`stale`) is fresh again only after ``safety.recovery_time`` without a
-        value refused beyond its limits (``held_out``: False to ask about its last
-        sample only).
+        again (also once the clock is past its reception time again).
         """
         received = self._received.get(name)
         sample = getattr(self, _LATEST[name])
         if received is not None and received > now_ns:
             self._voided.add(name)
         timeout = self.safety.input_timeout * 1e9
-        fresh = (received is not None and sample is not None and name not in self._voided
-                 and now_ns - received <= timeout and now_ns - sample.stamp_ns <= timeout)
-        if not (fresh and held_out):
-            return fresh
-        if name in self._held_out:
-            # dev-sc45: a yaw rate in deg/s, refused when large, went stale, came back
-            # with its next small sample and shook the car until refused again: the
-            # steering flapped between the safe behaviour and the law at full lock
-            if 0 <= now_ns - self._value_refused[name] < self.safety.recovery_time * 1e9:
-                return False
-            self._held_out.discard(name)
-            self._value_refused.pop(name, None)
-            self.refusals.pop(name, None)
-        if name in self._value_stale:
-            self._value_stale.discard(name)
-            self._returned[name] = now_ns
-        return fresh
+        return (received is not None and sample is not None and name not in self._voided
+                and now_ns - received <= timeout and now_ns - sample.stamp_ns <= timeout)
 
     def stale(self, now_ns: Optional[int]) -> list[str]:
         """
@@ -643,9 +592,7 @@ class SteeringController:
         although another input came in, taken or refused (or the time jumped), more than
         ``input_timeout`` ago or before the clock went back. An input refused over and
         over, or whose stamps stopped advancing (refused as repeated), therefore goes
-        stale too, also after a time jump or when none was ever taken. One that goes stale
-        with values refused beyond their limits again within ``safety.recovery_time`` of
-        coming back from the same stays so until none has been for that long.
+        stale too, also after a time jump or when none was ever taken.
         ``road_curvature`` is optional: see :meth:`curvature_lost`.
 
         :param now_ns: the node's clock [ns] (None: not running, nothing is stale).
@@ -657,36 +604,9 @@ class SteeringController:
         if self._first_received > now_ns:
             self._first_voided = True
         waited = self._first_voided or now_ns - self._first_received > timeout
-        stale = [name for name in REQUIRED_INPUTS
-                 if (name in self._received and not self._fresh(name, now_ns))
-                 or (name not in self._received and waited)]
-        for name in stale:
-            if name not in self._value_refused or name in self._value_stale:
-                continue
-            # stale with values refused beyond their limits since its last sample taken:
-            # once is a glitch, ridden through as any stale input (dev-probe102: held
-            # out, a 0.5 s burst cost a second of straight wheel on a curve, 0.04 -> 0.9
-            # m), and so are glitches seconds apart (dev-probe103: three 0.3 s bursts 7 s
-            # apart latched a lateral error that was right between them, the car 37 m
-            # off a winding road); again at once after coming back (the law on what was
-            # taken drove it there: 0.22 s for a yaw rate in deg/s), a sensor flapping
-            self._value_stale.add(name)
-            back = self._returned.get(name)
-            if (back is None
-                    or not 0 <= now_ns - back <= self.safety.recovery_time * 1e9):
-                self._holds[name] = 0
-                continue
-            self._held_out.add(name)
-            self._holds[name] = self._holds.get(name, 0) + 1
-            if self._holds[name] >= HOLDS_TO_FAULT:
-                fault = (f'{name}: values beyond their limits again and again (stale so '
-                         f'{self._holds[name] + 1} times, each within '
-                         f'{self.safety.recovery_time:g} s of coming back; the last: '
-                         f'{self.refusals.get(name, "?")}): refused until a restart (the '
-                         'node activated again)')
-                self.input_faults[name] = self.refusals[name] = fault
-                self.count_rejection(fault)
-        return stale
+        return [name for name in REQUIRED_INPUTS
+                if (name in self._received and not self._fresh(name, now_ns))
+                or (name not in self._received and waited)]
 
     def curvature_received(self, now_ns: Optional[int]) -> bool:
         """
@@ -738,9 +658,7 @@ class SteeringController:
             # received (last refused: ...)')
             never = ('' if name in self._received else ' none taken' if why
                      else ' never received')
-            back = (f'; back after {self.safety.recovery_time:g} s without one'
-                    if name in self._held_out and name not in self.input_faults else '')
-            parts.append(f'{name}{never}' + (f' (last refused: {why}{back})' if why else ''))
+            parts.append(f'{name}{never}' + (f' (last refused: {why})' if why else ''))
         return ', '.join(parts)
 
     def safe_command(self, now_ns: int, steady_ns: Optional[int] = None,
@@ -794,19 +712,9 @@ class SteeringController:
         return mean if self.yaw_fault is not None and math.isfinite(mean) else None
 
     def clear_yaw_fault(self) -> None:
-        """
-        Forget the inputs refused for good (the node's activation: the bridge fixed).
-
-        The yaw input refused by its checks, and an input whose values went beyond their
-        limits again and again (:data:`HOLDS_TO_FAULT`).
-        """
+        """Forget a yaw input refused by its checks (the node's activation: the bridge fixed)."""
         if self.yaw_fault is not None and self.refusals.get('yaw') == self.yaw_fault:
             del self.refusals['yaw']
-        for name, fault in self.input_faults.items():
-            if self.refusals.get(name) == fault:
-                del self.refusals[name]
-        self.input_faults.clear()
-        self._holds.clear()
         self.yaw_check.reset()
         self.heading_check.reset()
         self.yaw_fault = None
@@ -1037,8 +945,7 @@ class SteeringController:
 
     def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):
-            # (a held-out lateral error's answers still carry its stamps: lockstep)
-            fresh = self._fresh('lateral_error', now_ns, held_out=False)
+            fresh = self._fresh('lateral_error', now_ns)
             return self.safe_command(now_ns, steady_ns,
                                      self.lateral.stamp_ns if fresh else None)
         state = self.state(now_ns)

@@ -262,9 +262,6 @@ SAFETY_SPECS = tuple(
         ('hold_time', 0.5, 'stale inputs: hold the command this long, then ramp [s]',
          0.0, 10.0),
         ('safe_angle', 0.0, 'stale inputs: the ramp goes to this angle [rad]', -1.0, 1.0),
-        ('recovery_time', 1.0, 'an input stale with values refused beyond their limits '
-         'again within this long of coming back from it is fresh again once none was so '
-         'refused this long [s]', 0.0, 60.0),
         ('max_steering_angle', 0.6, 'output: angle limit [rad]', 0.01, 1.2),
         ('max_steering_rate', 5.0, 'output: rate limit [rad/s]', 0.01, 50.0),
         ('max_lateral_acceleration', 30.0, 'output: speed-dependent angle limit '

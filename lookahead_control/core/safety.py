@@ -43,7 +43,7 @@ import numpy as np
 
 INPUT_NAMES = ('lateral_error', 'yaw', 'velocity', 'road_curvature')
 # limits that may be 0: no hold (ramp at once), no stamp ahead of the node's clock
-ZERO_ALLOWED = ('hold_time', 'max_future', 'recovery_time')
+ZERO_ALLOWED = ('hold_time', 'max_future')
 
 
 @dataclass(frozen=True)
@@ -65,10 +65,6 @@ class SafetyParams:
     :param hold_time: on stale inputs, hold the command this long, then ramp [s] (0:
         ramp at once).
     :param safe_angle: where the ramp goes [rad].
-    :param recovery_time: an input that goes stale with values refused beyond their
-        limits (finite, unbelievable) again within this long of coming back from the same
-        is fresh again only once none has been so refused for this long [s] (0: at its
-        next sample taken, as after a first such stale).
     :param max_steering_angle: actuator angle limit [rad].
     :param max_steering_rate: actuator rate limit [rad/s].
     :param max_lateral_acceleration: speed-dependent angle limit a_lat [m/s^2].
@@ -90,7 +86,6 @@ class SafetyParams:
     input_timeout: float = 0.2
     hold_time: float = 0.5
     safe_angle: float = 0.0
-    recovery_time: float = 1.0
     max_steering_angle: float = 0.6
     max_steering_rate: float = 5.0
     max_lateral_acceleration: float = 30.0
@@ -154,19 +149,6 @@ def check_sample(name: str, sample: Any, params: SafetyParams) -> Optional[str]:
     if name == 'road_curvature':
         return _check_ahead(sample.ahead, params)
     return None
-
-
-def all_finite(name: str, sample: Any) -> bool:
-    """
-    Return whether a sample's checked fields are all finite (a refusal: beyond a limit).
-
-    :param name: one of :data:`INPUT_NAMES`.
-    :param sample: the converted sample.
-    :return: whether they are (a curvature's preview points too).
-    """
-    if not all(_finite(getattr(sample, field)) for field, _ in SAMPLE_LIMITS[name]):
-        return False
-    return name != 'road_curvature' or all(_finite(*point) for point in sample.ahead)
 
 
 def _check_ahead(points: Any, params: SafetyParams) -> Optional[str]:

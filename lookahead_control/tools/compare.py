@@ -126,8 +126,7 @@ OFFLINE_RUNS = ("it runs each law and the node's output stage, each 10 ms measur
 #: ... but the safety layer's timing, which exact and timely inputs never meet (the safe
 #: angle: where stale inputs ramp to)
 SAFETY_TIMING = ('safety.max_future', 'safety.input_timeout', 'safety.hold_time',
-                 'safety.max_curvature_points', 'safety.latency_warn', 'safety.safe_angle',
-                 'safety.recovery_time')
+                 'safety.max_curvature_points', 'safety.latency_warn', 'safety.safe_angle')
 
 
 def package_safety() -> SafetyParams:
