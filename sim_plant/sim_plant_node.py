@@ -211,6 +211,16 @@ class SimPlantNode(Node):
         :param kwargs: passed to ``Node`` (context, parameter_overrides, ...).
         """
         super().__init__('sim_plant', **kwargs)
+        try:
+            self._build()
+        except BaseException:
+            # a half-built node left to the garbage collector destroyed its DDS
+            # participant there: a test worker hung in Fast DDS (dev-sc46's suite)
+            super().destroy_node()
+            raise
+
+    def _build(self) -> None:
+        """Declare parameters, load the scenario, create publishers and timers."""
         declare(self, ALL_SPECS)
         p = values(self, ALL_SPECS)
         self.params = p

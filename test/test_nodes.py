@@ -814,6 +814,38 @@ def test_sim_plant_stops_the_curvature_at_curvature_stop(context):
         node.destroy_node()
 
 
+@pytest.mark.parametrize('name, overrides', [
+    ('sim_plant', [('output', 'vehicle'), ('curvature_stop', 4.0)]),
+    ('controller', [('law', 'nonsense')]),
+    ('path_bridge', [('path.fit_half_window', -5.0)]),
+    ('recorder', [])])
+def test_a_node_whose_construction_fails_is_destroyed_at_once(context, monkeypatch, name,
+                                                              overrides):
+    # dev-sc46's suite: a test worker hung for good in Fast DDS (destroy_participant
+    # waiting on a listener, one of its threads spinning) while the garbage collector
+    # freed a node that had raised in its __init__ (a refused parameter) after rclpy's
+    # part was built, its context long shut down; the node now destroys itself there
+    from rclpy.node import Node
+    from lookahead_control.bags.recorder_node import RecorderNode
+    from lookahead_control.ros.controller_node import ControllerNode
+    from lookahead_control.ros.path_bridge_node import PathBridgeNode
+    from sim_plant.sim_plant_node import SimPlantNode
+    destroyed, original = [], Node.destroy_node
+
+    def spy(self):
+        destroyed.append(self.get_name())
+        return original(self)
+    monkeypatch.setattr(Node, 'destroy_node', spy)
+    params = [Parameter(key, value=value) for key, value in overrides]
+    with pytest.raises(Exception):
+        if name == 'recorder':
+            RecorderNode(lambda: None, ['bad name!'], context=context)
+        else:
+            {'sim_plant': SimPlantNode, 'controller': ControllerNode,
+             'path_bridge': PathBridgeNode}[name](context=context, parameter_overrides=params)
+    assert destroyed == [name]
+
+
 def test_sim_plant_refuses_curvature_stop_with_the_vehicle_output(context):
     # output 'vehicle' sends the road once as a path (path_bridge makes the curvature):
     # before, curvature_stop was taken and did nothing, the curvature never stopped

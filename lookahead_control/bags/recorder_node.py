@@ -192,6 +192,17 @@ class RecorderNode(Node):
         :raises ConfigError: a topic name ROS refuses, in the node's namespace.
         """
         super().__init__('recorder', **kwargs)
+        try:
+            self._build(bag, topics, regex, describe)
+        except BaseException:
+            # a half-built node left to the garbage collector destroyed its DDS
+            # participant there: a test worker hung in Fast DDS (dev-sc46's suite)
+            super().destroy_node()
+            raise
+
+    def _build(self, bag: Union[BagWriter, Callable[[], BagWriter]], topics: Sequence[str],
+               regex: Optional[str], describe: Sequence[str]) -> None:
+        """Resolve the topic names and start discovering (``__init__``'s parameters)."""
         # relative names in the recorder's namespace, as ros2 bag record resolves them:
         # before, `record talk` never matched /talk and recorded nothing, silently.
         # Resolved by rcl in the namespace the node has: before, names were checked in

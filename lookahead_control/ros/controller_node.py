@@ -211,6 +211,16 @@ class ControllerNode(LifecycleNode):
         :param kwargs: passed to ``LifecycleNode`` (context, parameter_overrides, ...).
         """
         super().__init__('controller', **kwargs)
+        try:
+            self._build()
+        except BaseException:
+            # a half-built node left to the garbage collector destroyed its DDS
+            # participant there: a test worker hung in Fast DDS (dev-sc46's suite)
+            super().destroy_node()
+            raise
+
+    def _build(self) -> None:
+        """Declare parameters, build the core and the counters."""
         declare(self, ALL_SPECS)
         self.core = core_from_params(values(self, ALL_SPECS))
         self.counters = {'saturated': 0, 'rate_limited': 0, 'low_speed': 0,

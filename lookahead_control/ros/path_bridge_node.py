@@ -134,6 +134,16 @@ class PathBridgeNode(LifecycleNode):
         :param kwargs: passed to ``LifecycleNode`` (context, parameter_overrides, ...).
         """
         super().__init__('path_bridge', **kwargs)
+        try:
+            self._build()
+        except BaseException:
+            # a half-built node left to the garbage collector destroyed its DDS
+            # participant there: a test worker hung in Fast DDS (dev-sc46's suite)
+            super().destroy_node()
+            raise
+
+    def _build(self) -> None:
+        """Declare parameters and read them."""
         declare(self, ALL_SPECS)
         self.params = values(self, ALL_SPECS)
         self.path_params: PathParams = build(PathParams, self.params, 'path')
