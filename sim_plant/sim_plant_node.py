@@ -41,7 +41,8 @@ from lookahead_control.core.params import ParameterError, VehicleParams
 from lookahead_control.core.safety import check_preview_points
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.controller_node import qos, WRITER_DEPTH, writer_qos
-from lookahead_control.ros.node_main import end_process, run_node, Throttle
+from lookahead_control.ros.node_main import (build_or_destroy, end_process, run_node,
+                                             Throttle)
 from lookahead_control.ros.node_params import (build, declare, EXECUTOR_SPEC, MAX_PREVIEW_SPEC,
                                                Spec, values, VEHICLE_SPECS)
 from lookahead_control.ros.vehicle_conversions import to_odometry, to_path
@@ -211,13 +212,7 @@ class SimPlantNode(Node):
         :param kwargs: passed to ``Node`` (context, parameter_overrides, ...).
         """
         super().__init__('sim_plant', **kwargs)
-        try:
-            self._build()
-        except BaseException:
-            # a half-built node left to the garbage collector destroyed its DDS
-            # participant there: a test worker hung in Fast DDS (dev-sc46's suite)
-            super().destroy_node()
-            raise
+        build_or_destroy(self._build, super().destroy_node)
 
     def _build(self) -> None:
         """Declare parameters, load the scenario, create publishers and timers."""

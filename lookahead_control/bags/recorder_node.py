@@ -39,8 +39,9 @@ from lookahead_control.bags.rosbag_io import (BagError, BagWriter, FULL_NODE_NAM
                                               RECORDER_KEY, recover, SCENARIO_KEY)
 from lookahead_control.core.cli import ArgumentParser, number, run_tool, ToolError
 from lookahead_control.core.config import ConfigError, source_config_dir
-from lookahead_control.ros.node_main import (end_process, now_ns, program_arguments,
-                                             rcl_reason, RCLError, run_node, tool_arguments)
+from lookahead_control.ros.node_main import (build_or_destroy, end_process, now_ns,
+                                             program_arguments, rcl_reason, RCLError,
+                                             run_node, tool_arguments)
 from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidHandle
@@ -192,13 +193,7 @@ class RecorderNode(Node):
         :raises ConfigError: a topic name ROS refuses, in the node's namespace.
         """
         super().__init__('recorder', **kwargs)
-        try:
-            self._build(bag, topics, regex, describe)
-        except BaseException:
-            # a half-built node left to the garbage collector destroyed its DDS
-            # participant there: a test worker hung in Fast DDS (dev-sc46's suite)
-            super().destroy_node()
-            raise
+        build_or_destroy(lambda: self._build(bag, topics, regex, describe), super().destroy_node)
 
     def _build(self, bag: Union[BagWriter, Callable[[], BagWriter]], topics: Sequence[str],
                regex: Optional[str], describe: Sequence[str]) -> None:

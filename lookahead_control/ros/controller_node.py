@@ -40,7 +40,8 @@ from lookahead_control.core.params import ControllerParams, ParameterError, SCHE
 from lookahead_control.core.safety import check_points
 from lookahead_control.core.samples import curvature_from_points
 from lookahead_control.ros import conversions as conv
-from lookahead_control.ros.node_main import end_process, now_ns, run_node, Throttle
+from lookahead_control.ros.node_main import (build_or_destroy, end_process, now_ns, run_node,
+                                             Throttle)
 from lookahead_control.ros.node_params import (baseline_params, BASELINE_SPECS, check_choices,
                                                CONTROLLER_SPECS, declare, EXECUTOR_SPEC,
                                                lane_keeping_params, LANE_KEEPING_SPECS,
@@ -211,13 +212,7 @@ class ControllerNode(LifecycleNode):
         :param kwargs: passed to ``LifecycleNode`` (context, parameter_overrides, ...).
         """
         super().__init__('controller', **kwargs)
-        try:
-            self._build()
-        except BaseException:
-            # a half-built node left to the garbage collector destroyed its DDS
-            # participant there: a test worker hung in Fast DDS (dev-sc46's suite)
-            super().destroy_node()
-            raise
+        build_or_destroy(self._build, super().destroy_node)
 
     def _build(self) -> None:
         """Declare parameters, build the core and the counters."""

@@ -102,6 +102,26 @@ def end_process(code: int) -> int:
     os._exit(code)
 
 
+def build_or_destroy(build: Callable[[], None], destroy: Callable[[], Any]) -> None:
+    """
+    Build the rest of a node after rclpy's part; destroy that part if building raises.
+
+    A node that raised in its ``__init__`` (a refused parameter) after rclpy's part was
+    built was left to the garbage collector, which destroyed its DDS participant long
+    after its context was shut down: a test worker hung there in Fast DDS (dev-sc46's
+    suite: ``destroy_participant`` waiting on a listener, a thread of it spinning).
+
+    :param build: builds the rest (declares parameters, reads them, ...).
+    :param destroy: the rclpy base class's ``destroy_node``, bound (``super().destroy_node``:
+        the node's own may read what was not built).
+    """
+    try:
+        build()
+    except BaseException:
+        destroy()
+        raise
+
+
 def rcl_reason(err: Exception) -> str:
     """
     Return rcl's message of an error without the C source locations it appends.

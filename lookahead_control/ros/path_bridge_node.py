@@ -43,7 +43,8 @@ from lookahead_control.core.safety import check_preview_points, SafetyParams
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros import vehicle_conversions as vconv
 from lookahead_control.ros.controller_node import qos, writer_qos
-from lookahead_control.ros.node_main import end_process, run_node, Throttle
+from lookahead_control.ros.node_main import (build_or_destroy, end_process, run_node,
+                                             Throttle)
 from lookahead_control.ros.node_params import (build, check_choices, declare, EXECUTOR_SPEC,
                                                MAX_PREVIEW_SPEC, Spec, values)
 from nav_msgs.msg import Odometry, Path
@@ -134,13 +135,7 @@ class PathBridgeNode(LifecycleNode):
         :param kwargs: passed to ``LifecycleNode`` (context, parameter_overrides, ...).
         """
         super().__init__('path_bridge', **kwargs)
-        try:
-            self._build()
-        except BaseException:
-            # a half-built node left to the garbage collector destroyed its DDS
-            # participant there: a test worker hung in Fast DDS (dev-sc46's suite)
-            super().destroy_node()
-            raise
+        build_or_destroy(self._build, super().destroy_node)
 
     def _build(self) -> None:
         """Declare parameters and read them."""
