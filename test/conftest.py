@@ -87,6 +87,19 @@ def context():
 
 
 @pytest.fixture
+def active_controller(context):
+    """Yield a controller node with its defaults, configured and active (destroyed after)."""
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        yield node
+    finally:
+        node.destroy_node()
+
+
+@pytest.fixture
 def probe():
     """Yield a node in a private context and its executor: ``(node, executor)``."""
     import rclpy

@@ -181,22 +181,16 @@ def test_a_lane_change_along_a_shifted_path_is_driven(law):
     assert abs(run['end'] - 3.5) < 0.3, run['end']
 
 
-def test_the_node_warns_with_the_lowest_correlation(context):
+def test_the_node_warns_with_the_lowest_correlation(active_controller):
     from diagnostic_msgs.msg import DiagnosticStatus
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
-    try:
-        node.trigger_configure()
-        node.trigger_activate()
-        assert 'lateral_error moves against' not in node.diagnostics().message
-        node.core.turning['heading_disagrees'] += 0.4
-        node.core.heading_seen = -0.97
-        status = node.diagnostics()
-        assert status.level == DiagnosticStatus.WARN
-        assert ('lateral_error moves against relative_yaw for 0.40 s (correlation down to '
-                '-0.97') in status.message
-        assert 'the sign of relative_yaw or of lateral_error wrong' in status.message
-        # told once: the next report has nothing new
-        assert 'lateral_error moves against' not in node.diagnostics().message
-    finally:
-        node.destroy_node()
+    node = active_controller
+    assert 'lateral_error moves against' not in node.diagnostics().message
+    node.core.turning['heading_disagrees'] += 0.4
+    node.core.heading_seen = -0.97
+    status = node.diagnostics()
+    assert status.level == DiagnosticStatus.WARN
+    assert ('lateral_error moves against relative_yaw for 0.40 s (correlation down to '
+            '-0.97') in status.message
+    assert 'the sign of relative_yaw or of lateral_error wrong' in status.message
+    # told once: the next report has nothing new
+    assert 'lateral_error moves against' not in node.diagnostics().message

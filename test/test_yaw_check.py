@@ -383,43 +383,31 @@ def test_the_core_tells_a_yaw_rate_frozen_or_too_small(law, scale):
     assert core.still_seen >= 5.0 and core.yaw_fault is None and run['safe_at'] is None
 
 
-def test_the_node_judges_the_yaw_rate_afresh_when_activated_again(context):
+def test_the_node_judges_the_yaw_rate_afresh_when_activated_again(active_controller):
     # deactivate, fix the bridge, activate: the fault is forgotten (a parameter set is
     # no fix of the bridge: it keeps it)
-    from lookahead_control.ros.controller_node import ControllerNode
     from rclpy.parameter import Parameter
-    node = ControllerNode(context=context)
-    try:
-        node.trigger_configure()
-        node.trigger_activate()
-        node.core.yaw_fault = 'yaw: yaw_rate runs against the steering (a test)'
-        assert node.set_parameters([Parameter('safety.hold_time', value=0.4)])[0].successful
-        assert node.core.yaw_fault is not None
-        node.trigger_deactivate()
-        assert node.core.yaw_fault is not None
-        node.trigger_activate()
-        assert node.core.yaw_fault is None
-    finally:
-        node.destroy_node()
+    node = active_controller
+    node.core.yaw_fault = 'yaw: yaw_rate runs against the steering (a test)'
+    assert node.set_parameters([Parameter('safety.hold_time', value=0.4)])[0].successful
+    assert node.core.yaw_fault is not None
+    node.trigger_deactivate()
+    assert node.core.yaw_fault is not None
+    node.trigger_activate()
+    assert node.core.yaw_fault is None
 
 
-def test_the_node_warns_of_a_still_yaw_rate_once(context):
+def test_the_node_warns_of_a_still_yaw_rate_once(active_controller):
     from diagnostic_msgs.msg import DiagnosticStatus
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context)
-    try:
-        node.trigger_configure()
-        node.trigger_activate()
-        assert 'yaw_rate hardly varies' not in node.diagnostics().message
-        node.core.turning['yaw_rate_still'] += 0.7
-        node.core.still_seen = 11.4
-        status = node.diagnostics()
-        assert status.level == DiagnosticStatus.WARN
-        assert ('yaw_rate hardly varies while the steering and the relative yaw do, for '
-                '0.70 s (they vary 11.4 times as much as it does): frozen') in status.message
-        assert 'yaw_rate hardly varies' not in node.diagnostics().message     # told once
-        node.core.turning['yaw_rate_still'] += 0.2
-        node.core.still_seen = math.inf
-        assert '(it does not vary at all)' in node.diagnostics().message
-    finally:
-        node.destroy_node()
+    node = active_controller
+    assert 'yaw_rate hardly varies' not in node.diagnostics().message
+    node.core.turning['yaw_rate_still'] += 0.7
+    node.core.still_seen = 11.4
+    status = node.diagnostics()
+    assert status.level == DiagnosticStatus.WARN
+    assert ('yaw_rate hardly varies while the steering and the relative yaw do, for '
+            '0.70 s (they vary 11.4 times as much as it does): frozen') in status.message
+    assert 'yaw_rate hardly varies' not in node.diagnostics().message     # told once
+    node.core.turning['yaw_rate_still'] += 0.2
+    node.core.still_seen = math.inf
+    assert '(it does not vary at all)' in node.diagnostics().message

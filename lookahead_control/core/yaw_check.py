@@ -297,8 +297,8 @@ class YawCheck:
         # the other way: a yaw rate frozen (a bridge repeating its last value with new
         # stamps) or too small while the car is steered and turns (told, not refused)
         self.stillness = math.nan
-        if ready and min(self._var[0], self._var[2]) >= floor:
-            witness = min(self._var[0], self._var[2])
+        witness = min(self._var[0], self._var[2])
+        if ready and witness >= floor:
             self.stillness = (math.sqrt(witness / self._var[3]) if self._var[3] > 0.0
                               else math.inf)
             still = self.stillness >= s.scale_limit
