@@ -38,6 +38,7 @@ from lookahead_control.core.safety import (check_sample, check_stamp, limit, low
                                            SafetyParams, stale_target)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
+from lookahead_control.core.speed_check import SpeedCheck
 from lookahead_control.core.yaw_check import YawCheck
 import numpy as np
 
@@ -288,7 +289,8 @@ class SteeringController:
                                           'curvature_dropped': 0.0,
                                           'steering_oscillates': 0.0,
                                           'heading_disagrees': 0.0,
-                                          'yaw_rate_still': 0.0}
+                                          'yaw_rate_still': 0.0,
+                                          'speed_out_of_scale': 0.0}
         #: the received curvature against the yaw measurements (``core/map_check.py``):
         #: seconds of answers with it over its threshold in ``curvature_disagrees``, and
         #: with it dropped (the law on its own estimate, ``lane_keeping.map_fallback``) in
@@ -322,6 +324,13 @@ class SteeringController:
         #: puts the car off a curve, the laws on a still yaw rate 0.01-2 m off), and the
         #: largest stillness (:attr:`YawCheck.stillness`) since the caller last took it
         self.still_seen = 0.0
+        #: the speed against the curvature preview's motion (``core/speed_check.py``):
+        #: seconds in ``speed_out_of_scale`` (told, not refused: a speed in km/h under
+        #: ``safety.max_speed`` mis-tunes the laws, refusing it takes the safe behaviour),
+        #: and the speed's travel over the preview's (:attr:`SpeedCheck.scale`) when last
+        #: told since the caller last took it (1: none)
+        self.speed_check = SpeedCheck()
+        self.speed_seen = 1.0
         self.yaw_fault: Optional[str] = None
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
@@ -477,6 +486,7 @@ class SteeringController:
             self._hold_value = self._rate_angle
         self.law.reset()
         self.map_check.reset()
+        self.speed_check.reset()
         self.clear_yaw_fault()
         self._law_stamp = None          # (the oscillation check restarts with it)
 
@@ -758,6 +768,22 @@ class SteeringController:
         self.count_rejection(self.yaw_fault)
         self._voided.add('yaw')
 
+    def _judge_speed(self, dt: float, v_x: float) -> None:
+        """
+        Step the speed's scale check with the curvature preview received (told, not refused).
+
+        :param dt: time since the law's previous answer [s].
+        :param v_x: the speed of this answer [m/s].
+        """
+        if not self.curvature_in or self.curvature is None:
+            self.speed_check.reset()        # no preview moving: no odometer
+            return
+        if self.speed_check.step(dt, v_x, self.curvature.stamp_ns, self.curvature.ahead):
+            # dev-sc47: a speed in km/h put the default law 0.3-26 m off S-bends at 6-19
+            # m/s, under every range limit, told only as a map disagreeing
+            self.turning['speed_out_of_scale'] += dt
+            self.speed_seen = self.speed_check.scale
+
     def _measurement_time(self, now_ns: int) -> int:
         """
         Return the node's time on the measurements' clock.
@@ -979,6 +1005,7 @@ class SteeringController:
                 self.turning['curvature_dropped'] += dt
         else:       # a curvature lost and back: still dropped until the check is quiet
             self.map_check.reset(keep_dropped=True)
+        self._judge_speed(dt, v_x)
         if note_curvature is not None:      # a law that estimates a missing curvature
             note_curvature(self.curvature_in and not self.map_check.dropped)
         resets = getattr(self.law, 'resets', 0)

@@ -905,6 +905,19 @@ class ControllerNode(LifecycleNode):
                            f'do, for {turning["yaw_rate_still"]:.2f} s ({how}): frozen (a '
                            'bridge repeating its last value), or its scale too small; the '
                            "law's yaw feedback is missing (docs/safety.md)")
+        ratio, self.core.speed_seen = self.core.speed_seen, 1.0
+        if turning['speed_out_of_scale'] > 0.0:
+            # dev-sc47: a speed in km/h (under safety.max_speed up to 19.4 m/s) put the
+            # default law 0.3-26 m off S-bends, told only as a map disagreeing
+            level = max(level, DiagnosticStatus.WARN)
+            how = ('the preview did not move' if math.isinf(ratio) else
+                   f'the speed moved the car {ratio:.3g} times as far as the road moved '
+                   'under it')
+            reasons.append(f'v_x out of scale with the curvature preview for '
+                           f'{turning["speed_out_of_scale"]:.2f} s ({how}): a speed in other '
+                           'units (km/h reads 3.6 times, mph 2.24 times the m/s), or the '
+                           "preview's distances in other units, or a preview repeated "
+                           'without moving; every law is tuned on the speed (docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
