@@ -734,8 +734,10 @@ class ControllerNode(LifecycleNode):
         then, the demand band and the approach clip, are told at OK), a sim clock that has
         not moved for :data:`SIM_CLOCK_STOPPED` (``use_sim_time``), answers while turning
         without a curvature or with a ``v_y`` of exactly 0 (:data:`TURNING_WARN`), a
-        lateral error moving against the relative yaw (``core/heading_check.py``), or an
-        input age or answer latency above ``safety.latency_warn``; else OK.
+        lateral error moving against the relative yaw (``core/heading_check.py``), a yaw
+        rate hardly varying (``core/yaw_check.py``), a speed out of scale with the
+        curvature preview (``core/speed_check.py``), or an input age or answer latency
+        above ``safety.latency_warn``; else OK.
 
         :return: the status with its reasons and counters.
         """
@@ -868,7 +870,8 @@ class ControllerNode(LifecycleNode):
                            'predict, over the threshold of '
                            f'{self.core.map_check.settings.threshold * 1e3:g} mrad at 20 m/s '
                            'and up): one of the three is off: the curvature (a map off in '
-                           'scale or position), the yaw rate (a gyro bias: 0.3 deg/s is 10 '
+                           'scale or position; or v_x, which it is multiplied by: a speed '
+                           'in km/h), the yaw rate (a gyro bias: 0.3 deg/s is 10 '
                            f'mrad), or the relative yaw (a jump, a relocalization); {acted} '
                            '(docs/safety.md)')
         swing, self.core.oscillation_seen = self.core.oscillation_seen, (0.0, 0.0)
