@@ -38,13 +38,16 @@ from lookahead_control.core.safety import (check_sample, check_stamp, limit, low
                                            SafetyParams, stale_target)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
-from lookahead_control.core.speed_check import SpeedCheck
+from lookahead_control.core.speed_check import road_speed, SpeedCheck
 from lookahead_control.core.yaw_check import YawCheck
 import numpy as np
 
 ACCELERATION_SOURCES = ('imu', 'differentiate', 'zero')
 LAW_NAMES = ('paper',) + BASELINE_NAMES + ('cg_compensated',)
 PREVIEW_HORIZON = 100.0     # [m] how far the curvature slope is extended for the baselines
+#: the speed, relative yaw and lateral error taken last serve the speed check's odometer
+#: within this of a preview [s]
+SPEED_AGE = 0.5
 
 
 def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
@@ -561,6 +564,8 @@ class SteeringController:
         if self._first_received is None:
             self._first_received = received
         getattr(self, _UPDATE[name])(sample)
+        if name == 'road_curvature':
+            self._judge_speed(sample)
         return None
 
     def count_rejection(self, reason: str) -> None:
@@ -768,21 +773,34 @@ class SteeringController:
         self.count_rejection(self.yaw_fault)
         self._voided.add('yaw')
 
-    def _judge_speed(self, dt: float, v_x: float) -> None:
+    def _judge_speed(self, sample: CurvatureSample) -> None:
         """
-        Step the speed's scale check with the curvature preview received (told, not refused).
+        Step the speed's scale check with a curvature preview taken (told, not refused).
 
-        :param dt: time since the law's previous answer [s].
-        :param v_x: the speed of this answer [m/s].
+        :param sample: the curvature sample, its stamp the time axis (the speed taken
+            last, along the road by the relative yaw and the lateral error taken last,
+            each within :data:`SPEED_AGE` of it; else the check restarts).
         """
-        if not self.curvature_in or self.curvature is None:
-            self.speed_check.reset()        # no preview moving: no odometer
+        check, velocity, yaw, lateral = self.speed_check, self.velocity, self.yaw, self.lateral
+        if velocity is None or yaw is None or lateral is None or any(
+                abs(sample.stamp_ns - taken.stamp_ns) > SPEED_AGE * 1e9
+                for taken in (velocity, yaw, lateral)):
+            # (dev-sc47: a lateral error refused for its size left the last one taken, and
+            # a car 53 m off the road looked 0.6 times as fast as the road moved)
+            check.reset()
             return
-        if self.speed_check.step(dt, v_x, self.curvature.stamp_ns, self.curvature.ahead):
+        eps_r = yaw.relative_yaw
+        along = road_speed(velocity.v_x, velocity.v_y, eps_r, sample.rho,
+                           lateral.value - lateral.distance * eps_r, check.settings.lane_limit)
+        if along is None:
+            check.reset()
+            return
+        last = check.last_stamp
+        if check.step(sample.stamp_ns, along, sample.ahead) and last is not None:
             # dev-sc47: a speed in km/h put the default law 0.3-26 m off S-bends at 6-19
             # m/s, under every range limit, told only as a map disagreeing
-            self.turning['speed_out_of_scale'] += dt
-            self.speed_seen = self.speed_check.scale
+            self.turning['speed_out_of_scale'] += max(0, sample.stamp_ns - last) * 1e-9
+            self.speed_seen = check.scale
 
     def _measurement_time(self, now_ns: int) -> int:
         """
@@ -1005,7 +1023,6 @@ class SteeringController:
                 self.turning['curvature_dropped'] += dt
         else:       # a curvature lost and back: still dropped until the check is quiet
             self.map_check.reset(keep_dropped=True)
-        self._judge_speed(dt, v_x)
         if note_curvature is not None:      # a law that estimates a missing curvature
             note_curvature(self.curvature_in and not self.map_check.dropped)
         resets = getattr(self.law, 'resets', 0)

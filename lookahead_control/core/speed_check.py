@@ -26,21 +26,30 @@ The curvature preview is an odometer that does not need the speed: a point ``d``
 in one preview is ``d - s`` ahead in a preview taken after the car has moved ``s`` along
 the road, whatever the tyres, the yaw rate, or the map's curvature scale and latency (the
 same in both). So the newest preview is compared with the one taken when the speed,
-integrated, had moved the car ``travel`` less: shifted by the speed's travel, the older
-preview should lie on the newer. The shift that fits best (searched from 0 to the
-preview's length less ``min_overlap``) is the travel the road saw. Judged only while the
-curvature varies by ``excitation`` or more over the compared stretch (a straight or a
-constant arc moves no curvature), at or above ``min_speed``: where the speed's travel
-misfits by ``misfit`` of the curvature's variation or more, at least ``contrast`` times
-the best shift's misfit, and the best shift is off it by a factor of ``limit`` or more,
-the speed is out of scale; for ``hold`` seconds, the check tells it. A speed right within
-a factor of ``limit`` fits (a speed 10 % high is not found here). A periodic road fits a
-shift and that shift plus its period alike: the speed's travel still fits where the speed
-is right.
+integrated over the previews' stamps, had moved the car ``travel`` less: shifted by the
+speed's travel, the older preview should lie on the newer. The shift that fits best
+(searched from 0 to the preview's length less ``min_overlap``; a preview shorter than
+their sum shrinks both) is the travel the road saw. Judged only while the curvature
+varies by ``excitation`` or more over the compared stretch (a straight or a constant arc
+moves no curvature), at or above ``min_speed``: where the speed's travel misfits by
+``misfit`` of the curvature's variation or more, at least ``contrast`` times the best
+shift's misfit, and the best shift is off it by a factor of ``limit`` or more, the
+comparison is out of scale. The check tells it once such comparisons add up to ``hold``
+seconds, ``hold_travel`` metres of the speed's travel and ``comparisons`` in number, a
+comparison that fits taking its time and travel off. A speed right within a factor of
+``limit`` fits (a speed 10 % high is not found here). A periodic road fits a shift and
+that shift plus its period alike: the speed's travel still fits where the speed is right.
+
+The speed is taken along the road (:func:`road_speed`: ``v_x cos eps_r - v_y sin eps_r``
+over ``1 - rho y_cg``), and where that is far from ``v_x`` (a car far off the lane or
+across it) there is no evidence. Only ``reach`` of a preview is used, and none with
+points farther apart than ``max_spacing`` (dev-probe105: one point 1e9 m ahead made an
+array of 74.5 GiB; points 15-25 m apart miss the shape of bends laid out for 4-6 m/s).
 
 A bridge without a preview (a curvature at the CG alone) gives no evidence; a preview that
-does not move (repeated with new stamps) and one whose distances are scaled (a preview
-in other units) are found out of scale too: the WARN names them.
+does not move (repeated with new stamps), one whose distances are scaled (a preview in
+other units), and a path re-planned from the car's position at each message (it moves
+with the car) are found out of scale too: the WARN names the first two.
 """
 
 from __future__ import annotations
@@ -68,9 +77,22 @@ class SpeedCheckParams:
         curvature's standard deviation, or more [-].
     :param contrast: ... and at this many times the best shift's rms difference [-].
     :param limit: the best shift is off the speed's travel by this factor or more [-].
-    :param hold: out of scale this long (of stamps) is told [s].
+    :param hold: out of scale this long (of stamps) is told [s] ...
+    :param hold_travel: ... over this much of the speed's travel [m] (more than
+        ``travel``: a relocalization jump of the preview misfits the comparisons that
+        span it, ``travel`` of them) ...
+    :param comparisons: ... in this many comparisons or more (previews at 1 Hz: one
+        comparison spans a second) [-]. A comparison that fits takes its time and
+        travel off, down to 0 (where they restart).
+    :param max_spacing: a preview with points farther apart than this within ``reach``
+        is no evidence (linear between its points, it misses the road's shorter
+        features) [m].
     :param min_speed: below it the check restarts [m/s].
     :param every: the previews are compared at most this often (stamps) [s].
+    :param max_gap: a longer gap between previews restarts the check [s].
+    :param reach: of each preview only this far ahead of its first point is kept [m].
+    :param lane_limit: the speed along the road (:func:`road_speed`) off ``v_x`` by more
+        than this fraction is no witness: a restart [-].
     """
 
     travel: float = 8.0
@@ -81,8 +103,14 @@ class SpeedCheckParams:
     contrast: float = 3.0
     limit: float = 1.5
     hold: float = 1.0
-    min_speed: float = 1.0
+    hold_travel: float = 16.0
+    comparisons: int = 5
+    max_spacing: float = 10.0
+    min_speed: float = 3.0
     every: float = 0.1
+    max_gap: float = 1.0
+    reach: float = 100.0
+    lane_limit: float = 0.1
 
     def __post_init__(self) -> None:
         """Check the ranges."""
@@ -94,12 +122,49 @@ class SpeedCheckParams:
         check_range('speed_check.contrast', self.contrast, 1.0, 1000.0)
         check_range('speed_check.limit', self.limit, 1.05, 100.0)
         check_range('speed_check.hold', self.hold, 0.0, 60.0, unit='s')
+        check_range('speed_check.hold_travel', self.hold_travel, 0.0, 1000.0, unit='m')
+        check_range('speed_check.comparisons', self.comparisons, 1, 1000)
+        check_range('speed_check.max_spacing', self.max_spacing, 0.1, 1000.0, unit='m')
         check_range('speed_check.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
         check_range('speed_check.every', self.every, 0.0, 10.0, unit='s')
+        check_range('speed_check.max_gap', self.max_gap, 0.0, 60.0, unit='s')
+        check_range('speed_check.reach', self.reach, 1.0, 10000.0, unit='m')
+        check_range('speed_check.lane_limit', self.lane_limit, 0.0, 1.0)
 
 
 #: the shifts searched are this fine [m]
 SHIFT_STEP = 0.1
+#: the newer preview is compared at points this far apart [m]
+GRID_STEP = 1.0
+
+
+def road_speed(v_x: float, v_y: float, eps_r: float, rho: float, y_cg: float,
+               limit: float) -> float | None:
+    """
+    Return the speed along the road, ``(v_x cos eps_r - v_y sin eps_r) / (1 - rho y_cg)``.
+
+    That is the rate at which the road moves under the car, whatever the tyres (the lane's
+    kinematics). Off ``v_x`` by more than ``limit`` (a fraction) it is no witness of the
+    speed's scale: a car far off the lane or across it (dev-sc47: a car 35-87 m off an
+    S-bend on a lateral error in cm made the road's travel 1.5 times the speed's), or a
+    relative yaw that is itself wrong.
+
+    :param v_x: the speed [m/s].
+    :param v_y: the lateral speed [m/s].
+    :param eps_r: the relative yaw [rad].
+    :param rho: the road's curvature at the CG [1/m].
+    :param y_cg: the CG's offset from the lane [m].
+    :param limit: the largest relative difference taken [-].
+    :return: the speed along the road [m/s], or None.
+    """
+    values = (v_x, v_y, eps_r, rho, y_cg)
+    if not all(math.isfinite(x) for x in values) or v_x <= 0.0:
+        return None
+    projection = 1.0 - rho * y_cg
+    if projection <= 0.0:
+        return None
+    along = (v_x * math.cos(eps_r) - v_y * math.sin(eps_r)) / projection
+    return along if abs(along / v_x - 1.0) <= limit else None
 
 
 class SpeedCheck:
@@ -117,6 +182,7 @@ class SpeedCheck:
     def reset(self) -> None:
         """Restart (a gap, a slow car, a non-finite input): previews from the next step."""
         self._odometer = 0.0
+        self._stamp: int | None = None      # the last preview's
         # (stamp [ns], odometer [m], distances [m], curvatures [1/m]) of the previews kept
         self._previews: deque[tuple[int, float, np.ndarray, np.ndarray]] = deque()
         self._judged_at: int | None = None
@@ -125,67 +191,108 @@ class SpeedCheck:
         self.ratio = math.nan
         #: the speed's travel's rms misfit over the best shift's at that comparison
         self.contrast = math.nan
-        #: seconds (of stamps) the speed has been out of scale
+        #: seconds (of stamps) the speed has been out of scale, less those it fitted since
         self.off_for = 0.0
-        # the log ratios of the comparisons out of scale since it last fitted
-        self._logs: list[float] = []
+        #: the speed's travel over them [m]
+        self.off_travel = 0.0
+        #: comparisons out of scale since ``off_for`` was last 0
+        self.off_count = 0
+        self._log_sum = 0.0         # the sum of their log ratios
+        self._judged_odometer = 0.0
 
     @property
     def out_of_scale(self) -> bool:
-        """Return True once the speed has been out of scale with the preview for ``hold``."""
-        return self.off_for > 0.0 and self.off_for >= self.settings.hold
+        """Return True once the speed has been out of scale with the preview long enough."""
+        s = self.settings
+        return (self.off_count >= s.comparisons and self.off_for >= s.hold
+                and self.off_travel >= s.hold_travel)
 
-    def step(self, dt: float, v_x: float, stamp_ns: int,
-             ahead: Sequence[tuple[float, float]]) -> bool:
+    def step(self, stamp_ns: int, v_x: float, ahead: Sequence[tuple[float, float]]) -> bool:
         """
-        Take one answer's speed and the curvature preview received.
+        Take one curvature preview received and the speed at its time.
 
-        :param dt: time since the previous step [s] (0: nothing moves; above 1 s: a
+        The speed's odometer runs on the previews' stamps: a gap of more than ``max_gap``
+        between them restarts the check.
+
+        :param stamp_ns: the preview's stamp [ns] (not after the last one: nothing new).
+        :param v_x: the speed at that time [m/s] (not finite, or below ``min_speed``: a
             restart).
-        :param v_x: the speed [m/s].
-        :param stamp_ns: the preview's stamp [ns] (the same as before: nothing new).
-        :param ahead: the preview's ``(distance ahead [m], curvature [1/m])`` points,
-            sorted by distance (fewer than 3: no preview, no evidence).
+        :param ahead: the preview's ``(distance ahead [m], curvature [1/m])`` points
+            (fewer than 3, not finite, or distances not rising: no evidence).
         :return: :attr:`out_of_scale`.
         """
         s = self.settings
-        if not (math.isfinite(dt) and math.isfinite(v_x)) or v_x < s.min_speed \
-                or not 0.0 <= dt <= 1.0:
+        if self._stamp is not None and stamp_ns <= self._stamp:
+            return self.out_of_scale
+        if not math.isfinite(v_x) or v_x < s.min_speed:
             self.reset()
             return False
-        self._odometer += v_x * dt
-        newest = self._previews[-1][0] if self._previews else None
-        if len(ahead) < 3 or (newest is not None and stamp_ns <= newest):
+        if self._stamp is not None and (stamp_ns - self._stamp) * 1e-9 > s.max_gap:
+            self.reset()
+        if self._stamp is not None:
+            self._odometer += v_x * (stamp_ns - self._stamp) * 1e-9
+        self._stamp = stamp_ns
+        points = np.asarray(ahead, dtype=float).reshape(-1, 2)
+        if len(points) < 3 or not np.all(np.isfinite(points)):
             return self.out_of_scale
-        points = np.asarray(ahead, dtype=float)
-        if not np.all(np.isfinite(points)):
+        # only ``reach`` of it: the cost is bounded whatever the points' distances
+        # (dev-probe105: one point 1e9 m ahead made an array of 74.5 GiB)
+        points = points[points[:, 0] <= points[0, 0] + s.reach]
+        steps = np.diff(points[:, 0])
+        if len(points) < 3 or not np.all(steps > 0.0) or float(steps.max()) > s.max_spacing:
             return self.out_of_scale
         self._previews.append((stamp_ns, self._odometer, points[:, 0], points[:, 1]))
         while stamp_ns - self._previews[0][0] > s.max_age * 1e9:
             self._previews.popleft()
         if self._judged_at is not None and stamp_ns - self._judged_at < s.every * 1e9:
             return self.out_of_scale
+        travel, _ = self._lengths(float(points[-1, 0] - points[0, 0]))
         older = None
         for preview in reversed(self._previews):
-            if self._odometer - preview[1] >= s.travel:
+            if self._odometer - preview[1] >= travel:
                 older = preview
                 break
         if older is None:
             return self.out_of_scale
         since = (stamp_ns - self._judged_at) * 1e-9 if self._judged_at is not None else 0.0
-        self._judged_at = stamp_ns
+        moved = self._odometer - self._judged_odometer if self._judged_at is not None else 0.0
+        self._judged_at, self._judged_odometer = stamp_ns, self._odometer
         verdict = self._compare(older, self._previews[-1])
         if verdict:
             self.off_for += since
-            self._logs.append(math.log(self.ratio))
+            self.off_travel += moved
+            self.off_count += 1
+            self._log_sum += math.log(self.ratio)
         elif verdict is not None:
-            self.off_for, self._logs = 0.0, []
+            # a fit takes its time off: a verdict flickering on a road the preview
+            # draws coarsely still adds up (dev-probe105: hairpins of R 8 m at 7 m/s, a
+            # speed in km/h, 20 m off and never told where each fit restarted it)
+            self.off_for = max(0.0, self.off_for - since)
+            self.off_travel = max(0.0, self.off_travel - moved)
+            if self.off_for == 0.0:
+                self.off_count, self._log_sum = 0, 0.0
         return self.out_of_scale
+
+    def _lengths(self, length: float) -> tuple[float, float]:
+        """
+        Return the travel between the previews compared and the overlap they need.
+
+        :param length: the preview's length [m] (shorter than ``travel`` and
+            ``min_overlap`` allow: both shrink with it, to 0.3 and 0.5 of it).
+        :return: ``(travel, min_overlap)`` [m].
+        """
+        s = self.settings
+        return min(s.travel, 0.3 * length), min(s.min_overlap, 0.5 * length)
+
+    @property
+    def last_stamp(self) -> int | None:
+        """Return the stamp of the last preview taken since the restart [ns] (None: none)."""
+        return self._stamp
 
     @property
     def scale(self) -> float:
         """Return the speed's travel over the road's while out of it; NaN while it fits."""
-        return math.exp(sum(self._logs) / len(self._logs)) if self._logs else math.nan
+        return math.exp(self._log_sum / self.off_count) if self.off_count else math.nan
 
     def _compare(self, older: tuple[int, float, np.ndarray, np.ndarray],
                  newer: tuple[int, float, np.ndarray, np.ndarray]) -> bool | None:
@@ -199,12 +306,15 @@ class SpeedCheck:
         """
         s = self.settings
         d_old, k_old = older[2], older[3]
-        d_new, k_new = newer[2], newer[3]
+        # the newer preview on a grid: the cost bounded by ``reach`` whatever its spacing
+        d_new = np.arange(float(newer[2][0]), float(newer[2][-1]) + 1e-9, GRID_STEP)
+        k_new = np.interp(d_new, newer[2], newer[3])
         travel = newer[1] - older[1]
         length = float(d_old[-1])
-        if length - travel < s.min_overlap:
+        overlap = self._lengths(float(d_old[-1] - d_old[0]))[1]
+        if length - travel < overlap:
             return None
-        shifts = np.arange(0.0, length - s.min_overlap + 1e-9, SHIFT_STEP)
+        shifts = np.arange(0.0, length - overlap + 1e-9, SHIFT_STEP)
         shifts = np.append(shifts, travel)
         where = d_new[None, :] + shifts[:, None]
         inside = (where <= length) & (where >= d_old[0])

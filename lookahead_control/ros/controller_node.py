@@ -920,7 +920,8 @@ class ControllerNode(LifecycleNode):
                            f'{turning["speed_out_of_scale"]:.2f} s ({how}): a speed in other '
                            'units (km/h reads 3.6 times, mph 2.24 times the m/s), or the '
                            "preview's distances in other units, or a preview repeated "
-                           'without moving; every law is tuned on the speed (docs/safety.md)')
+                           'without moving or re-planned from the car at each message; '
+                           'every law is tuned on the speed (docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
