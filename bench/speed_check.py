@@ -33,13 +33,10 @@ from __future__ import annotations
 import sys
 from typing import Sequence
 
-from lookahead_control.core.params import VehicleParams
+from bench.league_runs import league_runs
 from lookahead_control.core.safety import SafetyParams
 from lookahead_control.core.speed_check import SpeedCheck
-from lookahead_control.tools import compare
 import numpy as np
-from sim_plant.closed_loop_sim import run
-from sim_plant.sensors import NoiseParams
 
 LAWS = ('cg_compensated', 'paper_eq26')
 PLANTS = ('nonlinear_delay_noise', 'nonlinear', 'commonroad_mb_delay_noise')
@@ -81,50 +78,35 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     args = list(sys.argv[1:] if argv is None else argv)
     laws = args[0].split(',') if args else list(LAWS)
-    plants = [c for c in compare.PLANTS if c.name in (args[1].split(',') if len(args) > 1
-                                                      else PLANTS)]
-    vehicle = VehicleParams()
-    scenarios = compare.load_scenarios(compare.SCENARIOS)
+    plants = args[1].split(',') if len(args) > 1 else list(PLANTS)
     rng = np.random.default_rng(5)
     false_tells, runs, longest = 0, 0, 0.0
     told = dict.fromkeys(FAULTS, 0)
     judged = dict.fromkeys(FAULTS, 0)
-    for law_name in laws:
-        for case in plants:
-            law_vehicle = case.law_vehicle(vehicle)
-            for name, scenario in scenarios.items():
-                speeds = compare.scenario_speeds(scenario, compare.SPEEDS)
-                law = compare.league_law(law_name, law_vehicle, compare.LawSettings())
-                noise = {'noise': NoiseParams(), 'seed': [11] * len(speeds)} if case.noisy else {}
-                result = run(scenario, law_vehicle, law, case.plant,
-                             initial_speed=np.asarray(speeds, dtype=float),
-                             dt=case.dt or compare.DT, delay=case.delay,
-                             preview_distance=compare.PREVIEW_DISTANCE, **noise)
-                time = np.asarray(result.time)
-                for i, speed in enumerate(speeds):
-                    s = np.asarray(result['s'])[:, i]
-                    v_x = (np.asarray(result['v_x'])[:, i]
-                           + rng.normal(0.0, SPEED_NOISE, time.size))
-                    previews = np.asarray(scenario.road.curvature(
-                        s[:, None] + AHEAD[None, :])[0], dtype=float)
-                    previews = previews + rng.normal(0.0, MAP_NOISE, previews.shape)
-                    off, at = check_run(time, v_x, previews)
-                    runs += 1
-                    longest = max(longest, off)
-                    where = f'{law_name} {case.name} {name} {speed:g} m/s'
-                    if at is not None:
-                        false_tells += 1
-                        print(f'TOLD AS IT IS: {where} at {at:.2f} s')
-                    faults = []
-                    for fault, factor in FAULTS.items():
-                        if factor * speed > MAX_SPEED:
-                            continue            # refused by the range check
-                        judged[fault] += 1
-                        at = check_run(time, factor * v_x, previews)[1]
-                        told[fault] += at is not None
-                        faults.append(f'{fault} ' + (f'{at:.1f} s' if at is not None
-                                                     else 'not told'))
-                    print(f'{where}: ' + ', '.join(faults), flush=True)
+    for law_name, case, name, scenario, _, result, speeds in league_runs(laws, plants):
+        time = np.asarray(result.time)
+        for i, speed in enumerate(speeds):
+            s = np.asarray(result['s'])[:, i]
+            v_x = np.asarray(result['v_x'])[:, i] + rng.normal(0.0, SPEED_NOISE, time.size)
+            previews = np.asarray(scenario.road.curvature(s[:, None] + AHEAD[None, :])[0],
+                                  dtype=float)
+            previews = previews + rng.normal(0.0, MAP_NOISE, previews.shape)
+            off, at = check_run(time, v_x, previews)
+            runs += 1
+            longest = max(longest, off)
+            where = f'{law_name} {case.name} {name} {speed:g} m/s'
+            if at is not None:
+                false_tells += 1
+                print(f'TOLD AS IT IS: {where} at {at:.2f} s')
+            faults = []
+            for fault, factor in FAULTS.items():
+                if factor * speed > MAX_SPEED:
+                    continue            # refused by the range check
+                judged[fault] += 1
+                at = check_run(time, factor * v_x, previews)[1]
+                told[fault] += at is not None
+                faults.append(f'{fault} ' + (f'{at:.1f} s' if at is not None else 'not told'))
+            print(f'{where}: ' + ', '.join(faults), flush=True)
     hold = SpeedCheck().settings.hold
     print(f'runs: {runs}; the longest out of scale as it is: {longest:.2f} s (told: '
           f'{hold:g} s)')

@@ -41,13 +41,11 @@ import math
 import sys
 from typing import Sequence
 
+from bench.league_runs import league_runs
 from lookahead_control.core.heading_check import HeadingCheck
-from lookahead_control.core.params import VehicleParams
 from lookahead_control.core.yaw_check import YawCheck
 from lookahead_control.tools import compare
 import numpy as np
-from sim_plant.closed_loop_sim import run
-from sim_plant.sensors import NoiseParams
 
 PLANTS = ('nonlinear_delay_noise', 'nonlinear', 'commonroad_mb_delay_noise')
 NOISE = 0.002                   # [rad/s, rad] the default sensor noise of r and eps_r
@@ -137,76 +135,63 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     args = list(sys.argv[1:] if argv is None else argv)
     laws = args[0].split(',') if args else list(compare.LAWS)
-    plants = [c for c in compare.PLANTS if c.name in (args[1].split(',') if len(args) > 1
-                                                      else PLANTS)]
-    vehicle = VehicleParams()
-    scenarios = compare.load_scenarios(compare.SCENARIOS)
+    plants = args[1].split(',') if len(args) > 1 else list(PLANTS)
     rng = np.random.default_rng(5)
     worst, false_refusals, runs, spread, gains, still = 2.0, 0, 0, 0.0, 0.0, 0.0
     refused = {'flipped': 0, 'deg/s': 0, 'x10': 0, 'relative yaw flipped': 0,
                'lateral error flipped': 0}
     told_still = {'frozen': 0, 'x0.1': 0}
     heading = 2.0
-    for law_name in laws:
-        for case in plants:
-            law_vehicle = case.law_vehicle(vehicle)
-            for name, scenario in scenarios.items():
-                speeds = compare.scenario_speeds(scenario, compare.SPEEDS)
-                law = compare.league_law(law_name, law_vehicle, compare.LawSettings())
-                noise = {'noise': NoiseParams(), 'seed': [11] * len(speeds)} if case.noisy else {}
-                result = run(scenario, law_vehicle, law, case.plant,
-                             initial_speed=np.asarray(speeds, dtype=float),
-                             dt=case.dt or compare.DT, delay=case.delay,
-                             preview_distance=compare.PREVIEW_DISTANCE, **noise)
-                time = np.asarray(result.time)
-                for i, speed in enumerate(speeds):
-                    def column(channel: str) -> np.ndarray:
-                        return np.asarray(result[channel])[:, i]
-                    r = column('r') + rng.normal(0.0, NOISE, time.size)
-                    eps_r = column('eps_r') + rng.normal(0.0, NOISE, time.size)
-                    given = (column('steering_cmd'), column('v_x'), column('rho'),
-                             law_vehicle.wheelbase)
-                    steering, kinematic, joint, at, wide, large, calm, calm_at = check_run(
-                        time, r, eps_r, *given)
-                    worst, spread = min(worst, joint), max(spread, wide)
-                    gains, still = max(gains, large), max(still, calm)
-                    where = f'{law_name} {case.name} {name} {speed:g} m/s'
-                    if min(steering, kinematic) < -0.5:
-                        print(f'a witness below -0.5: {where}: steering {steering:.2f}, '
-                              f'relative yaw {kinematic:.2f}')
-                    if at is not None:
-                        false_refusals += 1
-                        print(f'REFUSED AS IT IS: {where} at {at:.2f} s')
-                    if calm_at is not None:
-                        false_refusals += 1
-                        print(f'TOLD TOO STILL AS IT IS: {where} at {calm_at:.2f} s')
-                    runs += 1
-                    # frozen at its value at 2 s (a bridge repeating it), 10 times too small
-                    frozen, at_2 = r.copy(), int(np.searchsorted(time, 2.0))
-                    frozen[at_2:] = r[at_2]
-                    told_still['frozen'] += check_run(time, frozen, eps_r, *given)[7] is not None
-                    told_still['x0.1'] += check_run(time, 0.1 * r, eps_r, *given)[7] is not None
-                    for fault, factor in (('flipped', -1.0), ('deg/s', math.degrees(1.0)),
-                                          ('x10', 10.0)):
-                        refused[fault] += check_run(time, factor * r, eps_r,
-                                                    *given)[3] is not None
-                    # the heading check: at the CG and at a camera's look-ahead
-                    v_y = column('v_y') + rng.normal(0.0, V_Y_NOISE, time.size)
-                    for distance in (0.0, DISTANCE):
-                        lateral = (column('y_cg') + distance * column('eps_r')
-                                   + rng.normal(0.0, LATERAL_NOISE, time.size))
-                        low, at = heading_run(time, lateral, distance, eps_r, column('v_x'), v_y)
-                        heading = min(heading, low)
-                        if low < -0.5:
-                            print(f'heading below -0.5: {where}, d {distance:g} m: {low:.2f}')
-                        if at is not None:
-                            false_refusals += 1
-                            print(f'HEADING TOLD AS IT IS: {where}, d {distance:g} m, at '
-                                  f'{at:.2f} s (lowest {low:.2f})')
-                        refused['relative yaw flipped'] += heading_run(
-                            time, lateral, distance, -eps_r, column('v_x'), v_y)[1] is not None
-                        refused['lateral error flipped'] += heading_run(
-                            time, -lateral, distance, eps_r, column('v_x'), v_y)[1] is not None
+    for law_name, case, name, _, law_vehicle, result, speeds in league_runs(laws, plants):
+        time = np.asarray(result.time)
+        for i, speed in enumerate(speeds):
+            def column(channel: str) -> np.ndarray:
+                return np.asarray(result[channel])[:, i]
+            r = column('r') + rng.normal(0.0, NOISE, time.size)
+            eps_r = column('eps_r') + rng.normal(0.0, NOISE, time.size)
+            given = (column('steering_cmd'), column('v_x'), column('rho'),
+                     law_vehicle.wheelbase)
+            steering, kinematic, joint, at, wide, large, calm, calm_at = check_run(
+                time, r, eps_r, *given)
+            worst, spread = min(worst, joint), max(spread, wide)
+            gains, still = max(gains, large), max(still, calm)
+            where = f'{law_name} {case.name} {name} {speed:g} m/s'
+            if min(steering, kinematic) < -0.5:
+                print(f'a witness below -0.5: {where}: steering {steering:.2f}, '
+                      f'relative yaw {kinematic:.2f}')
+            if at is not None:
+                false_refusals += 1
+                print(f'REFUSED AS IT IS: {where} at {at:.2f} s')
+            if calm_at is not None:
+                false_refusals += 1
+                print(f'TOLD TOO STILL AS IT IS: {where} at {calm_at:.2f} s')
+            runs += 1
+            # frozen at its value at 2 s (a bridge repeating it), 10 times too small
+            frozen, at_2 = r.copy(), int(np.searchsorted(time, 2.0))
+            frozen[at_2:] = r[at_2]
+            told_still['frozen'] += check_run(time, frozen, eps_r, *given)[7] is not None
+            told_still['x0.1'] += check_run(time, 0.1 * r, eps_r, *given)[7] is not None
+            for fault, factor in (('flipped', -1.0), ('deg/s', math.degrees(1.0)),
+                                  ('x10', 10.0)):
+                refused[fault] += check_run(time, factor * r, eps_r,
+                                            *given)[3] is not None
+            # the heading check: at the CG and at a camera's look-ahead
+            v_y = column('v_y') + rng.normal(0.0, V_Y_NOISE, time.size)
+            for distance in (0.0, DISTANCE):
+                lateral = (column('y_cg') + distance * column('eps_r')
+                           + rng.normal(0.0, LATERAL_NOISE, time.size))
+                low, at = heading_run(time, lateral, distance, eps_r, column('v_x'), v_y)
+                heading = min(heading, low)
+                if low < -0.5:
+                    print(f'heading below -0.5: {where}, d {distance:g} m: {low:.2f}')
+                if at is not None:
+                    false_refusals += 1
+                    print(f'HEADING TOLD AS IT IS: {where}, d {distance:g} m, at '
+                          f'{at:.2f} s (lowest {low:.2f})')
+                refused['relative yaw flipped'] += heading_run(
+                    time, lateral, distance, -eps_r, column('v_x'), v_y)[1] is not None
+                refused['lateral error flipped'] += heading_run(
+                    time, -lateral, distance, eps_r, column('v_x'), v_y)[1] is not None
     print(f'smallest over runs and steps of the larger correlation (as it is): {worst:.2f}')
     print(f'largest spread (as it is): {spread:.2f}; largest smaller of |gain| and '
           f'1 / |kinematic gain|: {gains:.2f} (the fault: 5)')
