@@ -196,10 +196,10 @@ class SpeedCheck:
         # (stamp [ns], odometer [m], distances [m], curvatures [1/m]) of the previews kept
         self._previews: deque[tuple[int, float, np.ndarray, np.ndarray]] = deque()
         self._judged_at: int | None = None
-        #: the speed's travel over the road's (the best shift) at the last comparison
-        #: judged (NaN: none)
+        #: the speed's travel over the road's (the best shift off it by ``limit`` or
+        #: more) at the last comparison judged (NaN: none)
         self.ratio = math.nan
-        #: the speed's travel's rms misfit over the best shift's at that comparison
+        #: the speed's misfit (the best shift within ``band``) over that shift's there
         self.contrast = math.nan
         #: seconds (of stamps) the speed has been out of scale, less those it fitted since
         self.off_for = 0.0
