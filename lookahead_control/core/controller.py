@@ -30,6 +30,7 @@ from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, Basel
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput
 from lookahead_control.core.heading_check import HeadingCheck
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.core.lane_scale_check import LaneScaleCheck
 from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
 from lookahead_control.core.oscillation_check import OscillationCheck
@@ -293,7 +294,9 @@ class SteeringController:
                                           'steering_oscillates': 0.0,
                                           'heading_disagrees': 0.0,
                                           'yaw_rate_still': 0.0,
-                                          'speed_out_of_scale': 0.0}
+                                          'speed_out_of_scale': 0.0,
+                                          'lateral_error_out_of_scale': 0.0,
+                                          'relative_yaw_out_of_scale': 0.0}
         #: the received curvature against the yaw measurements (``core/map_check.py``):
         #: seconds of answers with it over its threshold in ``curvature_disagrees``, and
         #: with it dropped (the law on its own estimate, ``lane_keeping.map_fallback``) in
@@ -334,6 +337,16 @@ class SteeringController:
         #: told since the caller last took it (1: none)
         self.speed_check = SpeedCheck()
         self.speed_seen = 1.0
+        #: the lateral error and the relative yaw against their kinematics
+        #: (``core/lane_scale_check.py``), given every sample received with an advancing
+        #: stamp (``_raw``), refused for its range or not: seconds in
+        #: ``lateral_error_out_of_scale`` and ``relative_yaw_out_of_scale`` (told, not
+        #: refused), and the scale of each when last told since the caller last took it
+        #: (0: none)
+        self.lane_scale = LaneScaleCheck()
+        self.lateral_scale_seen = 0.0
+        self.yaw_scale_seen = 0.0
+        self._raw: dict[str, Any] = {}
         self.yaw_fault: Optional[str] = None
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
@@ -490,6 +503,8 @@ class SteeringController:
         self.law.reset()
         self.map_check.reset()
         self.speed_check.reset()
+        self.lane_scale.reset()
+        self._raw.clear()
         self.clear_yaw_fault()
         self._law_stamp = None          # (the oscillation check restarts with it)
 
@@ -539,6 +554,7 @@ class SteeringController:
         # a clock reading 0 is not running yet (sim time before the first /clock): the
         # stamps cannot be judged against it
         clock = now_ns if now_ns is not None and now_ns > 0 else None
+        self._judge_scale(name, sample, clock)
         reason = check_sample(name, sample, self.safety) or check_stamp(
             name, sample.stamp_ns, current.stamp_ns if current else None, clock, self.safety)
         if reason is None and name == 'yaw' and self.yaw_fault is not None:
@@ -801,6 +817,56 @@ class SteeringController:
             # m/s, under every range limit, told only as a map disagreeing
             self.turning['speed_out_of_scale'] += max(0, sample.stamp_ns - last) * 1e-9
             self.speed_seen = check.scale
+
+    def _judge_scale(self, name: str, sample: Any, clock: Optional[int]) -> None:
+        """
+        Step the lane scale check with a sample received (told, not refused).
+
+        Its range is not checked: a lateral error in cm or a relative yaw in degrees is
+        mostly refused for it, and the samples taken alone are too few for evidence
+        (dev-sc48). Its stamp is, against the last one received of its input.
+
+        :param name: the input.
+        :param sample: the converted sample.
+        :param clock: the node's clock (None: none or not running).
+        """
+        last = self._raw.get(name)
+        if check_stamp(name, sample.stamp_ns, last.stamp_ns if last is not None else None,
+                       clock, self.safety) is not None:
+            return
+        self._raw[name] = sample
+        check = self.lane_scale
+        age = check.settings.max_age * 1e9
+
+        def near(other: str) -> Any:
+            taken = self._raw.get(other)
+            return (taken if taken is not None
+                    and abs(taken.stamp_ns - sample.stamp_ns) <= age else None)
+
+        velocity = near('velocity')
+        if name == 'lateral_error':
+            yaw, before = near('yaw'), check.lateral_stamp
+            if velocity is None or yaw is None:
+                check.reset_lateral()
+            elif check.step_lateral(sample.stamp_ns, sample.value, sample.distance,
+                                    yaw.relative_yaw, velocity.v_x, velocity.v_y):
+                # dev-sc48: a lateral error in cm put the default law 2-135 m off S-bends,
+                # the input refused for its range, no word of the unit
+                self.turning['lateral_error_out_of_scale'] += (
+                    max(0, sample.stamp_ns - before) * 1e-9 if before is not None else 0.0)
+                self.lateral_scale_seen = check.lateral_scale
+        elif name == 'yaw':
+            curvature, before = near('road_curvature'), check.yaw_stamp
+            rho = curvature.rho if curvature is not None else 0.0
+            if velocity is None:
+                check.reset_yaw()
+            elif check.step_yaw(sample.stamp_ns, sample.relative_yaw, sample.yaw_rate,
+                                velocity.v_x, rho):
+                # dev-sc48: a relative yaw in degrees put it 0.2-124 m off, told as a map
+                # disagreeing and a steering oscillation
+                self.turning['relative_yaw_out_of_scale'] += (
+                    max(0, sample.stamp_ns - before) * 1e-9 if before is not None else 0.0)
+                self.yaw_scale_seen = check.yaw_scale
 
     def _measurement_time(self, now_ns: int) -> int:
         """

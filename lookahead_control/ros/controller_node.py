@@ -922,6 +922,28 @@ class ControllerNode(LifecycleNode):
                            "preview's distances in other units, or a preview repeated "
                            'without moving or re-planned from the car at each message; '
                            'every law is tuned on the speed (docs/safety.md)')
+        lateral_scale, self.core.lateral_scale_seen = self.core.lateral_scale_seen, 0.0
+        if turning['lateral_error_out_of_scale'] > 0.0:
+            # dev-sc48: a lateral error in cm put the default law 2-135 m off S-bends, the
+            # input stale for its range, and the ERROR named the range, not the unit
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'lateral_error out of scale with the motion relative_yaw, v_x '
+                           f'and v_y predict for {turning["lateral_error_out_of_scale"]:.2f} '
+                           f's (it moves {lateral_scale:.3g} times as far): a lateral error '
+                           'in cm (100 times the metres) or mm (1000 times), or a relative '
+                           'yaw too small (radians read as degrees); every law steers on it '
+                           'as metres (docs/safety.md)')
+        yaw_scale, self.core.yaw_scale_seen = self.core.yaw_scale_seen, 0.0
+        if turning['relative_yaw_out_of_scale'] > 0.0:
+            # dev-sc48: a relative yaw in degrees put it 0.2-124 m off, told only as the map
+            # disagreeing with the yaw rate and a steering oscillation
+            level = max(level, DiagnosticStatus.WARN)
+            reasons.append(f'relative_yaw out of scale with the motion yaw_rate - v_x * '
+                           f'curvature predicts for '
+                           f'{turning["relative_yaw_out_of_scale"]:.2f} s (it moves '
+                           f'{yaw_scale:.3g} times as far): a relative yaw in degrees (57.3 '
+                           'times the radians) or mrad (1000 times), or a yaw rate too '
+                           'small; every law steers on it as radians (docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:

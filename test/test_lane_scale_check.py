@@ -1,0 +1,313 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The lateral error's and the relative yaw's scale against the car's kinematics."""
+
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+from lookahead_control.core.lane_scale_check import (LaneScaleCheck, LaneScaleParams,
+                                                     ScaleRegression)
+from lookahead_control.core.params import ParameterError
+from lookahead_control.core.samples import LateralErrorSample, VelocitySample, YawSample
+import numpy as np
+import pytest
+from sim_plant.closed_loop_sim import measure
+from test_map_fallback import _core_on_s_bend, _map, PERIOD
+
+RATE = 50.0                     # [Hz] the samples of the open-loop weave
+
+
+def _weave(v: float = 20.0, seconds: float = 12.0, distance: float = 0.0,
+           amplitude: float | None = None, rho: float = 1.0 / 400.0, seed: int = 1
+           ) -> dict[str, np.ndarray]:
+    """
+    Return a car weaving in its lane on an arc, as its sensors give it (default noise).
+
+    The relative yaw swings ``amplitude`` (None: 0.08 m/s over the speed, the CG +-3.8 cm)
+    with a period of 3 s, the lateral speed 0.02 m/s with 1.5 s; the yaw rate and the
+    lateral error follow from the lane's kinematics.
+
+    :return: ``time``, ``lateral``, ``eps_r``, ``r``, ``v_x``, ``v_y``, ``rho``.
+    """
+    rng = np.random.default_rng(seed)
+    amplitude = 0.08 / v if amplitude is None else amplitude
+    time = np.arange(0.0, seconds, 1.0 / RATE)
+    w = 2.0 * math.pi / 3.0
+    eps = amplitude * np.sin(w * time)
+    v_y = 0.02 * np.sin(2.0 * w * time)
+    y_cg = np.cumsum(v * np.sin(eps) + v_y * np.cos(eps)) / RATE
+    n = time.size
+    return {'time': time,
+            'lateral': y_cg + distance * eps + rng.normal(0.0, 0.03, n),
+            'eps_r': eps + rng.normal(0.0, 0.002, n),
+            'r': amplitude * w * np.cos(w * time) + v * rho + rng.normal(0.0, 0.002, n),
+            'v_x': v + rng.normal(0.0, 0.05, n), 'v_y': v_y + rng.normal(0.0, 0.02, n),
+            'rho': np.full(n, rho)}
+
+
+def _judge(signals: dict[str, np.ndarray], distance: float = 0.0,
+           check: Optional[LaneScaleCheck] = None) -> dict[str, object]:
+    """
+    Run the check along the signals.
+
+    :return: the first time each was told (None: never) and the last scales judged.
+    """
+    check = check or LaneScaleCheck()
+    told: dict[str, object] = {'lateral': None, 'yaw': None}
+    for k, t in enumerate(signals['time']):
+        stamp = int(round(float(t) * 1e9))
+        if check.step_yaw(stamp, float(signals['eps_r'][k]), float(signals['r'][k]),
+                          float(signals['v_x'][k]), float(signals['rho'][k])):
+            told['yaw'] = told['yaw'] if told['yaw'] is not None else float(t)
+        if check.step_lateral(stamp, float(signals['lateral'][k]), distance,
+                              float(signals['eps_r'][k]), float(signals['v_x'][k]),
+                              float(signals['v_y'][k])):
+            told['lateral'] = told['lateral'] if told['lateral'] is not None else float(t)
+    told['lateral_scale'], told['yaw_scale'] = check.lateral_scale, check.yaw_scale
+    return told
+
+
+@pytest.mark.parametrize('v', [10.0, 20.0, 37.0])
+@pytest.mark.parametrize('distance', [0.0, 20.0])
+def test_right_units_are_not_told_and_read_about_one(v, distance):
+    run = _judge(_weave(v, distance=distance), distance)
+    assert run['lateral'] is None and run['yaw'] is None, run
+    assert run['lateral_scale'] == pytest.approx(1.0, abs=0.3), run
+    assert run['yaw_scale'] == pytest.approx(1.0, abs=0.3), run
+
+
+@pytest.mark.parametrize('factor', [100.0, 1000.0])
+@pytest.mark.parametrize('distance', [0.0, 20.0])
+def test_a_lateral_error_in_cm_or_mm_is_told(factor, distance):
+    signals = _weave(distance=distance)
+    signals['lateral'] = factor * signals['lateral']
+    run = _judge(signals, distance)
+    assert run['lateral'] is not None and run['lateral'] < 4.0, run
+    assert run['lateral_scale'] == pytest.approx(factor, rel=0.2), run
+    assert run['yaw'] is None, run
+
+
+@pytest.mark.parametrize('factor', [math.degrees(1.0), 1000.0])
+def test_a_relative_yaw_in_degrees_or_mrad_is_told(factor):
+    signals = _weave()
+    signals['eps_r'] = factor * signals['eps_r']
+    run = _judge(signals)
+    assert run['yaw'] is not None and run['yaw'] < 4.0, run
+    assert run['yaw_scale'] == pytest.approx(factor, rel=0.2), run
+
+
+@pytest.mark.parametrize('factor', [0.5, 2.0, 3.0])
+def test_a_scale_within_the_limit_is_not_told(factor):
+    signals = _weave()
+    signals['lateral'] = factor * signals['lateral']
+    signals['eps_r'] = factor * signals['eps_r']
+    run = _judge(signals)
+    assert run['lateral'] is None and run['yaw'] is None, run
+
+
+def test_a_lateral_error_that_moves_less_is_not_judged():
+    # too small is no unit in use, and the CommonRoad car's kinematics read down to 0.26
+    signals = _weave()
+    signals['lateral'] = 0.01 * signals['lateral']
+    assert _judge(signals)['lateral'] is None
+
+
+def test_a_curve_without_a_map_is_no_relative_yaw_fault():
+    # the prediction moves by v_x rho, the relative yaw hardly: too small, not judged
+    signals = _weave(rho=0.0)
+    curve = np.clip((signals['time'] - 4.0) / 2.0, 0.0, 1.0) / 200.0
+    signals['r'] = signals['r'] + 20.0 * curve
+    assert _judge(signals)['yaw'] is None
+
+
+def test_a_car_that_hardly_moves_is_no_evidence():
+    # noise alone: the predictions under their excitation
+    run = _judge(_weave(amplitude=0.0))
+    assert run['lateral'] is None and run['yaw'] is None
+    assert math.isnan(run['lateral_scale']) and math.isnan(run['yaw_scale'])
+
+
+def test_noise_scaled_up_is_not_a_scale():
+    # the verdict needs the correlation too: a lateral error 100 times noisier than its
+    # sensor's is not one in cm
+    signals = _weave()
+    signals['lateral'] = signals['lateral'] + np.random.default_rng(3).normal(
+        0.0, 3.0, signals['time'].size)
+    assert _judge(signals)['lateral'] is None
+
+
+@pytest.mark.parametrize('bad', [math.nan, math.inf, 1.0e7])
+def test_a_bad_sample_restarts_without_crashing(bad):
+    stamp = int(12.0e9)
+    for which in ('lateral', 'eps_r'):
+        check = LaneScaleCheck()
+        signals = _weave()
+        signals[which] = (100.0 if which == 'lateral' else 57.3) * signals[which]
+        _judge(signals, check=check)
+        if which == 'lateral':
+            assert check.lateral_out_of_scale
+            assert check.step_lateral(stamp, bad, 0.0, 0.0, 20.0, 0.0) is False
+            assert not check.lateral_out_of_scale and check.lateral_stamp is None
+            assert math.isnan(check.lateral_scale)
+        else:
+            assert check.yaw_out_of_scale
+            assert check.step_yaw(stamp, 0.0, bad, 20.0, 0.0) is False
+            assert not check.yaw_out_of_scale and check.yaw_stamp is None
+            assert math.isnan(check.yaw_scale)
+
+
+@pytest.mark.parametrize('case', ['gap', 'back', 'repeat', 'slow'])
+def test_gaps_stamps_going_back_and_a_slow_car_restart(case):
+    check = LaneScaleCheck()
+    signals = _weave()
+    signals['lateral'] = 100.0 * signals['lateral']
+    _judge(signals, check=check)
+    assert check.lateral_out_of_scale
+    last = check.lateral_stamp
+    assert last is not None
+    stamp = {'gap': last + int(1.5e9), 'back': last - int(0.1e9), 'repeat': last,
+             'slow': last + int(0.02e9)}[case]
+    v_x = 2.0 if case == 'slow' else 20.0
+    assert check.step_lateral(stamp, 1.0, 0.0, 0.0, v_x, 0.1) is False
+    assert check.lateral_stamp is None and check.lateral_for == 0.0
+
+
+def test_a_restarted_check_judges_afresh():
+    check = LaneScaleCheck()
+    signals = _weave()
+    signals['lateral'] = 100.0 * signals['lateral']
+    _judge(signals, check=check)
+    check.reset()
+    assert _judge(_weave(seed=2), check=check)['lateral'] is None
+
+
+def test_the_regression_reads_a_known_scale():
+    regression = ScaleRegression(0.2, 2.0, 1.0)
+    rng = np.random.default_rng(4)
+    for k in range(600):
+        p = math.sin(2.0 * math.pi * k / 150.0)
+        regression.step(0.02, 7.0 * p + rng.normal(0.0, 0.01), p)
+    assert regression.judge(0.01, 0.8) == pytest.approx(7.0, rel=0.05)
+    assert math.isnan(regression.judge(10.0, 0.8))         # under the excitation
+    regression.reset()
+    assert math.isnan(regression.judge(0.0, 0.0))
+
+
+@pytest.mark.parametrize('field, value', [
+    ('lag', -0.1), ('washout', 0.05), ('memory', 0.0), ('lateral_excitation', 0.0),
+    ('yaw_excitation', 2.0), ('correlation', 1.5), ('scale_limit', 1.0), ('hold', -1.0),
+    ('min_speed', math.nan), ('max_age', 6.0)])
+def test_settings_out_of_range_are_refused_by_name(field, value):
+    with pytest.raises(ParameterError, match=f'lane_scale_check.{field}'):
+        LaneScaleParams(**{field: value})
+    with pytest.raises(ParameterError, match='lane_scale_check.washout = 0.3 s must be '
+                                             'above lane_scale_check.lag = 0.5 s'):
+        LaneScaleParams(lag=0.5, washout=0.3)
+
+
+def _core(law: str, which: str, factor: float, speed: float = 30.0,
+          acceleration: float = 1.0) -> dict[str, float]:
+    """
+    Run the controller core and the linear plant on the S-bend, one input x ``factor`` from 2 s.
+
+    :param which: ``lateral`` or ``eps_r``.
+    :return: the seconds told of each, their scales seen, and the peak CG error [m].
+    """
+    scenario, core, stepper, substeps, n_steps, rng = _core_on_s_bend(
+        law, speed, acceleration, 1)
+    x = (0.0,) * 6
+    peak = 0.0
+    for k in range(n_steps):
+        t = k * PERIOD
+        stamp = int(round(t * 1e9))
+        inputs = measure(x, t, scenario, speed, 0.0)
+        scale = factor if t >= 2.0 else 1.0
+        eps_r, lateral = x[2] + rng.normal(0.0, 0.002), x[1] + rng.normal(0.0, 0.03)
+        core.accept('yaw', YawSample(stamp, eps_r * (scale if which == 'eps_r' else 1.0),
+                                     x[4] + rng.normal(0.0, 0.002),
+                                     float(inputs.a_x) - x[3] * x[4]), stamp)
+        core.accept('velocity', VelocitySample(stamp, float(inputs.v_x), x[3]), stamp)
+        core.accept('road_curvature', _map(stamp, scenario, x[0]), stamp)
+        core.accept('lateral_error', LateralErrorSample(
+            stamp, 0.0, lateral * (scale if which == 'lateral' else 1.0)), stamp)
+        command = core.compute(stamp)
+        assert math.isfinite(command.steering)
+        peak = max(peak, abs(x[1]))
+        x = stepper(x, t, 0.002, substeps, command.steering)
+    return {'lateral': core.turning['lateral_error_out_of_scale'],
+            'yaw': core.turning['relative_yaw_out_of_scale'],
+            'lateral_seen': core.lateral_scale_seen, 'yaw_seen': core.yaw_scale_seen,
+            'peak': peak}
+
+
+@pytest.mark.parametrize('law', ['cg_compensated', 'paper'])
+def test_the_core_tells_a_lateral_error_in_cm(law):
+    # before: 2.7-96 m off the S-bend at 30 m/s, the lateral error refused for its range
+    # (stale most of the time) and no word of the unit
+    run = _core(law, 'lateral', 100.0)
+    assert run['lateral'] > 3.0 and run['lateral_seen'] == pytest.approx(100.0, rel=0.2), run
+    assert run['yaw'] == 0.0, run
+
+
+@pytest.mark.parametrize('law', ['cg_compensated', 'paper'])
+def test_the_core_tells_a_relative_yaw_in_degrees(law):
+    # before: 0.8-1.6 m off the S-bend at 30 m/s, told only as a map disagreeing with the
+    # yaw rate (and a steering oscillation)
+    run = _core(law, 'eps_r', math.degrees(1.0))
+    assert run['yaw'] > 3.0 and run['yaw_seen'] == pytest.approx(57.3, rel=0.2), run
+
+
+@pytest.mark.parametrize('law', ['cg_compensated', 'paper'])
+@pytest.mark.parametrize('acceleration', [1.0, 3.0])
+def test_the_core_does_not_tell_right_units(law, acceleration):
+    run = _core(law, 'lateral', 1.0, acceleration=acceleration)
+    assert run['lateral'] == 0.0 and run['yaw'] == 0.0, run
+    assert run['lateral_seen'] == 0.0 and run['yaw_seen'] == 0.0, run
+
+
+def test_a_time_jump_restarts_the_check():
+    scenario, core, _, _, _, _ = _core_on_s_bend('cg_compensated', 30.0, 1.0, 1)
+    for k in range(300):
+        stamp = int(round((10.0 + k * PERIOD) * 1e9))
+        core.accept('velocity', VelocitySample(stamp, 30.0, 0.0), stamp)
+        core.accept('yaw', YawSample(stamp, 0.002 * math.sin(k / 20.0), 0.0, 0.0), stamp)
+    assert core.lane_scale.yaw_stamp is not None
+    core.accept('velocity', VelocitySample(int(1e9), 30.0, 0.0), int(1e9))     # 12 s back
+    assert core.lane_scale.yaw_stamp is None and core.time_jumps == 1
+
+
+def test_the_node_warns_of_a_lane_input_out_of_scale_once(active_controller):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    node = active_controller
+    assert 'out of scale' not in node.diagnostics().message
+    node.core.turning['lateral_error_out_of_scale'] += 1.5
+    node.core.lateral_scale_seen = 101.0
+    status = node.diagnostics()
+    assert status.level == DiagnosticStatus.WARN
+    assert ('lateral_error out of scale with the motion relative_yaw, v_x and v_y predict '
+            'for 1.50 s (it moves 101 times as far): a lateral error in cm' in status.message)
+    assert 'relative_yaw out of scale' not in status.message
+    assert 'out of scale' not in node.diagnostics().message         # told once
+    node.core.turning['relative_yaw_out_of_scale'] += 1.2
+    node.core.yaw_scale_seen = 57.6
+    status = node.diagnostics()
+    assert ('relative_yaw out of scale with the motion yaw_rate - v_x * curvature predicts '
+            'for 1.20 s (it moves 57.6 times as far): a relative yaw in degrees'
+            in status.message)
+    values = {v.key: v.value for v in status.values}
+    assert values['relative_yaw_out_of_scale [s]'] == '1.200'
+    assert values['lateral_error_out_of_scale [s]'] == '1.500'
