@@ -22,13 +22,13 @@ the CommonRoad multi-body plant with delay and noise; noise seed 11), run as ``c
 runs them; then :class:`LaneScaleCheck` on each run's lateral error (at the CG and 20 m
 ahead), relative yaw, yaw rate, speeds (the default sensor noise, seed 5) and curvature
 at the CG (a noise of 1e-4 1/m), once as they are and once each with the lateral error in
-cm (x 100) and the relative yaw in degrees (x 57.3) (the loop itself is right: a check of
-the verdict, not of a car on a wrong unit; such a car moves more, and gives more
-evidence). Prints each run with when each fault was told, each run with a scale of 2 or
-more read as it is, each run told as it is (none may be), the largest scales read as
-they are (the relative yaw's, the lateral error's and, not judged, the largest inverse of
-the lateral error's), and how many runs each fault was told in. About 2 minutes on one
-core.
+cm (x 100), the relative yaw in degrees (x 57.3) and both the relative yaw and the yaw
+rate in degrees (the loop itself is right: a check of the verdict, not of a car on a
+wrong unit; such a car moves more, and gives more evidence). Prints each run with when
+each fault was told, each run with a scale of 2 or more read as it is, each run told as
+it is (none may be), the largest scales read as they are (the relative yaw's, the
+lateral error's and the largest inverse of the lateral error's), and how many runs each
+fault was told in (by either check). About 2 minutes on one core.
 """
 
 from __future__ import annotations
@@ -49,7 +49,9 @@ V_Y_NOISE = 0.02                # [m/s] ... of v_y
 SPEED_NOISE = 0.05              # [m/s] ... of v_x
 MAP_NOISE = 1.0e-4              # [1/m] the curvature's
 DISTANCES = (0.0, 20.0)         # [m] the lateral error's: at the CG, a camera's look-ahead
-FAULTS = {'lateral cm': ('lateral', 100.0), 'relative yaw deg': ('eps_r', math.degrees(1.0))}
+DEGREES = math.degrees(1.0)
+FAULTS = {'lateral cm': {'lateral': 100.0}, 'relative yaw deg': {'eps_r': DEGREES},
+          'yaw message deg': {'eps_r': DEGREES, 'r': DEGREES}}
 
 
 def check_run(time: np.ndarray, inputs: dict[str, np.ndarray], distance: float
@@ -128,9 +130,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     print(f'TOLD AS IT IS: {where}: lateral error at {lateral_at}, relative '
                           f'yaw at {yaw_at}')
                 faults = []
-                for fault, (channel, factor) in FAULTS.items():
-                    at = check_run(time, dict(inputs, **{channel: factor * inputs[channel]}),
-                                   distance)[4 if channel == 'lateral' else 5]
+                for fault, factors in FAULTS.items():
+                    wrong = dict(inputs, **{k: f * inputs[k] for k, f in factors.items()})
+                    ats = [x for x in check_run(time, wrong, distance)[4:] if x is not None]
+                    at = min(ats) if ats else None      # either told
                     told[fault] += at is not None
                     faults.append(f'{fault} ' + (f'{at:.1f} s' if at is not None
                                                  else 'not told'))
@@ -138,9 +141,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     hold = LaneScaleCheck().settings.hold
     print(f'runs: {runs}; the longest out of scale as it is: {longest:.2f} s (told: '
           f'{hold:g} s)')
+    settings = LaneScaleCheck().settings
     print(f'largest scales as they are: relative yaw {highs[0]:.2f}, lateral error '
-          f'{highs[1]:.2f}, its inverse {highs[2]:.2f} (told: '
-          f'{LaneScaleCheck().settings.scale_limit:g})')
+          f'{highs[1]:.2f}, its inverse {highs[2]:.2f} (told: {settings.scale_limit:g}, '
+          f'the inverse {1.0 / settings.small_limit:g})')
     print(f'told as it is: {false_tells}; told: ' + ', '.join(
         f'{fault} {count} of {runs}' for fault, count in told.items()))
     return 1 if false_tells else 0

@@ -503,8 +503,7 @@ class SteeringController:
         self.law.reset()
         self.map_check.reset()
         self.speed_check.reset()
-        self.lane_scale.reset()
-        self._raw.clear()
+        self._raw.clear()               # (the lane scale check restarts with the yaw fault)
         self.clear_yaw_fault()
         self._law_stamp = None          # (the oscillation check restarts with it)
 
@@ -743,11 +742,13 @@ class SteeringController:
         return mean if self.yaw_fault is not None and math.isfinite(mean) else None
 
     def clear_yaw_fault(self) -> None:
-        """Forget a yaw input refused by its checks (the node's activation: the bridge fixed)."""
+        """Forget a yaw input refused by its checks, and the inputs' scales (the bridge fixed)."""
         if self.yaw_fault is not None and self.refusals.get('yaw') == self.yaw_fault:
             del self.refusals['yaw']
         self.yaw_check.reset()
         self.heading_check.reset()
+        # dev-probe107: a lateral error in cm told on and on after the node's activation
+        self.lane_scale.reset()
         self.yaw_fault = None
 
     def _judge_yaw_input(self, dt: float, state: LateralState, sent: float) -> None:

@@ -26,27 +26,41 @@ Both have kinematics that need neither the road nor the tyres:
 
 - the CG's offset moves as ``y_cg' = v_x sin eps_r + v_y cos eps_r``, and a lateral
   error measured ``d`` ahead on the tangent is ``y_cg + d eps_r``: the lateral error is
-  predicted, up to a constant, by ``q = int (v_x sin eps_r + v_y cos eps_r) dt + d
-  eps_r`` (the heading check's prediction, ``core/heading_check.py``);
+  predicted, up to a constant, by ``q = int (v_x eps_r + v_y) dt + d eps_r`` (the heading
+  check's prediction, ``core/heading_check.py``, linear in ``eps_r``: 1.5 % off at 0.3
+  rad, and a relative yaw in degrees keeps its scale there where the sine of 57 times it
+  made noise of it; dev-probe107);
 - the relative yaw moves as ``eps_r' = r - v_x rho``: it is predicted, up to a constant,
-  by ``int (r - v_x rho) dt``.
+  by ``int (r - v_x rho) dt`` with the curvature received (0 without), and without the
+  map by ``int (r - r_slow) dt``, ``r_slow`` the yaw rate through a lag of ``turn_lag``
+  (the road turns the car slowly, the steering fast; dev-probe107: without a map the
+  first alone told a relative yaw in degrees 17-19 s late on S-bends, or never).
 
 Each measured signal and its prediction go through the same band pass (a lag of ``lag``
 minus one of ``washout``: noise, biases and the integrals' drift drop out) and are
 compared over ``memory`` by centred moments: where they move together (correlation at or
 above ``correlation``) the ratio of their standard deviations is the measured signal's
-scale, about 1. Judged only while the prediction varies by its ``excitation`` or more, at
-or above ``min_speed``; a scale at or above ``scale_limit`` for ``hold`` seconds is out of
-scale. Told, never refused: a refusal takes the safe behaviour, which leaves a curve as
-surely.
+scale, about 1. Noise cannot make a large scale there: ``correlation x ratio`` is the
+regression gain, so a reading of 5 at 0.8 is a gain of 4. Judged only while the
+prediction varies by its ``excitation`` or more, at or above ``min_speed``; a scale at or
+above ``scale_limit`` (the relative yaw's: the larger of its two readings) or, for the
+lateral error, at or below ``small_limit``, for ``hold`` seconds of readings is out of
+scale, and told at each reading out of scale from then on (none without evidence:
+dev-probe107 found a verdict told on and on after the bridge was fixed, on a straight
+where nothing moved). Told, never refused: a refusal takes the safe behaviour, which
+leaves a curve as surely.
 
 The check is given every sample received with a stamp that advances, refused for its
 range or not (a unit error is mostly refused for range: the samples taken alone are too
 few for evidence, dev-sc48), and with the other inputs received within ``max_age`` of
-it. Only too large is judged: a lateral error too small is no unit in use, and a
-relative yaw that moves less than its prediction is also a curve without a map (the
-prediction moves by ``v_x rho``). A relative yaw too small (radians read as degrees)
-makes the lateral error's read too large: the WARN names it.
+it. A relative yaw that moves less than predicted is not judged (the road's turn in a
+curve without a map, or with the map lagging, moves the prediction), nor a lateral error
+between ``small_limit`` and 1 (the CommonRoad car's kinematics read down to 0.26 in the
+league's runs). A lateral error moving much less than predicted is a relative yaw in
+degrees (with the yaw rate in deg/s too, the relative yaw's own reading is 1:
+dev-probe107), or a lateral speed too large; one moving much more, a lateral error in cm
+or mm, a relative yaw too small, or a lane reference jumping between lanes: the WARN
+names them.
 """
 
 from __future__ import annotations
@@ -61,9 +75,11 @@ from lookahead_control.core.params import check_range, ParameterError
 
 #: values beyond it are no evidence (a restart): the moments stay finite
 HUGE = 1.0e6
-#: the scale told is the median of this many last judged (one reading over ``memory``
-#: swings with the noise and the motion: 0.73-1.28 (5-95 %) for a weave of the CG by 3.8
-#: cm in 3 s at 37 m/s, the sensors' default noise)
+#: the scale told is the median of at most this many last readings out of scale (one
+#: reading over ``memory`` swings with the noise and the motion: 0.73-1.28 (5-95 %) for a
+#: weave of the CG by 3.8 cm in 3 s at 37 m/s, the sensors' default noise); the readings
+#: restart where the scale crosses a limit (dev-probe107: the median of 500 readings told
+#: a lateral error in cm as 1.02 for 4 s after a long drive with the right unit)
 SCALES = 500
 
 
@@ -75,12 +91,14 @@ class LaneScaleParams:
     :param lag: the band pass's fast lag (noise) [s].
     :param washout: the band pass's slow lag, subtracted (biases, drift) [s].
     :param memory: time constant of the moments [s].
+    :param turn_lag: the lag of the yaw rate taken for the road's turn without a map [s].
     :param lateral_excitation: the standard deviation the lateral error's band-passed
         prediction needs before it is judged [m].
     :param yaw_excitation: the same for the relative yaw's [rad].
     :param correlation: the correlation at or above which the two move together [-].
-    :param scale_limit: a ratio of the standard deviations at or above it (or at or below
-        its inverse) is out of scale [-].
+    :param scale_limit: a ratio of the standard deviations at or above it is out of scale
+        [-].
+    :param small_limit: a ratio of the lateral error's at or below it is out of scale [-].
     :param hold: out of scale this long is told [s].
     :param min_speed: below it the check restarts [m/s].
     :param max_age: the other inputs within this of the sample judged, else a restart [s].
@@ -89,10 +107,12 @@ class LaneScaleParams:
     lag: float = 0.2
     washout: float = 2.0
     memory: float = 1.0
+    turn_lag: float = 1.0
     lateral_excitation: float = 0.01
     yaw_excitation: float = 0.0005
     correlation: float = 0.8
     scale_limit: float = 5.0
+    small_limit: float = 0.1
     hold: float = 1.0
     min_speed: float = 5.0
     max_age: float = 0.5
@@ -102,12 +122,14 @@ class LaneScaleParams:
         check_range('lane_scale_check.lag', self.lag, 0.0, 5.0, unit='s')
         check_range('lane_scale_check.washout', self.washout, 0.1, 60.0, unit='s')
         check_range('lane_scale_check.memory', self.memory, 0.05, 60.0, unit='s')
+        check_range('lane_scale_check.turn_lag', self.turn_lag, 0.05, 60.0, unit='s')
         check_range('lane_scale_check.lateral_excitation', self.lateral_excitation, 1.0e-4,
                     10.0, unit='m')
         check_range('lane_scale_check.yaw_excitation', self.yaw_excitation, 1.0e-5, 1.0,
                     unit='rad')
         check_range('lane_scale_check.correlation', self.correlation, 0.0, 1.0)
         check_range('lane_scale_check.scale_limit', self.scale_limit, 1.5, 1000.0)
+        check_range('lane_scale_check.small_limit', self.small_limit, 0.0, 0.67)
         check_range('lane_scale_check.hold', self.hold, 0.0, 60.0, unit='s')
         check_range('lane_scale_check.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
         check_range('lane_scale_check.max_age', self.max_age, 0.0, 5.0, unit='s')
@@ -183,6 +205,53 @@ class ScaleRegression:
         return math.sqrt(self._var[0] / self._var[1])
 
 
+class _Verdict:
+    """One signal's readings: how long out of scale, and the scale of the stretch."""
+
+    def __init__(self) -> None:
+        """Start without readings."""
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the readings."""
+        self.stamp: Optional[int] = None
+        self.integral = 0.0             # the prediction's integral
+        self.free = 0.0                 # the relative yaw's without the map
+        self.slow = math.nan            # the yaw rate through ``turn_lag``
+        self.reading = math.nan
+        self.out_for = 0.0
+        self.side = 0                   # of the readings kept: -1 small, 0 in, +1 large
+        self.readings: deque[float] = deque(maxlen=SCALES)
+
+    @property
+    def scale(self) -> float:
+        """Return the median of the stretch's readings (NaN: none)."""
+        return statistics.median(self.readings) if self.readings else math.nan
+
+    def take(self, dt: float, reading: float, large: float, small: float,
+             hold: float) -> bool:
+        """
+        Take one step's reading.
+
+        :param dt: the step's time [s].
+        :param reading: the scale read (NaN: no evidence).
+        :param large: at or above it out of scale.
+        :param small: at or below it out of scale.
+        :param hold: out of scale this long is told [s].
+        :return: whether this reading is told out of scale.
+        """
+        self.reading = reading
+        if math.isnan(reading):         # no evidence either way: the time out stays
+            return False
+        side = 1 if reading >= large else -1 if reading <= small else 0
+        if side != self.side:
+            self.readings.clear()
+            self.side = side
+        self.readings.append(reading)
+        self.out_for = self.out_for + dt if side else 0.0
+        return self.out_for > 0.0 and self.out_for >= hold
+
+
 class LaneScaleCheck:
     """The lateral error and the relative yaw against their kinematic predictions: scale."""
 
@@ -196,59 +265,69 @@ class LaneScaleCheck:
         s = self.settings
         self._lateral = ScaleRegression(s.lag, s.washout, s.memory)
         self._yaw = ScaleRegression(s.lag, s.washout, s.memory)
+        self._free = ScaleRegression(s.lag, s.washout, s.memory)    # without the map
+        self._lateral_verdict = _Verdict()
+        self._yaw_verdict = _Verdict()
         self.reset()
 
     def reset(self) -> None:
-        """Restart both (a time jump): statistics from the next samples."""
+        """Restart both (a time jump, the node activated): statistics from the next ones."""
         self.reset_lateral()
         self.reset_yaw()
 
     def reset_lateral(self) -> None:
         """Restart the lateral error's statistics."""
         self._lateral.reset()
-        #: the stamp of the last lateral error stepped [ns] (None: restarted)
-        self.lateral_stamp: Optional[int] = None
-        self._lateral_integral = 0.0
-        self._lateral_scales: deque[float] = deque(maxlen=SCALES)
-        #: the lateral error's scale read at the last step (NaN: no evidence there)
-        self.lateral_reading = math.nan
-        #: seconds it has been out of scale
-        self.lateral_for = 0.0
+        self._lateral_verdict.reset()
 
     def reset_yaw(self) -> None:
         """Restart the relative yaw's statistics."""
         self._yaw.reset()
-        #: the stamp of the last relative yaw stepped [ns] (None: restarted)
-        self.yaw_stamp: Optional[int] = None
-        self._yaw_integral = 0.0
-        self._yaw_scales: deque[float] = deque(maxlen=SCALES)
-        #: the relative yaw's scale read at the last step (NaN: no evidence there)
-        self.yaw_reading = math.nan
-        #: seconds it has been out of scale
-        self.yaw_for = 0.0
+        self._free.reset()
+        self._yaw_verdict.reset()
+
+    @property
+    def lateral_stamp(self) -> Optional[int]:
+        """Return the stamp of the last lateral error stepped [ns] (None: restarted)."""
+        return self._lateral_verdict.stamp
+
+    @property
+    def yaw_stamp(self) -> Optional[int]:
+        """Return the stamp of the last relative yaw stepped [ns] (None: restarted)."""
+        return self._yaw_verdict.stamp
+
+    @property
+    def lateral_reading(self) -> float:
+        """Return the lateral error's scale read at the last step (NaN: no evidence)."""
+        return self._lateral_verdict.reading
+
+    @property
+    def yaw_reading(self) -> float:
+        """Return the relative yaw's scale read at the last step (NaN: no evidence)."""
+        return self._yaw_verdict.reading
 
     @property
     def lateral_scale(self) -> float:
-        """Return the lateral error's scale, the median of the last judged (NaN: none)."""
-        return statistics.median(self._lateral_scales) if self._lateral_scales else math.nan
+        """Return the lateral error's scale: the median of its stretch (NaN: none)."""
+        return self._lateral_verdict.scale
 
     @property
     def yaw_scale(self) -> float:
-        """Return the relative yaw's scale, the median of the last judged (NaN: none)."""
-        return statistics.median(self._yaw_scales) if self._yaw_scales else math.nan
+        """Return the relative yaw's scale: the median of its stretch (NaN: none)."""
+        return self._yaw_verdict.scale
 
     @property
-    def lateral_out_of_scale(self) -> bool:
-        """Return True once the lateral error has been out of scale for ``hold``."""
-        return self.lateral_for > 0.0 and self.lateral_for >= self.settings.hold
+    def lateral_for(self) -> float:
+        """Return the seconds of readings the lateral error has been out of scale."""
+        return self._lateral_verdict.out_for
 
     @property
-    def yaw_out_of_scale(self) -> bool:
-        """Return True once the relative yaw has been out of scale for ``hold``."""
-        return self.yaw_for > 0.0 and self.yaw_for >= self.settings.hold
+    def yaw_for(self) -> float:
+        """Return the seconds of readings the relative yaw has been out of scale."""
+        return self._yaw_verdict.out_for
 
     def _dt(self, last: Optional[int], stamp_ns: int, *values: float) -> float:
-        """Return the step's time (0: none, NaN: a restart)."""
+        """Return the step's time (0: the first, NaN: a restart)."""
         s = self.settings
         if not all(math.isfinite(x) and abs(x) <= HUGE for x in values):
             return math.nan
@@ -270,30 +349,20 @@ class LaneScaleCheck:
         :param eps_r: the relative yaw received [rad].
         :param v_x: speed [m/s].
         :param v_y: lateral speed [m/s].
-        :return: :attr:`lateral_out_of_scale`.
+        :return: whether it is told out of scale at this sample.
         """
-        s = self.settings
-        dt = self._dt(self.lateral_stamp, stamp_ns, v_x, lateral_error, distance, eps_r,
-                      v_y)
+        s, verdict = self.settings, self._lateral_verdict
+        dt = self._dt(verdict.stamp, stamp_ns, v_x, lateral_error, distance, eps_r, v_y)
         if math.isnan(dt):
             self.reset_lateral()
             return False
-        self.lateral_stamp = stamp_ns
-        if dt > 0.0:
-            self._lateral_integral += (v_x * math.sin(eps_r) + v_y * math.cos(eps_r)) * dt
-        self._lateral.step(dt, lateral_error, self._lateral_integral + distance * eps_r)
+        verdict.stamp = stamp_ns
+        verdict.integral += (v_x * eps_r + v_y) * dt
+        self._lateral.step(dt, lateral_error, verdict.integral + distance * eps_r)
         if dt == 0.0:
-            return self.lateral_out_of_scale
-        scale = self.lateral_reading = self._lateral.judge(s.lateral_excitation,
-                                                           s.correlation)
-        if math.isnan(scale):       # no evidence either way: a scale already seen stays
-            return self.lateral_out_of_scale
-        self._lateral_scales.append(scale)
-        # too small is not judged: on the CommonRoad car the kinematics hold less well,
-        # and a law regulating the point measured keeps its motion small (the league's
-        # runs as they are: down to 0.26, bench.lane_scale_check)
-        self.lateral_for = self.lateral_for + dt if scale >= s.scale_limit else 0.0
-        return self.lateral_out_of_scale
+            return False
+        return verdict.take(dt, self._lateral.judge(s.lateral_excitation, s.correlation),
+                            s.scale_limit, s.small_limit, s.hold)
 
     def step_yaw(self, stamp_ns: int, eps_r: float, r: float, v_x: float,
                  rho: float) -> bool:
@@ -305,23 +374,25 @@ class LaneScaleCheck:
         :param r: the yaw rate received with it [rad/s].
         :param v_x: speed [m/s].
         :param rho: the road's curvature at the CG (0: none received) [1/m].
-        :return: :attr:`yaw_out_of_scale`.
+        :return: whether it is told out of scale at this sample.
         """
-        s = self.settings
-        dt = self._dt(self.yaw_stamp, stamp_ns, v_x, eps_r, r, rho)
+        s, verdict = self.settings, self._yaw_verdict
+        dt = self._dt(verdict.stamp, stamp_ns, v_x, eps_r, r, rho)
         if math.isnan(dt):
             self.reset_yaw()
             return False
-        self.yaw_stamp = stamp_ns
-        self._yaw_integral += (r - v_x * rho) * dt
-        self._yaw.step(dt, eps_r, self._yaw_integral)
+        verdict.stamp = stamp_ns
+        verdict.slow = r if math.isnan(verdict.slow) else (
+            verdict.slow + min(1.0, dt / s.turn_lag) * (r - verdict.slow))
+        verdict.integral += (r - v_x * rho) * dt
+        verdict.free += (r - verdict.slow) * dt
+        self._yaw.step(dt, eps_r, verdict.integral)
+        self._free.step(dt, eps_r, verdict.free)
         if dt == 0.0:
-            return self.yaw_out_of_scale
-        # too small is not judged: a curve without a map moves the prediction by ``v_x
-        # rho`` and the relative yaw hardly
-        scale = self.yaw_reading = self._yaw.judge(s.yaw_excitation, s.correlation)
-        if math.isnan(scale):
-            return self.yaw_out_of_scale
-        self._yaw_scales.append(scale)
-        self.yaw_for = self.yaw_for + dt if scale >= s.scale_limit else 0.0
-        return self.yaw_out_of_scale
+            return False
+        readings = [x for x in (self._yaw.judge(s.yaw_excitation, s.correlation),
+                                self._free.judge(s.yaw_excitation, s.correlation))
+                    if not math.isnan(x)]
+        # too small is not judged (the road's turn moves the predictions)
+        return verdict.take(dt, max(readings) if readings else math.nan, s.scale_limit,
+                            0.0, s.hold)

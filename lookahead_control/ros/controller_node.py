@@ -927,12 +927,21 @@ class ControllerNode(LifecycleNode):
             # dev-sc48: a lateral error in cm put the default law 2-135 m off S-bends, the
             # input stale for its range, and the ERROR named the range, not the unit
             level = max(level, DiagnosticStatus.WARN)
+            if lateral_scale < 1.0:
+                # dev-probe107: the whole yaw message in degrees reads 1 for the relative
+                # yaw's own check, and the yaw-rate check (the car 65-195 m off)
+                how = (f'it moves {1.0 / lateral_scale:.3g} times less): a relative yaw in '
+                       'degrees (57.3 times the radians; with the yaw rate in deg/s too, '
+                       'neither check of the yaw sees it), or v_y in other units')
+            else:
+                how = (f'it moves {lateral_scale:.3g} times as far): a lateral error in cm '
+                       '(100 times the metres) or mm (1000 times), a relative yaw too small '
+                       '(radians read as degrees), or a lane reference jumping between '
+                       'lanes')
             reasons.append(f'lateral_error out of scale with the motion relative_yaw, v_x '
                            f'and v_y predict for {turning["lateral_error_out_of_scale"]:.2f} '
-                           f's (it moves {lateral_scale:.3g} times as far): a lateral error '
-                           'in cm (100 times the metres) or mm (1000 times), or a relative '
-                           'yaw too small (radians read as degrees); every law steers on it '
-                           'as metres (docs/safety.md)')
+                           f's ({how}); every law steers on them as metres and radians '
+                           '(docs/safety.md)')
         yaw_scale, self.core.yaw_scale_seen = self.core.yaw_scale_seen, 0.0
         if turning['relative_yaw_out_of_scale'] > 0.0:
             # dev-sc48: a relative yaw in degrees put it 0.2-124 m off, told only as the map
@@ -942,8 +951,9 @@ class ControllerNode(LifecycleNode):
                            f'curvature predicts for '
                            f'{turning["relative_yaw_out_of_scale"]:.2f} s (it moves '
                            f'{yaw_scale:.3g} times as far): a relative yaw in degrees (57.3 '
-                           'times the radians) or mrad (1000 times), or a yaw rate too '
-                           'small; every law steers on it as radians (docs/safety.md)')
+                           'times the radians; with the yaw rate in deg/s too, about 5-10 '
+                           'times) or mrad (1000 times), or a yaw rate too small; every law '
+                           'steers on it as radians (docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
