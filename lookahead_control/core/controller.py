@@ -858,7 +858,7 @@ class SteeringController:
                 self.lateral_scale_seen = check.lateral_scale
         elif name == 'yaw':
             curvature, before = near('road_curvature'), check.yaw_stamp
-            rho = curvature.rho if curvature is not None else 0.0
+            rho = curvature.rho if curvature is not None else None
             if velocity is None:
                 check.reset_yaw()
             elif check.step_yaw(sample.stamp_ns, sample.relative_yaw, sample.yaw_rate,

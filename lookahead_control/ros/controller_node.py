@@ -932,12 +932,12 @@ class ControllerNode(LifecycleNode):
                 # yaw's own check, and the yaw-rate check (the car 65-195 m off)
                 how = (f'it moves {1.0 / lateral_scale:.3g} times less): a relative yaw in '
                        'degrees (57.3 times the radians; with the yaw rate in deg/s too, '
-                       'neither check of the yaw sees it), or v_y in other units')
+                       'neither check of the yaw sees it), or v_y in other units or biased')
             else:
                 how = (f'it moves {lateral_scale:.3g} times as far): a lateral error in cm '
                        '(100 times the metres) or mm (1000 times), a relative yaw too small '
-                       '(radians read as degrees), or a lane reference jumping between '
-                       'lanes')
+                       '(radians read as degrees), a lane reference jumping between lanes, '
+                       'or an offset measured to the curved lane far ahead')
             reasons.append(f'lateral_error out of scale with the motion relative_yaw, v_x '
                            f'and v_y predict for {turning["lateral_error_out_of_scale"]:.2f} '
                            f's ({how}); every law steers on them as metres and radians '
@@ -948,7 +948,8 @@ class ControllerNode(LifecycleNode):
             # disagreeing with the yaw rate and a steering oscillation
             level = max(level, DiagnosticStatus.WARN)
             reasons.append(f'relative_yaw out of scale with the motion yaw_rate - v_x * '
-                           f'curvature predicts for '
+                           f'curvature (without a map: the yaw rate less its slow part) '
+                           f'predicts for '
                            f'{turning["relative_yaw_out_of_scale"]:.2f} s (it moves '
                            f'{yaw_scale:.3g} times as far): a relative yaw in degrees (57.3 '
                            'times the radians; with the yaw rate in deg/s too, about 5-10 '
