@@ -20,7 +20,7 @@ import math
 from typing import Optional
 
 from lookahead_control.core.lane_scale_check import (LaneScaleCheck, LaneScaleParams,
-                                                     ScaleRegression, ScaleVerdict)
+                                                     ScaleRegression, ScaleVerdict, unwrap)
 from lookahead_control.core.params import ParameterError
 from lookahead_control.core.samples import LateralErrorSample, VelocitySample, YawSample
 import numpy as np
@@ -340,12 +340,14 @@ def test_settings_out_of_range_are_refused_by_name(field, value):
 
 
 def _core(law: str, which: str, factor: float, speed: float = 30.0,
-          acceleration: float = 1.0, mapped: bool = True) -> dict[str, float]:
+          acceleration: float = 1.0, mapped: bool = True,
+          wrapped: bool = False) -> dict[str, float]:
     """
     Run the controller core and the linear plant on the S-bend, one input x ``factor`` from 2 s.
 
     :param which: ``lateral``, ``eps_r`` or ``yaw`` (the relative yaw and the yaw rate).
     :param mapped: whether the curvature is sent.
+    :param wrapped: whether the relative yaw is sent wrapped to +-pi (as a quaternion).
     :return: the seconds told of each, their scales seen, and the peak CG error [m].
     """
     scenario, core, stepper, substeps, n_steps, rng = _core_on_s_bend(
@@ -359,7 +361,8 @@ def _core(law: str, which: str, factor: float, speed: float = 30.0,
         scale = factor if t >= 2.0 else 1.0
         eps_r, lateral = x[2] + rng.normal(0.0, 0.002), x[1] + rng.normal(0.0, 0.03)
         yawed = scale if which in ('eps_r', 'yaw') else 1.0
-        core.accept('yaw', YawSample(stamp, eps_r * yawed, (x[4] + rng.normal(0.0, 0.002)) * (
+        sent = math.remainder(eps_r * yawed, 2.0 * math.pi) if wrapped else eps_r * yawed
+        core.accept('yaw', YawSample(stamp, sent, (x[4] + rng.normal(0.0, 0.002)) * (
             yawed if which == 'yaw' else 1.0), float(inputs.a_x) - x[3] * x[4]), stamp)
         core.accept('velocity', VelocitySample(stamp, float(inputs.v_x), x[3]), stamp)
         if mapped:
@@ -421,6 +424,27 @@ def test_the_core_tells_the_yaw_message_in_degrees(law, speed):
     run = _core(law, 'yaw', math.degrees(1.0), speed)
     assert run['lateral'] > 3.0 and run['lateral_seen'] == pytest.approx(1.0 / 57.3,
                                                                          rel=0.3), run
+
+
+@pytest.mark.parametrize('law, speed', [
+    ('cg_compensated', 30.0), ('cg_compensated', 37.0), ('paper', 20.0)])
+def test_the_core_tells_a_relative_yaw_wrapped_as_a_quaternion(law, speed):
+    # dev-probe109: the relative yaw comes as a quaternion, and in degrees it wraps where
+    # the true one passes 3.14 degrees: the correlation broke once the car moved, and a
+    # relative yaw in degrees went untold (in mrad too, the car 36 m off)
+    run = _core(law, 'eps_r', math.degrees(1.0), speed, 3.0, wrapped=True)
+    assert run['yaw'] + run['lateral'] > 3.0, run
+    right = _core(law, 'eps_r', 1.0, speed, 3.0, wrapped=True)
+    assert right['yaw'] == 0.0 and right['lateral'] == 0.0, right
+
+
+@pytest.mark.parametrize('raw, before, expected', [
+    (0.1, None, 0.1), (3.1, (3.0, 3.0), 3.1), (-3.1, (3.1, 3.1), 2.0 * math.pi - 3.1),
+    (3.1, (-3.1, -3.1), 3.1 - 2.0 * math.pi), (-3.1, (3.1, 9.4), 9.4 + 2.0 * math.pi - 6.2),
+    (math.nan, (0.1, 0.1), math.nan), (0.2, (math.nan, 0.0), 0.2)])
+def test_the_relative_yaw_is_continued_across_the_wrap(raw, before, expected):
+    got = unwrap(raw, before)
+    assert (math.isnan(got) and math.isnan(expected)) or got == pytest.approx(expected)
 
 
 def test_the_node_s_activation_restarts_the_check():

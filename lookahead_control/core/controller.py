@@ -30,7 +30,7 @@ from lookahead_control.core.baselines import baseline_law, BASELINE_NAMES, Basel
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput
 from lookahead_control.core.heading_check import HeadingCheck
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
-from lookahead_control.core.lane_scale_check import LaneScaleCheck
+from lookahead_control.core.lane_scale_check import LaneScaleCheck, unwrap
 from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
 from lookahead_control.core.oscillation_check import OscillationCheck
@@ -347,6 +347,8 @@ class SteeringController:
         self.lateral_scale_seen = 0.0
         self.yaw_scale_seen = 0.0
         self._raw: dict[str, Any] = {}
+        #: the last relative yaw received and its value continued across +-pi
+        self._eps_unwrapped: Optional[tuple[float, float]] = None
         self.yaw_fault: Optional[str] = None
         self.timing = InputTiming()
         self._received: dict[str, int] = {}     # input -> node clock of its last sample
@@ -504,6 +506,7 @@ class SteeringController:
         self.map_check.reset()
         self.speed_check.reset()
         self._raw.clear()               # (the lane scale check restarts with the yaw fault)
+        self._eps_unwrapped = None
         self.clear_yaw_fault()
         self._law_stamp = None          # (the oscillation check restarts with it)
 
@@ -838,6 +841,11 @@ class SteeringController:
         self._raw[name] = sample
         check = self.lane_scale
         age = check.settings.max_age * 1e9
+        if name == 'yaw':
+            # dev-probe109: a relative yaw in degrees sent as a quaternion wraps at 3.14
+            # true degrees, and the check went silent once the car moved
+            raw = float(sample.relative_yaw)
+            self._eps_unwrapped = (raw, unwrap(raw, self._eps_unwrapped))
 
         def near(other: str) -> Any:
             taken = self._raw.get(other)
@@ -850,7 +858,7 @@ class SteeringController:
             if velocity is None or yaw is None:
                 check.reset_lateral()
             elif check.step_lateral(sample.stamp_ns, sample.value, sample.distance,
-                                    yaw.relative_yaw, velocity.v_x, velocity.v_y):
+                                    self._relative_yaw(yaw), velocity.v_x, velocity.v_y):
                 # dev-sc48: a lateral error in cm put the default law 2-135 m off S-bends,
                 # the input refused for its range, no word of the unit
                 self.turning['lateral_error_out_of_scale'] += (
@@ -861,13 +869,19 @@ class SteeringController:
             rho = curvature.rho if curvature is not None else None
             if velocity is None:
                 check.reset_yaw()
-            elif check.step_yaw(sample.stamp_ns, sample.relative_yaw, sample.yaw_rate,
+            elif check.step_yaw(sample.stamp_ns, self._relative_yaw(sample), sample.yaw_rate,
                                 velocity.v_x, rho):
                 # dev-sc48: a relative yaw in degrees put it 0.2-124 m off, told as a map
                 # disagreeing and a steering oscillation
                 self.turning['relative_yaw_out_of_scale'] += (
                     max(0, sample.stamp_ns - before) * 1e-9 if before is not None else 0.0)
                 self.yaw_scale_seen = check.yaw_scale
+
+    def _relative_yaw(self, yaw: YawSample) -> float:
+        """Return the last yaw sample's relative yaw continued across +-pi (the check's)."""
+        held = self._eps_unwrapped
+        return held[1] if held is not None and held[0] == yaw.relative_yaw else float(
+            yaw.relative_yaw)
 
     def _measurement_time(self, now_ns: int) -> int:
         """

@@ -59,7 +59,8 @@ refused: a refusal takes the safe behaviour, which leaves a curve as surely.
 The check is given every sample received with a stamp that advances, refused for its
 range or not (a unit error is mostly refused for range: the samples taken alone are too
 few for evidence, dev-sc48), and with the other inputs received within ``max_age`` of
-it. A relative yaw that moves less than predicted is not judged (the road's turn in a
+it; the relative yaw continued across the wrap of the quaternion it came as
+(:func:`unwrap`). A relative yaw that moves less than predicted is not judged (the road's turn in a
 curve without a map, or with the map lagging, moves the prediction), nor a lateral error
 between ``small_limit`` and 1 (the CommonRoad car's kinematics read down to 0.26 in the
 league's runs). A lateral error moving much less than predicted is a relative yaw in
@@ -91,6 +92,23 @@ HUGE = 1.0e6
 SCALES = 500
 #: washouts of settling after a restart before the moments start
 SETTLE = 2.0
+
+
+def unwrap(raw: float, before: Optional[tuple[float, float]]) -> float:
+    """
+    Return a relative yaw continued across the wrap at +-pi of the angle it was sent as.
+
+    The relative yaw travels as a quaternion: in degrees it wraps where the true one
+    passes 3.14 degrees, in mrad at 3.14 mrad (dev-probe109: the wrapped values broke the
+    correlation, and a relative yaw in degrees or mrad went untold once the car moved).
+
+    :param raw: the relative yaw received [rad].
+    :param before: the previous one received and its continued value (None: none).
+    :return: the continued value (the received one after none or a non-finite one).
+    """
+    if before is None or not (math.isfinite(raw) and all(map(math.isfinite, before))):
+        return raw
+    return before[1] + math.remainder(raw - before[0], 2.0 * math.pi)
 
 
 @dataclass(frozen=True)
@@ -227,7 +245,7 @@ class ScaleRegression:
 
 
 class ScaleVerdict:
-    """One signal's readings: how long out of scale, and the scale of the stretch."""
+    """One signal's state: its stamp and integrals, how long out of scale, its readings."""
 
     def __init__(self) -> None:
         """Start without readings."""
