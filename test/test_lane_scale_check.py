@@ -315,6 +315,21 @@ def test_out_of_scale_time_restarts_after_a_gap_of_evidence():
     assert verdict.out_for >= 1.0 and verdict.scale == pytest.approx(0.05)
 
 
+def test_the_bench_s_check_run_tells_what_the_check_tells():
+    from bench.lane_scale_check import check_run
+    signals = _weave(seconds=16.0)
+    time = signals.pop('time')
+    longest, yaw_high, lateral_high, lateral_low, lateral_at, yaw_at = check_run(
+        time, signals, 0.0)
+    assert longest == 0.0 and lateral_at is None and yaw_at is None
+    assert 0.5 < yaw_high < 2.0 and 0.5 < lateral_high < 2.0 and lateral_low < 2.0
+    wrong = dict(signals, lateral=100.0 * signals['lateral'])
+    assert check_run(time, wrong, 0.0)[4] is not None
+    no_map = {k: v for k, v in signals.items() if k != 'rho'}
+    no_map['eps_r'] = math.degrees(1.0) * no_map['eps_r']
+    assert check_run(time, no_map, 0.0)[5] is not None
+
+
 def test_the_regression_reads_a_known_scale():
     regression = ScaleRegression(0.2, 2.0, 1.0)
     rng = np.random.default_rng(4)
