@@ -952,9 +952,8 @@ class ControllerNode(LifecycleNode):
                            f'predicts for '
                            f'{turning["relative_yaw_out_of_scale"]:.2f} s (it moves '
                            f'{yaw_scale:.3g} times as far): a relative yaw in degrees (57.3 '
-                           'times the radians; with the yaw rate in deg/s too, about 5-10 '
-                           'times) or mrad (1000 times), or a yaw rate too small; every law '
-                           'steers on it as radians (docs/safety.md)')
+                           'times the radians) or mrad (1000 times), or a yaw rate too '
+                           'small; every law steers on it as radians (docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:
