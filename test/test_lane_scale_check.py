@@ -456,7 +456,9 @@ def test_the_core_tells_a_relative_yaw_wrapped_as_a_quaternion(law, speed):
 @pytest.mark.parametrize('raw, before, expected', [
     (0.1, None, 0.1), (3.1, (3.0, 3.0), 3.1), (-3.1, (3.1, 3.1), 2.0 * math.pi - 3.1),
     (3.1, (-3.1, -3.1), 3.1 - 2.0 * math.pi), (-3.1, (3.1, 9.4), 9.4 + 2.0 * math.pi - 6.2),
-    (math.nan, (0.1, 0.1), math.nan), (0.2, (math.nan, 0.0), 0.2)])
+    (math.nan, (0.1, 0.1), math.nan), (0.2, (math.nan, 0.0), 0.2),
+    (1.0e300, (-1.797693124862316e308, -1.797693124862316e308), 1.0e300),
+    (0.1, (2.0e6, 2.0e6), 0.1), (3.0e6, (0.1, 0.1), 3.0e6)])
 def test_the_relative_yaw_is_continued_across_the_wrap(raw, before, expected):
     got = unwrap(raw, before)
     assert (math.isnan(got) and math.isnan(expected)) or got == pytest.approx(expected)

@@ -104,9 +104,11 @@ def unwrap(raw: float, before: Optional[tuple[float, float]]) -> float:
 
     :param raw: the relative yaw received [rad].
     :param before: the previous one received and its continued value (None: none).
-    :return: the continued value (the received one after none or a non-finite one).
+    :return: the continued value (the received one after none, or where one is not
+        finite or beyond :data:`HUGE`, which the check takes as a restart).
     """
-    if before is None or not (math.isfinite(raw) and all(map(math.isfinite, before))):
+    # (the fuzz test: 1e300 after -1.8e308 made math.remainder(inf) raise)
+    if before is None or not all(math.isfinite(x) and abs(x) <= HUGE for x in (raw, *before)):
         return raw
     return before[1] + math.remainder(raw - before[0], 2.0 * math.pi)
 
