@@ -342,6 +342,17 @@ def test_the_regression_reads_a_known_scale():
     assert math.isnan(regression.judge(0.0, 0.0))
 
 
+def test_a_variance_decayed_into_denormals_is_no_evidence_and_no_crash():
+    # a measured signal frozen for minutes while its prediction moves: its variance decays
+    # into denormals, whose product with the prediction's is 0.0 (a division by zero)
+    regression = ScaleRegression(0.2, 2.0, 1.0)
+    for k in range(1000):
+        regression.step(0.01, 0.001 * math.sin(k / 50.0), 0.001 * math.sin(k / 50.0))
+    regression._var = [5.0e-324, 1.0e-6]        # the state minutes later
+    regression._cov = 0.0
+    assert math.isnan(regression.judge(1.0e-5, 0.8))
+
+
 @pytest.mark.parametrize('field, value', [
     ('lag', -0.1), ('washout', 0.05), ('memory', 0.0), ('lateral_excitation', 0.0),
     ('yaw_excitation', 2.0), ('correlation', 1.5), ('scale_limit', 1.0), ('hold', -1.0),

@@ -241,9 +241,12 @@ class ScaleRegression:
         if (self._weight < 1.0 - math.exp(-1.0) or self._var[1] < excitation ** 2
                 or self._var[0] <= 0.0):
             return math.nan
-        if self._cov / math.sqrt(self._var[0] * self._var[1]) < correlation:
+        # each root apart: the product of a variance decayed to denormals (a measured
+        # signal frozen for minutes) and a small one is 0.0
+        spread = math.sqrt(self._var[0]) * math.sqrt(self._var[1])
+        if spread <= 0.0 or self._cov / spread < correlation:
             return math.nan
-        return math.sqrt(self._var[0] / self._var[1])
+        return math.sqrt(self._var[0]) / math.sqrt(self._var[1])
 
 
 class ScaleVerdict:
