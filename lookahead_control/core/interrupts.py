@@ -220,7 +220,13 @@ def install_if_executable() -> None:
 
 
 class deferred:  # noqa: N801 - used as a context manager, like contextlib's
-    """Hold SIGINT and SIGTERM while a cleanup runs (a second Ctrl-C must not cut it)."""
+    """
+    Hold SIGINT and SIGTERM while a cleanup runs (a second Ctrl-C must not cut it).
+
+    A signal held is received all the same (:data:`received`); when the cleanup ran
+    without an exception in flight (a run that ended on its own) it is raised on leaving:
+    a Ctrl-C during the cleanup between two runs stops the tool, not the cleanup.
+    """
 
     def __enter__(self) -> list[int]:
         """Hold the signals; return the list of those that arrive meanwhile."""
@@ -233,7 +239,15 @@ class deferred:  # noqa: N801 - used as a context manager, like contextlib's
     def _note(self, signum: int, frame: FrameType | None) -> None:
         self.held.append(signum)
 
-    def __exit__(self, *exc: object) -> None:
-        """Put the previous handlers back."""
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
+        """
+        Put the previous handlers back; raise a signal held unless an exception is in flight.
+
+        :param kind: the exception in flight, if any (it carries the stop already).
+        :raises KeyboardInterrupt: a signal came meanwhile (:class:`Terminated`: SIGTERM).
+        """
         for s, handler in self._previous.items():
             signal.signal(s, handler)
+        received.extend(self.held)
+        if self.held and kind is None:
+            raise_if_received()

@@ -41,7 +41,7 @@ from lookahead_control.core.cli import (ArgumentParser, EXIT_OUTPUT_EXISTS, EXIT
                                         run_tool, ToolError)
 from lookahead_control.core.config import source_config_dir
 from lookahead_control.core.controller import LAW_NAMES
-from lookahead_control.core.interrupts import deferred
+from lookahead_control.core.interrupts import deferred, raise_if_received
 from lookahead_control.core.params import ParameterError, SCHEDULE_MODES
 from sim_plant.commonroad_plant import COMMONROAD_MODELS
 from sim_plant.scenario import check_force_timing, load_scenario, Scenario
@@ -531,6 +531,11 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
     why = ''
     start = time.monotonic()
     try:
+        # a Ctrl-C an import swallowed since the tool's start (a lazy `import rclpy` can
+        # turn it into an ImportError a fallback catches): no process is started, and
+        # while they run the wait below looks again (a demo sent Ctrl-C in its first
+        # second once ran its next runs for 60 s)
+        raise_if_received()
         # the recorder first: the simulator starts once it and the controller are matched
         if cfg.bag:
             # main checked the place; another run may take it since (the recorder then
@@ -542,6 +547,7 @@ def run_loop(cfg: LoopConfig, env: Optional[dict[str, str]] = None) -> int:
         processes['sim_plant'] = spawn(sim_cmd, env)
         sim = processes['sim_plant']
         while sim.poll() is None:
+            raise_if_received()
             early = [name for name in ('controller', 'path_bridge', 'record')
                      if name in processes and processes[name].poll() is not None]
             if early:
