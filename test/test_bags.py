@@ -664,7 +664,7 @@ def test_analyze_rows_and_legends_tell_runs_apart(loop_bag, tmp_path):
     assert row['peak_steering_rad'] == pytest.approx(row['peak_steering_cmd_rad'])
     units = ('_m', '_rad', '_s', '_ms', '_mps', '_hz', '_rad_per_s', '_ratio', 'overshoot')
     counts = ('bag', 'scenario', 'plant', 'mode', 'law', 'schedule', 'steps', 'unanswered',
-              'dropped')
+              'dropped', 'diagnostics')
     for column in COLUMNS:
         assert column in counts or column.endswith(units), column
 

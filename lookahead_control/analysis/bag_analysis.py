@@ -33,6 +33,8 @@ from dataclasses import dataclass
 import math
 from typing import Any, Mapping, Optional
 
+from lookahead_control.analysis.diagnostics_summary import (DiagnosticsSummary, summarize,
+                                                            summary_note)
 from lookahead_control.analysis.metrics import run_metrics
 from lookahead_control.bags.run_data import rerun_law, RunData, Samples, scenario_text
 from lookahead_control.core.control_law import cg_error_from
@@ -531,8 +533,10 @@ def bag_row(run: RunData, series: RunSeries,
         p50/p99, counts, the largest input gap, ``compliance_memory_final_ratio`` (the
         default law's memory of the rear compliance over the model's at its end, the
         ``lane_keeping.compliance_memory_seed`` of the car's next run:
-        :func:`final_compliance_memory`; NaN for other laws), and ``notes``: assumptions
-        and why a metric is empty.
+        :func:`final_compliance_memory`; NaN for other laws), ``diagnostics``: the worst
+        level the controller's ``/diagnostics`` reached (``-``: none recorded), and
+        ``notes``: assumptions, why a metric is empty, and the reasons of its statuses at
+        WARN and up.
     """
     params = run.controller_params
     d_s = float(params.get('vehicle.d_s', VehicleParams().d_s))
@@ -611,8 +615,28 @@ def bag_row(run: RunData, series: RunSeries,
             f'{role} {gap:.3g} s at t = {start:.3g} s'
             + (' (before the first lateral error)' if start < 0.0 else '')
             for role, (gap, start) in gaps.items()))
+    summary = run_diagnostics(run)
+    row['diagnostics'] = summary.worst if summary is not None else '-'
+    if summary is not None and summary_note(summary):
+        # dev-sc49: what the controller warned of during the run (a lateral error in cm,
+        # a frozen yaw rate ...) was in the bag and in no report
+        notes.append(summary_note(summary))
     row['notes'] = '; '.join(notes)
     return row
+
+
+def run_diagnostics(run: RunData) -> Optional[DiagnosticsSummary]:
+    """
+    Return what the run's controller told on ``/diagnostics``, summed up.
+
+    :param run: the run.
+    :return: the summary (times from the first lateral-error stamp); None: the bag has
+        no ``/diagnostics``.
+    """
+    if run.diagnostics is None:
+        return None
+    lateral = run.inputs.get('lateral_error', Samples.empty())
+    return summarize(run.diagnostics, int(lateral.stamp_ns.min()) if len(lateral) else 0)
 
 
 def speed_points(series_list: list[RunSeries]) -> tuple[Array, Array]:

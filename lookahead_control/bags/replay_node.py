@@ -90,6 +90,7 @@ def offline(args: argparse.Namespace) -> int:
     report['inputs_refused'] = result.refused
     report['inputs_repeated'] = result.repeated
     report['commands_not_finite'] = result.not_finite
+    report['checks_told'] = result.told
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
@@ -157,6 +158,16 @@ def offline(args: argparse.Namespace) -> int:
               '(the same message recorded twice: two recorders on one domain, or a '
               'publisher that sent it again); the node refuses a repeated stamp, and so does '
               'the re-run')
+    if result.told:
+        # dev-sc49: a bag of a lateral error in cm re-ran without a word of what the
+        # node's checks had told; the recorded /diagnostics: analyze's report
+        seconds = [f'{name} {value:.2f} s' for name, value in result.told.items()
+                   if name not in ('time_jumps', 'law_restarts')]
+        events = [f'{name} {value:g}' for name, value in result.told.items()
+                  if name in ('time_jumps', 'law_restarts')]
+        print("replay: the re-run's checks found, as the node's /diagnostics names them: "
+              + ', '.join(seconds + events) + ' (docs/safety.md; what the recorded '
+              "controller told: analyze's report)")
     if result.law_switches:
         print(f'replay: the law was set at run time: the re-run switched it where the '
               f'recorded controller did ({result.law_switches} switches, '

@@ -100,6 +100,8 @@ def to_rosbags(msg: Any, store: Typestore) -> Any:
         elif isinstance(value, list) and value and hasattr(
                 value[0], 'get_fields_and_field_types'):
             value = [to_rosbags(v, store) for v in value]
+        elif isinstance(value, bytes) and len(value) == 1:
+            value = value[0]        # a byte (octet: DiagnosticStatus.level), an int there
         fields[field] = value
     return store.types[name](**fields)
 

@@ -35,6 +35,8 @@ from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
 
 from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
+from lookahead_control.bags.recorded_diagnostics import (controller_reports, DIAGNOSTICS,
+                                                         StatusReport)
 from lookahead_control.bags.rosbag_io import (bag_topics, FULL_NODE_NAME, NODE_NAME_RULE,
                                               recorded_parameters, run_description,
                                               SCENARIO_KEY, typestore)
@@ -289,6 +291,9 @@ class RunData:
     :param parameter_events_recv_ns: when each of them was received (the recorder's
         clock, as the debug topic's ``recv_ns``); None: not known (taken as received
         after the first recorded answer).
+    :param diagnostics: the controller node's statuses on ``/diagnostics``, in the
+        order received (:func:`~lookahead_control.bags.recorded_diagnostics.
+        controller_reports`); None: the bag has no ``/diagnostics``.
     """
 
     bag: Path
@@ -303,6 +308,7 @@ class RunData:
     controller_node: str = CONTROLLER_NODE
     parameter_events: Optional[list[dict[str, Any]]] = None
     parameter_events_recv_ns: Optional[list[int]] = None
+    diagnostics: Optional[list[StatusReport]] = None
 
 
 def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
@@ -398,6 +404,8 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         received = parameter_events(bag, node, store, with_recv_ns=True)
         run.parameter_events = [change for _, change in received]
         run.parameter_events_recv_ns = [recv for recv, _ in received]
+    if DIAGNOSTICS in available:
+        run.diagnostics = controller_reports(bag, node, store)
     return run
 
 
@@ -661,6 +669,11 @@ class Rerun:
     :param repeated: inputs refused as repeating the stamp of the input of their role
         before them (the same message recorded twice: two recorders, a re-sent message),
         counted apart from ``refused``: the node refuses them too.
+    :param told: what the re-run's checks would have told on ``/diagnostics``, over the
+        whole run: the seconds of each check of the inputs and the output that found
+        something (``SteeringController.turning``: ``lateral_error_out_of_scale``,
+        ``curvature_disagrees`` ...), and the counts of time jumps and law restarts;
+        only those not 0.
     """
 
     commands: dict[int, Command]
@@ -686,6 +699,7 @@ class Rerun:
     dropped: int = 0
     not_finite: int = 0
     repeated: int = 0
+    told: dict[str, float] = field(default_factory=dict)
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -846,7 +860,22 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
                  switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
                  last_refusal, len(coalesced), coalesced_lost, len(unreceived), dropped,
-                 not_finite, repeated)
+                 not_finite, repeated, checks_told(core))
+
+
+def checks_told(core: SteeringController) -> dict[str, float]:
+    """
+    Return what a controller's checks found over its run, as its ``/diagnostics`` names it.
+
+    :param core: the controller after the run.
+    :return: seconds per check (``turning``), then ``time_jumps`` and ``law_restarts``
+        counts; only those not 0, in that order.
+    """
+    told = {name: seconds for name, seconds in core.turning.items() if seconds > 0.0}
+    told.update((name, float(count)) for name, count in (('time_jumps', core.time_jumps),
+                                                         ('law_restarts', core.law_restarts))
+                if count)
+    return told
 
 
 def _unanswered(run: RunData, lateral: Samples, answered: list[int]

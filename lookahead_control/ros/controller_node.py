@@ -978,7 +978,9 @@ class ControllerNode(LifecycleNode):
         learned = dict(getattr(self.core.law, 'debug_values', list)())
         values += [KeyValue(key=f'{key.replace("_", " ")} [x model]', value=f'{learned[key]:.3f}')
                    for key in ('compliance_scale', 'compliance_memory') if key in learned]
-        return DiagnosticStatus(level=level, name='lookahead_control: controller',
+        return DiagnosticStatus(level=level,
+                                name=conv.controller_status_name(
+                                    self.get_fully_qualified_name()),
                                 message='; '.join(reasons) or 'ok',
                                 hardware_id='lookahead_control', values=values)
 

@@ -45,6 +45,23 @@ from lookahead_control.core.samples import (curvature_from_points, CurvatureSamp
 from sensor_msgs.msg import Imu, JointState
 
 
+#: the controller's status on ``/diagnostics`` before it carried the node's name
+LEGACY_STATUS_NAME = 'lookahead_control: controller'
+
+
+def controller_status_name(node: str) -> str:
+    """
+    Return the name of a controller's status on ``/diagnostics``: its node's full name.
+
+    Several controllers (vehicles in namespaces) publish on the one ``/diagnostics``; the
+    name tells whose status it is, in the ``<package>: <node>`` form of a status name.
+
+    :param node: the node's fully qualified name (``/car_b/controller``).
+    :return: e.g. ``lookahead_control: /car_b/controller``.
+    """
+    return f'lookahead_control: {node}'
+
+
 def stamp_to_ns(stamp: Time) -> int:
     """
     Return a ``builtin_interfaces/Time`` as integer nanoseconds.

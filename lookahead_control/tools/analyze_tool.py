@@ -21,8 +21,10 @@ from pathlib import Path
 import re
 from typing import Any, Sequence
 
-from lookahead_control.analysis.bag_analysis import (bag_row, law_label, run_label, run_series,
-                                                     RunSeries, speed_points)
+from lookahead_control.analysis.bag_analysis import (bag_row, law_label, run_diagnostics,
+                                                     run_label, run_series, RunSeries,
+                                                     speed_points)
+from lookahead_control.analysis.diagnostics_summary import level_name, LEVELS
 from lookahead_control.analysis.metrics import METRIC_COLUMNS, metrics_legend, notes_list
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid
 from lookahead_control.bags.run_data import CONTROLLER_NODE, load_run, RunData, TOPICS
@@ -39,7 +41,7 @@ LABEL_COLUMNS = ('bag', 'scenario', 'plant', 'mode', 'rate_hz', 'law', 'schedule
                  'speed_mps')
 COLUMNS = (*LABEL_COLUMNS, 'd_v_final_m', *METRIC_COLUMNS, 'latency_p50_ms',
            'latency_p99_ms', 'steps', 'unanswered', 'dropped', 'max_gap_s',
-           'compliance_memory_final_ratio')
+           'compliance_memory_final_ratio', 'diagnostics')
 
 
 def topic_overrides(items: Sequence[str]) -> dict[str, str]:
@@ -166,11 +168,13 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
             "`compliance_memory_final_ratio`: the default law's memory of the rear "
             "compliance over the model's at its end, or before a restart it learned "
             "nothing after (`notes`); start the car's next run from it: "
-            '`lane_keeping.compliance_memory_seed` (`-` for other laws).',
+            '`lane_keeping.compliance_memory_seed` (`-` for other laws); `diagnostics`: the '
+            "worst level of the controller's `/diagnostics` during the run (`-`: none "
+            'recorded; what it told: the section below).',
             '',
             markdown_table(rows, COLUMNS, digits=3), '',
             *notes_list(rows, ('bag',)),
-            bags_line(results), '']
+            bags_line(results), '', *diagnostics_section(results)]
     if plots:
         from lookahead_control.analysis.plotting import plot_measured_look_ahead, plot_runs
         groups: dict[str, list[dict[str, Any]]] = {}
@@ -200,6 +204,41 @@ def write_outputs(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]],
     if written is not None:
         written.extend([*files, report])
     return report
+
+
+def diagnostics_section(results: Sequence[tuple[RunData, RunSeries, dict[str, Any]]]
+                        ) -> list[str]:
+    """
+    Return the report's section of what each run's controller told on ``/diagnostics``.
+
+    :param results: the output of :func:`analyze`.
+    :return: markdown lines: per bag its statuses by level, each reason once (its worst
+        level, first moment, number of statuses, and its text as first told), and the
+        counters of its last status that are not 0.
+    """
+    lines = ['## What the controller told (/diagnostics)', '',
+             "Each reason of the controller's statuses once, as it was first told, with "
+             'the worst level of the statuses that gave it, its first moment (t from the '
+             "first lateral-error stamp, on the node's clock) and how many statuses gave "
+             'it; then the counters of the last status that are not 0 (counted from the '
+             "node's start; a check's `[s]`: the seconds it found something). "
+             'docs/safety.md says what each means.', '']
+    for run, _, _ in results:
+        summary = run_diagnostics(run)
+        if summary is None:
+            lines += [f'- `{run.bag.name}`: no /diagnostics in the bag', '']
+            continue
+        by_level = ', '.join(f'{name} {count}' for name, count in zip(LEVELS, summary.levels)
+                             if count)
+        lines.append(f'- `{run.bag.name}`: {summary.reports} statuses of '
+                     f'{run.controller_node}' + (f' ({by_level})' if by_level else ''))
+        lines += [f'  - {level_name(t.level)} from t = {t.first_s:.3g} s in {t.reports}: '
+                  f'{t.example}' for t in summary.told]
+        if summary.counters:
+            lines.append('  - counters at the last status: ' + ', '.join(
+                f'{key} {value}' for key, value in summary.counters))
+        lines.append('')
+    return lines
 
 
 def main(argv: Sequence[str] | None = None) -> int:

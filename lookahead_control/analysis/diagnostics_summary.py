@@ -1,0 +1,174 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What a controller told on ``/diagnostics`` over a run, summed up for its report.
+
+The node's status carries its reasons (``; `` between them) and its counters; a run's
+statuses become each reason's first moment, number of reports and worst level, and the
+counters of the last status that are not 0 (they count from the node's start). Pure
+data: the bag is read by :mod:`lookahead_control.bags.recorded_diagnostics`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import re
+from typing import Sequence
+
+from lookahead_control.bags.recorded_diagnostics import StatusReport
+
+#: the status levels of ``diagnostic_msgs/DiagnosticStatus``, by value
+LEVELS = ('OK', 'WARN', 'ERROR', 'STALE')
+#: where a reason's name ends: its first number, colon or parenthesis
+_NAME_END = re.compile(r'[0-9:(]')
+_TRAILING = re.compile(r'[\s,]*\b(for|at|of)?[\s,]*$')
+
+
+@dataclass(frozen=True)
+class Told:
+    """
+    One reason the controller gave over a run.
+
+    :param name: the reason's name (its text up to the first number, colon or
+        parenthesis: ``lateral_error out of scale with the motion ...``).
+    :param level: the worst level of the statuses that gave it.
+    :param reports: how many statuses gave it.
+    :param first_s: the first of them [s after the run's first lateral error].
+    :param example: the reason as the first of them gave it, in full.
+    """
+
+    name: str
+    level: int
+    reports: int
+    first_s: float
+    example: str
+
+
+@dataclass(frozen=True)
+class DiagnosticsSummary:
+    """
+    A controller's ``/diagnostics`` over a run.
+
+    :param reports: its statuses.
+    :param levels: how many at each level (:data:`LEVELS`).
+    :param told: its reasons, in the order they first came.
+    :param counters: the last status's counters that are not 0 (counts, and the seconds
+        of the checks that found something), as ``(key, value)``.
+    """
+
+    reports: int
+    levels: tuple[int, int, int, int]
+    told: tuple[Told, ...]
+    counters: tuple[tuple[str, str], ...]
+
+    @property
+    def worst(self) -> str:
+        """Return the worst level of any status (``-``: none recorded)."""
+        return next((LEVELS[k] for k in range(3, -1, -1) if self.levels[k]), '-')
+
+
+def level_name(level: int) -> str:
+    """
+    Return a status level's name.
+
+    :param level: its value.
+    :return: ``OK``, ``WARN``, ``ERROR``, ``STALE``, or ``level <n>`` for another value.
+    """
+    return LEVELS[level] if 0 <= level < len(LEVELS) else f'level {level}'
+
+
+def split_reasons(message: str) -> list[str]:
+    """
+    Return a status message's reasons: split at ``; `` outside parentheses.
+
+    :param message: the message (``ok``: no reason).
+    :return: the reasons (empty for ``ok`` or an empty message).
+    """
+    if message.strip() in ('', 'ok'):
+        return []
+    out, depth, start = [], 0, 0
+    for i, char in enumerate(message):
+        if char == '(':
+            depth += 1
+        elif char == ')':
+            depth = max(0, depth - 1)
+        elif char == ';' and depth == 0 and message[i + 1:i + 2] in (' ', ''):
+            out.append(message[start:i].strip())
+            start = i + 1
+    out.append(message[start:].strip())
+    return [reason for reason in out if reason]
+
+
+def reason_name(reason: str) -> str:
+    """
+    Return the name of a reason: its text up to its first number, colon or parenthesis.
+
+    :param reason: one reason (``steering oscillates for 1.20 s (+-56 mrad ...``).
+    :return: e.g. ``steering oscillates``.
+    """
+    match = _NAME_END.search(reason)
+    head = reason[:match.start()] if match else reason
+    return _TRAILING.sub('', head).strip() or reason.strip()
+
+
+def _counter(key: str, value: str) -> bool:
+    """Return whether a status value is a counter from the node's start, not 0."""
+    if key.startswith(('age max', 'answer latency')) or key.endswith(
+            ('[rad]', '[Hz]', '[x model]')):
+        return False            # measures of the last period, or the law's estimates
+    try:
+        return float(value) != 0.0
+    except ValueError:
+        return False
+
+
+def summarize(reports: Sequence[StatusReport], start_ns: int) -> DiagnosticsSummary:
+    """
+    Sum up a controller's statuses over a run.
+
+    :param reports: its statuses, in the order received.
+    :param start_ns: the run's first lateral-error stamp (the times' zero) [ns].
+    :return: the summary.
+    """
+    levels = [0, 0, 0, 0]
+    told: dict[str, Told] = {}
+    for report in reports:
+        if 0 <= report.level < len(levels):
+            levels[report.level] += 1
+        for reason in split_reasons(report.message):
+            name = reason_name(reason)
+            before = told.get(name)
+            if before is None:
+                told[name] = Told(name, report.level, 1,
+                                  (report.stamp_ns - start_ns) * 1e-9, reason)
+            else:
+                told[name] = Told(name, max(before.level, report.level), before.reports + 1,
+                                  before.first_s, before.example)
+    counters = tuple((k, v) for k, v in reports[-1].values if _counter(k, v)) if reports else ()
+    return DiagnosticsSummary(len(reports), (levels[0], levels[1], levels[2], levels[3]),
+                              tuple(told.values()), counters)
+
+
+def summary_note(summary: DiagnosticsSummary) -> str:
+    """
+    Return the metrics table's note of a run's ``/diagnostics``: the reasons at WARN and up.
+
+    :param summary: the summary.
+    :return: e.g. ``diagnostics: WARN 'steering oscillates' in 3 of 12 reports from t =
+        4.1 s`` (empty when every status was OK).
+    """
+    said = [f"{level_name(t.level)} '{t.name}' in {t.reports} of {summary.reports} reports "
+            f'from t = {t.first_s:.3g} s' for t in summary.told if t.level >= 1]
+    return ('diagnostics: ' + ', '.join(said)) if said else ''

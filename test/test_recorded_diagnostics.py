@@ -1,0 +1,210 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What the controller told: its recorded /diagnostics in analyze, its checks in replay.
+
+dev-sc49: a bag of a run the controller warned of (a lateral error in cm, a yaw rate
+frozen, v_y exactly 0 while turning) gave a metrics row and a report without a word of
+it, and its re-run printed none of what the checks found.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from lookahead_control.analysis.bag_analysis import bag_row, run_series
+from lookahead_control.analysis.diagnostics_summary import (reason_name, split_reasons,
+                                                            summarize)
+from lookahead_control.bags import replay_node
+from lookahead_control.bags.recorded_diagnostics import controller_reports, StatusReport
+from lookahead_control.bags.rosbag_io import BagWriter, qos_from_ints, serialize_cdr, typestore
+from lookahead_control.bags.run_data import load_run, rerun
+from lookahead_control.ros import conversions as conv
+from lookahead_control.tools.analyze_tool import analyze, write_outputs
+import pytest
+
+START = 1_000_000_000_000
+TYPES = {'/lateral_error': 'geometry_msgs/msg/PointStamped', '/yaw': 'sensor_msgs/msg/Imu',
+         '/velocity': 'geometry_msgs/msg/TwistStamped', '/steering': 'sensor_msgs/msg/JointState'}
+
+
+def _bag(path, statuses=(), steps=1000, yaw_rate=0.0, jump_at=None):
+    """
+    Write a bag of a car at 20 m/s on the lane, and ``(stamp_ns, [status])`` diagnostics.
+
+    :param yaw_rate: the yaw rate sent [rad/s] (v_y is sent as exactly 0).
+    :param jump_at: the step from which the stamps are 5 s earlier (a time jump).
+    """
+    store = typestore()
+
+    def serialize_message(msg):
+        return serialize_cdr(msg, store)
+
+    writer = BagWriter(path)
+    qos = [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})]
+    for topic, msgtype in TYPES.items():
+        writer.add_topic(topic, msgtype, qos)
+    if statuses:
+        writer.add_topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', qos)
+    for k in range(steps):
+        stamp = k * 10_000_000 - (5_000_000_000 if jump_at is not None and k >= jump_at
+                                  else 0)
+        recv = START + k * 10_000_000
+        writer.write('/yaw', recv, serialize_message(conv.to_yaw(stamp, 'b', 0.0, yaw_rate,
+                                                                 0.0)))
+        writer.write('/velocity', recv, serialize_message(
+            conv.to_velocity(stamp, 'b', 20.0, 0.0, 0.0)))
+        writer.write('/lateral_error', recv + 1, serialize_message(
+            conv.to_lateral_error(stamp, 'b', 0.0, 0.0)))
+        writer.write('/steering', recv + 2, serialize_message(conv.to_steering(stamp, 0.0, 0.0)))
+    for stamp, status in statuses:
+        array = DiagnosticArray(status=status)
+        array.header.stamp = conv.ns_to_stamp(stamp)
+        writer.write('/diagnostics', START + stamp, serialize_message(array))
+    writer.close()
+
+
+def _status(level, message, node='/controller', values=()):
+    from diagnostic_msgs.msg import KeyValue
+    return DiagnosticStatus(level=level, name=conv.controller_status_name(node),
+                            message=message, hardware_id='lookahead_control',
+                            values=[KeyValue(key=k, value=v) for k, v in values])
+
+
+def test_the_node_s_status_is_named_after_it(active_controller):
+    # two controllers (vehicles in namespaces) share the one /diagnostics
+    assert active_controller.diagnostics().name == 'lookahead_control: /controller'
+
+
+def test_a_bag_s_warnings_are_in_its_row_and_its_report(active_controller, tmp_path):
+    # the statuses the node itself gives: a lateral error in cm found for 1.5 s
+    node = active_controller
+    first = node.diagnostics()
+    node.core.turning['lateral_error_out_of_scale'] += 1.5
+    node.core.lateral_scale_seen = 101.0
+    warned = node.diagnostics()
+    quiet = node.diagnostics()
+    assert [ord(s.level) for s in (first, warned, quiet)] == [0, 1, 0]
+    # another vehicle's controller in the same bag, at ERROR: not this one's
+    other = _status(2, 'stale inputs: yaw', '/car_b/controller')
+    _bag(tmp_path / 'bag', [(1_000_000_000, [first]), (2_000_000_000, [warned, other]),
+                            (3_000_000_000, [quiet])])
+    run = load_run(tmp_path / 'bag')
+    assert [r.level for r in run.diagnostics] == [0, 1, 0]
+    row = bag_row(run, run_series(run))
+    assert row['diagnostics'] == 'WARN'
+    assert ("diagnostics: WARN 'lateral_error out of scale with the motion relative_yaw, v_x "
+            "and v_y predict' in 1 of 3 reports from t = 2 s") in row['notes']
+    report = write_outputs(analyze([tmp_path / 'bag']), tmp_path / 'out', plots=False)
+    text = report.read_text()
+    section = text[text.index('## What the controller told'):]
+    assert '- `bag`: 3 statuses of /controller (OK 2, WARN 1)' in section
+    # the reason in full, as the node told it, and the counter it left
+    assert ('  - WARN from t = 2 s in 1: lateral_error out of scale with the motion '
+            'relative_yaw, v_x and v_y predict for 1.50 s (it moves 101 times as far): a '
+            'lateral error in cm') in section
+    assert 'lateral_error_out_of_scale [s] 1.500' in section
+    assert 'stale inputs' not in section
+    assert [r.level for r in controller_reports(tmp_path / 'bag', '/car_b/controller')] == [2]
+    # the column is in the CSV and the JSON
+    rows = json.loads((tmp_path / 'out' / 'metrics.json').read_text())
+    assert rows[0]['diagnostics'] == 'WARN'
+
+
+def test_a_bag_without_diagnostics_says_so(tmp_path):
+    _bag(tmp_path / 'bag')
+    run = load_run(tmp_path / 'bag')
+    assert run.diagnostics is None
+    row = bag_row(run, run_series(run))
+    assert row['diagnostics'] == '-' and 'diagnostics:' not in row['notes']
+    report = write_outputs(analyze([tmp_path / 'bag']), tmp_path / 'out', plots=False)
+    assert '- `bag`: no /diagnostics in the bag' in report.read_text()
+
+
+def test_a_bag_from_before_the_status_carried_the_node_s_name(tmp_path):
+    legacy = DiagnosticStatus(level=2, name=conv.LEGACY_STATUS_NAME,
+                              message='stale inputs: yaw (no message for 0.5 s)')
+    _bag(tmp_path / 'bag', [(500_000_000, [legacy])])
+    row = bag_row(*(lambda run: (run, run_series(run)))(load_run(tmp_path / 'bag')))
+    assert row['diagnostics'] == 'ERROR'
+    assert "ERROR 'stale inputs' in 1 of 1 reports from t = 0.5 s" in row['notes']
+    # the old name is /controller's only: a namespaced controller's are its own
+    assert controller_reports(tmp_path / 'bag', '/car_b/controller') == []
+
+
+def test_reasons_split_outside_parentheses_and_are_named_by_their_words():
+    message = ('law restarts: 2 (a non-finite law output: 1; lateral errors further apart '
+               'than lane_keeping.max_gap 0.5 s: 1; integral and estimate start again); '
+               'steering oscillates for 1.20 s (+-56 mrad at 1.50 Hz): an actuator delay; '
+               'yaw_rate hardly varies while the steering and the relative yaw do, for 2.00 '
+               's (it does not vary at all); inactive')
+    reasons = split_reasons(message)
+    assert len(reasons) == 4 and reasons[-1] == 'inactive'
+    assert [reason_name(r) for r in reasons] == [
+        'law restarts', 'steering oscillates',
+        'yaw_rate hardly varies while the steering and the relative yaw do', 'inactive']
+    assert split_reasons('ok') == [] and split_reasons('') == []
+    assert reason_name('sim clock stopped at 3.000 s for 2.0 s (wall)') == 'sim clock stopped'
+    assert reason_name('late: yaw 120 ms (> latency_warn 100 ms)') == 'late'
+
+
+def test_the_summary_keeps_each_reason_s_first_moment_and_worst_level():
+    reports = [StatusReport(2_000_000_000, 0, 1, 'rejected: 1 (last: yaw: not finite)',
+                            (('rejected', '1'), ('age max yaw [s]', '0.010000'))),
+               StatusReport(3_000_000_000, 0, 2, 'stale inputs: yaw; rejected: 4 (last: x)',
+                            (('rejected', '5'), ('time_jumps', '0'),
+                             ('steering oscillation max [rad]', '0.010000'),
+                             ('yaw_rate_still [s]', '0.250'), ('compliance memory [x model]',
+                                                               '1.100'))),
+               StatusReport(4_000_000_000, 0, 0, 'ok', (('rejected', '5'),))]
+    summary = summarize(reports, 1_000_000_000)
+    assert summary.worst == 'ERROR' and summary.levels == (1, 1, 1, 0)
+    rejected, stale = summary.told
+    assert (rejected.name, rejected.level, rejected.reports, rejected.first_s) == (
+        'rejected', 2, 2, 1.0)
+    assert rejected.example == 'rejected: 1 (last: yaw: not finite)'
+    assert (stale.name, stale.first_s) == ('stale inputs', 2.0)
+    # the counters of the last status only, those not 0 and counted from the start
+    assert summary.counters == (('rejected', '5'),)
+    assert summarize(reports[:2], 0).counters == (('rejected', '5'),
+                                                  ('yaw_rate_still [s]', '0.250'))
+    assert summarize([], 0).worst == '-'
+
+
+def test_replay_says_what_the_re_run_s_checks_found(tmp_path, capsys):
+    # turning at 0.1 rad/s with v_y exactly 0 and no road_curvature for 10 s, and the
+    # stamps 5 s back at 6 s: what the node's /diagnostics would have warned of
+    _bag(tmp_path / 'bag', steps=1000, yaw_rate=0.1, jump_at=600)
+    result = rerun(load_run(tmp_path / 'bag'))
+    assert result.told['time_jumps'] == 1.0
+    assert result.told['v_y_exactly_zero'] == pytest.approx(9.98, abs=0.05)
+    assert result.told['turning_without_curvature'] == pytest.approx(9.98, abs=0.05)
+    assert 'lateral_error_out_of_scale' not in result.told
+    out = tmp_path / 'replay.json'
+    assert replay_node.main([str(tmp_path / 'bag'), '--offline', '--json', str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert ("replay: the re-run's checks found, as the node's /diagnostics names them: "
+            'turning_without_curvature 9.9') in printed
+    assert 'time_jumps 1 (docs/safety.md' in printed
+    told = json.loads(out.read_text())['checks_told']
+    assert told['time_jumps'] == 1 and math.isclose(told['v_y_exactly_zero'],
+                                                    result.told['v_y_exactly_zero'])
+    # a quiet run says nothing of it
+    _bag(tmp_path / 'quiet', steps=300)
+    assert rerun(load_run(tmp_path / 'quiet')).told == {}
+    assert replay_node.main([str(tmp_path / 'quiet'), '--offline']) == 0
+    assert 'checks found' not in capsys.readouterr().out
