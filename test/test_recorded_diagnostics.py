@@ -208,3 +208,32 @@ def test_replay_says_what_the_re_run_s_checks_found(tmp_path, capsys):
     assert rerun(load_run(tmp_path / 'quiet')).told == {}
     assert replay_node.main([str(tmp_path / 'quiet'), '--offline']) == 0
     assert 'checks found' not in capsys.readouterr().out
+
+
+def test_the_run_s_end_is_told_apart_from_a_fault_in_it(tmp_path):
+    # every demo run's last status said 'sim clock stopped' (the simulator had finished):
+    # its diagnostics column read WARN for nothing that happened in the run
+    stopped = 'sim clock stopped at 9.990 s for 1.0 s (wall): nothing is judged stale on it'
+    reports = [StatusReport(5_000_000_000, 5_000_000_000, 2, 'stale inputs: yaw', ()),
+               StatusReport(9_990_000_000, 10_500_000_000, 1, stopped, ()),
+               StatusReport(9_990_000_000, 11_500_000_000, 1,
+                            f'{stopped}; saturated: 2', (('saturated', '2'),))]
+    summary = summarize(reports, 0, end_recv_ns=10_000_000_000)
+    assert summary.reports == 2 and summary.levels == (0, 1, 1, 0)
+    assert [t.name for t in summary.told] == ['stale inputs', 'saturated']
+    assert [(t.name, t.reports) for t in summary.at_end] == [('sim clock stopped', 2)]
+    # without the run's end known, every status is the run's
+    assert summarize(reports, 0).reports == 3
+    # in a bag: the end is the last input received, of any input
+    node = _status(1, stopped)
+    _bag(tmp_path / 'bag', [(3_000_000_000, [_status(0, 'ok')]), (10_600_000_000, [node])])
+    run = load_run(tmp_path / 'bag')
+    row = bag_row(run, run_series(run))
+    assert row['diagnostics'] == 'OK' and 'diagnostics:' not in row['notes']
+    report = write_outputs(analyze([tmp_path / 'bag']), tmp_path / 'out', plots=False)
+    assert ("  - after the run's last input (its end, not a fault in it): WARN in 1: sim clock "
+            'stopped at 9.990 s') in report.read_text()
+    # the same status while inputs still come is a fault in the run
+    _bag(tmp_path / 'mid', [(5_000_000_000, [node])])
+    assert bag_row(*(lambda run: (run, run_series(run)))(load_run(tmp_path / 'mid')))[
+        'diagnostics'] == 'WARN'

@@ -630,13 +630,15 @@ def run_diagnostics(run: RunData) -> Optional[DiagnosticsSummary]:
     Return what the run's controller told on ``/diagnostics``, summed up.
 
     :param run: the run.
-    :return: the summary (times from the first lateral-error stamp); None: the bag has
-        no ``/diagnostics``.
+    :return: the summary (times from the first lateral-error stamp; the run ends where
+        its last input was received); None: the bag has no ``/diagnostics``.
     """
     if run.diagnostics is None:
         return None
     lateral = run.inputs.get('lateral_error', Samples.empty())
-    return summarize(run.diagnostics, int(lateral.stamp_ns.min()) if len(lateral) else 0)
+    received = [int(samples.recv_ns.max()) for samples in run.inputs.values() if len(samples)]
+    return summarize(run.diagnostics, int(lateral.stamp_ns.min()) if len(lateral) else 0,
+                     max(received) if received else None)
 
 
 def speed_points(series_list: list[RunSeries]) -> tuple[Array, Array]:

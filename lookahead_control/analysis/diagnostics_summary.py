@@ -25,12 +25,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import re
-from typing import Sequence
+from typing import Optional, Sequence
 
 from lookahead_control.bags.recorded_diagnostics import StatusReport
 
 #: the status levels of ``diagnostic_msgs/DiagnosticStatus``, by value
 LEVELS = ('OK', 'WARN', 'ERROR', 'STALE')
+#: reasons that a run's end gives by itself: its inputs stop (stale on a wall clock) or
+#: its simulator's clock stops (on sim time); told after the run's last input they are
+#: the run ending, not a fault in it (every demo run ended on 'sim clock stopped')
+END_REASONS = ('stale inputs', 'sim clock stopped')
 #: where a reason's name ends: its first number, colon or parenthesis
 _NAME_END = re.compile(r'[0-9:(]')
 _TRAILING = re.compile(r'[\s,]*\b(for|at|of)?[\s,]*$')
@@ -61,17 +65,21 @@ class DiagnosticsSummary:
     """
     A controller's ``/diagnostics`` over a run.
 
-    :param reports: its statuses.
-    :param levels: how many at each level (:data:`LEVELS`).
-    :param told: its reasons, in the order they first came.
+    :param reports: its statuses in the run (up to its last input, and those after it
+        that tell more than its end).
+    :param levels: how many of them at each level (:data:`LEVELS`).
+    :param told: their reasons, in the order they first came.
     :param counters: the last status's counters that are not 0 (counts, and the seconds
         of the checks that found something), as ``(key, value)``.
+    :param at_end: the reasons of :data:`END_REASONS` told after the run's last input
+        (its statuses that told nothing else are not in ``reports``).
     """
 
     reports: int
     levels: tuple[int, int, int, int]
     told: tuple[Told, ...]
     counters: tuple[tuple[str, str], ...]
+    at_end: tuple[Told, ...] = ()
 
     @property
     def worst(self) -> str:
@@ -134,31 +142,50 @@ def _counter(key: str, value: str) -> bool:
         return False
 
 
-def summarize(reports: Sequence[StatusReport], start_ns: int) -> DiagnosticsSummary:
+def _note_reason(told: dict[str, Told], report: StatusReport, reason: str,
+                 start_ns: int) -> None:
+    """Count a reason of a status into ``told`` (by its name)."""
+    name = reason_name(reason)
+    before = told.get(name)
+    if before is None:
+        told[name] = Told(name, report.level, 1, (report.stamp_ns - start_ns) * 1e-9, reason)
+    else:
+        told[name] = Told(name, max(before.level, report.level), before.reports + 1,
+                          before.first_s, before.example)
+
+
+def summarize(reports: Sequence[StatusReport], start_ns: int,
+              end_recv_ns: Optional[int] = None) -> DiagnosticsSummary:
     """
     Sum up a controller's statuses over a run.
 
     :param reports: its statuses, in the order received.
     :param start_ns: the run's first lateral-error stamp (the times' zero) [ns].
+    :param end_recv_ns: when the run's last input was received (the recorder's clock,
+        as the statuses' ``recv_ns``); None: not known (every status is the run's).
     :return: the summary.
     """
     levels = [0, 0, 0, 0]
     told: dict[str, Told] = {}
+    at_end: dict[str, Told] = {}
+    counted = 0
     for report in reports:
+        reasons = split_reasons(report.message)
+        after = end_recv_ns is not None and report.recv_ns > end_recv_ns
+        ending = [r for r in reasons if after and reason_name(r) in END_REASONS]
+        for reason in ending:
+            _note_reason(at_end, report, reason, start_ns)
+        if ending and len(ending) == len(reasons):
+            continue            # the run's end and nothing else
+        counted += 1
         if 0 <= report.level < len(levels):
             levels[report.level] += 1
-        for reason in split_reasons(report.message):
-            name = reason_name(reason)
-            before = told.get(name)
-            if before is None:
-                told[name] = Told(name, report.level, 1,
-                                  (report.stamp_ns - start_ns) * 1e-9, reason)
-            else:
-                told[name] = Told(name, max(before.level, report.level), before.reports + 1,
-                                  before.first_s, before.example)
+        for reason in reasons:
+            if reason not in ending:
+                _note_reason(told, report, reason, start_ns)
     counters = tuple((k, v) for k, v in reports[-1].values if _counter(k, v)) if reports else ()
-    return DiagnosticsSummary(len(reports), (levels[0], levels[1], levels[2], levels[3]),
-                              tuple(told.values()), counters)
+    return DiagnosticsSummary(counted, (levels[0], levels[1], levels[2], levels[3]),
+                              tuple(told.values()), counters, tuple(at_end.values()))
 
 
 def summary_note(summary: DiagnosticsSummary) -> str:

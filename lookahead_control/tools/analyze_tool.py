@@ -234,6 +234,8 @@ def diagnostics_section(results: Sequence[tuple[RunData, RunSeries, dict[str, An
                      f'{run.controller_node}' + (f' ({by_level})' if by_level else ''))
         lines += [f'  - {level_name(t.level)} from t = {t.first_s:.3g} s in {t.reports}: '
                   f'{t.example}' for t in summary.told]
+        lines += [f"  - after the run's last input (its end, not a fault in it): "
+                  f'{level_name(t.level)} in {t.reports}: {t.example}' for t in summary.at_end]
         if summary.counters:
             lines.append('  - counters at the last status: ' + ', '.join(
                 f'{key} {value}' for key, value in summary.counters))
