@@ -1330,7 +1330,10 @@ def test_a_signal_held_through_a_cleanup_is_obeyed_after_it(monkeypatch):
         with interrupts.deferred() as held:
             signal.raise_signal(signal.SIGINT)
             done.append(held[:])
-    assert done == [[signal.SIGINT]] and interrupts.received == [signal.SIGINT]
+    assert done == [[signal.SIGINT]]
+    # not kept as received (dev-probe110: a library caller that caught it had every
+    # later run_loop stop at once, starting no process)
+    assert interrupts.received == []
     with pytest.raises(interrupts.Terminated):
         with interrupts.deferred():
             signal.raise_signal(signal.SIGTERM)

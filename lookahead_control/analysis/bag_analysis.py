@@ -621,6 +621,8 @@ def bag_row(run: RunData, series: RunSeries,
         # dev-sc49: what the controller warned of during the run (a lateral error in cm,
         # a frozen yaw rate ...) was in the bag and in no report
         notes.append(summary_note(summary))
+    if run.diagnostics is not None:
+        notes += [f'diagnostics: {said}' for said in run.diagnostics.notes()]
     row['notes'] = '; '.join(notes)
     return row
 
@@ -633,11 +635,12 @@ def run_diagnostics(run: RunData) -> Optional[DiagnosticsSummary]:
     :return: the summary (times from the first lateral-error stamp; the run ends where
         its last input was received); None: the bag has no ``/diagnostics``.
     """
-    if run.diagnostics is None:
+    if run.diagnostics is None or run.diagnostics.wrong_type:
         return None
     lateral = run.inputs.get('lateral_error', Samples.empty())
     received = [int(samples.recv_ns.max()) for samples in run.inputs.values() if len(samples)]
-    return summarize(run.diagnostics, int(lateral.stamp_ns.min()) if len(lateral) else 0,
+    return summarize(run.diagnostics.reports,
+                     int(lateral.stamp_ns.min()) if len(lateral) else 0,
                      max(received) if received else None)
 
 

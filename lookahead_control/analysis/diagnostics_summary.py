@@ -35,9 +35,9 @@ LEVELS = ('OK', 'WARN', 'ERROR', 'STALE')
 #: its simulator's clock stops (on sim time); told after the run's last input they are
 #: the run ending, not a fault in it (every demo run ended on 'sim clock stopped')
 END_REASONS = ('stale inputs', 'sim clock stopped')
-#: where a reason's name ends: its first number, colon or parenthesis
-_NAME_END = re.compile(r'[0-9:(]')
-_TRAILING = re.compile(r'[\s,]*\b(for|at|of)?[\s,]*$')
+#: where a reason's name ends: a colon, a parenthesis, or a number after "for" / "at"
+#: (``steering oscillates for 1.20 s``, ``sim clock stopped at 9.990 s``)
+_NAME_END = re.compile(r'[:(]|,? (?:for|at) [-+]?[0-9]')
 
 
 @dataclass(frozen=True)
@@ -45,11 +45,12 @@ class Told:
     """
     One reason the controller gave over a run.
 
-    :param name: the reason's name (its text up to the first number, colon or
-        parenthesis: ``lateral_error out of scale with the motion ...``).
+    :param name: the reason's name (its text up to a colon, a parenthesis or a number
+        after "for" / "at": ``lateral_error out of scale with the motion ...``).
     :param level: the worst level of the statuses that gave it.
     :param reports: how many statuses gave it.
-    :param first_s: the first of them [s after the run's first lateral error].
+    :param first_s: the first of them [s after the run's first lateral error] (a status
+        comes once per diagnostics period: what it tells began up to a period before).
     :param example: the reason as the first of them gave it, in full.
     """
 
@@ -65,14 +66,16 @@ class DiagnosticsSummary:
     """
     A controller's ``/diagnostics`` over a run.
 
-    :param reports: its statuses in the run (up to its last input, and those after it
-        that tell more than its end).
+    :param reports: its statuses in the run (up to its last input, and the first after
+        it, which covers the run's last period, unless it tells only the end).
     :param levels: how many of them at each level (:data:`LEVELS`).
     :param told: their reasons, in the order they first came.
     :param counters: the last status's counters that are not 0 (counts, and the seconds
         of the checks that found something), as ``(key, value)``.
-    :param at_end: the reasons of :data:`END_REASONS` told after the run's last input
-        (its statuses that told nothing else are not in ``reports``).
+    :param at_end: what was told after the run's last input: the reasons of
+        :data:`END_REASONS`, and every reason of the statuses after the first one.
+    :param top: the highest level of ``reports`` (-1: none; another value than
+        :data:`LEVELS`' is not counted in ``levels``).
     """
 
     reports: int
@@ -80,11 +83,12 @@ class DiagnosticsSummary:
     told: tuple[Told, ...]
     counters: tuple[tuple[str, str], ...]
     at_end: tuple[Told, ...] = ()
+    top: int = -1
 
     @property
     def worst(self) -> str:
-        """Return the worst level of any status (``-``: none recorded)."""
-        return next((LEVELS[k] for k in range(3, -1, -1) if self.levels[k]), '-')
+        """Return the name of the highest level of any status (``-``: none recorded)."""
+        return level_name(self.top) if self.top >= 0 else '-'
 
 
 def level_name(level: int) -> str:
@@ -121,14 +125,14 @@ def split_reasons(message: str) -> list[str]:
 
 def reason_name(reason: str) -> str:
     """
-    Return the name of a reason: its text up to its first number, colon or parenthesis.
+    Return the name of a reason: its text up to a colon, a parenthesis or a "for" / "at" number.
 
     :param reason: one reason (``steering oscillates for 1.20 s (+-56 mrad ...``).
     :return: e.g. ``steering oscillates``.
     """
     match = _NAME_END.search(reason)
     head = reason[:match.start()] if match else reason
-    return _TRAILING.sub('', head).strip() or reason.strip()
+    return head.strip(' ,') or reason.strip()
 
 
 def _counter(key: str, value: str) -> bool:
@@ -168,16 +172,21 @@ def summarize(reports: Sequence[StatusReport], start_ns: int,
     levels = [0, 0, 0, 0]
     told: dict[str, Told] = {}
     at_end: dict[str, Told] = {}
-    counted = 0
+    counted, top, after = 0, -1, 0
     for report in reports:
         reasons = split_reasons(report.message)
-        after = end_recv_ns is not None and report.recv_ns > end_recv_ns
-        ending = [r for r in reasons if after and reason_name(r) in END_REASONS]
+        if end_recv_ns is not None and report.recv_ns > end_recv_ns:
+            after += 1
+        # the first status after the run's last input covers the run's last period; the
+        # later ones only what came after it
+        ending = reasons if after > 1 else [
+            r for r in reasons if after and reason_name(r) in END_REASONS]
         for reason in ending:
             _note_reason(at_end, report, reason, start_ns)
-        if ending and len(ending) == len(reasons):
+        if after > 1 or (ending and len(ending) == len(reasons)):
             continue            # the run's end and nothing else
         counted += 1
+        top = max(top, report.level)
         if 0 <= report.level < len(levels):
             levels[report.level] += 1
         for reason in reasons:
@@ -185,7 +194,7 @@ def summarize(reports: Sequence[StatusReport], start_ns: int,
                 _note_reason(told, report, reason, start_ns)
     counters = tuple((k, v) for k, v in reports[-1].values if _counter(k, v)) if reports else ()
     return DiagnosticsSummary(counted, (levels[0], levels[1], levels[2], levels[3]),
-                              tuple(told.values()), counters, tuple(at_end.values()))
+                              tuple(told.values()), counters, tuple(at_end.values()), top)
 
 
 def summary_note(summary: DiagnosticsSummary) -> str:
@@ -193,9 +202,9 @@ def summary_note(summary: DiagnosticsSummary) -> str:
     Return the metrics table's note of a run's ``/diagnostics``: the reasons at WARN and up.
 
     :param summary: the summary.
-    :return: e.g. ``diagnostics: WARN 'steering oscillates' in 3 of 12 reports from t =
-        4.1 s`` (empty when every status was OK).
+    :return: e.g. ``diagnostics: WARN 'steering oscillates' in 3 of 12 statuses, first
+        told at t = 4.1 s`` (empty when every status was OK).
     """
-    said = [f"{level_name(t.level)} '{t.name}' in {t.reports} of {summary.reports} reports "
-            f'from t = {t.first_s:.3g} s' for t in summary.told if t.level >= 1]
+    said = [f"{level_name(t.level)} '{t.name}' in {t.reports} of {summary.reports} statuses, "
+            f'first told at t = {t.first_s:.3g} s' for t in summary.told if t.level >= 1]
     return ('diagnostics: ' + ', '.join(said)) if said else ''

@@ -91,7 +91,7 @@ def to_rosbags(msg: Any, store: Typestore) -> Any:
     import numpy as np
     name = f'{type(msg).__module__.split(".")[0]}/msg/{type(msg).__name__}'
     fields = {}
-    for field in msg.get_fields_and_field_types():
+    for field, kind in msg.get_fields_and_field_types().items():
         value = getattr(msg, field)
         if hasattr(value, 'get_fields_and_field_types'):
             value = to_rosbags(value, store)
@@ -100,8 +100,11 @@ def to_rosbags(msg: Any, store: Typestore) -> Any:
         elif isinstance(value, list) and value and hasattr(
                 value[0], 'get_fields_and_field_types'):
             value = [to_rosbags(v, store) for v in value]
-        elif isinstance(value, bytes) and len(value) == 1:
-            value = value[0]        # a byte (octet: DiagnosticStatus.level), an int there
+        elif kind == 'octet':
+            # a byte (DiagnosticStatus.level; rclpy: bytes, or the int it was given):
+            # rosbags holds it as an int8
+            byte = value[0] if isinstance(value, bytes) else int(value) & 0xFF
+            value = byte - 256 if byte > 127 else byte
         fields[field] = value
     return store.types[name](**fields)
 

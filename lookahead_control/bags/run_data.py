@@ -36,7 +36,7 @@ from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
 from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
 from lookahead_control.bags.recorded_diagnostics import (controller_reports, DIAGNOSTICS,
-                                                         StatusReport)
+                                                         RecordedDiagnostics)
 from lookahead_control.bags.rosbag_io import (bag_topics, FULL_NODE_NAME, NODE_NAME_RULE,
                                               recorded_parameters, run_description,
                                               SCENARIO_KEY, typestore)
@@ -51,6 +51,7 @@ from lookahead_control.core.safety import SafetyParams
 from lookahead_control.ros import conversions as conv
 import numpy as np
 import numpy.typing as npt
+from rosbags.serde import SerdeError
 
 Array = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -76,8 +77,8 @@ SAMPLES: dict[str, Any] = {
 _PARSE: dict[str, Callable[[Any], Any]] = {
     'lateral_error': conv.from_lateral_error, 'yaw': conv.from_yaw,
     'velocity': conv.from_velocity, 'road_curvature': conv.from_curvature}
-_CORRUPT = (ValueError, AssertionError, struct.error, UnicodeDecodeError, IndexError,
-            KeyError)
+_CORRUPT = (SerdeError, ValueError, AssertionError, struct.error, UnicodeDecodeError,
+            IndexError, KeyError)
 
 
 def node_topics(node: str = CONTROLLER_NODE) -> dict[str, str]:
@@ -291,9 +292,9 @@ class RunData:
     :param parameter_events_recv_ns: when each of them was received (the recorder's
         clock, as the debug topic's ``recv_ns``); None: not known (taken as received
         after the first recorded answer).
-    :param diagnostics: the controller node's statuses on ``/diagnostics``, in the
-        order received (:func:`~lookahead_control.bags.recorded_diagnostics.
-        controller_reports`); None: the bag has no ``/diagnostics``.
+    :param diagnostics: the controller node's statuses on ``/diagnostics``
+        (:func:`~lookahead_control.bags.recorded_diagnostics.controller_reports`); None:
+        the bag has no ``/diagnostics`` (or it was not read).
     """
 
     bag: Path
@@ -308,11 +309,11 @@ class RunData:
     controller_node: str = CONTROLLER_NODE
     parameter_events: Optional[list[dict[str, Any]]] = None
     parameter_events_recv_ns: Optional[list[int]] = None
-    diagnostics: Optional[list[StatusReport]] = None
+    diagnostics: Optional[RecordedDiagnostics] = None
 
 
 def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
-             node: str = CONTROLLER_NODE) -> RunData:
+             node: str = CONTROLLER_NODE, diagnostics: bool = True) -> RunData:
     """
     Read the contract topics of a bag.
 
@@ -325,6 +326,8 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
     :param node: the controller node whose run it is: its parameters, its debug topic
         and, unless ``topics`` says otherwise, the contract topics in its namespace
         (:func:`node_topics`).
+    :param diagnostics: also read its statuses on ``/diagnostics`` (a re-run does not
+        need them).
     :return: the run.
     :raises ConfigError: an unknown role in ``topics``, the bag is unreadable, lacks the
         lateral-error topic, a contract topic has another type, ``node`` is not
@@ -404,8 +407,9 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         received = parameter_events(bag, node, store, with_recv_ns=True)
         run.parameter_events = [change for _, change in received]
         run.parameter_events_recv_ns = [recv for recv, _ in received]
-    if DIAGNOSTICS in available:
-        run.diagnostics = controller_reports(bag, node, store)
+    if diagnostics and DIAGNOSTICS in available:
+        controllers = [name for name, params in recorded.items() if is_controller(params)]
+        run.diagnostics = controller_reports(bag, node, controllers, store)
     return run
 
 

@@ -78,7 +78,8 @@ def run_tool(main: Callable[[Sequence[str] | None], int],
     :param argv: its arguments (default: sys.argv[1:]).
     :return: the exit code.
     """
-    prog = Path(sys.argv[0]).name
+    # as the interrupt hook names it: `python -m ...demo` is `demo` too, not `demo.py`
+    prog = Path(sys.argv[0]).name.removesuffix('.py')
     install()           # SIGTERM stops the tool as Ctrl-C does (children, bags)
     try:
         # a Ctrl-C or SIGTERM while the tool started that an import swallowed (a C

@@ -67,7 +67,7 @@ def raise_if_received() -> None:
 
     A Ctrl-C while a C extension initializes (a lazy import) can become an ImportError a
     fallback catches, and the tool ran on: ``run_tool`` checks before the tool's main,
-    a loop (``replay``'s) between its steps.
+    a loop (``replay``'s, ``closed_loop``'s) between its steps.
 
     :raises KeyboardInterrupt: a SIGINT was received (:class:`Terminated`: a SIGTERM).
     """
@@ -223,9 +223,10 @@ class deferred:  # noqa: N801 - used as a context manager, like contextlib's
     """
     Hold SIGINT and SIGTERM while a cleanup runs (a second Ctrl-C must not cut it).
 
-    A signal held is received all the same (:data:`received`); when the cleanup ran
-    without an exception in flight (a run that ended on its own) it is raised on leaving:
-    a Ctrl-C during the cleanup between two runs stops the tool, not the cleanup.
+    When the cleanup ran without an exception in flight (a run that ended on its own), a
+    signal held is raised on leaving: a Ctrl-C during the cleanup between two runs stops
+    the tool, not the cleanup. It is not added to :data:`received`: a library caller that
+    catches the interrupt can run again (dev-probe110: every later run stopped at once).
     """
 
     def __enter__(self) -> list[int]:
@@ -248,6 +249,6 @@ class deferred:  # noqa: N801 - used as a context manager, like contextlib's
         """
         for s, handler in self._previous.items():
             signal.signal(s, handler)
-        received.extend(self.held)
         if self.held and kind is None:
-            raise_if_received()
+            raise (Terminated(self.held[-1]) if self.held[-1] == signal.SIGTERM
+                   else KeyboardInterrupt())

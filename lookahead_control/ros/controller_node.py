@@ -857,11 +857,11 @@ class ControllerNode(LifecycleNode):
             level = max(level, DiagnosticStatus.WARN)
             fallback = getattr(getattr(self.core.law, 'settings', None), 'map_fallback', 0.0)
             if turning['curvature_dropped'] > 0.0:
-                acted = (f'the law {self.core.law_name} dropped the curvature for '
+                acted = (f'The law {self.core.law_name} dropped the curvature for '
                          f'{turning["curvature_dropped"]:.2f} s and ran on its own estimate '
                          f'(lane_keeping.map_fallback {fallback:g} x the threshold)')
             else:
-                acted = (f'the law {self.core.law_name} takes the curvature as the truth' + (
+                acted = (f'The law {self.core.law_name} takes the curvature as the truth' + (
                     f' below lane_keeping.map_fallback {fallback:g} x the threshold'
                     if fallback > 0.0 else ''))
             reasons.append(f'road_curvature disagrees with the yaw rate for '
@@ -872,7 +872,7 @@ class ControllerNode(LifecycleNode):
                            'and up): one of the three is off: the curvature (a map off in '
                            'scale or position; or v_x, which it is multiplied by: a speed '
                            'in km/h), the yaw rate (a gyro bias: 0.3 deg/s is 10 '
-                           f'mrad), or the relative yaw (a jump, a relocalization); {acted} '
+                           f'mrad), or the relative yaw (a jump, a relocalization). {acted} '
                            '(docs/safety.md)')
         swing, self.core.oscillation_seen = self.core.oscillation_seen, (0.0, 0.0)
         if turning['steering_oscillates'] >= TURNING_WARN:
@@ -906,7 +906,7 @@ class ControllerNode(LifecycleNode):
                    f'they vary {stillness:.3g} times as much as it does')
             reasons.append(f'yaw_rate hardly varies while the steering and the relative yaw '
                            f'do, for {turning["yaw_rate_still"]:.2f} s ({how}): frozen (a '
-                           'bridge repeating its last value), or its scale too small; the '
+                           'bridge repeating its last value), or its scale too small. The '
                            "law's yaw feedback is missing (docs/safety.md)")
         ratio, self.core.speed_seen = self.core.speed_seen, 1.0
         if turning['speed_out_of_scale'] > 0.0:
@@ -920,8 +920,8 @@ class ControllerNode(LifecycleNode):
                            f'{turning["speed_out_of_scale"]:.2f} s ({how}): a speed in other '
                            'units (km/h reads 3.6 times, mph 2.24 times the m/s), or the '
                            "preview's distances in other units, or a preview repeated "
-                           'without moving or re-planned from the car at each message; '
-                           'every law is tuned on the speed (docs/safety.md)')
+                           'without moving or re-planned from the car at each message. '
+                           'Every law is tuned on the speed (docs/safety.md)')
         lateral_scale, self.core.lateral_scale_seen = self.core.lateral_scale_seen, 0.0
         if turning['lateral_error_out_of_scale'] > 0.0:
             # dev-sc48: a lateral error in cm put the default law 2-135 m off S-bends, the
@@ -940,7 +940,7 @@ class ControllerNode(LifecycleNode):
                        'or an offset measured to the curved lane far ahead')
             reasons.append(f'lateral_error out of scale with the motion relative_yaw, v_x '
                            f'and v_y predict for {turning["lateral_error_out_of_scale"]:.2f} '
-                           f's ({how}); every law steers on them as metres and radians '
+                           f's ({how}). Every law steers on them as metres and radians '
                            '(docs/safety.md)')
         yaw_scale, self.core.yaw_scale_seen = self.core.yaw_scale_seen, 0.0
         if turning['relative_yaw_out_of_scale'] > 0.0:
@@ -953,7 +953,7 @@ class ControllerNode(LifecycleNode):
                            f'{turning["relative_yaw_out_of_scale"]:.2f} s (it moves '
                            f'{yaw_scale:.3g} times as far): a relative yaw in degrees (57.3 '
                            'times the radians) or mrad (1000 times), or a yaw rate too '
-                           'small; every law steers on it as radians (docs/safety.md)')
+                           'small. Every law steers on it as radians (docs/safety.md)')
         late = {k: v for k, v in {**ages, 'answer': latency}.items()
                 if v is not None and v > warn_at}
         if late:

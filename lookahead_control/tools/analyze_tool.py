@@ -218,29 +218,45 @@ def diagnostics_section(results: Sequence[tuple[RunData, RunSeries, dict[str, An
     """
     lines = ['## What the controller told (/diagnostics)', '',
              "Each reason of the controller's statuses once, as it was first told, with "
-             'the worst level of the statuses that gave it, its first moment (t from the '
-             "first lateral-error stamp, on the node's clock) and how many statuses gave "
-             'it; then the counters of the last status that are not 0 (counted from the '
-             "node's start; a check's `[s]`: the seconds it found something). "
-             'docs/safety.md says what each means.', '']
+             'the worst level of the statuses that gave it, when it was first told (t from '
+             "the first lateral-error stamp, on the node's clock; a status comes once per "
+             'diagnostics period, so what it tells began up to a period before) and how '
+             'many statuses gave it; then the counters of the last status that are not 0 '
+             "(counted from the node's start; a check's `[s]`: the seconds it found "
+             'something). docs/safety.md says what each means.', '']
     for run, _, _ in results:
         summary = run_diagnostics(run)
+        said = run.diagnostics.notes() if run.diagnostics is not None else []
         if summary is None:
-            lines += [f'- `{run.bag.name}`: no /diagnostics in the bag', '']
+            lines += [f'- `{run.bag.name}`: '
+                      + (said[0] if said else 'no /diagnostics in the bag'), '']
             continue
         by_level = ', '.join(f'{name} {count}' for name, count in zip(LEVELS, summary.levels)
                              if count)
         lines.append(f'- `{run.bag.name}`: {summary.reports} statuses of '
-                     f'{run.controller_node}' + (f' ({by_level})' if by_level else ''))
-        lines += [f'  - {level_name(t.level)} from t = {t.first_s:.3g} s in {t.reports}: '
-                  f'{t.example}' for t in summary.told]
+                     f'{run.controller_node}' + (f' ({by_level})' if by_level else '')
+                     + ''.join(f'; {text}' for text in said))
+        lines += [f'  - {level_name(t.level)} first told at t = {t.first_s:.3g} s, in '
+                  f'{t.reports}: {report_text(t.example)}' for t in summary.told]
         lines += [f"  - after the run's last input (its end, not a fault in it): "
-                  f'{level_name(t.level)} in {t.reports}: {t.example}' for t in summary.at_end]
+                  f'{level_name(t.level)} in {t.reports}: {report_text(t.example)}'
+                  for t in summary.at_end]
         if summary.counters:
             lines.append('  - counters at the last status: ' + ', '.join(
-                f'{key} {value}' for key, value in summary.counters))
+                f'{report_text(key)} {report_text(value)}' for key, value in summary.counters))
         lines.append('')
     return lines
+
+
+def report_text(text: str) -> str:
+    """
+    Return recorded text fit for one line of the markdown report.
+
+    :param text: a status's text (any node's: newlines, control characters, HTML).
+    :return: one line, control characters as spaces, ``<``, ``>`` and ``&`` escaped.
+    """
+    flat = ''.join(c if c.isprintable() else ' ' for c in text)
+    return flat.replace('&', '&amp;').replace('<', '&lt;').replace('>', '&gt;')
 
 
 def main(argv: Sequence[str] | None = None) -> int:
