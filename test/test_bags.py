@@ -649,6 +649,20 @@ def test_analyze_refuses_unknown_topic_roles_and_names(tmp_path):
     assert not (tmp_path / 'out').exists()
 
 
+def test_a_finished_simulator_run_ends_at_its_last_input_and_a_cut_one_does_not(loop_bag):
+    # what the controller tells after a finished scenario (its clock stopped) is the
+    # simulation's end; after a run cut short, or a vehicle's, it is a fault (dev-sc49,
+    # dev-probe111)
+    from lookahead_control.analysis.bag_analysis import finished_at
+    run = load_run(loop_bag)
+    assert finished_at(run) == max(int(s.recv_ns.max()) for s in run.inputs.values())
+    time = run.truth.values['time']
+    cut = dataclasses.replace(run, truth=dataclasses.replace(
+        run.truth, values={**run.truth.values, 'time': np.where(time > 2.0, np.nan, time)}))
+    assert finished_at(cut) is None
+    assert finished_at(dataclasses.replace(run, truth=Samples.empty())) is None
+
+
 def test_analyze_rows_and_legends_tell_runs_apart(loop_bag, tmp_path):
     # issue 12 items 10, 11: two bags both "paper 37"; columns without units
     from lookahead_control.analysis.bag_analysis import run_label

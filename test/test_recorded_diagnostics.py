@@ -26,7 +26,7 @@ import json
 import math
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from lookahead_control.analysis.bag_analysis import bag_row, run_series
+from lookahead_control.analysis.bag_analysis import bag_row, finished_at, run_series
 from lookahead_control.analysis.diagnostics_summary import (reason_name, split_reasons,
                                                             summarize)
 from lookahead_control.bags import replay_node
@@ -219,34 +219,39 @@ def test_replay_says_what_the_re_run_s_checks_found(tmp_path, capsys):
     assert 'checks found' not in capsys.readouterr().out
 
 
-def test_the_run_s_end_is_told_apart_from_a_fault_in_it(tmp_path):
-    # every demo run's last status said 'sim clock stopped' (the simulator had finished):
-    # its diagnostics column read WARN for nothing that happened in the run
-    stopped = 'sim clock stopped at 9.990 s for 1.0 s (wall): nothing is judged stale on it'
-    reports = [StatusReport(5_000_000_000, 5_000_000_000, 2, 'stale inputs: yaw', ()),
-               StatusReport(9_990_000_000, 10_500_000_000, 1, stopped, ()),
-               StatusReport(9_990_000_000, 11_500_000_000, 1,
-                            f'{stopped}; saturated: 2', (('saturated', '2'),))]
+def test_after_a_finished_scenario_no_status_counts():
+    # every demo run's /diagnostics ended on 'sim clock stopped' (the simulator had
+    # finished, the controller ran on): its diagnostics column read WARN for nothing that
+    # happened in the run; and 'road_curvature lost' went on being told after it
+    lost = 'road_curvature lost: no curvature feed-forward'
+    stopped = 'sim clock stopped at 9.990 s for 1.0 s (wall)'
+    reports = [StatusReport(5_000_000_000, 5_000_000_000, 1, lost, ()),
+               StatusReport(9_990_000_000, 10_400_000_000, 1, f'{lost}; {stopped}', ()),
+               StatusReport(9_990_000_000, 11_400_000_000, 2,
+                            f'{lost}; {stopped}; saturated: 1', (('saturated', '1'),))]
     summary = summarize(reports, 0, end_recv_ns=10_000_000_000)
-    assert summary.reports == 1 and summary.levels == (0, 0, 1, 0)
-    assert [t.name for t in summary.told] == ['stale inputs']
-    assert [(t.name, t.reports) for t in summary.at_end] == [('sim clock stopped', 2),
-                                                             ('saturated', 1)]
-    # without the run's end known, every status is the run's
-    assert summarize(reports, 0).reports == 3
-    # in a bag: the end is the last input received, of any input
-    node = _status(1, stopped)
-    _bag(tmp_path / 'bag', [(3_000_000_000, [_status(0, 'ok')]), (10_600_000_000, [node])])
+    assert summary.reports == 1 and summary.worst == 'WARN'
+    assert [(t.name, t.reports) for t in summary.told] == [('road_curvature lost', 1)]
+    assert [(t.name, t.reports, t.level) for t in summary.at_end] == [
+        ('road_curvature lost', 2, 2), ('sim clock stopped', 2, 2), ('saturated', 1, 2)]
+    assert summary.counters == (('saturated', '1'),)
+    # without an end (a real vehicle, a run stopped early): every status is the run's
+    assert summarize(reports, 0).worst == 'ERROR' and summarize(reports, 0).reports == 3
+
+
+def test_a_run_without_a_finished_scenario_has_no_end(tmp_path):
+    # dev-probe111: a vehicle whose sensors died 6 s into its run read OK, its ten ERROR
+    # 'stale inputs' after its last input called 'its end, not a fault in it'
+    stale = 'stale inputs: lateral_error, yaw, velocity'
+    _bag(tmp_path / 'bag', [(3_000_000_000, [_status(0, 'ok')]),
+                            (10_600_000_000, [_status(2, stale)])])
     run = load_run(tmp_path / 'bag')
+    assert finished_at(run) is None
     row = bag_row(run, run_series(run))
-    assert row['diagnostics'] == 'OK' and 'diagnostics:' not in row['notes']
+    assert row['diagnostics'] == 'ERROR'
+    assert "ERROR 'stale inputs' in 1 of 2 statuses, first told at t = 10.6 s" in row['notes']
     report = write_outputs(analyze([tmp_path / 'bag']), tmp_path / 'out', plots=False)
-    assert ("  - after the run's last input (its end, not a fault in it): WARN in 1: sim clock "
-            'stopped at 9.990 s') in report.read_text()
-    # the same status while inputs still come is a fault in the run
-    _bag(tmp_path / 'mid', [(5_000_000_000, [node])])
-    assert bag_row(*(lambda run: (run, run_series(run)))(load_run(tmp_path / 'mid')))[
-        'diagnostics'] == 'WARN'
+    assert 'after the simulator finished' not in report.read_text()
 
 
 def test_every_reason_of_the_node_is_one_reason_with_its_name(active_controller):
@@ -352,20 +357,3 @@ def test_a_status_recorded_twice_counts_once_and_odd_text_stays_one_line(tmp_pat
     assert ('  - WARN first told at t = 0.5 s, in 2: rejected: 1 (last: &lt;b&gt;x&lt;/b&gt; '
             'second line)\n') in text
     assert 'recorded twice (two recorders?) counted once' in text
-
-
-def test_after_the_run_s_end_only_the_first_status_counts():
-    # dev-probe110: 'road_curvature lost' went on being told after the simulator had
-    # finished and was counted 'in 5 of 7', 2 of them after the run
-    lost = 'road_curvature lost: no curvature feed-forward'
-    stopped = 'sim clock stopped at 9.990 s for 1.0 s (wall)'
-    reports = [StatusReport(5_000_000_000, 5_000_000_000, 1, lost, ()),
-               StatusReport(9_990_000_000, 10_400_000_000, 1, f'{lost}; saturated: 1', ()),
-               StatusReport(9_990_000_000, 11_400_000_000, 1, f'{lost}; {stopped}', ()),
-               StatusReport(9_990_000_000, 12_400_000_000, 2, f'{lost}; {stopped}', ())]
-    summary = summarize(reports, 0, end_recv_ns=10_000_000_000)
-    assert summary.reports == 2 and summary.worst == 'WARN'
-    assert [(t.name, t.reports) for t in summary.told] == [
-        ('road_curvature lost', 2), ('saturated', 1)]
-    assert [(t.name, t.reports, t.level) for t in summary.at_end] == [
-        ('road_curvature lost', 2, 2), ('sim clock stopped', 2, 2)]

@@ -485,6 +485,42 @@ def final_compliance_memory(run: RunData) -> tuple[float, str]:
         f'at the end of the stretch that {how}')
 
 
+def _scenario_span(run: RunData) -> Optional[tuple[Array, float, float]]:
+    """Return the ground truth's step times, the scenario's duration and the step [s]."""
+    time = run.truth.values.get('time')
+    text = scenario_text(run)
+    if time is None or text is None:
+        return None
+    steps = np.unique(time[np.isfinite(time)])
+    try:
+        duration = float((yaml.safe_load(text) or {})['scenario']['duration'])
+    except (yaml.YAMLError, KeyError, TypeError, ValueError):
+        return None
+    if steps.size < 2 or not math.isfinite(duration):
+        return None
+    return steps, duration, float(np.median(np.diff(steps)))
+
+
+def finished_at(run: RunData) -> Optional[int]:
+    """
+    Return when a simulator's run that finished its scenario received its last input.
+
+    What the controller tells after that is the simulation's end (its clock stops, its
+    inputs stop), not a fault of the run. A run stopped early, a real vehicle's (no
+    scenario), or one whose inputs died mid-run has no such end: what the controller
+    tells after its last input is a fault (dev-probe111: a vehicle whose sensors died
+    read OK, its ERROR 'stale inputs' called the run's end).
+
+    :param run: the run.
+    :return: the last input's receive time (the recorder's clock) [ns], or None.
+    """
+    span = _scenario_span(run)
+    if span is None or span[0][-1] < span[1] - 1.5 * span[2]:
+        return None
+    received = [int(samples.recv_ns.max()) for samples in run.inputs.values() if len(samples)]
+    return max(received) if received else None
+
+
 def run_span(run: RunData) -> list[str]:
     """
     Return what the bag misses of its simulator's scenario: a late start, an early end.
@@ -497,18 +533,10 @@ def run_span(run: RunData) -> list[str]:
     :param run: the run.
     :return: the notes (none without ground truth or a scenario with a duration).
     """
-    time = run.truth.values.get('time')
-    text = scenario_text(run)
-    if time is None or text is None:
+    span = _scenario_span(run)
+    if span is None:
         return []
-    steps = np.unique(time[np.isfinite(time)])
-    try:
-        duration = float((yaml.safe_load(text) or {})['scenario']['duration'])
-    except (yaml.YAMLError, KeyError, TypeError, ValueError):
-        return []
-    if steps.size < 2 or not math.isfinite(duration):
-        return []
-    period = float(np.median(np.diff(steps)))
+    steps, duration, period = span
     notes = []
     if steps[0] > 1.5 * period:
         notes.append(f'late start: the bag begins at t = {steps[0]:.3g} s of the run (a '
@@ -632,16 +660,15 @@ def run_diagnostics(run: RunData) -> Optional[DiagnosticsSummary]:
     Return what the run's controller told on ``/diagnostics``, summed up.
 
     :param run: the run.
-    :return: the summary (times from the first lateral-error stamp; the run ends where
-        its last input was received); None: the bag has no ``/diagnostics``.
+    :return: the summary (times from the first lateral-error stamp; a simulator's run
+        that finished its scenario ends where its last input was received:
+        :func:`finished_at`); None: the bag has no ``/diagnostics``.
     """
     if run.diagnostics is None or run.diagnostics.wrong_type:
         return None
     lateral = run.inputs.get('lateral_error', Samples.empty())
-    received = [int(samples.recv_ns.max()) for samples in run.inputs.values() if len(samples)]
     return summarize(run.diagnostics.reports,
-                     int(lateral.stamp_ns.min()) if len(lateral) else 0,
-                     max(received) if received else None)
+                     int(lateral.stamp_ns.min()) if len(lateral) else 0, finished_at(run))
 
 
 def speed_points(series_list: list[RunSeries]) -> tuple[Array, Array]:

@@ -31,10 +31,6 @@ from lookahead_control.bags.recorded_diagnostics import StatusReport
 
 #: the status levels of ``diagnostic_msgs/DiagnosticStatus``, by value
 LEVELS = ('OK', 'WARN', 'ERROR', 'STALE')
-#: reasons that a run's end gives by itself: its inputs stop (stale on a wall clock) or
-#: its simulator's clock stops (on sim time); told after the run's last input they are
-#: the run ending, not a fault in it (every demo run ended on 'sim clock stopped')
-END_REASONS = ('stale inputs', 'sim clock stopped')
 #: where a reason's name ends: a colon, a parenthesis, or a number after "for" / "at"
 #: (``steering oscillates for 1.20 s``, ``sim clock stopped at 9.990 s``)
 _NAME_END = re.compile(r'[:(]|,? (?:for|at) [-+]?[0-9]')
@@ -66,14 +62,13 @@ class DiagnosticsSummary:
     """
     A controller's ``/diagnostics`` over a run.
 
-    :param reports: its statuses in the run (up to its last input, and the first after
-        it, which covers the run's last period, unless it tells only the end).
+    :param reports: its statuses in the run (those received up to its end, if known).
     :param levels: how many of them at each level (:data:`LEVELS`).
     :param told: their reasons, in the order they first came.
     :param counters: the last status's counters that are not 0 (counts, and the seconds
         of the checks that found something), as ``(key, value)``.
-    :param at_end: what was told after the run's last input: the reasons of
-        :data:`END_REASONS`, and every reason of the statuses after the first one.
+    :param at_end: the reasons of the statuses received after the run's end (its
+        simulator had finished: its clock stopped, its inputs stopped), not counted.
     :param top: the highest level of ``reports`` (-1: none; another value than
         :data:`LEVELS`' is not counted in ``levels``).
     """
@@ -165,33 +160,26 @@ def summarize(reports: Sequence[StatusReport], start_ns: int,
 
     :param reports: its statuses, in the order received.
     :param start_ns: the run's first lateral-error stamp (the times' zero) [ns].
-    :param end_recv_ns: when the run's last input was received (the recorder's clock,
-        as the statuses' ``recv_ns``); None: not known (every status is the run's).
+    :param end_recv_ns: the run's end: when a simulator's run that finished its scenario
+        received its last input (the recorder's clock, as the statuses' ``recv_ns``);
+        None: no such end (every status is the run's).
     :return: the summary.
     """
     levels = [0, 0, 0, 0]
     told: dict[str, Told] = {}
     at_end: dict[str, Told] = {}
-    counted, top, after = 0, -1, 0
+    counted, top = 0, -1
     for report in reports:
-        reasons = split_reasons(report.message)
         if end_recv_ns is not None and report.recv_ns > end_recv_ns:
-            after += 1
-        # the first status after the run's last input covers the run's last period; the
-        # later ones only what came after it
-        ending = reasons if after > 1 else [
-            r for r in reasons if after and reason_name(r) in END_REASONS]
-        for reason in ending:
-            _note_reason(at_end, report, reason, start_ns)
-        if after > 1 or (ending and len(ending) == len(reasons)):
-            continue            # the run's end and nothing else
+            for reason in split_reasons(report.message):
+                _note_reason(at_end, report, reason, start_ns)
+            continue
         counted += 1
         top = max(top, report.level)
         if 0 <= report.level < len(levels):
             levels[report.level] += 1
-        for reason in reasons:
-            if reason not in ending:
-                _note_reason(told, report, reason, start_ns)
+        for reason in split_reasons(report.message):
+            _note_reason(told, report, reason, start_ns)
     counters = tuple((k, v) for k, v in reports[-1].values if _counter(k, v)) if reports else ()
     return DiagnosticsSummary(counted, (levels[0], levels[1], levels[2], levels[3]),
                               tuple(told.values()), counters, tuple(at_end.values()), top)

@@ -167,7 +167,9 @@ def offline(args: argparse.Namespace) -> int:
                   if name in ('time_jumps', 'law_restarts')]
         print("replay: the re-run's checks found, as the node's /diagnostics names them: "
               + ', '.join(seconds + events) + ' (docs/safety.md; what the recorded '
-              "controller told: analyze's report)")
+              "controller told: analyze's report; the re-run has no clock and never goes "
+              'stale: where inputs stopped for longer than lane_keeping.max_gap it counts a '
+              'law restart the node, gone stale first, did not)')
     if result.law_switches:
         print(f'replay: the law was set at run time: the re-run switched it where the '
               f'recorded controller did ({result.law_switches} switches, '

@@ -212,40 +212,54 @@ def diagnostics_section(results: Sequence[tuple[RunData, RunSeries, dict[str, An
     Return the report's section of what each run's controller told on ``/diagnostics``.
 
     :param results: the output of :func:`analyze`.
-    :return: markdown lines: per bag its statuses by level, each reason once (its worst
-        level, first moment, number of statuses, and its text as first told), and the
-        counters of its last status that are not 0.
+    :return: markdown lines: the legend, then :func:`diagnostics_lines` per bag.
     """
-    lines = ['## What the controller told (/diagnostics)', '',
-             "Each reason of the controller's statuses once, as it was first told, with "
-             'the worst level of the statuses that gave it, when it was first told (t from '
-             "the first lateral-error stamp, on the node's clock; a status comes once per "
-             'diagnostics period, so what it tells began up to a period before) and how '
-             'many statuses gave it; then the counters of the last status that are not 0 '
-             "(counted from the node's start; a check's `[s]`: the seconds it found "
-             'something). docs/safety.md says what each means.', '']
+    lines = ['## What the controller told (/diagnostics)', '', DIAGNOSTICS_LEGEND, '']
     for run, _, _ in results:
-        summary = run_diagnostics(run)
-        said = run.diagnostics.notes() if run.diagnostics is not None else []
-        if summary is None:
-            lines += [f'- `{run.bag.name}`: '
-                      + (said[0] if said else 'no /diagnostics in the bag'), '']
-            continue
-        by_level = ', '.join(f'{name} {count}' for name, count in zip(LEVELS, summary.levels)
-                             if count)
-        lines.append(f'- `{run.bag.name}`: {summary.reports} statuses of '
-                     f'{run.controller_node}' + (f' ({by_level})' if by_level else '')
-                     + ''.join(f'; {text}' for text in said))
-        lines += [f'  - {level_name(t.level)} first told at t = {t.first_s:.3g} s, in '
-                  f'{t.reports}: {report_text(t.example)}' for t in summary.told]
-        lines += [f"  - after the run's last input (its end, not a fault in it): "
-                  f'{level_name(t.level)} in {t.reports}: {report_text(t.example)}'
-                  for t in summary.at_end]
-        if summary.counters:
-            lines.append('  - counters at the last status: ' + ', '.join(
-                f'{report_text(key)} {report_text(value)}' for key, value in summary.counters))
-        lines.append('')
+        lines += diagnostics_lines(run)
     return lines
+
+
+#: the legend of :func:`diagnostics_section`
+DIAGNOSTICS_LEGEND = (
+    "Each reason of the controller's statuses once, as it was first told, with the worst "
+    'level of the statuses that gave it, when it was first told (t from the first '
+    "lateral-error stamp, on the node's clock; the node reports once a second of wall "
+    'time, which in a lockstep run faster than real time is several seconds of t, so what '
+    'a status tells may have begun that much before) and how many statuses gave it; then '
+    "the counters of the last status that are not 0 (counted from the node's start; a "
+    "check's `[s]`: the seconds it found something). Where a simulator's run finished its "
+    'scenario, what the node told after its last input (the clock and the inputs stopping) '
+    'is listed apart and not counted in the `diagnostics` column. docs/safety.md says what '
+    'the reasons mean.')
+
+
+def diagnostics_lines(run: RunData) -> list[str]:
+    """
+    Return one bag's lines of :func:`diagnostics_section`.
+
+    :param run: the run.
+    :return: markdown lines: its statuses by level, each reason once (its worst level,
+        when first told, number of statuses, and its text as first told), what was told
+        after a finished scenario, and the counters of its last status that are not 0.
+    """
+    summary = run_diagnostics(run)
+    said = run.diagnostics.notes() if run.diagnostics is not None else []
+    if summary is None:
+        return [f'- `{run.bag.name}`: ' + (said[0] if said else 'no /diagnostics in the bag'),
+                '']
+    by_level = ', '.join(f'{name} {count}' for name, count in zip(LEVELS, summary.levels)
+                         if count)
+    lines = [f'- `{run.bag.name}`: {summary.reports} statuses of {run.controller_node}'
+             + (f' ({by_level})' if by_level else '') + ''.join(f'; {text}' for text in said)]
+    lines += [f'  - {level_name(t.level)} first told at t = {t.first_s:.3g} s, in '
+              f'{t.reports}: {report_text(t.example)}' for t in summary.told]
+    lines += [f'  - after the simulator finished (not counted): {level_name(t.level)} in '
+              f'{t.reports}: {report_text(t.example)}' for t in summary.at_end]
+    if summary.counters:
+        lines.append('  - counters at the last status: ' + ', '.join(
+            f'{report_text(key)} {report_text(value)}' for key, value in summary.counters))
+    return lines + ['']
 
 
 def report_text(text: str) -> str:
