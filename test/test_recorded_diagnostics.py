@@ -283,14 +283,15 @@ def test_every_reason_of_the_node_is_one_reason_with_its_name(active_controller)
         'relative_yaw out of scale with the motion yaw_rate - v_x * curvature']
 
 
-def _raw_bag(path, messages, msgtype='diagnostic_msgs/msg/DiagnosticArray'):
+def _raw_bag(path, messages, msgtype='diagnostic_msgs/msg/DiagnosticArray',
+             topic='/diagnostics'):
     """Write 2 s of the lane bag with raw ``(recv_ns, bytes)`` messages on /diagnostics."""
     store = typestore()
     writer = BagWriter(path)
     qos = [qos_from_ints({'reliability': 1, 'durability': 2, 'depth': 10})]
-    for topic, kind in TYPES.items():
-        writer.add_topic(topic, kind, qos)
-    writer.add_topic('/diagnostics', msgtype, qos)
+    for name, kind in TYPES.items():
+        writer.add_topic(name, kind, qos)
+    writer.add_topic(topic, msgtype, qos)
     for k in range(200):
         stamp = k * 10_000_000
         writer.write('/yaw', START + stamp, serialize_cdr(conv.to_yaw(stamp, 'b', 0.0, 0.0, 0.0),
@@ -302,7 +303,7 @@ def _raw_bag(path, messages, msgtype='diagnostic_msgs/msg/DiagnosticArray'):
         writer.write('/steering', START + stamp + 2, serialize_cdr(
             conv.to_steering(stamp, 0.0, 0.0), store))
     for recv, data in messages:
-        writer.write('/diagnostics', START + recv, data)
+        writer.write(topic, START + recv, data)
     writer.close()
 
 
@@ -324,7 +325,7 @@ def test_a_corrupt_or_odd_diagnostics_message_is_skipped_and_said(tmp_path, caps
     assert row['diagnostics'] == 'WARN'
     assert 'diagnostics: 1 corrupt /diagnostics message(s) skipped' in row['notes']
     assert replay_node.main([str(tmp_path / 'bag'), '--offline']) == 0
-    assert load_run(tmp_path / 'bag', diagnostics=False).diagnostics is None
+    assert load_run(tmp_path / 'bag', diagnostics=None).diagnostics is None
     # a level outside OK..STALE is its number, never '-' nor negative (the byte 255 read
     # as -1, and a lone level 5 as none recorded)
     _raw_bag(tmp_path / 'odd', [(100_000_000, _array_bytes([_status(5, 'x: 1')])),
@@ -357,3 +358,22 @@ def test_a_status_recorded_twice_counts_once_and_odd_text_stays_one_line(tmp_pat
     assert ('  - WARN first told at t = 0.5 s, in 2: rejected: 1 (last: &lt;b&gt;x&lt;/b&gt; '
             'second line)\n') in text
     assert 'recorded twice (two recorders?) counted once' in text
+
+
+def test_a_remapped_status_topic_is_read_where_it_is_named(tmp_path):
+    # dev-probe111: a vehicle run with -r /diagnostics:=/car_b/diagnostics read 'no
+    # /diagnostics in the bag', and no option named another topic
+    _raw_bag(tmp_path / 'bag', [(500_000_000, _array_bytes([_status(1, 'saturated: 2')]))],
+             topic='/car_b/diagnostics')
+    assert load_run(tmp_path / 'bag').diagnostics is None
+    run = load_run(tmp_path / 'bag', diagnostics='/car_b/diagnostics')
+    assert [r.level for r in run.diagnostics.reports] == [1]
+    from lookahead_control.bags.run_data import ConfigError
+    with pytest.raises(ConfigError, match='--diagnostics /car_a/diagnostics: no '
+                       '/car_a/diagnostics in the bag'):
+        load_run(tmp_path / 'bag', diagnostics='/car_a/diagnostics')
+    out = tmp_path / 'out'
+    from lookahead_control.tools import analyze_tool
+    assert analyze_tool.main([str(tmp_path / 'bag'), '--out', str(out), '--no-plots',
+                              '--diagnostics', '/car_b/diagnostics']) == 0
+    assert '- `bag`: 1 statuses of /controller (WARN 1)' in (out / 'report.md').read_text()

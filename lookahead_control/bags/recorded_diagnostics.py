@@ -76,6 +76,7 @@ class RecordedDiagnostics:
         left out because the bag records other controllers than this one (whose they
         are is not known).
     :param duplicates: statuses recorded more than once, counted once.
+    :param topic: the topic they were read from.
     """
 
     reports: list[StatusReport] = field(default_factory=list)
@@ -83,6 +84,7 @@ class RecordedDiagnostics:
     wrong_type: str = ''
     legacy_unattributed: int = 0
     duplicates: int = 0
+    topic: str = DIAGNOSTICS
 
     def notes(self) -> list[str]:
         """
@@ -92,10 +94,10 @@ class RecordedDiagnostics:
         """
         out = []
         if self.wrong_type:
-            out.append(f'{DIAGNOSTICS} has type {self.wrong_type}, not {DIAGNOSTIC_ARRAY}: '
+            out.append(f'{self.topic} has type {self.wrong_type}, not {DIAGNOSTIC_ARRAY}: '
                        'not read')
         if self.corrupt:
-            out.append(f'{self.corrupt} corrupt {DIAGNOSTICS} message(s) skipped')
+            out.append(f'{self.corrupt} corrupt {self.topic} message(s) skipped')
         if self.legacy_unattributed:
             out.append(f'{self.legacy_unattributed} status(es) named '
                        f"'{conv.LEGACY_STATUS_NAME}' (before the name carried the node) "
@@ -108,7 +110,7 @@ class RecordedDiagnostics:
 
 
 def controller_reports(bag: Path, node: str, controllers: Collection[str] = (),
-                       store: Any = None) -> RecordedDiagnostics:
+                       store: Any = None, topic: str = DIAGNOSTICS) -> RecordedDiagnostics:
     """
     Return a controller's statuses recorded on ``/diagnostics``.
 
@@ -120,16 +122,17 @@ def controller_reports(bag: Path, node: str, controllers: Collection[str] = (),
     :param controllers: the controllers whose parameters the bag recorded (the old name
         is this node's only when there is no other).
     :param store: the type store (None: the Jazzy one).
+    :param topic: the topic of the statuses (``/diagnostics`` unless remapped).
     :return: the statuses, and what was skipped.
     """
     name = conv.controller_status_name(node)
     legacy_ok = set(controllers) <= {node}
     wanted = (name.encode(), conv.LEGACY_STATUS_NAME.encode())
     store = store or typestore()
-    out = RecordedDiagnostics()
+    out = RecordedDiagnostics(topic=topic)
     found: list[tuple[int, int, StatusReport]] = []
     seen: dict[tuple[Any, ...], list[int]] = {}
-    for _, msgtype, raw in read_columns(bag, [DIAGNOSTICS]):
+    for _, msgtype, raw in read_columns(bag, [topic]):
         if msgtype != DIAGNOSTIC_ARRAY:
             out.wrong_type = msgtype
             continue

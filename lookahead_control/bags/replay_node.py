@@ -68,7 +68,7 @@ def offline(args: argparse.Namespace) -> int:
         except ConfigError as err:
             raise ToolError(f'-p {name}={text}: {err}') from err
     node = CONTROLLER_NODE if args.node is None else args.node     # '' is refused
-    run = load_run(args.bag, assignments(args.topic, '--topic'), node, diagnostics=False)
+    run = load_run(args.bag, assignments(args.topic, '--topic'), node, diagnostics=None)
     result = rerun(run, overrides, args.order)
     report = {'bag': str(args.bag), 'node': run.controller_node, 'order': result.order,
               'compared': result.compared,

@@ -313,7 +313,8 @@ class RunData:
 
 
 def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
-             node: str = CONTROLLER_NODE, diagnostics: bool = True) -> RunData:
+             node: str = CONTROLLER_NODE, diagnostics: Optional[str] = DIAGNOSTICS
+             ) -> RunData:
     """
     Read the contract topics of a bag.
 
@@ -326,8 +327,9 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
     :param node: the controller node whose run it is: its parameters, its debug topic
         and, unless ``topics`` says otherwise, the contract topics in its namespace
         (:func:`node_topics`).
-    :param diagnostics: also read its statuses on ``/diagnostics`` (a re-run does not
-        need them).
+    :param diagnostics: the topic of its statuses (``/diagnostics``; a relative name is
+        the node's, as ``topics``); None: not read (a re-run does not need them). A
+        topic other than ``/diagnostics`` the bag lacks is refused.
     :return: the run.
     :raises ConfigError: an unknown role in ``topics``, the bag is unreadable, lacks the
         lateral-error topic, a contract topic has another type, ``node`` is not
@@ -407,9 +409,17 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         received = parameter_events(bag, node, store, with_recv_ns=True)
         run.parameter_events = [change for _, change in received]
         run.parameter_events_recv_ns = [recv for recv, _ in received]
-    if diagnostics and DIAGNOSTICS in available:
-        controllers = [name for name, params in recorded.items() if is_controller(params)]
-        run.diagnostics = controller_reports(bag, node, controllers, store)
+    if diagnostics is not None:
+        try:
+            topic = resolve_name(diagnostics, node)
+        except ConfigError as err:
+            raise ConfigError(f'--diagnostics {diagnostics}: {err}') from err
+        if topic in available:
+            controllers = [name for name, params in recorded.items() if is_controller(params)]
+            run.diagnostics = controller_reports(bag, node, controllers, store, topic)
+        elif topic != DIAGNOSTICS:
+            # a named topic the bag lacks, as for --topic (a typo read as none)
+            raise ConfigError(f'{bag}: --diagnostics {diagnostics}: no {topic} in the bag')
     return run
 
 

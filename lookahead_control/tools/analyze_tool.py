@@ -27,6 +27,7 @@ from lookahead_control.analysis.bag_analysis import (bag_row, law_label, run_dia
 from lookahead_control.analysis.diagnostics_summary import level_name, LEVELS
 from lookahead_control.analysis.metrics import METRIC_COLUMNS, metrics_legend, notes_list
 from lookahead_control.analysis.paper_tables import schedule_table, speed_grid
+from lookahead_control.bags.recorded_diagnostics import DIAGNOSTICS
 from lookahead_control.bags.run_data import CONTROLLER_NODE, load_run, RunData, TOPICS
 from lookahead_control.core.cli import (assignments, claim_output, markdown_table,
                                         record_output, run_tool, ToolError, write_csv,
@@ -64,7 +65,8 @@ def topic_overrides(items: Sequence[str]) -> dict[str, str]:
 
 
 def analyze(bags: Sequence[Path], topics: dict[str, str] | None = None,
-            node: str = CONTROLLER_NODE) -> list[tuple[RunData, RunSeries, dict[str, Any]]]:
+            node: str = CONTROLLER_NODE, diagnostics: str = DIAGNOSTICS
+            ) -> list[tuple[RunData, RunSeries, dict[str, Any]]]:
     """
     Read every bag and compute its metrics row.
 
@@ -72,11 +74,12 @@ def analyze(bags: Sequence[Path], topics: dict[str, str] | None = None,
     :param topics: contract topic name overrides (role -> topic).
     :param node: the controller node whose run to analyze (its parameters, debug and
         namespace's topics: :func:`~lookahead_control.bags.run_data.node_topics`).
+    :param diagnostics: the topic of the controller's statuses.
     :return: ``(run, series, row)`` per bag.
     """
     out = []
     for bag in bags:
-        run = load_run(bag, topics, node)
+        run = load_run(bag, topics, node, diagnostics)
         series = run_series(run)
         out.append((run, series, bag_row(run, series)))
     return out
@@ -298,9 +301,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                    'vehicles (default /controller): its recorded parameters, NAME/debug and '
                    'the contract topics in its namespace (/car_b/controller: '
                    '/car_b/lateral_error, ...; --topic overrides one)')
+    p.add_argument('--diagnostics', default=DIAGNOSTICS, metavar='TOPIC',
+                   help="the controller's status topic in the bags (default /diagnostics; a "
+                   'vehicle that remapped it: /car_b/diagnostics)')
     p.add_argument('--no-plots', action='store_true', help='write no PNG plots')
     args = p.parse_args(argv)
-    results = analyze(args.bags, topic_overrides(args.topic), args.node)   # said first
+    results = analyze(args.bags, topic_overrides(args.topic), args.node,   # said first
+                      args.diagnostics)
     previous = claim_output(args.out, 'analyze', args.overwrite,
                             output_names(results, not args.no_plots))
     written: list[Path] = []
