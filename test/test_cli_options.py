@@ -852,9 +852,21 @@ def _analyze():
         assert (folder / 'report.md').exists()
         out = run('analyze', c.bag, '--out', c.tmp / 'an_node_b', '--node', '/car_b/controller')
         assert out.returncode == 2 and 'recorded of: /controller' in out.stderr
+
+    def diagnostics(c):
+        # the default topic, named: read (the bag's /diagnostics); another the bag lacks:
+        # refused, as --topic (dev-probe111: a remapped one could not be named at all)
+        folder = c.tmp / 'an_diagnostics'
+        _ok(run('analyze', c.bag, '--out', folder, '--no-plots', '--diagnostics',
+                '/diagnostics'))
+        assert 'What the controller told' in (folder / 'report.md').read_text()
+        out = run('analyze', c.bag, '--out', c.tmp / 'an_diag_b', '--diagnostics',
+                  '/car_b/diagnostics')
+        assert out.returncode == 2 and 'no /car_b/diagnostics in the bag' in out.stderr
     return {
         '--out': ((), out_folder),
         '--no-plots': ((), no_plots),
+        '--diagnostics': (('/car_b/', '/nope'), diagnostics),
         '--topic': (('bogus=/x', 'novalue'), topic),
         '--node': (('car_b/controller', '/car_b/', '/car_b/controller'), node),
         '--overwrite': ((), overwrite),

@@ -154,7 +154,7 @@ def test_replay_offline_says_where_the_law_ran_on_its_estimate(monkeypatch, caps
 
     from lookahead_control.bags import replay_node
     run, estimated = _recorded({'law': 'cg_compensated'})
-    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node: run)
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node, **_: run)
     args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
                               json=tmp_path / 'report.json', check=0.0, node=None)
     assert replay_node.offline(args) == 0
@@ -187,7 +187,7 @@ def test_a_curvature_the_controller_did_not_receive_is_re_run_as_the_controller_
     bare = replace(run, debug=Samples.empty())
     blind = rerun(bare, order='receive')
     assert blind.max_diff > 0.005 and blind.estimated == blind.followed == 0
-    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node: run)
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node, **_: run)
     args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
                               json=tmp_path / 'report.json', check=0.0, node=None)
     assert replay_node.offline(args) == 0
@@ -802,7 +802,7 @@ def test_probe76_a_map_dropped_by_the_map_check_is_re_run_and_said_so(
     result = rerun(run, order='receive')
     assert result.max_diff == 0.0 and result.compared == 300
     assert result.dropped == dropped and result.estimated == sum(estimated.values())
-    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node: run)
+    monkeypatch.setattr(replay_node, 'load_run', lambda bag, topics, node, **_: run)
     args = argparse.Namespace(bag=Path('synthetic'), param=[], topic=[], order='receive',
                               json=tmp_path / 'report.json', check=0.0, node=None)
     assert replay_node.offline(args) == 0
