@@ -645,10 +645,11 @@ def bag_row(run: RunData, series: RunSeries,
             for role, (gap, start) in gaps.items()))
     summary = run_diagnostics(run)
     row['diagnostics'] = summary.worst if summary is not None else '-'
-    if summary is not None and summary_note(summary):
-        # dev-sc49: what the controller warned of during the run (a lateral error in cm,
-        # a frozen yaw rate ...) was in the bag and in no report
-        notes.append(summary_note(summary))
+    # dev-sc49: what the controller warned of during the run (a lateral error in cm, a
+    # frozen yaw rate ...) was in the bag and in no report
+    warned = summary_note(summary) if summary is not None else ''
+    if warned:
+        notes.append(warned)
     if run.diagnostics is not None:
         notes += [f'diagnostics: {said}' for said in run.diagnostics.notes()]
     row['notes'] = '; '.join(notes)

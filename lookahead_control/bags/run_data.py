@@ -166,8 +166,17 @@ def recorded_controllers(bag: Path) -> list[str]:
     :param bag: the bag.
     :return: their fully qualified names, sorted.
     """
-    return sorted(node for node, params in recorded_parameters(bag).items()
-                  if is_controller(params))
+    return controllers_of(recorded_parameters(bag))
+
+
+def controllers_of(recorded: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """
+    Return the controller nodes among a bag's recorded parameters.
+
+    :param recorded: node -> its parameters (:func:`recorded_parameters`).
+    :return: their fully qualified names, sorted.
+    """
+    return sorted(node for node, params in recorded.items() if is_controller(params))
 
 
 def scenario_text(run: RunData) -> Optional[str]:
@@ -415,8 +424,8 @@ def load_run(bag: Path, topics: Optional[Mapping[str, str]] = None,
         except ConfigError as err:
             raise ConfigError(f'--diagnostics {diagnostics}: {err}') from err
         if topic in available:
-            controllers = [name for name, params in recorded.items() if is_controller(params)]
-            run.diagnostics = controller_reports(bag, node, controllers, store, topic)
+            run.diagnostics = controller_reports(bag, node, controllers_of(recorded), store,
+                                                 topic)
         elif topic != DIAGNOSTICS:
             # a named topic the bag lacks, as for --topic (a typo read as none)
             raise ConfigError(f'{bag}: --diagnostics {diagnostics}: no {topic} in the bag')

@@ -858,30 +858,33 @@ class SteeringController:
             if velocity is None or yaw is None:
                 check.reset_lateral()
             elif check.step_lateral(sample.stamp_ns, sample.value, sample.distance,
-                                    self._relative_yaw(yaw), velocity.v_x, velocity.v_y):
+                                    self._relative_yaw(), velocity.v_x, velocity.v_y):
                 # dev-sc48: a lateral error in cm put the default law 2-135 m off S-bends,
                 # the input refused for its range, no word of the unit
-                self.turning['lateral_error_out_of_scale'] += (
-                    max(0, sample.stamp_ns - before) * 1e-9 if before is not None else 0.0)
+                self._count_out_of_scale('lateral_error_out_of_scale', sample, before)
                 self.lateral_scale_seen = check.lateral_scale
         elif name == 'yaw':
             curvature, before = near('road_curvature'), check.yaw_stamp
             rho = curvature.rho if curvature is not None else None
             if velocity is None:
                 check.reset_yaw()
-            elif check.step_yaw(sample.stamp_ns, self._relative_yaw(sample), sample.yaw_rate,
+            elif check.step_yaw(sample.stamp_ns, self._relative_yaw(), sample.yaw_rate,
                                 velocity.v_x, rho):
                 # dev-sc48: a relative yaw in degrees put it 0.2-124 m off, told as a map
                 # disagreeing and a steering oscillation
-                self.turning['relative_yaw_out_of_scale'] += (
-                    max(0, sample.stamp_ns - before) * 1e-9 if before is not None else 0.0)
+                self._count_out_of_scale('relative_yaw_out_of_scale', sample, before)
                 self.yaw_scale_seen = check.yaw_scale
 
-    def _relative_yaw(self, yaw: YawSample) -> float:
+    def _relative_yaw(self) -> float:
         """Return the last yaw sample's relative yaw continued across +-pi (the check's)."""
+        # set with the yaw sample it is of, and cleared with it (reset)
         held = self._eps_unwrapped
-        return held[1] if held is not None and held[0] == yaw.relative_yaw else float(
-            yaw.relative_yaw)
+        return held[1] if held is not None else math.nan
+
+    def _count_out_of_scale(self, key: str, sample: Any, before: Optional[int]) -> None:
+        """Add the time since the check's previous sample to an out-of-scale count."""
+        self.turning[key] += (max(0, sample.stamp_ns - before) * 1e-9
+                              if before is not None else 0.0)
 
     def _measurement_time(self, now_ns: int) -> int:
         """

@@ -72,8 +72,17 @@ def raise_if_received() -> None:
     :raises KeyboardInterrupt: a SIGINT was received (:class:`Terminated`: a SIGTERM).
     """
     if received:
-        raise (Terminated(received[-1]) if received[-1] == signal.SIGTERM
-               else KeyboardInterrupt())
+        raise interrupt_of(received[-1])
+
+
+def interrupt_of(signum: int) -> KeyboardInterrupt:
+    """
+    Return the exception a signal raises: :class:`Terminated` for SIGTERM.
+
+    :param signum: SIGINT or SIGTERM.
+    :return: the KeyboardInterrupt to raise.
+    """
+    return Terminated(signum) if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def running_as_executable(argv0: str | None = None) -> bool:
@@ -250,5 +259,4 @@ class deferred:  # noqa: N801 - used as a context manager, like contextlib's
         for s, handler in self._previous.items():
             signal.signal(s, handler)
         if self.held and kind is None:
-            raise (Terminated(self.held[-1]) if self.held[-1] == signal.SIGTERM
-                   else KeyboardInterrupt())
+            raise interrupt_of(self.held[-1])
