@@ -18,6 +18,7 @@ from dataclasses import replace
 import math
 import os
 from pathlib import Path
+import threading
 import time
 
 from conftest import Swerve
@@ -175,10 +176,24 @@ def test_every_goal_is_missed_by_a_run_without_metrics():
                                                    '<= 1 cm, yaw overshoot <= 10 %')
 
 
+def _broken_law(vehicle, settings):
+    return _Broken()
+
+
+_RUN_CASE = compare.run_case
+
+
+def _run_case_with_a_broken_law(task):
+    # a pool's worker is a fresh interpreter: the law is added where the task runs
+    compare.LAWS.setdefault('broken', _broken_law)
+    return _RUN_CASE(task)
+
+
 @pytest.mark.parametrize('workers', [1, 2])
 def test_a_failing_task_keeps_the_other_rows_and_exits_1(monkeypatch, tmp_path, capsys,
                                                          workers):
-    monkeypatch.setitem(compare.LAWS, 'broken', lambda v, s: _Broken())
+    monkeypatch.setitem(compare.LAWS, 'broken', _broken_law)
+    monkeypatch.setattr(compare, 'run_case', _run_case_with_a_broken_law)
     monkeypatch.setattr(compare, 'PLANTS', compare.PLANTS[:2])
     code = compare.main(['--laws', 'paper_eq26', 'broken', '--scenarios', 's0_straight',
                          '--speeds', '37', '--out', str(tmp_path), '--no-plots',
@@ -202,6 +217,31 @@ def test_one_task_per_plant_gives_the_rows_of_one_task_per_scenario():
     mb = compare.PLANTS[3]
     assert compare.task_cost(mb, 4, 10.0, 0.005) > compare.task_cost(plants[1], 4, 30.0,
                                                                      0.005)
+
+
+_CALLERS_STATE: dict[str, str] = {}
+
+
+def _what_a_worker_holds(_):
+    return _CALLERS_STATE.get('mark'), threading.active_count()
+
+
+def test_the_pools_workers_are_fresh_interpreters_not_forks_of_the_caller(monkeypatch):
+    # dev-sc49's full suite: compare.league(workers=2) in a pytest worker that had run ROS
+    # nodes before; its forked pool worker died of a segmentation fault collecting the
+    # garbage it inherited (rows "failed: BrokenProcessPool", the determinism test failed).
+    # A fork also copies the caller's locks without the threads that hold them.
+    monkeypatch.setitem(_CALLERS_STATE, 'mark', 'the caller was here')
+    stop = threading.Event()
+    busy = threading.Thread(target=stop.wait, daemon=True)     # a thread of the caller
+    busy.start()
+    try:
+        with compare.stoppable_pool(2) as pool:
+            held = list(pool.map(_what_a_worker_holds, range(2)))
+    finally:
+        stop.set()
+    assert [mark for mark, _ in held] == [None, None]
+    assert all(threads <= 2 for _, threads in held), held    # its own (and a pool thread)
 
 
 def _task_waiting_for_go(task):

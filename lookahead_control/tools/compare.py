@@ -35,6 +35,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from functools import partial
 import math
+from multiprocessing import get_context
 from pathlib import Path
 import sys
 import time
@@ -896,18 +897,24 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
 @contextmanager
 def stoppable_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
     """
-    Give a process pool that an interrupt stops at once.
+    Give a process pool of fresh interpreters that an interrupt stops at once.
+
+    Its workers are spawned, not forked: a fork copies the caller as it is, with the
+    threads of whatever it runs beside the league (ROS 2 middleware, a progress bar's
+    monitor) gone and their locks and objects left behind; a forked worker of a process
+    that had run ROS nodes died of a segmentation fault while collecting that garbage
+    (dev-sc49's full suite: a row "failed: BrokenProcessPool"). A spawned worker imports
+    the package afresh (about 0.2 s) and owes nothing to its caller's state.
 
     On Ctrl-C or SIGTERM the pool's own exit would run every task not yet started (the
     whole league) and then throw the rows away. Here the tasks not started are dropped
     and the workers killed: they only compute, nothing on disk to finish (SIGKILL: a
-    worker forked from this process turns SIGTERM into its task's exception and takes
-    the next one).
+    worker turns SIGTERM into its task's exception and takes the next one).
 
     :param workers: processes.
     :return: the pool (a context manager's).
     """
-    pool = ProcessPoolExecutor(max_workers=workers)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn'))
     try:
         yield pool
     except BaseException:
