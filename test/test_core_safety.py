@@ -622,3 +622,41 @@ def test_a_sim_clock_starting_after_the_inputs_does_not_freeze_the_command():
     assert moved[0] == pytest.approx(0.1 * 0.01, rel=1e-9) and answers[0].rate_limited
     assert all(b >= a for a, b in zip(moved, moved[1:]))
     assert not answers[-1].rate_limited and answers[-1].steering == answers[-1].law.steering
+
+
+def test_the_last_message_taken_sent_again_is_a_duplicate_not_a_refusal():
+    # dev-sc50: a lockstep simulator repeats its step 0 until answered; the controller
+    # refused each repeat, and every realtime run and every run through path_bridge began
+    # with a WARN 'rejected: 4'. An exact repeat is not used and counted apart; a repeated
+    # stamp with other values is still refused
+    from lookahead_control.core.safety import is_duplicate
+    core, now = _core(), 50_000 * MS
+    yaw = YawSample(now, 0.01, 0.02, 0.0)
+    assert core.accept('yaw', yaw, now) is None
+    again = core.accept('yaw', YawSample(now, 0.01, 0.02, 0.0), now + 10 * MS)
+    assert again == 'yaw: repeats the last message taken (stamp 50.000 s, same values)'
+    assert is_duplicate(again) and core.duplicates == {'yaw': 1} and core.rejected == {}
+    assert core.yaw is yaw
+    other = core.accept('yaw', YawSample(now, 0.01, 0.03, 0.0), now + 20 * MS)
+    assert 'does not advance' in other and not is_duplicate(other)
+    assert core.rejected == {'yaw: stamp': 1} and core.duplicates == {'yaw': 1}
+    # a repeat does not keep the input fresh: past input_timeout it is too old, refused
+    late = core.accept('yaw', yaw, now + 201 * MS)
+    assert 'behind the node clock' in late and core.rejected == {'yaw: stamp': 2}
+    assert 'yaw' in core.stale(now + 201 * MS)
+    # without a clock (offline) only the ordering: a repeat is a duplicate
+    offline = _core()
+    lateral = LateralErrorSample(now, 0.0, 0.3)
+    assert offline.accept('lateral_error', lateral) is None
+    assert is_duplicate(offline.accept('lateral_error', LateralErrorSample(now, 0.0, 0.3)))
+    # a curvature preview compared whole, points included
+    rho = CurvatureSample(now, 0.001, 0.0, ((0.0, 0.001), (10.0, 0.002)))
+    assert offline.accept('road_curvature', rho) is None
+    assert is_duplicate(offline.accept('road_curvature', rho._replace()))
+    moved = offline.accept('road_curvature', rho._replace(ahead=((0.0, 0.001), (10.0, 0.003))))
+    assert not is_duplicate(moved) and 'does not advance' in moved
+    # while the yaw input is refused for a fault of its sign, a repeat is refused too
+    offline.accept('yaw', yaw)
+    offline.yaw_fault = 'yaw: yaw_rate runs against the steering'
+    assert not is_duplicate(offline.accept('yaw', yaw))
+    assert 'yaw' not in offline.duplicates

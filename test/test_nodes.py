@@ -515,15 +515,41 @@ def test_issue11_old_and_frozen_stamps_are_refused(drive):
         assert 'behind the node clock' in status.message
         drive.tick(steps=50)
         assert drive.sent[-1][4].law is not None
-    # a stamp that stops advancing: refused as repeated, then the safe behaviour
+    # a stamp that stops advancing while the values change: refused as repeated, then
+    # the safe behaviour
     frozen, start = drive.now + 10 * MS, drive.now
-    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=5)
-    assert 'does not advance' in drive.node.core.refusals['yaw']
-    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=195)
+    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=1)
+    for k in range(199):
+        drive.tick(y=-1.0, eps=0.001 * (k % 2 + 1), stamp=lambda now: frozen)
+        if k == 5:
+            assert 'does not advance' in drive.node.core.refusals['yaw']
     after = drive.since(start + 10 * MS)
     assert all(c.law is None for *_, c in after[1:]) and after[-1][2] == 0.0
     status = drive.node.diagnostics()
     assert status.level == DiagnosticStatus.ERROR and 'yaw' in status.message
+    assert 'rejected: ' in status.message
+    drive.check_rate()
+    # the same message again and again (a bridge republishing its last one): within
+    # input_timeout not used and no refusal (a lockstep simulator's step 0 sent again
+    # until answered was a WARN at the start of every run); it does not keep the input
+    # fresh, and past input_timeout it is refused as stale
+    drive.tick(steps=50)
+    assert drive.sent[-1][4].law is not None
+    drive.node.diagnostics()
+    frozen, start = drive.now + 10 * MS, drive.now
+    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=10)
+    assert drive.node.core.refusals['yaw'].startswith('yaw: repeats the last message taken')
+    status = drive.node.diagnostics()
+    assert status.level == DiagnosticStatus.OK, status.message
+    assert status.message.startswith('duplicates: 36 messages repeated the last one taken')
+    assert 'yaw 9' in status.message
+    assert 'rejected: ' not in status.message
+    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=190)
+    after = drive.since(start + 10 * MS)
+    assert all(c.law is None for *_, c in after[1:]) and after[-1][2] == 0.0
+    status = drive.node.diagnostics()
+    assert status.level == DiagnosticStatus.ERROR and 'rejected: ' in status.message
+    assert 'behind the node clock' in status.message
     drive.check_rate()
 
 

@@ -35,8 +35,8 @@ from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
 from lookahead_control.core.oscillation_check import OscillationCheck
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
-from lookahead_control.core.safety import (check_sample, check_stamp, limit, low_speed_weight,
-                                           SafetyParams, stale_target)
+from lookahead_control.core.safety import (check_sample, check_stamp, duplicate_reason, limit,
+                                           low_speed_weight, SafetyParams, stale_target)
 from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
                                             YawSample)
 from lookahead_control.core.speed_check import road_speed, SpeedCheck
@@ -271,6 +271,10 @@ class SteeringController:
         self.safety = safety or SafetyParams()
         self.rejected: dict[str, int] = {}
         self.last_rejection = ''
+        #: input -> messages that repeated its last taken one exactly (same stamp, same
+        #: values: a publisher sending again what may not have arrived, as a lockstep
+        #: simulator's step 0): not used, not refused (no warning); counted apart
+        self.duplicates: dict[str, int] = {}
         # input -> why its samples since the last one taken were refused
         self.refusals: dict[str, str] = {}
         self.time_jumps = 0
@@ -557,11 +561,22 @@ class SteeringController:
         # stamps cannot be judged against it
         clock = now_ns if now_ns is not None and now_ns > 0 else None
         self._judge_scale(name, sample, clock)
-        reason = check_sample(name, sample, self.safety) or check_stamp(
+        faulty = check_sample(name, sample, self.safety)
+        reason = faulty or check_stamp(
             name, sample.stamp_ns, current.stamp_ns if current else None, clock, self.safety)
         if reason is None and name == 'yaw' and self.yaw_fault is not None:
             reason = self.yaw_fault
         received = 0 if now_ns is None else now_ns
+        if (reason is not None and faulty is None and sample == current
+                and not (name == 'yaw' and self.yaw_fault is not None)
+                and check_stamp(name, sample.stamp_ns, None, clock, self.safety) is None):
+            # the last taken message again, within the clock's bounds: nothing new to
+            # use, nothing wrong to warn of; it does not keep the input fresh (a
+            # publisher stuck repeating its last message still goes stale, and says so)
+            reason = duplicate_reason(name, sample.stamp_ns)
+            self.duplicates[name] = self.duplicates.get(name, 0) + 1
+            self.refusals[name] = reason
+            return reason
         if reason is not None:
             self.refusals[name] = reason
             self.count_rejection(reason)

@@ -193,6 +193,31 @@ def check_stamp(name: str, stamp_ns: int, last_ns: Optional[int], now_ns: Option
     return None
 
 
+#: what a message repeating an input's last taken one exactly is told as
+DUPLICATE = 'repeats the last message taken'
+
+
+def duplicate_reason(name: str, stamp_ns: int) -> str:
+    """
+    Return why a message that repeats its input's last taken one is not used.
+
+    :param name: the input.
+    :param stamp_ns: its stamp.
+    :return: ``'<input>: repeats the last message taken (stamp ... s, same values)'``.
+    """
+    return f'{name}: {DUPLICATE} (stamp {stamp_ns * 1e-9:.3f} s, same values)'
+
+
+def is_duplicate(reason: str) -> bool:
+    """
+    Return whether a reason a sample was not used is :func:`duplicate_reason`'s.
+
+    :param reason: ``'<input>: <detail>'``.
+    :return: it tells a duplicate, not a refusal.
+    """
+    return reason.partition(': ')[2].startswith(DUPLICATE)
+
+
 def check_points(count: int, params: SafetyParams) -> Optional[str]:
     """
     Return why a curvature polygon of ``count`` points is refused, or None.

@@ -37,7 +37,7 @@ from lookahead_control.core.lane_keeping import (curvature_filter_note, filterle
                                                  frequency_schedule_note, integral_schedule_note,
                                                  LaneKeepingParams)
 from lookahead_control.core.params import ControllerParams, ParameterError, SCHEDULE_MODES
-from lookahead_control.core.safety import check_points
+from lookahead_control.core.safety import check_points, is_duplicate
 from lookahead_control.core.samples import curvature_from_points
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.node_main import (build_or_destroy, end_process, now_ns, run_node,
@@ -467,6 +467,8 @@ class ControllerNode(LifecycleNode):
                 refused = self._accept(name, sample)
                 if refused is None:
                     return True
+                if is_duplicate(refused):
+                    return False        # counted, told at OK (a lockstep step 0 again)
                 reason = refused
         self._log_refusal(reason)
         return False
@@ -743,6 +745,7 @@ class ControllerNode(LifecycleNode):
         """
         causes = {f'law_restarts_{k}': v for k, v in self.core.law_restart_causes.items()}
         counts = {**self.counters, 'rejected': sum(self.core.rejected.values()),
+                  'duplicates': sum(self.core.duplicates.values()),
                   'time_jumps': self.core.time_jumps, 'law_restarts': self.core.law_restarts,
                   'coalesced': self._pacer.coalesced, **causes}
         new = {k: v - self._reported.get(k, 0) for k, v in counts.items()}
@@ -792,6 +795,11 @@ class ControllerNode(LifecycleNode):
                            f'max_answer_rate_hz {self.param("max_answer_rate_hz"):g}: the '
                            'newest of each period answered (a flood, or a faster sensor: '
                            'raise the bound)')
+        if new['duplicates'] > 0:
+            each = ', '.join(f'{k} {v}' for k, v in self.core.duplicates.items())
+            reasons.append(f'duplicates: {new["duplicates"]} messages repeated the last one '
+                           f'taken of their input, same stamp and values, not used (so far: '
+                           f'{each})')
         for key, setting in (('demand_capped', 'lane_keeping.demand_limit'),
                              ('approach_clipped', 'lane_keeping.approach_heading')):
             if new[key] > 0:

@@ -146,7 +146,7 @@ def bridge_run(scenario: Path, out: Path, report: Path) -> float:
                 "(derived bound 0.020 rad, docs/vehicle_bridge.md). The controller's "
                 f"/diagnostics, at worst {row['diagnostics']} (a run through the bridge "
                 "starts with the simulator's step 0 repeated until it is answered, and the "
-                'controller refuses the repeats: docs/vehicle_bridge.md):\n\n'
+                'controller counts the repeats as duplicates: docs/vehicle_bridge.md):\n\n'
                 + '\n'.join(diagnostics_lines(run)))
     return gap
 
