@@ -1320,6 +1320,62 @@ def test_a_swallowed_interrupt_stops_a_closed_loop_before_and_between_its_proces
     assert len(started) == 2 and all(p.signals == [signal.SIGTERM] for p in started)
 
 
+def _swallowing(calls, signum, result):
+    """Return a stand-in that records its call and, as a lazy import would, loses a signal."""
+    def stand_in(*args, **kwargs):
+        from lookahead_control.core import interrupts
+        calls.append(args)
+        interrupts.received.append(int(signum))
+        return result(*args) if callable(result) else result
+    return stand_in
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
+def test_a_swallowed_interrupt_stops_the_offline_tools_between_their_runs(
+        signum, monkeypatch, tmp_path):
+    # dev-sc49's Next: run_tool looked for a swallowed Ctrl-C only before main; the first
+    # run of an offline tool's loop imports its heavy modules lazily (scipy for the LQR,
+    # dask), and an interrupt an import turned into a caught ImportError let compare,
+    # sweep, paper_scenario and analyze run all their other runs (minutes)
+    from lookahead_control.core import interrupts
+    from lookahead_control.core.config import load_vehicle
+    from lookahead_control.core.params import ControllerParams
+    from lookahead_control.tools import analyze_tool, compare, paper_scenario, sweep
+    from sim_plant.vehicle_model import PlantParams
+    vehicle = load_vehicle(None)
+    monkeypatch.setattr(interrupts, 'received', [])
+    calls = []
+    monkeypatch.setattr(compare, 'run_case', _swallowing(calls, signum, []))
+    with pytest.raises(KeyboardInterrupt) as stop:
+        compare.league(['paper_eq26', 'lqr'], ['s0_straight'], [37.0], compare.PLANTS[:2],
+                       vehicle, workers=1)
+    assert len(calls) == 1 and interrupts.exit_code(stop.value) == 128 + signum
+    monkeypatch.setattr(interrupts, 'received', [])
+    calls.clear()
+    tasks = [{'task': k} for k in range(3)]
+    runner = _swallowing(calls, signum, {'law': ['x']})
+    monkeypatch.setattr(sweep, 'write_parquet', lambda table, path: None)
+    with pytest.raises(KeyboardInterrupt):
+        sweep.execute(tmp_path, sweep.SweepSpec(), tasks, vehicle, ControllerParams(), 0, None,
+                      False, runner=runner)
+    assert len(calls) == 1
+    monkeypatch.setattr(interrupts, 'received', [])
+    calls.clear()
+    monkeypatch.setattr(paper_scenario, 'run', _swallowing(calls, signum, None))
+    with pytest.raises(KeyboardInterrupt):
+        paper_scenario.reproduce(vehicle, ControllerParams(), PlantParams(), [10.0, 37.0],
+                                 1.0, 0.005, 0.01)
+    assert len(calls) == 1
+    monkeypatch.setattr(interrupts, 'received', [])
+    calls.clear()
+    monkeypatch.setattr(analyze_tool, 'load_run', _swallowing(calls, signum, None))
+    monkeypatch.setattr(analyze_tool, 'run_series', lambda run: None)
+    monkeypatch.setattr(analyze_tool, 'bag_row', lambda run, series: {})
+    with pytest.raises(KeyboardInterrupt):
+        analyze_tool.analyze([tmp_path / 'a', tmp_path / 'b'], {}, 'controller', None)
+    assert len(calls) == 1
+
+
 def test_a_signal_held_through_a_cleanup_is_obeyed_after_it(monkeypatch):
     # a Ctrl-C while closed_loop stopped the nodes of a run that had ended on its own
     # was dropped: the demo went on to its next run

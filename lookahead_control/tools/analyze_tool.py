@@ -33,6 +33,7 @@ from lookahead_control.core.cli import (assignments, claim_output, markdown_tabl
                                         record_output, run_tool, ToolError, write_csv,
                                         write_json)
 from lookahead_control.core.config import dataclass_from_params
+from lookahead_control.core.interrupts import raise_if_received
 from lookahead_control.core.params import VehicleParams
 
 # plot titles of the laws (the paper's law by its d_v schedule)
@@ -79,6 +80,7 @@ def analyze(bags: Sequence[Path], topics: dict[str, str] | None = None,
     """
     out = []
     for bag in bags:
+        raise_if_received()                 # a Ctrl-C a lazy import swallowed
         run = load_run(bag, topics, node, diagnostics)
         series = run_series(run)
         out.append((run, series, bag_row(run, series)))

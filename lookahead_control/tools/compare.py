@@ -48,6 +48,7 @@ from lookahead_control.core.cli import (claim_output, markdown_table, number, on
                                         record_output, run_tool, ToolError, write_csv,
                                         write_json)
 from lookahead_control.core.control_law import arc_offset
+from lookahead_control.core.interrupts import raise_if_received
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
 from lookahead_control.core.output_stage import NodeOutputStage, OUTPUT_STAGE
@@ -870,6 +871,7 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
         if workers <= 1:
             results = []
             for task in tasks:
+                raise_if_received()         # a Ctrl-C a lazy import swallowed
                 results.append(_guarded(partial(run_case, task), task))
                 if bar is not None:
                     bar.update(1)
@@ -883,6 +885,7 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
                 futures = {pool.submit(run_case, tasks[i]): i for i in order}
                 done: dict[int, list[dict[str, Any]]] = {}
                 for future in as_completed(futures):
+                    raise_if_received()
                     i = futures[future]
                     done[i] = _guarded(future.result, tasks[i])
                     if bar is not None:
@@ -1482,7 +1485,10 @@ def tune(laws: Sequence[str], vehicle: VehicleParams, dt: float, workers: int,
     tasks = [(name, params, vehicle, dt, duration) for name in laws
              for params in TUNING_GRIDS[name]]
     with stoppable_pool(max(workers, 1)) as pool:
-        rows = list(pool.map(tune_point, tasks))
+        rows = []
+        for row in pool.map(tune_point, tasks):
+            raise_if_received()
+            rows.append(row)
     for name in laws:
         feasible = [r for r in rows if r['law'] == name and r['feasible']]
         mine = feasible or [r for r in rows if r['law'] == name]

@@ -31,6 +31,7 @@ from lookahead_control.analysis.paper_tables import PAPER_FIG5_LEGEND, PAPER_SPE
 from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
                                         write_csv, write_json)
 from lookahead_control.core.config import load_controller, load_vehicle
+from lookahead_control.core.interrupts import raise_if_received
 from lookahead_control.core.params import ControllerParams, VehicleParams
 from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import paper_scenario
@@ -70,6 +71,7 @@ def reproduce(vehicle: VehicleParams, controller: ControllerParams,
     runs = []
     for label, ctl in designs:
         for v in speeds:
+            raise_if_received()             # a Ctrl-C a lazy import swallowed
             runs.append((label, run(paper_scenario(v, duration), vehicle, ctl, plant, dt=dt,
                                     control_period=control_period)))
     return runs

@@ -49,6 +49,7 @@ from lookahead_control.core.cli import (ArgumentParser, markdown_table, number, 
                                         ToolError, write_csv)
 from lookahead_control.core.config import (changed_fields, load_controller, load_lane_keeping,
                                            load_safety, load_vehicle, source_config_dir)
+from lookahead_control.core.interrupts import raise_if_received
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
 from lookahead_control.core.output_stage import NodeOutputStage, OUTPUT_STAGE
@@ -587,6 +588,7 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
     lane_keeping = lane_keeping or LaneKeepingParams()
     if workers == 0 and scheduler is None:
         for task in todo:
+            raise_if_received()             # a Ctrl-C a lazy import swallowed
             write_parquet(runner(task, data, vehicle, controller, lane_keeping, safety),
                           part_path(out, task['task']))
             if bar is not None:
@@ -609,6 +611,7 @@ def execute(out: Path, spec: SweepSpec, todo: Sequence[Mapping[str, Any]],
                                  key=f'sweep-{task["task"]}-{time.time_ns()}',
                                  pure=False): task for task in todo}
         for future in as_completed(futures):
+            raise_if_received()
             task = futures[future]
             write_parquet(future.result(), part_path(out, task['task']))
             if bar is not None:
