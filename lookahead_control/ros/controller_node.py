@@ -796,10 +796,10 @@ class ControllerNode(LifecycleNode):
                            'newest of each period answered (a flood, or a faster sensor: '
                            'raise the bound)')
         if new['duplicates'] > 0:
-            each = ', '.join(f'{k} {v}' for k, v in self.core.duplicates.items())
+            so_far = ', '.join(f'{k} {v}' for k, v in self.core.duplicates.items())
             reasons.append(f'duplicates: {new["duplicates"]} messages repeated the last one '
                            f'taken of their input, same stamp and values, not used (so far: '
-                           f'{each})')
+                           f'{so_far})')
         for key, setting in (('demand_capped', 'lane_keeping.demand_limit'),
                              ('approach_clipped', 'lane_keeping.approach_heading')):
             if new[key] > 0:
