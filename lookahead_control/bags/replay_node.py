@@ -91,11 +91,19 @@ def offline(args: argparse.Namespace) -> int:
     report['inputs_repeated'] = result.repeated
     report['commands_not_finite'] = result.not_finite
     report['checks_told'] = result.told
+    report['runs_in_bag'] = result.runs
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
     print(f'replay: {args.bag}: {result.compared} commands compared ({result.order} '
           f'order): max |diff| {result.max_diff:.3g} rad, RMS {result.rms_diff:.3g} rad')
+    if result.runs > 1:
+        # dev-probe111: two runs of a simulator in one bag were re-run interleaved in stamp
+        # order, half the commands compared and the rest told as recorded twice
+        print(f'replay: the bag holds {result.runs} runs (the input stamps start again '
+              f'{result.runs - 1} time(s), as when a simulator is started again under one '
+              'recorder): each is re-run in turn from a fresh start, and a stamp that '
+              'several runs have is compared in the last of them')
     if result.not_finite:
         print(f'replay: {result.not_finite} of the {result.compared} compared commands are '
               'not finite (NaN or inf) in the bag or the re-run: max |diff| is nan')
@@ -156,8 +164,8 @@ def offline(args: argparse.Namespace) -> int:
     if result.repeated:
         print(f'replay: {result.repeated} input(s) repeat the stamp of the one before them '
               '(the same message recorded twice: two recorders on one domain, or a '
-              'publisher that sent it again); the node refuses a repeated stamp, and so does '
-              'the re-run')
+              'publisher that sent it again); the node does not use a repeated stamp, and '
+              'neither does the re-run')
     if result.told:
         # dev-sc49: a bag of a lateral error in cm re-ran without a word of what the
         # node's checks had told; the recorded /diagnostics: analyze's report

@@ -44,7 +44,8 @@ from lookahead_control.core.baselines import (BaselineParams, LqrParams, PurePur
                                               StanleyParams)
 from lookahead_control.core.config import ConfigError, dataclass_from_params
 from lookahead_control.core.control_law import cg_error_from, LateralState, LawOutput, steering_law
-from lookahead_control.core.controller import Command, LAW_NAMES, SteeringController
+from lookahead_control.core.controller import (Command, JUMP_NS, LAW_NAMES,
+                                               SteeringController)
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.safety import SafetyParams
@@ -697,6 +698,8 @@ class Rerun:
         something (``SteeringController.turning``: ``lateral_error_out_of_scale``,
         ``curvature_disagrees`` ...), and the counts of time jumps and law restarts;
         only those not 0.
+    :param runs: the runs the bag holds (:func:`run_starts`): where it holds several, a
+        stamp's command is compared with that of the last run that has the stamp.
     """
 
     commands: dict[int, Command]
@@ -723,6 +726,7 @@ class Rerun:
     not_finite: int = 0
     repeated: int = 0
     told: dict[str, float] = field(default_factory=dict)
+    runs: int = 1
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -747,10 +751,41 @@ def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
     return [(recv, role, sample) for recv, _, role, sample in events]
 
 
+def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> list[int]:
+    """
+    Return where the stamps start again: the runs of a bag that holds several.
+
+    A recorder left running while a simulator was started again records a second run
+    whose stamps begin at 0 again. Taken in receive order, an input whose stamp lies more
+    than the core's time-jump threshold
+    (:data:`~lookahead_control.core.controller.JUMP_NS`) below the newest stamp since
+    the last start begins a run (the core resets there too).
+
+    :param inputs: ``(receive ns, input name, sample)`` in receive order.
+    :return: the index in ``inputs`` of each run's first input (``[0]``: one run; empty:
+        no input).
+    """
+    starts: list[int] = []
+    newest: Optional[int] = None
+    for i, (_, _, sample) in enumerate(inputs):
+        if newest is None or sample.stamp_ns < newest - JUMP_NS:
+            starts.append(i)
+            newest = sample.stamp_ns
+        else:
+            newest = max(newest, sample.stamp_ns)
+    return starts
+
+
 def _stamp_order(inputs: Sequence[tuple[int, str, Any]]) -> list[tuple[int, str, Any]]:
-    # the node answers a step once all inputs of its stamp are in: lateral error last
-    return sorted(inputs, key=lambda item: (item[2].stamp_ns, item[1] == 'lateral_error',
-                                            item[0]))
+    # the node answers a step once all inputs of its stamp are in: lateral error last;
+    # each run of the bag apart, in the order they were recorded (dev-probe111: two runs
+    # of a simulator in one bag were interleaved step by step)
+    starts = run_starts(inputs) + [len(inputs)]
+    ordered: list[tuple[int, str, Any]] = []
+    for begin, end in zip(starts, starts[1:]):
+        ordered += sorted(inputs[begin:end], key=lambda item: (
+            item[2].stamp_ns, item[1] == 'lateral_error', item[0]))
+    return ordered
 
 
 def _resolve_order(order: Optional[str], matched: bool, simulated: bool = False) -> str:
@@ -883,7 +918,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
                  switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
                  last_refusal, len(coalesced), coalesced_lost, len(unreceived), dropped,
-                 not_finite, repeated, checks_told(core))
+                 not_finite, repeated, checks_told(core), max(1, len(run_starts(inputs))))
 
 
 def checks_told(core: SteeringController) -> dict[str, float]:
