@@ -1376,6 +1376,37 @@ def test_a_swallowed_interrupt_stops_the_offline_tools_between_their_runs(
     assert len(calls) == 1
 
 
+def test_an_interrupt_a_caller_caught_does_not_stop_its_next_runs(monkeypatch, tmp_path):
+    # dev-probe112: interrupts.received was never emptied; after one Ctrl-C that a caller
+    # caught (run_tool in-process, or a script taken for an executable: one in a colcon
+    # workspace's src/lookahead_control/), every later league, sweep and analyze stopped
+    # at once
+    from lookahead_control.core import cli, interrupts
+    from lookahead_control.core.params import VehicleParams
+    from lookahead_control.tools import compare
+    monkeypatch.setattr(interrupts, 'received', [])
+    calls = []
+    monkeypatch.setattr(compare, 'run_case', _swallowing(calls, signal.SIGINT, []))
+    league = ['paper_eq26', 'lqr'], ['s0_straight'], [37.0], compare.PLANTS[:1], VehicleParams()
+    with pytest.raises(KeyboardInterrupt):
+        compare.league(*league, workers=1)
+    assert interrupts.received == []        # raised once: forgotten
+    monkeypatch.setattr(compare, 'run_case', lambda task: calls.append(task) or [])
+    assert compare.league(*league, workers=1) == [] and len(calls) == 3
+
+    # run_tool answers a signal it received and forgets it, whether its main raised or
+    # returned
+    def swallowed(argv):
+        interrupts.received.append(int(signal.SIGTERM))
+        return 0
+    assert cli.run_tool(swallowed, []) == 0 and interrupts.received == []
+    assert cli.run_tool(lambda argv: len(compare.league(*league, workers=1)), []) == 0
+    assert len(calls) == 5
+    # a user's script in a folder of the package's name is not an executable
+    assert not interrupts.running_as_executable('/ws/src/lookahead_control/my_analysis.py')
+    assert interrupts.running_as_executable('/opt/ws/install/lib/lookahead_control/compare')
+
+
 def test_a_signal_held_through_a_cleanup_is_obeyed_after_it(monkeypatch):
     # a Ctrl-C while closed_loop stopped the nodes of a run that had ended on its own
     # was dropped: the demo went on to its next run

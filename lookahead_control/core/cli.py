@@ -25,6 +25,7 @@ from pathlib import Path
 import sys
 from typing import Any, Callable, Mapping, NoReturn, Sequence
 
+from lookahead_control.core import interrupts
 from lookahead_control.core.config import ConfigError
 from lookahead_control.core.interrupts import exit_code, install, raise_if_received, Terminated
 from lookahead_control.core.params import ParameterError
@@ -103,6 +104,10 @@ def run_tool(main: Callable[[Sequence[str] | None], int],
         print(f'{prog}: {"terminated" if isinstance(err, Terminated) else "interrupted"}',
               file=sys.stderr)
         return exit_code(err)
+    finally:
+        # the tool has answered every signal it received: an in-process caller's next
+        # tool does not stop on them (dev-probe112)
+        interrupts.received.clear()
 
 
 class ArgumentParser(argparse.ArgumentParser):

@@ -67,12 +67,17 @@ def raise_if_received() -> None:
 
     A Ctrl-C while a C extension initializes (a lazy import) can become an ImportError a
     fallback catches, and the tool ran on: ``run_tool`` checks before the tool's main,
-    a loop (``replay``'s, ``closed_loop``'s) between its steps.
+    a loop (``replay``'s, ``closed_loop``'s, the offline tools') between its steps. The
+    signals are forgotten as their interrupt is raised (and when ``run_tool`` returns):
+    a library caller that catches it can run again (dev-probe112: one Ctrl-C a caller
+    had caught stopped every later league, sweep and analyze at once).
 
     :raises KeyboardInterrupt: a SIGINT was received (:class:`Terminated`: a SIGTERM).
     """
     if received:
-        raise interrupt_of(received[-1])
+        signum = received[-1]
+        received.clear()
+        raise interrupt_of(signum)
 
 
 def interrupt_of(signum: int) -> KeyboardInterrupt:
@@ -92,7 +97,9 @@ def running_as_executable(argv0: str | None = None) -> bool:
     ``python -m <module>`` (``sys.argv[0]`` is ``-m`` while the package is imported,
     then the module's file) or a console script installed in ``lib/lookahead_control/``
     (``ros2 run``'s place; the venv's ``bin/`` links there). A library import (a test, a
-    notebook, a user's script) is left alone.
+    notebook, a user's script) is left alone, also a script in a folder of the package's
+    name that is not in a ``lib`` (a colcon workspace's ``src/lookahead_control/``:
+    dev-probe112).
 
     :param argv0: the program (default ``sys.argv[0]``).
     :return: whether to install the executables' interrupt handling.
@@ -101,7 +108,9 @@ def running_as_executable(argv0: str | None = None) -> bool:
     if program == '-m' or (argv0 is None and _STARTED_AS_MODULE):
         return True
     try:
-        return os.path.basename(os.path.dirname(os.path.realpath(program))) == PACKAGE_NAME
+        folder = os.path.dirname(os.path.realpath(program))
+        return (os.path.basename(folder) == PACKAGE_NAME
+                and os.path.basename(os.path.dirname(folder)) == 'lib')
     except (OSError, ValueError):
         return False
 
