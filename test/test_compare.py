@@ -18,7 +18,6 @@ from dataclasses import replace
 import math
 import os
 from pathlib import Path
-import threading
 import time
 
 from conftest import Swerve
@@ -180,20 +179,12 @@ def _broken_law(vehicle, settings):
     return _Broken()
 
 
-_RUN_CASE = compare.run_case
-
-
-def _run_case_with_a_broken_law(task):
-    # a pool's worker is a fresh interpreter: the law is added where the task runs
-    compare.LAWS.setdefault('broken', _broken_law)
-    return _RUN_CASE(task)
-
-
 @pytest.mark.parametrize('workers', [1, 2])
 def test_a_failing_task_keeps_the_other_rows_and_exits_1(monkeypatch, tmp_path, capsys,
                                                          workers):
+    # a law added at run time is sent to the pool's workers with its tasks (a worker is
+    # a fresh interpreter; dev-probe112: every row 'failed: KeyError' with 2 workers)
     monkeypatch.setitem(compare.LAWS, 'broken', _broken_law)
-    monkeypatch.setattr(compare, 'run_case', _run_case_with_a_broken_law)
     monkeypatch.setattr(compare, 'PLANTS', compare.PLANTS[:2])
     code = compare.main(['--laws', 'paper_eq26', 'broken', '--scenarios', 's0_straight',
                          '--speeds', '37', '--out', str(tmp_path), '--no-plots',
@@ -206,6 +197,28 @@ def test_a_failing_task_keeps_the_other_rows_and_exits_1(monkeypatch, tmp_path, 
     assert len(csv) == 1 + 4
     assert sum('failed: RuntimeError: boom second line' in line for line in csv) == 2
     assert sum(line.startswith('paper_eq26,') and 'failed' not in line for line in csv) == 2
+
+
+def _paper_again(vehicle, settings):
+    return compare.LAWS['paper_eq26'](vehicle, settings)
+
+
+def test_a_law_added_at_run_time_runs_on_the_pools_workers(monkeypatch):
+    # dev-probe112: docs/baselines.md says a new law is one entry of LAWS; with the
+    # workers spawned, such a law failed every run ('KeyError') with 2 workers
+    monkeypatch.setitem(compare.LAWS, 'paper_again', _paper_again)
+    kwargs = {'scenarios': ['s0_straight'], 'speeds': [37.0], 'plants': compare.PLANTS[:1],
+              'vehicle': VEHICLE, 'duration': 2.0}
+    mine = compare.league(['paper_again'], workers=2, **kwargs)
+    theirs = compare.league(['paper_eq26'], workers=1, **kwargs)
+    assert [str({**r, 'law': 'x'}) for r in mine] == [str({**r, 'law': 'x'}) for r in theirs]
+    assert not mine[0]['notes']
+    # a factory a worker cannot import: said before any run, with what to do
+    monkeypatch.setitem(compare.LAWS, 'local', lambda v, s: _paper_again(v, s))
+    with pytest.raises(ToolError, match=r"law 'local': its factory .* cannot be sent to a "
+                                        r'worker process .*module level.*workers 1'):
+        compare.league(['paper_eq26', 'local'], workers=2, **kwargs)
+    assert compare.league(['local'], workers=1, **kwargs)[0]['notes'] == ''
 
 
 def test_one_task_per_plant_gives_the_rows_of_one_task_per_scenario():
@@ -223,7 +236,7 @@ _CALLERS_STATE: dict[str, str] = {}
 
 
 def _what_a_worker_holds(_):
-    return _CALLERS_STATE.get('mark'), threading.active_count()
+    return _CALLERS_STATE.get('mark'), os.getppid()
 
 
 def test_the_pools_workers_are_fresh_interpreters_not_forks_of_the_caller(monkeypatch):
@@ -232,16 +245,66 @@ def test_the_pools_workers_are_fresh_interpreters_not_forks_of_the_caller(monkey
     # garbage it inherited (rows "failed: BrokenProcessPool", the determinism test failed).
     # A fork also copies the caller's locks without the threads that hold them.
     monkeypatch.setitem(_CALLERS_STATE, 'mark', 'the caller was here')
-    stop = threading.Event()
-    busy = threading.Thread(target=stop.wait, daemon=True)     # a thread of the caller
-    busy.start()
+    with compare.stoppable_pool(2) as pool:
+        held = list(pool.map(_what_a_worker_holds, range(2)))
+    assert held == [(None, os.getpid())] * 2
+
+
+def test_a_broken_pool_says_why_a_worker_may_have_died():
+    # dev-probe112: a script without the main guard, or read from stdin, got rows saying
+    # only 'failed: BrokenProcessPool: A process in the process pool was terminated
+    # abruptly while the future was running or pending.'
+    from concurrent.futures.process import BrokenProcessPool
+    task = ('paper_eq26', 's0_straight', [37.0], compare.PLANTS[:1], VEHICLE, 0.005, 1.0)
+
+    def broken():
+        raise BrokenProcessPool('A process in the process pool was terminated abruptly')
+    row, = compare._guarded(broken, task)
+    assert row['notes'].startswith('failed: BrokenProcessPool: a worker process died: ')
+    assert "`if __name__ == '__main__':`" in row['notes'] and 'workers 1' in row['notes']
+
+
+def test_a_killed_caller_leaves_no_worker_waiting(tmp_path):
+    # dev-probe112: SIGKILL of `compare --workers 2` (no cleanup runs) left both workers
+    # blocked on the pool's pipe forever (90 s and on)
+    import signal
+    import subprocess
+    import sys
+    root = Path(__file__).resolve().parent.parent
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'lookahead_control.tools.compare', '--out', str(tmp_path),
+         '--laws', 'paper_eq26', 'lqr', '--scenarios', 's0_straight', 's1_paper_step',
+         '--workers', '2', '--no-plots', '--no-progress'],
+        cwd=root, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        with compare.stoppable_pool(2) as pool:
-            held = list(pool.map(_what_a_worker_holds, range(2)))
+        deadline = time.monotonic() + 60.0
+        workers = []
+        while len(workers) < 2 and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+            workers = [pid for pid in _children(proc.pid) if 'spawn_main' in _cmdline(pid)]
+        assert len(workers) == 2, (workers, proc.poll())
     finally:
-        stop.set()
-    assert [mark for mark, _ in held] == [None, None]
-    assert all(threads <= 2 for _, threads in held), held    # its own (and a pool thread)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    deadline = time.monotonic() + 30.0
+    while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [pid for pid in workers if _alive(pid)]
+
+
+def _children(pid):
+    try:
+        found = Path(f'/proc/{pid}/task/{pid}/children').read_text().split()
+    except FileNotFoundError:
+        return []
+    return [int(c) for c in found]
+
+
+def _cmdline(pid):
+    try:
+        return Path(f'/proc/{pid}/cmdline').read_bytes().replace(b'\0', b' ').decode()
+    except FileNotFoundError:
+        return ''
 
 
 def _task_waiting_for_go(task):

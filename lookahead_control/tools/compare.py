@@ -31,13 +31,17 @@ from __future__ import annotations
 
 from collections import Counter
 from concurrent.futures import as_completed, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from functools import partial
 import math
 from multiprocessing import get_context
+import os
 from pathlib import Path
+import pickle
 import sys
+import threading
 import time
 from typing import Any, Callable, Iterable, Iterator, Mapping, Optional, Sequence
 
@@ -153,18 +157,53 @@ LAWS: dict[str, LawFactory] = {
     # as the node builds it (core/controller.build_law)
     'cg_compensated': lambda v, s: CgCompensatedLaw(v, s.controller, s.lane_keeping),
 }
+_PACKAGE_FACTORIES = dict(LAWS)
 
 
-def league_law(name: str, vehicle: VehicleParams, settings: LawSettings) -> Law:
+#: the package's own laws: a worker process has them (a law added to :data:`LAWS` at run
+#: time is sent with its tasks)
+PACKAGE_LAWS = frozenset(LAWS)
+
+
+def league_law(name: str, vehicle: VehicleParams, settings: LawSettings,
+               factory: Optional[LawFactory] = None) -> Law:
     """
     Return a law of the league as the controller node runs it: through its output stage.
 
     :param name: the law (a key of ``LAWS``).
     :param vehicle: the law's vehicle model (also the angle limit's wheelbase).
     :param settings: the settings.
+    :param factory: the law's factory (None: ``LAWS[name]``).
     :return: the law.
     """
-    return NodeOutputStage(LAWS[name](vehicle, settings), vehicle.wheelbase, settings.safety)
+    make = factory if factory is not None else LAWS[name]
+    return NodeOutputStage(make(vehicle, settings), vehicle.wheelbase, settings.safety)
+
+
+def sent_factory(name: str, workers: int) -> Optional[LawFactory]:
+    """
+    Return the factory to send with a law's tasks to a worker process, or None.
+
+    A worker is a fresh interpreter (:func:`stoppable_pool`): it has the package's laws,
+    not one a caller added to :data:`LAWS` (dev-probe112: ``failed: KeyError``). Such a
+    law's factory goes with its tasks, pickled by reference.
+
+    :param name: the law.
+    :param workers: the league's processes (1: none is sent).
+    :return: the factory, or None (in this process, or a package law).
+    :raises ToolError: the factory cannot be sent (a lambda, a local function).
+    """
+    if workers <= 1 or (name in PACKAGE_LAWS and LAWS[name] is _PACKAGE_FACTORIES[name]):
+        return None
+    factory = LAWS[name]
+    try:
+        pickle.dumps(factory)
+    except (pickle.PicklingError, AttributeError, TypeError) as err:
+        raise ToolError(
+            f'law {name!r}: its factory {factory!r} cannot be sent to a worker process '
+            f'({err}): define it at module level (a function a worker can import), or '
+            'run in this process (workers 1)') from err
+    return factory
 
 
 def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
@@ -753,14 +792,16 @@ def run_case(task: tuple[Any, ...]) -> list[dict[str, Any]]:
     Run one law on one scenario: every plant, every speed (vectorized per plant).
 
     :param task: ``(law, scenario name, speeds, plants, vehicle, dt, duration[,
-        settings[, seeds]])`` (names, not objects: a task crosses to a worker process;
-        duration None: the scenario's; settings: :class:`LawSettings`, the defaults
-        without; seeds: noise seeds per speed on a noisy plant, 1 without).
+        settings[, seeds[, factory]]])`` (a task crosses to a worker process; duration
+        None: the scenario's; settings: :class:`LawSettings`, the defaults without;
+        seeds: noise seeds per speed on a noisy plant, 1 without; factory: the law's,
+        :func:`sent_factory`, None: ``LAWS[law]``).
     :return: one row per run.
     """
     law_name, scenario_name, speeds, plants, league_vehicle, dt, duration = task[:7]
     settings = task[7] if len(task) > 7 else LawSettings()
     seeds = task[8] if len(task) > 8 else 1
+    factory = task[9] if len(task) > 9 else None
     scenario = load_scenarios([scenario_name])[scenario_name]
     if duration is not None:
         scenario = replace(scenario, duration=duration)
@@ -769,7 +810,7 @@ def run_case(task: tuple[Any, ...]) -> list[dict[str, Any]]:
         runs = case_runs(case, speeds, seeds)
         try:
             metrics = _plant_runs(law_name, scenario_name, scenario, runs, case,
-                                  league_vehicle, dt, settings)
+                                  league_vehicle, dt, settings, factory)
         except Exception as err:        # one plant's failure loses no other row
             metrics = [empty_row(FAILED + one_line(f'{type(err).__name__}: {err}'))] * len(
                 runs)
@@ -780,10 +821,10 @@ def run_case(task: tuple[Any, ...]) -> list[dict[str, Any]]:
 
 def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario,
                 runs: Sequence[tuple[float, Optional[int]]], case: PlantCase,
-                league_vehicle: VehicleParams, dt: float,
-                settings: LawSettings) -> list[dict[str, Any]]:
+                league_vehicle: VehicleParams, dt: float, settings: LawSettings,
+                factory: Optional[LawFactory] = None) -> list[dict[str, Any]]:
     vehicle = case.law_vehicle(league_vehicle)
-    law = league_law(law_name, vehicle, settings)
+    law = league_law(law_name, vehicle, settings, factory)
     common: dict[str, Any] = {'dt': case.dt or dt, 'preview_distance': PREVIEW_DISTANCE,
                               'delay': case.delay}
     speeds = list(dict.fromkeys(speed for speed, _ in runs))
@@ -860,8 +901,9 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     # one task per law, scenario and plant (each plant's runs are independent: the same
     # rows as one task per law and scenario), so that the pool can balance the costly
     # multi-body runs
+    factories = {law: sent_factory(law, workers) for law in laws}
     tasks = [(law, name, scenario_speeds(loaded[name], speeds), (case,), vehicle, dt,
-              duration, settings, seeds)
+              duration, settings, seeds, factories[law])
              for law in laws for name in scenarios for case in plants]
     bar = None
     if progress:
@@ -897,6 +939,25 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     return [row for rows in results for row in rows]
 
 
+def _end_with(caller: int, period: float = 0.5) -> None:
+    """
+    End this worker process when its caller is gone.
+
+    A caller killed with SIGKILL runs no cleanup: its workers waited for a task forever
+    (dev-probe112, 90 s and on). A thread here looks every ``period`` whether the worker
+    was handed to another parent.
+
+    :param caller: the caller's process id.
+    :param period: how often to look [s].
+    """
+    def watch() -> None:
+        while os.getppid() == caller:
+            time.sleep(period)
+        os._exit(1)
+
+    threading.Thread(target=watch, name='end_with_caller', daemon=True).start()
+
+
 @contextmanager
 def stoppable_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
     """
@@ -911,13 +972,17 @@ def stoppable_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
 
     On Ctrl-C or SIGTERM the pool's own exit would run every task not yet started (the
     whole league) and then throw the rows away. Here the tasks not started are dropped
-    and the workers killed: they only compute, nothing on disk to finish (SIGKILL: a
-    worker turns SIGTERM into its task's exception and takes the next one).
+    and the workers killed: they only compute, nothing on disk to finish. A worker
+    whose caller was killed (SIGKILL: no cleanup ran) ends itself (:func:`_end_with`).
+    A worker is a fresh interpreter: a law added to :data:`LAWS` at run time goes with
+    its tasks (:func:`sent_factory`), and a script that starts the pool needs the
+    ``if __name__ == '__main__':`` guard (Python's spawn start method; :data:`POOL_BROKEN`).
 
     :param workers: processes.
     :return: the pool (a context manager's).
     """
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn'))
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context('spawn'),
+                               initializer=_end_with, initargs=(os.getpid(),))
     try:
         yield pool
     except BaseException:
@@ -978,6 +1043,13 @@ def plant_cost(case: PlantCase, speeds: Sequence[float], seeds: int, duration: f
     return cost
 
 
+#: why a pool's worker may have died, where the pool only says it broke
+POOL_BROKEN = ('a worker process died: killed (out of memory?), or it could not start: '
+               'a worker is a fresh interpreter that imports the main module, so a script '
+               "calling league with workers > 1 needs an `if __name__ == '__main__':` "
+               'guard and must be a file (not stdin); workers 1 runs in this process')
+
+
 def _guarded(runner: Callable[[], list[dict[str, Any]]], task: Any) -> list[dict[str, Any]]:
     """
     Return a task's rows, or one ``failed: ...`` row per run when the task raised.
@@ -994,7 +1066,12 @@ def _guarded(runner: Callable[[], list[dict[str, Any]]], task: Any) -> list[dict
     try:
         return runner()
     except Exception as err:            # one task's failure loses no other row
-        note = FAILED + one_line(f'{type(err).__name__}: {err}')
+        text = str(err)
+        if isinstance(err, BrokenProcessPool):
+            # dev-probe112: a script without the main guard (or read from stdin) gives
+            # this and nothing else in the rows
+            text = POOL_BROKEN
+        note = FAILED + one_line(f'{type(err).__name__}: {text}')
         return [finish_row(law, scenario, case.name, v, empty_row(note), seed)
                 for case in plants for v, seed in case_runs(case, speeds, seeds)]
 
