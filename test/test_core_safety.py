@@ -634,7 +634,7 @@ def test_the_last_message_taken_sent_again_is_a_duplicate_not_a_refusal():
     yaw = YawSample(now, 0.01, 0.02, 0.0)
     assert core.accept('yaw', yaw, now) is None
     again = core.accept('yaw', YawSample(now, 0.01, 0.02, 0.0), now + 10 * MS)
-    assert again == 'yaw: repeats the last message taken (stamp 50.000 s, same values)'
+    assert again == 'yaw: repeats the last message taken (stamp 50.000 s, same values as read)'
     assert is_duplicate(again) and core.duplicates == {'yaw': 1} and core.rejected == {}
     assert core.yaw is yaw
     other = core.accept('yaw', YawSample(now, 0.01, 0.03, 0.0), now + 20 * MS)

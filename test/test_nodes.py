@@ -15,6 +15,7 @@
 """Converters without DDS; nodes with a private context, callbacks called directly."""
 
 import math
+import types
 
 from conftest import feed
 from lookahead_control.core.control_law import LateralState, steering_law
@@ -529,22 +530,43 @@ def test_issue11_old_and_frozen_stamps_are_refused(drive):
     assert status.level == DiagnosticStatus.ERROR and 'yaw' in status.message
     assert 'rejected: ' in status.message
     drive.check_rate()
-    # the same message again and again (a bridge republishing its last one): within
-    # input_timeout not used and no refusal (a lockstep simulator's step 0 sent again
-    # until answered was a WARN at the start of every run); it does not keep the input
-    # fresh, and past input_timeout it is refused as stale
+    # a message sent again (a lockstep simulator's step 0 until it is answered): not
+    # used and no refusal (it was a WARN 'rejected: 4' at the start of every run), not
+    # logged
     drive.tick(steps=50)
     assert drive.sent[-1][4].law is not None
     drive.node.diagnostics()
-    frozen, start = drive.now + 10 * MS, drive.now
-    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=10)
+    warned, throttle = [], drive.node._refusal_log
+    drive.node.get_logger = lambda: types.SimpleNamespace(warn=warned.append)
+    drive.node._refusal_log = types.SimpleNamespace(ready=lambda: True)    # never throttled
+    at = drive.now
+    for name, message in (
+            ('yaw', conv.to_yaw(at, 'base_link', 0.0, 0.0, 0.0)),
+            ('velocity', conv.to_velocity(at, 'base_link', 20.0, 0.0, 0.0)),
+            ('road_curvature', conv.to_curvature(at, 'base_link', [(0.0, 0.001), (5.0, 0.001)])),
+            ('lateral_error', conv.to_lateral_error(at, 'base_link', 0.0, 1.0))):
+        getattr(drive.node, {'road_curvature': 'on_curvature'}.get(name, f'on_{name}'))(message)
     assert drive.node.core.refusals['yaw'].startswith('yaw: repeats the last message taken')
+    drive.tick(steps=10)
     status = drive.node.diagnostics()
     assert status.level == DiagnosticStatus.OK, status.message
-    assert status.message.startswith('duplicates: 36 messages repeated the last one taken')
-    assert 'yaw 9' in status.message
-    assert 'rejected: ' not in status.message
-    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=190)
+    assert status.message.startswith('duplicates: 4 messages repeated the last one taken')
+    assert 'rejected: ' not in status.message and warned == []
+    del drive.node.get_logger
+    drive.node._refusal_log = throttle
+    # every message sent three times (an echo): more copies than messages, a WARN
+    for _ in range(10):
+        drive.tick()
+        for _ in range(2):
+            drive.tick(dt=0, stamp=lambda now: now)
+    status = drive.node.diagnostics()
+    assert status.level == DiagnosticStatus.WARN and 'rejected: ' not in status.message
+    assert 'duplicates: 80 messages' in status.message
+    assert 'More than the 40 messages taken since the last report: an echo' in status.message
+    # the same message again and again (a bridge republishing its last one) does not
+    # keep the input fresh: past input_timeout it is refused as stale
+    frozen, start = drive.now + 10 * MS, drive.now
+    drive.tick(y=-1.0, stamp=lambda now: frozen, steps=200)
     after = drive.since(start + 10 * MS)
     assert all(c.law is None for *_, c in after[1:]) and after[-1][2] == 0.0
     status = drive.node.diagnostics()

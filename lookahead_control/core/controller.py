@@ -275,6 +275,8 @@ class SteeringController:
         #: values: a publisher sending again what may not have arrived, as a lockstep
         #: simulator's step 0): not used, not refused (no warning); counted apart
         self.duplicates: dict[str, int] = {}
+        #: messages taken (accepted), every input
+        self.taken = 0
         # input -> why its samples since the last one taken were refused
         self.refusals: dict[str, str] = {}
         self.time_jumps = 0
@@ -596,6 +598,7 @@ class SteeringController:
         self._voided.discard(name)
         if self._first_received is None:
             self._first_received = received
+        self.taken += 1
         getattr(self, _UPDATE[name])(sample)
         if name == 'road_curvature':
             self._judge_speed(sample)

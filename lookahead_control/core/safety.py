@@ -203,9 +203,10 @@ def duplicate_reason(name: str, stamp_ns: int) -> str:
 
     :param name: the input.
     :param stamp_ns: its stamp.
-    :return: ``'<input>: repeats the last message taken (stamp ... s, same values)'``.
+    :return: ``'<input>: repeats the last message taken (stamp ... s, same values as
+        read)'`` (as the controller reads it: a field it does not read may differ).
     """
-    return f'{name}: {DUPLICATE} (stamp {stamp_ns * 1e-9:.3f} s, same values)'
+    return f'{name}: {DUPLICATE} (stamp {stamp_ns * 1e-9:.3f} s, same values as read)'
 
 
 def is_duplicate(reason: str) -> bool:

@@ -222,6 +222,7 @@ class ControllerNode(LifecycleNode):
                          'd_v_clamped': 0, 'stale_commands': 0, 'demand_capped': 0,
                          'approach_clipped': 0}
         self._reported: dict[str, int] = {}
+        self._reported_taken = 0
         self._reported_turning: dict[str, float] = {}
         # the sim clock as last seen by a report, and the steady clock when it last moved
         self._sim_seen: tuple[Optional[int], int] = (None, 0)
@@ -467,8 +468,6 @@ class ControllerNode(LifecycleNode):
                 refused = self._accept(name, sample)
                 if refused is None:
                     return True
-                if is_duplicate(refused):
-                    return False        # counted, told at OK (a lockstep step 0 again)
                 reason = refused
         self._log_refusal(reason)
         return False
@@ -479,6 +478,11 @@ class ControllerNode(LifecycleNode):
         return self.core.accept(name, sample, now_ns(self))
 
     def _log_refusal(self, reason: str) -> None:
+        if is_duplicate(reason):
+            # counted and told at OK (a lockstep step 0 again), not logged: it would also
+            # take the throttle's one line from a refusal (dev-probe112: every run through
+            # path_bridge logged 'refused road_curvature: repeats ...')
+            return
         if self._refusal_log.ready():
             self.get_logger().warn(f'refused {reason}')
 
@@ -750,6 +754,7 @@ class ControllerNode(LifecycleNode):
                   'coalesced': self._pacer.coalesced, **causes}
         new = {k: v - self._reported.get(k, 0) for k, v in counts.items()}
         self._reported = counts
+        taken, self._reported_taken = self.core.taken - self._reported_taken, self.core.taken
         ages, latency = self.core.timing.take()
         warn_at = self.core.safety.latency_warn
         reasons = []
@@ -797,9 +802,17 @@ class ControllerNode(LifecycleNode):
                            'raise the bound)')
         if new['duplicates'] > 0:
             so_far = ', '.join(f'{k} {v}' for k, v in self.core.duplicates.items())
-            reasons.append(f'duplicates: {new["duplicates"]} messages repeated the last one '
-                           f'taken of their input, same stamp and values, not used (so far: '
-                           f'{so_far})')
+            text = (f'duplicates: {new["duplicates"]} messages repeated the last one taken '
+                    f'of their input, same stamp and values as read, not used (so far: '
+                    f'{so_far})')
+            if new['duplicates'] > taken:
+                # more copies than messages: an echo (two publishers of one topic, a
+                # bridge loop) or a publisher re-sending what nobody answers, not a
+                # lockstep start's few (dev-probe112: a 3-fold echo read OK)
+                level = max(level, DiagnosticStatus.WARN)
+                text += (f'. More than the {taken} messages taken since the last report: '
+                         'an echo or a publisher re-sending unanswered')
+            reasons.append(text)
         for key, setting in (('demand_capped', 'lane_keeping.demand_limit'),
                              ('approach_clipped', 'lane_keeping.approach_heading')):
             if new[key] > 0:
