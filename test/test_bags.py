@@ -250,6 +250,34 @@ def test_a_bag_of_two_simulator_runs_is_re_run_one_run_after_the_other(loop_bag,
     assert rerun(first).runs == 1
 
 
+def test_one_message_sent_seconds_late_is_no_second_run(law_bag):
+    # dev-probe113: one /yaw message sent again with a stamp 1.5-2 s old in the middle of
+    # a run (the node refused it against its clock) was taken for a second run: the
+    # re-run reset the law there, 499 of 1000 commands off by 7 mrad, --check failed
+    from lookahead_control.bags.run_data import run_starts
+    _, bag = law_bag
+    run = load_run(bag)
+    yaw = run.inputs['yaw']
+    late = int(np.searchsorted(yaw.stamp_ns, yaw.stamp_ns[0] + 3_000_000_000))
+    old = int(np.searchsorted(yaw.stamp_ns, yaw.stamp_ns[late] - 1_500_000_000))
+    at = np.r_[np.arange(late), old, np.arange(late, len(yaw))]
+    recv = yaw.recv_ns[at].copy()
+    recv[late] = recv[late - 1] + 1
+    stray = Samples(recv, yaw.stamp_ns[at], np.arange(len(at)),
+                    {name: column[at] for name, column in yaw.values.items()})
+    result = rerun(dataclasses.replace(run, inputs={**run.inputs, 'yaw': stray}))
+    assert result.runs == 1 and result.compared == 400 and result.max_diff == 0.0
+
+    # the rule on its own: a start wants the next four inputs back too
+    def stream(stamps):
+        return [(k, 'yaw', types.SimpleNamespace(stamp_ns=int(t * 1e9)))
+                for k, t in enumerate(stamps)]
+    assert run_starts(stream([5.0, 5.01, 2.0, 5.02, 5.03, 5.04, 5.05])) == [0]
+    assert run_starts(stream([5.0, 5.01, 0.0, 0.0, 0.0, 0.0, 0.01])) == [0, 2]
+    assert run_starts(stream([5.0, 5.01, 0.0, 0.0, 0.01])) == [0]     # too few to tell
+    assert run_starts([]) == []
+
+
 def test_series_without_debug_topic_re_run_the_law_as_recorded(loop_bag):
     run = load_run(loop_bag)
     recorded = run_series(run)

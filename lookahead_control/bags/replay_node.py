@@ -102,8 +102,12 @@ def offline(args: argparse.Namespace) -> int:
         # order, half the commands compared and the rest told as recorded twice
         print(f'replay: the bag holds {result.runs} runs (the input stamps start again '
               f'{result.runs - 1} time(s), as when a simulator is started again under one '
-              'recorder): each is re-run in turn from a fresh start, and a stamp that '
-              'several runs have is compared in the last of them')
+              'recorder): they are re-run one after the other, the core reset at each '
+              'start, and a stamp that several runs have is compared in the last of them. '
+              "The node judged a new run's first inputs against its clock before that "
+              'clock went back (refused as old); the re-run has no clock and takes them, '
+              'so the first answers after a start, and a stateful law after them, can '
+              'differ')
     if result.not_finite:
         print(f'replay: {result.not_finite} of the {result.compared} compared commands are '
               'not finite (NaN or inf) in the bag or the re-run: max |diff| is nan')

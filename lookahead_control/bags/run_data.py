@@ -751,6 +751,11 @@ def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
     return [(recv, role, sample) for recv, _, role, sample in events]
 
 
+#: inputs after a stamp that went back that must all lie back too for a new run: a step's
+#: four inputs (one message sent late is no run: dev-probe113)
+RUN_START_CONFIRM = 4
+
+
 def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> list[int]:
     """
     Return where the stamps start again: the runs of a bag that holds several.
@@ -759,7 +764,9 @@ def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> list[int]:
     whose stamps begin at 0 again. Taken in receive order, an input whose stamp lies more
     than the core's time-jump threshold
     (:data:`~lookahead_control.core.controller.JUMP_NS`) below the newest stamp since
-    the last start begins a run (the core resets there too).
+    the last start begins a run when the :data:`RUN_START_CONFIRM` inputs after it lie
+    that far back too: a stray message sent (or delayed) seconds late inside one run,
+    which the node refused against its clock, is no run.
 
     :param inputs: ``(receive ns, input name, sample)`` in receive order.
     :return: the index in ``inputs`` of each run's first input (``[0]``: one run; empty:
@@ -768,7 +775,14 @@ def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> list[int]:
     starts: list[int] = []
     newest: Optional[int] = None
     for i, (_, _, sample) in enumerate(inputs):
-        if newest is None or sample.stamp_ns < newest - JUMP_NS:
+        if newest is not None and sample.stamp_ns < newest - JUMP_NS:
+            after = inputs[i + 1:i + 1 + RUN_START_CONFIRM]
+            if len(after) == RUN_START_CONFIRM and all(
+                    s.stamp_ns < newest - JUMP_NS for _, _, s in after):
+                starts.append(i)
+                newest = sample.stamp_ns
+            continue                    # a stray: no run, and not the newest either
+        if newest is None:
             starts.append(i)
             newest = sample.stamp_ns
         else:
