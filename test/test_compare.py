@@ -213,6 +213,10 @@ def test_a_law_added_at_run_time_runs_on_the_pools_workers(monkeypatch):
     theirs = compare.league(['paper_eq26'], workers=1, **kwargs)
     assert [str({**r, 'law': 'x'}) for r in mine] == [str({**r, 'law': 'x'}) for r in theirs]
     assert not mine[0]['notes']
+    # a package law under another name (dev-probe113: refused as a lambda)
+    monkeypatch.setitem(compare.LAWS, 'alias', compare.LAWS['paper_eq26'])
+    alias = compare.league(['alias'], workers=2, **kwargs)
+    assert [str({**r, 'law': 'x'}) for r in alias] == [str({**r, 'law': 'x'}) for r in theirs]
     # a factory a worker cannot import: said before any run, with what to do
     monkeypatch.setitem(compare.LAWS, 'local', lambda v, s: _paper_again(v, s))
     with pytest.raises(ToolError, match=r"law 'local': its factory .* cannot be sent to a "
@@ -260,7 +264,7 @@ def test_a_broken_pool_says_why_a_worker_may_have_died():
     def broken():
         raise BrokenProcessPool('A process in the process pool was terminated abruptly')
     row, = compare._guarded(broken, task)
-    assert row['notes'].startswith('failed: BrokenProcessPool: a worker process died: ')
+    assert row['notes'].startswith('failed: BrokenProcessPool: a worker process died (')
     assert "`if __name__ == '__main__':`" in row['notes'] and 'workers 1' in row['notes']
 
 

@@ -270,12 +270,14 @@ def test_every_reason_of_the_node_is_one_reason_with_its_name(active_controller)
     core.rejected['yaw'] = 2
     core.last_rejection = 'yaw: not finite; bad (x)'
     core.duplicates.update({'yaw': 1, 'velocity': 2})
+    core.taken.update({'yaw': 4, 'velocity': 4})
+    core.duplicated.update({'yaw': 2})
     core.speed_seen, core.lateral_scale_seen, core.yaw_scale_seen = 3.6, 100.0, 57.0
     core.still_seen = math.inf
     names = [reason_name(r) for r in split_reasons(node.diagnostics().message)]
     assert names == [
         'rejected', 'saturated', 'rate limited', 'low speed', 'd v clamped', 'time jumps',
-        'law restarts', 'duplicates', 'demand capped', 'approach clipped',
+        'law restarts', 'duplicates', 'echo', 'demand capped', 'approach clipped',
         'turning without road_curvature',
         'velocity v_y exactly 0 while turning', 'road_curvature disagrees with the yaw rate',
         'steering oscillates', 'lateral_error moves against relative_yaw',

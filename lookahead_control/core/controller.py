@@ -275,8 +275,12 @@ class SteeringController:
         #: values: a publisher sending again what may not have arrived, as a lockstep
         #: simulator's step 0): not used, not refused (no warning); counted apart
         self.duplicates: dict[str, int] = {}
-        #: messages taken (accepted), every input
-        self.taken = 0
+        #: input -> messages taken (accepted)
+        self.taken: dict[str, int] = {}
+        #: input -> messages taken that came again at least once (an echo repeats most
+        #: of them; a lockstep start's step 0, sent until answered, is one)
+        self.duplicated: dict[str, int] = {}
+        self._duplicated_now: set[str] = set()
         # input -> why its samples since the last one taken were refused
         self.refusals: dict[str, str] = {}
         self.time_jumps = 0
@@ -496,6 +500,7 @@ class SteeringController:
         it, the next ones move from it.
         """
         self.lateral = self.yaw = self.velocity = self.curvature = None
+        self._duplicated_now.clear()
         self._accel_anchor = None
         self._accel_estimate = 0.0
         self.last = None
@@ -577,6 +582,9 @@ class SteeringController:
             # publisher stuck repeating its last message still goes stale, and says so)
             reason = duplicate_reason(name, sample.stamp_ns)
             self.duplicates[name] = self.duplicates.get(name, 0) + 1
+            if name not in self._duplicated_now:
+                self._duplicated_now.add(name)
+                self.duplicated[name] = self.duplicated.get(name, 0) + 1
             self.refusals[name] = reason
             return reason
         if reason is not None:
@@ -598,7 +606,8 @@ class SteeringController:
         self._voided.discard(name)
         if self._first_received is None:
             self._first_received = received
-        self.taken += 1
+        self.taken[name] = self.taken.get(name, 0) + 1
+        self._duplicated_now.discard(name)
         getattr(self, _UPDATE[name])(sample)
         if name == 'road_curvature':
             self._judge_speed(sample)

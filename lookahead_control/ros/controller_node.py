@@ -222,7 +222,7 @@ class ControllerNode(LifecycleNode):
                          'd_v_clamped': 0, 'stale_commands': 0, 'demand_capped': 0,
                          'approach_clipped': 0}
         self._reported: dict[str, int] = {}
-        self._reported_taken = 0
+        self._reported_taken: dict[str, tuple[int, int]] = {}
         self._reported_turning: dict[str, float] = {}
         # the sim clock as last seen by a report, and the steady clock when it last moved
         self._sim_seen: tuple[Optional[int], int] = (None, 0)
@@ -476,6 +476,23 @@ class ControllerNode(LifecycleNode):
         # the core checks the values and stamps (against the node's clock; sim time
         # before the first /clock reads 0: not against it), and counts what it refuses
         return self.core.accept(name, sample, now_ns(self))
+
+    def _echoes(self) -> dict[str, tuple[int, int]]:
+        """
+        Return the inputs most of whose messages came again since the last report.
+
+        :return: input -> (messages taken that came again, messages taken), where the
+            first is at least 2 and at least half the second.
+        """
+        out = {}
+        for name, taken in self.core.taken.items():
+            again = self.core.duplicated.get(name, 0)
+            seen_again, seen_taken = self._reported_taken.get(name, (0, 0))
+            self._reported_taken[name] = (again, taken)
+            k, n = again - seen_again, taken - seen_taken
+            if k >= 2 and 2 * k >= n:
+                out[name] = (k, n)
+        return out
 
     def _log_refusal(self, reason: str) -> None:
         if is_duplicate(reason):
@@ -754,7 +771,7 @@ class ControllerNode(LifecycleNode):
                   'coalesced': self._pacer.coalesced, **causes}
         new = {k: v - self._reported.get(k, 0) for k, v in counts.items()}
         self._reported = counts
-        taken, self._reported_taken = self.core.taken - self._reported_taken, self.core.taken
+        echoes = self._echoes()
         ages, latency = self.core.timing.take()
         warn_at = self.core.safety.latency_warn
         reasons = []
@@ -802,17 +819,18 @@ class ControllerNode(LifecycleNode):
                            'raise the bound)')
         if new['duplicates'] > 0:
             so_far = ', '.join(f'{k} {v}' for k, v in self.core.duplicates.items())
-            text = (f'duplicates: {new["duplicates"]} messages repeated the last one taken '
-                    f'of their input, same stamp and values as read, not used (so far: '
-                    f'{so_far})')
-            if new['duplicates'] > taken:
-                # more copies than messages: an echo (two publishers of one topic, a
-                # bridge loop) or a publisher re-sending what nobody answers, not a
-                # lockstep start's few (dev-probe112: a 3-fold echo read OK)
-                level = max(level, DiagnosticStatus.WARN)
-                text += (f'. More than the {taken} messages taken since the last report: '
-                         'an echo or a publisher re-sending unanswered')
-            reasons.append(text)
+            reasons.append(f'duplicates: {new["duplicates"]} messages repeated the last one '
+                           f'taken of their input, same stamp and values as read, not used '
+                           f'(so far: {so_far})')
+        if echoes:
+            # most messages of an input came twice or more: two publishers of one topic,
+            # a bridge that loops its output back (dev-probe112: a threefold echo read
+            # OK); a lockstep start's step 0, sent until answered, is one message
+            level = max(level, DiagnosticStatus.WARN)
+            echoed = ', '.join(f'{name} {k} of {n}' for name, (k, n) in echoes.items())
+            reasons.append(f'echo: messages taken that came again since the last report '
+                           f'({echoed}): two publishers of one topic, or a bridge that sends '
+                           'its output back')
         for key, setting in (('demand_capped', 'lane_keeping.demand_limit'),
                              ('approach_clipped', 'lane_keeping.approach_heading')):
             if new[key] > 0:

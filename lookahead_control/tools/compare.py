@@ -166,36 +166,42 @@ PACKAGE_LAWS = frozenset(LAWS)
 
 
 def league_law(name: str, vehicle: VehicleParams, settings: LawSettings,
-               factory: Optional[LawFactory] = None) -> Law:
+               factory: LawFactory | str | None = None) -> Law:
     """
     Return a law of the league as the controller node runs it: through its output stage.
 
     :param name: the law (a key of ``LAWS``).
     :param vehicle: the law's vehicle model (also the angle limit's wheelbase).
     :param settings: the settings.
-    :param factory: the law's factory (None: ``LAWS[name]``).
+    :param factory: the law's factory, or the name of the package law whose factory it
+        is (None: ``LAWS[name]``).
     :return: the law.
     """
-    make = factory if factory is not None else LAWS[name]
+    make = (LAWS[factory] if isinstance(factory, str) else factory) or LAWS[name]
     return NodeOutputStage(make(vehicle, settings), vehicle.wheelbase, settings.safety)
 
 
-def sent_factory(name: str, workers: int) -> Optional[LawFactory]:
+def sent_factory(name: str, workers: int) -> LawFactory | str | None:
     """
     Return the factory to send with a law's tasks to a worker process, or None.
 
     A worker is a fresh interpreter (:func:`stoppable_pool`): it has the package's laws,
     not one a caller added to :data:`LAWS` (dev-probe112: ``failed: KeyError``). Such a
-    law's factory goes with its tasks, pickled by reference.
+    law's factory goes with its tasks, pickled by reference; a package law's factory
+    under another name goes as that law's name (dev-probe113: refused as a lambda).
 
     :param name: the law.
     :param workers: the league's processes (1: none is sent).
-    :return: the factory, or None (in this process, or a package law).
+    :return: the factory, the name of the package law whose factory it is, or None (in
+        this process, or a package law).
     :raises ToolError: the factory cannot be sent (a lambda, a local function).
     """
     if workers <= 1 or (name in PACKAGE_LAWS and LAWS[name] is _PACKAGE_FACTORIES[name]):
         return None
     factory = LAWS[name]
+    for package_name, package_factory in _PACKAGE_FACTORIES.items():
+        if factory is package_factory:
+            return package_name
     try:
         pickle.dumps(factory)
     except (pickle.PicklingError, AttributeError, TypeError) as err:
@@ -822,7 +828,7 @@ def run_case(task: tuple[Any, ...]) -> list[dict[str, Any]]:
 def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario,
                 runs: Sequence[tuple[float, Optional[int]]], case: PlantCase,
                 league_vehicle: VehicleParams, dt: float, settings: LawSettings,
-                factory: Optional[LawFactory] = None) -> list[dict[str, Any]]:
+                factory: LawFactory | str | None = None) -> list[dict[str, Any]]:
     vehicle = case.law_vehicle(league_vehicle)
     law = league_law(law_name, vehicle, settings, factory)
     common: dict[str, Any] = {'dt': case.dt or dt, 'preview_distance': PREVIEW_DISTANCE,
@@ -977,6 +983,9 @@ def stoppable_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
     A worker is a fresh interpreter: a law added to :data:`LAWS` at run time goes with
     its tasks (:func:`sent_factory`), and a script that starts the pool needs the
     ``if __name__ == '__main__':`` guard (Python's spawn start method; :data:`POOL_BROKEN`).
+    A module's value the caller changed at run time (``compare.PREVIEW_DISTANCE``) is
+    not the worker's: it runs the package as imported (dev-probe113); the league's own
+    settings go with the tasks.
 
     :param workers: processes.
     :return: the pool (a context manager's).
@@ -1044,10 +1053,12 @@ def plant_cost(case: PlantCase, speeds: Sequence[float], seeds: int, duration: f
 
 
 #: why a pool's worker may have died, where the pool only says it broke
-POOL_BROKEN = ('a worker process died: killed (out of memory?), or it could not start: '
-               'a worker is a fresh interpreter that imports the main module, so a script '
-               "calling league with workers > 1 needs an `if __name__ == '__main__':` "
-               'guard and must be a file (not stdin); workers 1 runs in this process')
+POOL_BROKEN = ('a worker process died (its error, if any, is on stderr): killed (out of '
+               'memory?), or it could not start or unpickle a task: a worker is a fresh '
+               'interpreter that imports the main module and the modules of the laws sent '
+               'to it, so a script calling league with workers > 1 needs an `if __name__ '
+               "== '__main__':` guard, must be a file (not stdin), and its laws' modules "
+               'must be importable; workers 1 runs in this process')
 
 
 def _guarded(runner: Callable[[], list[dict[str, Any]]], task: Any) -> list[dict[str, Any]]:
