@@ -92,6 +92,7 @@ def offline(args: argparse.Namespace) -> int:
     report['commands_not_finite'] = result.not_finite
     report['checks_told'] = result.told
     report['runs_in_bag'] = result.runs
+    report['inputs_off_their_run'] = result.strays
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
@@ -108,6 +109,10 @@ def offline(args: argparse.Namespace) -> int:
               'clock went back (refused as old); the re-run has no clock and takes them, '
               'so the first answers after a start, and a stateful law after them, can '
               'differ')
+    if result.strays:
+        print(f'replay: {result.strays} input(s) came stamped more than 1 s off their run, '
+              'alone (sent late, or stamped ahead): the node refused them against its '
+              'clock, and the re-run leaves them out')
     if result.not_finite:
         print(f'replay: {result.not_finite} of the {result.compared} compared commands are '
               'not finite (NaN or inf) in the bag or the re-run: max |diff| is nan')

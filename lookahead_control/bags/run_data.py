@@ -700,6 +700,9 @@ class Rerun:
         only those not 0.
     :param runs: the runs the bag holds (:func:`run_starts`): where it holds several, a
         stamp's command is compared with that of the last run that has the stamp.
+    :param strays: inputs stamped more than a second off their run, alone (sent late, or
+        stamped ahead; :func:`run_starts`): not re-run, as the node refused them against
+        its clock.
     """
 
     commands: dict[int, Command]
@@ -727,6 +730,7 @@ class Rerun:
     repeated: int = 0
     told: dict[str, float] = field(default_factory=dict)
     runs: int = 1
+    strays: int = 0
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -751,50 +755,89 @@ def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
     return [(recv, role, sample) for recv, _, role, sample in events]
 
 
-#: inputs after a stamp that went back that must all lie back too for a new run: a step's
-#: four inputs (one message sent late is no run: dev-probe113)
-RUN_START_CONFIRM = 4
+#: inputs from one whose stamp jumped that must all have jumped, every input of the run
+#: among them, for a new run (or a gap): a flushed queue of one sensor, a step or two sent
+#: again seconds late, a message stamped seconds ahead are strays, not runs
+#: (dev-probe113, 114)
+RUN_CONFIRM = 16
 
 
-def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> list[int]:
+@dataclass(frozen=True)
+class Runs:
     """
-    Return where the stamps start again: the runs of a bag that holds several.
+    The runs of a bag's input stream, and its strays.
+
+    :param starts: the index (receive order) of each run's first input (``[0]``: one
+        run; empty: no input).
+    :param strays: the indices of inputs stamped more than the core's time-jump threshold
+        before or after their run's newest, alone (a message sent late or stamped ahead:
+        the node refused it against its clock).
+    """
+
+    starts: list[int]
+    strays: frozenset[int]
+
+
+def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> Runs:
+    """
+    Return where the stamps start again (the runs of a bag that holds several) and strays.
 
     A recorder left running while a simulator was started again records a second run
     whose stamps begin at 0 again. Taken in receive order, an input whose stamp lies more
     than the core's time-jump threshold
     (:data:`~lookahead_control.core.controller.JUMP_NS`) below the newest stamp since
-    the last start begins a run when the :data:`RUN_START_CONFIRM` inputs after it lie
-    that far back too: a stray message sent (or delayed) seconds late inside one run,
-    which the node refused against its clock, is no run.
+    the last start begins a run when the :data:`RUN_CONFIRM` inputs from it all lie that
+    far back too, and every input of the run is among them; a stamp that far ahead is a
+    gap in the same run when they all lie ahead too. Otherwise the input is a stray.
 
     :param inputs: ``(receive ns, input name, sample)`` in receive order.
-    :return: the index in ``inputs`` of each run's first input (``[0]``: one run; empty:
-        no input).
+    :return: the runs.
     """
     starts: list[int] = []
+    strays: set[int] = set()
     newest: Optional[int] = None
-    for i, (_, _, sample) in enumerate(inputs):
-        if newest is not None and sample.stamp_ns < newest - JUMP_NS:
-            after = inputs[i + 1:i + 1 + RUN_START_CONFIRM]
-            if len(after) == RUN_START_CONFIRM and all(
-                    s.stamp_ns < newest - JUMP_NS for _, _, s in after):
-                starts.append(i)
-                newest = sample.stamp_ns
-            continue                    # a stray: no run, and not the newest either
+    roles: set[str] = set()         # the inputs of the run so far
+    for i, (_, role, sample) in enumerate(inputs):
+        stamp = sample.stamp_ns
         if newest is None:
             starts.append(i)
-            newest = sample.stamp_ns
+            newest = stamp
+            roles = {role}
+            continue
+        top = newest
+        if stamp < top - JUMP_NS:
+            if _jumped_together(inputs[i:i + RUN_CONFIRM], roles,
+                                lambda s: s < top - JUMP_NS):
+                starts.append(i)
+                newest = stamp
+                roles = {role}
+            else:
+                strays.add(i)
+        elif stamp > top + JUMP_NS:
+            if _jumped_together(inputs[i:i + RUN_CONFIRM], roles,
+                                lambda s: s > top + JUMP_NS):
+                newest = stamp              # a gap in the recording: the same run
+            else:
+                strays.add(i)
         else:
-            newest = max(newest, sample.stamp_ns)
-    return starts
+            newest = max(top, stamp)
+            roles.add(role)
+    return Runs(starts, frozenset(strays))
 
 
-def _stamp_order(inputs: Sequence[tuple[int, str, Any]]) -> list[tuple[int, str, Any]]:
+def _jumped_together(window: Sequence[tuple[int, str, Any]], roles: set[str],
+                     jumped: Callable[[int], bool]) -> bool:
+    """Return whether a whole window of inputs jumped, every input of the run in it."""
+    return (len(window) == RUN_CONFIRM and roles <= {role for _, role, _ in window}
+            and all(jumped(sample.stamp_ns) for _, _, sample in window))
+
+
+def _stamp_order(inputs: Sequence[tuple[int, str, Any]],
+                 runs: Runs) -> list[tuple[int, str, Any]]:
     # the node answers a step once all inputs of its stamp are in: lateral error last;
     # each run of the bag apart, in the order they were recorded (dev-probe111: two runs
     # of a simulator in one bag were interleaved step by step)
-    starts = run_starts(inputs) + [len(inputs)]
+    starts = runs.starts + [len(inputs)]
     ordered: list[tuple[int, str, Any]] = []
     for begin, end in zip(starts, starts[1:]):
         ordered += sorted(inputs[begin:end], key=lambda item: (
@@ -838,7 +881,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                                            run.controller_node)
     order = _resolve_order(order, matched, bool(run.plant_params))
     inputs = input_stream(run)
-    feed = _stamp_order(inputs) if order == 'stamp' else inputs
+    runs = run_starts(inputs)
+    strays = {id(inputs[i]) for i in runs.strays}
+    feed = _stamp_order(inputs, runs) if order == 'stamp' else inputs
     lateral = run.inputs.get('lateral_error')
     if lateral is not None and len(lateral) and len(run.steering):
         # a recorder that subscribed late: the answer to an input it missed is the rate
@@ -873,7 +918,13 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     last_refusal = ''
     repeated = 0
     last_stamp: dict[str, int] = {}
-    for _, role, sample in feed:
+    for item in feed:
+        _, role, sample = item
+        if id(item) in strays:
+            # stamped seconds off its run, alone: the node refused it against its clock
+            # (the re-run has none: its core took it for a time jump and reset the law,
+            # dev-probe114), and never answered it
+            continue
         # the node's path: input checks (a refused sample is never used), then the law,
         # the low-speed hand-over and the output limits in compute()
         refused = core.accept(role, sample)
@@ -932,7 +983,8 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  order, len(estimated_at), frozenset(estimated_at), followed, otherwise,
                  switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
                  last_refusal, len(coalesced), coalesced_lost, len(unreceived), dropped,
-                 not_finite, repeated, checks_told(core), max(1, len(run_starts(inputs))))
+                 not_finite, repeated, checks_told(core), max(1, len(runs.starts)),
+                 len(runs.strays))
 
 
 def checks_told(core: SteeringController) -> dict[str, float]:
