@@ -18,7 +18,9 @@ from dataclasses import replace
 import math
 import os
 from pathlib import Path
+import sys
 import time
+import types
 
 from conftest import Swerve
 from lookahead_control.core.cli import run_tool, ToolError
@@ -223,6 +225,17 @@ def test_a_law_added_at_run_time_runs_on_the_pools_workers(monkeypatch):
                                         r'worker process .*module level.*workers 1'):
         compare.league(['paper_eq26', 'local'], workers=2, **kwargs)
     assert compare.league(['local'], workers=1, **kwargs)[0]['notes'] == ''
+    # a factory from a module loaded from a file by hand (not on sys.path): said before
+    # any run (dev-probe114: every row of the league 'failed: BrokenProcessPool')
+    hidden = types.ModuleType('hidden_laws_of_a_caller')
+    exec('def law(v, s):\n    return None\n', hidden.__dict__)
+    hidden.law.__module__ = hidden.__name__
+    monkeypatch.setitem(sys.modules, hidden.__name__, hidden)
+    monkeypatch.setitem(compare.LAWS, 'hidden', hidden.law)
+    with pytest.raises(ToolError, match=r"law 'hidden': its factory is in module "
+                                        r"'hidden_laws_of_a_caller', which a worker process "
+                                        r'cannot import .*workers 1'):
+        compare.league(['paper_eq26', 'hidden'], workers=2, **kwargs)
 
 
 def test_one_task_per_plant_gives_the_rows_of_one_task_per_scenario():
@@ -273,7 +286,6 @@ def test_a_killed_caller_leaves_no_worker_waiting(tmp_path):
     # blocked on the pool's pipe forever (90 s and on)
     import signal
     import subprocess
-    import sys
     root = Path(__file__).resolve().parent.parent
     proc = subprocess.Popen(
         [sys.executable, '-m', 'lookahead_control.tools.compare', '--out', str(tmp_path),

@@ -192,6 +192,12 @@ def test_the_summary_keeps_each_reason_s_first_moment_and_worst_level():
     assert summarize(reports[:2], 0).counters == (('rejected', '5'),
                                                   ('yaw_rate_still [s]', '0.250'))
     assert summarize([], 0).worst == '-'
+    # a reason the node tells at OK is OK beside a WARN (dev-probe114: 'duplicates' and
+    # 'demand capped' read WARN in a status whose WARN was an echo's)
+    both = StatusReport(5_000_000_000, 0, 1, 'duplicates: 80 messages (so far: yaw 80); echo: '
+                        'messages taken that came again (yaw 40 of 40); demand capped: 2 (x)', ())
+    told = {t.name: t.level for t in summarize([both], 0).told}
+    assert told == {'duplicates': 0, 'echo': 1, 'demand capped': 0}
 
 
 def test_replay_says_what_the_re_run_s_checks_found(tmp_path, capsys):

@@ -141,15 +141,22 @@ def _counter(key: str, value: str) -> bool:
         return False
 
 
+#: the controller's reasons that never raise its level (told at OK: the law's own clips,
+#: messages sent again, an inactive node); a status carries one level for all its reasons,
+#: so beside a WARN they read WARN (dev-probe114: 'duplicates' listed as WARN)
+OK_REASONS = frozenset({'duplicates', 'demand capped', 'approach clipped', 'inactive'})
+
+
 def _note_reason(told: dict[str, Told], report: StatusReport, reason: str,
                  start_ns: int) -> None:
     """Count a reason of a status into ``told`` (by its name)."""
     name = reason_name(reason)
+    level = min(report.level, 0) if name in OK_REASONS else report.level
     before = told.get(name)
     if before is None:
-        told[name] = Told(name, report.level, 1, (report.stamp_ns - start_ns) * 1e-9, reason)
+        told[name] = Told(name, level, 1, (report.stamp_ns - start_ns) * 1e-9, reason)
     else:
-        told[name] = Told(name, max(before.level, report.level), before.reports + 1,
+        told[name] = Told(name, max(before.level, level), before.reports + 1,
                           before.first_s, before.example)
 
 

@@ -829,8 +829,8 @@ class ControllerNode(LifecycleNode):
             level = max(level, DiagnosticStatus.WARN)
             echoed = ', '.join(f'{name} {k} of {n}' for name, (k, n) in echoes.items())
             reasons.append(f'echo: messages taken that came again since the last report '
-                           f'({echoed}): two publishers of one topic, or a bridge that sends '
-                           'its output back')
+                           f'({echoed}): two publishers of one topic, a bridge that sends its '
+                           'output back, or a driver that sends each sample more than once')
         for key, setting in (('demand_capped', 'lane_keeping.demand_limit'),
                              ('approach_clipped', 'lane_keeping.approach_heading')):
             if new[key] > 0:

@@ -35,6 +35,7 @@ from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from functools import partial
+from importlib.machinery import PathFinder
 import math
 from multiprocessing import get_context
 import os
@@ -209,6 +210,15 @@ def sent_factory(name: str, workers: int) -> LawFactory | str | None:
             f'law {name!r}: its factory {factory!r} cannot be sent to a worker process '
             f'({err}): define it at module level (a function a worker can import), or '
             'run in this process (workers 1)') from err
+    module = str(getattr(getattr(factory, 'func', factory), '__module__', None) or '')
+    top = module.partition('.')[0]
+    if (top and top != '__main__' and top not in sys.builtin_module_names
+            and PathFinder.find_spec(top) is None):
+        # loaded from a file by hand: this process has it, a worker cannot import it
+        # (dev-probe114: the whole league's rows 'failed: BrokenProcessPool')
+        raise ToolError(f'law {name!r}: its factory is in module {module!r}, which a worker '
+                        'process cannot import (not on sys.path): put it on sys.path '
+                        '(PYTHONPATH), or run in this process (workers 1)')
     return factory
 
 
