@@ -93,6 +93,7 @@ def offline(args: argparse.Namespace) -> int:
     report['checks_told'] = result.told
     report['runs_in_bag'] = result.runs
     report['inputs_off_their_run'] = result.strays
+    report['inputs_off_to_the_end'] = list(result.strays_to_end)
     report['parameters_recorded'] = bool(run.controller_params)
     filled = as_it_ran(run.controller_params, overrides)
     report['parameters_as_it_ran'] = filled
@@ -110,9 +111,18 @@ def offline(args: argparse.Namespace) -> int:
               'so the first answers after a start, and a stateful law after them, can '
               'differ')
     if result.strays:
-        print(f'replay: {result.strays} input(s) came stamped more than 1 s off their run, '
-              'alone (sent late, or stamped ahead): the node refused them against its '
-              'clock, and the re-run leaves them out')
+        counts = ', '.join(f'{name} {count}' for name, count in sorted(result.strays.items()))
+        print(f'replay: {sum(result.strays.values())} input(s) came stamped more than 1 s '
+              f'off their run, alone ({counts}; sent late, or stamped ahead): the node '
+              'refused them against its clock, and the re-run leaves them out')
+        if result.strays_to_end:
+            # dev-probe115: a yaw driver whose clock jumped 2 s back for good: 450
+            # commands off with nothing saying why
+            print(f'replay: {", ".join(result.strays_to_end)} stayed off to the end of the '
+                  'bag (a sensor clock that jumped for good): the node took none of it from '
+                  'there, went stale and held, then ramped its command; the re-run, without '
+                  'a clock, does not model that: it steers on the last one taken and '
+                  'differs from there')
     if result.not_finite:
         print(f'replay: {result.not_finite} of the {result.compared} compared commands are '
               'not finite (NaN or inf) in the bag or the re-run: max |diff| is nan')

@@ -26,6 +26,7 @@ the law's values of that re-run for all steps at once.
 from __future__ import annotations
 
 import bisect
+from collections import Counter
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
@@ -700,9 +701,11 @@ class Rerun:
         only those not 0.
     :param runs: the runs the bag holds (:func:`run_starts`): where it holds several, a
         stamp's command is compared with that of the last run that has the stamp.
-    :param strays: inputs stamped more than a second off their run, alone (sent late, or
-        stamped ahead; :func:`run_starts`): not re-run, as the node refused them against
-        its clock.
+    :param strays: per input, those stamped more than a second off their run, alone (sent
+        late, or stamped ahead; :func:`run_starts`): not re-run, as the node refused them
+        against its clock.
+    :param strays_to_end: the inputs whose last message in the bag is a stray (a sensor
+        clock that jumped for good: the node took none of it from there).
     """
 
     commands: dict[int, Command]
@@ -730,7 +733,8 @@ class Rerun:
     repeated: int = 0
     told: dict[str, float] = field(default_factory=dict)
     runs: int = 1
-    strays: int = 0
+    strays: dict[str, int] = field(default_factory=dict)
+    strays_to_end: tuple[str, ...] = ()
 
 
 def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
@@ -755,10 +759,10 @@ def input_stream(run: RunData) -> list[tuple[int, str, Any]]:
     return [(recv, role, sample) for recv, _, role, sample in events]
 
 
-#: inputs from one whose stamp jumped that must all have jumped, every input of the run
-#: among them, for a new run (or a gap): a flushed queue of one sensor, a step or two sent
-#: again seconds late, a message stamped seconds ahead are strays, not runs
-#: (dev-probe113, 114)
+#: inputs from one whose stamp jumped that must all have jumped, with the run's frequent
+#: inputs among them, for a new run (or a gap); and the inputs before it that tell which
+#: are frequent: a flushed queue of one sensor, a step or two sent again seconds late, a
+#: message stamped seconds ahead are strays, not runs (dev-probe113, 114)
 RUN_CONFIRM = 16
 
 
@@ -787,8 +791,11 @@ def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> Runs:
     than the core's time-jump threshold
     (:data:`~lookahead_control.core.controller.JUMP_NS`) below the newest stamp since
     the last start begins a run when the :data:`RUN_CONFIRM` inputs from it all lie that
-    far back too, and every input of the run is among them; a stamp that far ahead is a
-    gap in the same run when they all lie ahead too. Otherwise the input is a stray.
+    far back too, with two of the inputs that came at least twice in the
+    :data:`RUN_CONFIRM` inputs before it among them (one sensor's flushed queue is no
+    run; an input that stopped, or comes slower, is not waited for: dev-probe115, a lost
+    curvature); a stamp that far ahead is a gap in the same run when they all lie ahead
+    too. Otherwise the input is a stray.
 
     :param inputs: ``(receive ns, input name, sample)`` in receive order.
     :return: the runs.
@@ -796,39 +803,41 @@ def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> Runs:
     starts: list[int] = []
     strays: set[int] = set()
     newest: Optional[int] = None
-    roles: set[str] = set()         # the inputs of the run so far
+    recent: list[str] = []          # the run's last inputs taken in it (not strays)
     for i, (_, role, sample) in enumerate(inputs):
         stamp = sample.stamp_ns
         if newest is None:
             starts.append(i)
             newest = stamp
-            roles = {role}
+            recent = [role]
             continue
         top = newest
+        frequent = {r for r, n in Counter(recent).items() if n >= 2}
         if stamp < top - JUMP_NS:
-            if _jumped_together(inputs[i:i + RUN_CONFIRM], roles,
+            if _jumped_together(inputs[i:i + RUN_CONFIRM], frequent,
                                 lambda s: s < top - JUMP_NS):
                 starts.append(i)
                 newest = stamp
-                roles = {role}
+                recent = [role]
             else:
                 strays.add(i)
-        elif stamp > top + JUMP_NS:
-            if _jumped_together(inputs[i:i + RUN_CONFIRM], roles,
-                                lambda s: s > top + JUMP_NS):
-                newest = stamp              # a gap in the recording: the same run
-            else:
+            continue
+        if stamp > top + JUMP_NS:
+            if not _jumped_together(inputs[i:i + RUN_CONFIRM], frequent,
+                                    lambda s: s > top + JUMP_NS):
                 strays.add(i)
-        else:
-            newest = max(top, stamp)
-            roles.add(role)
+                continue
+            top = stamp                     # a gap in the recording: the same run
+        newest = max(top, stamp)
+        recent = (recent + [role])[-RUN_CONFIRM:]
     return Runs(starts, frozenset(strays))
 
 
-def _jumped_together(window: Sequence[tuple[int, str, Any]], roles: set[str],
+def _jumped_together(window: Sequence[tuple[int, str, Any]], frequent: set[str],
                      jumped: Callable[[int], bool]) -> bool:
-    """Return whether a whole window of inputs jumped, every input of the run in it."""
-    return (len(window) == RUN_CONFIRM and roles <= {role for _, role, _ in window}
+    """Return whether a whole window of inputs jumped, two of the run's frequent in it."""
+    present = frequent & {role for _, role, _ in window}
+    return (len(window) == RUN_CONFIRM and len(present) >= min(2, len(frequent))
             and all(jumped(sample.stamp_ns) for _, _, sample in window))
 
 
@@ -984,7 +993,15 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  switches, applied, unmarked, before_bag, len(inactive), lost, refusals,
                  last_refusal, len(coalesced), coalesced_lost, len(unreceived), dropped,
                  not_finite, repeated, checks_told(core), max(1, len(runs.starts)),
-                 len(runs.strays))
+                 dict(Counter(inputs[i][1] for i in sorted(runs.strays))),
+                 _strays_to_end(inputs, runs.strays))
+
+
+def _strays_to_end(inputs: Sequence[tuple[int, str, Any]], strays: frozenset[int]
+                   ) -> tuple[str, ...]:
+    """Return the inputs whose last message in the stream is a stray."""
+    last = {role: i for i, (_, role, _) in enumerate(inputs)}
+    return tuple(sorted(role for role, i in last.items() if i in strays))
 
 
 def checks_told(core: SteeringController) -> dict[str, float]:
