@@ -26,13 +26,13 @@ the law's values of that re-run for all steps at once.
 from __future__ import annotations
 
 import bisect
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 import math
 from pathlib import Path
 import re
 import struct
-from typing import Any, Callable, Iterator, Mapping, Optional, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Optional, Sequence
 
 from lookahead_control.bags import cdr_decode as cdr
 from lookahead_control.bags.mcap_columns import RawColumns, read_columns
@@ -803,39 +803,41 @@ def run_starts(inputs: Sequence[tuple[int, str, Any]]) -> Runs:
     starts: list[int] = []
     strays: set[int] = set()
     newest: Optional[int] = None
-    recent: list[str] = []          # the run's last inputs taken in it (not strays)
+    # the run's last inputs (not strays)
+    recent: deque[str] = deque(maxlen=RUN_CONFIRM)
     for i, (_, role, sample) in enumerate(inputs):
         stamp = sample.stamp_ns
         if newest is None:
             starts.append(i)
             newest = stamp
-            recent = [role]
+            recent.append(role)
             continue
         top = newest
-        frequent = {r for r, n in Counter(recent).items() if n >= 2}
         if stamp < top - JUMP_NS:
-            if _jumped_together(inputs[i:i + RUN_CONFIRM], frequent,
+            if _jumped_together(inputs[i:i + RUN_CONFIRM], recent,
                                 lambda s: s < top - JUMP_NS):
                 starts.append(i)
                 newest = stamp
-                recent = [role]
+                recent.clear()
+                recent.append(role)
             else:
                 strays.add(i)
             continue
         if stamp > top + JUMP_NS:
-            if not _jumped_together(inputs[i:i + RUN_CONFIRM], frequent,
+            if not _jumped_together(inputs[i:i + RUN_CONFIRM], recent,
                                     lambda s: s > top + JUMP_NS):
                 strays.add(i)
                 continue
             top = stamp                     # a gap in the recording: the same run
         newest = max(top, stamp)
-        recent = (recent + [role])[-RUN_CONFIRM:]
+        recent.append(role)
     return Runs(starts, frozenset(strays))
 
 
-def _jumped_together(window: Sequence[tuple[int, str, Any]], frequent: set[str],
+def _jumped_together(window: Sequence[tuple[int, str, Any]], recent: Iterable[str],
                      jumped: Callable[[int], bool]) -> bool:
     """Return whether a whole window of inputs jumped, two of the run's frequent in it."""
+    frequent = {role for role, count in Counter(recent).items() if count >= 2}
     present = frequent & {role for _, role, _ in window}
     return (len(window) == RUN_CONFIRM and len(present) >= min(2, len(frequent))
             and all(jumped(sample.stamp_ns) for _, _, sample in window))
