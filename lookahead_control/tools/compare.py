@@ -158,12 +158,9 @@ LAWS: dict[str, LawFactory] = {
     # as the node builds it (core/controller.build_law)
     'cg_compensated': lambda v, s: CgCompensatedLaw(v, s.controller, s.lane_keeping),
 }
-_PACKAGE_FACTORIES = dict(LAWS)
-
-
 #: the package's own laws: a worker process has them (a law added to :data:`LAWS` at run
 #: time is sent with its tasks)
-PACKAGE_LAWS = frozenset(LAWS)
+_PACKAGE_FACTORIES = dict(LAWS)
 
 
 def league_law(name: str, vehicle: VehicleParams, settings: LawSettings,
@@ -197,7 +194,7 @@ def sent_factory(name: str, workers: int) -> LawFactory | str | None:
         this process, or a package law).
     :raises ToolError: the factory cannot be sent (a lambda, a local function).
     """
-    if workers <= 1 or (name in PACKAGE_LAWS and LAWS[name] is _PACKAGE_FACTORIES[name]):
+    if workers <= 1 or _PACKAGE_FACTORIES.get(name) is LAWS[name]:
         return None
     factory = LAWS[name]
     for package_name, package_factory in _PACKAGE_FACTORIES.items():
