@@ -29,7 +29,7 @@ import argparse
 from pathlib import Path
 import sys
 import time
-from typing import Any, Optional, Sequence
+from typing import Any, Mapping, Optional, Sequence
 
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
@@ -51,6 +51,16 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 EXIT_CHECK_FAILED = 1
+
+
+def per_input(counts: Mapping[str, int]) -> str:
+    """
+    Return counts per input as text.
+
+    :param counts: input -> count.
+    :return: e.g. ``'velocity 2, yaw 451'`` (by name).
+    """
+    return ', '.join(f'{name} {count}' for name, count in sorted(counts.items()))
 
 
 def offline(args: argparse.Namespace) -> int:
@@ -111,10 +121,10 @@ def offline(args: argparse.Namespace) -> int:
               'so the first answers after a start, and a stateful law after them, can '
               'differ')
     if result.strays:
-        counts = ', '.join(f'{name} {count}' for name, count in sorted(result.strays.items()))
         print(f'replay: {sum(result.strays.values())} input(s) came stamped more than 1 s '
-              f'off their run, alone ({counts}; sent late, or stamped ahead): the node '
-              'refused them against its clock, and the re-run leaves them out')
+              f'off their run, alone ({per_input(result.strays)}; sent late, or stamped '
+              'ahead): the node refused them against its clock, and the re-run leaves them '
+              'out')
         if result.strays_to_end:
             # dev-probe115: a yaw driver whose clock jumped 2 s back for good: 450
             # commands off with nothing saying why
@@ -175,11 +185,11 @@ def offline(args: argparse.Namespace) -> int:
     if result.refused:
         # a node older than a check used what the re-run refuses (dev-probe56: bags with
         # a zero quaternion or empty polygons re-ran 18.7 and 29.2 mrad apart, unsaid)
-        counts = ', '.join(f'{name} {count}' for name, count in sorted(result.refused.items()))
         print(f"replay: the re-run's input checks refused {sum(result.refused.values())} "
-              f'input(s) ({counts}; last: {result.last_refusal}), as the node does; a node '
-              'older than a check (an orientation that is no unit quaternion, an empty '
-              'road_curvature: since dev-sections) used them, and the re-run differs there')
+              f'input(s) ({per_input(result.refused)}; last: {result.last_refusal}), as the '
+              'node does; a node older than a check (an orientation that is no unit '
+              'quaternion, an empty road_curvature: since dev-sections) used them, and the '
+              're-run differs there')
     if result.repeated:
         print(f'replay: {result.repeated} input(s) repeat the stamp of the one before them '
               '(the same message recorded twice: two recorders on one domain, or a '
