@@ -304,6 +304,46 @@ def test_the_law_as_arrays_equals_the_controller_rerun(source, order):
                     getattr(command.law, name), rel=1e-12, abs=1e-15), (stamp, name)
 
 
+def _with_repeats(run, rng):
+    """Send lateral errors again, exact copies, before the next one (a lockstep step 0)."""
+    lateral = run.inputs['lateral_error']
+    gap = np.nonzero(np.diff(lateral.recv_ns) > 1)[0]
+    # the first ones too: in before their yaw or velocity, unanswered until a copy
+    pick = np.union1d(gap[:3], rng.choice(gap, 30, replace=False))
+    between = (lateral.recv_ns[pick] + lateral.recv_ns[pick + 1]) // 2
+    recv = np.concatenate([lateral.recv_ns, between])
+    order = np.concatenate([lateral.order, 10_000 + np.arange(pick.size)])
+    sort = np.lexsort((order, recv))
+    stamp = np.concatenate([lateral.stamp_ns, lateral.stamp_ns[pick]])
+    values = {n: np.concatenate([v, v[pick]])[sort] for n, v in lateral.values.items()}
+    inputs = dict(run.inputs, lateral_error=Samples(recv[sort], stamp[sort], order[sort],
+                                                    values))
+    return RunData(bag=None, inputs=inputs, controller_params=run.controller_params)
+
+
+@pytest.mark.parametrize('order', ['stamp', 'receive'])
+def test_a_repeat_of_a_lateral_error_no_answer_took_is_answered_by_both_re_runs(order):
+    # the node answers a lateral error sent again whose stamp no command answered (a
+    # lockstep step 0 taken in before its yaw); the re-runs do as it does
+    rng = np.random.default_rng(5)
+    answered_on_a_repeat = 0
+    for _ in range(5):
+        plain = _random_run(rng, {'controller.reference': 'arc_exact'})
+        run = _with_repeats(plain, rng)
+        commands = rerun(run, order=order).commands
+        before = rerun(plain, order=order).commands
+        answered_on_a_repeat += len(set(commands) - set(before))
+        stamps, law = rerun_law(run, order=order)
+        assert len(stamps) == len(set(stamps.tolist())) == len(commands)
+        for i, stamp in enumerate(stamps.tolist()):
+            assert float(law.steering[i]) == pytest.approx(
+                commands[stamp].law.steering, rel=1e-12, abs=1e-15), stamp
+    if order == 'receive':
+        assert answered_on_a_repeat > 0
+    else:       # in stamp order the inputs of a step come before its lateral error
+        assert answered_on_a_repeat == 0
+
+
 def test_curvature_preview_points_survive_the_bag_and_the_checks(tmp_path):
     # the preview polygon is kept per sample (a tuple of points): repeated stamps with
     # other points are conflicts, equal ones are not; the analysis handled only floats

@@ -185,6 +185,105 @@ def test_inactive_controller_publishes_nothing(context):
         node.destroy_node()
 
 
+def test_a_repeat_of_a_lateral_error_never_answered_is_answered_once(context):
+    # dev-probe113: a lockstep simulator sends step 0 again until it is answered; a node
+    # activated after it started took step 0 in while inactive and refused every copy as
+    # a duplicate, leaving the simulator to its deadline (5 s through a bridge)
+    node = _controller(context)
+    try:
+        node.trigger_configure()
+        feed(node, 100)
+        assert node.published == 0
+        node.trigger_activate()
+        feed(node, 100)                     # the simulator's copy of step 0
+        assert node.published == 1 and node.core.last.stamp_ns == 100
+        assert node.core.duplicates['lateral_error'] == 1 and node.core.rejected == {}
+        # answered once: an answer given is not given again (a republisher stuck on its
+        # last message, an echo)
+        feed(node, 100)
+        assert node.published == 1 and node.core.duplicates['lateral_error'] == 2
+        feed(node, 200)
+        assert node.published == 2
+        # a lateral error in before its yaw and velocity, then step 0 again: answered
+        # on the repeat, with its own step's inputs
+        fresh = _controller(context)
+        try:
+            fresh.trigger_configure()
+            fresh.trigger_activate()
+            _at(fresh, 300)
+            lateral = conv.to_lateral_error(300, 'base_link', 1.96, 0.5)
+            fresh.on_lateral_error(lateral)
+            assert fresh.published == 0
+            feed(fresh, 300, y=0.5)
+            assert fresh.published == 1 and fresh.core.last.stamp_ns == 300
+            fresh.on_lateral_error(lateral)
+            assert fresh.published == 1
+        finally:
+            fresh.destroy_node()
+        # a repeat with other values, or of a stamp gone by, is refused as before
+        node.on_lateral_error(conv.to_lateral_error(200, 'base_link', 1.96, 0.7))
+        assert node.published == 2 and 'does not advance' in node.core.refusals['lateral_error']
+    finally:
+        node.destroy_node()
+
+
+def test_a_controller_activated_after_the_simulator_answers_its_step_0(probe):
+    # dev-probe113: through a bridge the simulator repeats step 0 until it is answered; a
+    # controller activated after the simulator sent it took it in while inactive and
+    # refused every copy, and the simulator waited out its deadline (10 x 0.5 s), one
+    # missed. The deadline here is 30 x 10 s: answered within the wait or not at all
+    from conftest import spin_until
+    from lookahead_control.ros.controller_node import ControllerNode
+    from lookahead_control.ros.path_bridge_node import PathBridgeNode
+    from sim_plant.sim_plant_node import SimPlantNode
+    node, executor = probe
+    sim = SimPlantNode(context=node.context, parameter_overrides=[
+        Parameter('output', value='vehicle'), Parameter('deadline', value=30.0),
+        Parameter('settle', value=0.0)])
+    bridge = PathBridgeNode(context=node.context,
+                            parameter_overrides=[Parameter('use_imu', value=False)])
+    controller = ControllerNode(context=node.context, parameter_overrides=[
+        Parameter('use_sim_time', value=True),
+        Parameter('wait_for_matching_stamps', value=True)])
+    nodes = (sim, bridge, controller)
+    try:
+        for each in nodes:
+            executor.add_node(each)
+        bridge.trigger_configure()
+        bridge.trigger_activate()
+        controller.trigger_configure()
+        # step 0 sent and taken in by the inactive controller, copies of it too
+        assert spin_until(executor, lambda: controller.core.duplicates.get('lateral_error'),
+                          60)
+        assert sim.k == 0 and sim.waiting_stamp == 0 and controller.published == 0
+        controller.trigger_activate()
+        assert spin_until(executor, lambda: sim.k >= 5, 60), (sim.k, controller.published)
+        assert sim.missed == 0 and controller.core.rejected == {}
+    finally:
+        for each in nodes:
+            executor.remove_node(each)
+            each.destroy_node()
+
+
+def test_a_repeat_is_not_answered_while_its_answer_waits_for_its_stamps(context):
+    node = _controller(context, Parameter('wait_for_matching_stamps', value=True))
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        feed(node, 100)
+        _at(node, 200)
+        lateral = conv.to_lateral_error(200, 'base_link', 1.96, 0.4)
+        node.on_lateral_error(lateral)
+        node.on_lateral_error(lateral)      # its yaw and velocity still at 100
+        assert node.published == 1 and node._pending_stamp == 200
+        feed(node, 200, y=0.4)              # in: answered once, at their arrival
+        assert node.published == 2 and node.core.last.stamp_ns == 200
+        node.on_lateral_error(lateral)
+        assert node.published == 2
+    finally:
+        node.destroy_node()
+
+
 def test_controller_waits_for_inputs(context):
     node = _controller(context)
     try:

@@ -49,7 +49,7 @@ from lookahead_control.core.controller import (Command, JUMP_NS, LAW_NAMES,
                                                SteeringController)
 from lookahead_control.core.lane_keeping import LaneKeepingParams
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
-from lookahead_control.core.safety import SafetyParams
+from lookahead_control.core.safety import is_duplicate, SafetyParams
 from lookahead_control.ros import conversions as conv
 import numpy as np
 import numpy.typing as npt
@@ -57,6 +57,7 @@ from rosbags.serde import SerdeError
 
 Array = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
 
 TOPICS = {'lateral_error': '/lateral_error', 'yaw': '/yaw', 'velocity': '/velocity',
           'road_curvature': '/road_curvature', 'steering': '/steering',
@@ -951,7 +952,10 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                                         or sample.stamp_ns in coalesced
                                         or sample.stamp_ns in unreceived):
             continue                # not answered: inactive, coalesced, never received
-        if role == 'lateral_error' and refused is None:
+        if role == 'lateral_error' and (refused is None or (
+                is_duplicate(refused) and sample.stamp_ns not in commands)):
+            # a repeat of a lateral error no command answered is answered, as the node
+            # does (a lockstep step 0 taken before its yaw was in)
             due = min(sets.get(sample.stamp_ns, applied + before_bag) - before_bag,
                       len(events))
             if due > applied:
@@ -1252,21 +1256,29 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     recv, file_order, stamp = (np.concatenate([getattr(samples, name) for samples in inputs])
                                for name in ('recv_ns', 'order', 'stamp_ns'))
     lateral_code = roles.index('lateral_error')
+    lateral = run.inputs['lateral_error']
     feed = np.lexsort((file_order, recv) if order == 'receive' else
                       (file_order, recv, code == lateral_code, stamp))
     code, index, fed_stamp = code[feed], index[feed], stamp[feed]
     # as the controller's accept(): a sample whose stamp does not advance past its input's
     # newest one (repeated, or arriving late) is refused and never used
+    repeats = np.zeros(0, dtype=np.int64)
     for i in range(len(roles)):
         where = np.nonzero(code == i)[0]
         newest = np.maximum.accumulate(fed_stamp[where])
         refused = np.concatenate(([False], fed_stamp[where][1:] <= newest[:-1]))
+        if i == lateral_code:
+            repeats = where[_repeated(run.inputs['lateral_error'], index[where], refused)]
         code[where[refused]] = -1
     # at each position of the feed: the position of each input's latest sample (-1)
     latest = {role: np.maximum.accumulate(np.where(code == i, np.arange(code.size), -1))
               for i, role in enumerate(roles)}
-    at = np.nonzero(code == lateral_code)[0]
+    at = np.union1d(np.nonzero(code == lateral_code)[0], repeats)
     at = at[(latest['yaw'][at] >= 0) & (latest['velocity'][at] >= 0)]
+    # a repeat of a lateral error is answered where no copy before it was (the node and
+    # rerun(): a lockstep step 0 taken before its yaw was in), the copies after it not
+    _, first = np.unique(lateral.stamp_ns[index[at]], return_index=True)
+    at = at[np.sort(first)]
 
     def column(role: str, name: str) -> Array:
         if role not in latest:
@@ -1286,7 +1298,6 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             np.searchsorted(fed, latest['velocity'][at])]
     else:
         a_x = np.zeros(at.size)
-    lateral = run.inputs['lateral_error']
     # a curvature stamped more than input_timeout before the lateral error is lost: 0
     # (as SteeringController.curvature_lost judges it without a clock)
     received = np.zeros(at.size, dtype=bool)
@@ -1303,6 +1314,25 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
         rho_rate=(np.where(received, v_x * column('road_curvature', 'slope'), 0.0)
                   if core.use_preview else np.zeros(at.size)))
     return lateral.stamp_ns[index[at]], steering_law(state, core.vehicle, core.params)
+
+
+def _repeated(lateral: Samples, taken_order: IntArray, refused: BoolArray) -> BoolArray:
+    """
+    Return which refused lateral errors repeat the last one taken, stamp and values.
+
+    :param lateral: the recorded lateral errors.
+    :param taken_order: the index in ``lateral`` of each lateral error, in feed order.
+    :param refused: whether each was refused (its stamp did not advance).
+    :return: per lateral error in feed order, whether it is a duplicate of the last taken.
+    """
+    position = np.arange(refused.size)
+    last = np.maximum.accumulate(np.where(refused, -1, position))
+    taken = taken_order[np.maximum(last, 0)]
+    same = refused & (last >= 0)
+    for name in ('value', 'distance'):
+        column = lateral.values[name]
+        same &= column[taken_order] == column[taken]
+    return same & (lateral.stamp_ns[taken_order] == lateral.stamp_ns[taken])
 
 
 def _stepped_law(result: Rerun) -> tuple[IntArray, LawOutput]:

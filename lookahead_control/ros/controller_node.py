@@ -235,6 +235,9 @@ class ControllerNode(LifecycleNode):
         self._timer: Any = None
         self._sync_timer: Any = None
         self._pending_stamp: Optional[int] = None
+        #: the newest lateral error's stamp a command answered (a repeat of one never
+        #: answered is answered: a lockstep step 0 taken while inactive)
+        self._answered_stamp: Optional[int] = None
         self._steering_pub: Any = None
         self._debug_pub: Any = None
         self._jump_handle: Any = None
@@ -504,9 +507,10 @@ class ControllerNode(LifecycleNode):
             self.get_logger().warn(f'refused {reason}')
 
     def on_lateral_error(self, msg: PointStamped) -> None:
-        """Store the lateral error; in event mode, answer it."""
+        """Store the lateral error; in event mode, answer it (or a repeat never answered)."""
         if not self._input('lateral_error', msg, conv.from_lateral_error):
-            return
+            if not self._unanswered_repeat():
+                return
         if self._mode != 'event':
             return
         stamp = self.core.lateral.stamp_ns if self.core.lateral else 0
@@ -515,6 +519,22 @@ class ControllerNode(LifecycleNode):
             self._arm_sync_timer()
             return
         self._answer()
+
+    def _unanswered_repeat(self) -> bool:
+        """
+        Return whether the lateral error just refused repeats one no command answered.
+
+        A lockstep simulator sends step 0 again until it is answered: a node activated
+        after the simulator started took it in while inactive, or could not answer it
+        (its yaw not in yet), and left the simulator to its deadline (dev-probe113: 5 s
+        through a bridge, one missed deadline). An answer already given is not given
+        again (a publisher stuck on its last message, an echo), nor one still waiting
+        (the answer-rate bound, matching stamps).
+        """
+        lateral = self.core.lateral
+        return (lateral is not None and lateral.stamp_ns != self._answered_stamp
+                and is_duplicate(self.core.refusals.get('lateral_error', ''))
+                and self._pending_stamp is None and not self._pacer.deferred)
 
     def _answer(self) -> None:
         """
@@ -705,6 +725,8 @@ class ControllerNode(LifecycleNode):
                                                     command.steering_rate))
         self.published += 1
         self._last_publish = now
+        if self.core.lateral is not None and command.stamp_ns == self.core.lateral.stamp_ns:
+            self._answered_stamp = command.stamp_ns
         for flag in ('saturated', 'rate_limited'):
             self.counters[flag] += int(getattr(command, flag))
         self.counters['low_speed'] += int(command.status == 'low_speed')
