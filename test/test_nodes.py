@@ -265,6 +265,169 @@ def test_a_controller_activated_after_the_simulator_answers_its_step_0(probe):
             each.destroy_node()
 
 
+class _Recording:
+    """A node's inputs as it got them, its steering and debug, as a bag's columns."""
+
+    PARSE = {'lateral_error': conv.from_lateral_error, 'yaw': conv.from_yaw,
+             'velocity': conv.from_velocity, 'road_curvature': conv.from_curvature}
+
+    def __init__(self, node):
+        self.node, self.inputs, self.steering, self.debug = node, [], [], []
+
+    def configured(self):
+        """Catch what the configured node publishes."""
+        pubs = self.node._steering_pub, self.node._debug_pub
+        pubs[0].publish = lambda msg: self.steering.append(conv.from_steering(msg))
+        pubs[1].get_subscription_count = lambda: 1
+        pubs[1].publish = lambda msg: self.debug.append(
+            (msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
+             dict(zip(msg.name, msg.position))))
+
+    def send(self, role, msg):
+        """Deliver one message and record it as received (as it crossed: float32 points)."""
+        from rclpy.serialization import deserialize_message, serialize_message
+        msg = deserialize_message(serialize_message(msg), type(msg))
+        self.inputs.append((role, self.PARSE[role](msg)))
+        callback = 'on_curvature' if role == 'road_curvature' else f'on_{role}'
+        getattr(self.node, callback)(msg)
+
+    def run(self):
+        """Return the recording as a bag's run."""
+        from lookahead_control.bags.run_data import RunData, Samples
+        columns = {}
+        for role in self.PARSE:
+            rows = [(k, sample) for k, (r, sample) in enumerate(self.inputs) if r == role]
+            if not rows:
+                continue
+            at = np.array([k for k, _ in rows], dtype=np.int64)
+            values = {}
+            for name in type(rows[0][1])._fields[1:]:
+                column = [getattr(sample, name) for _, sample in rows]
+                values[name] = np.array(column, dtype=object if name == 'ahead' else float)
+            columns[role] = Samples(at, np.array([s.stamp_ns for _, s in rows]), at, values)
+        stamps = np.array([stamp for stamp, _ in self.steering], dtype=np.int64)
+        order = np.arange(stamps.size)
+        steering = Samples(order, stamps, order,
+                           {'angle': np.array([angle for _, angle in self.steering])})
+        names = self.debug[0][1].keys()
+        marks = np.array([stamp for stamp, _ in self.debug], dtype=np.int64)
+        debug = Samples(np.arange(marks.size), marks, np.arange(marks.size),
+                        {n: np.array([v.get(n, np.nan) for _, v in self.debug]) for n in names})
+        params = {name: self.node.get_parameter(name).value for name in self.node._parameters}
+        return RunData(bag=None, inputs=columns, steering=steering, debug=debug,
+                       controller_params=params)
+
+
+def test_a_repeat_answered_after_an_activation_is_re_run_at_that_copy(context):
+    # dev-probe116: each lateral error sent again a step later (after the next step's
+    # yaw and velocity); one taken in while inactive was answered at its copy, with the
+    # next step's yaw, and `replay --offline` answered it at the first copy: all 548
+    # answers of the default law 2.1 mrad off. ~/debug copies says at which copy
+    from lookahead_control.bags.run_data import rerun
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    record = _Recording(node)
+    try:
+        node.trigger_configure()
+        record.configured()
+        node.trigger_activate()
+        echo = None
+        for k in range(1, 121):
+            stamp = k * 10_000_000
+            _at(node, stamp)
+            y = 0.3 * math.sin(0.05 * k)
+            record.send('yaw', conv.to_yaw(stamp, 'base_link', 0.01 * math.cos(0.05 * k),
+                                           0.05, 0.0))
+            record.send('velocity', conv.to_velocity(stamp, 'base_link', 25.0 + 0.01 * k,
+                                                     0.1, 0.05))
+            record.send('road_curvature', conv.to_curvature(stamp, 'base_link',
+                                                            [(0.0, 0.002), (5.0, 0.002)]))
+            if echo is not None:
+                record.send('lateral_error', echo)
+            if k in (40, 80):
+                node.trigger_deactivate()
+            echo = conv.to_lateral_error(stamp, 'base_link', 1.96, y)
+            record.send('lateral_error', echo)
+            if k in (40, 80):
+                node.trigger_activate()     # between the step's lateral error and its copy
+        run = record.run()
+        copies = dict(zip(run.debug.stamp_ns.tolist(), run.debug.values['copies'].tolist()))
+        assert {s for s, k in copies.items() if k} == {400_000_000, 800_000_000}, copies
+        result = rerun(run, order='receive')
+        assert result.compared == len(record.steering) == 120, result.compared
+        assert result.max_diff <= 1e-12, result.max_diff
+    finally:
+        node.destroy_node()
+
+
+def test_a_second_run_s_step_0_answered_at_its_copy_is_re_run_in_that_run(context):
+    # dev-probe116: two runs in one bag (a simulator started again), each one's step 0
+    # lateral error in before its yaw and answered at its copy; the re-run took stamp 0
+    # for answered (by the first run) and compared the second run's answer with the
+    # first's, 10.6 mrad off
+    from lookahead_control.bags.run_data import rerun
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    record = _Recording(node)
+    try:
+        node.trigger_configure()
+        record.configured()
+        node.trigger_activate()
+        for run in range(2):
+            for k in range(150):
+                stamp = k * 10_000_000
+                _at(node, stamp)
+                y = 0.3 * math.sin(0.05 * k + run)
+                lateral = conv.to_lateral_error(stamp, 'base_link', 1.96, y)
+                if k == 0:
+                    record.send('lateral_error', lateral)
+                record.send('yaw', conv.to_yaw(stamp, 'base_link', 0.01 * run, 0.05, 0.0))
+                record.send('velocity', conv.to_velocity(stamp, 'base_link', 25.0 + 2 * run,
+                                                         0.1, 0.05))
+                record.send('lateral_error', lateral)
+        run = record.run()
+        assert run.debug.values['copies'].tolist().count(1.0) == 2
+        result = rerun(run, order='receive')
+        assert result.runs == 2 and result.compared == 150, result
+        assert result.max_diff <= 1e-12, result.max_diff
+    finally:
+        node.destroy_node()
+
+
+def test_copies_of_a_lateral_error_gone_stale_are_not_answered(context):
+    # dev-probe116: a lateral error taken in while inactive, stamped ahead so that its
+    # copies stay within the clock's bounds after it went stale: each copy was answered
+    # with a safe command stamped on the clock (10 copies, 10 commands, 5 per stamp)
+    node = _controller(context)
+    try:
+        node.trigger_configure()
+        node.trigger_activate()
+        _at(node, 990_000_000)
+        _one_step(node, 990_000_000)
+        node.trigger_deactivate()
+        _at(node, 1_000_000_000)
+        _one_step(node, 1_090_000_000)
+        assert node.published == 1
+        _at(node, 1_240_000_000)            # received 0.24 s ago: stale; stamped 0.15 s ago
+        node.trigger_activate()
+        for _ in range(10):
+            _one_step(node, 1_090_000_000, others=False)
+        assert node.core.duplicates['lateral_error'] == 10 and node.published == 1
+        # within input_timeout of its reception a copy is answered, once
+        node.trigger_deactivate()
+        _at(node, 1_300_000_000)
+        _one_step(node, 1_300_000_000)
+        _at(node, 1_350_000_000)
+        node.trigger_activate()
+        for _ in range(3):
+            _one_step(node, 1_300_000_000, others=False)
+        assert node.published == 2 and node.core.last.stamp_ns == 1_300_000_000
+    finally:
+        node.destroy_node()
+
+
 def test_a_repeat_is_not_answered_while_its_answer_waits_for_its_stamps(context):
     node = _controller(context, Parameter('wait_for_matching_stamps', value=True))
     try:

@@ -930,6 +930,10 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     last_refusal = ''
     repeated = 0
     last_stamp: dict[str, int] = {}
+    # the repeats of each answered lateral error before the node's answer (its ~/debug
+    # copies), and, per lateral error taken, its repeats so far and whether it was answered
+    copies_wanted = recorded_copies(run)
+    copy, answered = 0, False
     for item in feed:
         _, role, sample = item
         if id(item) in strays:
@@ -948,14 +952,16 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             refusals[role] = refusals.get(role, 0) + 1
             last_refusal = refused
         last_stamp[role] = sample.stamp_ns
-        if role == 'lateral_error' and (sample.stamp_ns in inactive
-                                        or sample.stamp_ns in coalesced
-                                        or sample.stamp_ns in unreceived):
+        if role != 'lateral_error':
+            continue
+        if refused is None:
+            copy, answered = 0, False
+        elif is_duplicate(refused):
+            copy += 1
+        if (sample.stamp_ns in inactive or sample.stamp_ns in coalesced
+                or sample.stamp_ns in unreceived):
             continue                # not answered: inactive, coalesced, never received
-        if role == 'lateral_error' and (refused is None or (
-                is_duplicate(refused) and sample.stamp_ns not in commands)):
-            # a repeat of a lateral error no command answered is answered, as the node
-            # does (a lockstep step 0 taken before its yaw was in)
+        if _answered_here(refused, copy, answered, copies_wanted, sample.stamp_ns):
             due = min(sets.get(sample.stamp_ns, applied + before_bag) - before_bag,
                       len(events))
             if due > applied:
@@ -982,6 +988,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                 otherwise += received != core.curvature_received(None)
             command = core.compute(curvature_received=received)
             if command is not None:
+                answered = True
                 commands[command.stamp_ns] = command
                 estimates = getattr(core.law, 'curvature_estimated', None)
                 if estimates is not None and estimates():
@@ -1001,6 +1008,49 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  not_finite, repeated, checks_told(core), max(1, len(runs.starts)),
                  dict(Counter(inputs[i][1] for i in sorted(runs.strays))),
                  _strays_to_end(inputs, runs.strays))
+
+
+def recorded_copies(run: RunData) -> Optional[dict[int, int]]:
+    """
+    Return, per answered lateral error, how many exact repeats of it came before the answer.
+
+    The node answers a repeat of a lateral error no command answered (a lockstep step 0
+    taken in while inactive, or before its yaw), at the copy its ``~/debug`` ``copies``
+    counts; the re-run answers at that copy too, with the inputs in by then (dev-probe116:
+    at the first copy it was 2 mrad off, the node had the next step's yaw and velocity).
+
+    :param run: the bag.
+    :return: stamp -> copies; empty for a bag without the node's debug (the re-run then
+        answers a repeat of a lateral error it has not answered, as the node does);
+        None for a node older than dev-sc51 (debug without ``copies``): it answered no
+        repeat.
+    """
+    copies = run.debug.values.get('copies')
+    if copies is None:
+        return None if run.debug.values else {}
+    return {int(t): int(k) for t, k in zip(run.debug.stamp_ns.tolist(), copies.tolist())
+            if math.isfinite(k)}
+
+
+def _answered_here(refused: Optional[str], copy: int, answered: bool,
+                   wanted: Optional[Mapping[int, int]], stamp: int) -> bool:
+    """
+    Return whether the re-run answers this arrival of a lateral error, as the node did.
+
+    :param refused: why the re-run's core refused it (None: taken).
+    :param copy: 0 for the lateral error taken, n for its n-th exact repeat since.
+    :param answered: whether the re-run answered the lateral error taken already.
+    :param wanted: :func:`recorded_copies`.
+    :param stamp: its stamp.
+    :return: whether to compute the command here.
+    """
+    if answered or (refused is not None and not is_duplicate(refused)):
+        return False
+    if wanted is None:
+        return refused is None              # an older node: no repeat answered
+    # at the copy the node answered (or the first after it, where the re-run could not
+    # answer earlier); without its record at the first it can
+    return copy >= wanted.get(stamp, 0)
 
 
 def _strays_to_end(inputs: Sequence[tuple[int, str, Any]], strays: frozenset[int]
@@ -1262,23 +1312,33 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     code, index, fed_stamp = code[feed], index[feed], stamp[feed]
     # as the controller's accept(): a sample whose stamp does not advance past its input's
     # newest one (repeated, or arriving late) is refused and never used
-    repeats = np.zeros(0, dtype=np.int64)
+    no_lateral: IntArray = np.zeros(0, dtype=np.int64)
+    at, group, copy = no_lateral, no_lateral, no_lateral
     for i in range(len(roles)):
         where = np.nonzero(code == i)[0]
         newest = np.maximum.accumulate(fed_stamp[where])
         refused = np.concatenate(([False], fed_stamp[where][1:] <= newest[:-1]))
         if i == lateral_code:
-            repeats = where[_repeated(run.inputs['lateral_error'], index[where], refused)]
+            arrival, taken = _copies(lateral, index[where], refused)
+            # the lateral errors taken and their exact repeats: where, which one, copy
+            at, group, copy = (where[arrival >= 0], where[taken[arrival >= 0]],
+                               arrival[arrival >= 0])
         code[where[refused]] = -1
     # at each position of the feed: the position of each input's latest sample (-1)
     latest = {role: np.maximum.accumulate(np.where(code == i, np.arange(code.size), -1))
               for i, role in enumerate(roles)}
-    at = np.union1d(np.nonzero(code == lateral_code)[0], repeats)
-    at = at[(latest['yaw'][at] >= 0) & (latest['velocity'][at] >= 0)]
-    # a repeat of a lateral error is answered where no copy before it was (the node and
-    # rerun(): a lockstep step 0 taken before its yaw was in), the copies after it not
-    _, first = np.unique(lateral.stamp_ns[index[at]], return_index=True)
-    at = at[np.sort(first)]
+    # each lateral error taken is answered once: at the first of its arrivals (it, then
+    # its exact repeats) with the yaw and velocity in, from the copy the node answered
+    # (~/debug copies; rerun())
+    wanted = recorded_copies(run)
+    if wanted is None:
+        usable = copy == 0
+    else:
+        least = [wanted.get(int(t), 0) for t in lateral.stamp_ns[index[at]].tolist()]
+        usable = copy >= np.array(least, dtype=np.int64)
+    usable &= (latest['yaw'][at] >= 0) & (latest['velocity'][at] >= 0)
+    _, first = np.unique(group[usable], return_index=True)
+    at = at[usable][np.sort(first)]
 
     def column(role: str, name: str) -> Array:
         if role not in latest:
@@ -1316,23 +1376,28 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     return lateral.stamp_ns[index[at]], steering_law(state, core.vehicle, core.params)
 
 
-def _repeated(lateral: Samples, taken_order: IntArray, refused: BoolArray) -> BoolArray:
+def _copies(lateral: Samples, taken_order: IntArray, refused: BoolArray
+            ) -> tuple[IntArray, IntArray]:
     """
-    Return which refused lateral errors repeat the last one taken, stamp and values.
+    Return each lateral error's arrival number and the lateral error taken it repeats.
 
     :param lateral: the recorded lateral errors.
     :param taken_order: the index in ``lateral`` of each lateral error, in feed order.
     :param refused: whether each was refused (its stamp did not advance).
-    :return: per lateral error in feed order, whether it is a duplicate of the last taken.
+    :return: per lateral error in feed order, 0 for one taken, n for the n-th exact
+        repeat (stamp and values) of the last one taken, -1 for any other refused; and
+        the feed position (among the lateral errors) of the last one taken.
     """
     position = np.arange(refused.size)
     last = np.maximum.accumulate(np.where(refused, -1, position))
     taken = taken_order[np.maximum(last, 0)]
-    same = refused & (last >= 0)
+    same = refused & (last >= 0) & (lateral.stamp_ns[taken_order] == lateral.stamp_ns[taken])
     for name in ('value', 'distance'):
         column = lateral.values[name]
         same &= column[taken_order] == column[taken]
-    return same & (lateral.stamp_ns[taken_order] == lateral.stamp_ns[taken])
+    count = np.cumsum(same)
+    copy = np.where(same, count - count[np.maximum(last, 0)], np.where(refused, -1, 0))
+    return copy.astype(np.int64), np.maximum(last, 0)
 
 
 def _stepped_law(result: Rerun) -> tuple[IntArray, LawOutput]:

@@ -235,9 +235,11 @@ class ControllerNode(LifecycleNode):
         self._timer: Any = None
         self._sync_timer: Any = None
         self._pending_stamp: Optional[int] = None
-        #: the newest lateral error's stamp a command answered (a repeat of one never
-        #: answered is answered: a lockstep step 0 taken while inactive)
-        self._answered_stamp: Optional[int] = None
+        #: whether a command answered the lateral error last taken, and how many exact
+        #: repeats of it came since (a repeat of one never answered is answered: a
+        #: lockstep step 0 taken while inactive; ~/debug ``copies``)
+        self._answered = False
+        self._copies = 0
         self._steering_pub: Any = None
         self._debug_pub: Any = None
         self._jump_handle: Any = None
@@ -508,9 +510,14 @@ class ControllerNode(LifecycleNode):
 
     def on_lateral_error(self, msg: PointStamped) -> None:
         """Store the lateral error; in event mode, answer it (or a repeat never answered)."""
-        if not self._input('lateral_error', msg, conv.from_lateral_error):
+        if self._input('lateral_error', msg, conv.from_lateral_error):
+            self._answered, self._copies = False, 0
+        elif is_duplicate(self.core.refusals.get('lateral_error', '')):
+            self._copies += 1
             if not self._unanswered_repeat():
                 return
+        else:
+            return
         if self._mode != 'event':
             return
         stamp = self.core.lateral.stamp_ns if self.core.lateral else 0
@@ -522,19 +529,19 @@ class ControllerNode(LifecycleNode):
 
     def _unanswered_repeat(self) -> bool:
         """
-        Return whether the lateral error just refused repeats one no command answered.
+        Return whether to answer the repeat of the last lateral error just received.
 
         A lockstep simulator sends step 0 again until it is answered: a node activated
         after the simulator started took it in while inactive, or could not answer it
         (its yaw not in yet), and left the simulator to its deadline (dev-probe113: 5 s
         through a bridge, one missed deadline). An answer already given is not given
         again (a publisher stuck on its last message, an echo), nor one still waiting
-        (the answer-rate bound, matching stamps).
+        (the answer-rate bound, matching stamps), nor one to a lateral error that went
+        stale (dev-probe116: a safe command stamped on the clock for every copy).
         """
-        lateral = self.core.lateral
-        return (lateral is not None and lateral.stamp_ns != self._answered_stamp
-                and is_duplicate(self.core.refusals.get('lateral_error', ''))
-                and self._pending_stamp is None and not self._pacer.deferred)
+        return (not self._answered and self._pending_stamp is None
+                and not self._pacer.deferred
+                and 'lateral_error' not in self.core.stale(self.clocks()[0]))
 
     def _answer(self) -> None:
         """
@@ -726,7 +733,7 @@ class ControllerNode(LifecycleNode):
         self.published += 1
         self._last_publish = now
         if self.core.lateral is not None and command.stamp_ns == self.core.lateral.stamp_ns:
-            self._answered_stamp = command.stamp_ns
+            self._answered = True
         for flag in ('saturated', 'rate_limited'):
             self.counters[flag] += int(getattr(command, flag))
         self.counters['low_speed'] += int(command.status == 'low_speed')
@@ -760,6 +767,9 @@ class ControllerNode(LifecycleNode):
         # lateral errors left unanswered for a newer one (the answer-rate bound): the
         # re-run skips those between two answers whose counts differ
         debug.append(('coalesced', float(self._pacer.coalesced)))
+        # the exact repeats of the answered lateral error that came before its answer
+        # (0: answered on its first arrival): the re-run answers at that copy too
+        debug.append(('copies', float(self._copies)))
         state = getattr(self.core.law, 'debug_values', None)
         if state is not None:       # a law with a state: cg_compensated (its estimate ...)
             debug += state()
