@@ -273,21 +273,27 @@ class _Recording:
 
     def __init__(self, node):
         self.node, self.inputs, self.steering, self.debug = node, [], [], []
+        self.received = 0               # one receive clock for everything recorded
+
+    def _tick(self):
+        self.received += 1
+        return self.received
 
     def configured(self):
         """Catch what the configured node publishes."""
         pubs = self.node._steering_pub, self.node._debug_pub
-        pubs[0].publish = lambda msg: self.steering.append(conv.from_steering(msg))
+        pubs[0].publish = lambda msg: self.steering.append(
+            (self._tick(), *conv.from_steering(msg)))
         pubs[1].get_subscription_count = lambda: 1
         pubs[1].publish = lambda msg: self.debug.append(
-            (msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
+            (self._tick(), msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
              dict(zip(msg.name, msg.position))))
 
     def send(self, role, msg):
         """Deliver one message and record it as received (as it crossed: float32 points)."""
         from rclpy.serialization import deserialize_message, serialize_message
         msg = deserialize_message(serialize_message(msg), type(msg))
-        self.inputs.append((role, self.PARSE[role](msg)))
+        self.inputs.append((self._tick(), role, self.PARSE[role](msg)))
         callback = 'on_curvature' if role == 'road_curvature' else f'on_{role}'
         getattr(self.node, callback)(msg)
 
@@ -296,23 +302,23 @@ class _Recording:
         from lookahead_control.bags.run_data import RunData, Samples
         columns = {}
         for role in self.PARSE:
-            rows = [(k, sample) for k, (r, sample) in enumerate(self.inputs) if r == role]
+            rows = [(t, sample) for t, r, sample in self.inputs if r == role]
             if not rows:
                 continue
-            at = np.array([k for k, _ in rows], dtype=np.int64)
+            at = np.array([t for t, _ in rows], dtype=np.int64)
             values = {}
             for name in type(rows[0][1])._fields[1:]:
                 column = [getattr(sample, name) for _, sample in rows]
                 values[name] = np.array(column, dtype=object if name == 'ahead' else float)
             columns[role] = Samples(at, np.array([s.stamp_ns for _, s in rows]), at, values)
-        stamps = np.array([stamp for stamp, _ in self.steering], dtype=np.int64)
-        order = np.arange(stamps.size)
-        steering = Samples(order, stamps, order,
-                           {'angle': np.array([angle for _, angle in self.steering])})
-        names = self.debug[0][1].keys()
-        marks = np.array([stamp for stamp, _ in self.debug], dtype=np.int64)
-        debug = Samples(np.arange(marks.size), marks, np.arange(marks.size),
-                        {n: np.array([v.get(n, np.nan) for _, v in self.debug]) for n in names})
+        at = np.array([t for t, _, _ in self.steering], dtype=np.int64)
+        steering = Samples(at, np.array([stamp for _, stamp, _ in self.steering]), at,
+                           {'angle': np.array([angle for _, _, angle in self.steering])})
+        names = self.debug[0][2].keys()
+        at = np.array([t for t, _, _ in self.debug], dtype=np.int64)
+        debug = Samples(at, np.array([stamp for _, stamp, _ in self.debug]), at,
+                        {n: np.array([v.get(n, np.nan) for *_, v in self.debug])
+                         for n in names})
         params = {name: self.node.get_parameter(name).value for name in self.node._parameters}
         return RunData(bag=None, inputs=columns, steering=steering, debug=debug,
                        controller_params=params)
@@ -392,6 +398,66 @@ def test_a_second_run_s_step_0_answered_at_its_copy_is_re_run_in_that_run(contex
         result = rerun(run, order='receive')
         assert result.runs == 2 and result.compared == 150, result
         assert result.max_diff <= 1e-12, result.max_diff
+    finally:
+        node.destroy_node()
+
+
+def test_each_run_s_copies_count_for_it_and_a_lost_copy_is_answered_at_the_last(context):
+    # dev-probe118: ~/debug copies keyed by stamp alone: a second run's step 0 answered
+    # at its 2nd copy made the re-run answer the first run's step 0 (answered at once)
+    # at a copy, with the next step's yaw; and a copy the recorder lost left the stamp
+    # unanswered by the re-run, without a word (its check failed)
+    import dataclasses
+    from lookahead_control.bags.run_data import rerun, Samples
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    record = _Recording(node)
+    try:
+        node.trigger_configure()
+        record.configured()
+        node.trigger_activate()
+        for run in range(2):
+            first = None
+            for k in range(150):
+                stamp = k * 10_000_000
+                if k == 0:
+                    _at(node, stamp)
+                # a lockstep simulator: a step's inputs on the clock of the step before
+                record.send('yaw', conv.to_yaw(stamp, 'base_link', 0.001 * k, 0.05, 0.0))
+                record.send('velocity', conv.to_velocity(stamp, 'base_link', 25.0 + 2 * run,
+                                                         0.1, 0.05))
+                if k == 1:                  # step 0 again, twice, after step 1's yaw
+                    if run == 1:
+                        record.send('lateral_error', first)
+                        node.trigger_activate()
+                    record.send('lateral_error', first)
+                    if run == 0:
+                        record.send('lateral_error', first)
+                _at(node, stamp)
+                lateral = conv.to_lateral_error(stamp, 'base_link', 1.96,
+                                                0.3 * math.sin(0.05 * k + run))
+                if k == 0:
+                    first = lateral
+                    if run == 1:
+                        node.trigger_deactivate()     # run 2's step 0 taken in inactive
+                record.send('lateral_error', lateral)
+        run = record.run()
+        assert run.debug.values['copies'].tolist().count(2.0) == 1
+        assert run.debug.values['copies'].tolist().count(1.0) == 0
+        result = rerun(run, order='receive')
+        assert result.runs == 2 and result.compared == 150, result
+        assert result.max_diff <= 1e-12, result.max_diff
+        # the recorder lost run 2's 2nd copy (nothing came between it and the 1st)
+        lateral = run.inputs['lateral_error']
+        repeats = np.nonzero(lateral.stamp_ns == 0)[0]
+        keep = np.ones(len(lateral), dtype=bool)
+        keep[repeats[-1]] = False
+        lost = dataclasses.replace(run, inputs=dict(run.inputs, lateral_error=Samples(
+            lateral.recv_ns[keep], lateral.stamp_ns[keep], lateral.order[keep],
+            {n: v[keep] for n, v in lateral.values.items()})))
+        result = rerun(lost, order='receive')
+        assert result.compared == 150 and result.max_diff <= 1e-12, result
     finally:
         node.destroy_node()
 

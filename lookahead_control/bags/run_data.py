@@ -930,10 +930,10 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     last_refusal = ''
     repeated = 0
     last_stamp: dict[str, int] = {}
-    # the repeats of each answered lateral error before the node's answer (its ~/debug
-    # copies), and, per lateral error taken, its repeats so far and whether it was answered
-    copies_wanted = recorded_copies(run)
-    copy, answered = 0, False
+    # per lateral error taken, the copy the node answered it at (~/debug copies), and
+    # its repeats so far and whether the re-run answered it
+    targets = answer_copies(run, inputs, runs, feed)
+    copy, answered, target = 0, False, None
     for item in feed:
         _, role, sample = item
         if id(item) in strays:
@@ -956,12 +956,13 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             continue
         if refused is None:
             copy, answered = 0, False
+            target = targets.get(id(item), 0) if targets is not None else None
         elif is_duplicate(refused):
             copy += 1
         if (sample.stamp_ns in inactive or sample.stamp_ns in coalesced
                 or sample.stamp_ns in unreceived):
             continue                # not answered: inactive, coalesced, never received
-        if _answered_here(refused, copy, answered, copies_wanted, sample.stamp_ns):
+        if _answered_here(refused, copy, answered, target):
             due = min(sets.get(sample.stamp_ns, applied + before_bag) - before_bag,
                       len(events))
             if due > applied:
@@ -1010,9 +1011,10 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
                  _strays_to_end(inputs, runs.strays))
 
 
-def recorded_copies(run: RunData) -> Optional[dict[int, int]]:
+def recorded_copies(run: RunData, starts_ns: Sequence[int] = (0,)
+                    ) -> Optional[list[dict[int, int]]]:
     """
-    Return, per answered lateral error, how many exact repeats of it came before the answer.
+    Return, per run and answered lateral error, the exact repeats of it before the answer.
 
     The node answers a repeat of a lateral error no command answered (a lockstep step 0
     taken in while inactive, or before its yaw), at the copy its ``~/debug`` ``copies``
@@ -1020,37 +1022,92 @@ def recorded_copies(run: RunData) -> Optional[dict[int, int]]:
     at the first copy it was 2 mrad off, the node had the next step's yaw and velocity).
 
     :param run: the bag.
-    :return: stamp -> copies; empty for a bag without the node's debug (the re-run then
-        answers a repeat of a lateral error it has not answered, as the node does);
-        None for a node older than dev-sc51 (debug without ``copies``): it answered no
-        repeat.
+    :param starts_ns: when each run of the bag began (the receive time of its first input):
+        each run's stamps start again, and a debug message counts for the run it was
+        received in (dev-probe118: keyed by stamp alone, a second run's step 0 answered at
+        its 4th copy left the first run's unanswered).
+    :return: per run, stamp -> copies; empty dicts for a bag without the node's debug (the
+        re-run then answers a repeat of a lateral error it has not answered, as the node
+        does); None for a node older than dev-sc51 (debug without ``copies``): it
+        answered no repeat.
     """
     copies = run.debug.values.get('copies')
     if copies is None:
-        return None if run.debug.values else {}
-    return {int(t): int(k) for t, k in zip(run.debug.stamp_ns.tolist(), copies.tolist())
-            if math.isfinite(k)}
+        return None if run.debug.values else [{} for _ in starts_ns]
+    out: list[dict[int, int]] = [{} for _ in starts_ns]
+    for recv, stamp, count in zip(run.debug.recv_ns.tolist(), run.debug.stamp_ns.tolist(),
+                                  copies.tolist()):
+        if math.isfinite(count):
+            at = max(0, bisect.bisect_right(starts_ns, recv) - 1)
+            out[at][int(stamp)] = int(count)
+    return out
+
+
+def answer_copies(run: RunData, inputs: Sequence[tuple[int, str, Any]], runs: Runs,
+                  feed: Sequence[tuple[int, str, Any]]) -> Optional[dict[int, int]]:
+    """
+    Return the copy at which the re-run answers each lateral error it takes.
+
+    The node's count (:func:`recorded_copies`), or the last copy the bag holds where it
+    holds fewer (a recorder that started late or lost one: dev-probe118, the stamp was
+    never answered and replay did not say so).
+
+    :param run: the bag.
+    :param inputs: its input stream (:func:`input_stream`).
+    :param runs: its runs (:func:`run_starts`).
+    :param feed: the inputs in the order the re-run feeds them.
+    :return: ``id(item)`` of each lateral error whose stamp advances (taken) -> the copy
+        to answer it at (0: at itself); None for a node that answered no repeat.
+    """
+    run_of: dict[int, int] = {}
+    bounds = runs.starts + [len(inputs)]
+    for number, (begin, end) in enumerate(zip(bounds, bounds[1:])):
+        run_of.update((id(item), number) for item in inputs[begin:end])
+    wanted = recorded_copies(run, [inputs[i][0] for i in runs.starts] or [0])
+    if wanted is None:
+        return None
+    out: dict[int, int] = {}
+    taken: Optional[tuple[int, str, Any]] = None
+    held = 0
+    for item in feed:
+        _, role, sample = item
+        if role != 'lateral_error' or id(item) in runs.strays:
+            continue
+        last = taken[2] if taken is not None else None
+        if last is not None and sample == last:
+            held += 1
+            continue
+        if last is not None and (sample.stamp_ns <= last.stamp_ns
+                                 and sample.stamp_ns >= last.stamp_ns - JUMP_NS):
+            continue        # refused: going back or the same stamp with other values
+        if taken is not None:
+            out[id(taken)] = min(out[id(taken)], held)
+        taken, held = item, 0
+        out[id(item)] = wanted[run_of.get(id(item), 0)].get(sample.stamp_ns, 0)
+    if taken is not None:
+        out[id(taken)] = min(out[id(taken)], held)
+    return out
 
 
 def _answered_here(refused: Optional[str], copy: int, answered: bool,
-                   wanted: Optional[Mapping[int, int]], stamp: int) -> bool:
+                   target: Optional[int]) -> bool:
     """
     Return whether the re-run answers this arrival of a lateral error, as the node did.
 
     :param refused: why the re-run's core refused it (None: taken).
     :param copy: 0 for the lateral error taken, n for its n-th exact repeat since.
     :param answered: whether the re-run answered the lateral error taken already.
-    :param wanted: :func:`recorded_copies`.
-    :param stamp: its stamp.
+    :param target: the copy to answer it at (:func:`answer_copies`); None: a node that
+        answered no repeat.
     :return: whether to compute the command here.
     """
     if answered or (refused is not None and not is_duplicate(refused)):
         return False
-    if wanted is None:
+    if target is None:
         return refused is None              # an older node: no repeat answered
     # at the copy the node answered (or the first after it, where the re-run could not
-    # answer earlier); without its record at the first it can
-    return copy >= wanted.get(stamp, 0)
+    # answer there)
+    return copy >= target
 
 
 def _strays_to_end(inputs: Sequence[tuple[int, str, Any]], strays: frozenset[int]
@@ -1330,12 +1387,17 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     # each lateral error taken is answered once: at the first of its arrivals (it, then
     # its exact repeats) with the yaw and velocity in, from the copy the node answered
     # (~/debug copies; rerun())
+    # (the runs of a bag are not told apart here: the last run's count of a stamp counts)
     wanted = recorded_copies(run)
     if wanted is None:
         usable = copy == 0
     else:
-        least = [wanted.get(int(t), 0) for t in lateral.stamp_ns[index[at]].tolist()]
-        usable = copy >= np.array(least, dtype=np.int64)
+        least = np.array([wanted[0].get(int(t), 0)
+                          for t in lateral.stamp_ns[index[at]].tolist()], dtype=np.int64)
+        # no further than the last copy the bag holds (a recorder late or losing one)
+        held = np.zeros(code.size, dtype=np.int64)
+        np.maximum.at(held, group, copy)
+        usable = copy >= np.minimum(least, held[group])
     usable &= (latest['yaw'][at] >= 0) & (latest['velocity'][at] >= 0)
     _, first = np.unique(group[usable], return_index=True)
     at = at[usable][np.sort(first)]
