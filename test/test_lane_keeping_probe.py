@@ -478,3 +478,62 @@ def test_a_law_restart_on_a_non_finite_output_is_reported_as_such(context, monke
         assert values['law_restarts_non_finite'] == '1' and 'law_restarts_gap' not in values
     finally:
         node.destroy_node()
+
+
+def test_a_polygon_stamped_apart_from_the_lateral_error_is_read_at_its_time():
+    # dev-probe117: a lane camera's lateral error is 50-120 ms old when it arrives, a
+    # map's polygon is of now; the polygon's distances are from the CG at its own stamp.
+    # The delay-aware law predicts from the lateral error's stamp, and it read the road
+    # at the polygon's own time (a camera 80 ms late beside a fresh map, 37 m/s: S1 /
+    # S2 15.5 / 20.0 cm noise-free); now moved by v_x times the polygon's age
+    from lookahead_control.core.samples import curvature_from_points
+    polygon = ((0.0, 0.0), (5.0, 0.01), (10.0, 0.01), (20.0, 0.0))
+
+    def read(core, age_ns, points=polygon):
+        core.reset()
+        core.accept('velocity', VelocitySample(1_000_000_000, 30.0, 0.0))
+        core.accept('road_curvature', curvature_from_points(1_000_000_000 - age_ns, points))
+        core.accept('yaw', YawSample(1_000_000_000, 0.0, 0.0, 0.0))
+        core.accept('lateral_error', LateralErrorSample(1_000_000_000, 0.0, 0.1))
+        state = core.state()
+        return state.rho, state.rho_rate, core.preview().distances.tolist()
+
+    predicting = _core(use_preview=True, lane_keeping=LaneKeepingParams(
+        delay_prediction=True, filter_delay=0.1))
+    for age, at, rho, slope in ((100_000_000, 3.0, 0.006, 0.002),     # 0.1 s older
+                                (0, 0.0, 0.0, 0.002),                 # same stamp
+                                (-100_000_000, -3.0, 0.0, 0.002),     # 0.1 s newer
+                                (-900_000_000, -6.0, 0.0, 0.002)):    # beyond 0.2 s
+        got_rho, got_rate, distances = read(predicting, age)
+        assert got_rho == pytest.approx(rho, abs=1e-15)
+        assert got_rate == pytest.approx(30.0 * slope, abs=1e-15)
+        assert distances == pytest.approx([x - at for x, _ in polygon])
+    # a polygon of one point is a curvature held ahead: as it is
+    assert read(predicting, 100_000_000, ((0.0, 0.004),))[0] == 0.004
+    # without the prediction the law takes its state for the present: the polygon as it
+    # is (moved, the feedforward came late by the camera's age: S1 6.3 -> 15.3 cm)
+    assert read(_core(use_preview=True), 100_000_000) == (0.0, 30.0 * 0.002,
+                                                          [x for x, _ in polygon])
+
+
+def test_a_timer_between_a_slower_camera_s_frames_does_not_freeze_the_integral():
+    # dev-probe117: a 25 Hz camera under a 100 Hz timer, the yaw rate at 100 Hz; at the
+    # ticks between frames the lateral error's stamp stands, the rate limit on the stamps
+    # held the command and counted it limited, and the integral froze on it (S2 at 37 m/s
+    # on the CommonRoad car: the CG 11.4 cm off for good, the integral 0)
+    core = _core()
+    limited, sent = 0, None
+    for tick in range(400):
+        now = 1_000_000_000 + tick * 10 * MS
+        r = 0.02 * math.sin(0.3 * tick)
+        core.accept('yaw', YawSample(now, 0.0, r, 0.0), now)
+        core.accept('velocity', VelocitySample(now, 30.0, 0.0), now)
+        if tick % 4 == 0:
+            core.accept('lateral_error', LateralErrorSample(now, 0.0, 0.2), now)
+        command = core.compute(now)
+        limited += command.rate_limited
+        if tick % 4:            # the same frame again: held on the stamps, as before
+            assert command.steering == sent
+        sent = command.steering
+    assert limited == 0
+    assert core.law.integral == pytest.approx(0.3 * 0.2 * 99 * 0.04, rel=1e-9)

@@ -37,8 +37,8 @@ from lookahead_control.core.oscillation_check import OscillationCheck
 from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
 from lookahead_control.core.safety import (check_sample, check_stamp, duplicate_reason, limit,
                                            low_speed_weight, SafetyParams, stale_target)
-from lookahead_control.core.samples import (CurvatureSample, LateralErrorSample, VelocitySample,
-                                            YawSample)
+from lookahead_control.core.samples import (curvature_from_points, CurvatureSample,
+                                            LateralErrorSample, VelocitySample, YawSample)
 from lookahead_control.core.speed_check import road_speed, SpeedCheck
 from lookahead_control.core.yaw_check import YawCheck
 import numpy as np
@@ -385,6 +385,9 @@ class SteeringController:
         self._accel_anchor: Optional[tuple[int, float]] = None
         self._accel_estimate = 0.0
         self.last: Optional[Command] = None
+        #: the polygon moved to the lateral error's time, for (polygon, distance moved)
+        self._road_cache: tuple[Optional[CurvatureSample], float, Optional[CurvatureSample]] = (
+            None, 0.0, None)
         # the rate limit's reference: the last angle sent (kept across resets: the
         # actuator is still there), the node's clock and the steady clock when it was
         # sent, and the newest command stamp so far
@@ -474,20 +477,57 @@ class SteeringController:
         :param now_ns: the node's clock [ns] (None: the latest curvature is used).
         :return: the preview.
         """
-        if self.curvature is None:
+        road = self.road()
+        if road is None:
             return Preview(np.zeros(0), np.zeros(0))
         if self.curvature_lost(now_ns):
             return Preview(np.zeros(1), np.zeros(1))
-        ahead = self.curvature.ahead
+        ahead = road.ahead
         if len(ahead) >= 2:
             return Preview(np.array([p[0] for p in ahead], dtype=float),
                            np.array([p[1] for p in ahead], dtype=float))
-        rho = self.curvature.rho
+        rho = road.rho
         if not (self.use_preview or self.law_name == 'cg_compensated'):
             return Preview(np.zeros(1), np.array([rho]))
         cap = self.safety.max_curvature
-        ahead_rho = min(cap, max(-cap, rho + self.curvature.slope * PREVIEW_HORIZON))
+        ahead_rho = min(cap, max(-cap, rho + road.slope * PREVIEW_HORIZON))
         return Preview(np.array([0.0, PREVIEW_HORIZON]), np.array([rho, ahead_rho]))
+
+    def road(self) -> Optional[CurvatureSample]:
+        """
+        Return the latest curvature polygon as the law reads it.
+
+        With ``lane_keeping.delay_prediction`` the law predicts its state from the lateral
+        error's stamp ``filter_delay`` ahead and reads the road there; a polygon stamped
+        at another time (a lane camera's frame 50-120 ms old beside a map of now) gives
+        the distances ahead of the CG at its own stamp, so it is moved by the distance
+        driven between the two stamps, ``v_x (t_lateral - t_polygon)`` (an age within
+        ``input_timeout``), and the curvature at the CG read there. With ``filter_delay``
+        the camera's age plus the actuator's delay the road is then read where the
+        command acts (dev-probe117: a camera 80 ms late beside a fresh map, 37 m/s,
+        noise-free, S1 / S2 15.5 / 20.0 -> 2.9 / 9.5 cm). Without the prediction the law
+        takes its state for the present and the polygon as it is (moved, a camera 80 ms
+        late: S1 6.3 -> 15.3 cm, the feedforward late by the camera's age); also a
+        polygon of one point, or one stamped with the lateral error.
+
+        :return: the polygon the law reads (None: no curvature yet).
+        """
+        road = self.curvature
+        predicts = self.law_name == 'cg_compensated' and self.lane_keeping.delay_prediction
+        if (road is None or not predicts or self.lateral is None or self.velocity is None
+                or len(road.ahead) < 2):
+            return road
+        limit = int(self.safety.input_timeout * 1e9)
+        age = min(limit, max(-limit, self.lateral.stamp_ns - road.stamp_ns))
+        moved = self.velocity.v_x * age * 1e-9
+        if moved == 0.0 or not math.isfinite(moved):
+            return road
+        seen, at, moved_road = self._road_cache
+        if seen is not road or at != moved:
+            moved_road = curvature_from_points(road.stamp_ns,
+                                               [(x - moved, k) for x, k in road.ahead])
+            self._road_cache = (road, moved, moved_road)
+        return moved_road
 
     # -- checked input ------------------------------------------------------------
 
@@ -1067,9 +1107,9 @@ class SteeringController:
         if self.lateral is None or self.yaw is None or self.velocity is None:
             return None
         eps_r = self.yaw.relative_yaw
-        use_curvature = self.curvature is not None and not self.curvature_lost(now_ns)
-        rho, slope = (self.curvature.rho, self.curvature.slope) if (
-            use_curvature and self.curvature is not None) else (0.0, 0.0)
+        road = self.road()
+        rho, slope = (road.rho, road.slope) if (
+            road is not None and not self.curvature_lost(now_ns)) else (0.0, 0.0)
         v_x = self.velocity.v_x
         return LateralState(
             y_cg=cg_error_from(self.lateral.value, eps_r, self.lateral.distance),
@@ -1107,6 +1147,13 @@ class SteeringController:
         if state is None or self.lateral is None:
             return None
         stamp = self.lateral.stamp_ns
+        # the same lateral error answered again (timer mode between the frames of a slower
+        # camera, while the yaw rate and speed come in): no time on the stamps, so the
+        # command is held (the rate limit on the stamps), which is not the law's asking
+        # faster than the actuator may go: not counted limited, and the law is not told
+        # (dev-probe117: every tick counted limited froze the integral, a 25 Hz camera
+        # under a 100 Hz timer left the CG 11 cm off on S2 at 37 m/s)
+        again = self._law_stamp == stamp
         if self._law_stamp is None:     # a start, or after the safe command: swings apart
             self.oscillation.reset()    # (dev-probe77: counted as one run across a gap)
         dt = 0.0 if self._law_stamp is None else max(0, stamp - self._law_stamp) * 1e-9
@@ -1159,6 +1206,8 @@ class SteeringController:
         sent_before = self._rate_angle
         self.last = self._limited(wanted, self.lateral.stamp_ns, now_ns, steady_ns, v_x, law,
                                   'ok' if weight >= 1.0 else 'low_speed')
+        if again and self.last.rate_limited:
+            self.last = replace(self.last, rate_limited=False)
         if sent_before is not None:
             self._judge_yaw_input(dt, state, sent_before)
         if self.oscillation.step(dt, self.last.steering):
@@ -1171,7 +1220,7 @@ class SteeringController:
             # 0.6 rad with low_speed 30 m/s, a size the car never got above it)
             self._hold_value = self.last.steering
         note_limited = getattr(self.law, 'note_limited', None)
-        if note_limited is not None:        # anti-windup of a law with an integral
+        if note_limited is not None and not again:  # anti-windup of a law with an integral
             note_limited(self.last.saturated or self.last.rate_limited)
         note_sent = getattr(self.law, 'note_sent', None)
         if note_sent is not None:           # a state filter models the command sent

@@ -429,7 +429,9 @@ class LaneKeepingParams:
             # (accepted before dev-probe43, and then it predicted nothing)
             raise ParameterError('lane_keeping.delay_prediction = true predicts across '
                                  'lane_keeping.filter_delay, which is 0: set it to the '
-                                 "car's command-to-actuator delay (> 0 s)")
+                                 "car's delay from the lateral error's stamp to the wheel "
+                                 "(the command-to-actuator delay plus a camera's latency, "
+                                 '> 0 s)')
         for item in fields(self):
             if item.name in ('rate_feedforward', 'state_filter', 'delay_prediction'):
                 continue

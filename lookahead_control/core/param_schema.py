@@ -203,7 +203,8 @@ LANE_KEEPING_SPECS = tuple(
     for name, text, low, high in (
         ('min_speed', 'below this speed the measurements pass through [m/s]', 0.5, 50.0),
         ('actuator_lag', 'time constant of the steering actuator it models [s]', 0.0, 2.0),
-        ('delay', 'command-to-actuator transport delay it models [s]', 0.0, 1.0),
+        ('delay', "delay from the lateral error's stamp to the wheel it models: the "
+         "command-to-actuator delay, plus a lane camera's latency [s]", 0.0, 1.0),
         ('lateral_noise', 'standard deviation of the lateral error at the sensor [m]',
          1e-5, 5.0),
         ('yaw_noise', 'standard deviation of the relative yaw [rad]', 1e-6, 0.5),
