@@ -324,20 +324,26 @@ class _Recording:
                        controller_params=params)
 
 
+def _recorded(context):
+    """Return an active default-law controller on sim time and its :class:`_Recording`."""
+    from lookahead_control.ros.controller_node import ControllerNode
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    record = _Recording(node)
+    node.trigger_configure()
+    record.configured()
+    node.trigger_activate()
+    return node, record
+
+
 def test_a_repeat_answered_after_an_activation_is_re_run_at_that_copy(context):
     # dev-probe116: each lateral error sent again a step later (after the next step's
     # yaw and velocity); one taken in while inactive was answered at its copy, with the
     # next step's yaw, and `replay --offline` answered it at the first copy: all 548
     # answers of the default law 2.1 mrad off. ~/debug copies says at which copy
     from lookahead_control.bags.run_data import rerun
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True)])
-    record = _Recording(node)
+    node, record = _recorded(context)
     try:
-        node.trigger_configure()
-        record.configured()
-        node.trigger_activate()
         echo = None
         for k in range(1, 121):
             stamp = k * 10_000_000
@@ -373,14 +379,8 @@ def test_a_second_run_s_step_0_answered_at_its_copy_is_re_run_in_that_run(contex
     # for answered (by the first run) and compared the second run's answer with the
     # first's, 10.6 mrad off
     from lookahead_control.bags.run_data import rerun
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True)])
-    record = _Recording(node)
+    node, record = _recorded(context)
     try:
-        node.trigger_configure()
-        record.configured()
-        node.trigger_activate()
         for run in range(2):
             for k in range(150):
                 stamp = k * 10_000_000
@@ -409,14 +409,8 @@ def test_each_run_s_copies_count_for_it_and_a_lost_copy_is_answered_at_the_last(
     # unanswered by the re-run, without a word (its check failed)
     import dataclasses
     from lookahead_control.bags.run_data import rerun, Samples
-    from lookahead_control.ros.controller_node import ControllerNode
-    node = ControllerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True)])
-    record = _Recording(node)
+    node, record = _recorded(context)
     try:
-        node.trigger_configure()
-        record.configured()
-        node.trigger_activate()
         for run in range(2):
             first = None
             for k in range(150):
