@@ -161,13 +161,19 @@ def offline(args: argparse.Namespace) -> int:
               f'{", ".join(described_nodes(Path(args.bag))) or "no node"}): the re-run '
               'uses the default vehicle, law and safety parameters, the law its debug '
               'names where it has one (-p NAME=VALUE sets one)')
-    if filled:
+    schedule = {k: v for k, v in filled.items() if k != 'align_inputs'}
+    if schedule:
         # a bag from before the integral gain's speed schedule: the law ran with k_i
         # constant, which the schedule's defaults would not re-run
-        print(f'replay: the bag predates {", ".join(filled)} (the speed schedule of '
+        print(f'replay: the bag predates {", ".join(schedule)} (the speed schedule of '
               'lane_keeping.integral_gain): the re-run keeps k_i constant as it ran ('
-              f'{", ".join(f"{k}={v!r}" for k, v in filled.items())}; -p NAME=VALUE sets '
+              f'{", ".join(f"{k}={v!r}" for k, v in schedule.items())}; -p NAME=VALUE sets '
               'another)')
+    if 'align_inputs' in filled:
+        # a controller from before dev-sc52 read the latest yaw and velocity samples
+        print('replay: the bag predates align_inputs: the re-run reads the latest yaw and '
+              'velocity samples as the node did (align_inputs=False; -p align_inputs=true '
+              "reads them at the lateral error's stamp)")
     if result.estimated:
         dropped = (f'; in {result.dropped} of them it was received and dropped: the map '
                    'check found it far off the yaw rate, lane_keeping.map_fallback'

@@ -537,7 +537,8 @@ NOT_MODELED = frozenset({
     'watchdog_rate_hz', 'mode', 'rate_hz', 'sync_timeout', 'qos_reliability', 'frame_id',
     'autostart', 'diagnostics_rate_hz', 'executor', 'use_sim_time'})
 # node parameters it models besides the parameter sets of LAW_SETS
-MODELED = ('law', 'acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps')
+MODELED = ('law', 'acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps',
+           'align_inputs')
 # the parameter sets (namespaces) the re-run builds the controller and every law from
 LAW_SETS = ('vehicle', 'controller', 'safety', 'lane_keeping', 'pure_pursuit', 'stanley',
             'lqr')
@@ -556,16 +557,25 @@ def as_it_ran(params: Mapping[str, Any],
     law), but is ``integral_gain`` (the overridden one if ``-p`` sets it): ``k_i``
     constant. An override of the name itself wins.
 
+    A bag of a controller node without ``align_inputs`` (its parameters recorded, among
+    them ``use_curvature_preview``, which every node since the first has; before
+    dev-sc52) read the latest yaw and velocity samples: ``align_inputs`` false (a bag of
+    inputs on one stamp re-runs the same either way).
+
     :param params: the recorded parameters (empty: nothing is filled in).
     :param overrides: ``name -> value`` replacing recorded values.
     :return: ``name -> value`` to use where the bag has none (empty: nothing missing).
     """
     overrides = overrides or {}
+    filled: dict[str, Any] = {}
+    if 'use_curvature_preview' in params and 'align_inputs' not in params:
+        filled['align_inputs'] = False
     low = 'lane_keeping.low_speed_integral_gain'
     if ('lane_keeping.integral_gain' not in params or low in params or low in overrides):
-        return {}
-    return {low: overrides.get('lane_keeping.integral_gain',
-                               params['lane_keeping.integral_gain'])}
+        return filled
+    filled[low] = overrides.get('lane_keeping.integral_gain',
+                                params['lane_keeping.integral_gain'])
+    return filled
 
 
 def controller_from_params(params: Mapping[str, Any],
@@ -618,7 +628,8 @@ def _core_arguments(merged: Mapping[str, Any], source: str) -> tuple[Any, ...]:
     lane_keeping = dataclass_from_params(LaneKeepingParams, merged, 'lane_keeping', source)
     return (vehicle, controller, str(merged.get('acceleration_source', 'imu')),
             bool(merged.get('use_curvature_preview', False)), safety,
-            str(merged.get('law', 'paper')), baselines, lane_keeping)
+            str(merged.get('law', 'paper')), baselines, lane_keeping,
+            bool(merged.get('align_inputs', True)))
 
 
 def reconfigure(core: SteeringController, params: Mapping[str, Any],
@@ -635,11 +646,11 @@ def reconfigure(core: SteeringController, params: Mapping[str, Any],
     """
     merged = {**params, **as_it_ran(params, overrides), **(overrides or {})}
     source = f'parameters of {node} set at run time'
-    vehicle, controller, accel, preview, safety, law, baselines, lane_keeping = (
+    vehicle, controller, accel, preview, safety, law, baselines, lane_keeping, align = (
         _core_arguments(merged, source))
     try:
         core.configure(vehicle, controller, accel, preview, safety, law, baselines,
-                       lane_keeping)
+                       lane_keeping, align)
     except ParameterError as exc:
         raise ConfigError(f'{source}: {exc}') from exc
 

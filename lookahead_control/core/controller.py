@@ -22,6 +22,7 @@ and the whole input -> command path testable without DDS.
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from dataclasses import dataclass, replace
 import math
 from typing import Any, Optional
@@ -49,6 +50,9 @@ PREVIEW_HORIZON = 100.0     # [m] how far the curvature slope is extended for th
 #: the speed, relative yaw and lateral error taken last serve the speed check's odometer
 #: within this of a preview [s]
 SPEED_AGE = 0.5
+#: yaw and velocity samples kept to be read at a lateral error's stamp (``align_inputs``):
+#: at most this many (a 1 kHz IMU over the default 0.2 s input timeout is 200)
+KEPT_SAMPLES = 512
 
 
 def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
@@ -239,7 +243,8 @@ class SteeringController:
                  acceleration_source: str = 'imu', use_preview: bool = False,
                  safety: Optional[SafetyParams] = None, law: str = 'paper',
                  baselines: Optional[BaselineParams] = None,
-                 lane_keeping: Optional[LaneKeepingParams] = None) -> None:
+                 lane_keeping: Optional[LaneKeepingParams] = None,
+                 align_inputs: bool = True) -> None:
         """
         Create the controller state.
 
@@ -256,8 +261,14 @@ class SteeringController:
         :param law: the steering law, one of :data:`LAW_NAMES`.
         :param baselines: the baseline laws' parameters (defaults if None).
         :param lane_keeping: the ``cg_compensated`` law's settings (defaults if None).
+        :param align_inputs: read the yaw and the velocity at the lateral error's stamp
+            (:meth:`aligned`; False: their latest samples, as before dev-sc52).
         """
         self.law_name = ''
+        self.align_inputs = bool(align_inputs)
+        #: the yaw and velocity samples taken, oldest first, within ``input_timeout`` of
+        #: the newest (at most :data:`KEPT_SAMPLES`): what :meth:`aligned` reads
+        self._kept: dict[str, list[Any]] = {'yaw': [], 'velocity': []}
         self.baselines = baselines or BaselineParams()
         self.lane_keeping = lane_keeping or LaneKeepingParams()
         self.law: Law = PaperLaw(vehicle, controller)
@@ -408,7 +419,8 @@ class SteeringController:
                   acceleration_source: str, use_preview: bool,
                   safety: Optional[SafetyParams] = None, law: Optional[str] = None,
                   baselines: Optional[BaselineParams] = None,
-                  lane_keeping: Optional[LaneKeepingParams] = None) -> None:
+                  lane_keeping: Optional[LaneKeepingParams] = None,
+                  align_inputs: Optional[bool] = None) -> None:
         """
         Replace the parameters (between two control steps).
 
@@ -424,7 +436,10 @@ class SteeringController:
         :param law: see the constructor (None: keep).
         :param baselines: see the constructor (None: keep).
         :param lane_keeping: see the constructor (None: keep).
+        :param align_inputs: see the constructor (None: keep).
         """
+        if align_inputs is not None:
+            self.align_inputs = bool(align_inputs)
         self.lane_keeping = lane_keeping or self.lane_keeping
         self._select_law(law or self.law_name, vehicle, controller,
                          baselines or self.baselines)
@@ -540,6 +555,8 @@ class SteeringController:
         it, the next ones move from it.
         """
         self.lateral = self.yaw = self.velocity = self.curvature = None
+        for kept in self._kept.values():
+            kept.clear()
         self._duplicated_now.clear()
         self._accel_anchor = None
         self._accel_estimate = 0.0
@@ -1044,6 +1061,7 @@ class SteeringController:
 
     def update_yaw(self, sample: YawSample) -> None:
         """Store the latest yaw sample."""
+        self._keep('yaw', sample)
         self.yaw = sample
 
     def update_velocity(self, sample: VelocitySample) -> None:
@@ -1057,11 +1075,65 @@ class SteeringController:
         self._accel_estimate, self._accel_anchor = differentiated_step(
             self._accel_estimate, self._accel_anchor, sample.stamp_ns, sample.v_x,
             self.safety.max_acceleration)
+        self._keep('velocity', sample)
         self.velocity = sample
 
     def update_curvature(self, sample: CurvatureSample) -> None:
         """Store the latest curvature sample."""
         self.curvature = sample
+
+    def _keep(self, name: str, sample: Any) -> None:
+        """Keep a yaw or velocity sample for :meth:`aligned` (a stamp back: anew)."""
+        kept = self._kept[name]
+        if kept and sample.stamp_ns <= kept[-1].stamp_ns:
+            kept.clear()
+        kept.append(sample)
+        oldest = sample.stamp_ns - int(self.safety.input_timeout * 1e9)
+        if len(kept) > 2 * KEPT_SAMPLES or kept[0].stamp_ns < oldest - int(1e9):
+            drop = max(len(kept) - KEPT_SAMPLES,
+                       bisect_right([s.stamp_ns for s in kept], oldest) - 1)
+            del kept[:max(0, drop)]
+
+    def aligned(self, name: str) -> Any:
+        """
+        Return the yaw or velocity sample at the lateral error's stamp (``align_inputs``).
+
+        The law's state is one instant's: a lane camera's lateral error and relative yaw
+        come 50-120 ms after the frame, beside a yaw rate and a speed of now; mixed, the
+        state never was (dev-probe117: S2 at 37 m/s 9.5-13.8 cm against 1.4-3.4 with
+        every input of the frame's instant). So the samples are read at the lateral
+        error's stamp: linearly between the two kept samples around it (one stamped
+        exactly there: that sample), the newest where none is newer (as without
+        alignment; every input on one stamp, as the simulator sends them: the same
+        samples, bit for bit), the oldest kept where every one is newer.
+
+        :param name: ``yaw`` or ``velocity``.
+        :return: the sample (its stamp the lateral error's where interpolated; None
+            before the first).
+        """
+        latest = getattr(self, name)
+        lateral = self.lateral
+        if (not self.align_inputs or latest is None or lateral is None
+                or latest.stamp_ns <= lateral.stamp_ns):
+            return latest
+        kept = self._kept[name]
+        stamp = lateral.stamp_ns
+        i = bisect_right([s.stamp_ns for s in kept], stamp)
+        if i == 0:
+            return kept[0]
+        before, after = kept[i - 1], kept[i]
+        if before.stamp_ns == stamp:
+            return before
+        w = (stamp - before.stamp_ns) / (after.stamp_ns - before.stamp_ns)
+        if name == 'yaw':
+            # the relative yaw across +-pi the short way (a wrapped angle's mean is not)
+            turn = math.remainder(after.relative_yaw - before.relative_yaw, 2.0 * math.pi)
+            return YawSample(stamp, math.remainder(before.relative_yaw + w * turn,
+                                                   2.0 * math.pi),
+                             before.yaw_rate + w * (after.yaw_rate - before.yaw_rate),
+                             before.accel_x + w * (after.accel_x - before.accel_x))
+        return VelocitySample(stamp, before.v_x + w * (after.v_x - before.v_x),
+                              before.v_y + w * (after.v_y - before.v_y))
 
     def missing(self) -> list[str]:
         """Return the names of the inputs never received (curvature is optional)."""
@@ -1087,11 +1159,20 @@ class SteeringController:
         samples = [self.yaw, self.velocity] + ([curvature] if waited else [])
         return all(s is not None and s.stamp_ns >= stamp_ns for s in samples)
 
-    def acceleration(self) -> float:
-        """Return a_x from the configured source [m/s^2]."""
-        if self.acceleration_source == 'imu' and self.yaw is not None:
-            v_y = self.velocity.v_y if self.velocity else 0.0
-            return self.yaw.accel_x + v_y * self.yaw.yaw_rate
+    def acceleration(self, yaw: Optional[YawSample] = None,
+                     velocity: Optional[VelocitySample] = None) -> float:
+        """
+        Return a_x from the configured source [m/s^2].
+
+        :param yaw: the yaw sample to use (None: the latest).
+        :param velocity: the velocity sample to use (None: the latest).
+        :return: a_x.
+        """
+        yaw = yaw or self.yaw
+        velocity = velocity or self.velocity
+        if self.acceleration_source == 'imu' and yaw is not None:
+            v_y = velocity.v_y if velocity else 0.0
+            return yaw.accel_x + v_y * yaw.yaw_rate
         if self.acceleration_source == 'differentiate':
             return self._accel_estimate
         return 0.0
@@ -1106,15 +1187,16 @@ class SteeringController:
         """
         if self.lateral is None or self.yaw is None or self.velocity is None:
             return None
-        eps_r = self.yaw.relative_yaw
+        yaw, velocity = self.aligned('yaw'), self.aligned('velocity')
+        eps_r = yaw.relative_yaw
         road = self.road()
         rho, slope = (road.rho, road.slope) if (
             road is not None and not self.curvature_lost(now_ns)) else (0.0, 0.0)
-        v_x = self.velocity.v_x
+        v_x = velocity.v_x
         return LateralState(
             y_cg=cg_error_from(self.lateral.value, eps_r, self.lateral.distance),
-            eps_r=eps_r, v_y=self.velocity.v_y, r=self.yaw.yaw_rate, v_x=v_x,
-            a_x=self.acceleration(), rho=rho,
+            eps_r=eps_r, v_y=velocity.v_y, r=yaw.yaw_rate, v_x=v_x,
+            a_x=self.acceleration(yaw, velocity), rho=rho,
             rho_rate=v_x * slope if self.use_preview else 0.0)
 
     def compute(self, now_ns: Optional[int] = None,

@@ -76,6 +76,9 @@ NODE_SPECS = (
          'differentiated from v_x, or zero', choices=ACCELERATION_SOURCES),
     Spec('use_curvature_preview', False, 'feed d rho/dt forward from the curvature '
          'preview (false: curvature at the CG only, as in the paper)'),
+    Spec('align_inputs', True, "read the yaw and velocity at the lateral error's stamp, "
+         'between the samples around it (a lane camera late beside an IMU of now: the '
+         "law's state one instant's; false: their latest samples)"),
     Spec('autostart', True, 'configure and activate at start-up'),
     Spec('frame_id', 'base_link', "inputs in another frame are refused ('': any)"),
     Spec('watchdog_rate_hz', 20.0, 'stale-input check and safe-command rate [Hz]',
@@ -187,7 +190,7 @@ def core_from_params(params: Mapping[str, Any]) -> SteeringController:
     return SteeringController(vehicle, controller, params['acceleration_source'],
                               params['use_curvature_preview'], safety_params(params),
                               params['law'], baseline_params(params),
-                              lane_keeping_params(params))
+                              lane_keeping_params(params), params['align_inputs'])
 
 
 def check_parameters(params: Mapping[str, Any]) -> None:
@@ -323,7 +326,8 @@ class ControllerNode(LifecycleNode):
         lane_keeping = lane_keeping_params(params)
         self.core.configure(vehicle, controller, params['acceleration_source'],
                             params['use_curvature_preview'], safety_params(params),
-                            params['law'], baseline_params(params), lane_keeping)
+                            params['law'], baseline_params(params), lane_keeping,
+                            params['align_inputs'])
         self.get_logger().info(applied_summary(params['law'], controller, lane_keeping))
 
     def param(self, name: str) -> Any:

@@ -53,6 +53,7 @@ from lookahead_control.core.cli import (claim_output, markdown_table, number, on
                                         record_output, run_tool, ToolError, write_csv,
                                         write_json)
 from lookahead_control.core.control_law import arc_offset
+from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.interrupts import raise_if_received
 from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
 from lookahead_control.core.laws import Law, PaperLaw
@@ -64,6 +65,8 @@ import numpy as np
 import numpy.typing as npt
 from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import load_scenario, Scenario
+from sim_plant.sensor_timing import (parse_stream, SensorTiming, StreamTiming, timed_run,
+                                     TIMED_STREAMS)
 from sim_plant.sensors import NoiseParams
 from sim_plant.vehicle_model import PlantParams
 
@@ -109,6 +112,11 @@ class LawSettings:
     :param safety: ``safety.*``: the node's limits (default: ``config/controller.yaml``'s);
         the offline tools run its output stage with them
         (:class:`~lookahead_control.core.output_stage.NodeOutputStage`).
+    :param align_inputs: the node's ``align_inputs`` (yaw and velocity read at the
+        lateral error's stamp): it matters only with inputs on their own stamps, which
+        ``compare --camera`` / ``--stream`` runs (:mod:`sim_plant.sensor_timing`).
+    :param wait_for_matching_stamps: the node's (event mode), run with a sensor timing.
+    :param sync_timeout: the node's (the longest wait for matching stamps) [s].
     """
 
     controller: ControllerParams = ControllerParams()
@@ -120,6 +128,9 @@ class LawSettings:
     mode: str = 'event'
     rate_hz: float = 100.0
     safety: SafetyParams = field(default_factory=lambda: package_safety())
+    align_inputs: bool = True
+    wait_for_matching_stamps: bool = False
+    sync_timeout: float = 0.05
 
 
 #: the node's settings that change a run but that the offline loop does not run (it
@@ -280,7 +291,11 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                        str(params.get('law', package['law'])),
                        str(params.get('mode', package['mode'])),
                        float(params.get('rate_hz', package['rate_hz'])),
-                       dataclass_from_params(SafetyParams, params, 'safety', str(path)))
+                       dataclass_from_params(SafetyParams, params, 'safety', str(path)),
+                       bool(params.get('align_inputs', package['align_inputs'])),
+                       bool(params.get('wait_for_matching_stamps',
+                                       package['wait_for_matching_stamps'])),
+                       float(params.get('sync_timeout', package['sync_timeout'])))
 
 
 def package_node_defaults() -> dict[str, Any]:
@@ -815,6 +830,7 @@ def run_case(task: tuple[Any, ...]) -> list[dict[str, Any]]:
     settings = task[7] if len(task) > 7 else LawSettings()
     seeds = task[8] if len(task) > 8 else 1
     factory = task[9] if len(task) > 9 else None
+    timing = task[10] if len(task) > 10 else None
     scenario = load_scenarios([scenario_name])[scenario_name]
     if duration is not None:
         scenario = replace(scenario, duration=duration)
@@ -822,8 +838,11 @@ def run_case(task: tuple[Any, ...]) -> list[dict[str, Any]]:
     for case in plants:
         runs = case_runs(case, speeds, seeds)
         try:
-            metrics = _plant_runs(law_name, scenario_name, scenario, runs, case,
-                                  league_vehicle, dt, settings, factory)
+            metrics = (_plant_runs(law_name, scenario_name, scenario, runs, case,
+                                   league_vehicle, dt, settings, factory)
+                       if timing is None else
+                       _timed_runs(law_name, scenario_name, scenario, runs, case,
+                                   league_vehicle, dt, settings, timing))
         except Exception as err:        # one plant's failure loses no other row
             metrics = [empty_row(FAILED + one_line(f'{type(err).__name__}: {err}'))] * len(
                 runs)
@@ -864,6 +883,68 @@ def _plant_runs(law_name: str, scenario_name: str, scenario: Scenario,
     return rows
 
 
+#: the node's law and ``controller.schedule`` of each league law it runs by name
+NODE_LAWS = {'paper_fixed': ('paper', 'fixed'), 'paper_eq26': ('paper', 'paper'),
+             'pure_pursuit': ('pure_pursuit', None), 'stanley': ('stanley', None),
+             'lqr': ('lqr', None), 'cg_compensated': ('cg_compensated', None)}
+
+
+def node_core(law_name: str, vehicle: VehicleParams, settings: LawSettings
+              ) -> SteeringController:
+    """
+    Return the controller node's core running a league law with these settings.
+
+    :param law_name: a league law the node runs (a key of :data:`NODE_LAWS`).
+    :param vehicle: the law's vehicle model.
+    :param settings: the node's settings.
+    :return: the core, as the node builds it from its parameters.
+    :raises ToolError: a law the node does not run (one added to :data:`LAWS`).
+    """
+    if law_name not in NODE_LAWS:
+        raise ToolError(f'law {law_name!r}: a sensor timing runs the core of the controller '
+                        f'node, which runs only {", ".join(NODE_LAWS)}')
+    law, schedule = NODE_LAWS[law_name]
+    controller = (settings.controller if schedule is None
+                  else replace(settings.controller, schedule=schedule))
+    return SteeringController(vehicle, controller, settings.acceleration_source,
+                              settings.curvature_rate, settings.safety, law,
+                              settings.baselines, settings.lane_keeping,
+                              settings.align_inputs)
+
+
+def _timed_runs(law_name: str, scenario_name: str, scenario: Scenario,
+                runs: Sequence[tuple[float, Optional[int]]], case: PlantCase,
+                league_vehicle: VehicleParams, dt: float, settings: LawSettings,
+                timing: SensorTiming) -> list[dict[str, Any]]:
+    """Return the rows of one plant's runs with a sensor timing (one run at a time)."""
+    vehicle = case.law_vehicle(league_vehicle)
+
+    def one(speed: float, noise: Optional[NoiseParams], seed: int) -> SimResult:
+        return timed_run(scenario.at_speed(speed), node_core(law_name, vehicle, settings),
+                         timing, case.plant, dt=case.dt or dt, delay=case.delay,
+                         noise=noise, seed=seed, mode=settings.mode,
+                         rate_hz=settings.rate_hz,
+                         wait_for_stamps=settings.wait_for_matching_stamps,
+                         sync_timeout=settings.sync_timeout)
+
+    rows = []
+    twins: dict[float, SimResult] = {}
+    for speed, seed in runs:
+        if not case.noisy:
+            rows.append(run_row(one(speed, None, 0), None, vehicle, None,
+                                safety=settings.safety))
+            continue
+        if speed not in twins:              # the noise-free twin of each speed
+            twins[speed] = one(speed, None, 0)
+        twin = twins[speed]
+        rows.append(run_row(
+            one(speed, NoiseParams(), int(seed or 0)), None, vehicle,
+            twin['steering_cmd'] if scenario_name == NOISE_SCENARIO else None,
+            {'yaw_overshoot': twin['eps_r'], 'yaw_rate_overshoot': twin['r']},
+            safety=settings.safety))
+    return rows
+
+
 def finish_row(law: str, scenario: str, plant: str, speed: float,
                metrics: Mapping[str, Any], seed: Optional[int] = None) -> dict[str, Any]:
     """
@@ -890,7 +971,7 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
            plants: Sequence[PlantCase], vehicle: VehicleParams, dt: float = DT,
            workers: int = 1, duration: Optional[float] = None,
            progress: bool = False, settings: Optional[LawSettings] = None,
-           seeds: int = 1) -> list[dict[str, Any]]:
+           seeds: int = 1, timing: Optional[SensorTiming] = None) -> list[dict[str, Any]]:
     """
     Run the league: every law on every scenario, plant and speed.
 
@@ -907,6 +988,9 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
         ``config/controller.yaml``).
     :param seeds: noise seeds per speed on the noisy plant (:func:`run_seed`; 1: the
         league's one seed per speed).
+    :param timing: each input on its own rate and latency through the controller node's
+        core (:mod:`sim_plant.sensor_timing`, one run at a time); None: the offline
+        runner, every input at each 10 ms step on one stamp.
     :return: one row per run, in a fixed order (law, scenario, plant, speed, seed).
     """
     settings = settings or LawSettings()
@@ -916,7 +1000,7 @@ def league(laws: Sequence[str], scenarios: Sequence[str], speeds: Sequence[float
     # multi-body runs
     factories = {law: sent_factory(law, workers) for law in laws}
     tasks = [(law, name, scenario_speeds(loaded[name], speeds), (case,), vehicle, dt,
-              duration, settings, seeds, factories[law])
+              duration, settings, seeds, factories[law], timing)
              for law in laws for name in scenarios for case in plants]
     bar = None
     if progress:
@@ -1374,7 +1458,7 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
 def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Path,
                  plot: bool = True, duration: Optional[float] = None,
                  settings: Optional[tuple[str, LawSettings]] = None,
-                 seeds: int = 1) -> Path:
+                 seeds: int = 1, timing: Optional[SensorTiming] = None) -> Path:
     """
     Write league.csv (every run), league.md (summary, goals, per scenario), league.png.
 
@@ -1390,6 +1474,8 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         (said in the table's head; None: the package defaults).
     :param seeds: noise seeds per speed on the noisy plant (more than 1: league.md has
         a section with each goal's share of runs met).
+    :param timing: the inputs' timing the runs had (said in the table's head; None: the
+        offline runner's, every input at each 10 ms step on one stamp).
     :return: the markdown file.
     """
     out.mkdir(parents=True, exist_ok=True)
@@ -1412,6 +1498,11 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         "first table the metric columns are the goal plant's runs; the runs off the road, "
         'diverged and failed, and the goals met, count every plant of the league. '
         'Definitions: docs/baselines.md.', '',
+        *([] if timing is None else [
+            f'**Sensor timing (`--camera` / `--stream`): {timing.describe()}; every run '
+            "through the controller node's core (its input checks, event or timer "
+            'answers, watchdog), the inputs stamped at their capture: not the timing of '
+            'the goal rows (every input at 100 Hz on one stamp).**', '']),
         *([] if duration is None else [
             f'**Every scenario cut to {duration:g} s of simulated time (`--duration`): a '
             "quick look, not the league; the goal rows assume the scenarios' own.**", '']),
@@ -1646,15 +1737,32 @@ def main(argv: Sequence[str] | None = None) -> int:
                    'through: safety.max_steering_angle, max_steering_rate, '
                    'max_lateral_acceleration, low_speed, low_speed_blend; default: the '
                    'package defaults, the one tuning the goal rows are for)')
+    p.add_argument('--camera', default=None, metavar='HZ/S',
+                   help="the lateral error's rate and latency (a lane camera: 20/0.12 is "
+                   '20 Hz, stamped at the frame and 120 ms late): every run goes through '
+                   "the controller node's core with the inputs on their own stamps "
+                   '(sim_plant/sensor_timing.py, one run at a time: slower); the yaw, '
+                   'velocity and curvature go with each frame, of its instant, unless '
+                   '--stream gives them their own')
+    p.add_argument('--stream', action='append', default=[], metavar='NAME=HZ/S',
+                   help=f'an input on its own rate and latency ({", ".join(TIMED_STREAMS)}; '
+                   'e.g. yaw=100/0.005; repeat for each; the others at 100 Hz without '
+                   'latency)')
     args = p.parse_args(argv)
     from lookahead_control.core.config import ConfigError, load_vehicle
+    timing = sensor_timing(args.camera, args.stream)
+    if timing is not None and args.tune:
+        raise ToolError("--camera / --stream: --tune scores the baselines' grids on the "
+                        'offline runner; use one or the other')
     vehicle = load_vehicle(args.vehicle)
     settings = None
     if args.controller is not None:
         if args.tune:
             raise ToolError("--controller: --tune scores the baselines' grids, not a file's "
                             'settings; use one or the other')
-        settings = load_law_settings(args.controller, vehicle, tool='compare')
+        settings = (load_law_settings(args.controller, vehicle, tool='compare')
+                    if timing is None else
+                    load_law_settings(args.controller, vehicle, not_run=(), tool='compare'))
         for name in args.laws:       # a setting no law accepts: one line, before any run
             try:
                 LAWS[name](vehicle, settings)
@@ -1697,14 +1805,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     note = load_transfer_note(vehicle, args.plants, args.laws)
     if note:
         print(f'compare: note: {note}', file=sys.stderr)
+    if timing is not None:
+        unrun = [name for name in args.laws if name not in NODE_LAWS]
+        if unrun:
+            raise ToolError(f'--camera / --stream: {unrun[0]!r} is no law the controller '
+                            f'node runs ({", ".join(NODE_LAWS)}): leave it out of --laws')
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
                   args.workers, args.duration, progress=not args.no_progress,
-                  settings=settings, seeds=args.seeds)
+                  settings=settings, seeds=args.seeds, timing=timing)
     report = write_report(rows, args.laws, args.out, plot=not args.no_plots,
                           duration=args.duration,
                           settings=None if settings is None else (str(args.controller),
                                                                   settings),
-                          seeds=args.seeds)
+                          seeds=args.seeds, timing=timing)
     record_output(args.out, 'compare', [args.out / name for name in outputs], previous)
     table = summary(rows, args.laws)
     print(markdown_table(table, digits=3))
@@ -1729,6 +1842,35 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{first['speed_mps']:g} m/s: {first['notes'][len(FAILED):]}", file=sys.stderr)
         return 1
     return 0
+
+
+def sensor_timing(camera: Optional[str], streams: Sequence[str]) -> Optional[SensorTiming]:
+    """
+    Return the inputs' timing of ``--camera`` and ``--stream`` (None: neither given).
+
+    :param camera: ``HZ/S`` of the lateral error (None: 100 Hz, no latency).
+    :param streams: ``NAME=HZ/S`` of the other inputs (none: they go with each frame).
+    :return: the timing.
+    :raises ToolError: a bad value, an unknown or repeated name.
+    """
+    if camera is None and not streams:
+        return None
+    own: dict[str, StreamTiming] = {}
+    try:
+        lateral = StreamTiming() if camera is None else parse_stream(camera)
+        for text in streams:
+            name, sep, value = text.partition('=')
+            name = name.strip()
+            if not sep or name not in TIMED_STREAMS:
+                raise ToolError(f'--stream {text!r}: not NAME=HZ/S with NAME one of '
+                                f'{", ".join(TIMED_STREAMS)} (the lateral error\'s is '
+                                '--camera)')
+            if name in own:
+                raise ToolError(f'--stream {name}: given twice; give each input once')
+            own[name] = parse_stream(value)
+    except ParameterError as err:
+        raise ToolError(f'--camera / --stream: {err}') from err
+    return SensorTiming(lateral, **own, with_frame=not streams)
 
 
 def entry() -> int:
