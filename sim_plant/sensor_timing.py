@@ -35,9 +35,10 @@ lateral error, stamped with it and of its instant (what ``docs/vehicle_bridge.md
 advises a camera's bridge to send); without it each goes at its own rate.
 
 Everything is quantized to the plant step ``dt``: a capture at ``k / rate_hz +
-phase`` is measured at the plant step nearest to it, and delivered ``round(latency /
-dt)`` steps later. The run is sampled every ``SAMPLE_PERIOD`` into a
-:class:`~sim_plant.closed_loop_sim.SimResult` (the league's metrics apply to it).
+phase`` is measured at the plant step nearest to it, and delivered the number of steps
+nearest to ``latency / dt`` later (halves up); a rate above ``1 / dt`` is refused. The
+run is sampled every ``SAMPLE_PERIOD`` into a :class:`~sim_plant.closed_loop_sim.SimResult`
+(the league's metrics apply to it).
 """
 
 from __future__ import annotations
@@ -146,6 +147,30 @@ def parse_stream(text: str) -> StreamTiming:
         raise ParameterError(f'timing {text!r} is not RATE/LATENCY (Hz / s, e.g. 20/0.12): '
                              f'{err}') from err
     return StreamTiming(rate, latency)
+
+
+def check_timing(timing: SensorTiming, dt: float) -> None:
+    """
+    Refuse a timing the plant step cannot give: more than one capture per step.
+
+    :param timing: the inputs' timing.
+    :param dt: the plant step [s].
+    :raises ParameterError: a rate above ``1 / dt`` (dev-probe120: 1000 Hz at a 5 ms step
+        was five captures per step on one stamp, four of them refused as repeats, and the
+        report said 1000 Hz).
+    """
+    names = ('lateral_error',) if timing.with_frame else STREAMS
+    for name in names:
+        rate = getattr(timing, name).rate_hz
+        if rate * dt > 1.0 + 1e-9:
+            raise ParameterError(f'{name}: rate_hz = {rate:g} Hz is more than one capture per '
+                                 f'plant step of {dt:g} s; allowed: at most {1.0 / dt:g} Hz '
+                                 '(a smaller dt)')
+
+
+def _steps(time: float, dt: float) -> int:
+    """Return the plant step nearest to ``time`` (halves up: 5 ms at a 2 ms step is 3)."""
+    return math.floor(time / dt + 0.5)
 
 
 @dataclass(frozen=True)
@@ -268,11 +293,16 @@ def timed_run(scenario: Scenario, core: SteeringController, timing: SensorTiming
     :param sensor_distance: where ahead of the CG the lateral error is measured [m].
     :return: the run, sampled every ``SAMPLE_PERIOD``; ``steering_cmd`` the last command
         sent (the law's outputs NaN: the core's answers are in ``law``'s place, None).
-    :raises ParameterError: a step, delay or mode out of range.
+    :raises ParameterError: a step, delay, rate, timeout or mode out of range.
     """
     plant = plant or PlantParams()
     if mode not in ('event', 'timer'):
         raise ParameterError(f"mode = {mode!r} is not allowed; allowed: 'event', 'timer'")
+    # the node's ranges (its parameter descriptors)
+    check_range('rate_hz', rate_hz, 1.0, 2000.0, unit='Hz')
+    check_range('watchdog_hz', watchdog_hz, 1.0, 1000.0, unit='Hz')
+    check_range('sync_timeout', sync_timeout, 0.0, 1.0, unit='s')
+    check_timing(timing, dt)
     sample_ratio, _ = check_steps(dt, SAMPLE_PERIOD, scenario.duration)
     n_steps = int(round(scenario.duration / dt))
     lag = int(delay_steps(delay, dt))
@@ -306,7 +336,7 @@ def timed_run(scenario: Scenario, core: SteeringController, timing: SensorTiming
         for name in own:
             stream: StreamTiming = getattr(timing, name)
             while True:
-                at = int(round((next_capture[name] / stream.rate_hz + stream.phase) / dt))
+                at = _steps(next_capture[name] / stream.rate_hz + stream.phase, dt)
                 if at > k:
                     break
                 next_capture[name] += 1
@@ -319,7 +349,7 @@ def timed_run(scenario: Scenario, core: SteeringController, timing: SensorTiming
                          else (name,))
                 samples = tuple(s for n in names for s in _samples(
                     n, now, truth, x, noise_row, sensor_distance, preview))
-                arrival = k + int(round(stream.latency / dt))
+                arrival = k + _steps(stream.latency, dt)
                 heapq.heappush(in_flight, (arrival, STREAMS.index(name), count,
                                            _Delivery(name, now, samples)))
                 count += 1

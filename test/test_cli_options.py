@@ -658,6 +658,10 @@ def _compare():
         '--no-progress': ((), no_progress),
         '--duration': (NON_NUMBERS + ('0', '-1', '1e9'), differs('--duration', '3')),
         '--seeds': (NON_NUMBERS + ('0', '-1', '2.5', '1001'), seeds),
+        '--camera': (('bogus', '20', '0.5/0.1', '20/5', '20/-1', '1000/0'),
+                     differs('--camera', '20/0.12')),
+        '--stream': (('bogus', 'yaw', 'lateral_error=20/0', 'yaw=0/0', 'yaw=100/x'),
+                     differs('--stream', 'yaw=20/0.05')),
     }
 
 

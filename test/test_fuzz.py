@@ -77,6 +77,19 @@ SAMPLES = {'lateral_error': LateralErrorSample, 'yaw': YawSample,
                           st.sampled_from([True, True, True, False])), max_size=30),
        st.sampled_from(['paper', 'exact', 'fixed']),
        st.sampled_from(['imu', 'differentiate', 'zero']))
+# dev-sc52: the angle limit took the speed read at the lateral error's stamp (align_inputs),
+# between a speed of 0 and one of 18 m/s: a command over the limit at the newest speed
+@example(sequence=[(('lateral_error', 0, 0.0, 0.0), 0, True),
+                   (('lateral_error', 0, 0.0, 0.0), 0, True),
+                   (('velocity', 0, 0.0, 0.0), 0, True),
+                   (('yaw', 0, 0.0, 0.0, 0.0), 200000001, True),
+                   (('lateral_error', 0, 0.0, 0.0), 0, True),
+                   (('lateral_error', 0, 0.0, 0.0), 0, True),
+                   (('tick', 0), 2, True),
+                   (('lateral_error', 1, 0.0, 3.0), 0, True),
+                   (('lateral_error', 0, 0.0, 6.0), 0, True),
+                   (('velocity', 0, 18.0, 1.0), 0, True),
+                   (('tick', 0), 0, True)], schedule='fixed', acceleration='imu')
 def test_no_input_sequence_gives_a_bad_command(sequence, schedule, acceleration):
     core = SteeringController(VEHICLE, ControllerParams(schedule=schedule), acceleration,
                               True, SAFETY)

@@ -1012,7 +1012,8 @@ def _effect(node, name):
             'sync_timeout': lambda: node._sync_timeout,
             'max_answer_rate_hz': lambda: node._pacer.rate_hz,
             'acceleration_source': lambda: core.acceleration_source,
-            'use_curvature_preview': lambda: core.use_preview}[name]()
+            'use_curvature_preview': lambda: core.use_preview,
+            'align_inputs': lambda: core.align_inputs}[name]()
 
 
 def test_every_parameter_set_at_runtime_takes_effect_or_is_refused(context):

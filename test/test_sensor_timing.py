@@ -26,6 +26,7 @@ import math
 
 from lookahead_control.bags.run_data import as_it_ran, controller_from_params
 from lookahead_control.core.cli import ToolError
+from lookahead_control.core.config import ConfigError
 from lookahead_control.core.controller import SteeringController
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.samples import LateralErrorSample, VelocitySample, YawSample
@@ -196,8 +197,32 @@ def test_a_flood_of_samples_keeps_a_bounded_history():
     from lookahead_control.core.controller import KEPT_SAMPLES
     core = SteeringController(VEHICLE, ControllerParams())
     for k in range(5 * KEPT_SAMPLES):
-        core.accept('yaw', YawSample(k * 1000, 0.0, 0.1, 0.0))   # 1 us apart
-    assert len(core._kept['yaw']) <= 2 * KEPT_SAMPLES
+        core.update_yaw(YawSample(k * 1000, 0.0, 0.1, 0.0))   # 1 us apart
+    assert len(core._kept['yaw'][1]) <= 2 * KEPT_SAMPLES
+    # over time: no more than two spans of input_timeout + max_future (0.3 s) at 100 Hz
+    core = SteeringController(VEHICLE, ControllerParams())
+    for k in range(1000):
+        core.update_yaw(YawSample(k * 10 * MS, 0.0, 0.1, 0.0))
+    assert 30 <= len(core._kept['yaw'][1]) <= 61
+
+
+def test_a_fast_imu_beside_a_late_camera_is_read_between_its_samples():
+    # dev-probe120: at most 512 samples were kept, so a 5 kHz IMU beside a camera 150 ms
+    # late was read at the oldest kept sample (0.047 m/s off); the node's clock keeps
+    # the stamps honest (a lateral error taken is within input_timeout of it)
+    core = SteeringController(VEHICLE, ControllerParams())
+    period = 200_000                                    # 5 kHz
+    for k in range(25_000):                             # 5 s
+        stamp = k * period
+        core.accept('velocity', VelocitySample(stamp, 20.0 + math.sin(stamp * 1e-9), 0.0),
+                    stamp)
+        if k % 1667 == 0 and stamp >= 150 * MS:          # a 3 Hz camera, 150 ms late
+            lateral = stamp - 150 * MS - 77_000         # between two IMU samples
+            assert core.accept('lateral_error', LateralErrorSample(lateral, 0.0, 0.1),
+                               stamp) is None
+            core.accept('yaw', YawSample(stamp, 0.0, 0.0, 0.0), stamp)
+            v_x = core.aligned('velocity').v_x
+            assert v_x == pytest.approx(20.0 + math.sin(lateral * 1e-9), abs=1e-6), stamp
 
 
 def test_a_late_camera_beside_an_imu_of_now_is_steered_on_one_instant():
@@ -259,3 +284,108 @@ def test_compare_refuses_a_bad_timing_in_one_line(tmp_path, args, part):
         return
     with pytest.raises(ToolError, match=part):
         compare.main(argv)
+
+
+def _camera_run(params):
+    """Make a run of a 25 Hz lateral error 80 ms late beside a yaw and velocity of now."""
+    from lookahead_control.bags.run_data import RunData, Samples
+    rng = np.random.default_rng(3)
+    imu = np.arange(0, 2000, 10, dtype=np.int64) * MS
+    frames = np.arange(0, 1900, 40, dtype=np.int64) * MS
+
+    def samples(stamp, recv, **values):
+        order = np.arange(stamp.size, dtype=np.int64)
+        return Samples(recv, stamp, order, values)
+    inputs = {
+        'lateral_error': samples(frames, frames + 80 * MS, distance=np.zeros(frames.size),
+                                 value=0.3 * rng.normal(size=frames.size)),
+        'yaw': samples(imu, imu, relative_yaw=0.02 * rng.normal(size=imu.size),
+                       yaw_rate=0.1 * rng.normal(size=imu.size),
+                       accel_x=rng.normal(size=imu.size)),
+        'velocity': samples(imu, imu, v_x=20.0 + rng.normal(size=imu.size),
+                            v_y=0.2 * rng.normal(size=imu.size))}
+    return RunData(bag=None, inputs=inputs, controller_params=params)
+
+
+def test_the_vectorized_re_run_reads_the_inputs_at_the_lateral_error_s_stamp_too():
+    # rerun_law (the paper law for all steps at once) took the latest yaw and velocity
+    # while rerun (the node's core) read them at the lateral error's stamp: with a
+    # camera 80 ms late every answer differed
+    from lookahead_control.bags.run_data import rerun, rerun_law
+    run = _camera_run({'law': 'paper'})
+    commands = rerun(run, order='receive').commands
+    stamps, law = rerun_law(run, order='receive')
+    assert len(commands) == len(stamps) > 40
+    for i, stamp in enumerate(stamps.tolist()):
+        assert float(law.steering[i]) == pytest.approx(commands[stamp].law.steering,
+                                                       rel=1e-12, abs=1e-15), stamp
+    latest = rerun(run, {'align_inputs': False}, order='receive').commands
+    assert max(abs(latest[k].steering - commands[k].steering) for k in commands) > 1e-3
+
+
+def test_a_params_file_under_a_camera_is_run_and_said_as_run(tmp_path, monkeypatch):
+    # dev-probe120: with --camera the report said safety.input_timeout 'not met: the
+    # inputs are exact and timely', said nothing of mode, align_inputs, wait_for_matching
+    # _stamps, ran the watchdog at 20 Hz whatever the file said, and dropped frame_id
+    params = tmp_path / 'controller.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    mode: timer\n    rate_hz: 50.0\n'
+                      '    align_inputs: false\n    wait_for_matching_stamps: true\n'
+                      '    watchdog_rate_hz: 50.0\n    safety:\n      input_timeout: 0.3\n')
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs)
+        return timed_run(*args, **kwargs)
+    monkeypatch.setattr(compare, 'timed_run', spy)
+    out = tmp_path / 'o'
+    argv = ['--laws', 'cg_compensated', '--scenarios', 's2_curve_entry', '--speeds', '37',
+            '--plants', 'nonlinear', '--camera', '25/0.08', '--controller', str(params),
+            '--out', str(out), '--no-plots', '--no-progress', '--workers', '1',
+            '--duration', '2']
+    assert compare.main(argv) == 0
+    assert {(k['mode'], k['rate_hz'], k['wait_for_stamps'], k['watchdog_hz'])
+            for k in seen} == {('timer', 50.0, True, 50.0)}
+    text = (out / 'league.md').read_text()
+    for line in ("`mode = 'timer'`", '`rate_hz = 50.0`', '`align_inputs = False`',
+                 '`wait_for_matching_stamps = True`', '`watchdog_rate_hz = 50.0`',
+                 '`safety.input_timeout = 0.3`.'):
+        assert line in text, line
+    assert 'not met' not in text
+    params.write_text('/**:\n  ros__parameters:\n    frame_id: odom\n')
+    with pytest.raises(ConfigError, match="frame_id = 'odom'.*does not"):
+        compare.main([*argv, '--overwrite'])
+
+
+def test_a_rate_above_one_capture_per_plant_step_is_refused():
+    # dev-probe120: 1000 Hz at a 5 ms step made five captures per step on one stamp
+    scenario = replace(_scenario('s0_straight'), duration=1.0)
+    core = compare.node_core('cg_compensated', VEHICLE, compare.LawSettings())
+    with pytest.raises(ParameterError, match='lateral_error: rate_hz = 1000 Hz .* at most 200'):
+        timed_run(scenario, core, SensorTiming(StreamTiming(1000.0, 0.0)), dt=DT)
+    with pytest.raises(ParameterError, match='yaw: rate_hz = 500 Hz'):
+        timed_run(scenario, core, SensorTiming(yaw=StreamTiming(500.0, 0.0)), dt=DT)
+    for kwargs, part in (({'rate_hz': 0.0}, 'rate_hz'), ({'watchdog_hz': 0.0}, 'watchdog_hz'),
+                         ({'sync_timeout': -1.0}, 'sync_timeout'),
+                         ({'rate_hz': math.nan}, 'rate_hz')):
+        with pytest.raises(ParameterError, match=part):
+            timed_run(scenario, core, SensorTiming(), dt=DT, **kwargs)
+    with pytest.raises(ToolError, match='on plant nonlinear: lateral_error: rate_hz = 300 Hz'):
+        compare.main(['--camera', '300/0', '--plants', 'nonlinear', '--speeds', '37',
+                      '--scenarios', 's0_straight', '--out', '/nonexistent/o'])
+
+
+def test_a_latency_half_a_plant_step_off_is_rounded_up():
+    # 5 ms at a 2 ms step arrives after 3 steps (6 ms), not 2 (round half to even: 4 ms)
+    s = compare.LawSettings()
+    core = _Log(VEHICLE, s.controller, law='cg_compensated', safety=s.safety)
+    scenario = replace(_scenario('s0_straight'), duration=0.2)
+    timed_run(scenario, core, SensorTiming(StreamTiming(100.0, 0.005), with_frame=True),
+              compare.NONLINEAR, dt=0.002)
+    assert {now - stamp for name, stamp, now in core.log} == {6 * MS}
+
+
+def test_an_override_of_align_inputs_is_not_said_to_be_filled_in():
+    # dev-probe120: replay said the re-run read the latest samples while -p align_inputs
+    # =true read them at the stamp
+    recorded = {'law': 'cg_compensated', 'use_curvature_preview': False}
+    assert as_it_ran(recorded, {'align_inputs': True}) == {}

@@ -568,7 +568,8 @@ def as_it_ran(params: Mapping[str, Any],
     """
     overrides = overrides or {}
     filled: dict[str, Any] = {}
-    if 'use_curvature_preview' in params and 'align_inputs' not in params:
+    if ('use_curvature_preview' in params and 'align_inputs' not in params
+            and 'align_inputs' not in overrides):
         filled['align_inputs'] = False
     low = 'lane_keeping.low_speed_integral_gain'
     if ('lane_keeping.integral_gain' not in params or low in params or low in overrides):
@@ -1412,6 +1413,11 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     usable &= (latest['yaw'][at] >= 0) & (latest['velocity'][at] >= 0)
     _, first = np.unique(group[usable], return_index=True)
     at = at[usable][np.sort(first)]
+    if core.align_inputs and any(bool(np.any(fed_stamp[latest[role][at]] > fed_stamp[at]))
+                                 for role in ('yaw', 'velocity')):
+        # a yaw or velocity newer than the lateral error it answers: the node read them
+        # between their samples at its stamp (align_inputs): step by step
+        return _stepped_law(rerun(run, overrides, order))
 
     def column(role: str, name: str) -> Array:
         if role not in latest:

@@ -51,8 +51,9 @@ PREVIEW_HORIZON = 100.0     # [m] how far the curvature slope is extended for th
 #: within this of a preview [s]
 SPEED_AGE = 0.5
 #: yaw and velocity samples kept to be read at a lateral error's stamp (``align_inputs``):
-#: at most this many (a 1 kHz IMU over the default 0.2 s input timeout is 200)
-KEPT_SAMPLES = 512
+#: those of the last ``input_timeout + max_future`` (the oldest lateral error taken), but
+#: at most this many (a 20 kHz IMU over the default 0.3 s is 6000)
+KEPT_SAMPLES = 8192
 
 
 def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
@@ -266,9 +267,11 @@ class SteeringController:
         """
         self.law_name = ''
         self.align_inputs = bool(align_inputs)
-        #: the yaw and velocity samples taken, oldest first, within ``input_timeout`` of
-        #: the newest (at most :data:`KEPT_SAMPLES`): what :meth:`aligned` reads
-        self._kept: dict[str, list[Any]] = {'yaw': [], 'velocity': []}
+        #: the yaw and velocity samples taken and their stamps, oldest first, back to
+        #: ``input_timeout + max_future`` before the newest (:meth:`_keep`): what
+        #: :meth:`aligned` reads
+        self._kept: dict[str, tuple[list[int], list[Any]]] = {'yaw': ([], []),
+                                                              'velocity': ([], [])}
         self.baselines = baselines or BaselineParams()
         self.lane_keeping = lane_keeping or LaneKeepingParams()
         self.law: Law = PaperLaw(vehicle, controller)
@@ -555,7 +558,8 @@ class SteeringController:
         it, the next ones move from it.
         """
         self.lateral = self.yaw = self.velocity = self.curvature = None
-        for kept in self._kept.values():
+        for stamps, kept in self._kept.values():
+            stamps.clear()
             kept.clear()
         self._duplicated_now.clear()
         self._accel_anchor = None
@@ -1083,16 +1087,28 @@ class SteeringController:
         self.curvature = sample
 
     def _keep(self, name: str, sample: Any) -> None:
-        """Keep a yaw or velocity sample for :meth:`aligned` (a stamp back: anew)."""
-        kept = self._kept[name]
-        if kept and sample.stamp_ns <= kept[-1].stamp_ns:
+        """
+        Keep a yaw or velocity sample for :meth:`aligned` (a stamp not after the last: anew).
+
+        Every sample of the last ``input_timeout + max_future`` and the one before: a
+        lateral error is taken within ``input_timeout`` of the node's clock, a sample no
+        further than ``max_future`` ahead of it, so the two around any lateral error
+        taken are kept (dev-probe120: 512 samples at most, and a 5 kHz IMU beside a
+        camera 150 ms late was read at the oldest kept, 0.047 m/s off). Older ones go
+        when twice as many are kept, or beyond :data:`KEPT_SAMPLES`.
+        """
+        stamps, kept = self._kept[name]
+        stamp = sample.stamp_ns
+        if stamps and stamp <= stamps[-1]:
+            stamps.clear()
             kept.clear()
+        stamps.append(stamp)
         kept.append(sample)
-        oldest = sample.stamp_ns - int(self.safety.input_timeout * 1e9)
-        if len(kept) > 2 * KEPT_SAMPLES or kept[0].stamp_ns < oldest - int(1e9):
-            drop = max(len(kept) - KEPT_SAMPLES,
-                       bisect_right([s.stamp_ns for s in kept], oldest) - 1)
-            del kept[:max(0, drop)]
+        span = int((self.safety.input_timeout + self.safety.max_future) * 1e9)
+        if stamps[0] < stamp - 2 * span or len(kept) > 2 * KEPT_SAMPLES:
+            drop = max(len(kept) - KEPT_SAMPLES, bisect_right(stamps, stamp - span) - 1)
+            del stamps[:drop]
+            del kept[:drop]
 
     def aligned(self, name: str) -> Any:
         """
@@ -1116,9 +1132,9 @@ class SteeringController:
         if (not self.align_inputs or latest is None or lateral is None
                 or latest.stamp_ns <= lateral.stamp_ns):
             return latest
-        kept = self._kept[name]
+        stamps, kept = self._kept[name]
         stamp = lateral.stamp_ns
-        i = bisect_right([s.stamp_ns for s in kept], stamp)
+        i = bisect_right(stamps, stamp)
         if i == 0:
             return kept[0]
         before, after = kept[i - 1], kept[i]
@@ -1276,7 +1292,10 @@ class SteeringController:
         self._stale_since = None
         if now_ns is not None and now_ns > 0:
             self.timing.note_latency((now_ns - self.lateral.stamp_ns) * 1e-9)
-        v_x = float(state.v_x)
+        # the output stage's speed is the car's now, the newest (the law's, read at the
+        # lateral error's stamp with align_inputs, is older: dev-sc52's fuzz found a
+        # command over the angle limit at the newest speed)
+        v_x = float(self.velocity.v_x if self.velocity is not None else state.v_x)
         weight = low_speed_weight(v_x, self.safety)
         raw = float(law.steering)
         hold = self._hold_value if self._hold_value is not None else 0.0

@@ -65,8 +65,8 @@ import numpy as np
 import numpy.typing as npt
 from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import load_scenario, Scenario
-from sim_plant.sensor_timing import (parse_stream, SensorTiming, StreamTiming, timed_run,
-                                     TIMED_STREAMS)
+from sim_plant.sensor_timing import (check_timing, parse_stream, SensorTiming, StreamTiming,
+                                     timed_run, TIMED_STREAMS)
 from sim_plant.sensors import NoiseParams
 from sim_plant.vehicle_model import PlantParams
 
@@ -117,6 +117,7 @@ class LawSettings:
         ``compare --camera`` / ``--stream`` runs (:mod:`sim_plant.sensor_timing`).
     :param wait_for_matching_stamps: the node's (event mode), run with a sensor timing.
     :param sync_timeout: the node's (the longest wait for matching stamps) [s].
+    :param watchdog_rate_hz: the node's (its safe command while an input is stale) [Hz].
     """
 
     controller: ControllerParams = ControllerParams()
@@ -131,6 +132,7 @@ class LawSettings:
     align_inputs: bool = True
     wait_for_matching_stamps: bool = False
     sync_timeout: float = 0.05
+    watchdog_rate_hz: float = 20.0
 
 
 #: the node's settings that change a run but that the offline loop does not run (it
@@ -145,6 +147,17 @@ OFFLINE_RUNS = ("it runs each law and the node's output stage, each 10 ms measur
 #: angle: where stale inputs ramp to)
 SAFETY_TIMING = ('safety.max_future', 'safety.input_timeout', 'safety.hold_time',
                  'safety.max_curvature_points', 'safety.latency_warn', 'safety.safe_angle')
+#: the node's settings a run with a sensor timing (``--camera``, ``--stream``) does not run:
+#: its transport and process (the loop hands the samples to the core under sim time, where
+#: every lateral error is answered)
+NOT_RUN_TIMED = ('qos_reliability', 'frame_id', 'executor', 'autostart',
+                 'diagnostics_rate_hz', 'max_answer_rate_hz')
+#: what it runs in their place
+TIMED_RUNS = ("it hands each input's samples to the controller node's core as the node "
+              'does under sim time, with their rates and latencies')
+#: the node's settings a run with a sensor timing runs besides the laws' and the limits
+NODE_TIMED = ('acceleration_source', 'mode', 'rate_hz', 'align_inputs',
+              'wait_for_matching_stamps', 'sync_timeout', 'watchdog_rate_hz')
 
 
 def package_safety() -> SafetyParams:
@@ -295,7 +308,8 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                        bool(params.get('align_inputs', package['align_inputs'])),
                        bool(params.get('wait_for_matching_stamps',
                                        package['wait_for_matching_stamps'])),
-                       float(params.get('sync_timeout', package['sync_timeout'])))
+                       float(params.get('sync_timeout', package['sync_timeout'])),
+                       float(params.get('watchdog_rate_hz', package['watchdog_rate_hz'])))
 
 
 def package_node_defaults() -> dict[str, Any]:
@@ -310,11 +324,13 @@ def package_node_defaults() -> dict[str, Any]:
     return {**{spec.name: spec.default for spec in ALL_SPECS}, **package_controller_params()}
 
 
-def settings_changes(settings: LawSettings) -> list[str]:
+def settings_changes(settings: LawSettings, timed: bool = False) -> list[str]:
     """
     Return ``namespace.name = value`` for every setting that differs from the default.
 
     :param settings: the laws' settings.
+    :param timed: the runs had a sensor timing: the node's settings it runs
+        (:data:`NODE_TIMED`) are said too, and every limit is run.
     :return: the lines, in field order (empty: the package defaults).
     """
     from lookahead_control.core.config import changed_fields
@@ -326,24 +342,30 @@ def settings_changes(settings: LawSettings) -> list[str]:
              for name, value in changed_fields(params).items()]
     if settings.curvature_rate:
         lines.append('use_curvature_preview = True')
-    lines += safety_changes(settings.safety)
+    if timed:
+        package = package_node_defaults()
+        lines += [f'{name} = {getattr(settings, name)!r}' for name in NODE_TIMED
+                  if getattr(settings, name) != package[name]]
+    lines += safety_changes(settings.safety, timed)
     return with_settings_notes(lines, settings.lane_keeping)
 
 
-def safety_changes(safety: SafetyParams) -> list[str]:
+def safety_changes(safety: SafetyParams, timed: bool = False) -> list[str]:
     """
     Return ``safety.name = value`` for each of the node's limits off the package's.
 
     The output stage's limits are run; the others (only ``SAFETY_TIMING``'s pass
-    :func:`load_law_settings`) are said to be never met.
+    :func:`load_law_settings`) are said to be never met, unless the runs had a sensor
+    timing (``timed``: the node's core runs every limit).
 
     :param safety: the node's limits.
+    :param timed: the runs had a sensor timing.
     :return: the lines (empty: the package's limits).
     """
     from dataclasses import fields
     default = package_safety()
     return [f'safety.{f.name} = {getattr(safety, f.name)!r}'
-            + ('' if f'safety.{f.name}' in OUTPUT_STAGE else
+            + ('' if timed or f'safety.{f.name}' in OUTPUT_STAGE else
                ' (not met: the inputs are exact and timely)')
             for f in fields(safety) if getattr(safety, f.name) != getattr(default, f.name)]
 
@@ -925,7 +947,8 @@ def _timed_runs(law_name: str, scenario_name: str, scenario: Scenario,
                          noise=noise, seed=seed, mode=settings.mode,
                          rate_hz=settings.rate_hz,
                          wait_for_stamps=settings.wait_for_matching_stamps,
-                         sync_timeout=settings.sync_timeout)
+                         sync_timeout=settings.sync_timeout,
+                         watchdog_hz=settings.watchdog_rate_hz)
 
     rows = []
     twins: dict[float, SimResult] = {}
@@ -1509,7 +1532,8 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         *([] if settings is None else [
             f"**The laws' settings are those of `{settings[0]}` (`--controller`), not the "
             'package defaults the goal rows were set for:** '
-            + ('; '.join(f'`{line}`' for line in settings_changes(settings[1]))
+            + ('; '.join(f'`{line}`' for line in settings_changes(settings[1],
+                                                                  timing is not None))
                or 'none differs from the defaults') + '.', '']),
         *([] if seeds == 1 else [
             f'**{seeds} noise seeds per speed on the noisy plants (`--seeds`): every worst '
@@ -1754,6 +1778,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     if timing is not None and args.tune:
         raise ToolError("--camera / --stream: --tune scores the baselines' grids on the "
                         'offline runner; use one or the other')
+    if timing is not None:
+        for case in PLANTS:
+            if case.name not in args.plants:
+                continue
+            try:
+                check_timing(timing, case.dt or args.dt)
+            except ParameterError as err:
+                raise ToolError(f'--camera / --stream on plant {case.name}: {err}') from err
+        unrun = [name for name in args.laws if name not in NODE_LAWS]
+        if unrun:
+            raise ToolError(f'--camera / --stream: {unrun[0]!r} is no law the controller '
+                            f'node runs ({", ".join(NODE_LAWS)}): leave it out of --laws')
     vehicle = load_vehicle(args.vehicle)
     settings = None
     if args.controller is not None:
@@ -1762,7 +1798,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                             'settings; use one or the other')
         settings = (load_law_settings(args.controller, vehicle, tool='compare')
                     if timing is None else
-                    load_law_settings(args.controller, vehicle, not_run=(), tool='compare'))
+                    load_law_settings(args.controller, vehicle, not_run=NOT_RUN_TIMED,
+                                      tool='compare --camera / --stream', runs=TIMED_RUNS))
         for name in args.laws:       # a setting no law accepts: one line, before any run
             try:
                 LAWS[name](vehicle, settings)
@@ -1805,11 +1842,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     note = load_transfer_note(vehicle, args.plants, args.laws)
     if note:
         print(f'compare: note: {note}', file=sys.stderr)
-    if timing is not None:
-        unrun = [name for name in args.laws if name not in NODE_LAWS]
-        if unrun:
-            raise ToolError(f'--camera / --stream: {unrun[0]!r} is no law the controller '
-                            f'node runs ({", ".join(NODE_LAWS)}): leave it out of --laws')
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
                   args.workers, args.duration, progress=not args.no_progress,
                   settings=settings, seeds=args.seeds, timing=timing)
