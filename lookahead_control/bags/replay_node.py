@@ -170,10 +170,11 @@ def offline(args: argparse.Namespace) -> int:
               f'{", ".join(f"{k}={v!r}" for k, v in schedule.items())}; -p NAME=VALUE sets '
               'another)')
     if 'align_inputs' in filled:
-        # a controller from before dev-sc52 read the latest yaw and velocity samples
-        print('replay: the bag predates align_inputs: the re-run reads the latest yaw and '
-              'velocity samples as the node did (align_inputs=False; -p align_inputs=true '
-              "reads them at the lateral error's stamp)")
+        # a controller from before dev-sc52 read the newest yaw and velocity samples
+        print('replay: the bag predates align_inputs: the re-run reads the newest yaw and '
+              "velocity samples as the node did (align_inputs='never'; -p "
+              "align_inputs=with_prediction or always reads them at the lateral error's "
+              'stamp)')
     if result.estimated:
         dropped = (f'; in {result.dropped} of them it was received and dropped: the map '
                    'check found it far off the yaw rate, lane_keeping.map_fallback'

@@ -559,8 +559,8 @@ def as_it_ran(params: Mapping[str, Any],
 
     A bag of a controller node without ``align_inputs`` (its parameters recorded, among
     them ``use_curvature_preview``, which every node since the first has; before
-    dev-sc52) read the latest yaw and velocity samples: ``align_inputs`` false (a bag of
-    inputs on one stamp re-runs the same either way).
+    dev-sc52) read the newest yaw and velocity samples: ``align_inputs`` ``never`` (a bag
+    of inputs on one stamp re-runs the same either way).
 
     :param params: the recorded parameters (empty: nothing is filled in).
     :param overrides: ``name -> value`` replacing recorded values.
@@ -570,7 +570,7 @@ def as_it_ran(params: Mapping[str, Any],
     filled: dict[str, Any] = {}
     if ('use_curvature_preview' in params and 'align_inputs' not in params
             and 'align_inputs' not in overrides):
-        filled['align_inputs'] = False
+        filled['align_inputs'] = 'never'
     low = 'lane_keeping.low_speed_integral_gain'
     if ('lane_keeping.integral_gain' not in params or low in params or low in overrides):
         return filled
@@ -630,7 +630,7 @@ def _core_arguments(merged: Mapping[str, Any], source: str) -> tuple[Any, ...]:
     return (vehicle, controller, str(merged.get('acceleration_source', 'imu')),
             bool(merged.get('use_curvature_preview', False)), safety,
             str(merged.get('law', 'paper')), baselines, lane_keeping,
-            bool(merged.get('align_inputs', True)))
+            str(merged.get('align_inputs', 'with_prediction')))
 
 
 def reconfigure(core: SteeringController, params: Mapping[str, Any],
@@ -1413,10 +1413,10 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     usable &= (latest['yaw'][at] >= 0) & (latest['velocity'][at] >= 0)
     _, first = np.unique(group[usable], return_index=True)
     at = at[usable][np.sort(first)]
-    if core.align_inputs and any(bool(np.any(fed_stamp[latest[role][at]] > fed_stamp[at]))
-                                 for role in ('yaw', 'velocity')):
+    if core.aligns and any(bool(np.any(fed_stamp[latest[role][at]] > fed_stamp[at]))
+                           for role in ('yaw', 'velocity')):
         # a yaw or velocity newer than the lateral error it answers: the node read them
-        # between their samples at its stamp (align_inputs): step by step
+        # between their samples at its stamp (align_inputs always): step by step
         return _stepped_law(rerun(run, overrides, order))
 
     def column(role: str, name: str) -> Array:

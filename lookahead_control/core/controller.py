@@ -50,6 +50,10 @@ PREVIEW_HORIZON = 100.0     # [m] how far the curvature slope is extended for th
 #: the speed, relative yaw and lateral error taken last serve the speed check's odometer
 #: within this of a preview [s]
 SPEED_AGE = 0.5
+#: when the yaw and velocity are read at the lateral error's stamp (``align_inputs``):
+#: when the law predicts its state from that stamp (``cg_compensated`` with
+#: ``lane_keeping.delay_prediction``), always, never (their newest samples)
+ALIGN_CHOICES = ('with_prediction', 'always', 'never')
 #: yaw and velocity samples kept to be read at a lateral error's stamp (``align_inputs``):
 #: those of the last ``input_timeout + max_future`` (the oldest lateral error taken), but
 #: at most this many (a 20 kHz IMU over the default 0.3 s is 6000)
@@ -245,7 +249,7 @@ class SteeringController:
                  safety: Optional[SafetyParams] = None, law: str = 'paper',
                  baselines: Optional[BaselineParams] = None,
                  lane_keeping: Optional[LaneKeepingParams] = None,
-                 align_inputs: bool = True) -> None:
+                 align_inputs: str = 'with_prediction') -> None:
         """
         Create the controller state.
 
@@ -262,11 +266,12 @@ class SteeringController:
         :param law: the steering law, one of :data:`LAW_NAMES`.
         :param baselines: the baseline laws' parameters (defaults if None).
         :param lane_keeping: the ``cg_compensated`` law's settings (defaults if None).
-        :param align_inputs: read the yaw and the velocity at the lateral error's stamp
-            (:meth:`aligned`; False: their latest samples, as before dev-sc52).
+        :param align_inputs: when to read the yaw and the velocity at the lateral
+            error's stamp (:meth:`aligned`), one of :data:`ALIGN_CHOICES`; ``never``:
+            their newest samples, as before dev-sc52.
         """
         self.law_name = ''
-        self.align_inputs = bool(align_inputs)
+        self.align_inputs = check_choice('align_inputs', align_inputs, ALIGN_CHOICES)
         #: the yaw and velocity samples taken and their stamps, oldest first, back to
         #: ``input_timeout + max_future`` before the newest (:meth:`_keep`): what
         #: :meth:`aligned` reads
@@ -423,7 +428,7 @@ class SteeringController:
                   safety: Optional[SafetyParams] = None, law: Optional[str] = None,
                   baselines: Optional[BaselineParams] = None,
                   lane_keeping: Optional[LaneKeepingParams] = None,
-                  align_inputs: Optional[bool] = None) -> None:
+                  align_inputs: Optional[str] = None) -> None:
         """
         Replace the parameters (between two control steps).
 
@@ -442,7 +447,7 @@ class SteeringController:
         :param align_inputs: see the constructor (None: keep).
         """
         if align_inputs is not None:
-            self.align_inputs = bool(align_inputs)
+            self.align_inputs = check_choice('align_inputs', align_inputs, ALIGN_CHOICES)
         self.lane_keeping = lane_keeping or self.lane_keeping
         self._select_law(law or self.law_name, vehicle, controller,
                          baselines or self.baselines)
@@ -1110,18 +1115,35 @@ class SteeringController:
             del stamps[:drop]
             del kept[:drop]
 
+    @property
+    def aligns(self) -> bool:
+        """
+        Return whether the yaw and velocity are read at the lateral error's stamp now.
+
+        ``align_inputs`` ``with_prediction`` (the default): while the law predicts its
+        state from the lateral error's stamp (``cg_compensated`` with
+        ``lane_keeping.delay_prediction``). A law that takes its state for the present
+        has the newest yaw rate and speed: nearer the present than the frame's, and with
+        a camera 120 ms late they damped the loop by accident (dev-probe121: aligned, the
+        CommonRoad car spun out at 37 m/s where the newest gave 6 cm).
+        """
+        if self.align_inputs == 'with_prediction':
+            return self.law_name == 'cg_compensated' and self.lane_keeping.delay_prediction
+        return self.align_inputs == 'always'
+
     def aligned(self, name: str) -> Any:
         """
-        Return the yaw or velocity sample at the lateral error's stamp (``align_inputs``).
+        Return the yaw or velocity sample at the lateral error's stamp (:attr:`aligns`).
 
-        The law's state is one instant's: a lane camera's lateral error and relative yaw
-        come 50-120 ms after the frame, beside a yaw rate and a speed of now; mixed, the
-        state never was (dev-probe117: S2 at 37 m/s 9.5-13.8 cm against 1.4-3.4 with
-        every input of the frame's instant). So the samples are read at the lateral
-        error's stamp: linearly between the two kept samples around it (one stamped
-        exactly there: that sample), the newest where none is newer (as without
-        alignment; every input on one stamp, as the simulator sends them: the same
-        samples, bit for bit), the oldest kept where every one is newer.
+        A law that predicts its state from the lateral error's stamp needs every input of
+        that instant: a lane camera's lateral error and relative yaw come 50-120 ms after
+        the frame, beside a yaw rate and a speed of now; mixed, the state never was
+        (dev-probe117: S2 at 37 m/s 9.5-13.8 cm against 1.4-3.4 with every input of the
+        frame's instant). So the samples are read at the lateral error's stamp: linearly
+        between the two kept samples around it (one stamped exactly there: that sample),
+        the newest where none is newer (as without alignment; every input on one stamp,
+        as the simulator sends them: the same samples, bit for bit), the oldest kept
+        where every one is newer.
 
         :param name: ``yaw`` or ``velocity``.
         :return: the sample (its stamp the lateral error's where interpolated; None
@@ -1129,7 +1151,7 @@ class SteeringController:
         """
         latest = getattr(self, name)
         lateral = self.lateral
-        if (not self.align_inputs or latest is None or lateral is None
+        if (latest is None or lateral is None or not self.aligns
                 or latest.stamp_ns <= lateral.stamp_ns):
             return latest
         stamps, kept = self._kept[name]

@@ -31,8 +31,9 @@ from typing import Any, Callable, Mapping, Optional
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PointStamped, PolygonStamped, TwistStamped
 from lookahead_control.core.answer_rate import AnswerPacer
-from lookahead_control.core.controller import (ACCELERATION_SOURCES, build_law, Command,
-                                               LAW_NAMES, SteeringController)
+from lookahead_control.core.controller import (ACCELERATION_SOURCES, ALIGN_CHOICES,
+                                               build_law, Command, LAW_NAMES,
+                                               SteeringController)
 from lookahead_control.core.lane_keeping import (curvature_filter_note, filterless_note,
                                                  frequency_schedule_note, integral_schedule_note,
                                                  LaneKeepingParams)
@@ -76,9 +77,11 @@ NODE_SPECS = (
          'differentiated from v_x, or zero', choices=ACCELERATION_SOURCES),
     Spec('use_curvature_preview', False, 'feed d rho/dt forward from the curvature '
          'preview (false: curvature at the CG only, as in the paper)'),
-    Spec('align_inputs', True, "read the yaw and velocity at the lateral error's stamp, "
-         'between the samples around it (a lane camera late beside an IMU of now: the '
-         "law's state one instant's; false: their latest samples)"),
+    Spec('align_inputs', 'with_prediction', 'when to read the yaw and velocity at the '
+         "lateral error's stamp, between the samples around it (a lane camera late beside "
+         'an IMU of now): while the law predicts its state from that stamp '
+         '(lane_keeping.delay_prediction), always, or never (their newest samples)',
+         choices=ALIGN_CHOICES),
     Spec('autostart', True, 'configure and activate at start-up'),
     Spec('frame_id', 'base_link', "inputs in another frame are refused ('': any)"),
     Spec('watchdog_rate_hz', 20.0, 'stale-input check and safe-command rate [Hz]',

@@ -129,7 +129,7 @@ class LawSettings:
     mode: str = 'event'
     rate_hz: float = 100.0
     safety: SafetyParams = field(default_factory=lambda: package_safety())
-    align_inputs: bool = True
+    align_inputs: str = 'with_prediction'
     wait_for_matching_stamps: bool = False
     sync_timeout: float = 0.05
     watchdog_rate_hz: float = 20.0
@@ -305,7 +305,7 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                        str(params.get('mode', package['mode'])),
                        float(params.get('rate_hz', package['rate_hz'])),
                        dataclass_from_params(SafetyParams, params, 'safety', str(path)),
-                       bool(params.get('align_inputs', package['align_inputs'])),
+                       str(params.get('align_inputs', package['align_inputs'])),
                        bool(params.get('wait_for_matching_stamps',
                                        package['wait_for_matching_stamps'])),
                        float(params.get('sync_timeout', package['sync_timeout'])),
