@@ -419,3 +419,65 @@ def test_an_override_of_align_inputs_is_not_said_to_be_filled_in():
     # =true read them at the stamp
     recorded = {'law': 'cg_compensated', 'use_curvature_preview': False}
     assert as_it_ran(recorded, {'align_inputs': 'always'}) == {}
+
+
+def _polygon(stamp_ms, step_at):
+    """Return a curvature step of 0.01 1/m ``step_at`` m ahead of the CG, points 5 m apart."""
+    from lookahead_control.core.samples import curvature_from_points
+    return curvature_from_points(stamp_ms * MS, [(d, 0.01 if d >= step_at else 0.0)
+                                                 for d in range(0, 55, 5)])
+
+
+def test_a_map_of_now_is_read_from_its_polygon_of_the_lateral_error_s_time():
+    # dev-probe121: a polygon newer than the lateral error (a map of now beside a camera
+    # 120 ms late) has no points behind its CG; moved back to the lateral error's CG, the
+    # stretch between was read as its first point's curvature: a curve that began 2 m
+    # behind the map's CG was read at the lateral error's CG, 2.4 m before it began
+    from lookahead_control.core.lane_keeping import LaneKeepingParams
+    core = SteeringController(VEHICLE, ControllerParams(), law='cg_compensated',
+                              lane_keeping=LaneKeepingParams(delay_prediction=True,
+                                                             filter_delay=0.14))
+    v = 20.0
+    for k in range(13):                 # a 100 Hz map of now: the step 4.4 m nearer each
+        core.accept('road_curvature', _polygon(10 * k, 4.4 - 0.2 * k), 10 * k * MS)
+        core.accept('velocity', VelocitySample(10 * k * MS, v, 0.0), 10 * k * MS)
+        core.accept('yaw', YawSample(10 * k * MS, 0.0, 0.0, 0.0), 10 * k * MS)
+    # the frame of 0 ms arrives at 120 ms: read at its time, the step is 4.4 m ahead
+    core.accept('lateral_error', LateralErrorSample(0, 0.0, 0.0), 120 * MS)
+    road = core.road()
+    assert road.stamp_ns == 0 and road.rho == 0.0
+    assert [p for p in road.ahead if p[1] > 0.0][0][0] == 5.0     # the polygon of 0 ms
+    # a map sample 20 ms before the frame: moved ahead by the 0.4 m driven since
+    core.reset()
+    core.accept('road_curvature', _polygon(100, 4.4), 100 * MS)
+    for k, t in enumerate((100, 130, 160)):
+        core.accept('velocity', VelocitySample(t * MS, v, 0.0), t * MS)
+        core.accept('yaw', YawSample(t * MS, 0.0, 0.0, 0.0), t * MS)
+    core.accept('road_curvature', _polygon(240, 0.0), 240 * MS)
+    core.accept('lateral_error', LateralErrorSample(120 * MS, 0.0, 0.0), 240 * MS)
+    road = core.road()
+    assert road.stamp_ns == 100 * MS
+    assert road.ahead[1] == pytest.approx((4.6, 0.01), abs=1e-12)
+    # none kept from before it (or older than input_timeout): the newest, moved back
+    core.reset()
+    core.accept('velocity', VelocitySample(240 * MS, v, 0.0), 240 * MS)
+    core.accept('yaw', YawSample(240 * MS, 0.0, 0.0, 0.0), 240 * MS)
+    core.accept('road_curvature', _polygon(240, 0.0), 240 * MS)
+    core.accept('lateral_error', LateralErrorSample(120 * MS, 0.0, 0.0), 240 * MS)
+    assert core.road().ahead[0] == pytest.approx((2.4, 0.01), abs=1e-12)
+
+
+def test_a_map_of_now_on_the_frames_stamps_steers_as_the_polygon_of_the_frame():
+    # a 100 Hz map of now beside a 20 Hz camera 120 ms late, the prediction on, S1 at 37 m/s
+    # noise-free: 9.8 cm (the stretch behind the map's CG read as its first point) against
+    # 5.1 with the polygon sent with each frame; now the same run, bit for bit
+    settings = _core('with_prediction', 0.14)
+    own = SensorTiming(StreamTiming(20.0, 0.12), road_curvature=StreamTiming(100.0, 0.0),
+                       yaw=StreamTiming(100.0, 0.0), velocity=StreamTiming(100.0, 0.0))
+    frame = SensorTiming(StreamTiming(20.0, 0.12), with_frame=True)
+    mapped = _timed('s1_paper_step', replace(settings, safety=replace(
+        settings.safety, input_timeout=0.37)), own)
+    framed = _timed('s1_paper_step', replace(settings, safety=replace(
+        settings.safety, input_timeout=0.37)), frame)
+    assert np.array_equal(mapped['y_cg'], framed['y_cg'])
+    assert _peak(framed) < 0.06

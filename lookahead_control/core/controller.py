@@ -58,6 +58,9 @@ ALIGN_CHOICES = ('with_prediction', 'always', 'never')
 #: those of the last ``input_timeout + max_future`` (the oldest lateral error taken), but
 #: at most this many (a 20 kHz IMU over the default 0.3 s is 6000)
 KEPT_SAMPLES = 8192
+#: ... and of the curvature polygons (up to ``max_curvature_points`` points each), at most
+#: this many (a 100 Hz map over 0.3 s is 30)
+KEPT_POLYGONS = 64
 
 
 def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
@@ -275,8 +278,8 @@ class SteeringController:
         #: the yaw and velocity samples taken and their stamps, oldest first, back to
         #: ``input_timeout + max_future`` before the newest (:meth:`_keep`): what
         #: :meth:`aligned` reads
-        self._kept: dict[str, tuple[list[int], list[Any]]] = {'yaw': ([], []),
-                                                              'velocity': ([], [])}
+        self._kept: dict[str, tuple[list[int], list[Any]]] = {
+            'yaw': ([], []), 'velocity': ([], []), 'road_curvature': ([], [])}
         self.baselines = baselines or BaselineParams()
         self.lane_keeping = lane_keeping or LaneKeepingParams()
         self.law: Law = PaperLaw(vehicle, controller)
@@ -531,17 +534,33 @@ class SteeringController:
         noise-free, S1 / S2 15.5 / 20.0 -> 2.9 / 9.5 cm). Without the prediction the law
         takes its state for the present and the polygon as it is (moved, a camera 80 ms
         late: S1 6.3 -> 15.3 cm, the feedforward late by the camera's age); also a
-        polygon of one point, or one stamped with the lateral error.
+        polygon of one point, or one stamped with the lateral error. A polygon newer than
+        the lateral error has no points behind its own CG: the newest one kept from at or
+        before the lateral error's stamp is read instead, moved ahead (dev-sc52).
 
         :return: the polygon the law reads (None: no curvature yet).
         """
         road = self.curvature
         predicts = self.law_name == 'cg_compensated' and self.lane_keeping.delay_prediction
-        if (road is None or not predicts or self.lateral is None or self.velocity is None
-                or len(road.ahead) < 2):
+        if road is None or not predicts or self.lateral is None or self.velocity is None:
             return road
         limit = int(self.safety.input_timeout * 1e9)
-        age = min(limit, max(-limit, self.lateral.stamp_ns - road.stamp_ns))
+        lateral = self.lateral.stamp_ns
+        if road.stamp_ns > lateral:
+            # newer than the lateral error (a map of now beside a late camera): its points
+            # start at its own CG, ahead of the lateral error's, and the stretch between
+            # has none (it was read as the first point's curvature: dev-probe121,
+            # CommonRoad, 20 Hz / 120 ms camera, a 100 Hz map of now: S1 17.0 cm against
+            # 2.6 with the polygon of the frame, noise-free); the newest polygon kept from
+            # at or before the lateral error's stamp (within input_timeout), moved ahead,
+            # covers it (a map sample on the frame's stamp: the frame's polygon)
+            stamps, kept = self._kept['road_curvature']
+            i = bisect_right(stamps, lateral)
+            if i > 0 and len(kept[i - 1].ahead) >= 2 and lateral - stamps[i - 1] <= limit:
+                road = kept[i - 1]
+        if len(road.ahead) < 2:
+            return road
+        age = min(limit, max(-limit, lateral - road.stamp_ns))
         moved = self.velocity.v_x * age * 1e-9
         if moved == 0.0 or not math.isfinite(moved):
             return road
@@ -1089,6 +1108,7 @@ class SteeringController:
 
     def update_curvature(self, sample: CurvatureSample) -> None:
         """Store the latest curvature sample."""
+        self._keep('road_curvature', sample)
         self.curvature = sample
 
     def _keep(self, name: str, sample: Any) -> None:
@@ -1110,8 +1130,9 @@ class SteeringController:
         stamps.append(stamp)
         kept.append(sample)
         span = int((self.safety.input_timeout + self.safety.max_future) * 1e9)
-        if stamps[0] < stamp - 2 * span or len(kept) > 2 * KEPT_SAMPLES:
-            drop = max(len(kept) - KEPT_SAMPLES, bisect_right(stamps, stamp - span) - 1)
+        most = KEPT_POLYGONS if name == 'road_curvature' else KEPT_SAMPLES
+        if stamps[0] < stamp - 2 * span or len(kept) > 2 * most:
+            drop = max(len(kept) - most, bisect_right(stamps, stamp - span) - 1)
             del stamps[:drop]
             del kept[:drop]
 
