@@ -481,3 +481,61 @@ def test_a_map_of_now_on_the_frames_stamps_steers_as_the_polygon_of_the_frame():
         settings.safety, input_timeout=0.37)), frame)
     assert np.array_equal(mapped['y_cg'], framed['y_cg'])
     assert _peak(framed) < 0.06
+
+
+def _predicting_core():
+    from lookahead_control.core.lane_keeping import LaneKeepingParams
+    return SteeringController(VEHICLE, ControllerParams(), law='cg_compensated',
+                              lane_keeping=LaneKeepingParams(delay_prediction=True,
+                                                             filter_delay=0.14))
+
+
+def test_a_1_khz_map_of_now_still_has_its_polygon_of_the_frame_s_time():
+    # dev-probe122: 64 polygons were kept at most: a 1 kHz map of now beside a camera
+    # 120 ms late found none from the frame's time in 48 of 58 frames (S3 at 37 m/s
+    # 3.9 -> 14.7 cm) and read the newest moved back
+    from lookahead_control.core.samples import curvature_from_points
+    core = _predicting_core()
+    used = []
+    for k in range(3000):                                   # 3 s at 1 kHz
+        now = k * MS
+        core.accept('road_curvature', curvature_from_points(now, [(0.0, 0.0), (50.0, 0.0)]),
+                    now)
+        if k % 10 == 0:
+            core.accept('yaw', YawSample(now, 0.0, 0.0, 0.0), now)
+            core.accept('velocity', VelocitySample(now, 20.0, 0.0), now)
+        if k % 50 == 0 and k >= 120:                        # a 20 Hz camera 120 ms late
+            lateral = now - 120 * MS
+            assert core.accept('lateral_error', LateralErrorSample(lateral, 0.0, 0.0),
+                               now) is None
+            used.append(core.road().stamp_ns == lateral)
+    assert len(used) == 57 and all(used)
+
+
+def test_a_one_point_sample_before_the_frame_does_not_hide_the_polygon_before_it():
+    # dev-probe122: only the sample just before the lateral error was looked at
+    from lookahead_control.core.samples import curvature_from_points
+    core = _predicting_core()
+    core.accept('road_curvature', _polygon(90, 0.0), 90 * MS)
+    core.accept('road_curvature', curvature_from_points(95 * MS, [(0.0, 0.01)]), 95 * MS)
+    for t in (100, 200):
+        core.accept('yaw', YawSample(t * MS, 0.0, 0.0, 0.0), t * MS)
+        core.accept('velocity', VelocitySample(t * MS, 20.0, 0.0), t * MS)
+    core.accept('road_curvature', _polygon(200, 0.0), 200 * MS)
+    core.accept('lateral_error', LateralErrorSample(100 * MS, 0.0, 0.0), 200 * MS)
+    assert core.road().stamp_ns == 90 * MS
+
+
+def test_align_inputs_given_as_a_boolean_is_read_or_refused_in_one_line(tmp_path):
+    # a bag of dev-sc52's first commits recorded a boolean: true aligned always
+    recorded = {'law': 'paper', 'use_curvature_preview': False}
+    core, _ = controller_from_params({**recorded, 'align_inputs': True})
+    assert core.align_inputs == 'always'
+    core, _ = controller_from_params({**recorded, 'align_inputs': False})
+    assert core.align_inputs == 'never'
+    # a params file: one line naming the allowed values
+    params = tmp_path / 'c.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    align_inputs: true\n')
+    with pytest.raises(ConfigError, match='expected a string; choose one of with_prediction, '
+                                          'always, never'):
+        compare.load_law_settings(params)

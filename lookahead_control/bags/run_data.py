@@ -617,6 +617,18 @@ def controller_from_params(params: Mapping[str, Any],
     return core, bool(merged.get('wait_for_matching_stamps', False))
 
 
+def _align_choice(value: Any) -> str:
+    """
+    Return ``align_inputs`` as a choice (a boolean: as a node of dev-sc52's first commits).
+
+    :param value: the recorded or given value.
+    :return: ``always`` for true, ``never`` for false, else the value as a string.
+    """
+    if isinstance(value, bool):
+        return 'always' if value else 'never'
+    return str(value)
+
+
 def _core_arguments(merged: Mapping[str, Any], source: str) -> tuple[Any, ...]:
     """Return the controller core's arguments from flat parameters, in its order."""
     vehicle = dataclass_from_params(VehicleParams, merged, 'vehicle', source)
@@ -630,7 +642,7 @@ def _core_arguments(merged: Mapping[str, Any], source: str) -> tuple[Any, ...]:
     return (vehicle, controller, str(merged.get('acceleration_source', 'imu')),
             bool(merged.get('use_curvature_preview', False)), safety,
             str(merged.get('law', 'paper')), baselines, lane_keeping,
-            str(merged.get('align_inputs', 'with_prediction')))
+            _align_choice(merged.get('align_inputs', 'with_prediction')))
 
 
 def reconfigure(core: SteeringController, params: Mapping[str, Any],

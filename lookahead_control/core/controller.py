@@ -59,8 +59,9 @@ ALIGN_CHOICES = ('with_prediction', 'always', 'never')
 #: at most this many (a 20 kHz IMU over the default 0.3 s is 6000)
 KEPT_SAMPLES = 8192
 #: ... and of the curvature polygons (up to ``max_curvature_points`` points each), at most
-#: this many (a 100 Hz map over 0.3 s is 30)
-KEPT_POLYGONS = 64
+#: this many (a 1 kHz map over the default 0.3 s is 300; dev-probe122: at 64 a 1 kHz map
+#: of now beside a camera 120 ms late found none from the frame's time)
+KEPT_POLYGONS = 320
 
 
 def build_law(name: str, vehicle: VehicleParams, controller: ControllerParams,
@@ -555,9 +556,12 @@ class SteeringController:
             # at or before the lateral error's stamp (within input_timeout), moved ahead,
             # covers it (a map sample on the frame's stamp: the frame's polygon)
             stamps, kept = self._kept['road_curvature']
-            i = bisect_right(stamps, lateral)
-            if i > 0 and len(kept[i - 1].ahead) >= 2 and lateral - stamps[i - 1] <= limit:
-                road = kept[i - 1]
+            i = bisect_right(stamps, lateral) - 1
+            # (the newest of two points or more: a one-point sample is no polygon)
+            while i >= 0 and lateral - stamps[i] <= limit and len(kept[i].ahead) < 2:
+                i -= 1
+            if i >= 0 and lateral - stamps[i] <= limit:
+                road = kept[i]
         if len(road.ahead) < 2:
             return road
         age = min(limit, max(-limit, lateral - road.stamp_ns))

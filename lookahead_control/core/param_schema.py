@@ -325,7 +325,9 @@ def check_value(spec: Spec, value: Any) -> Any:
         raise ParameterError(f'{spec.name} = {value!r}: expected a number'
                              + (f' [{unit}]' if suffix else ''))
     if kind == 'string' and not isinstance(value, str):
-        raise ParameterError(f'{spec.name} = {value!r}: expected a string')
+        raise ParameterError(f'{spec.name} = {value!r}: expected a string'
+                             + (f'; choose one of {", ".join(spec.choices)}' if spec.choices
+                                else ''))
     if kind == 'integer':
         value = int(value)
     elif kind == 'double':
