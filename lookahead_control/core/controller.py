@@ -276,9 +276,9 @@ class SteeringController:
         """
         self.law_name = ''
         self.align_inputs = check_choice('align_inputs', align_inputs, ALIGN_CHOICES)
-        #: the yaw and velocity samples taken and their stamps, oldest first, back to
-        #: ``input_timeout + max_future`` before the newest (:meth:`_keep`): what
-        #: :meth:`aligned` reads
+        #: the yaw, velocity and curvature samples taken and their stamps, oldest first,
+        #: back to ``input_timeout + max_future`` before the newest (:meth:`_keep`): what
+        #: :meth:`aligned` and :meth:`road` read
         self._kept: dict[str, tuple[list[int], list[Any]]] = {
             'yaw': ([], []), 'velocity': ([], []), 'road_curvature': ([], [])}
         self.baselines = baselines or BaselineParams()
@@ -1117,14 +1117,18 @@ class SteeringController:
 
     def _keep(self, name: str, sample: Any) -> None:
         """
-        Keep a yaw or velocity sample for :meth:`aligned` (a stamp not after the last: anew).
+        Keep a yaw, velocity or curvature sample (a stamp not after the last: anew).
 
         Every sample of the last ``input_timeout + max_future`` and the one before: a
         lateral error is taken within ``input_timeout`` of the node's clock, a sample no
         further than ``max_future`` ahead of it, so the two around any lateral error
         taken are kept (dev-probe120: 512 samples at most, and a 5 kHz IMU beside a
         camera 150 ms late was read at the oldest kept, 0.047 m/s off). Older ones go
-        when twice as many are kept, or beyond :data:`KEPT_SAMPLES`.
+        when twice as many are kept, or beyond :data:`KEPT_SAMPLES` (polygons:
+        :data:`KEPT_POLYGONS`).
+
+        :param name: ``yaw``, ``velocity`` or ``road_curvature``.
+        :param sample: the sample taken.
         """
         stamps, kept = self._kept[name]
         stamp = sample.stamp_ns
