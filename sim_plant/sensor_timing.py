@@ -54,7 +54,8 @@ from lookahead_control.core.samples import (curvature_from_points, LateralErrorS
                                             VelocitySample, YawSample)
 import numpy as np
 from sim_plant.closed_loop_sim import (advance, CHANNELS, check_steps, CommonRoadGroup,
-                                       delay_steps, measure, plant_derivatives, SimResult)
+                                       delay_steps, measure, plant_derivatives,
+                                       preview_distances, SimResult)
 from sim_plant.commonroad_plant import COMMONROAD_MODELS
 from sim_plant.scenario import Scenario
 from sim_plant.sensors import check_seed, NoiseParams
@@ -326,7 +327,7 @@ def timed_run(scenario: Scenario, core: SteeringController, timing: SensorTiming
     commands: list[tuple[int, float]] = []      # (step it acts from, angle)
     wheel_command = 0.0
     rows: list[list[float]] = []
-    distances = np.arange(0.0, PREVIEW_DISTANCE + 1e-9, PREVIEW_STEP)
+    distances = preview_distances(PREVIEW_DISTANCE, PREVIEW_STEP).tolist()
     curvature = scenario.road.curvature_function()
     for k in range(n_steps + 1):
         t = k * dt
@@ -343,10 +344,11 @@ def timed_run(scenario: Scenario, core: SteeringController, timing: SensorTiming
                 if at < k:
                     continue
                 noise_row = rng.standard_normal(4) * sigmas
-                preview = [(float(d), float(curvature(float(x[0]) + float(d))))
-                           for d in distances]
                 names = (STREAMS if name == 'lateral_error' and timing.with_frame
                          else (name,))
+                # the polygon only for a curvature sample (21 road lookups a capture)
+                preview = ([(d, float(curvature(float(x[0]) + d))) for d in distances]
+                           if 'road_curvature' in names else [])
                 samples = tuple(s for n in names for s in _samples(
                     n, now, truth, x, noise_row, sensor_distance, preview))
                 arrival = k + _steps(stream.latency, dt)
