@@ -1013,7 +1013,8 @@ def _effect(node, name):
             'max_answer_rate_hz': lambda: node._pacer.rate_hz,
             'acceleration_source': lambda: core.acceleration_source,
             'use_curvature_preview': lambda: core.use_preview,
-            'align_inputs': lambda: core.align_inputs}[name]()
+            'align_inputs': lambda: core.align_inputs,
+            'curvature_to_clock': lambda: core.curvature_to_clock}[name]()
 
 
 def test_every_parameter_set_at_runtime_takes_effect_or_is_refused(context):

@@ -161,7 +161,8 @@ def offline(args: argparse.Namespace) -> int:
               f'{", ".join(described_nodes(Path(args.bag))) or "no node"}): the re-run '
               'uses the default vehicle, law and safety parameters, the law its debug '
               'names where it has one (-p NAME=VALUE sets one)')
-    schedule = {k: v for k, v in filled.items() if k != 'align_inputs'}
+    schedule = {k: v for k, v in filled.items()
+                if k not in ('align_inputs', 'curvature_to_clock')}
     if schedule:
         # a bag from before the integral gain's speed schedule: the law ran with k_i
         # constant, which the schedule's defaults would not re-run
@@ -175,6 +176,11 @@ def offline(args: argparse.Namespace) -> int:
               "velocity samples as the node did (align_inputs='never'; -p "
               "align_inputs=with_prediction or always reads them at the lateral error's "
               'stamp)')
+    if 'curvature_to_clock' in filled:
+        # a controller from before dev-sc53 read the curvature polygon as stamped
+        print('replay: the bag predates curvature_to_clock: the re-run reads the curvature '
+              'polygon as stamped, as the node did (curvature_to_clock=false; -p '
+              'curvature_to_clock=true reads it where the car was at the answer)')
     if result.estimated:
         dropped = (f'; in {result.dropped} of them it was received and dropped: the map '
                    'check found it far off the yaw rate, lane_keeping.map_fallback'

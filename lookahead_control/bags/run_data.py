@@ -538,7 +538,7 @@ NOT_MODELED = frozenset({
     'autostart', 'diagnostics_rate_hz', 'executor', 'use_sim_time'})
 # node parameters it models besides the parameter sets of LAW_SETS
 MODELED = ('law', 'acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps',
-           'align_inputs')
+           'align_inputs', 'curvature_to_clock')
 # the parameter sets (namespaces) the re-run builds the controller and every law from
 LAW_SETS = ('vehicle', 'controller', 'safety', 'lane_keeping', 'pure_pursuit', 'stanley',
             'lqr')
@@ -560,7 +560,9 @@ def as_it_ran(params: Mapping[str, Any],
     A bag of a controller node without ``align_inputs`` (its parameters recorded, among
     them ``use_curvature_preview``, which every node since the first has; before
     dev-sc52) read the newest yaw and velocity samples: ``align_inputs`` ``never`` (a bag
-    of inputs on one stamp re-runs the same either way).
+    of inputs on one stamp re-runs the same either way). A bag of a node without
+    ``curvature_to_clock`` (before dev-sc53) read the curvature polygon as stamped:
+    ``curvature_to_clock`` false.
 
     :param params: the recorded parameters (empty: nothing is filled in).
     :param overrides: ``name -> value`` replacing recorded values.
@@ -571,6 +573,9 @@ def as_it_ran(params: Mapping[str, Any],
     if ('use_curvature_preview' in params and 'align_inputs' not in params
             and 'align_inputs' not in overrides):
         filled['align_inputs'] = 'never'
+    if ('use_curvature_preview' in params and 'curvature_to_clock' not in params
+            and 'curvature_to_clock' not in overrides):
+        filled['curvature_to_clock'] = False
     low = 'lane_keeping.low_speed_integral_gain'
     if ('lane_keeping.integral_gain' not in params or low in params or low in overrides):
         return filled
@@ -642,7 +647,8 @@ def _core_arguments(merged: Mapping[str, Any], source: str) -> tuple[Any, ...]:
     return (vehicle, controller, str(merged.get('acceleration_source', 'imu')),
             bool(merged.get('use_curvature_preview', False)), safety,
             str(merged.get('law', 'paper')), baselines, lane_keeping,
-            _align_choice(merged.get('align_inputs', 'with_prediction')))
+            _align_choice(merged.get('align_inputs', 'with_prediction')),
+            merged.get('curvature_to_clock', True))
 
 
 def reconfigure(core: SteeringController, params: Mapping[str, Any],
@@ -904,7 +910,10 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     stale-input hold and ramp, the future-stamp check, timer mode. Whether the curvature
     is in is what the recorded controller judged where its debug topic says
     (:func:`recorded_judgment`; with ``law`` overridden too: it says which curvature the
-    node had), else judged on the stamps (``SteeringController.curvature_lost``).
+    node had), else judged on the stamps (``SteeringController.curvature_lost``). The
+    road is read at the recorded node's clock where the debug topic says
+    (:func:`recorded_clock_ages`, ``curvature_to_clock``), else at the lateral error's
+    stamp.
 
     :param run: the recorded run.
     :param overrides: parameter overrides (``controller.natural_frequency`` ...).
@@ -933,6 +942,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     estimated_at: set[int] = set()
     dropped = 0
     judged = recorded_judgment(run)
+    clock_ages = recorded_clock_ages(run)
     # a law set at run time: the node's debug names the law of each answer (an override
     # of ``law`` runs that law throughout)
     laws = {} if 'law' in (overrides or {}) else recorded_laws(run)
@@ -1011,7 +1021,9 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             if received is not None:
                 followed += 1
                 otherwise += received != core.curvature_received(None)
-            command = core.compute(curvature_received=received)
+            age = clock_ages.get(sample.stamp_ns)
+            command = core.compute(curvature_received=received, answered_ns=(
+                None if age is None else sample.stamp_ns + round(age * 1e9)))
             if command is not None:
                 answered = True
                 commands[command.stamp_ns] = command
@@ -1353,6 +1365,24 @@ def recorded_judgment(run: RunData) -> dict[int, bool]:
             for t, f in zip(run.debug.stamp_ns.tolist(), flags.tolist()) if math.isfinite(f)}
 
 
+def recorded_clock_ages(run: RunData) -> dict[int, float]:
+    """
+    Return, per answered stamp, how far the recorded node's clock was past it [s].
+
+    From its debug topic's ``road_clock_age``: the clock the node read the road at
+    (``curvature_to_clock``), which no stamp holds.
+
+    :param run: the bag.
+    :return: stamp -> age (empty: the bag does not say; the re-run reads the road on the
+        stamps, at the lateral error's).
+    """
+    ages = run.debug.values.get('road_clock_age')
+    if ages is None:
+        return {}
+    return {int(t): float(a)
+            for t, a in zip(run.debug.stamp_ns.tolist(), ages.tolist()) if math.isfinite(a)}
+
+
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
               order: Optional[str] = None) -> tuple[IntArray, LawOutput]:
     """
@@ -1430,6 +1460,14 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
         # a yaw or velocity newer than the lateral error it answers: the node read them
         # between their samples at its stamp (align_inputs always): step by step
         return _stepped_law(rerun(run, overrides, order))
+    if core.curvature_to_clock and 'road_curvature' in latest:
+        where = latest['road_curvature'][at]
+        older = (where >= 0) & (fed_stamp[np.maximum(where, 0)] < fed_stamp[at])
+        ahead = recorded_clock_ages(run)
+        if np.any(older) or any(age > 0.0 for age in ahead.values()):
+            # a polygon older than the node's clock: the node read it where the car was
+            # at the answer (curvature_to_clock): step by step
+            return _stepped_law(rerun(run, overrides, order))
 
     def column(role: str, name: str) -> Array:
         if role not in latest:

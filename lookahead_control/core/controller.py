@@ -35,7 +35,8 @@ from lookahead_control.core.lane_scale_check import LaneScaleCheck, unwrap
 from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
 from lookahead_control.core.oscillation_check import OscillationCheck
-from lookahead_control.core.params import check_choice, ControllerParams, VehicleParams
+from lookahead_control.core.params import (check_choice, check_flag, ControllerParams,
+                                           VehicleParams)
 from lookahead_control.core.safety import (check_sample, check_stamp, duplicate_reason, limit,
                                            low_speed_weight, SafetyParams, stale_target)
 from lookahead_control.core.samples import (curvature_from_points, CurvatureSample,
@@ -253,7 +254,8 @@ class SteeringController:
                  safety: Optional[SafetyParams] = None, law: str = 'paper',
                  baselines: Optional[BaselineParams] = None,
                  lane_keeping: Optional[LaneKeepingParams] = None,
-                 align_inputs: str = 'with_prediction') -> None:
+                 align_inputs: str = 'with_prediction',
+                 curvature_to_clock: bool = True) -> None:
         """
         Create the controller state.
 
@@ -273,9 +275,17 @@ class SteeringController:
         :param align_inputs: when to read the yaw and the velocity at the lateral
             error's stamp (:meth:`aligned`), one of :data:`ALIGN_CHOICES`; ``never``:
             their newest samples, as before dev-sc52.
+        :param curvature_to_clock: read a curvature polygon stamped before the node's
+            clock where the car is at the answer (:meth:`road`); false: as stamped, as
+            before dev-sc53.
         """
         self.law_name = ''
         self.align_inputs = check_choice('align_inputs', align_inputs, ALIGN_CHOICES)
+        self.curvature_to_clock = check_flag('curvature_to_clock', curvature_to_clock)
+        #: the clock the last :meth:`compute` read the road at [ns] (:meth:`road`; None:
+        #: none yet, or on the stamps)
+        self.road_clock_ns: Optional[int] = None
+        self._clock_ns: Optional[int] = None
         #: the yaw, velocity and curvature samples taken and their stamps, oldest first,
         #: back to ``input_timeout + max_future`` before the newest (:meth:`_keep`): what
         #: :meth:`aligned` and :meth:`road` read
@@ -432,7 +442,8 @@ class SteeringController:
                   safety: Optional[SafetyParams] = None, law: Optional[str] = None,
                   baselines: Optional[BaselineParams] = None,
                   lane_keeping: Optional[LaneKeepingParams] = None,
-                  align_inputs: Optional[str] = None) -> None:
+                  align_inputs: Optional[str] = None,
+                  curvature_to_clock: Optional[bool] = None) -> None:
         """
         Replace the parameters (between two control steps).
 
@@ -449,9 +460,12 @@ class SteeringController:
         :param baselines: see the constructor (None: keep).
         :param lane_keeping: see the constructor (None: keep).
         :param align_inputs: see the constructor (None: keep).
+        :param curvature_to_clock: see the constructor (None: keep).
         """
         if align_inputs is not None:
             self.align_inputs = check_choice('align_inputs', align_inputs, ALIGN_CHOICES)
+        if curvature_to_clock is not None:
+            self.curvature_to_clock = check_flag('curvature_to_clock', curvature_to_clock)
         self.lane_keeping = lane_keeping or self.lane_keeping
         self._select_law(law or self.law_name, vehicle, controller,
                          baselines or self.baselines)
@@ -520,7 +534,7 @@ class SteeringController:
         ahead_rho = min(cap, max(-cap, rho + road.slope * PREVIEW_HORIZON))
         return Preview(np.array([0.0, PREVIEW_HORIZON]), np.array([rho, ahead_rho]))
 
-    def road(self) -> Optional[CurvatureSample]:
+    def road(self, clock_ns: Optional[int] = None) -> Optional[CurvatureSample]:
         """
         Return the latest curvature polygon as the law reads it.
 
@@ -532,21 +546,39 @@ class SteeringController:
         ``input_timeout``), and the curvature at the CG read there. With ``filter_delay``
         the camera's age plus the actuator's delay the road is then read where the
         command acts (dev-probe117: a camera 80 ms late beside a fresh map, 37 m/s,
-        noise-free, S1 / S2 15.5 / 20.0 -> 2.9 / 9.5 cm). Without the prediction the law
-        takes its state for the present and the polygon as it is (moved, a camera 80 ms
-        late: S1 6.3 -> 15.3 cm, the feedforward late by the camera's age); also a
-        polygon of one point, or one stamped with the lateral error. A polygon newer than
-        the lateral error has no points behind its own CG: the newest one kept from at or
+        noise-free, S1 / S2 15.5 / 20.0 -> 2.9 / 9.5 cm). A polygon of one point, or one
+        stamped with the lateral error, is read as it is. A polygon newer than the
+        lateral error has no points behind its own CG: the newest one kept from at or
         before the lateral error's stamp is read instead, moved ahead (dev-sc52).
 
+        Without the prediction the law takes its state for the present, and with
+        ``curvature_to_clock`` (the default) a polygon stamped before the node's clock at
+        the answer is read where the car is then: moved by ``v_x`` times its age (within
+        ``input_timeout``; without a clock, on the stamps, to the lateral error's). Read
+        as stamped (dev-probe119 moved it to the lateral error's stamp: a camera 80 ms
+        late, S1 6.3 -> 15.3 cm, the feedforward late by the camera's age) a 10 Hz map of
+        now was up to 100 ms old, the curve up to 3.7 m late at 37 m/s (dev-sc53: the
+        default law, a lateral error of now at 100 Hz, S1 at 37 m/s 14.1 -> 4.2 cm,
+        noise-free).
+
+        :param clock_ns: the node's clock to read it at without the prediction (None: the
+            clock of the :meth:`compute` running, else the lateral error's stamp).
         :return: the polygon the law reads (None: no curvature yet).
         """
         road = self.curvature
-        predicts = self.law_name == 'cg_compensated' and self.lane_keeping.delay_prediction
-        if road is None or not predicts or self.lateral is None or self.velocity is None:
+        if road is None or self.lateral is None or self.velocity is None:
             return road
+        predicts = self.law_name == 'cg_compensated' and self.lane_keeping.delay_prediction
         limit = int(self.safety.input_timeout * 1e9)
         lateral = self.lateral.stamp_ns
+        if not predicts:
+            if not self.curvature_to_clock or len(road.ahead) < 2:
+                return road
+            clock = clock_ns if clock_ns is not None else self._clock_ns
+            clock = lateral if clock is None else clock
+            if clock <= road.stamp_ns:  # (a polygon of now, or newer: as it is)
+                return road
+            return self._moved(road, min(limit, clock - road.stamp_ns))
         if road.stamp_ns > lateral:
             # newer than the lateral error (a map of now beside a late camera): its points
             # start at its own CG, ahead of the lateral error's, and the stretch between
@@ -564,15 +596,20 @@ class SteeringController:
                 road = kept[i]
         if len(road.ahead) < 2:
             return road
-        age = min(limit, max(-limit, lateral - road.stamp_ns))
+        return self._moved(road, min(limit, max(-limit, lateral - road.stamp_ns)))
+
+    def _moved(self, road: CurvatureSample, age: int) -> CurvatureSample:
+        """Return the polygon moved ahead by the distance driven in ``age`` [ns]."""
+        assert self.velocity is not None
         moved = self.velocity.v_x * age * 1e-9
         if moved == 0.0 or not math.isfinite(moved):
             return road
         seen, at, moved_road = self._road_cache
-        if seen is not road or at != moved:
-            moved_road = curvature_from_points(road.stamp_ns,
-                                               [(x - moved, k) for x, k in road.ahead])
-            self._road_cache = (road, moved, moved_road)
+        if seen is road and at == moved and moved_road is not None:
+            return moved_road
+        moved_road = curvature_from_points(road.stamp_ns,
+                                           [(x - moved, k) for x, k in road.ahead])
+        self._road_cache = (road, moved, moved_road)
         return moved_road
 
     # -- checked input ------------------------------------------------------------
@@ -1268,7 +1305,8 @@ class SteeringController:
 
     def compute(self, now_ns: Optional[int] = None,
                 steady_ns: Optional[int] = None,
-                curvature_received: Optional[bool] = None) -> Optional[Command]:
+                curvature_received: Optional[bool] = None,
+                answered_ns: Optional[int] = None) -> Optional[Command]:
         """
         Evaluate the law on the latest inputs, or give the safe command if one is stale.
 
@@ -1278,14 +1316,18 @@ class SteeringController:
         :param curvature_received: whether the curvature received counts as in at this
             step, not lost (None: judged here, :meth:`curvature_lost`; an offline re-run
             gives the recorded node's own judgment, which no stamp holds).
+        :param answered_ns: the node's clock the road is read at (:meth:`road`; None:
+            ``now_ns``; an offline re-run gives the recorded node's, which no stamp holds).
         :return: the command answering the latest lateral error (the safe command when
             a required input is stale), None if an input is missing.
         """
         self._judged = curvature_received
+        self._clock_ns = self.road_clock_ns = now_ns if answered_ns is None else answered_ns
         try:
             return self._compute(now_ns, steady_ns)
         finally:
             self._judged = None
+            self._clock_ns = None
 
     def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):

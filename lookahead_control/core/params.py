@@ -25,7 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from functools import cached_property
 import math
-from typing import Iterable
+from typing import Any, Iterable
 
 from lookahead_control.core import numeric as xp
 from lookahead_control.core.numeric import Real
@@ -99,6 +99,19 @@ def check_choice(name: str, value: str, choices: Iterable[str]) -> str:
         raise ParameterError(f'{name} = {value!r} is not allowed; choose one of '
                              f'{", ".join(allowed)}')
     return value
+
+
+def check_flag(name: str, value: Any) -> bool:
+    """
+    Return ``value``, or raise if it is not a boolean.
+
+    :param name: the parameter's name, used in the message.
+    :param value: the value to check.
+    :return: the value.
+    """
+    if not isinstance(value, bool):
+        raise ParameterError(f'{name} = {value!r} is not allowed; choose true or false')
+    return bool(value)
 
 
 @dataclass(frozen=True)

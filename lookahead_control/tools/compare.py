@@ -118,6 +118,9 @@ class LawSettings:
     :param wait_for_matching_stamps: the node's (event mode), run with a sensor timing.
     :param sync_timeout: the node's (the longest wait for matching stamps) [s].
     :param watchdog_rate_hz: the node's (its safe command while an input is stale) [Hz].
+    :param curvature_to_clock: the node's (a curvature polygon read where the car is at
+        the answer): it matters only with a curvature older than the answer, which
+        ``compare --camera`` / ``--stream`` runs.
     """
 
     controller: ControllerParams = ControllerParams()
@@ -133,6 +136,7 @@ class LawSettings:
     wait_for_matching_stamps: bool = False
     sync_timeout: float = 0.05
     watchdog_rate_hz: float = 20.0
+    curvature_to_clock: bool = True
 
 
 #: the node's settings that change a run but that the offline loop does not run (it
@@ -157,7 +161,8 @@ TIMED_RUNS = ("it hands each input's samples to the controller node's core as th
               'does under sim time, with their rates and latencies')
 #: the node's settings a run with a sensor timing runs besides the laws' and the limits
 NODE_TIMED = ('acceleration_source', 'mode', 'rate_hz', 'align_inputs',
-              'wait_for_matching_stamps', 'sync_timeout', 'watchdog_rate_hz')
+              'wait_for_matching_stamps', 'sync_timeout', 'watchdog_rate_hz',
+              'curvature_to_clock')
 
 
 def package_safety() -> SafetyParams:
@@ -309,7 +314,8 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                        bool(params.get('wait_for_matching_stamps',
                                        package['wait_for_matching_stamps'])),
                        float(params.get('sync_timeout', package['sync_timeout'])),
-                       float(params.get('watchdog_rate_hz', package['watchdog_rate_hz'])))
+                       float(params.get('watchdog_rate_hz', package['watchdog_rate_hz'])),
+                       bool(params.get('curvature_to_clock', package['curvature_to_clock'])))
 
 
 def package_node_defaults() -> dict[str, Any]:
@@ -931,7 +937,7 @@ def node_core(law_name: str, vehicle: VehicleParams, settings: LawSettings
     return SteeringController(vehicle, controller, settings.acceleration_source,
                               settings.curvature_rate, settings.safety, law,
                               settings.baselines, settings.lane_keeping,
-                              settings.align_inputs)
+                              settings.align_inputs, settings.curvature_to_clock)
 
 
 def _timed_runs(law_name: str, scenario_name: str, scenario: Scenario,
