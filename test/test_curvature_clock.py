@@ -193,3 +193,26 @@ def test_the_re_run_reads_the_road_at_the_recorded_node_s_clock(law):
     # the debug topic not recorded: read at the lateral error's stamp, another command
     blind = rerun(_node_run(law, 40, debug=False), order='stamp')
     assert blind.max_diff > 1e-4
+
+
+def test_replay_says_a_bag_predates_curvature_to_clock(tmp_path, capsys):
+    import json
+
+    from lookahead_control.bags import replay_node
+    from lookahead_control.core.cli import run_tool
+    from test_rerun_lost_curvature import controllers_bag
+    bag = tmp_path / 'old'
+    params = {'law': 'cg_compensated', 'use_curvature_preview': False,
+              'align_inputs': 'with_prediction', 'curvature_to_clock': False}
+    controllers_bag(bag, {'/controller': params}, steps=60, unrecorded=('curvature_to_clock',))
+    report = tmp_path / 'old.json'
+    # (1e-8: the yaw goes through the Imu's quaternion)
+    assert run_tool(replay_node.main, [str(bag), '--check', '1e-8', '--json',
+                                       str(report)]) == 0
+    out = capsys.readouterr().out
+    assert 'predates curvature_to_clock' in out and 'curvature_to_clock=false' in out, out
+    assert json.loads(report.read_text())['parameters_as_it_ran'] == {
+        'curvature_to_clock': False}
+    assert run_tool(replay_node.main, [str(bag), '--offline', '-p',
+                                       'curvature_to_clock=true']) == 0
+    assert 'predates' not in capsys.readouterr().out
