@@ -117,7 +117,7 @@ def _peak(settings, scenario='s1_paper_step'):
 def test_a_10_hz_map_of_now_no_longer_puts_the_curve_late():
     # the default law, a lateral error of now at 100 Hz, a 10 Hz map of now, 37 m/s,
     # noise-free: read as stamped S1 14.1 cm, S3 17.9 cm; read where the car is 4.2 / 3.0
-    # (every input at 100 Hz on one stamp, the simulator's: 3.2 / 3.1)
+    # (every input at 100 Hz on one stamp, the simulator's: 2.7 / 2.7)
     settings = compare.LawSettings()
     as_stamped = replace(settings, curvature_to_clock=False)
     for scenario, now, before in (('s1_paper_step', 0.05, 0.12), ('s3_s_bend', 0.04, 0.15)):
@@ -134,32 +134,42 @@ def test_a_bag_of_a_node_before_curvature_to_clock_re_runs_as_stamped():
     assert controller_from_params({**recorded, 'curvature_to_clock': True})[0].curvature_to_clock
 
 
-def _node_run(law, age_ms, debug=True):
+def _node_run(law, age_ms, debug=True, switch_at=None, repeats=1):
     """
     Return the recording of a node answering 100 Hz inputs ``age_ms`` after their stamp.
 
     A 10 Hz polygon with a curve 20 m ahead of its CG, at 20 m/s; the node's debug topic
-    holds ``road_clock_age`` when ``debug``.
+    holds ``road_clock_age`` when ``debug``. ``switch_at``: at that step
+    ``curvature_to_clock`` is set false at run time (a ``/parameter_events`` set, the
+    debug's ``parameter_sets``). ``repeats``: each lateral error answered that many
+    times, ``age_ms`` apart (timer mode).
     """
     node = SteeringController(VEHICLE, ControllerParams(), law=law)
     rows = {'lateral_error': [], 'yaw': [], 'velocity': [], 'road_curvature': []}
-    commands, ages = {}, {}
+    commands, ages, sets, debug_stamps = {}, [], [], []
     for k in range(150):
         stamp = k * 10 * MS
+        if k == switch_at:
+            node.configure(node.vehicle, node.params, 'imu', False, curvature_to_clock=False)
         if k % 10 == 0:
             driven = 20.0 * k * 0.01
             rows['road_curvature'].append(curvature_from_points(
                 stamp, [(x - driven, 0.0 if x < 20.0 else 0.01) for x in range(0, 101, 5)]))
             node.accept('road_curvature', rows['road_curvature'][-1])
-        samples = (('yaw', YawSample(stamp, 0.001 * k, 0.0, 0.0)),
+        samples = (('yaw', YawSample(stamp, 0.002 * np.sin(k / 5.0), 0.0, 0.0)),
                    ('velocity', VelocitySample(stamp, 20.0, 0.0)),
                    ('lateral_error', LateralErrorSample(stamp, 0.0, 0.01 * np.sin(k / 7.0))))
         for name, sample in samples:
             rows[name].append(sample)
             node.accept(name, sample)
-        command = node.compute(answered_ns=stamp + age_ms * MS)
-        commands[stamp] = command.steering
-        ages[stamp] = age_ms * 1e-3
+        for copy in range(repeats):
+            age = age_ms * (copy + 1)
+            command = node.compute(answered_ns=stamp + age * MS)
+            commands.setdefault(stamp, command.steering)
+            assert command.steering == commands[stamp]      # (held on the stamps)
+            ages.append(age * 1e-3)
+            sets.append(float(switch_at is not None and k >= switch_at))
+            debug_stamps.append(stamp)
     inputs = {}
     for name, samples in rows.items():
         stamps = np.array([s.stamp_ns for s in samples], dtype=np.int64)
@@ -172,11 +182,16 @@ def _node_run(law, age_ms, debug=True):
     stamps = np.array(sorted(commands), dtype=np.int64)
     steering = Samples(stamps + 10, stamps, np.arange(stamps.size),
                        {'angle': np.array([commands[s] for s in stamps])})
-    columns = {'road_clock_age': np.array([ages[s] for s in stamps])} if debug else {}
+    columns = {'road_clock_age': np.array(ages)} if debug else {}
+    if switch_at is not None:
+        columns['parameter_sets'] = np.array(sets)
+    at = np.array(debug_stamps, dtype=np.int64)
     params = {'law': law, 'use_curvature_preview': False, 'curvature_to_clock': True}
     return RunData(Path('synthetic'), inputs=inputs, steering=steering,
-                   debug=Samples(stamps + 11, stamps, np.arange(stamps.size), columns),
-                   controller_params=params)
+                   debug=Samples(at + 11, at, np.arange(at.size), columns),
+                   controller_params=params,
+                   parameter_events=None if switch_at is None else [
+                       {'curvature_to_clock': False}])
 
 
 @pytest.mark.parametrize('law', ['cg_compensated', 'paper'])
@@ -216,3 +231,64 @@ def test_replay_says_a_bag_predates_curvature_to_clock(tmp_path, capsys):
     assert run_tool(replay_node.main, [str(bag), '--offline', '-p',
                                        'curvature_to_clock=true']) == 0
     assert 'predates' not in capsys.readouterr().out
+
+
+def test_a_run_time_set_of_curvature_to_clock_is_followed_by_the_re_run():
+    # dev-probe123: the re-run of any bag with a parameter set at run time crashed (the
+    # core's arguments grew by one, reconfigure unpacked the old count)
+    run = _node_run('cg_compensated', 40, switch_at=75)
+    result = rerun(run, order='stamp')
+    assert result.compared == 150 and result.parameter_sets == 1
+    assert result.max_diff == 0.0
+    kept = rerun(replace(run, parameter_events=None), order='stamp')
+    assert kept.max_diff > 1e-4
+
+
+def test_timer_mode_s_repeated_answers_re_run_at_the_first_one_s_clock():
+    # dev-probe123: the last answer's age was taken, the command sent is the first's
+    # (the later ones are held on the stamps): 1.8 mrad off
+    run = _node_run('paper', 3, repeats=3)
+    assert len(run.debug) == 450
+    assert rerun(run, order='stamp').max_diff == 0.0
+
+
+def test_a_huge_recorded_clock_age_is_bounded_not_an_overflow():
+    # dev-probe123: 1e300 s passed the finite filter and overflowed
+    from lookahead_control.bags.run_data import MAX_CLOCK_AGE, recorded_clock_ages
+    run = _node_run('paper', 40)
+    ages = run.debug.values['road_clock_age'].copy()
+    ages[:3] = [1e300, -1e300, np.nan]
+    run = replace(run, debug=replace(run.debug, values={'road_clock_age': ages}))
+    taken = recorded_clock_ages(run)
+    assert list(taken.values())[:2] == [MAX_CLOCK_AGE, -MAX_CLOCK_AGE]
+    assert len(taken) == 149
+    result = rerun(run, order='stamp')
+    assert result.compared == 150 and np.isfinite(result.max_diff)
+    stamps, _ = rerun_law(run, order='stamp')
+    assert len(stamps) == 150
+
+
+def test_a_bad_value_in_configure_changes_nothing():
+    # dev-probe123: align_inputs was taken before curvature_to_clock was refused
+    core = _core()
+    with pytest.raises(ParameterError, match='curvature_to_clock'):
+        core.configure(core.vehicle, core.params, 'imu', False, align_inputs='always',
+                       curvature_to_clock='yes')
+    assert core.align_inputs == 'with_prediction' and core.curvature_to_clock is True
+
+
+def test_a_safe_command_reads_no_road():
+    core = _core()
+    core.compute(60 * MS)
+    assert core.road_clock_ns == 60 * MS
+    core.safe_command(900 * MS)
+    assert core.road_clock_ns is None
+
+
+def test_with_the_inputs_read_at_the_lateral_error_s_stamp_the_polygon_is_as_stamped():
+    # align_inputs always without the prediction: the state is the lateral error's
+    # instant; read at the clock the polygon measured worse (compare, 25 Hz / 80 ms
+    # camera, a 10 Hz map: S1 / S2 7.6 / 9.1 | 6.3 / 4.1 cm as stamped, 9.4 / 11.3 | 14.1 /
+    # 7.3 at the clock, 13.2 / 8.6 | 7.5 / 4.5 at the lateral error's stamp)
+    assert _core(align_inputs='always').road(100 * MS).ahead == tuple(POLYGON)
+    assert _core(align_inputs='never').road(100 * MS).ahead[1][0] == pytest.approx(8.0)

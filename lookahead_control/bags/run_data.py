@@ -529,6 +529,9 @@ def _decode(pieces: _Pieces, role: str, raw: RawColumns,
                                   conv.from_named_values(msg)))
 
 
+#: the longest age of a recorded answer's clock taken as it is [s] (``road_clock_age``)
+MAX_CLOCK_AGE = 3600.0
+
 # node parameters the offline re-run does not model: it has no node clock (the recorder's
 # receive times are another node's clock), so no watchdog (stale inputs, hold, ramp), no
 # future-stamp check and no timer mode; overriding them would report a difference of 0
@@ -665,11 +668,8 @@ def reconfigure(core: SteeringController, params: Mapping[str, Any],
     """
     merged = {**params, **as_it_ran(params, overrides), **(overrides or {})}
     source = f'parameters of {node} set at run time'
-    vehicle, controller, accel, preview, safety, law, baselines, lane_keeping, align = (
-        _core_arguments(merged, source))
     try:
-        core.configure(vehicle, controller, accel, preview, safety, law, baselines,
-                       lane_keeping, align)
+        core.configure(*_core_arguments(merged, source))
     except ParameterError as exc:
         raise ConfigError(f'{source}: {exc}') from exc
 
@@ -1370,7 +1370,11 @@ def recorded_clock_ages(run: RunData) -> dict[int, float]:
     Return, per answered stamp, how far the recorded node's clock was past it [s].
 
     From its debug topic's ``road_clock_age``: the clock the node read the road at
-    (``curvature_to_clock``), which no stamp holds.
+    (``curvature_to_clock``), which no stamp holds. A stamp answered more than once (timer
+    mode between a slower camera's frames): its first answer's, the one whose command
+    the node sent (the later ones hold it; dev-probe123: the last one's was 1.8 mrad off).
+    An age beyond :data:`MAX_CLOCK_AGE` is taken as that (the road moves at most
+    ``input_timeout`` on; dev-probe123: 1e300 s overflowed).
 
     :param run: the bag.
     :return: stamp -> age (empty: the bag does not say; the re-run reads the road on the
@@ -1379,8 +1383,11 @@ def recorded_clock_ages(run: RunData) -> dict[int, float]:
     ages = run.debug.values.get('road_clock_age')
     if ages is None:
         return {}
-    return {int(t): float(a)
-            for t, a in zip(run.debug.stamp_ns.tolist(), ages.tolist()) if math.isfinite(a)}
+    first: dict[int, float] = {}
+    for stamp, age in zip(run.debug.stamp_ns.tolist(), ages.tolist()):
+        if math.isfinite(age) and int(stamp) not in first:
+            first[int(stamp)] = min(MAX_CLOCK_AGE, max(-MAX_CLOCK_AGE, float(age)))
+    return first
 
 
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,

@@ -462,10 +462,13 @@ class SteeringController:
         :param align_inputs: see the constructor (None: keep).
         :param curvature_to_clock: see the constructor (None: keep).
         """
-        if align_inputs is not None:
-            self.align_inputs = check_choice('align_inputs', align_inputs, ALIGN_CHOICES)
-        if curvature_to_clock is not None:
-            self.curvature_to_clock = check_flag('curvature_to_clock', curvature_to_clock)
+        # every value checked before any is taken (dev-probe123: a bad curvature_to_clock
+        # left align_inputs changed)
+        align = (self.align_inputs if align_inputs is None
+                 else check_choice('align_inputs', align_inputs, ALIGN_CHOICES))
+        to_clock = (self.curvature_to_clock if curvature_to_clock is None
+                    else check_flag('curvature_to_clock', curvature_to_clock))
+        self.align_inputs, self.curvature_to_clock = align, to_clock
         self.lane_keeping = lane_keeping or self.lane_keeping
         self._select_law(law or self.law_name, vehicle, controller,
                          baselines or self.baselines)
@@ -554,7 +557,8 @@ class SteeringController:
         Without the prediction the law takes its state for the present, and with
         ``curvature_to_clock`` (the default) a polygon stamped before the node's clock at
         the answer is read where the car is then: moved by ``v_x`` times its age (within
-        ``input_timeout``; without a clock, on the stamps, to the lateral error's). Read
+        ``input_timeout``; without a clock, on the stamps, to the lateral error's; with
+        ``align_inputs`` ``always`` as stamped: measured better there). Read
         as stamped (dev-probe119 moved it to the lateral error's stamp: a camera 80 ms
         late, S1 6.3 -> 15.3 cm, the feedforward late by the camera's age) a 10 Hz map of
         now was up to 100 ms old, the curve up to 3.7 m late at 37 m/s (dev-sc53: the
@@ -572,7 +576,10 @@ class SteeringController:
         limit = int(self.safety.input_timeout * 1e9)
         lateral = self.lateral.stamp_ns
         if not predicts:
-            if not self.curvature_to_clock or len(road.ahead) < 2:
+            # with the yaw and velocity read at the lateral error's stamp (align_inputs
+            # always) the state is that instant's: read at the clock, or at that stamp,
+            # the polygon measured worse than as stamped (dev-sc53, docs/vehicle_bridge.md)
+            if not self.curvature_to_clock or self.aligns or len(road.ahead) < 2:
                 return road
             clock = clock_ns if clock_ns is not None else self._clock_ns
             clock = lateral if clock is None else clock
@@ -861,6 +868,7 @@ class SteeringController:
             for the node's time on the measurements' clock (the watchdog).
         :return: the command, None before any command was sent.
         """
+        self.road_clock_ns = None       # (no road read: no law answer)
         sent = self._rate_angle
         if sent is None:
             return None

@@ -85,7 +85,8 @@ NODE_SPECS = (
     Spec('curvature_to_clock', True, 'read a road_curvature polygon stamped before the '
          "node's clock where the car is at the answer, moved by v_x times its age (a 10 Hz "
          'map is up to 100 ms old); false: as stamped. With lane_keeping.delay_prediction '
-         "the law reads it at the lateral error's stamp instead"),
+         "the law reads it at the lateral error's stamp instead, with align_inputs always "
+         'as stamped'),
     Spec('autostart', True, 'configure and activate at start-up'),
     Spec('frame_id', 'base_link', "inputs in another frame are refused ('': any)"),
     Spec('watchdog_rate_hz', 20.0, 'stale-input check and safe-command rate [Hz]',
