@@ -511,15 +511,14 @@ def test_a_polygon_stamped_apart_from_the_lateral_error_is_read_at_its_time():
     # a polygon of one point is a curvature held ahead: as it is
     assert read(predicting, 100_000_000, ((0.0, 0.004),))[0] == 0.004
     # without the prediction the law takes its state for the present: the polygon is
-    # read where the car is at the node's clock (dev-sc53, curvature_to_clock; without a
-    # clock, on the stamps: at the lateral error's, 0.1 s on, 3 m), as stamped with
-    # curvature_to_clock false (before dev-sc53)
+    # read where the car was at the yaw sample's stamp (dev-sc53, curvature_at_yaw_stamp:
+    # 0.1 s on, 3 m), as stamped with curvature_at_yaw_stamp false (before dev-sc53)
     got_rho, got_rate, distances = read(_core(use_preview=True), 100_000_000)
     assert (got_rho, got_rate) == pytest.approx((0.006, 30.0 * 0.002), abs=1e-15)
     assert distances == pytest.approx([x - 3.0 for x, _ in polygon])
     as_stamped = _core(use_preview=True)
     as_stamped.configure(as_stamped.vehicle, as_stamped.params, 'zero', True,
-                         curvature_to_clock=False)
+                         curvature_at_yaw_stamp=False)
     assert read(as_stamped, 100_000_000) == (0.0, 30.0 * 0.002, [x for x, _ in polygon])
 
 

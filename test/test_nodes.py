@@ -1014,7 +1014,7 @@ def _effect(node, name):
             'acceleration_source': lambda: core.acceleration_source,
             'use_curvature_preview': lambda: core.use_preview,
             'align_inputs': lambda: core.align_inputs,
-            'curvature_to_clock': lambda: core.curvature_to_clock}[name]()
+            'curvature_at_yaw_stamp': lambda: core.curvature_at_yaw_stamp}[name]()
 
 
 def test_every_parameter_set_at_runtime_takes_effect_or_is_refused(context):

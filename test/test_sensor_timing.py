@@ -271,7 +271,7 @@ def test_a_late_camera_beside_an_imu_of_now_is_steered_on_one_instant():
 
 def test_a_bag_of_a_node_before_align_inputs_re_runs_the_latest_samples():
     recorded = {'law': 'cg_compensated', 'use_curvature_preview': False}
-    assert as_it_ran(recorded) == {'align_inputs': 'never', 'curvature_to_clock': False}
+    assert as_it_ran(recorded) == {'align_inputs': 'never', 'curvature_at_yaw_stamp': False}
     core, _ = controller_from_params(recorded)
     assert core.align_inputs == 'never'
     core, _ = controller_from_params(recorded, {'align_inputs': 'always'})
@@ -419,7 +419,7 @@ def test_an_override_of_align_inputs_is_not_said_to_be_filled_in():
     # =true read them at the stamp
     recorded = {'law': 'cg_compensated', 'use_curvature_preview': False}
     assert 'align_inputs' not in as_it_ran(recorded, {'align_inputs': 'always'})
-    assert 'curvature_to_clock' not in as_it_ran(recorded, {'curvature_to_clock': True})
+    assert 'curvature_at_yaw_stamp' not in as_it_ran(recorded, {'curvature_at_yaw_stamp': True})
 
 
 def _polygon(stamp_ms, step_at):

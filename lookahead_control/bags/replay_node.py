@@ -162,7 +162,7 @@ def offline(args: argparse.Namespace) -> int:
               'uses the default vehicle, law and safety parameters, the law its debug '
               'names where it has one (-p NAME=VALUE sets one)')
     schedule = {k: v for k, v in filled.items()
-                if k not in ('align_inputs', 'curvature_to_clock')}
+                if k not in ('align_inputs', 'curvature_at_yaw_stamp')}
     if schedule:
         # a bag from before the integral gain's speed schedule: the law ran with k_i
         # constant, which the schedule's defaults would not re-run
@@ -176,11 +176,12 @@ def offline(args: argparse.Namespace) -> int:
               "velocity samples as the node did (align_inputs='never'; -p "
               "align_inputs=with_prediction or always reads them at the lateral error's "
               'stamp)')
-    if 'curvature_to_clock' in filled:
+    if 'curvature_at_yaw_stamp' in filled:
         # a controller from before dev-sc53 read the curvature polygon as stamped
-        print('replay: the bag predates curvature_to_clock: the re-run reads the curvature '
-              'polygon as stamped, as the node did (curvature_to_clock=false; -p '
-              'curvature_to_clock=true reads it where the car was at the answer)')
+        print('replay: the bag predates curvature_at_yaw_stamp: the re-run reads the '
+              'curvature polygon as stamped, as the node did (curvature_at_yaw_stamp=false; '
+              '-p curvature_at_yaw_stamp=true reads one older than the yaw sample taken where '
+              'the car was at its stamp)')
     if result.estimated:
         dropped = (f'; in {result.dropped} of them it was received and dropped: the map '
                    'check found it far off the yaw rate, lane_keeping.map_fallback'

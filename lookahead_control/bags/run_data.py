@@ -529,9 +529,6 @@ def _decode(pieces: _Pieces, role: str, raw: RawColumns,
                                   conv.from_named_values(msg)))
 
 
-#: the longest age of a recorded answer's clock taken as it is [s] (``road_clock_age``)
-MAX_CLOCK_AGE = 3600.0
-
 # node parameters the offline re-run does not model: it has no node clock (the recorder's
 # receive times are another node's clock), so no watchdog (stale inputs, hold, ramp), no
 # future-stamp check and no timer mode; overriding them would report a difference of 0
@@ -541,7 +538,7 @@ NOT_MODELED = frozenset({
     'autostart', 'diagnostics_rate_hz', 'executor', 'use_sim_time'})
 # node parameters it models besides the parameter sets of LAW_SETS
 MODELED = ('law', 'acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps',
-           'align_inputs', 'curvature_to_clock')
+           'align_inputs', 'curvature_at_yaw_stamp')
 # the parameter sets (namespaces) the re-run builds the controller and every law from
 LAW_SETS = ('vehicle', 'controller', 'safety', 'lane_keeping', 'pure_pursuit', 'stanley',
             'lqr')
@@ -564,8 +561,8 @@ def as_it_ran(params: Mapping[str, Any],
     them ``use_curvature_preview``, which every node since the first has; before
     dev-sc52) read the newest yaw and velocity samples: ``align_inputs`` ``never`` (a bag
     of inputs on one stamp re-runs the same either way). A bag of a node without
-    ``curvature_to_clock`` (before dev-sc53) read the curvature polygon as stamped:
-    ``curvature_to_clock`` false.
+    ``curvature_at_yaw_stamp`` (before dev-sc53) read the curvature polygon as stamped:
+    ``curvature_at_yaw_stamp`` false.
 
     :param params: the recorded parameters (empty: nothing is filled in).
     :param overrides: ``name -> value`` replacing recorded values.
@@ -576,9 +573,9 @@ def as_it_ran(params: Mapping[str, Any],
     if ('use_curvature_preview' in params and 'align_inputs' not in params
             and 'align_inputs' not in overrides):
         filled['align_inputs'] = 'never'
-    if ('use_curvature_preview' in params and 'curvature_to_clock' not in params
-            and 'curvature_to_clock' not in overrides):
-        filled['curvature_to_clock'] = False
+    if ('use_curvature_preview' in params and 'curvature_at_yaw_stamp' not in params
+            and 'curvature_at_yaw_stamp' not in overrides):
+        filled['curvature_at_yaw_stamp'] = False
     low = 'lane_keeping.low_speed_integral_gain'
     if ('lane_keeping.integral_gain' not in params or low in params or low in overrides):
         return filled
@@ -651,7 +648,7 @@ def _core_arguments(merged: Mapping[str, Any], source: str) -> tuple[Any, ...]:
             bool(merged.get('use_curvature_preview', False)), safety,
             str(merged.get('law', 'paper')), baselines, lane_keeping,
             _align_choice(merged.get('align_inputs', 'with_prediction')),
-            merged.get('curvature_to_clock', True))
+            merged.get('curvature_at_yaw_stamp', True))
 
 
 def reconfigure(core: SteeringController, params: Mapping[str, Any],
@@ -910,10 +907,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     stale-input hold and ramp, the future-stamp check, timer mode. Whether the curvature
     is in is what the recorded controller judged where its debug topic says
     (:func:`recorded_judgment`; with ``law`` overridden too: it says which curvature the
-    node had), else judged on the stamps (``SteeringController.curvature_lost``). The
-    road is read at the recorded node's clock where the debug topic says
-    (:func:`recorded_clock_ages`, ``curvature_to_clock``), else at the lateral error's
-    stamp.
+    node had), else judged on the stamps (``SteeringController.curvature_lost``).
 
     :param run: the recorded run.
     :param overrides: parameter overrides (``controller.natural_frequency`` ...).
@@ -942,7 +936,6 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
     estimated_at: set[int] = set()
     dropped = 0
     judged = recorded_judgment(run)
-    clock_ages = recorded_clock_ages(run)
     # a law set at run time: the node's debug names the law of each answer (an override
     # of ``law`` runs that law throughout)
     laws = {} if 'law' in (overrides or {}) else recorded_laws(run)
@@ -1021,9 +1014,7 @@ def rerun(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
             if received is not None:
                 followed += 1
                 otherwise += received != core.curvature_received(None)
-            age = clock_ages.get(sample.stamp_ns)
-            command = core.compute(curvature_received=received, answered_ns=(
-                None if age is None else sample.stamp_ns + round(age * 1e9)))
+            command = core.compute(curvature_received=received)
             if command is not None:
                 answered = True
                 commands[command.stamp_ns] = command
@@ -1365,31 +1356,6 @@ def recorded_judgment(run: RunData) -> dict[int, bool]:
             for t, f in zip(run.debug.stamp_ns.tolist(), flags.tolist()) if math.isfinite(f)}
 
 
-def recorded_clock_ages(run: RunData) -> dict[int, float]:
-    """
-    Return, per answered stamp, how far the recorded node's clock was past it [s].
-
-    From its debug topic's ``road_clock_age``: the clock the node read the road at
-    (``curvature_to_clock``), which no stamp holds. A stamp answered more than once (timer
-    mode between a slower camera's frames): its first answer's, the one whose command
-    the node sent (the later ones hold it; dev-probe123: the last one's was 1.8 mrad off).
-    An age beyond :data:`MAX_CLOCK_AGE` is taken as that (the road moves at most
-    ``input_timeout`` on; dev-probe123: 1e300 s overflowed).
-
-    :param run: the bag.
-    :return: stamp -> age (empty: the bag does not say; the re-run reads the road on the
-        stamps, at the lateral error's).
-    """
-    ages = run.debug.values.get('road_clock_age')
-    if ages is None:
-        return {}
-    first: dict[int, float] = {}
-    for stamp, age in zip(run.debug.stamp_ns.tolist(), ages.tolist()):
-        if math.isfinite(age) and int(stamp) not in first:
-            first[int(stamp)] = min(MAX_CLOCK_AGE, max(-MAX_CLOCK_AGE, float(age)))
-    return first
-
-
 def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
               order: Optional[str] = None) -> tuple[IntArray, LawOutput]:
     """
@@ -1467,13 +1433,12 @@ def rerun_law(run: RunData, overrides: Optional[Mapping[str, Any]] = None,
         # a yaw or velocity newer than the lateral error it answers: the node read them
         # between their samples at its stamp (align_inputs always): step by step
         return _stepped_law(rerun(run, overrides, order))
-    if core.curvature_to_clock and 'road_curvature' in latest:
+    if core.curvature_at_yaw_stamp and not core.aligns and 'road_curvature' in latest:
         where = latest['road_curvature'][at]
-        older = (where >= 0) & (fed_stamp[np.maximum(where, 0)] < fed_stamp[at])
-        ahead = recorded_clock_ages(run)
-        if np.any(older) or any(age > 0.0 for age in ahead.values()):
-            # a polygon older than the node's clock: the node read it where the car was
-            # at the answer (curvature_to_clock): step by step
+        yaw = fed_stamp[latest['yaw'][at]]
+        if np.any((where >= 0) & (fed_stamp[np.maximum(where, 0)] < yaw)):
+            # a polygon older than the yaw sample taken: the node read it where the car
+            # was at that sample's stamp (curvature_at_yaw_stamp): step by step
             return _stepped_law(rerun(run, overrides, order))
 
     def column(role: str, name: str) -> Array:

@@ -255,7 +255,7 @@ class SteeringController:
                  baselines: Optional[BaselineParams] = None,
                  lane_keeping: Optional[LaneKeepingParams] = None,
                  align_inputs: str = 'with_prediction',
-                 curvature_to_clock: bool = True) -> None:
+                 curvature_at_yaw_stamp: bool = True) -> None:
         """
         Create the controller state.
 
@@ -275,17 +275,14 @@ class SteeringController:
         :param align_inputs: when to read the yaw and the velocity at the lateral
             error's stamp (:meth:`aligned`), one of :data:`ALIGN_CHOICES`; ``never``:
             their newest samples, as before dev-sc52.
-        :param curvature_to_clock: read a curvature polygon stamped before the node's
-            clock where the car is at the answer (:meth:`road`); false: as stamped, as
-            before dev-sc53.
+        :param curvature_at_yaw_stamp: read a curvature polygon stamped before the yaw
+            sample the law takes where the car was at that sample's stamp (:meth:`road`);
+            false: as stamped, as before dev-sc53.
         """
         self.law_name = ''
         self.align_inputs = check_choice('align_inputs', align_inputs, ALIGN_CHOICES)
-        self.curvature_to_clock = check_flag('curvature_to_clock', curvature_to_clock)
-        #: the clock the last :meth:`compute` read the road at [ns] (:meth:`road`; None:
-        #: none yet, or on the stamps)
-        self.road_clock_ns: Optional[int] = None
-        self._clock_ns: Optional[int] = None
+        self.curvature_at_yaw_stamp = check_flag('curvature_at_yaw_stamp',
+                                                 curvature_at_yaw_stamp)
         #: the yaw, velocity and curvature samples taken and their stamps, oldest first,
         #: back to ``input_timeout + max_future`` before the newest (:meth:`_keep`): what
         #: :meth:`aligned` and :meth:`road` read
@@ -443,7 +440,7 @@ class SteeringController:
                   baselines: Optional[BaselineParams] = None,
                   lane_keeping: Optional[LaneKeepingParams] = None,
                   align_inputs: Optional[str] = None,
-                  curvature_to_clock: Optional[bool] = None) -> None:
+                  curvature_at_yaw_stamp: Optional[bool] = None) -> None:
         """
         Replace the parameters (between two control steps).
 
@@ -460,15 +457,15 @@ class SteeringController:
         :param baselines: see the constructor (None: keep).
         :param lane_keeping: see the constructor (None: keep).
         :param align_inputs: see the constructor (None: keep).
-        :param curvature_to_clock: see the constructor (None: keep).
+        :param curvature_at_yaw_stamp: see the constructor (None: keep).
         """
-        # every value checked before any is taken (dev-probe123: a bad curvature_to_clock
+        # every value checked before any is taken (dev-probe123: a bad curvature_at_yaw_stamp
         # left align_inputs changed)
         align = (self.align_inputs if align_inputs is None
                  else check_choice('align_inputs', align_inputs, ALIGN_CHOICES))
-        to_clock = (self.curvature_to_clock if curvature_to_clock is None
-                    else check_flag('curvature_to_clock', curvature_to_clock))
-        self.align_inputs, self.curvature_to_clock = align, to_clock
+        to_clock = (self.curvature_at_yaw_stamp if curvature_at_yaw_stamp is None
+                    else check_flag('curvature_at_yaw_stamp', curvature_at_yaw_stamp))
+        self.align_inputs, self.curvature_at_yaw_stamp = align, to_clock
         self.lane_keeping = lane_keeping or self.lane_keeping
         self._select_law(law or self.law_name, vehicle, controller,
                          baselines or self.baselines)
@@ -537,7 +534,7 @@ class SteeringController:
         ahead_rho = min(cap, max(-cap, rho + road.slope * PREVIEW_HORIZON))
         return Preview(np.array([0.0, PREVIEW_HORIZON]), np.array([rho, ahead_rho]))
 
-    def road(self, clock_ns: Optional[int] = None) -> Optional[CurvatureSample]:
+    def road(self) -> Optional[CurvatureSample]:
         """
         Return the latest curvature polygon as the law reads it.
 
@@ -554,38 +551,39 @@ class SteeringController:
         lateral error has no points behind its own CG: the newest one kept from at or
         before the lateral error's stamp is read instead, moved ahead (dev-sc52).
 
-        Without the prediction the law takes its state for the present, and with
-        ``curvature_to_clock`` (the default) a polygon stamped before the node's clock at
-        the answer is read where the car is then: moved by ``v_x`` times its age (within
-        ``input_timeout``; without a clock, on the stamps, to the lateral error's; with
-        ``align_inputs`` ``always`` as stamped: measured better there). Read
-        as stamped (dev-probe119 moved it to the lateral error's stamp: a camera 80 ms
-        late, S1 6.3 -> 15.3 cm, the feedforward late by the camera's age) a 10 Hz map of
-        now was up to 100 ms old, the curve up to 3.7 m late at 37 m/s (dev-sc53: the
-        default law, a lateral error of now at 100 Hz, S1 at 37 m/s 14.1 -> 4.2 cm,
-        noise-free).
+        Without the prediction the law takes its state for the present: the lateral error
+        and the relative yaw as they came, the newest yaw rate and speed. With
+        ``curvature_at_yaw_stamp`` (the default) a polygon stamped before the yaw sample
+        it takes is read where the car was at that sample's stamp: moved by ``v_x`` times
+        the stamps' difference (within ``input_timeout``). Read as stamped, a 10 Hz map of
+        now beside an IMU of now was up to 100 ms old, the curve up to 3.7 m late at 37
+        m/s (dev-sc53: the default law, a lateral error of now at 100 Hz, S1 at 37 m/s
+        14.1 -> 4.2 cm, noise-free). Not to the node's clock: a polygon sent with each
+        frame of a late camera, with the yaw of the frame's instant, was then read ahead
+        of the rest of the state (dev-probe124: 30 Hz / 50 ms, S1-S4 on two plants summed
+        72.6 -> 100.9 cm); not to the lateral error's stamp: behind a camera 80 ms late
+        beside an IMU of now that put the feedforward late by the camera's age
+        (dev-probe119: S1 6.3 -> 15.3 cm). With ``align_inputs`` ``always`` (the yaw read
+        at the lateral error's stamp) as stamped: it measured better there than at that
+        stamp.
 
-        :param clock_ns: the node's clock to read it at without the prediction (None: the
-            clock of the :meth:`compute` running, else the lateral error's stamp).
         :return: the polygon the law reads (None: no curvature yet).
         """
         road = self.curvature
-        if road is None or self.lateral is None or self.velocity is None:
+        if road is None or self.lateral is None or self.velocity is None or self.yaw is None:
             return road
         predicts = self.law_name == 'cg_compensated' and self.lane_keeping.delay_prediction
         limit = int(self.safety.input_timeout * 1e9)
         lateral = self.lateral.stamp_ns
         if not predicts:
-            # with the yaw and velocity read at the lateral error's stamp (align_inputs
-            # always) the state is that instant's: read at the clock, or at that stamp,
-            # the polygon measured worse than as stamped (dev-sc53, docs/vehicle_bridge.md)
-            if not self.curvature_to_clock or self.aligns or len(road.ahead) < 2:
+            # with the yaw read at the lateral error's stamp (align_inputs always) as
+            # stamped: moved to that stamp it measured worse (dev-sc53, vehicle_bridge.md)
+            if not self.curvature_at_yaw_stamp or self.aligns or len(road.ahead) < 2:
                 return road
-            clock = clock_ns if clock_ns is not None else self._clock_ns
-            clock = lateral if clock is None else clock
-            if clock <= road.stamp_ns:  # (a polygon of now, or newer: as it is)
+            age = self.yaw.stamp_ns - road.stamp_ns
+            if age <= 0:                # (sent with the yaw, or newer: as it is)
                 return road
-            return self._moved(road, min(limit, clock - road.stamp_ns))
+            return self._moved(road, min(limit, age))
         if road.stamp_ns > lateral:
             # newer than the lateral error (a map of now beside a late camera): its points
             # start at its own CG, ahead of the lateral error's, and the stretch between
@@ -868,7 +866,6 @@ class SteeringController:
             for the node's time on the measurements' clock (the watchdog).
         :return: the command, None before any command was sent.
         """
-        self.road_clock_ns = None       # (no road read: no law answer)
         sent = self._rate_angle
         if sent is None:
             return None
@@ -1313,8 +1310,7 @@ class SteeringController:
 
     def compute(self, now_ns: Optional[int] = None,
                 steady_ns: Optional[int] = None,
-                curvature_received: Optional[bool] = None,
-                answered_ns: Optional[int] = None) -> Optional[Command]:
+                curvature_received: Optional[bool] = None) -> Optional[Command]:
         """
         Evaluate the law on the latest inputs, or give the safe command if one is stale.
 
@@ -1324,18 +1320,14 @@ class SteeringController:
         :param curvature_received: whether the curvature received counts as in at this
             step, not lost (None: judged here, :meth:`curvature_lost`; an offline re-run
             gives the recorded node's own judgment, which no stamp holds).
-        :param answered_ns: the node's clock the road is read at (:meth:`road`; None:
-            ``now_ns``; an offline re-run gives the recorded node's, which no stamp holds).
         :return: the command answering the latest lateral error (the safe command when
             a required input is stale), None if an input is missing.
         """
         self._judged = curvature_received
-        self._clock_ns = self.road_clock_ns = now_ns if answered_ns is None else answered_ns
         try:
             return self._compute(now_ns, steady_ns)
         finally:
             self._judged = None
-            self._clock_ns = None
 
     def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):

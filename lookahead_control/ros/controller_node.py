@@ -82,11 +82,11 @@ NODE_SPECS = (
          'an IMU of now): while the law predicts its state from that stamp '
          '(lane_keeping.delay_prediction), always, or never (their newest samples)',
          choices=ALIGN_CHOICES),
-    Spec('curvature_to_clock', True, 'read a road_curvature polygon stamped before the '
-         "node's clock where the car is at the answer, moved by v_x times its age (a 10 Hz "
-         'map is up to 100 ms old); false: as stamped. With lane_keeping.delay_prediction '
-         "the law reads it at the lateral error's stamp instead, with align_inputs always "
-         'as stamped'),
+    Spec('curvature_at_yaw_stamp', True, 'read a road_curvature polygon stamped before the '
+         'yaw sample the law takes where the car was at its stamp, moved by v_x times the '
+         "stamps' difference (a 10 Hz map beside a 100 Hz IMU is up to 100 ms behind it); "
+         'false: as stamped. With lane_keeping.delay_prediction the law reads it at the '
+         "lateral error's stamp instead, with align_inputs always as stamped"),
     Spec('autostart', True, 'configure and activate at start-up'),
     Spec('frame_id', 'base_link', "inputs in another frame are refused ('': any)"),
     Spec('watchdog_rate_hz', 20.0, 'stale-input check and safe-command rate [Hz]',
@@ -199,7 +199,7 @@ def core_from_params(params: Mapping[str, Any]) -> SteeringController:
                               params['use_curvature_preview'], safety_params(params),
                               params['law'], baseline_params(params),
                               lane_keeping_params(params), params['align_inputs'],
-                              params['curvature_to_clock'])
+                              params['curvature_at_yaw_stamp'])
 
 
 def check_parameters(params: Mapping[str, Any]) -> None:
@@ -336,7 +336,7 @@ class ControllerNode(LifecycleNode):
         self.core.configure(vehicle, controller, params['acceleration_source'],
                             params['use_curvature_preview'], safety_params(params),
                             params['law'], baseline_params(params), lane_keeping,
-                            params['align_inputs'], params['curvature_to_clock'])
+                            params['align_inputs'], params['curvature_at_yaw_stamp'])
         self.get_logger().info(applied_summary(params['law'], controller, lane_keeping))
 
     def param(self, name: str) -> Any:
@@ -770,11 +770,6 @@ class ControllerNode(LifecycleNode):
         # any law: whether it had the curvature (judged on this node's clock, which no
         # stamp holds: the offline re-run takes it)
         debug.append(('curvature_received', float(self.core.curvature_in)))
-        # the node's clock the road was read at, from the answer's stamp [s]
-        # (curvature_to_clock; the re-run reads the road there)
-        if self.core.road_clock_ns is not None:
-            debug.append(('road_clock_age',
-                          (self.core.road_clock_ns - command.stamp_ns) * 1e-9))
         # the parameter sets applied before this answer (the re-run applies the recorded
         # /parameter_events at the answer where this count reaches them)
         debug.append(('parameter_sets', float(self.parameter_sets)))

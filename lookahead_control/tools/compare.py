@@ -118,9 +118,9 @@ class LawSettings:
     :param wait_for_matching_stamps: the node's (event mode), run with a sensor timing.
     :param sync_timeout: the node's (the longest wait for matching stamps) [s].
     :param watchdog_rate_hz: the node's (its safe command while an input is stale) [Hz].
-    :param curvature_to_clock: the node's (a curvature polygon read where the car is at
-        the answer): it matters only with a curvature older than the answer, which
-        ``compare --camera`` / ``--stream`` runs.
+    :param curvature_at_yaw_stamp: the node's (a curvature polygon older than the yaw
+        sample taken read where the car was at its stamp): it matters only with a
+        curvature stamped apart from the yaw, which ``compare --stream`` runs.
     """
 
     controller: ControllerParams = ControllerParams()
@@ -136,7 +136,7 @@ class LawSettings:
     wait_for_matching_stamps: bool = False
     sync_timeout: float = 0.05
     watchdog_rate_hz: float = 20.0
-    curvature_to_clock: bool = True
+    curvature_at_yaw_stamp: bool = True
 
 
 #: the node's settings that change a run but that the offline loop does not run (it
@@ -162,7 +162,7 @@ TIMED_RUNS = ("it hands each input's samples to the controller node's core as th
 #: the node's settings a run with a sensor timing runs besides the laws' and the limits
 NODE_TIMED = ('acceleration_source', 'mode', 'rate_hz', 'align_inputs',
               'wait_for_matching_stamps', 'sync_timeout', 'watchdog_rate_hz',
-              'curvature_to_clock')
+              'curvature_at_yaw_stamp')
 
 
 def package_safety() -> SafetyParams:
@@ -315,7 +315,8 @@ def load_law_settings(path: Path | str, vehicle: Optional[VehicleParams] = None,
                                        package['wait_for_matching_stamps'])),
                        float(params.get('sync_timeout', package['sync_timeout'])),
                        float(params.get('watchdog_rate_hz', package['watchdog_rate_hz'])),
-                       bool(params.get('curvature_to_clock', package['curvature_to_clock'])))
+                       bool(params.get('curvature_at_yaw_stamp',
+                                       package['curvature_at_yaw_stamp'])))
 
 
 def package_node_defaults() -> dict[str, Any]:
@@ -937,7 +938,7 @@ def node_core(law_name: str, vehicle: VehicleParams, settings: LawSettings
     return SteeringController(vehicle, controller, settings.acceleration_source,
                               settings.curvature_rate, settings.safety, law,
                               settings.baselines, settings.lane_keeping,
-                              settings.align_inputs, settings.curvature_to_clock)
+                              settings.align_inputs, settings.curvature_at_yaw_stamp)
 
 
 def _timed_runs(law_name: str, scenario_name: str, scenario: Scenario,
