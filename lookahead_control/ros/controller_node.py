@@ -85,8 +85,9 @@ NODE_SPECS = (
     Spec('curvature_at_yaw_stamp', True, 'read a road_curvature polygon stamped before the '
          'yaw sample the law takes where the car was at its stamp, moved by v_x times the '
          "stamps' difference (a 10 Hz map beside a 100 Hz IMU is up to 100 ms behind it); "
-         'false: as stamped. With lane_keeping.delay_prediction the law reads it at the '
-         "lateral error's stamp instead, with align_inputs always as stamped"),
+         'false: as stamped. With law cg_compensated and lane_keeping.delay_prediction it '
+         "is read at the lateral error's stamp instead, with align_inputs always as "
+         'stamped; the sensor clocks must agree (docs/vehicle_bridge.md)'),
     Spec('autostart', True, 'configure and activate at start-up'),
     Spec('frame_id', 'base_link', "inputs in another frame are refused ('': any)"),
     Spec('watchdog_rate_hz', 20.0, 'stale-input check and safe-command rate [Hz]',
