@@ -33,8 +33,8 @@ from typing import Any, Mapping, Optional, Sequence
 
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
-from lookahead_control.bags.run_data import (as_it_ran, CONTROLLER_NODE, load_run, Rerun,
-                                             rerun, RunData)
+from lookahead_control.bags.run_data import (as_it_ran, CONTROLLER_NODE, load_run,
+                                             NODE_PARAMS_BEFORE, Rerun, rerun, RunData)
 from lookahead_control.core import interrupts
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, output_file,
                                         run_tool, ToolError, write_json)
@@ -161,8 +161,7 @@ def offline(args: argparse.Namespace) -> int:
               f'{", ".join(described_nodes(Path(args.bag))) or "no node"}): the re-run '
               'uses the default vehicle, law and safety parameters, the law its debug '
               'names where it has one (-p NAME=VALUE sets one)')
-    schedule = {k: v for k, v in filled.items()
-                if k not in ('align_inputs', 'curvature_at_yaw_stamp')}
+    schedule = {k: v for k, v in filled.items() if k not in NODE_PARAMS_BEFORE}
     if schedule:
         # a bag from before the integral gain's speed schedule: the law ran with k_i
         # constant, which the schedule's defaults would not re-run

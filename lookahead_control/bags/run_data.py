@@ -536,6 +536,10 @@ NOT_MODELED = frozenset({
     'safety.input_timeout', 'safety.hold_time', 'safety.safe_angle', 'safety.max_future',
     'watchdog_rate_hz', 'mode', 'rate_hz', 'sync_timeout', 'qos_reliability', 'frame_id',
     'autostart', 'diagnostics_rate_hz', 'executor', 'use_sim_time'})
+#: node parameters a controller's bag may predate, and the value the node ran with then
+#: (:func:`as_it_ran`): the newest yaw and velocity samples (before dev-sc52), the
+#: curvature polygon as stamped (before dev-sc53)
+NODE_PARAMS_BEFORE = {'align_inputs': 'never', 'curvature_at_yaw_stamp': False}
 # node parameters it models besides the parameter sets of LAW_SETS
 MODELED = ('law', 'acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps',
            'align_inputs', 'curvature_at_yaw_stamp')
@@ -557,12 +561,12 @@ def as_it_ran(params: Mapping[str, Any],
     law), but is ``integral_gain`` (the overridden one if ``-p`` sets it): ``k_i``
     constant. An override of the name itself wins.
 
-    A bag of a controller node without ``align_inputs`` (its parameters recorded, among
-    them ``use_curvature_preview``, which every node since the first has; before
-    dev-sc52) read the newest yaw and velocity samples: ``align_inputs`` ``never`` (a bag
-    of inputs on one stamp re-runs the same either way). A bag of a node without
-    ``curvature_at_yaw_stamp`` (before dev-sc53) read the curvature polygon as stamped:
-    ``curvature_at_yaw_stamp`` false.
+    A bag of a controller node (its parameters recorded, among them
+    ``use_curvature_preview``, which every node since the first has) without a parameter
+    of :data:`NODE_PARAMS_BEFORE` ran as that value says: without ``align_inputs``
+    (before dev-sc52) it read the newest yaw and velocity samples (``never``; a bag of
+    inputs on one stamp re-runs the same either way), without ``curvature_at_yaw_stamp``
+    (before dev-sc53) the curvature polygon as stamped (false).
 
     :param params: the recorded parameters (empty: nothing is filled in).
     :param overrides: ``name -> value`` replacing recorded values.
@@ -570,12 +574,9 @@ def as_it_ran(params: Mapping[str, Any],
     """
     overrides = overrides or {}
     filled: dict[str, Any] = {}
-    if ('use_curvature_preview' in params and 'align_inputs' not in params
-            and 'align_inputs' not in overrides):
-        filled['align_inputs'] = 'never'
-    if ('use_curvature_preview' in params and 'curvature_at_yaw_stamp' not in params
-            and 'curvature_at_yaw_stamp' not in overrides):
-        filled['curvature_at_yaw_stamp'] = False
+    if 'use_curvature_preview' in params:      # a controller node's parameters
+        filled.update({name: value for name, value in NODE_PARAMS_BEFORE.items()
+                       if name not in params and name not in overrides})
     low = 'lane_keeping.low_speed_integral_gain'
     if ('lane_keeping.integral_gain' not in params or low in params or low in overrides):
         return filled

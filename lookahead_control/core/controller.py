@@ -463,9 +463,9 @@ class SteeringController:
         # left align_inputs changed)
         align = (self.align_inputs if align_inputs is None
                  else check_choice('align_inputs', align_inputs, ALIGN_CHOICES))
-        to_clock = (self.curvature_at_yaw_stamp if curvature_at_yaw_stamp is None
-                    else check_flag('curvature_at_yaw_stamp', curvature_at_yaw_stamp))
-        self.align_inputs, self.curvature_at_yaw_stamp = align, to_clock
+        at_yaw = (self.curvature_at_yaw_stamp if curvature_at_yaw_stamp is None
+                  else check_flag('curvature_at_yaw_stamp', curvature_at_yaw_stamp))
+        self.align_inputs, self.curvature_at_yaw_stamp = align, at_yaw
         self.lane_keeping = lane_keeping or self.lane_keeping
         self._select_law(law or self.law_name, vehicle, controller,
                          baselines or self.baselines)
