@@ -84,16 +84,20 @@ class StreamTiming:
     :param rate_hz: how often it is measured [Hz].
     :param latency: from its capture (its stamp) to its arrival at the controller [s].
     :param phase: its first capture [s] (within one period).
+    :param clock_offset: its clock ahead of the controller's [s]: its stamps are the
+        capture's plus it (a sensor on a clock of its own, not synchronized).
     """
 
     rate_hz: float = 100.0
     latency: float = 0.0
     phase: float = 0.0
+    clock_offset: float = 0.0
 
     def __post_init__(self) -> None:
         check_range('rate_hz', self.rate_hz, 1.0, 1000.0, unit='Hz')
         check_range('latency', self.latency, 0.0, MAX_LATENCY, unit='s')
         check_range('phase', self.phase, 0.0, 1.0 / self.rate_hz, unit='s')
+        check_range('clock_offset', self.clock_offset, -MAX_LATENCY, MAX_LATENCY, unit='s')
 
 
 @dataclass(frozen=True)
@@ -124,7 +128,8 @@ class SensorTiming:
         def one(name: str) -> str:
             s = getattr(self, name)
             return (f'{name} {s.rate_hz:g} Hz {1e3 * s.latency:g} ms late'
-                    + (f' (phase {1e3 * s.phase:g} ms)' if s.phase else ''))
+                    + (f' (phase {1e3 * s.phase:g} ms)' if s.phase else '')
+                    + (f' (clock {1e3 * s.clock_offset:+g} ms)' if s.clock_offset else ''))
         if self.with_frame:
             return f"{one('lateral_error')}, yaw, velocity and curvature with each frame"
         return ', '.join(one(name) for name in ('lateral_error', 'yaw', 'velocity',
@@ -133,21 +138,23 @@ class SensorTiming:
 
 def parse_stream(text: str) -> StreamTiming:
     """
-    Return the timing written ``RATE/LATENCY`` (Hz / seconds, e.g. ``20/0.12``).
+    Return the timing written ``RATE/LATENCY[/CLOCK]`` (Hz / seconds / seconds).
 
-    :param text: the text.
+    :param text: the text, e.g. ``20/0.12``, or ``100/0/0.05`` for a sensor whose clock
+        runs 50 ms ahead of the controller's.
     :return: the timing.
     :raises ParameterError: not of that form, or a value out of its range.
     """
     parts = text.split('/')
     try:
-        if len(parts) != 2:
-            raise ValueError('not RATE/LATENCY')
-        rate, latency = float(parts[0]), float(parts[1])
+        if len(parts) not in (2, 3):
+            raise ValueError('not RATE/LATENCY[/CLOCK]')
+        rate, latency, *clock = (float(part) for part in parts)
     except ValueError as err:
-        raise ParameterError(f'timing {text!r} is not RATE/LATENCY (Hz / s, e.g. 20/0.12): '
-                             f'{err}') from err
-    return StreamTiming(rate, latency)
+        raise ParameterError(f'timing {text!r} is not RATE/LATENCY[/CLOCK] (Hz / s / s, e.g. '
+                             f'20/0.12, or 100/0/0.05 for a clock 50 ms ahead): {err}'
+                             ) from err
+    return StreamTiming(rate, latency, 0.0, clock[0] if clock else 0.0)
 
 
 def check_timing(timing: SensorTiming, dt: float) -> None:
@@ -349,11 +356,12 @@ def timed_run(scenario: Scenario, core: SteeringController, timing: SensorTiming
                 # the polygon only for a curvature sample (21 road lookups a capture)
                 preview = ([(d, float(curvature(float(x[0]) + d))) for d in distances]
                            if 'road_curvature' in names else [])
+                stamp = now + int(round(stream.clock_offset * 1e9))
                 samples = tuple(s for n in names for s in _samples(
-                    n, now, truth, x, noise_row, sensor_distance, preview))
+                    n, stamp, truth, x, noise_row, sensor_distance, preview))
                 arrival = k + _steps(stream.latency, dt)
                 heapq.heappush(in_flight, (arrival, STREAMS.index(name), count,
-                                           _Delivery(name, now, samples)))
+                                           _Delivery(name, stamp, samples)))
                 count += 1
         before = len(node.sent)
         while in_flight and in_flight[0][0] <= k:

@@ -131,9 +131,27 @@ def test_inputs_on_their_own_rates_and_latencies():
     assert all(now - stamp == 30 * MS for stamp, now in of('road_curvature'))
 
 
+def test_a_sensor_clock_ahead_or_behind_stamps_its_captures_so():
+    # an IMU clock 50 ms ahead of the controller's, a map's 30 ms behind: captured and
+    # delivered as before, stamped on their own clocks
+    timing = SensorTiming(StreamTiming(), StreamTiming(100.0, 0.005, 0.0, 0.05),
+                          StreamTiming(), StreamTiming(10.0, 0.0, 0.0, -0.03))
+    log = _logged(timing)
+
+    def of(name):
+        return [(stamp, now) for n, stamp, now in log if n == name]
+    assert [s for s, _ in of('yaw')][:3] == [50 * MS, 60 * MS, 70 * MS]
+    assert all(now - stamp == -45 * MS for stamp, now in of('yaw'))
+    assert [s for s, _ in of('road_curvature')][:2] == [-30 * MS, 70 * MS]
+    assert 'yaw 100 Hz 5 ms late (clock +50 ms)' in timing.describe()
+
+
 def test_a_timing_out_of_range_is_refused_naming_it():
     assert parse_stream(' 20 / 0.12 ') == StreamTiming(20.0, 0.12)
+    assert parse_stream('100/0/-0.05') == StreamTiming(100.0, 0.0, 0.0, -0.05)
     for text, part in (('20', 'not RATE/LATENCY'), ('x/0.1', 'not RATE/LATENCY'),
+                       ('20/0.1/0/0', 'not RATE/LATENCY'), ('20/0.1/2', 'clock_offset'),
+                       ('20/0.1/nan', 'clock_offset'),
                        ('0.5/0.1', 'rate_hz'), ('20/2', 'latency'), ('20/-0.1', 'latency'),
                        ('nan/0.1', 'rate_hz')):
         with pytest.raises(ParameterError, match=part):

@@ -34,6 +34,7 @@ from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingPar
 from lookahead_control.core.lane_scale_check import LaneScaleCheck, unwrap
 from lookahead_control.core.laws import Law, PaperLaw, Preview
 from lookahead_control.core.map_check import MapCheck
+from lookahead_control.core.map_timing_check import MapTimingCheck
 from lookahead_control.core.oscillation_check import OscillationCheck
 from lookahead_control.core.params import (check_choice, check_flag, ControllerParams,
                                            VehicleParams)
@@ -336,13 +337,22 @@ class SteeringController:
                                           'yaw_rate_still': 0.0,
                                           'speed_out_of_scale': 0.0,
                                           'lateral_error_out_of_scale': 0.0,
-                                          'relative_yaw_out_of_scale': 0.0}
+                                          'relative_yaw_out_of_scale': 0.0,
+                                          'curvature_early_or_late': 0.0}
         #: the received curvature against the yaw measurements (``core/map_check.py``):
         #: seconds of answers with it over its threshold in ``curvature_disagrees``, and
         #: with it dropped (the law on its own estimate, ``lane_keeping.map_fallback``) in
         #: ``curvature_dropped``; the largest residual since the caller last took it in
         #: ``map_residual``
         self.map_check = MapCheck()
+        #: the curvature read against the yaw measurements in time
+        #: (``core/map_timing_check.py``): seconds of answers with its lead told in
+        #: ``curvature_early_or_late``, the lead told last since the caller last took it in
+        #: ``map_lead_seen`` (None: none), the yaw stamp it last took in ``_timing_yaw``
+        self.map_timing = MapTimingCheck()
+        self.map_lead_seen: Optional[float] = None
+        self._timing_yaw: Optional[int] = None
+        self._state_yaw: Optional[int] = None
         #: the v_x of the last answer held for low speed (``safety.low_speed``) [m/s]
         self.low_speed_v_x: Optional[float] = None
         self.map_residual = 0.0
@@ -646,6 +656,8 @@ class SteeringController:
             self._hold_value = self._rate_angle
         self.law.reset()
         self.map_check.reset()
+        self.map_timing.forget()
+        self._timing_yaw = None
         self.speed_check.reset()
         self._raw.clear()               # (the lane scale check restarts with the yaw fault)
         self._eps_unwrapped = None
@@ -1297,6 +1309,7 @@ class SteeringController:
         if self.lateral is None or self.yaw is None or self.velocity is None:
             return None
         yaw, velocity = self.aligned('yaw'), self.aligned('velocity')
+        self._state_yaw = yaw.stamp_ns
         eps_r = yaw.relative_yaw
         road = self.road()
         rho, slope = (road.rho, road.slope) if (
@@ -1328,6 +1341,21 @@ class SteeringController:
             return self._compute(now_ns, steady_ns)
         finally:
             self._judged = None
+
+    def _step_map_timing(self, state: LateralState, dt: float) -> None:
+        """Give the map timing check the yaw sample the law took, on its own stamps."""
+        stamp, last = self._state_yaw, self._timing_yaw
+        self._timing_yaw = stamp
+        if stamp is None:
+            return
+        step = math.inf if last is None or stamp < last else (stamp - last) * 1e-9
+        check = self.map_timing
+        check.step(step, float(state.eps_r), float(state.r), float(state.v_x),
+                   float(state.rho), float(state.y_cg), float(state.v_y))
+        lead = check.told()
+        if lead is not None:
+            self.turning['curvature_early_or_late'] += dt
+            self.map_lead_seen = lead
 
     def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):
@@ -1370,8 +1398,11 @@ class SteeringController:
                 self.turning['curvature_disagrees'] += dt
             if self.map_check.dropped:
                 self.turning['curvature_dropped'] += dt
+            self._step_map_timing(state, dt)
         else:       # a curvature lost and back: still dropped until the check is quiet
             self.map_check.reset(keep_dropped=True)
+            self.map_timing.reset()
+            self._timing_yaw = None
         if note_curvature is not None:      # a law that estimates a missing curvature
             note_curvature(self.curvature_in and not self.map_check.dropped)
         resets = getattr(self.law, 'resets', 0)

@@ -959,6 +959,29 @@ class ControllerNode(LifecycleNode):
                            'in km/h), the yaw rate (a gyro bias: 0.3 deg/s is 10 '
                            f'mrad), or the relative yaw (a jump, a relocalization). {acted} '
                            '(docs/safety.md)')
+        lead, self.core.map_lead_seen = self.core.map_lead_seen, None
+        if turning['curvature_early_or_late'] > 0.0 and lead is not None:
+            # dev-probe125: an IMU clock 50 / 90 ms ahead of the map's read every curve
+            # 1.9 / 3.3 m early at 37 m/s (S3 2.7 -> 17.0 / 31.1 cm), within every stamp
+            # check and under the map check's threshold, and nothing said so
+            level = max(level, DiagnosticStatus.WARN)
+            v_x = self.core.velocity.v_x if self.core.velocity is not None else 0.0
+            when = (f', {abs(lead) / v_x * 1e3:.0f} ms at {v_x:.3g} m/s' if v_x >= 1.0
+                    else '')
+            ahead = lead > 0.0
+            reasons.append(f'road_curvature read {abs(lead):.2f} m '
+                           f'{"ahead of" if ahead else "behind"} the car{when}, for '
+                           f'{turning["curvature_early_or_late"]:.2f} s (fitted over the curve '
+                           'entries and exits: the relative yaw against the yaw rate and the '
+                           'curvature read): the IMU stamped on a clock '
+                           f'{"ahead of" if ahead else "behind"} the map' + "'s (stamp every "
+                           'input on one synchronized clock, at its capture), the map placed '
+                           'off along the road, or a polygon too coarse for the curvature'
+                           + "'s changes" + ('' if self.core.curvature_at_yaw_stamp else
+                                             ' (curvature_at_yaw_stamp false: a polygon is '
+                                             'read as stamped, up to a map period late)')
+                           + f'. Every law turns in that much {"early" if ahead else "late"} '
+                           '(docs/vehicle_bridge.md)')
         swing, self.core.oscillation_seen = self.core.oscillation_seen, (0.0, 0.0)
         if turning['steering_oscillates'] >= TURNING_WARN:
             # dev-probe73: from about 90 ms of actuator delay the default law's steering
@@ -1053,6 +1076,11 @@ class ControllerNode(LifecycleNode):
         if latency is not None:
             values.append(KeyValue(key='answer latency max [s]', value=f'{latency:.6f}'))
         values.append(KeyValue(key='road_curvature residual max [rad]', value=f'{residual:.6f}'))
+        fitted, error = self.core.map_timing.fit()
+        values.append(KeyValue(key='road_curvature lead [m]',
+                               value=f'{fitted:.3f}' if math.isfinite(error) else 'unknown'))
+        values.append(KeyValue(key='road_curvature lead standard error [m]',
+                               value=f'{error:.3f}' if math.isfinite(error) else 'unknown'))
         values.append(KeyValue(key='steering oscillation max [rad]', value=f'{swing[0]:.6f}'))
         values.append(KeyValue(key='steering oscillation frequency [Hz]',
                                value=f'{swing[1]:.3f}'))

@@ -1775,10 +1775,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                    '(sim_plant/sensor_timing.py, one run at a time: slower); the yaw, '
                    'velocity and curvature go with each frame, of its instant, unless '
                    '--stream gives them their own')
-    p.add_argument('--stream', action='append', default=[], metavar='NAME=HZ/S',
+    p.add_argument('--stream', action='append', default=[], metavar='NAME=HZ/S[/S]',
                    help=f'an input on its own rate and latency ({", ".join(TIMED_STREAMS)}; '
                    'e.g. yaw=100/0.005; repeat for each; the others at 100 Hz without '
-                   'latency)')
+                   "latency); a third number is the sensor clock's offset, its stamps "
+                   "ahead of the controller's clock (yaw=100/0/0.05: an IMU clock 50 ms "
+                   'ahead)')
     args = p.parse_args(argv)
     from lookahead_control.core.config import ConfigError, load_vehicle
     timing = sensor_timing(args.camera, args.stream)

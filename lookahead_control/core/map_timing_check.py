@@ -1,0 +1,213 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+An estimate of how far the curvature the law reads runs ahead of the car's yaw.
+
+The laws read the road's curvature at the car from the polygon, moved to the yaw
+sample's stamp (``curvature_at_yaw_stamp``): that needs the map's and the IMU's clocks to
+agree. An IMU clock 50 / 90 ms ahead of the map's reads every curve 1.9 / 3.3 m early at
+37 m/s (dev-probe125: S3 2.7 -> 17.0 / 31.1 cm), within every stamp check; a map
+localized off along the road does the same. Nothing else tells it: the map check's
+residual (``core/map_check.py``) is a pulse of ``v_x rho`` times the lead, 4.6 mrad for
+50 ms at 37 m/s on R 400 m, under its threshold.
+
+The relative yaw moves as ``eps_r' = r - a rho`` with ``a = (v_x cos eps_r - v_y sin
+eps_r) / (1 - rho y_cg)`` (kinematics in the lane's frame). Predicted from the measured
+yaw rate and the curvature read, pulled to the measured relative yaw over ``leak``, the
+prediction's distance ``e`` from the measurement is, to first order, a sum of three
+known responses: ``e = lead G + scale H - bias C``, where ``G`` is the same leaky
+prediction of ``a rho'`` (a curvature read ``lead`` seconds ahead adds ``lead rho'``),
+``H`` that of ``a rho`` (a curvature off in scale by ``scale``) and ``C`` that of 1 (a
+yaw-rate bias). A least-squares fit of the three over the last ``memory`` seconds
+separates them: only curve entries and exits (``rho'`` not 0) tell the lead; a scale
+error or a gyro bias, which the map check judges, does not move it. The fit's lead is
+told when it is ``threshold`` or more (an offset that moves the curve ``v_x`` times it)
+with its standard error at most ``precision``, the noise's effect judged from the fit's
+residual with a correlation time ``correlation``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+from lookahead_control.core.params import check_range
+
+
+@dataclass(frozen=True)
+class MapTimingParams:
+    """
+    Settings of the estimate.
+
+    :param leak: time over which the prediction is pulled to the measured relative yaw
+        [s].
+    :param memory: the fit forgets with this time constant [s].
+    :param threshold: a lead or lag this large or larger is told [m].
+    :param confidence: ... and this many times its standard error or more.
+    :param correlation: the residual's correlation time, for the standard error [s].
+    :param min_speed: below this speed no step is taken [m/s].
+    """
+
+    leak: float = 2.0
+    memory: float = 60.0
+    threshold: float = 1.5
+    confidence: float = 3.0
+    correlation: float = 0.25
+    min_speed: float = 5.0
+
+    def __post_init__(self) -> None:
+        """Check the ranges."""
+        check_range('map_timing.leak', self.leak, 0.1, 60.0, unit='s')
+        check_range('map_timing.memory', self.memory, 1.0, 3600.0, unit='s')
+        check_range('map_timing.threshold', self.threshold, 0.01, 100.0, unit='m')
+        check_range('map_timing.confidence', self.confidence, 0.0, 100.0)
+        check_range('map_timing.correlation', self.correlation, 0.0, 10.0, unit='s')
+        check_range('map_timing.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
+
+
+class MapTimingCheck:
+    """The lead of the curvature read over the yaw measurements, fitted."""
+
+    def __init__(self, settings: MapTimingParams | None = None) -> None:
+        """
+        Start with nothing fitted.
+
+        :param settings: the settings (defaults if None).
+        """
+        self.settings = settings or MapTimingParams()
+        self.forget()
+
+    def reset(self) -> None:
+        """Start the prediction again (a gap, no curvature, a slow car); keep the fit."""
+        self._last: tuple[float, float, float] | None = None    # (eps_r, rate, rho)
+        self._predicted = 0.0
+        self._responses = [0.0, 0.0, 0.0]
+
+    def forget(self) -> None:
+        """Forget the fit too (a new map or IMU: a restart of the law)."""
+        self.reset()
+        # the fit's sums: the upper triangle of the information (00 01 02 11 12 22),
+        # the moment, the squares and the weight
+        self._info = [0.0] * 6
+        self._moment = [0.0, 0.0, 0.0]
+        self._squares = 0.0
+        self._weight = 0.0
+        self._fitted: tuple[float, float] | None = (0.0, math.inf)
+
+    def step(self, dt: float, eps_r: float, r: float, v_x: float, rho: float,
+             y_cg: float = 0.0, v_y: float = 0.0) -> None:
+        """
+        Take one yaw measurement and the curvature at the car read with it.
+
+        :param dt: time since the previous step [s] (0: the same measurement again,
+            nothing moves; above 1 s or not finite: a restart).
+        :param eps_r: measured relative yaw [rad].
+        :param r: measured yaw rate [rad/s].
+        :param v_x: speed [m/s].
+        :param rho: curvature read at the car [1/m].
+        :param y_cg: measured CG error [m].
+        :param v_y: measured lateral velocity [m/s].
+        """
+        s = self.settings
+        values = (dt, eps_r, r, v_x, rho, y_cg, v_y)
+        if not all(math.isfinite(x) for x in values) or v_x < s.min_speed:
+            self.reset()
+            return
+        if dt == 0.0 and self._last is not None:
+            return
+        along = (v_x * math.cos(eps_r) - v_y * math.sin(eps_r)) / max(1.0 - rho * y_cg, 0.1)
+        rate = r - along * rho
+        if self._last is None or not 0.0 < dt <= 1.0:
+            self.reset()
+            self._last = (eps_r, rate, rho)
+            self._predicted = eps_r
+            return
+        last_eps, last_rate, last_rho = self._last
+        self._last = (eps_r, rate, rho)
+        pull = min(1.0, dt / s.leak)
+        # the prediction as the map check makes it (a trapezoid, then the pull), and the
+        # three responses through the same steps: to a lead of the curvature [m] (G), to
+        # its scale (H), to a yaw-rate bias (C)
+        predicted = self._predicted + dt * 0.5 * (last_rate + rate)
+        g, h, c = self._responses
+        g = (g + along / v_x * (rho - last_rho)) * (1.0 - pull)
+        h = (h + dt * along * 0.5 * (rho + last_rho)) * (1.0 - pull)
+        c = (c + dt) * (1.0 - pull)
+        self._responses = [g, h, c]
+        miss = eps_r - predicted
+        self._predicted = predicted + miss * pull
+        error = miss * (1.0 - pull)
+        # a lead adds to the measured motion what the prediction took off, as does a
+        # scale; a yaw-rate bias adds to the prediction
+        row = (g, h, -c)
+        keep = math.exp(-dt / s.memory)
+        info = self._info
+        for k, (i, j) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
+            info[k] = keep * info[k] + dt * row[i] * row[j]
+        self._moment = [keep * m + dt * x * error for m, x in zip(self._moment, row)]
+        self._squares = keep * self._squares + dt * error * error
+        self._weight = keep * self._weight + dt
+        self._fitted = None
+
+    def fit(self) -> tuple[float, float]:
+        """
+        Return the lead and its standard error [m].
+
+        :return: ``(lead, standard error)``; ``(0, inf)`` while the curvature has not
+            varied enough to tell a lead (a straight or a constant arc).
+        """
+        if self._fitted is None:
+            self._fitted = self._solve()
+        return self._fitted
+
+    def _solve(self) -> tuple[float, float]:
+        a00, a01, a02, a11, a12, a22 = self._info
+        if self._weight <= 0.0 or a00 <= 0.0:
+            return 0.0, math.inf
+        # normalized to a unit diagonal (the responses' scales differ by 1e4), a hair of
+        # ridge for a response that never moved (the scale on a straight)
+        d = [math.sqrt(max(x, 1e-300)) for x in (a00, a11, a22)]
+        b01, b02, b12 = a01 / (d[0] * d[1]), a02 / (d[0] * d[2]), a12 / (d[1] * d[2])
+        one = 1.0 + 1e-9
+        # the inverse of the symmetric [[1, b01, b02], [b01, 1, b12], [b02, b12, 1]]
+        c00, c11, c22 = one * one - b12 * b12, one * one - b02 * b02, one * one - b01 * b01
+        c01, c02, c12 = b02 * b12 - b01 * one, b01 * b12 - b02 * one, b01 * b02 - b12 * one
+        det = one * c00 + b01 * c01 + b02 * c02
+        if not det > 0.0:
+            return 0.0, math.inf
+        inverse = [[c00, c01, c02], [c01, c11, c12], [c02, c12, c22]]
+        inverse = [[inverse[i][j] / (det * d[i] * d[j]) for j in range(3)] for i in range(3)]
+        theta = [sum(inverse[i][j] * self._moment[j] for j in range(3)) for i in range(3)]
+        explained = sum(t * m for t, m in zip(theta, self._moment))
+        rest = max(0.0, self._squares - explained) / self._weight
+        spread = rest * max(self.settings.correlation, 1e-3) * inverse[0][0]
+        # the responses are of the curvature read, (1 + k) times the road's: the fit's
+        # scale is k / (1 + k) and its lead the road's over (1 + k)
+        share = 1.0 - theta[1]
+        if not (math.isfinite(spread) and math.isfinite(theta[0]) and share > 0.1):
+            return 0.0, math.inf
+        return theta[0] / share, math.sqrt(max(spread, 0.0)) / share
+
+    def told(self) -> float | None:
+        """
+        Return the lead told, or None while within the threshold or not significant.
+
+        :return: the lead [m] (positive: the curvature read ahead of the car).
+        """
+        lead, error = self.fit()
+        s = self.settings
+        if abs(lead) >= max(s.threshold, s.confidence * error):
+            return lead
+        return None

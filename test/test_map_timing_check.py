@@ -1,0 +1,180 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The lead of the curvature read over the yaw measurements (core/map_timing_check.py)."""
+
+from __future__ import annotations
+
+import math
+
+from lookahead_control.core.controller import SteeringController
+from lookahead_control.core.map_timing_check import MapTimingCheck, MapTimingParams
+from lookahead_control.core.params import ParameterError, VehicleParams
+from lookahead_control.tools import compare
+import numpy as np
+import pytest
+from sim_plant.sensor_timing import SensorTiming, StreamTiming, timed_run
+from sim_plant.sensors import NoiseParams
+
+
+def _curvature(s: float, radius: float = 300.0) -> float:
+    """Return a road's curvature at ``s``: clothoids in and out of an arc, then back."""
+    top = 1.0 / radius
+    # straight to 50 m, in over 100 m, arc to 300, out over 100 m, straight, and the
+    # same to the other side from 500 m
+    if s >= 500.0:
+        return -_curvature(s - 500.0, radius)
+    ramp = [(0.0, 0.0), (50.0, 0.0), (150.0, top), (300.0, top), (400.0, 0.0), (500.0, 0.0)]
+    xs, ys = zip(*ramp)
+    return float(np.interp(s, xs, ys))
+
+
+def _feed(check: MapTimingCheck, lead: float, *, v: float = 30.0, bias: float = 0.0,
+          scale: float = 1.0, noise: float = 0.0, duration: float = 40.0,
+          dt: float = 0.01, radius: float = 300.0, seed: int = 0) -> None:
+    """
+    Drive the check along the road with exact lane kinematics.
+
+    :param lead: the curvature read this far ahead of the car [m].
+    :param bias: a yaw-rate bias [rad/s].
+    :param scale: the curvature read times this.
+    :param noise: the relative yaw's noise [rad].
+    """
+    rng = np.random.default_rng(seed)
+    for k in range(int(duration / dt) + 1):
+        t = k * dt
+        s = v * t
+        eps_r = 0.004 * math.sin(1.3 * t)
+        eps_rate = 0.004 * 1.3 * math.cos(1.3 * t)
+        v_y = 0.1 * math.sin(0.9 * t)
+        along = v * math.cos(eps_r) - v_y * math.sin(eps_r)
+        r = eps_rate + along * _curvature(s, radius)
+        check.step(dt if k else math.inf, eps_r + noise * rng.standard_normal(), r + bias, v,
+                   scale * _curvature(s + lead, radius), 0.0, v_y)
+
+
+@pytest.mark.parametrize('lead', [-3.0, -1.0, 0.0, 1.0, 2.5])
+def test_the_lead_is_fitted_from_exact_kinematics(lead):
+    check = MapTimingCheck()
+    _feed(check, lead)
+    fitted, error = check.fit()
+    assert fitted == pytest.approx(lead, abs=0.02)
+    assert error < 0.05
+    assert (check.told() is None) == (abs(lead) < check.settings.threshold)
+
+
+@pytest.mark.parametrize('bias, scale', [(0.005, 1.0), (0.0, 1.2), (-0.003, 0.8)])
+def test_a_gyro_bias_or_a_map_off_in_scale_does_not_move_the_lead(bias, scale):
+    # the map check's faults: fitted apart, the lead stays the road's
+    for lead in (0.0, 2.0):
+        check = MapTimingCheck()
+        _feed(check, lead, bias=bias, scale=scale)
+        assert check.fit()[0] == pytest.approx(lead, abs=0.05), (lead, check.fit())
+
+
+def test_a_straight_or_an_arc_tells_no_lead():
+    for radius in (1e9, 300.0):
+        check = MapTimingCheck()
+        _feed(check, 3.0, duration=1.6, radius=radius)   # (straight to 50 m at 30 m/s)
+        assert check.fit() == (0.0, math.inf) or radius > 1e6
+        assert check.told() is None
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_noise_is_in_the_standard_error_and_not_told(seed):
+    # 1 mrad of relative-yaw noise at 100 Hz: the error covers the miss, nothing told
+    check = MapTimingCheck()
+    _feed(check, 0.0, noise=0.001, seed=seed)
+    fitted, error = check.fit()
+    assert 0.0 < error < 0.5
+    assert abs(fitted) < 3.0 * error
+    assert check.told() is None
+    shifted = MapTimingCheck()
+    _feed(shifted, 2.0, noise=0.001, seed=seed)
+    assert shifted.told() == pytest.approx(2.0, abs=3.0 * shifted.fit()[1])
+
+
+def test_bad_steps_restart_the_prediction_and_keep_the_fit():
+    check = MapTimingCheck()
+    _feed(check, 2.0)
+    fitted = check.fit()
+    for values in ((0.01, math.nan, 0.0, 30.0, 0.0), (0.01, 0.0, math.inf, 30.0, 0.0),
+                   (0.01, 0.0, 0.0, 2.0, 0.0), (5.0, 0.0, 0.0, 30.0, 0.0),
+                   (0.0, 0.0, 0.0, 30.0, 0.0)):
+        check.step(*values)
+    assert check.fit() == fitted
+    check.forget()
+    assert check.fit() == (0.0, math.inf) and check.told() is None
+
+
+@pytest.mark.parametrize('field, value', [('leak', 0.0), ('memory', 0.5), ('threshold', 0.0),
+                                          ('confidence', -1.0), ('correlation', 11.0),
+                                          ('min_speed', math.nan)])
+def test_settings_out_of_range_are_refused_by_name(field, value):
+    with pytest.raises(ParameterError, match=f'map_timing.{field}'):
+        MapTimingParams(**{field: value})
+
+
+def _timed(offset: float, v: float = 30.0, seed: int = 0) -> SteeringController:
+    """Return the default law's core after S3 with the IMU's (and camera's) clock ahead."""
+    timing = SensorTiming(lateral_error=StreamTiming(100.0, 0.0, 0.0, offset),
+                          yaw=StreamTiming(100.0, 0.0, 0.0, offset),
+                          velocity=StreamTiming(50.0, 0.0),
+                          road_curvature=StreamTiming(10.0, 0.0))
+    scenario = compare.load_scenarios(['s3_s_bend'])['s3_s_bend'].at_speed(v)
+    core = compare.node_core('cg_compensated', VehicleParams(), compare.LawSettings())
+    timed_run(scenario, core, timing, compare.NONLINEAR, dt=0.005, delay=0.02,
+              noise=NoiseParams(), seed=seed)
+    return core
+
+
+@pytest.mark.parametrize('offset, v, expected', [(0.09, 30.0, 2.7), (-0.09, 37.0, -1.83)])
+def test_the_core_tells_an_imu_clock_off_the_map_s(offset, v, expected):
+    # dev-probe125: an IMU clock 90 ms ahead of the map's read every curve 3.3 m early
+    # at 37 m/s (S3 2.7 -> 31.1 cm) and nothing told it. Behind, a polygon newer than
+    # the yaw sample is read as it is: the 10 Hz map's 0-90 ms of age (45 ms on
+    # average), the tenth of the polygons older than the yaw moved to it (90 ms)
+    core = _timed(offset, v)
+    told = core.map_lead_seen
+    assert core.turning['curvature_early_or_late'] > 1.0 and told is not None
+    assert told == pytest.approx(expected, abs=0.3)
+
+
+def test_the_core_does_not_tell_synchronized_clocks():
+    core = _timed(0.0)
+    fitted, error = core.map_timing.fit()
+    assert core.turning['curvature_early_or_late'] == 0.0 and core.map_lead_seen is None
+    assert abs(fitted) < 0.2 and error < 0.5
+
+
+def test_the_node_warns_of_a_curvature_read_early_once(active_controller):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    node = active_controller
+    status = node.diagnostics()
+    assert 'road_curvature read' not in status.message
+    values = {v.key: v.value for v in status.values}
+    assert values['road_curvature lead [m]'] == 'unknown'
+    assert values['curvature_early_or_late [s]'] == '0.000'
+    node.core.turning['curvature_early_or_late'] += 1.3
+    node.core.map_lead_seen = 1.92
+    status = node.diagnostics()
+    assert status.level == DiagnosticStatus.WARN
+    assert ('road_curvature read 1.92 m ahead of the car, for 1.30 s (fitted over the '
+            'curve entries and exits' in status.message)
+    assert "the IMU stamped on a clock ahead of the map's" in status.message
+    assert 'Every law turns in that much early' in status.message
+    assert 'road_curvature read' not in node.diagnostics().message      # told once
+    node.core.turning['curvature_early_or_late'] += 0.2
+    node.core.map_lead_seen = -1.5
+    assert 'read 1.50 m behind the car' in node.diagnostics().message
