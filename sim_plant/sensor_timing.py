@@ -129,7 +129,8 @@ class SensorTiming:
             s = getattr(self, name)
             return (f'{name} {s.rate_hz:g} Hz {1e3 * s.latency:g} ms late'
                     + (f' (phase {1e3 * s.phase:g} ms)' if s.phase else '')
-                    + (f' (clock {1e3 * s.clock_offset:+g} ms)' if s.clock_offset else ''))
+                    + (f' (clock {round(1e3 * s.clock_offset, 3):+g} ms)'
+                       if round(1e3 * s.clock_offset, 3) else ''))
         if self.with_frame:
             return f"{one('lateral_error')}, yaw, velocity and curvature with each frame"
         return ', '.join(one(name) for name in ('lateral_error', 'yaw', 'velocity',

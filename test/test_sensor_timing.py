@@ -320,6 +320,13 @@ def test_compare_runs_a_camera_timing_and_says_so(tmp_path):
     (['--stream', 'lateral_error=20/0.1'], 'NAME one of yaw, velocity, road_curvature'),
     (['--stream', 'yaw'], 'not NAME=HZ/S'),
     (['--stream', 'yaw=100/0', '--stream', 'yaw=50/0'], 'given twice'),
+    # dev-probe126: a clock 0.5 s ahead ran with every yaw sample refused, the car off
+    # the road, and the report did not say why
+    (['--stream', 'yaw=100/0/0.5'], r'--stream yaw: a clock 0.5 s ahead .* beyond '
+                                    r'safety.max_future 0.1 s: the node refuses each'),
+    (['--stream', 'yaw=100/0.05/0.12'], None),      # 70 ms ahead on arrival: taken
+    (['--camera', '20/0.1/-0.15'], r'--camera: .* 0.25 s old on arrival, beyond '
+                                   r'safety.input_timeout 0.2 s'),
     (['--camera', '20/0.1', '--tune'], '--tune'),
     (['--camera', '20/0.1', '--laws', 'pure_pursuit', 'paper_eq26'], None),
 ])

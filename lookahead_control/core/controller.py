@@ -347,10 +347,11 @@ class SteeringController:
         self.map_check = MapCheck()
         #: the curvature read against the yaw measurements in time
         #: (``core/map_timing_check.py``): seconds of answers with its lead told in
-        #: ``curvature_early_or_late``, the lead told last since the caller last took it in
-        #: ``map_lead_seen`` (None: none), the yaw stamp it last took in ``_timing_yaw``
+        #: ``curvature_early_or_late``, the lead told last and the speed then since the
+        #: caller last took them in ``map_lead_seen`` (None: none), the yaw stamp it last
+        #: took in ``_timing_yaw``
         self.map_timing = MapTimingCheck()
-        self.map_lead_seen: Optional[float] = None
+        self.map_lead_seen: Optional[tuple[float, float]] = None
         self._timing_yaw: Optional[int] = None
         self._state_yaw: Optional[int] = None
         #: the v_x of the last answer held for low speed (``safety.low_speed``) [m/s]
@@ -1355,7 +1356,7 @@ class SteeringController:
         lead = check.told()
         if lead is not None:
             self.turning['curvature_early_or_late'] += dt
-            self.map_lead_seen = lead
+            self.map_lead_seen = (lead, float(state.v_x))
 
     def _compute(self, now_ns: Optional[int], steady_ns: Optional[int]) -> Optional[Command]:
         if now_ns is not None and self.lateral is not None and self.stale(now_ns):

@@ -28,18 +28,27 @@ eps_r) / (1 - rho y_cg)`` (kinematics in the lane's frame). Predicted from the m
 yaw rate and the curvature read, pulled to the measured relative yaw over ``leak``, the
 prediction's distance ``e`` from the measurement is, to first order, a sum of three
 known responses: ``e = lead G + scale H - bias C``, where ``G`` is the same leaky
-prediction of ``a rho'`` (a curvature read ``lead`` seconds ahead adds ``lead rho'``),
-``H`` that of ``a rho`` (a curvature off in scale by ``scale``) and ``C`` that of 1 (a
-yaw-rate bias). A least-squares fit of the three over the last ``memory`` seconds
-separates them: only curve entries and exits (``rho'`` not 0) tell the lead; a scale
-error or a gyro bias, which the map check judges, does not move it. The fit's lead is
-told when it is ``threshold`` or more (an offset that moves the curve ``v_x`` times it)
-with its standard error at most ``precision``, the noise's effect judged from the fit's
-residual with a correlation time ``correlation``.
+prediction of ``a rho' / v_x`` (a curvature read ``lead`` metres ahead), ``H`` that of
+``a rho`` (a curvature off in scale) and ``C`` that of 1 (a yaw-rate bias). A
+least-squares fit of the three over the last ``memory`` seconds separates them: only
+curve entries and exits (``rho'`` not 0) tell the lead; a scale error or a gyro bias,
+which the map check judges, does not move it. The fit's lead is told when it is
+``threshold`` or more and ``confidence`` times its standard error or more, the noise's
+effect judged from the fit's residual with a correlation time ``correlation``.
+
+A jump of the relative yaw (a relocalization, a lane-marking switch) or a spike of the
+yaw rate is no lead: its miss decays over ``leak``, and met on a curve entry it was
+fitted as one (dev-probe126: a 20 mrad step 3 s into a drive told a 15 m lead for 26
+s). A step whose miss over the last ``jump_window`` is ``jump`` times that miss's
+running rms or more (and ``jump_floor`` or more) starts the prediction again at the
+measurement: not fitted. The correlation time is half the leak's: the miss of a smaller
+jump or spike decays over it (at 0.25 s a yaw-rate spike of 0.3 rad/s for 50 ms on the
+first curve entry told a 34 m lead).
 """
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 import math
 
@@ -57,6 +66,11 @@ class MapTimingParams:
     :param threshold: a lead or lag this large or larger is told [m].
     :param confidence: ... and this many times its standard error or more.
     :param correlation: the residual's correlation time, for the standard error [s].
+    :param jump: a miss over ``jump_window`` this many times its running rms or more is a
+        jump.
+    :param jump_floor: ... and this large or larger [rad].
+    :param jump_window: the time a jump is judged over [s].
+    :param refit: the fit is solved again at most this often [s].
     :param min_speed: below this speed no step is taken [m/s].
     """
 
@@ -64,7 +78,11 @@ class MapTimingParams:
     memory: float = 60.0
     threshold: float = 1.5
     confidence: float = 3.0
-    correlation: float = 0.25
+    correlation: float = 1.0
+    jump: float = 4.0
+    jump_floor: float = 0.003
+    jump_window: float = 0.1
+    refit: float = 0.1
     min_speed: float = 5.0
 
     def __post_init__(self) -> None:
@@ -74,7 +92,17 @@ class MapTimingParams:
         check_range('map_timing.threshold', self.threshold, 0.01, 100.0, unit='m')
         check_range('map_timing.confidence', self.confidence, 0.0, 100.0)
         check_range('map_timing.correlation', self.correlation, 0.0, 10.0, unit='s')
+        check_range('map_timing.jump', self.jump, 1.0, 1000.0)
+        check_range('map_timing.jump_floor', self.jump_floor, 0.0, 1.0, unit='rad')
+        check_range('map_timing.jump_window', self.jump_window, 0.0, 1.0, unit='s')
+        check_range('map_timing.refit', self.refit, 0.0, 10.0, unit='s')
         check_range('map_timing.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
+
+
+#: the miss's rms follows the noise over this time [s]
+MISS_MEMORY = 10.0
+#: no jump is judged before the rms has this many steps
+MISS_LEARNED = 20
 
 
 class MapTimingCheck:
@@ -87,16 +115,21 @@ class MapTimingCheck:
         :param settings: the settings (defaults if None).
         """
         self.settings = settings or MapTimingParams()
+        #: steps taken for jumps (the prediction started again) since the start
+        self.jumps = 0
         self.forget()
 
     def reset(self) -> None:
         """Start the prediction again (a gap, no curvature, a slow car); keep the fit."""
         self._last: tuple[float, float, float] | None = None    # (eps_r, rate, rho)
         self._predicted = 0.0
+        self._error = 0.0
         self._responses = [0.0, 0.0, 0.0]
+        self._window: deque[tuple[float, float]] = deque()
+        self._window_time = 0.0
 
     def forget(self) -> None:
-        """Forget the fit too (a new map or IMU: a restart of the law)."""
+        """Forget the fit too (a restart of the controller's core: a time jump)."""
         self.reset()
         # the fit's sums: the upper triangle of the information (00 01 02 11 12 22),
         # the moment, the squares and the weight
@@ -104,7 +137,10 @@ class MapTimingCheck:
         self._moment = [0.0, 0.0, 0.0]
         self._squares = 0.0
         self._weight = 0.0
-        self._fitted: tuple[float, float] | None = (0.0, math.inf)
+        self._miss_square = 0.0
+        self._misses = 0
+        self._fitted = (0.0, math.inf)
+        self._since_fit = math.inf
 
     def step(self, dt: float, eps_r: float, r: float, v_x: float, rho: float,
              y_cg: float = 0.0, v_y: float = 0.0) -> None:
@@ -129,10 +165,11 @@ class MapTimingCheck:
             return
         along = (v_x * math.cos(eps_r) - v_y * math.sin(eps_r)) / max(1.0 - rho * y_cg, 0.1)
         rate = r - along * rho
-        if self._last is None or not 0.0 < dt <= 1.0:
+        if self._last is None or not 0.0 < dt <= 1.0 or not math.isfinite(rate):
             self.reset()
-            self._last = (eps_r, rate, rho)
-            self._predicted = eps_r
+            if math.isfinite(rate):
+                self._last = (eps_r, rate, rho)
+                self._predicted = eps_r
             return
         last_eps, last_rate, last_rho = self._last
         self._last = (eps_r, rate, rho)
@@ -141,35 +178,62 @@ class MapTimingCheck:
         # three responses through the same steps: to a lead of the curvature [m] (G), to
         # its scale (H), to a yaw-rate bias (C)
         predicted = self._predicted + dt * 0.5 * (last_rate + rate)
+        miss = eps_r - predicted
+        # the miss over the last jump_window: a spike of the yaw rate over a few steps is
+        # one jump, not a few steps of noise (dev-probe126: 0.6 rad/s for 50 ms)
+        window = self._window
+        window.append((dt, miss - self._error))
+        self._window_time += dt
+        while len(window) > 1 and self._window_time - window[0][0] >= s.jump_window - 1e-12:
+            self._window_time -= window.popleft()[0]
+        recent = sum(x for _, x in window)
+        limit = max(s.jump * math.sqrt(self._miss_square), s.jump_floor)
+        # the rms follows the noise, a jump counted at the limit; a plain mean of the
+        # first steps (learned from the floor over MISS_MEMORY, the noise of the default
+        # sensors made 15-29 jumps in the first seconds of a run: dev-sc54)
+        self._misses += 1
+        share = max(min(1.0, dt / MISS_MEMORY), 1.0 / self._misses)
+        self._miss_square += share * (min(recent * recent, limit * limit)
+                                      - self._miss_square)
+        if abs(recent) >= limit and self._misses > MISS_LEARNED:
+            # a jump of the relative yaw or a spike of the yaw rate: started again here
+            self.jumps += 1
+            self.reset()
+            self._last = (eps_r, rate, rho)
+            self._predicted = eps_r
+            return
         g, h, c = self._responses
         g = (g + along / v_x * (rho - last_rho)) * (1.0 - pull)
         h = (h + dt * along * 0.5 * (rho + last_rho)) * (1.0 - pull)
         c = (c + dt) * (1.0 - pull)
         self._responses = [g, h, c]
-        miss = eps_r - predicted
         self._predicted = predicted + miss * pull
         error = miss * (1.0 - pull)
+        self._error = error
         # a lead adds to the measured motion what the prediction took off, as does a
         # scale; a yaw-rate bias adds to the prediction
         row = (g, h, -c)
+        products = [row[i] * row[j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2),
+                                                 (2, 2))]
+        if not all(math.isfinite(x) for x in (*products, error * error, *row)):
+            self.reset()
+            return
         keep = math.exp(-dt / s.memory)
-        info = self._info
-        for k, (i, j) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
-            info[k] = keep * info[k] + dt * row[i] * row[j]
+        self._info = [keep * a + dt * p for a, p in zip(self._info, products)]
         self._moment = [keep * m + dt * x * error for m, x in zip(self._moment, row)]
         self._squares = keep * self._squares + dt * error * error
         self._weight = keep * self._weight + dt
-        self._fitted = None
+        self._since_fit += dt
+        if self._since_fit >= s.refit:
+            self._fitted, self._since_fit = self._solve(), 0.0
 
     def fit(self) -> tuple[float, float]:
         """
-        Return the lead and its standard error [m].
+        Return the lead and its standard error [m], as last solved.
 
         :return: ``(lead, standard error)``; ``(0, inf)`` while the curvature has not
             varied enough to tell a lead (a straight or a constant arc).
         """
-        if self._fitted is None:
-            self._fitted = self._solve()
         return self._fitted
 
     def _solve(self) -> tuple[float, float]:
@@ -191,14 +255,15 @@ class MapTimingCheck:
         inverse = [[inverse[i][j] / (det * d[i] * d[j]) for j in range(3)] for i in range(3)]
         theta = [sum(inverse[i][j] * self._moment[j] for j in range(3)) for i in range(3)]
         explained = sum(t * m for t, m in zip(theta, self._moment))
-        rest = max(0.0, self._squares - explained) / self._weight
-        spread = rest * max(self.settings.correlation, 1e-3) * inverse[0][0]
+        rest = (self._squares - explained) / self._weight
+        spread = max(0.0, rest) * max(self.settings.correlation, 1e-3) * inverse[0][0]
         # the responses are of the curvature read, (1 + k) times the road's: the fit's
         # scale is k / (1 + k) and its lead the road's over (1 + k)
         share = 1.0 - theta[1]
-        if not (math.isfinite(spread) and math.isfinite(theta[0]) and share > 0.1):
+        if not (math.isfinite(rest) and math.isfinite(spread) and math.isfinite(theta[0])
+                and share > 0.1):
             return 0.0, math.inf
-        return theta[0] / share, math.sqrt(max(spread, 0.0)) / share
+        return theta[0] / share, math.sqrt(spread) / share
 
     def told(self) -> float | None:
         """

@@ -959,22 +959,25 @@ class ControllerNode(LifecycleNode):
                            'in km/h), the yaw rate (a gyro bias: 0.3 deg/s is 10 '
                            f'mrad), or the relative yaw (a jump, a relocalization). {acted} '
                            '(docs/safety.md)')
-        lead, self.core.map_lead_seen = self.core.map_lead_seen, None
-        if turning['curvature_early_or_late'] > 0.0 and lead is not None:
+        seen, self.core.map_lead_seen = self.core.map_lead_seen, None
+        if turning['curvature_early_or_late'] >= TURNING_WARN and seen is not None:
             # dev-probe125: an IMU clock 50 / 90 ms ahead of the map's read every curve
             # 1.9 / 3.3 m early at 37 m/s (S3 2.7 -> 17.0 / 31.1 cm), within every stamp
             # check and under the map check's threshold, and nothing said so
             level = max(level, DiagnosticStatus.WARN)
-            v_x = self.core.velocity.v_x if self.core.velocity is not None else 0.0
-            when = (f', {abs(lead) / v_x * 1e3:.0f} ms at {v_x:.3g} m/s' if v_x >= 1.0
-                    else '')
+            lead, v_x = seen
             ahead = lead > 0.0
+            # (behind: a polygon newer than the yaw sample is read as it is, so the lag
+            # stops at about the map's age; the clock may be further behind: dev-probe126)
+            clock = ('ahead of the map' + "'s by about that" if ahead else
+                     'behind the map' + "'s by that or more (a polygon newer than the yaw is "
+                     "read as it is: the lag stops at the map's age)")
             reasons.append(f'road_curvature read {abs(lead):.2f} m '
-                           f'{"ahead of" if ahead else "behind"} the car{when}, for '
+                           f'{"ahead of" if ahead else "behind"} the car, '
+                           f'{abs(lead) / v_x * 1e3:.0f} ms at {v_x:.3g} m/s, for '
                            f'{turning["curvature_early_or_late"]:.2f} s (fitted over the curve '
                            'entries and exits: the relative yaw against the yaw rate and the '
-                           'curvature read): the IMU stamped on a clock '
-                           f'{"ahead of" if ahead else "behind"} the map' + "'s (stamp every "
+                           f'curvature read): the IMU stamped on a clock {clock} (stamp every '
                            'input on one synchronized clock, at its capture), the map placed '
                            'off along the road, or a polygon too coarse for the curvature'
                            + "'s changes" + ('' if self.core.curvature_at_yaw_stamp else

@@ -65,8 +65,8 @@ import numpy as np
 import numpy.typing as npt
 from sim_plant.closed_loop_sim import run, SimResult
 from sim_plant.scenario import load_scenario, Scenario
-from sim_plant.sensor_timing import (check_timing, parse_stream, SensorTiming, StreamTiming,
-                                     timed_run, TIMED_STREAMS)
+from sim_plant.sensor_timing import (check_timing, parse_stream, SensorTiming, STREAMS,
+                                     StreamTiming, timed_run, TIMED_STREAMS)
 from sim_plant.sensors import NoiseParams
 from sim_plant.vehicle_model import PlantParams
 
@@ -1768,10 +1768,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                    'through: safety.max_steering_angle, max_steering_rate, '
                    'max_lateral_acceleration, low_speed, low_speed_blend; default: the '
                    'package defaults, the one tuning the goal rows are for)')
-    p.add_argument('--camera', default=None, metavar='HZ/S',
+    p.add_argument('--camera', default=None, metavar='HZ/S[/S]',
                    help="the lateral error's rate and latency (a lane camera: 20/0.12 is "
-                   '20 Hz, stamped at the frame and 120 ms late): every run goes through '
-                   "the controller node's core with the inputs on their own stamps "
+                   '20 Hz, stamped at the frame and 120 ms late; a third number its '
+                   "clock's offset, as for --stream): every run goes through the "
+                   "controller node's core with the inputs on their own stamps "
                    '(sim_plant/sensor_timing.py, one run at a time: slower); the yaw, '
                    'velocity and curvature go with each frame, of its instant, unless '
                    '--stream gives them their own')
@@ -1814,6 +1815,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 LAWS[name](vehicle, settings)
             except (ParameterError, ConfigError) as err:
                 raise ToolError(f'--controller {args.controller}: {name}: {err}') from err
+    if timing is not None:
+        check_clocks(timing, (settings or LawSettings()).safety)
     if args.tune and args.seeds != 1:
         raise ToolError("--seeds: --tune scores the baselines' grids on its own fixed noise "
                         'seeds (docs/baselines.md); use one or the other')
@@ -1903,7 +1906,7 @@ def sensor_timing(camera: Optional[str], streams: Sequence[str]) -> Optional[Sen
             name, sep, value = text.partition('=')
             name = name.strip()
             if not sep or name not in TIMED_STREAMS:
-                raise ToolError(f'--stream {text!r}: not NAME=HZ/S with NAME one of '
+                raise ToolError(f'--stream {text!r}: not NAME=HZ/S[/S] with NAME one of '
                                 f'{", ".join(TIMED_STREAMS)} (the lateral error\'s is '
                                 '--camera)')
             if name in own:
@@ -1912,6 +1915,36 @@ def sensor_timing(camera: Optional[str], streams: Sequence[str]) -> Optional[Sen
     except ParameterError as err:
         raise ToolError(f'--camera / --stream: {err}') from err
     return SensorTiming(lateral, **own, with_frame=not streams)
+
+
+def check_clocks(timing: SensorTiming, safety: SafetyParams) -> None:
+    """
+    Refuse a sensor clock off by so much that the node would refuse its every sample.
+
+    :param timing: the inputs' timing.
+    :param safety: the node's safety settings (``max_future``, ``input_timeout``).
+    :raises ToolError: a stream whose stamps arrive further ahead of the controller's
+        clock than ``safety.max_future``, or older than ``safety.input_timeout``
+        (dev-probe126: an IMU clock 0.5 s ahead ran the league with every yaw sample
+        refused, the car off the road, and the report did not say why).
+    """
+    names = ('lateral_error',) if timing.with_frame else STREAMS
+    for name in names:
+        stream = getattr(timing, name)
+        ahead = stream.clock_offset - stream.latency     # the stamp against the clock
+        option = '--camera' if name == 'lateral_error' else f'--stream {name}'
+        if ahead > safety.max_future:
+            raise ToolError(f'{option}: a clock {stream.clock_offset:g} s ahead and a latency '
+                            f'of {stream.latency:g} s stamp every sample {ahead:g} s ahead of '
+                            f"the controller's clock, beyond safety.max_future "
+                            f'{safety.max_future:g} s: the node refuses each (allowed: '
+                            'clock - latency at most max_future)')
+        if -ahead > safety.input_timeout:
+            raise ToolError(f'{option}: a clock {stream.clock_offset:g} s off and a latency '
+                            f'of {stream.latency:g} s make every sample {-ahead:g} s old on '
+                            f'arrival, beyond safety.input_timeout {safety.input_timeout:g} '
+                            's: the node refuses each (allowed: latency - clock at most '
+                            'input_timeout)')
 
 
 def entry() -> int:
