@@ -314,6 +314,26 @@ def test_compare_runs_a_camera_timing_and_says_so(tmp_path):
     assert len(rows) == 2
 
 
+@pytest.mark.parametrize('clock, told', [('0.09', True), ('0', False)])
+def test_compare_says_what_the_controller_s_checks_told(tmp_path, clock, told):
+    # dev-probe126: `compare --stream yaw=100/0/0.05` ran without a word of what the
+    # node's /diagnostics would have said; an IMU clock 90 ms ahead reads the S-bend's
+    # curves 3.3 m early at 37 m/s
+    out = tmp_path / 'cmp'
+    assert compare.main(['--laws', 'cg_compensated', '--scenarios', 's3_s_bend',
+                         '--speeds', '37', '--plants', 'nonlinear',
+                         '--stream', f'yaw=100/0/{clock}', '--stream', 'velocity=50/0',
+                         '--stream', 'road_curvature=10/0', '--out', str(out),
+                         '--no-plots', '--no-progress', '--workers', '1']) == 0
+    text = (out / 'league.md').read_text()
+    section = text.split("## What the controller's checks told")[1].split('##')[0]
+    if told:
+        assert 'curvature_early_or_late' in section
+        assert 'road_curvature read 3.' in section and 'm ahead of the car' in section
+    else:
+        assert section.strip().endswith('none'), section
+
+
 @pytest.mark.parametrize('args, part', [
     (['--camera', '20'], 'not RATE/LATENCY'),
     (['--camera', '20/5'], 'latency'),

@@ -947,9 +947,12 @@ def _timed_runs(law_name: str, scenario_name: str, scenario: Scenario,
                 timing: SensorTiming) -> list[dict[str, Any]]:
     """Return the rows of one plant's runs with a sensor timing (one run at a time)."""
     vehicle = case.law_vehicle(league_vehicle)
+    cores: list[SteeringController] = []
 
     def one(speed: float, noise: Optional[NoiseParams], seed: int) -> SimResult:
-        return timed_run(scenario.at_speed(speed), node_core(law_name, vehicle, settings),
+        core = node_core(law_name, vehicle, settings)
+        cores.append(core)
+        return timed_run(scenario.at_speed(speed), core,
                          timing, case.plant, dt=case.dt or dt, delay=case.delay,
                          noise=noise, seed=seed, mode=settings.mode,
                          rate_hz=settings.rate_hz,
@@ -963,16 +966,44 @@ def _timed_runs(law_name: str, scenario_name: str, scenario: Scenario,
         if not case.noisy:
             rows.append(run_row(one(speed, None, 0), None, vehicle, None,
                                 safety=settings.safety))
-            continue
-        if speed not in twins:              # the noise-free twin of each speed
-            twins[speed] = one(speed, None, 0)
-        twin = twins[speed]
-        rows.append(run_row(
-            one(speed, NoiseParams(), int(seed or 0)), None, vehicle,
-            twin['steering_cmd'] if scenario_name == NOISE_SCENARIO else None,
-            {'yaw_overshoot': twin['eps_r'], 'yaw_rate_overshoot': twin['r']},
-            safety=settings.safety))
+        else:
+            if speed not in twins:              # the noise-free twin of each speed
+                twins[speed] = one(speed, None, 0)
+            twin = twins[speed]
+            rows.append(run_row(
+                one(speed, NoiseParams(), int(seed or 0)), None, vehicle,
+                twin['steering_cmd'] if scenario_name == NOISE_SCENARIO else None,
+                {'yaw_overshoot': twin['eps_r'], 'yaw_rate_overshoot': twin['r']},
+                safety=settings.safety))
+        told = checks_told(cores[-1])
+        if told:
+            rows[-1]['notes'] = '; '.join(n for n in (rows[-1]['notes'], told) if n)
     return rows
+
+
+#: a run's notes name what the controller's checks told so (``--camera`` / ``--stream``)
+CHECKS_TOLD = 'the controller told: '
+
+
+def checks_told(core: SteeringController) -> str:
+    """
+    Return what the controller node's checks told over a run through its core.
+
+    :param core: the core after the run.
+    :return: ``the controller told: <check> <seconds> s, ...`` (the seconds each check
+        found something, as ``/diagnostics`` counts them; the lead of the curvature read
+        when the map timing check told one), or ``''`` when none did (dev-probe126: an
+        IMU clock ahead ran without a word of what the node would have said).
+    """
+    told = [f'{name} {seconds:.2f} s' for name, seconds in core.turning.items()
+            if seconds > 0.0]
+    if not told:
+        return ''
+    lead = core.map_lead_seen
+    if core.turning.get('curvature_early_or_late', 0.0) > 0.0 and lead is not None:
+        told.append(f'road_curvature read {abs(lead[0]):.2f} m '
+                    f'{"ahead of" if lead[0] > 0.0 else "behind"} the car')
+    return CHECKS_TOLD + ', '.join(told)
 
 
 def finish_row(law: str, scenario: str, plant: str, speed: float,
@@ -1603,6 +1634,16 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
              markdown_table([{k: r[k] for k in ('law', 'scenario', 'plant', 'speed_mps',
                                                 'notes')} for r in broken])
              if broken else 'none', '']
+    if timing is not None:
+        told = [r for r in rows if CHECKS_TOLD in str(r['notes'])]
+        text += ["## What the controller's checks told", '',
+                 "The controller node's checks (`/diagnostics`, docs/safety.md) ran in every "
+                 'run through its core: the runs where one found something, with the '
+                 'seconds it did.', '',
+                 markdown_table([{**{k: r[k] for k in ('law', 'scenario', 'plant',
+                                                       'speed_mps', 'noise_seed')},
+                                  'told': str(r['notes']).split(CHECKS_TOLD)[1]}
+                                 for r in told]) if told else 'none', '']
     held = [r for r in rows if float(r.get('law_share', 1.0)) < 1.0]
     if held:
         text += ['## Runs the law did not drive throughout', '',
