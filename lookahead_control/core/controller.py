@@ -1351,9 +1351,11 @@ class SteeringController:
             return
         step = math.inf if last is None or stamp < last else (stamp - last) * 1e-9
         check = self.map_timing
-        check.step(step, float(state.eps_r), float(state.r), float(state.v_x),
-                   float(state.rho), float(state.y_cg), float(state.v_y))
-        lead = check.told()
+        fitted = check.step(step, float(state.eps_r), float(state.r), float(state.v_x),
+                            float(state.rho), float(state.y_cg), float(state.v_y))
+        # only a step it fitted (dev-probe127: below its speed the fit kept was told on,
+        # the seconds grew while braking to 0.55 m/s, and the WARN named that speed)
+        lead = check.told() if fitted else None
         if lead is not None:
             self.turning['curvature_early_or_late'] += dt
             self.map_lead_seen = (lead, float(state.v_x))

@@ -33,8 +33,14 @@ prediction of ``a rho' / v_x`` (a curvature read ``lead`` metres ahead), ``H`` t
 least-squares fit of the three over the last ``memory`` seconds separates them: only
 curve entries and exits (``rho'`` not 0) tell the lead; a scale error or a gyro bias,
 which the map check judges, does not move it. The fit's lead is told when it is
-``threshold`` or more and ``confidence`` times its standard error or more, the noise's
-effect judged from the fit's residual with a correlation time ``correlation``.
+``threshold`` or more and :meth:`MapTimingCheck.confidence` times its standard error or
+more. The standard error is the larger of two: the fit's residual taken as correlated
+over ``correlation``, and the spread of the scores (the responses times the residual)
+summed over blocks of ``block`` seconds, which holds a noise coloured over seconds or a
+gyro bias that wanders (dev-probe127: a relative yaw wandering 3 mrad over 2-10 s was
+told as a 2.5 m lead). A variance from a few curve entries is itself uncertain: the
+multiple is Student's t of as many degrees of freedom as blocks tell the lead, 6.0 for
+four of them (a 14 s S-bend), 3.6 for fourteen (S-bends for 90 s).
 
 A jump of the relative yaw (a relocalization, a lane-marking switch) or a spike of the
 yaw rate is no lead: its miss decays over ``leak``, and met on a curve entry it was
@@ -65,7 +71,9 @@ class MapTimingParams:
     :param memory: the fit forgets with this time constant [s].
     :param threshold: a lead or lag this large or larger is told [m].
     :param confidence: ... and this many times its standard error or more.
-    :param correlation: the residual's correlation time, for the standard error [s].
+    :param correlation: the residual's correlation time, for the standard error's floor
+        [s].
+    :param block: the length of the blocks whose scores give the standard error [s].
     :param jump: a miss over ``jump_window`` this many times its running rms or more is a
         jump.
     :param jump_floor: ... and this large or larger [rad].
@@ -79,6 +87,7 @@ class MapTimingParams:
     threshold: float = 1.5
     confidence: float = 3.0
     correlation: float = 1.0
+    block: float = 2.0
     jump: float = 4.0
     jump_floor: float = 0.003
     jump_window: float = 0.1
@@ -92,6 +101,7 @@ class MapTimingParams:
         check_range('map_timing.threshold', self.threshold, 0.01, 100.0, unit='m')
         check_range('map_timing.confidence', self.confidence, 0.0, 100.0)
         check_range('map_timing.correlation', self.correlation, 0.0, 10.0, unit='s')
+        check_range('map_timing.block', self.block, 0.1, 60.0, unit='s')
         check_range('map_timing.jump', self.jump, 1.0, 1000.0)
         check_range('map_timing.jump_floor', self.jump_floor, 0.0, 1.0, unit='rad')
         check_range('map_timing.jump_window', self.jump_window, 0.0, 1.0, unit='s')
@@ -99,6 +109,10 @@ class MapTimingParams:
         check_range('map_timing.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
 
 
+#: the upper triangle of a symmetric 3 x 3 matrix, as the sums keep it
+PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+#: blocks are kept over this many times the fit's memory
+BLOCKS_KEPT = 3.0
 #: the miss's rms follows the noise over this time [s]
 MISS_MEMORY = 10.0
 #: no jump is judged before the rms has this many steps
@@ -141,9 +155,16 @@ class MapTimingCheck:
         self._misses = 0
         self._fitted = (0.0, math.inf)
         self._since_fit = math.inf
+        # the fit's sums per block of `block` seconds, for the scores' spread: each
+        # block's (end [s of fitted time], moment, information), the newest still open
+        self._time = 0.0
+        self._blocks: deque[tuple[float, list[float], list[float]]] = deque()
+        self._open: tuple[list[float], list[float]] = ([0.0] * 3, [0.0] * 6)
+        self._open_time = 0.0
+        self._blocks_told = 0.0
 
     def step(self, dt: float, eps_r: float, r: float, v_x: float, rho: float,
-             y_cg: float = 0.0, v_y: float = 0.0) -> None:
+             y_cg: float = 0.0, v_y: float = 0.0) -> bool:
         """
         Take one yaw measurement and the curvature at the car read with it.
 
@@ -155,14 +176,16 @@ class MapTimingCheck:
         :param rho: curvature read at the car [1/m].
         :param y_cg: measured CG error [m].
         :param v_y: measured lateral velocity [m/s].
+        :return: whether the step was fitted (not a restart, a repeat, a jump, a slow
+            car or a bad value: the fit kept is then not of this moment).
         """
         s = self.settings
         values = (dt, eps_r, r, v_x, rho, y_cg, v_y)
         if not all(math.isfinite(x) for x in values) or v_x < s.min_speed:
             self.reset()
-            return
+            return False
         if dt == 0.0 and self._last is not None:
-            return
+            return False
         along = (v_x * math.cos(eps_r) - v_y * math.sin(eps_r)) / max(1.0 - rho * y_cg, 0.1)
         rate = r - along * rho
         if self._last is None or not 0.0 < dt <= 1.0 or not math.isfinite(rate):
@@ -170,7 +193,7 @@ class MapTimingCheck:
             if math.isfinite(rate):
                 self._last = (eps_r, rate, rho)
                 self._predicted = eps_r
-            return
+            return False
         last_eps, last_rate, last_rho = self._last
         self._last = (eps_r, rate, rho)
         pull = min(1.0, dt / s.leak)
@@ -201,7 +224,7 @@ class MapTimingCheck:
             self.reset()
             self._last = (eps_r, rate, rho)
             self._predicted = eps_r
-            return
+            return False
         g, h, c = self._responses
         g = (g + along / v_x * (rho - last_rho)) * (1.0 - pull)
         h = (h + dt * along * 0.5 * (rho + last_rho)) * (1.0 - pull)
@@ -213,12 +236,21 @@ class MapTimingCheck:
         # a lead adds to the measured motion what the prediction took off, as does a
         # scale; a yaw-rate bias adds to the prediction
         row = (g, h, -c)
-        products = [row[i] * row[j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2),
-                                                 (2, 2))]
+        products = [row[i] * row[j] for i, j in PAIRS]
         if not all(math.isfinite(x) for x in (*products, error * error, *row)):
             self.reset()
-            return
+            return False
         keep = math.exp(-dt / s.memory)
+        self._time += dt
+        moment, info = self._open
+        self._open = ([a + dt * x * error for a, x in zip(moment, row)],
+                      [a + dt * p for a, p in zip(info, products)])
+        self._open_time += dt
+        if self._open_time >= s.block:
+            self._blocks.append((self._time, *self._open))
+            self._open, self._open_time = ([0.0] * 3, [0.0] * 6), 0.0
+            while len(self._blocks) > BLOCKS_KEPT * s.memory / s.block + 1:
+                self._blocks.popleft()
         self._info = [keep * a + dt * p for a, p in zip(self._info, products)]
         self._moment = [keep * m + dt * x * error for m, x in zip(self._moment, row)]
         self._squares = keep * self._squares + dt * error * error
@@ -226,6 +258,7 @@ class MapTimingCheck:
         self._since_fit += dt
         if self._since_fit >= s.refit:
             self._fitted, self._since_fit = self._solve(), 0.0
+        return True
 
     def fit(self) -> tuple[float, float]:
         """
@@ -256,7 +289,11 @@ class MapTimingCheck:
         theta = [sum(inverse[i][j] * self._moment[j] for j in range(3)) for i in range(3)]
         explained = sum(t * m for t, m in zip(theta, self._moment))
         rest = (self._squares - explained) / self._weight
-        spread = max(0.0, rest) * max(self.settings.correlation, 1e-3) * inverse[0][0]
+        # the lead's variance: the residual's as if correlated over `correlation`, or
+        # that of the blocks' scores through the fit (a noise coloured over seconds, a
+        # wandering gyro bias: dev-probe127), whichever is larger
+        floor = max(0.0, rest) * max(self.settings.correlation, 1e-3) * inverse[0][0]
+        spread = max(floor, self._block_spread(theta, inverse[0]))
         # the responses are of the curvature read, (1 + k) times the road's: the fit's
         # scale is k / (1 + k) and its lead the road's over (1 + k)
         share = 1.0 - theta[1]
@@ -264,6 +301,31 @@ class MapTimingCheck:
                 and share > 0.1):
             return 0.0, math.inf
         return theta[0] / share, math.sqrt(spread) / share
+
+    def _block_spread(self, theta: list[float], w: list[float]) -> float:
+        """
+        Return the lead's variance from the blocks' scores at the fit ``theta``.
+
+        A block's score is its moment less its information times ``theta`` (the sum of
+        the responses times the residual); the lead's variance is ``w' Omega w`` with
+        ``w`` the inverse information's first row and ``Omega`` the scores' outer
+        products, weighted by the square of the fit's fading.
+        """
+        total = 0.0
+        memory = self.settings.memory
+        blocks = [*self._blocks, (self._time, *self._open)]
+        # the blocks that tell the lead, by the lead's information in each
+        share = [math.exp(-(self._time - end) / memory) * info[0] for end, _, info in blocks]
+        squares = sum(a * a for a in share)
+        self._blocks_told = sum(share) ** 2 / squares if squares > 0.0 else 0.0
+        for end, moment, info in blocks:
+            full = [[info[0], info[1], info[2]], [info[1], info[3], info[4]],
+                    [info[2], info[4], info[5]]]
+            score = [moment[i] - sum(full[i][j] * theta[j] for j in range(3))
+                     for i in range(3)]
+            along = sum(a * b for a, b in zip(w, score))
+            total += math.exp(-2.0 * (self._time - end) / memory) * along * along
+        return total
 
     def told(self) -> float | None:
         """
@@ -273,6 +335,25 @@ class MapTimingCheck:
         """
         lead, error = self.fit()
         s = self.settings
-        if abs(lead) >= max(s.threshold, s.confidence * error):
+        if abs(lead) >= max(s.threshold, self.confidence() * error):
             return lead
         return None
+
+    def confidence(self) -> float:
+        """
+        Return the multiple of the standard error a lead told must reach.
+
+        ``confidence`` as a normal quantile, widened to Student's t of as many degrees
+        of freedom as blocks tell the lead (their effective number, by the lead's
+        information in each; Cornish-Fisher's expansion): a variance from a few curve
+        entries is itself uncertain (dev-probe127: a relative yaw wandering 3 mrad over
+        seconds, a gyro bias swinging 5 mrad/s, told 11-29 s into a drive). Infinite
+        below two blocks.
+
+        :return: the multiple.
+        """
+        z, dof = self.settings.confidence, self._blocks_told
+        if dof < 2.0:
+            return math.inf
+        return (z + (z ** 3 + z) / (4.0 * dof)
+                + (5.0 * z ** 5 + 16.0 * z ** 3 + 3.0 * z) / (96.0 * dof * dof))

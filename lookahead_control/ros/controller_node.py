@@ -973,8 +973,9 @@ class ControllerNode(LifecycleNode):
                      'behind the map' + "'s by that or more (a polygon newer than the yaw is "
                      "read as it is: the lag stops at the map's age)")
             reasons.append(f'road_curvature read {abs(lead):.2f} m '
-                           f'{"ahead of" if ahead else "behind"} the car, '
-                           f'{abs(lead) / v_x * 1e3:.0f} ms at {v_x:.3g} m/s, for '
+                           f'{"ahead of" if ahead else "behind"} the car'
+                           + (f', {abs(lead) / v_x * 1e3:.0f} ms at {v_x:.3g} m/s'
+                              if v_x >= 1.0 else '') + ', for '
                            f'{turning["curvature_early_or_late"]:.2f} s (fitted over the curve '
                            'entries and exits: the relative yaw against the yaw rate and the '
                            f'curvature read): the IMU stamped on a clock {clock} (stamp every '
