@@ -39,26 +39,26 @@ over ``correlation``, and the spread of the scores (the responses times the resi
 summed over blocks of ``block`` seconds, which holds a noise coloured over seconds or a
 gyro bias that wanders (dev-probe127: a relative yaw wandering 3 mrad over 2-10 s was
 told as a 2.5 m lead). A variance from a few curve entries is itself uncertain: the
-multiple is Student's t of as many degrees of freedom as blocks tell the lead, 6.0 for
-four of them (a 14 s S-bend), 3.6 for fourteen (S-bends for 90 s).
+multiple is Student's t with as many degrees of freedom as blocks tell the lead, less
+the three parameters (6.6 for four, 3.6 for fifteen; none for a single curve entry).
 
 A jump of the relative yaw (a relocalization, a lane-marking switch) or a spike of the
 yaw rate is no lead: its miss decays over ``leak``, and met on a curve entry it was
 fitted as one (dev-probe126: a 20 mrad step 3 s into a drive told a 15 m lead for 26
 s). A step whose miss over the last ``jump_window`` is ``jump`` times that miss's
 running rms or more (and ``jump_floor`` or more) starts the prediction again at the
-measurement: not fitted. The correlation time is half the leak's: the miss of a smaller
-jump or spike decays over it (at 0.25 s a yaw-rate spike of 0.3 rad/s for 50 ms on the
-first curve entry told a 34 m lead).
+measurement: not fitted (a yaw-rate spike of 0.3 rad/s for 50 ms on the first curve
+entry told a 34 m lead before).
 """
 
 from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from functools import lru_cache
 import math
 
-from lookahead_control.core.params import check_range
+from lookahead_control.core.params import check_range, ParameterError
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ class MapTimingParams:
     memory: float = 60.0
     threshold: float = 1.5
     confidence: float = 3.0
-    correlation: float = 1.0
+    correlation: float = 0.25
     block: float = 2.0
     jump: float = 4.0
     jump_floor: float = 0.003
@@ -107,12 +107,22 @@ class MapTimingParams:
         check_range('map_timing.jump_window', self.jump_window, 0.0, 1.0, unit='s')
         check_range('map_timing.refit', self.refit, 0.0, 10.0, unit='s')
         check_range('map_timing.min_speed', self.min_speed, 0.0, 100.0, unit='m/s')
+        if self.memory > MAX_BLOCKS * self.block:
+            # dev-probe128: memory 3600 s in blocks of 0.1 s kept 108001 blocks, a solve
+            # of 102 ms every 0.1 s
+            raise ParameterError(f'map_timing.memory = {self.memory:g} s is more than '
+                                 f'{MAX_BLOCKS} blocks of map_timing.block = {self.block:g} '
+                                 f's; allowed: memory at most {MAX_BLOCKS} x block')
 
 
+#: the fit's memory spans at most this many blocks (``BLOCKS_KEPT`` times as many kept)
+MAX_BLOCKS = 100
 #: the upper triangle of a symmetric 3 x 3 matrix, as the sums keep it
 PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 #: blocks are kept over this many times the fit's memory
 BLOCKS_KEPT = 3.0
+#: the fitted parameters: the lead, the scale, the bias
+PARAMETERS = 3
 #: the miss's rms follows the noise over this time [s]
 MISS_MEMORY = 10.0
 #: no jump is judged before the rms has this many steps
@@ -309,23 +319,30 @@ class MapTimingCheck:
         A block's score is its moment less its information times ``theta`` (the sum of
         the responses times the residual); the lead's variance is ``w' Omega w`` with
         ``w`` the inverse information's first row and ``Omega`` the scores' outer
-        products, weighted by the square of the fit's fading.
+        products, weighted by the square of the fit's fading, times ``G / (G - 3)`` for
+        the three parameters fitted from the same ``G`` blocks (their effective number,
+        by the lead's information in each under the same weights; dev-probe128: without
+        it 1.4-1.6 times too small). Sets :attr:`_blocks_told` to ``G - 3``, the
+        degrees of freedom.
         """
         total = 0.0
         memory = self.settings.memory
         blocks = [*self._blocks, (self._time, *self._open)]
-        # the blocks that tell the lead, by the lead's information in each
-        share = [math.exp(-(self._time - end) / memory) * info[0] for end, _, info in blocks]
+        weights = [math.exp(-2.0 * (self._time - end) / memory) for end, _, _ in blocks]
+        share = [weight * info[0] for weight, (_, _, info) in zip(weights, blocks)]
         squares = sum(a * a for a in share)
-        self._blocks_told = sum(share) ** 2 / squares if squares > 0.0 else 0.0
-        for end, moment, info in blocks:
+        count = sum(share) ** 2 / squares if squares > 0.0 else 0.0
+        self._blocks_told = count - PARAMETERS if math.isfinite(count) else 0.0
+        if self._blocks_told <= 0.0:
+            return math.inf
+        for weight, (_, moment, info) in zip(weights, blocks):
             full = [[info[0], info[1], info[2]], [info[1], info[3], info[4]],
                     [info[2], info[4], info[5]]]
             score = [moment[i] - sum(full[i][j] * theta[j] for j in range(3))
                      for i in range(3)]
             along = sum(a * b for a, b in zip(w, score))
-            total += math.exp(-2.0 * (self._time - end) / memory) * along * along
-        return total
+            total += weight * along * along
+        return total * count / self._blocks_told
 
     def told(self) -> float | None:
         """
@@ -335,7 +352,9 @@ class MapTimingCheck:
         """
         lead, error = self.fit()
         s = self.settings
-        if abs(lead) >= max(s.threshold, self.confidence() * error):
+        needed = self.confidence() * error
+        # (an error of 0 times an infinite multiple is no significance: dev-probe128)
+        if math.isfinite(needed) and abs(lead) >= max(s.threshold, needed):
             return lead
         return None
 
@@ -344,16 +363,77 @@ class MapTimingCheck:
         Return the multiple of the standard error a lead told must reach.
 
         ``confidence`` as a normal quantile, widened to Student's t of as many degrees
-        of freedom as blocks tell the lead (their effective number, by the lead's
-        information in each; Cornish-Fisher's expansion): a variance from a few curve
-        entries is itself uncertain (dev-probe127: a relative yaw wandering 3 mrad over
-        seconds, a gyro bias swinging 5 mrad/s, told 11-29 s into a drive). Infinite
-        below two blocks.
+        of freedom as the blocks' spread has (:meth:`_block_spread`): a variance from a
+        few curve entries is itself uncertain (dev-probe127: a relative yaw wandering 3
+        mrad over seconds told 11-29 s into a drive). 6.6 for four degrees of freedom,
+        3.6 for fifteen; infinite below one.
 
         :return: the multiple.
         """
-        z, dof = self.settings.confidence, self._blocks_told
-        if dof < 2.0:
+        dof = self._blocks_told
+        if not dof >= 1.0:
             return math.inf
-        return (z + (z ** 3 + z) / (4.0 * dof)
-                + (5.0 * z ** 5 + 16.0 * z ** 3 + 3.0 * z) / (96.0 * dof * dof))
+        return t_quantile(self.settings.confidence, round(dof, 1))
+
+
+@lru_cache(maxsize=1024)
+def t_quantile(z: float, dof: float) -> float:
+    """
+    Return the quantile of Student's t with ``dof`` degrees of freedom at the normal's ``z``.
+
+    The ``t`` whose upper tail equals the normal's above ``z``, found by bisection on the
+    tail ``I_x(dof / 2, 1 / 2) / 2`` with ``x = dof / (dof + t^2)``.
+
+    :param z: the normal quantile (0-100).
+    :param dof: the degrees of freedom (at least 1).
+    :return: the quantile (``z`` or more).
+    """
+    tail = 0.5 * math.erfc(z / math.sqrt(2.0))
+    if tail <= 0.0:
+        return math.inf
+    low, high = z, max(2.0 * z, 1.0)
+    while 0.5 * _incomplete_beta(0.5 * dof, 0.5, dof / (dof + high * high)) > tail:
+        low, high = high, 2.0 * high
+        if high > 1e12:
+            return math.inf
+    for _ in range(100):
+        middle = 0.5 * (low + high)
+        if 0.5 * _incomplete_beta(0.5 * dof, 0.5, dof / (dof + middle * middle)) > tail:
+            low = middle
+        else:
+            high = middle
+        if high - low <= 1e-9 * high:
+            break
+    return 0.5 * (low + high)
+
+
+def _incomplete_beta(a: float, b: float, x: float) -> float:
+    """Return the regularized incomplete beta function ``I_x(a, b)`` (0 <= x <= 1)."""
+    if x <= 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    front = math.exp(math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b)
+                     + a * math.log(x) + b * math.log1p(-x))
+    if x < (a + 1.0) / (a + b + 2.0):
+        return front * _beta_fraction(a, b, x) / a
+    return 1.0 - front * _beta_fraction(b, a, 1.0 - x) / b
+
+
+def _beta_fraction(a: float, b: float, x: float) -> float:
+    """Return the continued fraction of the incomplete beta function (Lentz's method)."""
+    tiny = 1e-300
+    c, d = 1.0, 1.0 - (a + b) * x / (a + 1.0)
+    d = 1.0 / (d if abs(d) > tiny else tiny)
+    result = d
+    for m in range(1, 300):
+        for numerator in (m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m)),
+                          -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1))):
+            d = 1.0 + numerator * d
+            d = 1.0 / (d if abs(d) > tiny else tiny)
+            c = 1.0 + numerator / c
+            c = c if abs(c) > tiny else tiny
+            result *= c * d
+        if abs(c * d - 1.0) < 1e-15:
+            break
+    return result

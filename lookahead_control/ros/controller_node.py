@@ -805,8 +805,10 @@ class ControllerNode(LifecycleNode):
         without a curvature or with a ``v_y`` of exactly 0 (:data:`TURNING_WARN`), a
         lateral error moving against the relative yaw (``core/heading_check.py``), a yaw
         rate hardly varying (``core/yaw_check.py``), a speed out of scale with the
-        curvature preview (``core/speed_check.py``), or an input age or answer latency
-        above ``safety.latency_warn``; else OK.
+        curvature preview (``core/speed_check.py``), a curvature read ahead of or behind
+        the car's yaw measurements (``core/map_timing_check.py``: sensor clocks that
+        disagree), or an input age or answer latency above ``safety.latency_warn``; else
+        OK.
 
         :return: the status with its reasons and counters.
         """
