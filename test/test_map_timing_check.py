@@ -318,6 +318,12 @@ def test_the_core_tells_an_imu_clock_off_the_map_s(offset, v, expected):
     assert core.turning['curvature_early_or_late'] > 5.0 and told is not None
     assert told[0] == pytest.approx(expected, abs=0.3)
     assert told[1] == pytest.approx(v, abs=0.5)
+    # what compare's notes say of the run (its section 'What the controller's checks
+    # told')
+    said = compare.checks_told(core)
+    assert said.startswith('the controller told: ') and 'curvature_early_or_late' in said
+    assert (f'road_curvature read {abs(told[0]):.2f} m '
+            f'{"ahead of" if offset > 0 else "behind"} the car') in said
 
 
 @pytest.mark.parametrize('scenario', ['s_bends', 's1_paper_step', 's2_curve_entry',

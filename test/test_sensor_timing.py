@@ -328,8 +328,10 @@ def test_compare_says_what_the_controller_s_checks_told(tmp_path, clock, told):
     text = (out / 'league.md').read_text()
     section = text.split("## What the controller's checks told")[1].split('##')[0]
     if told:
-        assert 'curvature_early_or_late' in section
-        assert 'road_curvature read 3.' in section and 'm ahead of the car' in section
+        # (a 14 s scenario is too short for the map timing check's degrees of freedom:
+        # the map check tells the 3.3 m here; test_map_timing_check the lead's words)
+        assert '| cg_compensated | s3_s_bend | nonlinear | 37 |' in section
+        assert 'curvature_disagrees' in section, section
     else:
         assert section.strip().endswith('none'), section
 
