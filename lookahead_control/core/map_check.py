@@ -38,6 +38,24 @@ import math
 from lookahead_control.core.params import check_range
 
 
+def lane_motion(eps_r: float, r: float, v_x: float, rho: float, y_cg: float,
+                v_y: float) -> tuple[float, float]:
+    """
+    Return the speed along the lane and the relative yaw's rate its kinematics predict.
+
+    :param eps_r: relative yaw [rad].
+    :param r: yaw rate [rad/s].
+    :param v_x: speed [m/s].
+    :param rho: the lane's curvature at the car [1/m].
+    :param y_cg: CG error [m].
+    :param v_y: lateral velocity [m/s].
+    :return: ``(a, r - a rho)`` with ``a = (v_x cos eps_r - v_y sin eps_r) / (1 - rho
+        y_cg)`` (the lane's frame; the projection at least 0.1).
+    """
+    along = (v_x * math.cos(eps_r) - v_y * math.sin(eps_r)) / max(1.0 - rho * y_cg, 0.1)
+    return along, r - along * rho
+
+
 @dataclass(frozen=True)
 class MapCheckParams:
     """
@@ -137,8 +155,7 @@ class MapCheck:
             return self.residual
         # the lane's frame (Frenet): at 6 m/s on R 9 m the small-angle form was 10 mrad
         # off a perfect map (dev-probe75)
-        along = (v_x * math.cos(eps_r) - v_y * math.sin(eps_r)) / max(1.0 - rho * y_cg, 0.1)
-        rate = r - along * rho
+        along, rate = lane_motion(eps_r, r, v_x, rho, y_cg, v_y)
         if math.isnan(self._predicted) or not 0.0 < dt <= 1.0:
             self._predicted, self._rate, self.residual = eps_r, rate, 0.0
             self._calm = 0.0

@@ -58,6 +58,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 import math
 
+from lookahead_control.core.map_check import lane_motion
 from lookahead_control.core.params import check_range, ParameterError
 
 
@@ -196,8 +197,7 @@ class MapTimingCheck:
             return False
         if dt == 0.0 and self._last is not None:
             return False
-        along = (v_x * math.cos(eps_r) - v_y * math.sin(eps_r)) / max(1.0 - rho * y_cg, 0.1)
-        rate = r - along * rho
+        along, rate = lane_motion(eps_r, r, v_x, rho, y_cg, v_y)     # (as the map check)
         if self._last is None or not 0.0 < dt <= 1.0 or not math.isfinite(rate):
             self.reset()
             if math.isfinite(rate):
