@@ -181,6 +181,12 @@ def offline(args: argparse.Namespace) -> int:
               'curvature polygon as stamped, as the node did (curvature_at_yaw_stamp=false; '
               '-p curvature_at_yaw_stamp=true reads one older than the yaw sample taken where '
               'the car was at its stamp)')
+    if 'lane_keeping.hold_preview' in filled:
+        # a controller from before dev-sc55 added no share of its answer period
+        print('replay: the bag predates lane_keeping.hold_preview: the re-run adds no share '
+              'of the answer period to the feedforward preview, as the law ran '
+              '(lane_keeping.hold_preview=0; -p lane_keeping.hold_preview=0.5 adds half of '
+              'it beyond 10 ms, the default since)')
     if result.estimated:
         dropped = (f'; in {result.dropped} of them it was received and dropped: the map '
                    'check found it far off the yaw rate, lane_keeping.map_fallback'

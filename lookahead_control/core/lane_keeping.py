@@ -29,7 +29,9 @@ structure (eq. 15) but regulates ``y_v`` to ::
   constant to follow.
 - The road terms of the drift ``f_v`` use the curvature ``v_x T_ff`` ahead, ``T_ff`` the
   actuator lag plus the transport delay: the steering reaches the tyres when the road
-  has arrived there.
+  has arrived there. A command held longer than :data:`HOLD_TUNED` (a camera slower
+  than 100 Hz answered once a frame) reaches the road later by half the extra hold on
+  average: ``hold_preview`` times it is added to ``T_ff`` (:func:`hold_extra`).
 - ``eta`` in ``eps_ss`` is the rear compliance ``c(a) = c_hat s(|a| / (mu_d g))``:
   the brush tyre's load-dependent secant compliance (``estimator.brush_shape``) at the
   reference curve's lateral acceleration ``a = v_x^2 rho_p``, the scale ``c_hat``
@@ -55,6 +57,7 @@ Every step works on floats (one vehicle) and on numpy arrays (a batch of runs).
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, fields, replace
 import math
 from typing import Any, Callable, Optional
@@ -72,6 +75,31 @@ from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.state_filter import (_bounded, FILTER_MODES, KalmanStateFilter,
                                                  MAX_PERIOD, StateFilterParams)
 import numpy as np
+
+#: the answer period ``feedforward_preview`` was tuned at (the node's 100 Hz) [s]: the
+#: hold preview adds a share of the period beyond it
+HOLD_TUNED = 0.01
+#: the answer period is the median of this many last step intervals: one late or early
+#: frame (a jittering camera, a dropped message) does not move it
+HOLD_INTERVALS = 9
+#: the longest answer period the hold preview counts [s]: a camera slower than 5 Hz is
+#: not a lane keeper's (the extra stops at ``hold_preview`` x 0.19 s)
+HOLD_LONGEST = 0.2
+
+
+def hold_extra(intervals: Any, share: float) -> float:
+    """
+    Return the time a command's hold adds to the feedforward preview.
+
+    :param intervals: the last steps' intervals, each > 0 [s] (empty: none yet).
+    :param share: ``hold_preview``, the share of the period beyond :data:`HOLD_TUNED`.
+    :return: ``share`` times the median interval's excess over :data:`HOLD_TUNED` (the
+        median at most :data:`HOLD_LONGEST`), 0 without intervals [s].
+    """
+    if share <= 0.0 or not len(intervals):
+        return 0.0
+    period = min(float(np.median(np.asarray(intervals, dtype=float))), HOLD_LONGEST)
+    return share * max(period - HOLD_TUNED, 0.0)
 
 
 def _check_off_or_range(name: str, value: float, allowed: tuple[float, float], unit: str,
@@ -114,7 +142,16 @@ class LaneKeepingParams:
     :param reference_preview: ``T_ref``: the reference uses the curvature
         ``v_x T_ref`` ahead [s].
     :param feedforward_preview: ``T_ff``: the drift term uses the curvature ``v_x T_ff``
-        ahead; about the actuator lag plus the transport delay [s].
+        ahead; about the actuator lag plus the transport delay, at answers
+        :data:`HOLD_TUNED` apart [s].
+    :param hold_preview: share of the answer period beyond :data:`HOLD_TUNED` (10 ms,
+        the period ``feedforward_preview`` was tuned at) added to ``feedforward_preview``:
+        a command held for a period ``T`` acts on average ``T / 2`` after it was computed,
+        so 0.5 previews the extra hold's mean delay. The period is the median of the last
+        :data:`HOLD_INTERVALS` steps' ``dt`` (repeats of a measurement, ``dt = 0``, are not
+        intervals). A 20 Hz camera answered once a frame at 37 m/s on the noise-free
+        nonlinear plant, S1-S4 peak CG summed: 16.7 cm at 0, 13.9 at 0.5 (100 Hz: 10.0,
+        unchanged); docs/lane_keeping.md, "A slow camera's hold". 0: none [-].
     :param integral_gain: ``k_i`` of the CG-error integral at and above
         ``integral_speed`` [1/s]; 0 switches it off at every speed.
     :param integral_speed: at and above this speed ``k_i`` is ``integral_gain`` [m/s].
@@ -261,6 +298,7 @@ class LaneKeepingParams:
     demand_limit: float = 14.0
     reference_preview: float = 0.0
     feedforward_preview: float = 0.07
+    hold_preview: float = 0.5
     integral_gain: float = 0.3
     integral_speed: float = 30.0
     low_speed_integral_gain: float = 0.3
@@ -328,6 +366,7 @@ class LaneKeepingParams:
                     unit='s')
         check_range('lane_keeping.feedforward_preview', self.feedforward_preview, 0.0, 1.0,
                     unit='s')
+        check_range('lane_keeping.hold_preview', self.hold_preview, 0.0, 1.0)
         check_range('lane_keeping.integral_gain', self.integral_gain, 0.0, 5.0, unit='1/s')
         check_range('lane_keeping.integral_speed', self.integral_speed, 0.0, 100.0,
                     low_open=True, unit='m/s')
@@ -1065,6 +1104,11 @@ class CgCompensatedLaw:
         #: a step has run since the start or the last reset (a retune before it is a
         #: start; an array over a batch, False for the runs restarted)
         self._stepped: Any = False
+        #: the last steps' intervals (the answer period's, ``hold_preview``), kept across
+        #: restarts and retunes: they are the sensor's rate, not the law's state
+        self._intervals: deque[float] = deque(maxlen=HOLD_INTERVALS)
+        #: the hold preview the last step added to ``feedforward_preview`` [s]
+        self.hold_time = 0.0
         self.resets = 0
         #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
         #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
@@ -1145,6 +1189,8 @@ class CgCompensatedLaw:
             if bool(np.any(old.estimating)):
                 carried.append('curvature rate')
         self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
+        self._intervals.extend(old._intervals)
+        self.hold_time = hold_extra(self._intervals, s.hold_preview)
         self.clipped = old.clipped      # recomputed at the next step, as after any step
         self.capped = old.capped
         if s.integral_gain > 0.0:
@@ -1318,8 +1364,9 @@ class CgCompensatedLaw:
         whenever the memory starts from its seed again: a restart, a new law, a retune
         that restarted the estimate), ``memory_weight`` (how much of the memory is
         learned rather than its seed, 0-1), ``side_force_yaw`` (the side force's shift
-        of the reference's relative yaw [rad], ``side_force``; 0 while off). One run
-        (not a batch).
+        of the reference's relative yaw [rad], ``side_force``; 0 while off),
+        ``hold_preview`` (the time the answer period added to ``feedforward_preview``
+        [s], ``hold_preview``). One run (not a batch).
 
         :return: ``(name, value)`` pairs.
         """
@@ -1332,7 +1379,8 @@ class CgCompensatedLaw:
                 ('demand_capped', one(self.capped)), ('approach_clipped', one(self.clipped)),
                 ('memory_generation', float(self.estimator.generation)),
                 ('memory_weight', one(self.estimator.memory_weight())),
-                ('side_force_yaw', 0.0 if self._side is None else one(self._side))]
+                ('side_force_yaw', 0.0 if self._side is None else one(self._side)),
+                ('hold_preview', float(self.hold_time))]
 
     def note_limited(self, cut: Any) -> None:
         """
@@ -1408,6 +1456,11 @@ class CgCompensatedLaw:
             self.reset()
             self.restart_causes['gap'] += 1
             dt = 0.0
+        elif dt > 0.0:
+            self._intervals.append(dt)
+        # a command held longer than the preview was tuned for acts later on average
+        self.hold_time = hold_extra(self._intervals, s.hold_preview)
+        ff_preview = s.feedforward_preview + self.hold_time
         estimating = self.estimating
         # the integral sums the measured CG error, not the filter's estimate: the
         # estimate fuses the relative yaw, v_y and the yaw rate through the kinematics,
@@ -1440,8 +1493,8 @@ class CgCompensatedLaw:
             if distances is not None and curvatures is not None:
                 # the farthest the law reads: road() below, at the fastest run's speed
                 fastest = np.max(np.where(np.isfinite(v_x), v_x, 0.0))
-                reach = float(fastest) * max(s.reference_preview + ahead,
-                                             s.feedforward_preview, ahead)
+                reach = float(fastest) * max(s.reference_preview + ahead, ff_preview,
+                                             ahead)
                 distances, curvatures = smoothed_preview(distances, curvatures,
                                                          s.curvature_smoothing, self._history,
                                                          reach)
@@ -1463,7 +1516,7 @@ class CgCompensatedLaw:
             return rho_t, slope_t
 
         rho_ref, slope_ref = road(s.reference_preview + ahead)
-        rho_ff, slope_ff = road(s.feedforward_preview)
+        rho_ff, slope_ff = road(ff_preview)
         # the state the law acts on: the estimate where the command it sends now reaches
         # the actuator (delay_prediction), on the road there; the integral and the
         # estimate stay on the present one
@@ -1525,7 +1578,7 @@ class CgCompensatedLaw:
             self._handover_left = xp.maximum(self._handover_left - dt, 0.0)
         out = self.evaluate(law_state, dt, rho_ref, v_x * slope_ref, rho_ff, v_x * slope_ff,
                             integral, rate, secant, tangent, lead_rate, lead_ff_rate,
-                            max(s.feedforward_preview - ahead, 0.0), yaw_offset,
+                            max(ff_preview - ahead, 0.0), yaw_offset,
                             self._force_feedforward(dt, state))
         shift = out.d_v * yaw_offset
         self._side_shift = xp.where(_finite(shift), shift, 0.0)
@@ -1626,7 +1679,7 @@ class CgCompensatedLaw:
         :param lead_rate: the rate feedforward's (clipped) curvature rate, None: unclipped.
         :param lead_ff_rate: the state preview's (clipped) curvature rate, None: unclipped.
         :param lead_time: how far ahead the state terms are previewed [s] (None:
-            ``feedforward_preview``).
+            ``feedforward_preview`` and the last step's hold preview).
         :param yaw_offset: the side force's shift of the reference's relative yaw [rad].
         :param axle_forces: the force feedforward's axle forces [N] (None: none).
         :return: the steering angle and the intermediate values.
@@ -1641,8 +1694,8 @@ class CgCompensatedLaw:
                                  compliance=secant, rate_feedforward=s.rate_feedforward,
                                  tangent_compliance=tangent, gains=gains,
                                  lead_rate=lead_rate, state_preview=s.state_preview,
-                                 lead_time=(s.feedforward_preview if lead_time is None
-                                            else lead_time),
+                                 lead_time=(s.feedforward_preview + self.hold_time
+                                            if lead_time is None else lead_time),
                                  lead_ff_rate=lead_ff_rate,
                                  approach_heading=s.approach_heading,
                                  yaw_offset=yaw_offset, axle_forces=axle_forces)

@@ -107,7 +107,10 @@ LANE_KEEPING_SPECS = tuple(
         ('reference_preview', 'the reference uses the curvature this long ahead [s]',
          0.0, 3.0),
         ('feedforward_preview', 'the drift term uses the curvature this long ahead: '
-         'actuator lag + delay [s]', 0.0, 1.0),
+         'actuator lag + delay, at answers 10 ms apart [s]', 0.0, 1.0),
+        ('hold_preview', 'share of the answer period beyond 10 ms (a camera slower than '
+         '100 Hz answered once a frame: its hold) added to feedforward_preview; 0.5: the '
+         "hold's mean delay, 0: none [-]", 0.0, 1.0),
         ('integral_gain', 'gain k_i of the CG-error integral at and above integral_speed, '
          '0: off at every speed [1/s]', 0.0, 5.0),
         ('integral_speed', 'at and above this speed k_i is integral_gain [m/s]',
