@@ -145,3 +145,23 @@ def test_a_bag_from_before_the_hold_preview_re_runs_without_it():
     assert core.law.settings.hold_preview == 0.5
     core, _ = controller_from_params({**recorded, 'lane_keeping.hold_preview': 0.25})
     assert core.law.settings.hold_preview == 0.25
+
+
+def test_the_sampled_check_at_a_camera_s_period_takes_the_hold_preview():
+    # without road_curvature the law previews its own estimate along the estimated rate:
+    # the preview time is inside the loop, so a check at another period than 10 ms runs
+    # the law's preview at that period (at 10 ms it adds nothing)
+    from lookahead_control.core.lane_keeping_stability import filtered_loop, rate_gain
+    held = LaneKeepingParams()
+    longer = LaneKeepingParams(hold_preview=0.0, feedforward_preview=0.09)
+    assert rate_gain(VEHICLE, CONTROLLER, held, 30.0, hold=0.02) == pytest.approx(
+        rate_gain(VEHICLE, CONTROLLER, longer, 30.0))
+    assert rate_gain(VEHICLE, CONTROLLER, held, 30.0, hold=0.02) != pytest.approx(
+        rate_gain(VEHICLE, CONTROLLER, held, 30.0))
+    loops = [filtered_loop(VEHICLE, CONTROLLER, settings, 30.0, period=0.05, delay_steps=0,
+                           curvature_estimated=True) for settings in (held, longer)]
+    np.testing.assert_allclose(loops[0], loops[1], rtol=1e-12, atol=1e-12)
+    off = LaneKeepingParams(hold_preview=0.0)
+    np.testing.assert_array_equal(
+        filtered_loop(VEHICLE, CONTROLLER, held, 30.0, curvature_estimated=True),
+        filtered_loop(VEHICLE, CONTROLLER, off, 30.0, curvature_estimated=True))

@@ -109,8 +109,9 @@ from numbers import Real
 from typing import Iterable, NamedTuple, Optional
 
 from lookahead_control.core.control_law import axle_gains, LateralState
-from lookahead_control.core.lane_keeping import (cg_compensated_law, integral_gain_at,
-                                                 LaneKeepingParams, loop_gains)
+from lookahead_control.core.lane_keeping import (cg_compensated_law, hold_extra,
+                                                 integral_gain_at, LaneKeepingParams,
+                                                 loop_gains)
 from lookahead_control.core.params import ControllerParams, loaded_vehicle, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
@@ -301,7 +302,8 @@ def curvature_gain(vehicle: VehicleParams, controller: ControllerParams,
 
 
 def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
-              settings: LaneKeepingParams, v_x: float, ahead: float = 0.0) -> float:
+              settings: LaneKeepingParams, v_x: float, ahead: float = 0.0,
+              hold: float = 0.0) -> float:
     """
     Return ``k_rate`` with ``delta = K x + k_rho rho + k_rate rho'`` (estimated curvature).
 
@@ -312,7 +314,8 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
     ``max_lateral_jerk`` does not act). Evaluated on the law itself (linear in
     ``rho'`` at a constant compliance); 0 with ``estimate_rate_time`` 0. With the
     delay-aware law (``ahead`` > 0) the curvature at the CG is taken ``ahead`` on, the
-    reference's ``T_ref + ahead``, the state terms previewed ``T_ff - ahead``.
+    reference's ``T_ref + ahead``, the state terms previewed ``T_ff - ahead``. ``T_ff``
+    is ``feedforward_preview`` plus ``hold``, the hold preview at the loop's period.
 
     :param vehicle: the design vehicle.
     :param controller: d_v schedule.
@@ -320,6 +323,8 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
     :param v_x: speed [m/s].
     :param ahead: the law's prediction time (``filter_delay`` with
         ``delay_prediction``, else 0) [s].
+    :param hold: the hold preview the law adds at the loop's period
+        (:func:`~lookahead_control.core.lane_keeping.hold_extra`; 0 at 10 ms) [s].
     :return: the gain [rad m s].
     """
     if settings.estimate_rate_time <= 0.0:
@@ -327,15 +332,16 @@ def rate_gain(vehicle: VehicleParams, controller: ControllerParams,
     law_controller = replace(controller, natural_frequency=settings.natural_frequency,
                              damping_ratio=settings.damping_ratio)
     gains = loop_gains(settings, v_x)
+    preview = settings.feedforward_preview + hold
 
     def steering(rate: float) -> float:
         state = LateralState(0.0, 0.0, 0.0, 0.0, v_x, 0.0, rate * ahead, rate)
         out = cg_compensated_law(state, vehicle, law_controller,
                                  rate * (settings.reference_preview + ahead), rate,
-                                 rate * settings.feedforward_preview, rate, gains=gains,
+                                 rate * preview, rate, gains=gains,
                                  rate_feedforward=settings.rate_feedforward,
                                  state_preview=settings.state_preview,
-                                 lead_time=max(settings.feedforward_preview - ahead, 0.0))
+                                 lead_time=max(preview - ahead, 0.0))
         return float(out.steering)
 
     return steering(1.0) - steering(0.0)
@@ -1503,7 +1509,9 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     if curvature_estimated:
         law[0, i_kin + 1] += curvature_gain(vehicle, controller, settings, v_x)
     if rated:
-        law[0, i_rate] += rate_gain(vehicle, controller, settings, v_x, ahead)
+        # the law steps once a period: its hold preview is that period's (0 at 10 ms)
+        law[0, i_rate] += rate_gain(vehicle, controller, settings, v_x, ahead,
+                                    hold_extra([period], settings.hold_preview))
     # the side force's shift of the reference's relative yaw on a straight, -s F_r / C_r
     # of the present estimate (low-passed): d_v of it in y_ref, k_p d_v / beta_1 of it in
     # the command (CgCompensatedLaw._side_force)
