@@ -79,11 +79,11 @@ import numpy as np
 #: the answer period ``feedforward_preview`` was tuned at (the node's 100 Hz) [s]: the
 #: hold preview adds a share of the period beyond it
 HOLD_TUNED = 0.01
-#: the answer period is the median of this many last step intervals: one late or early
-#: frame (a jittering camera, a dropped message) does not move it
-HOLD_INTERVALS = 9
-#: the longest answer period the hold preview counts [s]: a camera slower than 5 Hz is
-#: not a lane keeper's (the extra stops at ``hold_preview`` x 0.19 s)
+#: the answer period is taken over this many last step intervals (a second of a 20 Hz
+#: camera): a dropped frame moves it by a twentieth of the frame
+HOLD_INTERVALS = 20
+#: the longest interval the hold preview counts [s]: a camera slower than 5 Hz is not a
+#: lane keeper's (the extra stops at ``hold_preview`` x 0.19 s)
 HOLD_LONGEST = 0.2
 
 
@@ -91,14 +91,26 @@ def hold_extra(intervals: Any, share: float) -> float:
     """
     Return the time a command's hold adds to the feedforward preview.
 
+    A command held for ``T`` acts on average ``T / 2`` after it was computed; over holds
+    of different lengths the mean, weighted by the time each is held, is ``sum T^2 /
+    (2 sum T)``: the period here is ``sum T^2 / sum T`` (``T`` itself when regular). A
+    pattern of intervals (every third frame lost, frames in pairs) gives a steady value
+    (their median switched between two every frame, dev-probe129); a burst 1 ms after a
+    frame is held for 1 ms and weighs nothing.
+
     :param intervals: the last steps' intervals, each > 0 [s] (empty: none yet).
     :param share: ``hold_preview``, the share of the period beyond :data:`HOLD_TUNED`.
-    :return: ``share`` times the median interval's excess over :data:`HOLD_TUNED` (the
-        median at most :data:`HOLD_LONGEST`), 0 without intervals [s].
+    :return: ``share`` times that period's excess over :data:`HOLD_TUNED` (each
+        interval at most :data:`HOLD_LONGEST`), 0 without intervals [s].
     """
     if share <= 0.0 or not len(intervals):
         return 0.0
-    period = min(float(np.median(np.asarray(intervals, dtype=float))), HOLD_LONGEST)
+    held = np.minimum(np.asarray(intervals, dtype=float), HOLD_LONGEST)
+    # equal intervals: the interval itself (its sums round: 100 Hz added 1e-18 s)
+    if np.ptp(held) == 0.0:
+        period = float(held[0])
+    else:
+        period = float(np.dot(held, held) / np.sum(held))
     return share * max(period - HOLD_TUNED, 0.0)
 
 
@@ -147,11 +159,12 @@ class LaneKeepingParams:
     :param hold_preview: share of the answer period beyond :data:`HOLD_TUNED` (10 ms,
         the period ``feedforward_preview`` was tuned at) added to ``feedforward_preview``:
         a command held for a period ``T`` acts on average ``T / 2`` after it was computed,
-        so 0.5 previews the extra hold's mean delay. The period is the median of the last
-        :data:`HOLD_INTERVALS` steps' ``dt`` (repeats of a measurement, ``dt = 0``, are not
-        intervals). A 20 Hz camera answered once a frame at 37 m/s on the noise-free
-        nonlinear plant, S1-S4 peak CG summed: 16.7 cm at 0, 13.9 at 0.5 (100 Hz: 10.0,
-        unchanged); docs/lane_keeping.md, "A slow camera's hold". 0: none [-].
+        so 0.5 previews the extra hold's mean delay. The period is taken over the last
+        :data:`HOLD_INTERVALS` steps' ``dt`` (:func:`hold_extra`; repeats of a
+        measurement, ``dt = 0``, are not intervals). A 20 Hz camera answered once a frame
+        at 37 m/s on the noise-free nonlinear plant without delay, S1-S4 peak CG summed:
+        14.45 cm at 0, 13.67 at 0.5 (100 Hz: 10.85, unchanged); docs/lane_keeping.md, "A
+        slow camera's hold". 0: none [-].
     :param integral_gain: ``k_i`` of the CG-error integral at and above
         ``integral_speed`` [1/s]; 0 switches it off at every speed.
     :param integral_speed: at and above this speed ``k_i`` is ``integral_gain`` [m/s].
