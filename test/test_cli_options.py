@@ -564,6 +564,7 @@ def _lane_keeping():
         '--integral-gain': (NON_NUMBERS + ('-1', '1e3'), changes('--integral-gain', '0')),
         '--a-error': (NON_NUMBERS + ('-1', '1e300'), changes('--a-error', '1')),
         '--delays': (NON_NUMBERS + ('-0.01', '1.5'), changes('--delays', '0.1')),
+        '--period': (NON_NUMBERS + ('0', '-0.05', '0.5'), changes('--period', '0.05')),
         '--search-q': (('.',), searched),
         '--q-knots': (('missing.json', '.'), given_knots),
         '--search-p': (('.',), searched_p),

@@ -20,6 +20,7 @@ import dataclasses
 import math
 
 from lookahead_control.core import lane_keeping_stability as stability
+from lookahead_control.core.cli import ToolError
 from lookahead_control.core.control_law import LateralState
 from lookahead_control.core.lane_keeping import (cg_compensated_law, integral_gain_at,
                                                  LaneKeepingParams, loop_gains)
@@ -44,7 +45,8 @@ START = np.array([0.5, 0.02, -0.1, 0.03])
 
 
 def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
-              filter_settings=None, lag=0.05, period=PERIOD, scale=1.0, settings=SETTINGS):
+              filter_settings=None, lag=0.05, period=PERIOD, scale=1.0, settings=SETTINGS,
+              delay_time=None):
     """
     Run the linear sampled loop with the node's own ``KalmanStateFilter`` (RK4 inside).
 
@@ -54,7 +56,9 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
     used the integral of the step before until dev-predict, 1e-3 off the law, and the
     estimate's ``y_cg`` until dev-sc34). ``scale``
     shrinks the start (a diverging loop stays within the wheel angles the filter's
-    actuator model takes, pi/2 rad).
+    actuator model takes, pi/2 rad). With ``delay_time`` the plant runs in 1 ms substeps,
+    each under the last command issued at least ``delay_time`` before it (a delay that is
+    not a whole number of periods; a whole number of milliseconds).
     """
     k = stability.feedback_gain(VEHICLE, CONTROLLER, settings, v_x)
     # the y_cg gain of the law without its integral: the rest, the reference's rate
@@ -93,8 +97,12 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
     side = None
     integral = 0.0
     sent = [0.0] * delay_steps
+    issued = []                                 # (step issued, command): delay_time
+    h = 1e-3
+    per = int(round(period / h))
+    phi_h, gamma_h = stability._zoh(a_c, b_c, h)
     trajectory = []
-    for _ in range(steps):
+    for step in range(steps):
         trajectory.append(x.copy())
         est = kalman.step(LateralState(x[0], x[1], x[2], x[3], v_x, 0.0, 0.0, 0.0), period)
         # the law's order: the integral takes this step's measured error (the plant's
@@ -115,6 +123,16 @@ def _simulate(v_x, plant, delay_steps, steps, filter_vehicle=VEHICLE,
                                                      for f, t in zip(forces, targets)]
             u += per_force[0] * forces[0] + per_force[1] * forces[1]
         kalman.command(u)
+        if delay_time is not None:
+            issued.append((step, u))
+            lag_ms = int(round(delay_time / h))
+            for sub in range(per):
+                # the substep from (step * per + sub) ms: the last command issued at least
+                # delay_time before it (0 before the first)
+                now = step * per + sub - lag_ms
+                acting = [c for j, c in issued if j * per <= now]
+                x = phi_h @ x + gamma_h[:, 0] * (acting[-1] if acting else 0.0)
+            continue
         sent.append(u)
         x = phi @ x + gamma[:, 0] * sent.pop(0)
     return np.array(trajectory)
@@ -149,6 +167,43 @@ def test_filtered_loop_matches_the_node_filter_in_time(v_x, scale, delay_steps):
                                       delay_steps=delay_steps)
     assert stability.filtered_radius(VEHICLE, CONTROLLER, SETTINGS, v_x, plant=plant,
                                      delay_steps=delay_steps) != exact
+
+
+@pytest.mark.parametrize('period, delay', [(0.05, 0.07), (0.04, 0.02), (0.02, 0.05)])
+def test_a_delay_that_is_not_whole_periods_matches_the_node_filter_in_time(period, delay):
+    # dev-sc55: a 20 Hz camera's loop (each frame answered) is sampled every 50 ms; the
+    # actuator's 20 ms or a camera's latency is not a whole number of such periods (the
+    # tool rounded them to its 10 ms). Two commands act over a period: the matrix's plant
+    # trajectory equals the filter class's loop with the plant in 1 ms substeps
+    plant = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * 1.3, mass=VEHICLE.mass * 0.8,
+                                yaw_inertia=VEHICLE.yaw_inertia * 0.8)
+    m = stability.filtered_loop(VEHICLE, CONTROLLER, SETTINGS, 37.0, plant=plant,
+                                period=period, delay_steps=delay / period)
+    # (a start small enough that a diverging case stays within the filter's wheel model)
+    sim = _simulate(37.0, plant, 0, 120, period=period, delay_time=delay, scale=1e-3)
+    mat = _matrix_run(m, 5, 120, scale=1e-3)
+    assert np.max(np.abs(sim - mat)) < 1e-5 * np.max(np.abs(sim))
+
+
+def test_a_fractional_delay_runs_from_one_whole_number_of_periods_to_the_next():
+    plant = dataclasses.replace(VEHICLE, c_r=VEHICLE.c_r * 1.3)
+    for radius in (stability.discrete_radius, stability.filtered_radius):
+        def at(steps):
+            return radius(VEHICLE, CONTROLLER, SETTINGS, 37.0, plant=plant, period=0.05,
+                          delay_steps=steps)
+        whole = [at(d) for d in (0, 1, 2)]
+        assert at(1e-7) == pytest.approx(whole[0], abs=1e-5)
+        assert at(1 - 1e-7) == pytest.approx(whole[1], abs=1e-5)
+        assert at(2 - 1e-7) == pytest.approx(whole[2], abs=1e-5)
+        middle = at(1.4)
+        assert min(whole[1:]) - 1e-3 < middle < max(whole[1:]) + 1e-3 and middle not in whole
+    # robust_check takes the fraction as it is (it rounded to whole periods: 0.02 s at a
+    # 50 ms period was no delay at all)
+    settings = LaneKeepingParams()
+    checks = [stability.robust_check(VEHICLE, CONTROLLER, settings, speeds=(37.0,),
+                                     delays=(d,), period=0.05).max_radius
+              for d in (0.0, 0.02, 0.05)]
+    assert checks[1] != pytest.approx(checks[0], abs=1e-9) and checks[2] > 1.0, checks
 
 
 @pytest.mark.parametrize('v_x, scale, delay_steps', [(20.0, 1.0, 2), (37.0, 0.7, 5)])
@@ -381,3 +436,85 @@ def test_the_loop_with_the_integral_held_is_the_loop_without_its_unit_root(filte
                                     integral_frozen=True)
     # measured: 0.99459 exact, 0.99517 filtered (37 m/s, C x1.3, mass x0.8, 50 ms)
     assert result.holds and result.cases == 486 and result.max_radius < 0.996
+
+
+def test_the_tool_checks_a_slow_camera_s_loop_at_its_period(capsys, tmp_path):
+    # dev-sc55: a 20 Hz camera answered once a frame is a loop sampled every 50 ms; the
+    # tool checked it every 10 ms only (and refused a timer at another rate). At 20 Hz a
+    # car with stiffer tyres and less mass than the model (C x1.3, m x0.8) at 37 m/s and
+    # 50 ms of delay is unstable (in the node's core on the nonlinear plant, S0: a
+    # steering limit cycle of 45 mrad rms at the angle limit); 20 ms holds, and so do the
+    # prediction across the 50 ms or w_n 6
+    import json
+
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    path = tmp_path / 's.json'
+    assert stability_main(['--samples', '21', '--period', '0.05', '--delays', '0', '0.05',
+                           '--json', str(path)]) == 1
+    out = capsys.readouterr().out
+    assert 'every 0.05 s, plant delays 0, 0.05 s' in out
+    assert 'robust check with the filter DOES NOT HOLD' in out
+    data = json.loads(path.read_text())
+    assert data['sampled_period_s'] == 0.05 and data['plant_delays_s'] == [0.0, 0.05]
+    worst = data['robust_filtered']
+    assert worst['max_radius'] == pytest.approx(1.0311, abs=1e-4)
+    assert worst['worst'] == {'speed': 37.0, 'c_f': 1.3, 'c_r': 1.3, 'mass': 0.8,
+                              'delay': 0.05}
+    assert stability_main(['--samples', '21', '--period', '0.05', '--delays', '0.02']) == 0
+    fixed = tmp_path / 'predict.yaml'
+    fixed.write_text('controller:\n  ros__parameters:\n    lane_keeping:\n'
+                     '      delay_prediction: true\n      filter_delay: 0.05\n'
+                     '      feedforward_preview: 0.1\n')
+    assert stability_main(['--samples', '21', '--period', '0.05', '--delays', '0', '0.02',
+                           '0.05', '--controller', str(fixed)]) == 0
+    assert stability_main(['--samples', '21', '--period', '0.05', '--delays', '0', '0.02',
+                           '0.05', '--natural-frequency', '6']) == 0
+    capsys.readouterr()
+    # a timer at 50 Hz is checked every 20 ms (it was refused); a period beyond max_gap
+    # is a restart at every answer
+    timer = tmp_path / 'timer.yaml'
+    timer.write_text('controller:\n  ros__parameters:\n    mode: timer\n    rate_hz: 50.0\n')
+    stability_main(['--samples', '21', '--controller', str(timer)])
+    out = capsys.readouterr().out
+    assert 'mode timer at rate_hz 50: the sampled checks run every 0.02 s' in out
+    assert 'every 0.02 s, plant delays' in out
+    with pytest.raises(ToolError, match=r'0\.2 s is above lane_keeping\.max_gap = 0\.1 s'):
+        gap = tmp_path / 'gap.yaml'
+        gap.write_text('controller:\n  ros__parameters:\n    lane_keeping:\n'
+                       '      max_gap: 0.1\n')
+        stability_main(['--samples', '21', '--period', '0.2', '--controller', str(gap)])
+
+
+def _light_stiff_car_on_a_straight(delay, hz=20.0, latency=0.0, **lane_keeping):
+    """Return the steering's rms over the last 2 s of 30 s of S0 at 37 m/s (node's core)."""
+    from lookahead_control.tools import compare
+    from sim_plant.sensor_timing import SensorTiming, StreamTiming, timed_run
+    settings = compare.LawSettings()
+    settings = dataclasses.replace(settings, lane_keeping=dataclasses.replace(
+        settings.lane_keeping, **lane_keeping))
+    car = dataclasses.replace(VEHICLE, c_f=VEHICLE.c_f * 1.3, c_r=VEHICLE.c_r * 1.3,
+                              mass=VEHICLE.mass * 0.8, yaw_inertia=VEHICLE.yaw_inertia * 0.8)
+    scenario = dataclasses.replace(
+        compare.load_scenarios(['s0_straight'])['s0_straight'].at_speed(37.0), duration=30.0)
+    run = timed_run(scenario, compare.node_core('cg_compensated', VEHICLE, settings),
+                    SensorTiming(StreamTiming(hz, latency), with_frame=True), compare.NONLINEAR,
+                    dt=0.005, delay=delay, plant_vehicle=car)
+    return float(np.sqrt(np.mean(np.asarray(run['steering_cmd'])[-400:] ** 2)))
+
+
+def test_the_slow_camera_s_unstable_case_rings_in_the_node_s_core():
+    # what the check at 50 ms finds unstable (above) is a limit cycle on the nonlinear
+    # plant through the node's core; the cases it finds stable settle
+    assert _light_stiff_car_on_a_straight(0.05) > 0.02           # measured 45 mrad rms
+    assert _light_stiff_car_on_a_straight(0.05, hz=100.0) < 1e-3
+    assert _light_stiff_car_on_a_straight(0.02) < 1e-3
+    assert _light_stiff_car_on_a_straight(0.05, delay_prediction=True, filter_delay=0.05,
+                                          feedforward_preview=0.1) < 1e-3
+    # a late camera with the prediction across its latency, as vehicle_bridge.md advises:
+    # 25 Hz / 80 ms fails the check at 40 ms (1.024) and rings (22.8 mrad rms); at 100 Hz
+    # with the same latency, or 30 Hz / 50 ms (0.989), it settles
+    late = {'delay_prediction': True, 'filter_delay': 0.1, 'feedforward_preview': 0.15}
+    assert _light_stiff_car_on_a_straight(0.02, hz=25.0, latency=0.08, **late) > 0.01
+    assert _light_stiff_car_on_a_straight(0.02, hz=100.0, latency=0.08, **late) < 1e-3
+    assert _light_stiff_car_on_a_straight(0.02, hz=30.0, latency=0.05, delay_prediction=True,
+                                          filter_delay=0.07, feedforward_preview=0.12) < 1e-3

@@ -83,9 +83,10 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   bound; it adds 0.013 on the default 271-speed grid, 0.0013 on 2701).
 - :func:`discrete_radius` is the robustness check: the sampled loop (ZOH at the control
   period), a plant whose mass, inertia and cornering stiffnesses differ from the
-  design's, a first-order steering actuator and a transport delay of whole periods;
-  stable if the spectral radius is below 1. :func:`filtered_radius` is the same loop
-  with the law acting on the Kalman filter's estimate (``core/state_filter.py``: its
+  design's, a first-order steering actuator and a transport delay (a fraction of a
+  period: two commands act over it); stable if the spectral radius is below 1.
+  :func:`filtered_radius` is the same loop with the law acting on the Kalman filter's
+  estimate (``core/state_filter.py``: its
   model is the design vehicle, its gain ``steady_gain`` at the loop's period and speed,
   its own actuator model and command buffer; with ``v_y_measured=False`` the gain
   without ``v_y``, a bridge that sends 0; with ``curvature_estimated=True`` the
@@ -1324,6 +1325,32 @@ def _zoh(a_c: Matrix, b_c: Matrix, period: float) -> tuple[Matrix, Matrix]:
     return e[:n, :n], e[:n, n:]
 
 
+def _delayed_inputs(a_c: Matrix, b_c: Matrix, period: float,
+                    delay_steps: float) -> list[tuple[int, Matrix]]:
+    """
+    Return the commands that act on the plant over one period and their input matrices.
+
+    A transport delay of ``delay_steps = d + f / period`` periods (``0 <= f < period``):
+    over ``[t_k, t_k+1]`` the command issued ``d + 1`` periods before acts for the first
+    ``f`` seconds, the one issued ``d`` periods before for the rest, so ``x_k+1 = Phi x_k
+    + e^{A (T - f)} Gamma(f) u_k-d-1 + Gamma(T - f) u_k-d``. A whole number of periods
+    (within 1e-9) is the one command of the plain hold.
+
+    :param a_c: the actuated plant's continuous state matrix.
+    :param b_c: its input matrix.
+    :param period: control period [s].
+    :param delay_steps: the transport delay in periods (>= 0, fractional allowed).
+    :return: ``(age in periods, input matrix)`` of each command that acts.
+    """
+    whole = int(np.floor(delay_steps + 1e-9))
+    part = (delay_steps - whole) * period
+    if part <= 1e-9 * period:
+        return [(whole, _zoh(a_c, b_c, period)[1])]
+    late = _zoh(a_c, b_c, period - part)
+    early = _zoh(a_c, b_c, part)[1]
+    return [(whole, late[1]), (whole + 1, late[0] @ early)]
+
+
 def _actuated_plant(plant: VehicleParams, v_x: float, lag: float) -> tuple[Matrix, Matrix]:
     """Return the continuous plant with its first-order actuator (``lag`` 0: none)."""
     a_p, b_p = plant_matrices(plant, v_x)
@@ -1355,7 +1382,7 @@ def _integral_off(settings: LaneKeepingParams, low: bool = False) -> LaneKeeping
 def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
                   settings: LaneKeepingParams, v_x: float, *,
                   plant: Optional[VehicleParams] = None, period: float = PERIOD,
-                  lag: float = 0.05, delay_steps: int = 2,
+                  lag: float = 0.05, delay_steps: float = 2,
                   filter_settings: Optional[StateFilterParams] = None,
                   filter_vehicle: Optional[VehicleParams] = None,
                   v_y_measured: bool = True, curvature_estimated: bool = False,
@@ -1368,7 +1395,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     ``s_k = [x_k (plant, actuator), I_k, x_hat_k (6), w_k (the filter's wheel angle, if
     its lag > 0), u_k-1 ... u_k-B]``. At each step the law computes
     ``u_k = K [x_hat_k[:4], I_k]``; the plant moves over the period under ``u_k-d``
-    (``d = delay_steps``, exact ZOH with the actuator), the integral sums the measured
+    (``d = delay_steps``, exact ZOH with the actuator; a fractional ``d`` under two
+    commands, :func:`_delayed_inputs`), the integral sums the measured
     ``y_cg`` (forward Euler, as the law), the filter predicts with its model (the design
     vehicle's ``continuous_model`` and its own first-order wheel model, exact over each
     substep; the node's RK4 differs by ``O((lambda h)^5)``) under the command its
@@ -1384,7 +1412,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     :param plant: the plant's parameters (None: the design vehicle).
     :param period: control period [s] (the filter's step).
     :param lag: the plant's actuator time constant [s].
-    :param delay_steps: the plant's transport delay in periods.
+    :param delay_steps: the plant's transport delay in periods (fractional allowed).
     :param filter_settings: the filter's settings (None: those of ``settings``).
     :param filter_vehicle: the filter's model (None: the design vehicle).
     :param v_y_measured: False: a bridge without ``v_y`` (``linear.y`` exactly 0 while
@@ -1418,7 +1446,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         settings = _integral_off(settings)
     model = filter_vehicle or vehicle
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
-    phi, gamma = _zoh(a_c, b_c, period)
+    phi = _zoh(a_c, b_c, period)[0]
+    plant_inputs = _delayed_inputs(a_c, b_c, period, delay_steps)
     n = a_c.shape[0]
     # the filter's prediction: its 6 states and its wheel, substeps as the node's
     a_f, b_f, _ = continuous_model(model, v_x)
@@ -1452,7 +1481,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     ahead = fs.delay if settings.delay_prediction else 0.0
     substeps_ahead = _input_substeps(ahead, period, fs.delay, longest) if ahead > 0.0 else []
     ages_ahead = [age for _, _, shares in substeps_ahead for age in shares]
-    depth = max(delay_steps, max(ages) + 1, max(ages_ahead, default=0), 1)
+    depth = max(max(age for age, _ in plant_inputs), max(ages) + 1,
+                max(ages_ahead, default=0), 1)
     # indices in s_k
     i_int = n
     i_est = n + 1
@@ -1549,7 +1579,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
 
     m = np.zeros((size, size))
     m[:n, :n] = phi
-    m[:n, :] += gamma @ command(delay_steps)
+    for age, gamma in plant_inputs:
+        m[:n, :] += gamma @ command(age)
     m[i_int, i_int] = 1.0
     m[i_int, 0] = period * k_i
     # the true measurement H_plant x_k+1 (the plant's y_cg, eps_r, v_y, r) over s_k
@@ -1736,14 +1767,15 @@ def filtered_radius(vehicle: VehicleParams, controller: ControllerParams,
 def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
                     settings: LaneKeepingParams, v_x: float, *,
                     plant: Optional[VehicleParams] = None, period: float = PERIOD,
-                    lag: float = 0.05, delay_steps: int = 2,
+                    lag: float = 0.05, delay_steps: float = 2,
                     integral_frozen: bool = False, approach: bool = False) -> float:
     """
     Return the spectral radius of the sampled closed loop (stable if < 1).
 
     The plant (linear single-track with ``plant``'s parameters, a first-order actuator of
     time constant ``lag``) is discretized exactly with a zero-order hold over ``period``;
-    the command reaches the actuator ``delay_steps`` periods late; the integral is a
+    the command reaches the actuator ``delay_steps`` periods late (a fractional delay:
+    two commands over each period, :func:`_delayed_inputs`); the integral is a
     forward-Euler sum, as the law computes it.
 
     :param vehicle: the design vehicle.
@@ -1753,7 +1785,7 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     :param plant: the plant's parameters (None: the design vehicle).
     :param period: control period [s].
     :param lag: actuator time constant [s] (0: none).
-    :param delay_steps: transport delay in control periods.
+    :param delay_steps: transport delay in control periods (fractional allowed).
     :param integral_frozen: the integral held (the CG error outside ``integral_band``):
         the loop without it and without ``k_i y_cg`` in the reference's rate.
     :param approach: the approach phase (``approach_heading``): the integral held and the
@@ -1766,10 +1798,12 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     # actuator state: delta' = (u - delta) / lag
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
     n = a_c.shape[0]
-    phi, gamma = _zoh(a_c, b_c, period)
+    phi = _zoh(a_c, b_c, period)[0]
+    plant_inputs = _delayed_inputs(a_c, b_c, period, delay_steps)
+    depth = max(age for age, _ in plant_inputs)
     k = feedback_gain(vehicle, controller, settings, v_x)
-    # state: plant (n), integral (1), commands in flight (delay_steps)
-    size = n + 1 + delay_steps
+    # state: plant (n), integral (1), commands in flight (u_k-1 ... u_k-depth)
+    size = n + 1 + depth
     m = np.zeros((size, size))
     m[:n, :n] = phi
     gain = np.zeros((1, size))
@@ -1779,12 +1813,14 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     gain[0, 0] += k[4] * period * float(integral_gain_at(settings, v_x))
     if approach:
         gain[0, 0] = 0.0
-    if delay_steps == 0:
-        m[:n, :] += gamma @ gain
-    else:
-        m[:n, n + delay_steps] = gamma[:, 0]           # the oldest command acts now
+    for age, gamma in plant_inputs:
+        if age == 0:
+            m[:n, :] += gamma @ gain
+        else:
+            m[:n, n + age] += gamma[:, 0]              # a command in flight acts now
+    if depth > 0:
         m[n + 1, :] = gain[0]                          # the newest one enters the line
-        for j in range(1, delay_steps):
+        for j in range(1, depth):
             m[n + 1 + j, n + j] = 1.0
     m[n, n] = 1.0
     m[n, 0] = period * float(integral_gain_at(settings, v_x))
@@ -1838,7 +1874,7 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
     :param speeds: speeds [m/s].
     :param stiffness: factors on C_f and on C_r.
     :param mass: factors on m and I_z.
-    :param delays: transport delays [s] (rounded to whole periods).
+    :param delays: transport delays [s] (fractions of a period as they are).
     :param period: control period [s].
     :param lag: actuator time constant [s].
     :param filtered: the law acts on the Kalman filter's estimate (:func:`filtered_radius`,
@@ -1862,7 +1898,10 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
                               l1=vehicle.l1, l2=vehicle.l2, c_f=vehicle.c_f * c_f,
                               c_r=vehicle.c_r * c_r, d_s=vehicle.d_s,
                               cg_height=vehicle.cg_height)
-        steps = int(round(delay / period))
+        # a whole number of periods exactly, else the fraction (two commands a period)
+        steps: float = delay / period
+        if abs(steps - round(steps)) < 1e-9:
+            steps = int(round(steps))
         if filtered:
             radius = filtered_radius(vehicle, controller, settings, v, plant=plant,
                                      period=period, lag=lag, delay_steps=steps,

@@ -34,10 +34,14 @@ from lookahead_control.core.lane_keeping_stability import (Certificate, certific
                                                            CERTIFICATE_WEIGHTS, DELAYS,
                                                            LOAD_POINTS, PERIOD, QRows,
                                                            robust_check, ROBUST_SPEEDS,
+                                                           RobustResult,
                                                            search_schedule, weight_schedule)
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 import numpy as np
+
+#: the resolution of --delays [s]: each delay is checked once, to the millisecond
+DELAY_STEP = 1e-3
 
 
 def stability_main(argv: Sequence[str] | None = None) -> int:
@@ -72,10 +76,16 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                    'low_speed_integral_gain, capped at this; default: that of the law)')
     p.add_argument('--delays', type=number(0.0, 1.0, unit='s'), nargs='+',
                    default=list(DELAYS), metavar='S',
-                   help="the plant's transport delays of the sampled checks, rounded to the "
-                   '0.01 s period; a car with a long delay: the delay and around it, with '
-                   'lane_keeping.filter_delay (and delay_prediction) in --controller '
+                   help="the plant's transport delays of the sampled checks (to 1 ms; a "
+                   'fraction of the period acts as it is); a car with a long delay: the '
+                   'delay and around it, with lane_keeping.filter_delay (and '
+                   'delay_prediction) in --controller '
                    f'(default {" ".join(f"{d:g}" for d in DELAYS)})')
+    p.add_argument('--period', type=number(0.001, 0.2, unit='s'), default=None, metavar='S',
+                   help="the sampled checks' period: how often the law answers, a "
+                   "lane camera's frame period when each frame is answered (mode event; "
+                   "0.05 for 20 Hz), the timer's in mode timer (default: 1 / rate_hz of "
+                   f'--controller in mode timer, else {PERIOD:g}: 100 Hz)')
     p.add_argument('--controller', type=Path, default=None, metavar='YAML',
                    help='check the law the controller node would run with this params '
                    'file: its controller.* (d_v schedule) and lane_keeping.*; '
@@ -120,6 +130,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     lyapunov = read_knots(args.p_knots, 'P') if args.p_knots is not None else None
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
+    period = PERIOD if args.period is None else args.period
     vehicle = load_vehicle(args.vehicle)
     zero = False        # the law's a_x is 0 (acceleration_source: zero)
     if args.controller is None:
@@ -132,13 +143,14 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         # timing is (timer mode at rate_hz: another period than the checks' 10 ms)
         both = load_law_settings(args.controller, vehicle, ())
         loaded, controller = both.lane_keeping, both.controller
-        if both.mode == 'timer' and abs(both.rate_hz * PERIOD - 1.0) > 1e-9:
-            # the checks sample the loop every PERIOD (event mode at 100 Hz measurements,
-            # or a 100 Hz timer)
-            raise ToolError(f'{args.controller}: mode timer at rate_hz {both.rate_hz:g}: the '
-                            'controller node answers every '
-                            f'{1.0 / both.rate_hz:g} s, lane_keeping_stability checks the '
-                            f'loop sampled every {PERIOD:g} s; measure it with closed_loop')
+        if both.mode == 'timer' and args.period is None:
+            # the node answers every 1 / rate_hz (before dev-sc55 refused unless 100 Hz:
+            # the checks sampled every PERIOD only)
+            period = 1.0 / both.rate_hz
+            if abs(period - PERIOD) > 1e-12:
+                print(f'{args.controller}: mode timer at rate_hz {both.rate_hz:g}: the '
+                      f'sampled checks run every {period:g} s (a camera slower than the '
+                      'timer: --period its frame period)')
         if both.law != 'cg_compensated':
             print(f'note: {args.controller} runs law {both.law} in the node; this checks '
                   "cg_compensated with the file's controller.* and lane_keeping.*")
@@ -162,6 +174,11 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # the node's own checks across parameters (controller.reference): the law it refuses
     # is not certified
     CgCompensatedLaw(vehicle, controller, settings)
+    if period > settings.max_gap:
+        # every answer a time jump: the law restarts each time, no loop to check
+        raise ToolError(f'a period of {period:g} s is above lane_keeping.max_gap = '
+                        f'{settings.max_gap:g} s: the law restarts at every answer (a time '
+                        'jump); answer faster or raise max_gap')
     from lookahead_control.tools.compare import LawSettings, settings_changes
     changed = settings_changes(LawSettings(controller, settings))
     print(f'settings: {args.controller or "the package defaults"}'
@@ -227,13 +244,16 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         if found_p is not None:
             lyapunov, cert = found_p
             p_source = 'searched in this run'
-    # the sampled loop's delay is whole periods (0.01 s): checked and printed as rounded
-    # (half up), each once (dev-probe43: 0.095 and 0.105 were printed, 0.1 checked twice)
-    delays = tuple(sorted({math.floor(d / PERIOD + 0.5 + 1e-9) * PERIOD for d in args.delays}))
+    # the delays to 1 ms, checked and printed as rounded (half up), each once (dev-probe43:
+    # 0.1 given three ways counted 486 cases of 162); a fraction of the period is checked
+    # as it is (before dev-sc55 rounded to the 10 ms period: at another period 20 ms were
+    # 0 or 50)
+    delays = tuple(sorted({math.floor(d / DELAY_STEP + 0.5 + 1e-9) * DELAY_STEP
+                           for d in args.delays}))
     moved = [d for d in args.delays if all(abs(d - c) > 1e-12 for c in delays)]
     if moved:
-        print(f'--delays {" ".join(f"{d:.10g}" for d in moved)} rounded to the {PERIOD:g} s '
-              f'period of the sampled check: {", ".join(f"{d:g}" for d in delays)} s')
+        print(f'--delays {" ".join(f"{d:.10g}" for d in moved)} rounded to '
+              f'{DELAY_STEP * 1e3:g} ms: {", ".join(f"{d:g}" for d in delays)} s')
     # the sampled checks at the envelope's ends and the fixed speeds inside it
     # (dev-probe67: with --v-min 24 the worst mismatch case printed was at 10 m/s)
     at = tuple(sorted({args.v_min, args.v_max}
@@ -242,23 +262,25 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # states; the Kalman rows are another controller's (before, they were counted: a
     # file with the filter off failed on a filter it does not run, dev-probe93)
     kalman = settings.state_filter == 'kalman'
-    robust = robust_check(vehicle, controller, settings, delays=delays, speeds=at)
-    filtered = robust_check(vehicle, controller, settings, delays=delays, speeds=at,
-                            filtered=True)
-    estimated = robust_check(vehicle, controller, settings, delays=delays, speeds=at,
-                             filtered=True, curvature_estimated=True)
+
+    def check(filtered: bool = False, curvature_estimated: bool = False,
+              integral_frozen: bool = False, approach: bool = False) -> RobustResult:
+        """Return the sampled check of this loop over the grid of delays and speeds."""
+        return robust_check(vehicle, controller, settings, delays=delays, speeds=at,
+                            period=period, filtered=filtered,
+                            curvature_estimated=curvature_estimated,
+                            integral_frozen=integral_frozen, approach=approach)
+
+    robust = check()
+    filtered = check(filtered=True)
+    estimated = check(filtered=True, curvature_estimated=True)
     # outside integral_band the integral is held: the loop without it must hold too
-    frozen = robust_check(vehicle, controller, settings, delays=delays, speeds=at,
-                          filtered=kalman, integral_frozen=True)
+    frozen = check(filtered=kalman, integral_frozen=True)
     # ... and without road_curvature, where the CG is metres off (the held case there)
-    frozen_estimated = robust_check(vehicle, controller, settings, delays=delays, speeds=at,
-                                    filtered=True, curvature_estimated=True,
-                                    integral_frozen=True)
+    frozen_estimated = check(filtered=True, curvature_estimated=True, integral_frozen=True)
     # engaged far off the lane (approach_heading): the CG's offset clipped, the integral
     # held, the car closing at the approach heading; that loop without y_cg must hold
-    approach = (robust_check(vehicle, controller, settings, delays=delays, speeds=at,
-                             filtered=kalman, approach=True)
-                if settings.approach_heading > 0.0 else None)
+    approach = check(filtered=kalman, approach=True) if settings.approach_heading > 0.0 else None
     states = 'Kalman estimate' if kalman else 'exact states'
     unused = '' if kalman else ' (not counted: state_filter none)'
     # the test's value is proportional to (a_max, a_error): the largest factor on both
@@ -348,7 +370,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
           f'{cert.a_max:g} m/s^2, {error}; '
           f'checked at {speeds} ({kinks}) with Q {weight}; worst value at '
           f'{cert.max_norm_speed:.2f} m/s; sampled checks at '
-          f'{", ".join(f"{v:g}" for v in at)} m/s, plant delays '
+          f'{", ".join(f"{v:g}" for v in at)} m/s every {period:g} s, plant delays '
           f'{", ".join(f"{d:g}" for d in delays)} s; worst mismatch case {robust.worst} (exact '
           f'states), {filtered.worst} (Kalman estimate)')
     print('the certificate covers the law on exact states at varying speed; the sampled '
@@ -418,6 +440,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                                            lyapunov, p_source),
                                'law_a_x_zero': zero, 'verdict': verdict,
                                'kalman_rows_counted': kalman,
+                               'sampled_period_s': period, 'plant_delays_s': list(delays),
                                'robust': robust._asdict(),
                                'robust_filtered': filtered._asdict(),
                                'robust_curvature_estimated': estimated._asdict(),
