@@ -86,10 +86,10 @@ with ``dd_v/dt = (dd_v/dv_x) a_x`` and its drift term has ``a_x eps_r`` and
   design's, a first-order steering actuator and a transport delay (a fraction of a
   period: two commands act over it); stable if the spectral radius is below 1.
   :func:`filtered_radius` is the same loop with the law acting on the Kalman filter's
-  estimate (``core/state_filter.py``: its
-  model is the design vehicle, its gain ``steady_gain`` at the loop's period and speed,
-  its own actuator model and command buffer; with ``v_y_measured=False`` the gain
-  without ``v_y``, a bridge that sends 0; with ``curvature_estimated=True`` the
+  estimate (``core/state_filter.py``: its model is the design vehicle, its gain
+  ``steady_gain`` at the loop's period and speed, its own actuator model and command
+  buffer; with ``v_y_measured=False`` the gain without ``v_y``, a bridge that sends
+  0; with ``curvature_estimated=True`` the
   curvature estimator (``eps_r' = r - v_x rho`` on the measured ``eps_r`` and ``r``)
   feeding the filter's curvature input and the law, ``delta = K x_hat + k_rho
   rho_hat + k_rate rho_hat'`` (:func:`curvature_gain`, :func:`rate_gain`; the rate
