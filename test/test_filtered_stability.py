@@ -485,7 +485,8 @@ def test_the_tool_checks_a_slow_camera_s_loop_at_its_period(capsys, tmp_path):
         stability_main(['--samples', '21', '--period', '0.2', '--controller', str(gap)])
 
 
-def _light_stiff_car_on_a_straight(delay, hz=20.0, latency=0.0, **lane_keeping):
+def _light_stiff_car_on_a_straight(delay, hz=20.0, latency=0.0, timer=None, phase=0.0,
+                                   **lane_keeping):
     """Return the steering's rms over the last 2 s of 30 s of S0 at 37 m/s (node's core)."""
     from lookahead_control.tools import compare
     from sim_plant.sensor_timing import SensorTiming, StreamTiming, timed_run
@@ -497,8 +498,9 @@ def _light_stiff_car_on_a_straight(delay, hz=20.0, latency=0.0, **lane_keeping):
     scenario = dataclasses.replace(
         compare.load_scenarios(['s0_straight'])['s0_straight'].at_speed(37.0), duration=30.0)
     run = timed_run(scenario, compare.node_core('cg_compensated', VEHICLE, settings),
-                    SensorTiming(StreamTiming(hz, latency), with_frame=True), compare.NONLINEAR,
-                    dt=0.005, delay=delay, plant_vehicle=car)
+                    SensorTiming(StreamTiming(hz, latency, phase), with_frame=True),
+                    compare.NONLINEAR, dt=0.005, delay=delay, plant_vehicle=car,
+                    **({} if timer is None else {'mode': 'timer', 'rate_hz': timer}))
     return float(np.sqrt(np.mean(np.asarray(run['steering_cmd'])[-400:] ** 2)))
 
 
@@ -518,3 +520,31 @@ def test_the_slow_camera_s_unstable_case_rings_in_the_node_s_core():
     assert _light_stiff_car_on_a_straight(0.02, hz=100.0, latency=0.08, **late) < 1e-3
     assert _light_stiff_car_on_a_straight(0.02, hz=30.0, latency=0.05, delay_prediction=True,
                                           filter_delay=0.07, feedforward_preview=0.12) < 1e-3
+
+
+def test_a_timer_s_frames_wait_for_it_and_the_check_counts_that_age(capsys, tmp_path):
+    # dev-probe130: a 50 Hz timer answering a 50 Hz camera's frames 10 ms after they came
+    # rang on the stiff, light car at 37 m/s with 50 ms (41.7 mrad rms), where the check
+    # at 20 ms held (0.9937): the frame's wait for the tick is delay. In mode timer every
+    # delay is checked with the timer's period added too
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    assert _light_stiff_car_on_a_straight(0.05, hz=50.0, timer=50.0, phase=0.01) > 0.02
+    assert _light_stiff_car_on_a_straight(0.05, hz=50.0, timer=50.0) < 1e-3
+    timer = tmp_path / 'timer.yaml'
+    timer.write_text('controller:\n  ros__parameters:\n    mode: timer\n    rate_hz: 50.0\n')
+    assert stability_main(['--samples', '21', '--controller', str(timer), '--delays',
+                           '0.05']) == 1
+    out = capsys.readouterr().out
+    assert 'each delay also with the 0.02 s a frame can wait for the timer' in out
+    assert 'every 0.02 s, plant delays 0.05, 0.07 s' in out
+    assert 'robust check with the filter DOES NOT HOLD' in out
+    # an event-mode node answers each frame as it comes: no such age
+    assert stability_main(['--samples', '21', '--period', '0.02', '--delays', '0.05']) == 0
+
+
+@pytest.mark.parametrize('steps', [-0.5, -3.2, math.nan, math.inf])
+def test_a_negative_or_non_finite_delay_is_refused(steps):
+    # dev-probe130: -0.5 wrote into the plant's columns (a radius of 455.8)
+    for radius in (stability.discrete_radius, stability.filtered_radius):
+        with pytest.raises(ValueError, match='a transport delay is a finite number'):
+            radius(VEHICLE, CONTROLLER, SETTINGS, 37.0, period=0.05, delay_steps=steps)

@@ -626,7 +626,7 @@ def test_the_stability_tool_samples_the_loop_inside_its_envelope(capsys):
     from lookahead_control.tools.lane_keeping_tool import stability_main
     stability_main(['--samples', '2', '--delays', '0.02', '--v-min', '24'])
     out = capsys.readouterr().out
-    assert 'sampled checks at 24, 25, 30, 37 m/s, plant delays 0.02 s' in out
+    assert 'sampled checks at 24, 25, 30, 37 m/s every 0.01 s, plant delays 0.02 s' in out
     assert "worst mismatch case {'speed': 24.0" in out
     assert '| max spectral radius, 108 mismatch cases, exact states |' in out
     stability_main(['--samples', '2', '--delays', '0.02'])

@@ -106,6 +106,7 @@ import bisect
 from dataclasses import replace
 import functools
 import itertools
+import math
 from numbers import Real
 from typing import Iterable, NamedTuple, Optional
 
@@ -1342,6 +1343,10 @@ def _delayed_inputs(a_c: Matrix, b_c: Matrix, period: float,
     :param delay_steps: the transport delay in periods (>= 0, fractional allowed).
     :return: ``(age in periods, input matrix)`` of each command that acts.
     """
+    if not (math.isfinite(delay_steps) and delay_steps >= 0.0):
+        # (dev-probe130: -0.5 wrote into the plant's columns, a radius of 455.8)
+        raise ValueError(f'delay_steps = {delay_steps!r}: a transport delay is a finite '
+                         'number of periods >= 0')
     whole = int(np.floor(delay_steps + 1e-9))
     part = (delay_steps - whole) * period
     if part <= 1e-9 * period:

@@ -81,11 +81,14 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                    'delay and around it, with lane_keeping.filter_delay (and '
                    'delay_prediction) in --controller '
                    f'(default {" ".join(f"{d:g}" for d in DELAYS)})')
-    p.add_argument('--period', type=number(0.001, 0.2, unit='s'), default=None, metavar='S',
+    p.add_argument('--period', type=number(0.0005, 0.5, unit='s'), default=None, metavar='S',
                    help="the sampled checks' period: how often the law answers, a "
                    "lane camera's frame period when each frame is answered (mode event; "
-                   "0.05 for 20 Hz), the timer's in mode timer (default: 1 / rate_hz of "
-                   f'--controller in mode timer, else {PERIOD:g}: 100 Hz)')
+                   "0.05 for 20 Hz), the timer's in mode timer with a camera as fast, the "
+                   "camera's frame period with a slower one (default: 1 / rate_hz of "
+                   f'--controller in mode timer, else {PERIOD:g}: 100 Hz); in mode timer '
+                   "every delay is also checked with the timer's period added (a frame "
+                   'waits up to a tick)')
     p.add_argument('--controller', type=Path, default=None, metavar='YAML',
                    help='check the law the controller node would run with this params '
                    'file: its controller.* (d_v schedule) and lane_keeping.*; '
@@ -131,6 +134,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     overrides = {k: v for k, v in (('natural_frequency', args.natural_frequency),
                                    ('integral_gain', args.integral_gain)) if v is not None}
     period = PERIOD if args.period is None else args.period
+    tick = 0.0      # mode timer: how old a frame can be when the timer answers it [s]
     vehicle = load_vehicle(args.vehicle)
     zero = False        # the law's a_x is 0 (acceleration_source: zero)
     if args.controller is None:
@@ -143,14 +147,20 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         # timing is (timer mode at rate_hz: another period than the checks' 10 ms)
         both = load_law_settings(args.controller, vehicle, ())
         loaded, controller = both.lane_keeping, both.controller
-        if both.mode == 'timer' and args.period is None:
+        if both.mode == 'timer':
             # the node answers every 1 / rate_hz (before dev-sc55 refused unless 100 Hz:
-            # the checks sampled every PERIOD only)
-            period = 1.0 / both.rate_hz
-            if abs(period - PERIOD) > 1e-12:
-                print(f'{args.controller}: mode timer at rate_hz {both.rate_hz:g}: the '
-                      f'sampled checks run every {period:g} s (a camera slower than the '
-                      'timer: --period its frame period)')
+            # the checks sampled every PERIOD only), with the newest frame, which came up
+            # to a tick before: that age is delay (dev-probe130: a 50 Hz timer 10 ms after
+            # a 50 Hz camera's frames rang on the stiff, light car at 37 m/s with 50 ms,
+            # 41.7 mrad, where the check at 50 ms without it held)
+            tick = 1.0 / both.rate_hz
+            if args.period is None:
+                period = tick
+            print(f'{args.controller}: mode timer at rate_hz {both.rate_hz:g}: the sampled '
+                  f'checks run every {period:g} s'
+                  + (' (a camera slower than the timer: --period its frame period)'
+                     if args.period is None else ' (--period)')
+                  + f', each delay also with the {tick:g} s a frame can wait for the timer')
         if both.law != 'cg_compensated':
             print(f'note: {args.controller} runs law {both.law} in the node; this checks '
                   "cg_compensated with the file's controller.* and lane_keeping.*")
@@ -248,12 +258,14 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # 0.1 given three ways counted 486 cases of 162); a fraction of the period is checked
     # as it is (before dev-sc55 rounded to the 10 ms period: at another period 20 ms were
     # 0 or 50)
-    delays = tuple(sorted({math.floor(d / DELAY_STEP + 0.5 + 1e-9) * DELAY_STEP
-                           for d in args.delays}))
-    moved = [d for d in args.delays if all(abs(d - c) > 1e-12 for c in delays)]
+    asked = tuple(sorted({math.floor(d / DELAY_STEP + 0.5 + 1e-9) * DELAY_STEP
+                          for d in args.delays}))
+    moved = [d for d in args.delays if all(abs(d - c) > 1e-12 for c in asked)]
     if moved:
         print(f'--delays {" ".join(f"{d:.10g}" for d in moved)} rounded to '
-              f'{DELAY_STEP * 1e3:g} ms: {", ".join(f"{d:g}" for d in delays)} s')
+              f'{DELAY_STEP * 1e3:g} ms: {", ".join(f"{d:g}" for d in asked)} s')
+    # mode timer: a frame waits up to a tick for the timer, more delay (each end checked)
+    delays = tuple(sorted(set(asked) | {d + tick for d in asked})) if tick else asked
     # the sampled checks at the envelope's ends and the fixed speeds inside it
     # (dev-probe67: with --v-min 24 the worst mismatch case printed was at 10 m/s)
     at = tuple(sorted({args.v_min, args.v_max}
