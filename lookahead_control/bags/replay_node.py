@@ -34,12 +34,12 @@ from typing import Any, Mapping, Optional, Sequence
 from lookahead_control.bags.recorder_node import message_class
 from lookahead_control.bags.rosbag_io import bag_reader, described_nodes
 from lookahead_control.bags.run_data import (as_it_ran, CONTROLLER_NODE, load_run,
-                                             NODE_PARAMS_BEFORE, Rerun, rerun, RunData)
+                                             NODE_PARAMS_BEFORE, ran_law, Rerun, rerun,
+                                             RunData)
 from lookahead_control.core import interrupts
 from lookahead_control.core.cli import (ArgumentParser, assignments, number, output_file,
                                         run_tool, ToolError, write_json)
 from lookahead_control.core.config import ConfigError, rcl_param_value
-from lookahead_control.core.param_schema import LAW_SPEC
 from lookahead_control.ros import conversions as conv
 from lookahead_control.ros.node_main import (parameter_reason, program_arguments,
                                              rcl_log_held, tool_arguments)
@@ -182,8 +182,8 @@ def offline(args: argparse.Namespace) -> int:
               'curvature polygon as stamped, as the node did (curvature_at_yaw_stamp=false; '
               '-p curvature_at_yaw_stamp=true reads one older than the yaw sample taken where '
               'the car was at its stamp)')
-    law = overrides.get('law', run.controller_params.get('law', LAW_SPEC.default))
-    if 'lane_keeping.hold_preview' in filled and law == 'cg_compensated':
+    if 'lane_keeping.hold_preview' in filled and \
+            ran_law({**run.controller_params, **overrides}) == 'cg_compensated':
         # a controller from before dev-sc55 added no share of its answer period (the
         # other laws have none: nothing to say, dev-probe129)
         print('replay: the bag predates lane_keeping.hold_preview: the re-run adds no share '

@@ -590,6 +590,16 @@ def as_it_ran(params: Mapping[str, Any],
     return filled
 
 
+def ran_law(params: Mapping[str, Any]) -> str:
+    """
+    Return the law a controller's (merged) parameters ran: ``paper`` where they name none.
+
+    :param params: the parameters with their overrides.
+    :return: the law's name.
+    """
+    return str(params.get('law', 'paper'))
+
+
 def controller_from_params(params: Mapping[str, Any],
                            overrides: Optional[Mapping[str, Any]] = None,
                            node: str = CONTROLLER_NODE) -> tuple[SteeringController, bool]:
@@ -652,7 +662,7 @@ def _core_arguments(merged: Mapping[str, Any], source: str) -> tuple[Any, ...]:
     lane_keeping = dataclass_from_params(LaneKeepingParams, merged, 'lane_keeping', source)
     return (vehicle, controller, str(merged.get('acceleration_source', 'imu')),
             bool(merged.get('use_curvature_preview', False)), safety,
-            str(merged.get('law', 'paper')), baselines, lane_keeping,
+            ran_law(merged), baselines, lane_keeping,
             _align_choice(merged.get('align_inputs', 'with_prediction')),
             merged.get('curvature_at_yaw_stamp', True))
 

@@ -1327,9 +1327,9 @@ def _zoh(a_c: Matrix, b_c: Matrix, period: float) -> tuple[Matrix, Matrix]:
 
 
 def _delayed_inputs(a_c: Matrix, b_c: Matrix, period: float,
-                    delay_steps: float) -> list[tuple[int, Matrix]]:
+                    delay_steps: float) -> tuple[Matrix, list[tuple[int, Matrix]]]:
     """
-    Return the commands that act on the plant over one period and their input matrices.
+    Return the plant's one-period matrix and the commands that act on it over the period.
 
     A transport delay of ``delay_steps = d + f / period`` periods (``0 <= f < period``):
     over ``[t_k, t_k+1]`` the command issued ``d + 1`` periods before acts for the first
@@ -1341,7 +1341,7 @@ def _delayed_inputs(a_c: Matrix, b_c: Matrix, period: float,
     :param b_c: its input matrix.
     :param period: control period [s].
     :param delay_steps: the transport delay in periods (>= 0, fractional allowed).
-    :return: ``(age in periods, input matrix)`` of each command that acts.
+    :return: ``Phi`` and ``(age in periods, input matrix)`` of each command that acts.
     """
     if not (math.isfinite(delay_steps) and delay_steps >= 0.0):
         # (dev-probe130: -0.5 wrote into the plant's columns, a radius of 455.8)
@@ -1350,10 +1350,11 @@ def _delayed_inputs(a_c: Matrix, b_c: Matrix, period: float,
     whole = int(np.floor(delay_steps + 1e-9))
     part = (delay_steps - whole) * period
     if part <= 1e-9 * period:
-        return [(whole, _zoh(a_c, b_c, period)[1])]
-    late = _zoh(a_c, b_c, period - part)
-    early = _zoh(a_c, b_c, part)[1]
-    return [(whole, late[1]), (whole + 1, late[0] @ early)]
+        phi, gamma = _zoh(a_c, b_c, period)
+        return phi, [(whole, gamma)]
+    late_phi, late_gamma = _zoh(a_c, b_c, period - part)
+    early_phi, early_gamma = _zoh(a_c, b_c, part)
+    return late_phi @ early_phi, [(whole, late_gamma), (whole + 1, late_phi @ early_gamma)]
 
 
 def _actuated_plant(plant: VehicleParams, v_x: float, lag: float) -> tuple[Matrix, Matrix]:
@@ -1451,8 +1452,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         settings = _integral_off(settings)
     model = filter_vehicle or vehicle
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
-    phi = _zoh(a_c, b_c, period)[0]
-    plant_inputs = _delayed_inputs(a_c, b_c, period, delay_steps)
+    phi, plant_inputs = _delayed_inputs(a_c, b_c, period, delay_steps)
     n = a_c.shape[0]
     # the filter's prediction: its 6 states and its wheel, substeps as the node's
     a_f, b_f, _ = continuous_model(model, v_x)
@@ -1803,8 +1803,7 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
     # actuator state: delta' = (u - delta) / lag
     a_c, b_c = _actuated_plant(plant or vehicle, v_x, lag)
     n = a_c.shape[0]
-    phi = _zoh(a_c, b_c, period)[0]
-    plant_inputs = _delayed_inputs(a_c, b_c, period, delay_steps)
+    phi, plant_inputs = _delayed_inputs(a_c, b_c, period, delay_steps)
     depth = max(age for age, _ in plant_inputs)
     k = feedback_gain(vehicle, controller, settings, v_x)
     # state: plant (n), integral (1), commands in flight (u_k-1 ... u_k-depth)

@@ -391,14 +391,19 @@ def t_quantile(z: float, dof: float) -> float:
     tail = 0.5 * math.erfc(z / math.sqrt(2.0))
     if tail <= 0.0:
         return math.inf
+
+    def beyond(t: float) -> bool:
+        """Return whether the t distribution's upper tail above ``t`` is above ``tail``."""
+        return 0.5 * _incomplete_beta(0.5 * dof, 0.5, dof / (dof + t * t)) > tail
+
     low, high = z, max(2.0 * z, 1.0)
-    while 0.5 * _incomplete_beta(0.5 * dof, 0.5, dof / (dof + high * high)) > tail:
+    while beyond(high):
         low, high = high, 2.0 * high
         if high > 1e12:
             return math.inf
     for _ in range(100):
         middle = 0.5 * (low + high)
-        if 0.5 * _incomplete_beta(0.5 * dof, 0.5, dof / (dof + middle * middle)) > tail:
+        if beyond(middle):
             low = middle
         else:
             high = middle
