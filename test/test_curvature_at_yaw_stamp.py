@@ -139,7 +139,8 @@ def test_a_polygon_sent_with_each_frame_of_a_late_camera_is_read_with_the_frame(
 def test_a_bag_of_a_node_before_curvature_at_yaw_stamp_re_runs_as_stamped():
     # (the hold preview recorded: curvature_at_yaw_stamp alone is missing)
     recorded = {'law': 'cg_compensated', 'use_curvature_preview': False,
-                'align_inputs': 'with_prediction', 'lane_keeping.hold_preview': 0.0}
+                'align_inputs': 'with_prediction', 'lane_keeping.hold_preview': 0.0,
+                'lane_keeping.frequency_lag': 0.2}
     assert as_it_ran(recorded) == {'curvature_at_yaw_stamp': False}
     assert not controller_from_params(recorded)[0].curvature_at_yaw_stamp
     assert controller_from_params(recorded,
@@ -244,7 +245,7 @@ def test_replay_says_a_bag_predates_curvature_at_yaw_stamp(tmp_path, capsys):
     bag = tmp_path / 'old'
     params = {'law': 'cg_compensated', 'use_curvature_preview': False,
               'align_inputs': 'with_prediction', 'curvature_at_yaw_stamp': False,
-              'lane_keeping.hold_preview': 0.5}
+              'lane_keeping.hold_preview': 0.5, 'lane_keeping.frequency_lag': 0.2}
     controllers_bag(bag, {'/controller': params}, steps=60,
                     unrecorded=('curvature_at_yaw_stamp',))
     report = tmp_path / 'old.json'

@@ -21,7 +21,8 @@ import math
 
 from lookahead_control.core import lane_keeping_stability as stability
 from lookahead_control.core.control_law import LateralState
-from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingParams,
+                                                 period_frequency)
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.core.state_filter import KalmanStateFilter
 from lookahead_control.tools.compare import load_scenarios, NONLINEAR, PREVIEW_DISTANCE
@@ -276,6 +277,8 @@ def test_the_robust_check_s_matrix_is_the_real_law_in_time(prediction, delay, v_
                                 yaw_inertia=VEHICLE.yaw_inertia * 1.2)
     steps = int(round(delay / period))
     law = CgCompensatedLaw(VEHICLE, CONTROLLER, settings)
+    # its cap of w_n where a second of answers at the period has moved it (dev-sc56)
+    law.frequency = period_frequency(settings, period)
     a_c, b_c = stability._actuated_plant(plant, v_x, 0.05)
     phi, gamma = stability._zoh(a_c, b_c, period)
     start = np.array([0.3, 0.02, -0.1, 0.03]) * 1e-4

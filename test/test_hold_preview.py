@@ -167,7 +167,8 @@ def test_a_20_hz_camera_answered_once_a_frame_keeps_the_car_closer_on_the_paper_
 
 def test_a_bag_from_before_the_hold_preview_re_runs_without_it():
     recorded = {'law': 'cg_compensated', 'use_curvature_preview': True,
-                'align_inputs': 'never', 'curvature_at_yaw_stamp': False}
+                'align_inputs': 'never', 'curvature_at_yaw_stamp': False,
+                'lane_keeping.frequency_lag': 0.2}
     assert as_it_ran(recorded) == {'lane_keeping.hold_preview': 0.0}
     core, _ = controller_from_params(recorded)
     assert core.law.settings.hold_preview == 0.0
@@ -206,7 +207,8 @@ def test_replay_says_a_20_hz_bag_predates_the_hold_preview(tmp_path, capsys, mon
     monkeypatch.setattr(bags, 'PERIOD_NS', 50_000_000)     # a 20 Hz camera's frames
     name = 'lane_keeping.hold_preview'
     params = {'law': 'cg_compensated', 'use_curvature_preview': True,
-              'align_inputs': 'with_prediction', 'curvature_at_yaw_stamp': False, name: 0.0}
+              'align_inputs': 'with_prediction', 'curvature_at_yaw_stamp': False, name: 0.0,
+              'lane_keeping.frequency_lag': 0.2}
     bag, report = tmp_path / 'old', tmp_path / 'old.json'
     bags.controllers_bag(bag, {'/controller': params}, steps=80, unrecorded=(name,))
     # (1e-8: the yaw goes through the Imu's quaternion)

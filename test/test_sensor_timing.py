@@ -290,7 +290,8 @@ def test_a_late_camera_beside_an_imu_of_now_is_steered_on_one_instant():
 def test_a_bag_of_a_node_before_align_inputs_re_runs_the_latest_samples():
     recorded = {'law': 'cg_compensated', 'use_curvature_preview': False}
     assert as_it_ran(recorded) == {'align_inputs': 'never', 'curvature_at_yaw_stamp': False,
-                                   'lane_keeping.hold_preview': 0.0}
+                                   'lane_keeping.hold_preview': 0.0,
+                                   'lane_keeping.frequency_lag': 0.0}
     core, _ = controller_from_params(recorded)
     assert core.align_inputs == 'never'
     core, _ = controller_from_params(recorded, {'align_inputs': 'always'})

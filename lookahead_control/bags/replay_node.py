@@ -190,6 +190,12 @@ def offline(args: argparse.Namespace) -> int:
               'of the answer period to the feedforward preview, as the law ran '
               '(lane_keeping.hold_preview=0; -p lane_keeping.hold_preview=0.5 adds half of '
               'it beyond 10 ms, the default since)')
+    if 'lane_keeping.frequency_lag' in filled and \
+            ran_law({**run.controller_params, **overrides}) == 'cg_compensated':
+        # a controller from before dev-sc56 did not cut w_n at a slow answer period
+        print('replay: the bag predates lane_keeping.frequency_lag: the re-run keeps w_n '
+              'at every answer period, as the law ran (lane_keeping.frequency_lag=0; -p '
+              'lane_keeping.frequency_lag=0.2 cuts it beyond 10 ms, the default since)')
     if result.estimated:
         dropped = (f'; in {result.dropped} of them it was received and dropped: the map '
                    'check found it far off the yaw rate, lane_keeping.map_fallback'

@@ -539,9 +539,9 @@ NOT_MODELED = frozenset({
 #: node parameters a controller's bag may predate, and the value the node ran with then
 #: (:func:`as_it_ran`): the newest yaw and velocity samples (before dev-sc52), the
 #: curvature polygon as stamped (before dev-sc53), no hold in the feedforward preview
-#: (before dev-sc55)
+#: (before dev-sc55), w_n not cut at a slow answer period (before dev-sc56)
 NODE_PARAMS_BEFORE = {'align_inputs': 'never', 'curvature_at_yaw_stamp': False,
-                      'lane_keeping.hold_preview': 0.0}
+                      'lane_keeping.hold_preview': 0.0, 'lane_keeping.frequency_lag': 0.0}
 # node parameters it models besides the parameter sets of LAW_SETS
 MODELED = ('law', 'acceleration_source', 'use_curvature_preview', 'wait_for_matching_stamps',
            'align_inputs', 'curvature_at_yaw_stamp')
@@ -570,8 +570,9 @@ def as_it_ran(params: Mapping[str, Any],
     inputs on one stamp re-runs the same either way), without ``curvature_at_yaw_stamp``
     (before dev-sc53) the curvature polygon as stamped (false), without
     ``lane_keeping.hold_preview`` (before dev-sc55) no share of the answer period in the
-    feedforward preview (0; a bag answered 100 times a second re-runs the same either
-    way).
+    feedforward preview (0), without ``lane_keeping.frequency_lag`` (before dev-sc56) w_n
+    not cut at the answer period (0; a bag answered 100 times a second re-runs the same
+    either way, for both).
 
     :param params: the recorded parameters (empty: nothing is filled in).
     :param overrides: ``name -> value`` replacing recorded values.

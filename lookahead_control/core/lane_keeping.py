@@ -85,11 +85,17 @@ HOLD_INTERVALS = 20
 #: the longest interval the hold preview counts [s]: a camera slower than 5 Hz is not a
 #: lane keeper's (the extra stops at ``hold_preview`` x 0.19 s)
 HOLD_LONGEST = 0.2
+#: the fastest change of the law's cap of w_n at a changing answer period [rad/s per s]:
+#: a gain scheduled slower than the loop it sets (one frame 0.2 s late among 10 ms ones
+#: takes the period to 0.107 s for 20 steps: the cap dips from 7 toward that period's 5
+#: rad/s to 6.2 and is back 0.4 s later, not 7 -> 5 -> 7 at once); a 20 Hz camera's 5.88
+#: from 7 in 0.56 s, where its ring grows 0.8 / s
+FREQUENCY_RATE = 2.0
 
 
-def hold_extra(intervals: Any, share: float) -> float:
+def answer_period(intervals: Any) -> float:
     """
-    Return the time a command's hold adds to the feedforward preview.
+    Return the law's answer period over its last step intervals.
 
     A command held for ``T`` acts on average ``T / 2`` after it was computed; over holds
     of different lengths the mean, weighted by the time each is held, is ``sum T^2 /
@@ -99,19 +105,31 @@ def hold_extra(intervals: Any, share: float) -> float:
     frame is held for 1 ms and weighs nothing.
 
     :param intervals: the last steps' intervals, each > 0 [s] (empty: none yet).
-    :param share: ``hold_preview``, the share of the period beyond :data:`HOLD_TUNED`.
-    :return: ``share`` times that period's excess over :data:`HOLD_TUNED` (each
-        interval at most :data:`HOLD_LONGEST`), 0 without intervals [s].
+    :return: the period, each interval counted at most :data:`HOLD_LONGEST`; 0 without
+        intervals [s].
     """
-    if share <= 0.0 or not len(intervals):
+    if not len(intervals):
         return 0.0
     held = np.minimum(np.asarray(intervals, dtype=float), HOLD_LONGEST)
     # equal intervals: the interval itself (its sums round: 100 Hz added 1e-18 s)
     if np.ptp(held) == 0.0:
-        period = float(held[0])
-    else:
-        period = float(np.dot(held, held) / np.sum(held))
-    return share * max(period - HOLD_TUNED, 0.0)
+        return float(held[0])
+    return float(np.dot(held, held) / np.sum(held))
+
+
+def hold_extra(intervals: Any, share: float) -> float:
+    """
+    Return the time a command's hold adds to the feedforward preview.
+
+    :param intervals: the last steps' intervals, each > 0 [s] (empty: none yet).
+    :param share: ``hold_preview``, the share of the period (:func:`answer_period`) beyond
+        :data:`HOLD_TUNED`.
+    :return: ``share`` times that period's excess over :data:`HOLD_TUNED`, 0 without
+        intervals [s].
+    """
+    if share <= 0.0:
+        return 0.0
+    return share * max(answer_period(intervals) - HOLD_TUNED, 0.0)
 
 
 def _check_off_or_range(name: str, value: float, allowed: tuple[float, float], unit: str,
@@ -151,6 +169,15 @@ class LaneKeepingParams:
         small: a high w_n asks for large steering angles, which the wheel's rate limit
         cannot follow from a metre or two off the lane (w_n 7 then loses the lane at
         4-15 m/s; docs/lane_keeping.md, "The loop's w_n below 30 m/s").
+    :param frequency_lag: the loop's lags besides a slow answer's hold [s]: at an answer
+        period ``T`` (:func:`answer_period`) beyond :data:`HOLD_TUNED` w_n is at most
+        ``natural_frequency (HOLD_TUNED + frequency_lag) / (T + frequency_lag)``, not
+        below ``low_speed_frequency`` (:func:`period_frequency`). A camera slower than
+        100 Hz answered once a frame holds each command for its frame; over the mismatch
+        grid (stiff light car, 50 ms) w_n 7 rings at 30 Hz and slower (radius 1.005 at 30
+        Hz, 1.031 at 20 Hz) where the default's 6.30 / 5.88 rad/s hold it (0.990, 0.984);
+        docs/lane_keeping.md, "The loop's w_n at a slow camera". 0: w_n does not follow
+        the period.
     :param reference_preview: ``T_ref``: the reference uses the curvature
         ``v_x T_ref`` ahead [s].
     :param feedforward_preview: ``T_ff``: the drift term uses the curvature ``v_x T_ff``
@@ -307,6 +334,7 @@ class LaneKeepingParams:
     damping_ratio: float = 1.0
     frequency_speed: float = 30.0
     low_speed_frequency: float = 5.0
+    frequency_lag: float = 0.2
     approach_heading: float = 0.1
     demand_limit: float = 14.0
     reference_preview: float = 0.0
@@ -367,6 +395,7 @@ class LaneKeepingParams:
                     low_open=True, unit='m/s')
         check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0, 100.0,
                     low_open=True, unit='rad/s')
+        check_range('lane_keeping.frequency_lag', self.frequency_lag, 0.0, 10.0, unit='s')
         _check_off_or_range('lane_keeping.approach_heading', self.approach_heading,
                             (0.02, 0.15), 'rad', 'no clip',
                             'would leave a car engaged off the lane crawling back (1 m at '
@@ -505,20 +534,67 @@ FILTER_SETTINGS = tuple(item.name for item in fields(LaneKeepingParams)
                         if item.name.startswith('filter_'))
 
 
-def loop_gains(settings: LaneKeepingParams, v_x: Real) -> tuple[Real, Real]:
+def period_frequency(settings: LaneKeepingParams, period: float) -> float:
     """
-    Return ``(k_p, k_d)`` of the y_v loop at a speed (w_n scheduled on speed).
+    Return the highest w_n of the y_v loop at an answer period.
+
+    ``natural_frequency (HOLD_TUNED + frequency_lag) / (period + frequency_lag)`` beyond
+    :data:`HOLD_TUNED`, never below ``min(low_speed_frequency, natural_frequency)`` nor
+    above ``natural_frequency``: a command held for the period acts later, as a longer
+    lag of the loop would (``frequency_lag`` 0: ``natural_frequency`` at every period).
+
+    :param settings: the law's settings.
+    :param period: the answer period (:func:`answer_period`; 0: none measured yet) [s].
+    :return: w_n's cap [rad/s] (the law's moves to it at :data:`FREQUENCY_RATE`).
+    """
+    top = settings.natural_frequency
+    lag = settings.frequency_lag
+    if lag <= 0.0 or not period > HOLD_TUNED:
+        return top
+    return max(top * (HOLD_TUNED + lag) / (period + lag), min(settings.low_speed_frequency, top))
+
+
+def settings_at_period(settings: LaneKeepingParams, period: float) -> LaneKeepingParams:
+    """
+    Return settings whose w_n schedule on speed is the law's at an answer period.
+
+    :func:`loop_gains` at ``period`` cuts the speed schedule at
+    :func:`period_frequency`; the same schedule is ``natural_frequency`` at that cap and
+    ``frequency_speed`` moved to keep the slope below it (``frequency_lag`` 0: the
+    period is in them). For checks that take settings, not a period (the stability
+    tool's).
+
+    :param settings: the law's settings.
+    :param period: the answer period [s].
+    :return: the settings (the same object where the period does not cut w_n).
+    """
+    cap = period_frequency(settings, period)
+    if cap >= settings.natural_frequency:
+        return settings
+    return replace(settings, natural_frequency=cap, frequency_lag=0.0,
+                   frequency_speed=settings.frequency_speed * cap / settings.natural_frequency)
+
+
+def loop_gains(settings: LaneKeepingParams, v_x: Real,
+               cap: Optional[float] = None) -> tuple[Real, Real]:
+    """
+    Return ``(k_p, k_d)`` of the y_v loop at a speed (w_n scheduled on speed and period).
 
     ``w_n = clip(natural_frequency v_x / frequency_speed, min(low_speed_frequency,
-    natural_frequency), natural_frequency)``, ``k_p = w_n^2``, ``k_d = 2 zeta w_n``.
+    natural_frequency), natural_frequency)``, at most ``cap`` (the law's follows
+    :func:`period_frequency` at its answer period), ``k_p = w_n^2``, ``k_d = 2 zeta w_n``.
 
     :param settings: the law's settings.
     :param v_x: speed [m/s].
+    :param cap: w_n's cap (None, or ``natural_frequency`` and above: w_n on speed alone)
+        [rad/s].
     :return: the two gains [1/s^2], [1/s].
     """
     top = settings.natural_frequency
     w_n = xp.clip(top * v_x / settings.frequency_speed,
                   min(settings.low_speed_frequency, top), top)
+    if cap is not None and cap < top:
+        w_n = xp.minimum(w_n, cap)
     return w_n * w_n, 2.0 * settings.damping_ratio * w_n
 
 
@@ -1122,6 +1198,12 @@ class CgCompensatedLaw:
         self._intervals: deque[float] = deque(maxlen=HOLD_INTERVALS)
         #: the hold preview the last step added to ``feedforward_preview`` [s]
         self.hold_time = 0.0
+        #: the answer period of the last step's intervals (0: none yet) [s]
+        self.period = 0.0
+        #: w_n's cap, following :func:`period_frequency` at the period at
+        #: :data:`FREQUENCY_RATE` (kept across restarts and retunes with the intervals)
+        #: [rad/s]
+        self.frequency = self.settings.natural_frequency
         self.resets = 0
         #: restarts inside :meth:`step` by cause: ``gap`` (``dt`` negative, not finite or
         #: beyond ``max_gap``), ``non_finite`` (the output was not finite; in a batch,
@@ -1204,6 +1286,11 @@ class CgCompensatedLaw:
         self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
         self._intervals.extend(old._intervals)
         self.hold_time = hold_extra(self._intervals, s.hold_preview)
+        self.period = answer_period(self._intervals)
+        # the cap moves on from where it was (bumpless), within the new law's range
+        self.frequency = min(max(old.frequency, min(s.low_speed_frequency,
+                                                    s.natural_frequency)),
+                             s.natural_frequency)
         self.clipped = old.clipped      # recomputed at the next step, as after any step
         self.capped = old.capped
         if s.integral_gain > 0.0:
@@ -1379,7 +1466,8 @@ class CgCompensatedLaw:
         learned rather than its seed, 0-1), ``side_force_yaw`` (the side force's shift
         of the reference's relative yaw [rad], ``side_force``; 0 while off),
         ``hold_preview`` (the time the answer period added to ``feedforward_preview``
-        [s], ``hold_preview``). One run (not a batch).
+        [s], ``hold_preview``), ``loop_frequency`` (w_n's cap, following the answer
+        period [rad/s], ``frequency_lag``). One run (not a batch).
 
         :return: ``(name, value)`` pairs.
         """
@@ -1393,7 +1481,8 @@ class CgCompensatedLaw:
                 ('memory_generation', float(self.estimator.generation)),
                 ('memory_weight', one(self.estimator.memory_weight())),
                 ('side_force_yaw', 0.0 if self._side is None else one(self._side)),
-                ('hold_preview', float(self.hold_time))]
+                ('hold_preview', float(self.hold_time)),
+                ('loop_frequency', float(self.frequency))]
 
     def note_limited(self, cut: Any) -> None:
         """
@@ -1473,6 +1562,11 @@ class CgCompensatedLaw:
             self._intervals.append(dt)
         # a command held longer than the preview was tuned for acts later on average
         self.hold_time = hold_extra(self._intervals, s.hold_preview)
+        self.period = answer_period(self._intervals)
+        # a slow answer period cuts w_n; the cap moves at FREQUENCY_RATE
+        target = period_frequency(s, self.period)
+        self.frequency += min(max(target - self.frequency, -FREQUENCY_RATE * dt),
+                              FREQUENCY_RATE * dt)
         ff_preview = s.feedforward_preview + self.hold_time
         estimating = self.estimating
         # the integral sums the measured CG error, not the filter's estimate: the
@@ -1616,7 +1710,7 @@ class CgCompensatedLaw:
         finite = _finite(out.steering)
         clipped: Any = False
         if s.approach_heading > 0.0:
-            k_p, k_d = loop_gains(s, v_x)
+            k_p, k_d = loop_gains(s, v_x, self.frequency)
             clipped = xp.absolute(law_state.y_cg + integral) > approach_limit(
                 s.approach_heading, out.d_v, v_x, k_p, k_d)
         if self.state_filter is not None:
@@ -1699,7 +1793,7 @@ class CgCompensatedLaw:
         """
         s = self.settings
         v_x = xp.maximum(state.v_x, self.controller.min_speed)
-        gains = loop_gains(s, v_x)
+        gains = loop_gains(s, v_x, self.frequency)
         # each axle's stiffness at its load under a_x (vehicle.cg_height; 0: the model)
         out = cg_compensated_law(state, loaded_vehicle(self.vehicle, state.a_x),
                                  self.controller, rho_ref, rho_ref_rate,

@@ -113,7 +113,7 @@ from typing import Iterable, NamedTuple, Optional
 from lookahead_control.core.control_law import axle_gains, LateralState
 from lookahead_control.core.lane_keeping import (cg_compensated_law, hold_extra,
                                                  integral_gain_at, LaneKeepingParams,
-                                                 loop_gains)
+                                                 loop_gains, settings_at_period)
 from lookahead_control.core.params import ControllerParams, loaded_vehicle, VehicleParams
 from lookahead_control.core.schedule import look_ahead
 from lookahead_control.core.stability import lyapunov
@@ -1413,7 +1413,8 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
     :param vehicle: the design vehicle (the law's).
     :param controller: gains and schedule.
     :param settings: the law's settings (the filter's from ``filter_settings()`` if
-        ``filter_settings`` is None).
+        ``filter_settings`` is None); w_n as the law cuts it at ``period``
+        (:func:`~lookahead_control.core.lane_keeping.settings_at_period`).
     :param v_x: speed [m/s].
     :param plant: the plant's parameters (None: the design vehicle).
     :param period: control period [s] (the filter's step).
@@ -1446,6 +1447,7 @@ def filtered_loop(vehicle: VehicleParams, controller: ControllerParams,
         vectors, their eigenvalues 1).
     :return: the square one-step matrix.
     """
+    settings = settings_at_period(settings, period)     # the law's w_n at its period
     fs = filter_settings or settings.filter_settings()
     integral_frozen = integral_frozen or approach
     if integral_frozen:                 # the law's rate term: k_i y_cg only while it runs
@@ -1785,7 +1787,8 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
 
     :param vehicle: the design vehicle.
     :param controller: gains and schedule.
-    :param settings: the law's settings.
+    :param settings: the law's settings; w_n as the law cuts it at ``period``
+        (:func:`~lookahead_control.core.lane_keeping.settings_at_period`).
     :param v_x: speed [m/s].
     :param plant: the plant's parameters (None: the design vehicle).
     :param period: control period [s].
@@ -1798,6 +1801,7 @@ def discrete_radius(vehicle: VehicleParams, controller: ControllerParams,
         (which then drives nothing: the car closing on the lane).
     :return: the spectral radius.
     """
+    settings = settings_at_period(settings, period)     # the law's w_n at its period
     if integral_frozen or approach:
         settings = _integral_off(settings)
     # actuator state: delta' = (u - delta) / lag

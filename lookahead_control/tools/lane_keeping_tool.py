@@ -28,7 +28,8 @@ from typing import Any, Optional, Sequence
 from lookahead_control.core.cli import (markdown_table, number, parser, run_tool, ToolError,
                                         write_json)
 from lookahead_control.core.config import load_vehicle
-from lookahead_control.core.lane_keeping import CgCompensatedLaw, LaneKeepingParams
+from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingParams,
+                                                 settings_at_period)
 from lookahead_control.core.lane_keeping_stability import (Certificate, certificate,
                                                            CERTIFICATE_SCHEDULES,
                                                            CERTIFICATE_WEIGHTS, DELAYS,
@@ -193,6 +194,15 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     changed = settings_changes(LawSettings(controller, settings))
     print(f'settings: {args.controller or "the package defaults"}'
           + (f'; differing from the defaults: {", ".join(changed)}' if changed else ''))
+    # the law cuts w_n at a slow answer period (frequency_lag, dev-sc56): every check
+    # below is of the loop that runs at this period
+    at_period = settings_at_period(settings, period)
+    if at_period is not settings:
+        print(f'at an answer period of {period:g} s the law cuts w_n at '
+              f'{at_period.natural_frequency:.4g} rad/s (natural_frequency '
+              f'{settings.natural_frequency:g}, frequency_lag {settings.frequency_lag:g} s): '
+              'the checks below are of that loop')
+        settings = at_period
     # with cg_height the axles' stiffnesses move with a_x in the plant and the law: the
     # certificate then checks A(v, a, a_hat) on a grid of accelerations (dev-sc30; before,
     # a note said the load transfer was not covered)

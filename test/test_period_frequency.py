@@ -1,0 +1,209 @@
+# Copyright 2026 The lookahead_control Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The loop's w_n at a slow camera (dev-sc56): ``lane_keeping.frequency_lag``.
+
+A lateral error answered once a frame holds each command for the frame, a lag of the
+loop that grows with the period. Over the mismatch grid (the stiff, light car with 50 ms
+of delay at 37 m/s) w_n 7 rings at 30 Hz and slower; the law cuts w_n to
+``natural_frequency (0.01 + frequency_lag) / (T + frequency_lag)`` at its answer period
+``T``, the cap moving at ``FREQUENCY_RATE``.
+"""
+
+from dataclasses import replace
+import math
+
+from lookahead_control.bags.run_data import as_it_ran
+from lookahead_control.core.control_law import LateralState
+from lookahead_control.core.lane_keeping import (CgCompensatedLaw, FREQUENCY_RATE,
+                                                 LaneKeepingParams, loop_gains,
+                                                 period_frequency, settings_at_period)
+from lookahead_control.core.laws import Preview
+from lookahead_control.core.param_schema import LANE_KEEPING_SPECS
+from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
+from lookahead_control.tools import compare
+import numpy as np
+import pytest
+from test_filtered_stability import _light_stiff_car_on_a_straight
+
+VEHICLE = VehicleParams()
+CONTROLLER = ControllerParams()
+EMPTY = Preview(np.zeros(0), np.zeros(0))
+
+
+def test_the_cap_follows_the_period_down_to_the_low_speed_w_n():
+    settings = LaneKeepingParams()
+    for fast in (0.0, 0.005, 0.01):                 # none measured yet, or 100 Hz and up
+        assert period_frequency(settings, fast) == 7.0
+    assert period_frequency(settings, 0.05) == pytest.approx(7.0 * 0.21 / 0.25)   # 5.88
+    assert period_frequency(settings, 1 / 30) == pytest.approx(7.0 * 0.21 / (0.2 + 1 / 30))
+    assert period_frequency(settings, 0.1) == 5.0   # 4.9: not below low_speed_frequency
+    assert period_frequency(replace(settings, frequency_lag=0.0), 0.05) == 7.0     # off
+    # w_n constant on speed (low_speed_frequency at or above natural_frequency): its
+    # lowest w_n is natural_frequency, which the cap does not go below
+    assert period_frequency(replace(settings, low_speed_frequency=9.0), 0.05) == 7.0
+    assert period_frequency(replace(settings, natural_frequency=4.0), 0.05) == 4.0
+
+
+@pytest.mark.parametrize('changes', [{}, {'frequency_speed': 20.0},
+                                     {'low_speed_frequency': 3.0, 'frequency_lag': 0.05},
+                                     {'natural_frequency': 5.0, 'low_speed_frequency': 9.0},
+                                     {'frequency_lag': 0.0}])
+def test_the_settings_at_a_period_are_the_law_s_gains_there(changes):
+    # the stability tool checks settings_at_period; the law runs loop_gains with its cap
+    settings = replace(LaneKeepingParams(), **changes)
+    speeds = np.linspace(1.0, 45.0, 177)
+    for period in (0.0, 0.01, 0.02, 1 / 30, 0.05, 0.0667, 0.1, 0.2):
+        at = settings_at_period(settings, period)
+        law = loop_gains(settings, speeds, period_frequency(settings, period))
+        np.testing.assert_allclose(loop_gains(at, speeds), law, rtol=1e-12)
+        if period_frequency(settings, period) >= settings.natural_frequency:
+            assert at is settings
+
+
+def test_the_parameter_is_declared_configured_and_checked():
+    assert LaneKeepingParams().frequency_lag == 0.2
+    spec = {s.name: s for s in LANE_KEEPING_SPECS}['lane_keeping.frequency_lag']
+    assert (spec.default, spec.low, spec.high) == (0.2, 0.0, 10.0)
+    settings = compare.load_law_settings(compare.ROOT / 'config' / 'controller.yaml')
+    assert settings.lane_keeping.frequency_lag == 0.2
+    for bad in (-0.1, 11.0, math.nan):
+        with pytest.raises(ParameterError, match='frequency_lag'):
+            LaneKeepingParams(frequency_lag=bad)
+
+
+def _state(k, dt):
+    """Return an open-loop state wobbling about a straight lane at 37 m/s."""
+    t = k * dt
+    return LateralState(0.05 * math.sin(3.0 * t), 0.002 * math.cos(2.0 * t), 0.1, 0.0,
+                        37.0, 0.0, 0.0, 0.0)
+
+
+def _caps(law, intervals):
+    """Step the law over the intervals; return its cap after each step."""
+    caps, t = [], 0.0
+    for dt in intervals:
+        t += dt
+        law.step(_state(round(t / 0.01), 0.01), EMPTY, dt)
+        caps.append(law.frequency)
+    return np.array(caps)
+
+
+def test_the_cap_moves_at_its_rate_and_a_late_frame_does_not_step_the_gain():
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
+    assert law.frequency == 7.0
+    caps = _caps(law, [0.05] * 30)          # a 20 Hz camera from the start
+    assert np.diff(caps[:5]) == pytest.approx([-FREQUENCY_RATE * 0.05] * 4)
+    assert caps[-1] == pytest.approx(5.88)
+    assert dict(law.debug_values())['loop_frequency'] == pytest.approx(5.88)
+    # one frame 0.2 s late among 10 ms ones: the period is 0.107 s for 20 steps (the cap's
+    # target 5 rad/s), the cap dips to 6.2 at 2 rad/s per second and comes back
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
+    caps = _caps(law, [0.01] * 30 + [0.2] + [0.01] * 60)
+    assert caps[:30] == pytest.approx([7.0] * 30)
+    assert caps.min() == pytest.approx(7.0 - FREQUENCY_RATE * 0.39) and caps[-1] == 7.0
+    assert caps[30] == pytest.approx(7.0 - FREQUENCY_RATE * 0.2)   # over the late frame
+    assert np.max(np.abs(np.diff(caps[31:]))) == pytest.approx(FREQUENCY_RATE * 0.01)
+
+
+def test_restarts_and_retunes_keep_the_cap():
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
+    _caps(law, [0.05] * 30)
+    law.step(_state(0, 0.05), EMPTY, 5.0)           # a time jump restarts the law ...
+    assert law.resets == 1 and law.frequency == pytest.approx(5.88)   # ... not the cap
+    # a retune starts from the old cap, within the new law's range, and moves on
+    new = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(frequency_lag=0.0))
+    new.reset()
+    new.take_over(law)
+    assert new.frequency == pytest.approx(5.88)
+    assert _caps(new, [0.05] * 30)[-1] == 7.0       # switched off: back to w_n at 2 / s
+    lower = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(natural_frequency=5.5))
+    lower.reset()
+    lower.take_over(law)
+    assert lower.frequency == 5.5
+
+
+def test_at_100_hz_the_law_is_unchanged():
+    # answered 100 times a second the cap is natural_frequency: the league's figures stand
+    on = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
+    off = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(frequency_lag=0.0))
+    for k in range(400):
+        a = on.step(_state(k, 0.01), EMPTY, 0.01 if k else 0.0)
+        b = off.step(_state(k, 0.01), EMPTY, 0.01 if k else 0.0)
+        assert float(a.steering) == float(b.steering)
+    assert on.frequency == 7.0 and on.period == 0.01
+
+
+def test_a_slow_camera_s_ring_settles_with_the_cut():
+    # the stiff, light car at 37 m/s with 50 ms through the node's core on the nonlinear
+    # plant, each frame answered: w_n 7 rings (measured 44.9 / 40.6 / 25.1 mrad rms at
+    # 20 / 25 / 30 Hz); with the cut (5.88 / 6.125 / 6.30 rad/s) it settles
+    for hz in (20.0, 30.0):
+        assert _light_stiff_car_on_a_straight(0.05, hz=hz, frequency_lag=0.0) > 0.02
+        assert _light_stiff_car_on_a_straight(0.05, hz=hz) < 1e-3
+
+
+def test_the_stability_check_runs_the_cut_loop(capsys, tmp_path):
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    assert stability_main(['--samples', '21', '--period', '0.05']) == 0
+    out = capsys.readouterr().out
+    assert ('at an answer period of 0.05 s the law cuts w_n at 5.88 rad/s '
+            '(natural_frequency 7, frequency_lag 0.2 s)') in out
+    off = tmp_path / 'off.yaml'
+    off.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n      frequency_lag: 0.0\n')
+    assert stability_main(['--samples', '21', '--period', '0.05', '--controller',
+                           str(off)]) == 1
+    out = capsys.readouterr().out
+    assert 'cuts w_n' not in out and 'robust check with the filter DOES NOT HOLD' in out
+    # at 100 Hz nothing is cut
+    assert stability_main(['--samples', '21']) == 0
+    assert 'cuts w_n' not in capsys.readouterr().out
+
+
+def test_a_bag_of_an_older_controller_re_runs_without_the_cut():
+    filled = as_it_ran({'use_curvature_preview': True, 'law': 'cg_compensated'})
+    assert filled['lane_keeping.frequency_lag'] == 0.0
+    assert 'lane_keeping.frequency_lag' not in as_it_ran(
+        {'use_curvature_preview': True, 'lane_keeping.frequency_lag': 0.2})
+
+
+def test_replay_says_a_20_hz_bag_predates_the_cut(tmp_path, capsys, monkeypatch):
+    import json
+
+    from lookahead_control.bags import replay_node
+    from lookahead_control.core.cli import run_tool
+    import test_rerun_lost_curvature as bags
+    monkeypatch.setattr(bags, 'PERIOD_NS', 50_000_000)     # a 20 Hz camera's frames
+    name = 'lane_keeping.frequency_lag'
+    params = {'law': 'cg_compensated', 'use_curvature_preview': True,
+              'align_inputs': 'with_prediction', 'curvature_at_yaw_stamp': False,
+              'lane_keeping.hold_preview': 0.5, name: 0.0}
+    bag, report = tmp_path / 'old', tmp_path / 'old.json'
+    bags.controllers_bag(bag, {'/controller': params}, steps=80, unrecorded=(name,))
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-8', '--json',
+                                       str(report)]) == 0
+    out = capsys.readouterr().out
+    assert f'predates {name}' in out and f'{name}=0;' in out, out
+    assert json.loads(report.read_text())['parameters_as_it_ran'] == {name: 0.0}
+    # the default's cut is another law at 20 Hz
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-8', '-p',
+                                       f'{name}=0.2']) == 1
+    assert 'predates' not in capsys.readouterr().out
+    # a bag of another law: it has no such cut, nothing to say
+    other = tmp_path / 'lqr'
+    bags.controllers_bag(other, {'/controller': {**params, 'law': 'lqr'}}, steps=20,
+                         unrecorded=(name,))
+    assert run_tool(replay_node.main, [str(other), '--offline', '--check', '1e-8']) == 0
+    assert 'predates' not in capsys.readouterr().out
