@@ -55,10 +55,18 @@ def test_the_cap_follows_the_period_down_to_the_low_speed_w_n():
     # lowest w_n is natural_frequency, which the cap does not go below
     assert period_frequency(replace(settings, low_speed_frequency=9.0), 0.05) == 7.0
     assert period_frequency(replace(settings, natural_frequency=4.0), 0.05) == 4.0
+    # each interval counts at most 0.2 s in the law's period: the cap stops there too
+    # (dev-probe131: the tool cut w_n at 0.25 s deeper than the law ran)
+    low = replace(settings, low_speed_frequency=3.0)
+    assert period_frequency(low, 0.25) == period_frequency(low, 0.2) == pytest.approx(
+        7.0 * 0.21 / 0.4)
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, low)
+    _caps(law, [0.25] * 40)
+    assert law.frequency == pytest.approx(period_frequency(low, 0.25))
 
 
 @pytest.mark.parametrize('changes', [{}, {'frequency_speed': 20.0},
-                                     {'low_speed_frequency': 3.0, 'frequency_lag': 0.05},
+                                     {'low_speed_frequency': 3.0, 'frequency_lag': 0.1},
                                      {'natural_frequency': 5.0, 'low_speed_frequency': 9.0},
                                      {'frequency_lag': 0.0}])
 def test_the_settings_at_a_period_are_the_law_s_gains_there(changes):
@@ -79,9 +87,13 @@ def test_the_parameter_is_declared_configured_and_checked():
     assert (spec.default, spec.low, spec.high) == (0.2, 0.0, 10.0)
     settings = compare.load_law_settings(compare.ROOT / 'config' / 'controller.yaml')
     assert settings.lane_keeping.frequency_lag == 0.2
-    for bad in (-0.1, 11.0, math.nan):
+    for bad in (-0.1, 11.0, math.nan, 1e-9, 0.05):
         with pytest.raises(ParameterError, match='frequency_lag'):
             LaneKeepingParams(frequency_lag=bad)
+    # dev-probe131: a tiny lag was accepted and cut the deepest; 0 is off, else 0.1-10 s
+    with pytest.raises(ParameterError, match=r'allowed: 0 \(w_n not cut\) or 0.1-10 s'):
+        LaneKeepingParams(frequency_lag=0.01)
+    assert LaneKeepingParams(frequency_lag=0.1).frequency_lag == 0.1
 
 
 def _state(k, dt):
@@ -107,7 +119,7 @@ def test_the_cap_moves_at_its_rate_and_a_late_frame_does_not_step_the_gain():
     caps = _caps(law, [0.05] * 30)          # a 20 Hz camera from the start
     assert np.diff(caps[:5]) == pytest.approx([-FREQUENCY_RATE * 0.05] * 4)
     assert caps[-1] == pytest.approx(5.88)
-    assert dict(law.debug_values())['loop_frequency'] == pytest.approx(5.88)
+    assert dict(law.debug_values())['frequency_cap'] == pytest.approx(5.88)
     # one frame 0.2 s late among 10 ms ones: the period is 0.107 s for 20 steps (the cap's
     # target 5 rad/s), the cap dips to 6.2 at 2 rad/s per second and comes back
     law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
@@ -118,21 +130,51 @@ def test_the_cap_moves_at_its_rate_and_a_late_frame_does_not_step_the_gain():
     assert np.max(np.abs(np.diff(caps[31:]))) == pytest.approx(FREQUENCY_RATE * 0.01)
 
 
-def test_restarts_and_retunes_keep_the_cap():
+def _retuned(old, **changes):
+    """Return a law with other settings that took over from ``old``, and its log."""
+    new = CgCompensatedLaw(VEHICLE, CONTROLLER, replace(old.settings, **changes))
+    new.reset()
+    carried, _ = new.take_over(old)
+    return new, carried
+
+
+def test_restarts_and_retunes_keep_the_cut():
     law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
     _caps(law, [0.05] * 30)
     law.step(_state(0, 0.05), EMPTY, 5.0)           # a time jump restarts the law ...
     assert law.resets == 1 and law.frequency == pytest.approx(5.88)   # ... not the cap
-    # a retune starts from the old cap, within the new law's range, and moves on
-    new = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(frequency_lag=0.0))
-    new.reset()
-    new.take_over(law)
-    assert new.frequency == pytest.approx(5.88)
-    assert _caps(new, [0.05] * 30)[-1] == 7.0       # switched off: back to w_n at 2 / s
-    lower = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(natural_frequency=5.5))
-    lower.reset()
-    lower.take_over(law)
-    assert lower.frequency == 5.5
+    # a retune carries the cut as a share of natural_frequency: 9 at 20 Hz is 7.56 at once
+    new, carried = _retuned(law, natural_frequency=9.0)
+    assert new.frequency == pytest.approx(9.0 * 5.88 / 7.0) and 'w_n cut' in carried
+    assert _caps(new, [0.05] * 5)[-1] == pytest.approx(period_frequency(new.settings, 0.05))
+    # switched off: the uncut law at once (as a bag of the law before the cut re-runs)
+    off, carried = _retuned(law, frequency_lag=0.0)
+    assert off.frequency == 7.0 and 'w_n cut' not in carried
+    assert np.all(_caps(off, [0.05] * 30) == 7.0)
+    lower, _ = _retuned(law, natural_frequency=5.5)
+    assert lower.frequency == pytest.approx(5.0)    # 5.5 x 0.84 = 4.62: its floor
+    # dev-probe131: at 100 Hz (uncut) a raised natural_frequency took a second to arrive
+    # (the cap carried as 7 rose at 2 rad/s per second; an older bag with that set
+    # re-ran 6 mrad off): it runs at once
+    for lag in (0.2, 0.0):
+        fast = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams(frequency_lag=lag))
+        _caps(fast, [0.01] * 30)
+        raised, carried = _retuned(fast, natural_frequency=9.0)
+        assert raised.frequency == 9.0 and 'w_n cut' not in carried
+
+
+def test_a_new_run_forgets_the_answer_period():
+    # dev-probe131: start() (the offline runner's, before each run) kept the period and
+    # the cut: two 20 Hz runs of one law object were 5.2 mrad apart
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
+
+    def run():
+        law.start()
+        return [float(law.step(_state(k, 0.05), EMPTY, 0.05 if k else 0.0).steering)
+                for k in range(40)]
+    first = run()
+    assert law.frequency == pytest.approx(5.88) and law.hold_time > 0.0
+    assert run() == first
 
 
 def test_at_100_hz_the_law_is_unchanged():
@@ -156,11 +198,20 @@ def test_a_slow_camera_s_ring_settles_with_the_cut():
 
 
 def test_the_stability_check_runs_the_cut_loop(capsys, tmp_path):
+    import json
+
     from lookahead_control.tools.lane_keeping_tool import stability_main
-    assert stability_main(['--samples', '21', '--period', '0.05']) == 0
+    report = tmp_path / 'cut.json'
+    assert stability_main(['--samples', '21', '--period', '0.05', '--json', str(report)]) == 0
     out = capsys.readouterr().out
     assert ('at an answer period of 0.05 s the law cuts w_n at 5.88 rad/s '
             '(natural_frequency 7, frequency_lag 0.2 s)') in out
+    # dev-probe131: the JSON report did not say the cut, nor the line its floor
+    data = json.loads(report.read_text())
+    assert (data['natural_frequency'], data['frequency_lag_s']) == (7.0, 0.2)
+    assert data['frequency_cap_at_period'] == pytest.approx(5.88)
+    assert stability_main(['--samples', '21', '--period', '0.1']) == 0
+    assert 'cuts w_n at 5 rad/s (its floor, low_speed_frequency)' in capsys.readouterr().out
     off = tmp_path / 'off.yaml'
     off.write_text('/**:\n  ros__parameters:\n    lane_keeping:\n      frequency_lag: 0.0\n')
     assert stability_main(['--samples', '21', '--period', '0.05', '--controller',

@@ -177,7 +177,7 @@ class LaneKeepingParams:
         grid (stiff light car, 50 ms) w_n 7 rings at 30 Hz and slower (radius 1.005 at 30
         Hz, 1.031 at 20 Hz) where the default's 6.30 / 5.88 rad/s hold it (0.990, 0.984);
         docs/lane_keeping.md, "The loop's w_n at a slow camera". 0: w_n does not follow
-        the period.
+        the period, else 0.1-10 s (a smaller lag cuts deeper).
     :param reference_preview: ``T_ref``: the reference uses the curvature
         ``v_x T_ref`` ahead [s].
     :param feedforward_preview: ``T_ff``: the drift term uses the curvature ``v_x T_ff``
@@ -395,7 +395,11 @@ class LaneKeepingParams:
                     low_open=True, unit='m/s')
         check_range('lane_keeping.low_speed_frequency', self.low_speed_frequency, 0.0, 100.0,
                     low_open=True, unit='rad/s')
-        check_range('lane_keeping.frequency_lag', self.frequency_lag, 0.0, 10.0, unit='s')
+        _check_off_or_range('lane_keeping.frequency_lag', self.frequency_lag, (0.1, 10.0),
+                            's', 'w_n not cut',
+                            'would cut w_n to low_speed_frequency at 20 Hz and every '
+                            'slower camera, deeper than the mismatch grid asks (0.2 keeps '
+                            'its decay of 100 Hz; the smaller the lag, the deeper the cut)')
         _check_off_or_range('lane_keeping.approach_heading', self.approach_heading,
                             (0.02, 0.15), 'rad', 'no clip',
                             'would leave a car engaged off the lane crawling back (1 m at '
@@ -544,14 +548,34 @@ def period_frequency(settings: LaneKeepingParams, period: float) -> float:
     lag of the loop would (``frequency_lag`` 0: ``natural_frequency`` at every period).
 
     :param settings: the law's settings.
-    :param period: the answer period (:func:`answer_period`; 0: none measured yet) [s].
+    :param period: the answer period (:func:`answer_period`; 0: none measured yet; at most
+        :data:`HOLD_LONGEST` counts) [s].
     :return: w_n's cap [rad/s] (the law's moves to it at :data:`FREQUENCY_RATE`).
     """
     top = settings.natural_frequency
     lag = settings.frequency_lag
     if lag <= 0.0 or not period > HOLD_TUNED:
         return top
+    # as answer_period counts each interval (dev-probe131: the tool cut w_n at 0.25 s
+    # where the law's period stops at 0.2)
+    period = min(period, HOLD_LONGEST)
     return max(top * (HOLD_TUNED + lag) / (period + lag), min(settings.low_speed_frequency, top))
+
+
+def _cap_within(settings: LaneKeepingParams, cap: float) -> float:
+    """
+    Return w_n's cap within the range the settings allow it.
+
+    :param settings: the law's settings.
+    :param cap: the cap [rad/s].
+    :return: ``natural_frequency`` with ``frequency_lag`` 0 (the uncut law exactly), else
+        ``cap`` between ``min(low_speed_frequency, natural_frequency)`` and
+        ``natural_frequency`` [rad/s].
+    """
+    top = settings.natural_frequency
+    if settings.frequency_lag <= 0.0:
+        return top
+    return min(max(cap, min(settings.low_speed_frequency, top)), top)
 
 
 def settings_at_period(settings: LaneKeepingParams, period: float) -> LaneKeepingParams:
@@ -1259,7 +1283,10 @@ class CgCompensatedLaw:
           the estimated curvature's rate (``estimate_rate_time``; the car's and the
           road's, never restarted);
         - the curvature seen behind the CG (``curvature_smoothing``; restarted when it
-          was 0 before).
+          was 0 before);
+        - the answer period (the sensor's, never restarted) and w_n's cut at it as a
+          share of ``natural_frequency`` (a new ``natural_frequency`` at 100 Hz runs at
+          once; ``frequency_lag`` 0: no cut).
 
         Works on floats and on a batch's arrays alike.
 
@@ -1287,10 +1314,13 @@ class CgCompensatedLaw:
         self._intervals.extend(old._intervals)
         self.hold_time = hold_extra(self._intervals, s.hold_preview)
         self.period = answer_period(self._intervals)
-        # the cap moves on from where it was (bumpless), within the new law's range
-        self.frequency = min(max(old.frequency, min(s.low_speed_frequency,
-                                                    s.natural_frequency)),
-                             s.natural_frequency)
+        # the cut moves on from where it was, as a share of natural_frequency (a new
+        # natural_frequency uncut runs at once, as before the cut: dev-probe131 found 7 ->
+        # 9 at 100 Hz spread over a second), within the new law's range; off, none
+        self.frequency = _cap_within(s, old.frequency / old.settings.natural_frequency
+                                     * s.natural_frequency)
+        if self.frequency < s.natural_frequency:
+            carried.append('w_n cut')
         self.clipped = old.clipped      # recomputed at the next step, as after any step
         self.capped = old.capped
         if s.integral_gain > 0.0:
@@ -1399,10 +1429,15 @@ class CgCompensatedLaw:
 
         :meth:`reset` keeps the state filter's actuator model (the node's car still has
         its wheel where the last command put it); a new simulation starts with the wheel
-        at 0 and with no curvature judged missing, so that a run does not depend on the
-        run before it.
+        at 0, with no curvature judged missing and no answer period measured (the hold
+        preview and w_n's cap of a new sensor), so that a run does not depend on the run
+        before it (dev-probe131: two 20 Hz runs of one law 5.2 mrad apart, the second
+        starting at the first's cut).
         """
         self.reset()
+        self._intervals.clear()
+        self.hold_time = self.period = 0.0
+        self.frequency = self.settings.natural_frequency
         if self.state_filter is not None:
             self.state_filter.start()
         self.estimating = False
@@ -1466,8 +1501,9 @@ class CgCompensatedLaw:
         learned rather than its seed, 0-1), ``side_force_yaw`` (the side force's shift
         of the reference's relative yaw [rad], ``side_force``; 0 while off),
         ``hold_preview`` (the time the answer period added to ``feedforward_preview``
-        [s], ``hold_preview``), ``loop_frequency`` (w_n's cap, following the answer
-        period [rad/s], ``frequency_lag``). One run (not a batch).
+        [s], ``hold_preview``), ``frequency_cap`` (w_n's cap at the answer period
+        [rad/s], ``frequency_lag``; the w_n that runs is the smaller of it and the speed
+        schedule's). One run (not a batch).
 
         :return: ``(name, value)`` pairs.
         """
@@ -1482,7 +1518,7 @@ class CgCompensatedLaw:
                 ('memory_weight', one(self.estimator.memory_weight())),
                 ('side_force_yaw', 0.0 if self._side is None else one(self._side)),
                 ('hold_preview', float(self.hold_time)),
-                ('loop_frequency', float(self.frequency))]
+                ('frequency_cap', float(self.frequency))]
 
     def note_limited(self, cut: Any) -> None:
         """
@@ -1563,10 +1599,10 @@ class CgCompensatedLaw:
         # a command held longer than the preview was tuned for acts later on average
         self.hold_time = hold_extra(self._intervals, s.hold_preview)
         self.period = answer_period(self._intervals)
-        # a slow answer period cuts w_n; the cap moves at FREQUENCY_RATE
+        # a slow answer period cuts w_n; the cap moves at FREQUENCY_RATE (off: none)
         target = period_frequency(s, self.period)
-        self.frequency += min(max(target - self.frequency, -FREQUENCY_RATE * dt),
-                              FREQUENCY_RATE * dt)
+        self.frequency = _cap_within(s, self.frequency + min(
+            max(target - self.frequency, -FREQUENCY_RATE * dt), FREQUENCY_RATE * dt))
         ff_preview = s.feedforward_preview + self.hold_time
         estimating = self.estimating
         # the integral sums the measured CG error, not the filter's estimate: the

@@ -101,7 +101,8 @@ LANE_KEEPING_SPECS = tuple(
         ('frequency_lag', "the loop's lags besides a slow answer's hold: at an answer period "
          'T beyond 10 ms (a camera slower than 100 Hz answered once a frame) w_n is at most '
          'natural_frequency (0.01 + frequency_lag) / (T + frequency_lag), not below '
-         'low_speed_frequency; 0: w_n does not follow the period [s]', 0.0, 10.0),
+         'low_speed_frequency; 0: w_n does not follow the period, else 0.1-10 (the '
+         'smaller, the deeper the cut) [s]', 0.0, 10.0),
         ('approach_heading', 'far off the lane the car closes on it at this relative '
          'heading (the CG offset in the proportional term clipped); the integral and its '
          'band clock hold while clipped; 0: unclipped, else 0.02-0.15 [rad]', 0.0, 0.15),

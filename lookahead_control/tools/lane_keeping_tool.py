@@ -198,11 +198,16 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # below is of the loop that runs at this period
     at_period = settings_at_period(settings, period)
     if at_period is not settings:
+        floor = min(settings.low_speed_frequency, settings.natural_frequency)
         print(f'at an answer period of {period:g} s the law cuts w_n at '
-              f'{at_period.natural_frequency:.4g} rad/s (natural_frequency '
-              f'{settings.natural_frequency:g}, frequency_lag {settings.frequency_lag:g} s): '
-              'the checks below are of that loop')
-        settings = at_period
+              f'{at_period.natural_frequency:.4g} rad/s'
+              + (' (its floor, low_speed_frequency)'
+                 if at_period.natural_frequency <= floor else '')
+              + f' (natural_frequency {settings.natural_frequency:g}, frequency_lag '
+              f'{settings.frequency_lag:g} s): the checks below are of that loop')
+    # the w_n the checks ran with at and above frequency_speed, for the JSON report
+    frequency = (settings.natural_frequency, settings.frequency_lag, at_period.natural_frequency)
+    settings = at_period
     # with cg_height the axles' stiffnesses move with a_x in the plant and the law: the
     # certificate then checks A(v, a, a_hat) on a grid of accelerations (dev-sc30; before,
     # a note said the load transfer was not covered)
@@ -463,6 +468,9 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
                                'law_a_x_zero': zero, 'verdict': verdict,
                                'kalman_rows_counted': kalman,
                                'sampled_period_s': period, 'plant_delays_s': list(delays),
+                               'natural_frequency': frequency[0],
+                               'frequency_lag_s': frequency[1],
+                               'frequency_cap_at_period': frequency[2],
                                'robust': robust._asdict(),
                                'robust_filtered': filtered._asdict(),
                                'robust_curvature_estimated': estimated._asdict(),
