@@ -231,30 +231,7 @@ def test_a_bag_of_an_older_controller_re_runs_without_the_cut():
 
 
 def test_replay_says_a_20_hz_bag_predates_the_cut(tmp_path, capsys, monkeypatch):
-    import json
-
-    from lookahead_control.bags import replay_node
-    from lookahead_control.core.cli import run_tool
-    import test_rerun_lost_curvature as bags
-    monkeypatch.setattr(bags, 'PERIOD_NS', 50_000_000)     # a 20 Hz camera's frames
-    name = 'lane_keeping.frequency_lag'
-    params = {'law': 'cg_compensated', 'use_curvature_preview': True,
-              'align_inputs': 'with_prediction', 'curvature_at_yaw_stamp': False,
-              'lane_keeping.hold_preview': 0.5, name: 0.0}
-    bag, report = tmp_path / 'old', tmp_path / 'old.json'
-    bags.controllers_bag(bag, {'/controller': params}, steps=80, unrecorded=(name,))
-    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-8', '--json',
-                                       str(report)]) == 0
-    out = capsys.readouterr().out
-    assert f'predates {name}' in out and f'{name}=0;' in out, out
-    assert json.loads(report.read_text())['parameters_as_it_ran'] == {name: 0.0}
+    from test_rerun_lost_curvature import check_a_20_hz_bag_predating
     # the default's cut is another law at 20 Hz
-    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-8', '-p',
-                                       f'{name}=0.2']) == 1
-    assert 'predates' not in capsys.readouterr().out
-    # a bag of another law: it has no such cut, nothing to say
-    other = tmp_path / 'lqr'
-    bags.controllers_bag(other, {'/controller': {**params, 'law': 'lqr'}}, steps=20,
-                         unrecorded=(name,))
-    assert run_tool(replay_node.main, [str(other), '--offline', '--check', '1e-8']) == 0
-    assert 'predates' not in capsys.readouterr().out
+    check_a_20_hz_bag_predating('lane_keeping.frequency_lag', 0.2, tmp_path, capsys,
+                                monkeypatch, **{'lane_keeping.hold_preview': 0.5})

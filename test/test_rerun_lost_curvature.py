@@ -28,6 +28,7 @@ lateral error's stamp), as the node runs it.
 from dataclasses import replace
 import math
 from pathlib import Path
+import sys
 
 from lookahead_control.bags.run_data import (as_it_ran, controller_from_params, load_run,
                                              rerun, rerun_law, RunData, Samples)
@@ -392,6 +393,48 @@ def controllers_bag(path, params, description=None, recorded=None, steps=60, deb
     for key, text in (description or {}).items():
         writer.describe(key, text)
     writer.close()
+
+
+def check_a_20_hz_bag_predating(name, now, tmp_path, capsys, monkeypatch, **params):
+    """
+    Check replay's words and re-run of a 20 Hz bag recorded before parameter ``name``.
+
+    The bag's controller ran the law with ``name`` 0 (as before it existed) and does not
+    record it: replay says so, fills in 0 and re-runs the bag's commands; ``-p`` with
+    the value of ``now`` is another law at 20 Hz; a bag of another law is not told.
+
+    :param name: the parameter's name.
+    :param now: its default since (a value that moves the commands at 20 Hz).
+    :param tmp_path: pytest's.
+    :param capsys: pytest's.
+    :param monkeypatch: pytest's.
+    :param params: the bag's other recorded controller parameters.
+    """
+    import json
+
+    from lookahead_control.bags import replay_node
+    from lookahead_control.core.cli import run_tool
+    monkeypatch.setattr(sys.modules[__name__], 'PERIOD_NS', 50_000_000)   # 20 Hz frames
+    params = {'law': 'cg_compensated', 'use_curvature_preview': True,
+              'align_inputs': 'with_prediction', 'curvature_at_yaw_stamp': False,
+              **params, name: 0.0}
+    bag, report = tmp_path / 'old', tmp_path / 'old.json'
+    controllers_bag(bag, {'/controller': params}, steps=80, unrecorded=(name,))
+    # (1e-8: the yaw goes through the Imu's quaternion)
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-8', '--json',
+                                       str(report)]) == 0
+    out = capsys.readouterr().out
+    assert f'predates {name}' in out and f'{name}=0;' in out, out
+    assert json.loads(report.read_text())['parameters_as_it_ran'] == {name: 0.0}
+    assert run_tool(replay_node.main, [str(bag), '--offline', '--check', '1e-8', '-p',
+                                       f'{name}={now}']) == 1
+    assert 'predates' not in capsys.readouterr().out
+    # a bag of another law: it has no such parameter, nothing to say
+    other = tmp_path / 'lqr'
+    controllers_bag(other, {'/controller': {**params, 'law': 'lqr'}}, steps=20,
+                    unrecorded=(name,))
+    assert run_tool(replay_node.main, [str(other), '--offline', '--check', '1e-8']) == 0
+    assert 'predates' not in capsys.readouterr().out
 
 
 def _two_controller_bag(path):
