@@ -235,3 +235,38 @@ def test_replay_says_a_20_hz_bag_predates_the_cut(tmp_path, capsys, monkeypatch)
     # the default's cut is another law at 20 Hz
     check_a_20_hz_bag_predating('lane_keeping.frequency_lag', 0.2, tmp_path, capsys,
                                 monkeypatch, **{'lane_keeping.hold_preview': 0.5})
+
+
+def test_compare_at_a_camera_s_timing_says_what_the_checks_find(tmp_path, capsys):
+    # the nominal runs of `compare --camera` cannot tell whether a car within the
+    # mismatch ranges rings at that timing: it says what the sampled checks find, with the
+    # tool's command (the 20 Hz camera 50 ms late, the goal's 20 ms: fails, cut or not)
+    from sim_plant.sensor_timing import SensorTiming, StreamTiming
+    names = ('nonlinear', 'nonlinear_delay_noise')
+    plants = [case for case in compare.PLANTS if case.name in names]
+    late = SensorTiming(StreamTiming(20.0, 0.05))
+    holds, line = compare.timing_check(VEHICLE, compare.LawSettings(), late, plants, [37.0])
+    assert not holds and 'DOES NOT HOLD' in line
+    assert ('answered every 0.05 s, delays 0.05, 0.07 s, w_n cut to 5.88 rad/s' in line
+            and '`lane_keeping_stability --period 0.05 --delays 0.05 0.07`' in line)
+    # 30 ms late (50 ms with the goal's 20): the cut holds it; uncut, it rings (the test
+    # above: 45 mrad rms at 50 ms)
+    frame = SensorTiming(StreamTiming(20.0, 0.03))
+    assert compare.timing_check(VEHICLE, compare.LawSettings(), frame, plants, [37.0])[0]
+    uncut = compare.LawSettings(lane_keeping=LaneKeepingParams(frequency_lag=0.0))
+    holds, line = compare.timing_check(VEHICLE, uncut, frame, plants, [37.0])
+    assert not holds and 'w_n cut' not in line
+    # a 50 Hz timer answering a 50 Hz camera: a frame waits up to a tick, delay
+    timer = replace(compare.LawSettings(), mode='timer', rate_hz=50.0)
+    line = compare.timing_check(VEHICLE, timer, SensorTiming(StreamTiming(50.0, 0.0)),
+                                plants, [37.0])[1]
+    assert 'answered every 0.02 s, delays 0, 0.02, 0.04 s' in line
+    # the league's head says it, and stderr when it fails
+    out = tmp_path / 'cmp'
+    assert compare.main(['--laws', 'cg_compensated', '--scenarios', 's1_paper_step',
+                         '--speeds', '37', '--plants', 'nonlinear_delay_noise', '--camera',
+                         '20/0.05', '--duration', '1', '--out', str(out), '--no-plots',
+                         '--no-progress', '--workers', '1']) == 0
+    assert 'DOES NOT HOLD' in capsys.readouterr().err
+    assert '**Checked: the loop of cg_compensated at this timing' in (
+        out / 'league.md').read_text()

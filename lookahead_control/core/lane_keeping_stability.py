@@ -1927,3 +1927,80 @@ def robust_check(vehicle: VehicleParams, controller: ControllerParams,
             worst = radius
             where = {'speed': v, 'c_f': c_f, 'c_r': c_r, 'mass': m, 'delay': delay}
     return RobustResult(worst, where, cases, worst < 1.0)
+
+
+class SampledChecks(NamedTuple):
+    """
+    The sampled checks of the law's loop over the mismatch grid (:func:`sampled_checks`).
+
+    :param robust: exact states.
+    :param filtered: the Kalman filter's estimate.
+    :param estimated: ... with the curvature estimated (no ``road_curvature``).
+    :param frozen: the integral held (exact states with ``state_filter`` none).
+    :param frozen_estimated: the integral held, the curvature estimated.
+    :param approach: the approach (None: ``approach_heading`` 0).
+    """
+
+    robust: RobustResult
+    filtered: RobustResult
+    estimated: RobustResult
+    frozen: RobustResult
+    frozen_estimated: RobustResult
+    approach: Optional[RobustResult]
+
+
+def sampled_checks(vehicle: VehicleParams, controller: ControllerParams,
+                   settings: LaneKeepingParams, delays: tuple[float, ...],
+                   speeds: tuple[float, ...], period: float) -> SampledChecks:
+    """
+    Run every sampled check of the loop the law runs, as ``lane_keeping_stability`` does.
+
+    :param vehicle: the design vehicle.
+    :param controller: gains and schedule.
+    :param settings: the law's settings (w_n cut at ``period`` inside the checks).
+    :param delays: transport delays [s].
+    :param speeds: speeds [m/s].
+    :param period: the law's answer period [s].
+    :return: the checks.
+    """
+    kalman = settings.state_filter == 'kalman'
+
+    def check(filtered: bool = False, curvature_estimated: bool = False,
+              integral_frozen: bool = False, approach: bool = False) -> RobustResult:
+        return robust_check(vehicle, controller, settings, delays=delays, speeds=speeds,
+                            period=period, filtered=filtered,
+                            curvature_estimated=curvature_estimated,
+                            integral_frozen=integral_frozen, approach=approach)
+
+    return SampledChecks(
+        check(), check(filtered=True), check(filtered=True, curvature_estimated=True),
+        # outside integral_band the integral is held: the loop without it must hold too
+        check(filtered=kalman, integral_frozen=True),
+        # ... and without road_curvature, where the CG is metres off (the held case there)
+        check(filtered=True, curvature_estimated=True, integral_frozen=True),
+        # engaged far off the lane (approach_heading): the CG's offset clipped, the
+        # integral held, the car closing at the approach heading
+        check(filtered=kalman, approach=True) if settings.approach_heading > 0.0 else None)
+
+
+def counted_checks(settings: LaneKeepingParams, checks: SampledChecks) -> list[RobustResult]:
+    """
+    Return the checks of the loop that runs (the tool's verdict counts these).
+
+    The exact-state loop is not the law's with ``delay_prediction`` (it acts on the
+    filter's prediction); the filter's rows not with ``state_filter`` none (the law acts
+    on the measurements), the held integral and the approach are then checked on exact
+    states.
+
+    :param settings: the law's settings.
+    :param checks: :func:`sampled_checks`'.
+    :return: the counted checks.
+    """
+    counted = [checks.frozen]
+    if not settings.delay_prediction:
+        counted.append(checks.robust)
+    if settings.state_filter == 'kalman':
+        counted += [checks.filtered, checks.estimated, checks.frozen_estimated]
+    if checks.approach is not None:
+        counted.append(checks.approach)
+    return counted

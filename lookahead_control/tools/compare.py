@@ -1519,7 +1519,8 @@ def write_plot(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], path: Pat
 def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Path,
                  plot: bool = True, duration: Optional[float] = None,
                  settings: Optional[tuple[str, LawSettings]] = None,
-                 seeds: int = 1, timing: Optional[SensorTiming] = None) -> Path:
+                 seeds: int = 1, timing: Optional[SensorTiming] = None,
+                 timing_checked: Optional[str] = None) -> Path:
     """
     Write league.csv (every run), league.md (summary, goals, per scenario), league.png.
 
@@ -1537,6 +1538,8 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
         a section with each goal's share of runs met).
     :param timing: the inputs' timing the runs had (said in the table's head; None: the
         offline runner's, every input at each 10 ms step on one stamp).
+    :param timing_checked: the sampled checks' line at that timing (:func:`timing_check`;
+        said below the timing).
     :return: the markdown file.
     """
     out.mkdir(parents=True, exist_ok=True)
@@ -1564,6 +1567,8 @@ def write_report(rows: Sequence[Mapping[str, Any]], laws: Sequence[str], out: Pa
             "through the controller node's core (its input checks, event or timer "
             'answers, watchdog), the inputs stamped at their capture: not the timing of '
             'the goal rows (every input at 100 Hz on one stamp).**', '']),
+        *([] if timing_checked is None else [
+            f'**Checked: {timing_checked}.**', '']),
         *([] if duration is None else [
             f'**Every scenario cut to {duration:g} s of simulated time (`--duration`): a '
             "quick look, not the league; the goal rows assume the scenarios' own.**", '']),
@@ -1895,6 +1900,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     note = load_transfer_note(vehicle, args.plants, args.laws)
     if note:
         print(f'compare: note: {note}', file=sys.stderr)
+    checked = None
+    if timing is not None and 'cg_compensated' in args.laws:
+        # the nominal runs cannot tell whether a car within the mismatch ranges rings
+        # at this timing: the sampled checks can (before the runs: it is said first)
+        checked = timing_check(vehicle, settings or LawSettings(), timing, plants,
+                               args.speeds, args.controller)
+        print(f'compare: {checked[1]}', file=sys.stdout if checked[0] else sys.stderr)
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
                   args.workers, args.duration, progress=not args.no_progress,
                   settings=settings, seeds=args.seeds, timing=timing)
@@ -1902,7 +1914,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                           duration=args.duration,
                           settings=None if settings is None else (str(args.controller),
                                                                   settings),
-                          seeds=args.seeds, timing=timing)
+                          seeds=args.seeds, timing=timing,
+                          timing_checked=None if checked is None else checked[1])
     record_output(args.out, 'compare', [args.out / name for name in outputs], previous)
     table = summary(rows, args.laws)
     print(markdown_table(table, digits=3))
@@ -1927,6 +1940,58 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{first['speed_mps']:g} m/s: {first['notes'][len(FAILED):]}", file=sys.stderr)
         return 1
     return 0
+
+
+def timing_check(vehicle: VehicleParams, settings: LawSettings, timing: SensorTiming,
+                 plants: Sequence[PlantCase], speeds: Sequence[float],
+                 controller_file: Optional[Path] = None) -> tuple[bool, str]:
+    """
+    Check the loop of cg_compensated at a sensor timing over the mismatch grid.
+
+    The law answers each frame (mode ``event``) or each tick of a timer (``timer``: a
+    frame waits up to a tick, delay; a camera slower than the timer sets the period);
+    the lateral error's latency and each plant's transport delay are the loop's delays.
+    The checks of ``lane_keeping_stability`` (the counted rows of its verdict, without
+    the certificate), at the speeds run: the nominal runs measure the nominal car only.
+
+    :param vehicle: the design vehicle.
+    :param settings: the laws' settings.
+    :param timing: the inputs' timing.
+    :param plants: the plants run (their transport delays).
+    :param speeds: the speeds run [m/s].
+    :param controller_file: the params file of ``--controller`` (named in the command).
+    :return: whether every check holds, and a line that says it with the tool's command.
+    """
+    from lookahead_control.core.lane_keeping import period_frequency
+    from lookahead_control.core.lane_keeping_stability import counted_checks, sampled_checks
+    lateral = timing.lateral_error
+    period, tick = 1.0 / lateral.rate_hz, 0.0
+    if settings.mode == 'timer':
+        tick = 1.0 / settings.rate_hz
+        period = max(period, tick)
+    delays = tuple(sorted({round((case.delay + lateral.latency) * 1e3) * 1e-3 + t
+                           for case in plants for t in {0.0, tick}}))
+    law = settings.lane_keeping
+    checks = counted_checks(law, sampled_checks(vehicle, settings.controller, law, delays,
+                                                tuple(sorted(set(speeds))), period))
+    worst = max(checks, key=lambda c: c.max_radius)
+    holds = all(c.holds for c in checks)
+    cap = period_frequency(law, period)
+    command = (f'lane_keeping_stability --period {period:.6g} --delays '
+               + ' '.join(f'{d:g}' for d in delays)
+               + ('' if controller_file is None else f' --controller {controller_file}'))
+    case = ', '.join(f'{k} {v:g}' for k, v in worst.worst.items())
+    return holds, (
+        f'the loop of cg_compensated at this timing (answered every {period:.4g} s, delays '
+        f'{", ".join(f"{d:g}" for d in delays)} s'
+        + (f', w_n cut to {cap:.4g} rad/s' if cap < law.natural_frequency else '')
+        + f') over the mismatch grid (tyres x0.7-1.3, mass x0.8-1.2) at '
+        f'{", ".join(f"{v:g}" for v in sorted(set(speeds)))} m/s: largest spectral radius '
+        f'{worst.max_radius:.4g} ({case}): '
+        + ('holds' if holds else 'DOES NOT HOLD: a car within those ranges rings or '
+           'diverges at this timing, whatever the nominal runs measure (docs/'
+           'vehicle_bridge.md, "A lane camera", 5.)')
+        + f'; `{command}` checks it with the certificate')
 
 
 def sensor_timing(camera: Optional[str], streams: Sequence[str]) -> Optional[SensorTiming]:

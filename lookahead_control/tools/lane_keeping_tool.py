@@ -32,10 +32,10 @@ from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingPa
                                                  settings_at_period)
 from lookahead_control.core.lane_keeping_stability import (Certificate, certificate,
                                                            CERTIFICATE_SCHEDULES,
-                                                           CERTIFICATE_WEIGHTS, DELAYS,
+                                                           CERTIFICATE_WEIGHTS,
+                                                           counted_checks, DELAYS,
                                                            LOAD_POINTS, PERIOD, QRows,
-                                                           robust_check, ROBUST_SPEEDS,
-                                                           RobustResult,
+                                                           ROBUST_SPEEDS, sampled_checks,
                                                            search_schedule, weight_schedule)
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
@@ -289,25 +289,8 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     # states; the Kalman rows are another controller's (before, they were counted: a
     # file with the filter off failed on a filter it does not run, dev-probe93)
     kalman = settings.state_filter == 'kalman'
-
-    def check(filtered: bool = False, curvature_estimated: bool = False,
-              integral_frozen: bool = False, approach: bool = False) -> RobustResult:
-        """Return the sampled check of this loop over the grid of delays and speeds."""
-        return robust_check(vehicle, controller, settings, delays=delays, speeds=at,
-                            period=period, filtered=filtered,
-                            curvature_estimated=curvature_estimated,
-                            integral_frozen=integral_frozen, approach=approach)
-
-    robust = check()
-    filtered = check(filtered=True)
-    estimated = check(filtered=True, curvature_estimated=True)
-    # outside integral_band the integral is held: the loop without it must hold too
-    frozen = check(filtered=kalman, integral_frozen=True)
-    # ... and without road_curvature, where the CG is metres off (the held case there)
-    frozen_estimated = check(filtered=True, curvature_estimated=True, integral_frozen=True)
-    # engaged far off the lane (approach_heading): the CG's offset clipped, the integral
-    # held, the car closing at the approach heading; that loop without y_cg must hold
-    approach = check(filtered=kalman, approach=True) if settings.approach_heading > 0.0 else None
+    checks = sampled_checks(vehicle, controller, settings, delays, at, period)
+    robust, filtered, estimated, frozen, frozen_estimated, approach = checks
     states = 'Kalman estimate' if kalman else 'exact states'
     unused = '' if kalman else ' (not counted: state_filter none)'
     # the test's value is proportional to (a_max, a_error): the largest factor on both
@@ -443,10 +426,7 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
     for note in notes:
         print(note)
     print(markdown_table(rows))
-    verdict = (cert.holds and (robust.holds or settings.delay_prediction)
-               and (not kalman or (filtered.holds and estimated.holds
-                                   and frozen_estimated.holds))
-               and frozen.holds and (approach is None or approach.holds))
+    verdict = cert.holds and all(c.holds for c in counted_checks(settings, checks))
     print(f'certificate {"HOLDS" if cert.holds else "DOES NOT HOLD"}; robust check '
           f'{"HOLDS" if robust.holds else "DOES NOT HOLD"}'
           f'{" (not counted: delay_prediction)" if settings.delay_prediction else ""}; '
