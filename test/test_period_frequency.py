@@ -270,3 +270,75 @@ def test_compare_at_a_camera_s_timing_says_what_the_checks_find(tmp_path, capsys
     assert 'DOES NOT HOLD' in capsys.readouterr().err
     assert '**Checked: the loop of cg_compensated at this timing' in (
         out / 'league.md').read_text()
+
+
+def _agrees(line, holds, tmp_path):
+    """Run the tool's command the line prints; return whether its verdict is compare's."""
+    import shlex
+
+    from lookahead_control.tools.lane_keeping_tool import stability_main
+    command = shlex.split(line.split('; `')[-1].split('`')[0])
+    assert command[0] == 'lane_keeping_stability'
+    return (stability_main(command[1:] + ['--samples', '21']) == 0) == holds
+
+
+def test_the_tool_s_command_compare_prints_checks_what_compare_checked(tmp_path, capsys):
+    # dev-probe132: the printed command gave the other verdict with a timer (the tick
+    # added twice), another --vehicle (left out) and other speeds (compare checked the
+    # speeds run, the tool its envelope)
+    from sim_plant.sensor_timing import SensorTiming, StreamTiming
+    names = ('nonlinear', 'nonlinear_delay_noise')
+    plants = [case for case in compare.PLANTS if case.name in names]
+    timer_file = tmp_path / 'timer.yaml'
+    timer_file.write_text('/**:\n  ros__parameters:\n    mode: timer\n    rate_hz: 50.0\n')
+    timer = replace(compare.LawSettings(), mode='timer', rate_hz=50.0)    # the file's
+    holds, line = compare.timing_check(VEHICLE, timer, SensorTiming(StreamTiming(50.0, 0.0)),
+                                       plants, [37.0], timer_file)
+    assert 'delays 0, 0.02, 0.04 s' in line and '--delays 0 0.02 --controller' in line
+    assert _agrees(line, holds, tmp_path)
+    heavy_file = tmp_path / 'heavy car.yaml'
+    heavy_file.write_text('/**:\n  ros__parameters:\n    vehicle:\n      mass: 2500.0\n'
+                          '      yaw_inertia: 5000.0\n')
+    heavy = replace(VEHICLE, mass=2500.0, yaw_inertia=5000.0)
+    holds, line = compare.timing_check(heavy, compare.LawSettings(),
+                                       SensorTiming(StreamTiming(25.0, 0.03)), plants, [37.0],
+                                       vehicle_file=heavy_file)
+    assert not holds and "--vehicle '" in line and _agrees(line, holds, tmp_path)
+    for speeds in ([10.0, 20.0], [45.0]):
+        holds, line = compare.timing_check(VEHICLE, compare.LawSettings(),
+                                           SensorTiming(StreamTiming(25.0, 0.035)), plants,
+                                           speeds)
+        assert _agrees(line, holds, tmp_path), line
+    assert '--v-max 45' in line and 'at 10, 15, 20, 25, 30, 37, 45 m/s' in line
+    # delays to 1 ms half up, as the tool (compare rounded 12.5 ms to 12)
+    line = compare.timing_check(VEHICLE, compare.LawSettings(),
+                                SensorTiming(StreamTiming(20.0, 0.0125)), plants[:1],
+                                [37.0])[1]
+    assert '--delays 0.013`' in line
+
+
+def test_compare_says_what_its_timing_check_leaves_out(tmp_path):
+    from sim_plant.sensor_timing import SensorTiming, StreamTiming
+    plants = [case for case in compare.PLANTS if case.name == 'nonlinear']
+    # dev-probe132: a yaw 10 Hz 0.2 s late was said to be checked as the frame's
+    yaw = SensorTiming(yaw=StreamTiming(10.0, 0.2))
+    line = compare.timing_check(VEHICLE, compare.LawSettings(), yaw, plants, [37.0])[1]
+    assert "the yaw, velocity and curvature streams' own rates and latencies are not" in line
+    frame = SensorTiming(StreamTiming(20.0, 0.0), with_frame=True)
+    assert 'streams' not in compare.timing_check(VEHICLE, compare.LawSettings(), frame,
+                                                 plants, [37.0])[1]
+    # a camera slower than max_gap: the law restarts at every frame (it printed a radius
+    # of 1.705 and a command the tool refused)
+    holds, line = compare.timing_check(VEHICLE, compare.LawSettings(),
+                                       SensorTiming(StreamTiming(3.0, 0.0)), plants, [37.0])
+    assert not holds and 'no loop to check' in line and 'radius' not in line
+
+
+def test_a_retune_at_the_cut_s_floor_takes_the_new_cut():
+    # dev-probe132: at 0.15 s frames (the cap at its 5 rad/s floor) natural_frequency 7 ->
+    # 9 carried the share, 6.43, above the new cut at that period, 5.4
+    law = CgCompensatedLaw(VEHICLE, CONTROLLER, LaneKeepingParams())
+    _caps(law, [0.15] * 20)
+    assert law.frequency == 5.0
+    new, _ = _retuned(law, natural_frequency=9.0)
+    assert new.frequency == pytest.approx(9.0 * 0.21 / 0.35)

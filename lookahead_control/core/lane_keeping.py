@@ -397,9 +397,9 @@ class LaneKeepingParams:
                     low_open=True, unit='rad/s')
         _check_off_or_range('lane_keeping.frequency_lag', self.frequency_lag, (0.1, 10.0),
                             's', 'w_n not cut',
-                            'would cut w_n to low_speed_frequency at 20 Hz and every '
-                            'slower camera, deeper than the mismatch grid asks (0.2 keeps '
-                            'its decay of 100 Hz; the smaller the lag, the deeper the cut)')
+                            'would cut w_n deeper than the mismatch grid asks (0.05: to '
+                            'low_speed_frequency at 20 Hz; 0.2 keeps its decay of 100 Hz; '
+                            'the smaller the lag, the deeper the cut)')
         _check_off_or_range('lane_keeping.approach_heading', self.approach_heading,
                             (0.02, 0.15), 'rad', 'no clip',
                             'would leave a car engaged off the lane crawling back (1 m at '
@@ -1316,9 +1316,12 @@ class CgCompensatedLaw:
         self.period = answer_period(self._intervals)
         # the cut moves on from where it was, as a share of natural_frequency (a new
         # natural_frequency uncut runs at once, as before the cut: dev-probe131 found 7 ->
-        # 9 at 100 Hz spread over a second), within the new law's range; off, none
-        self.frequency = _cap_within(s, old.frequency / old.settings.natural_frequency
-                                     * s.natural_frequency)
+        # 9 at 100 Hz spread over a second), not above the new cut at the period where
+        # the old sat higher only at its floor (dev-probe132: 7 -> 9 at 0.15 s carried
+        # 6.43 against 5.4), within the new law's range; off, none
+        share = old.frequency / old.settings.natural_frequency * s.natural_frequency
+        self.frequency = _cap_within(s, min(share, max(period_frequency(s, self.period),
+                                                       old.frequency)))
         if self.frequency < s.natural_frequency:
             carried.append('w_n cut')
         self.clipped = old.clipped      # recomputed at the next step, as after any step

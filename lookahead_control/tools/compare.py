@@ -1905,7 +1905,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # the nominal runs cannot tell whether a car within the mismatch ranges rings
         # at this timing: the sampled checks can (before the runs: it is said first)
         checked = timing_check(vehicle, settings or LawSettings(), timing, plants,
-                               args.speeds, args.controller)
+                               args.speeds, args.controller, args.vehicle)
         print(f'compare: {checked[1]}', file=sys.stdout if checked[0] else sys.stderr)
     rows = league(args.laws, args.scenarios, args.speeds, plants, vehicle, args.dt,
                   args.workers, args.duration, progress=not args.no_progress,
@@ -1944,7 +1944,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def timing_check(vehicle: VehicleParams, settings: LawSettings, timing: SensorTiming,
                  plants: Sequence[PlantCase], speeds: Sequence[float],
-                 controller_file: Optional[Path] = None) -> tuple[bool, str]:
+                 controller_file: Optional[Path] = None,
+                 vehicle_file: Optional[Path] = None) -> tuple[bool, str]:
     """
     Check the loop of cg_compensated at a sensor timing over the mismatch grid.
 
@@ -1952,7 +1953,9 @@ def timing_check(vehicle: VehicleParams, settings: LawSettings, timing: SensorTi
     frame waits up to a tick, delay; a camera slower than the timer sets the period);
     the lateral error's latency and each plant's transport delay are the loop's delays.
     The checks of ``lane_keeping_stability`` (the counted rows of its verdict, without
-    the certificate), at the speeds run: the nominal runs measure the nominal car only.
+    the certificate) at its speeds and those run: the nominal runs measure the nominal
+    car only. The other inputs' own timings are not in it (its loop has every state of
+    the frame's instant).
 
     :param vehicle: the design vehicle.
     :param settings: the laws' settings.
@@ -1960,38 +1963,62 @@ def timing_check(vehicle: VehicleParams, settings: LawSettings, timing: SensorTi
     :param plants: the plants run (their transport delays).
     :param speeds: the speeds run [m/s].
     :param controller_file: the params file of ``--controller`` (named in the command).
+    :param vehicle_file: the vehicle file of ``--vehicle`` (named in the command).
     :return: whether every check holds, and a line that says it with the tool's command.
     """
+    import shlex
+
     from lookahead_control.core.lane_keeping import period_frequency
-    from lookahead_control.core.lane_keeping_stability import counted_checks, sampled_checks
+    from lookahead_control.core.lane_keeping_stability import (checked_delays, checked_speeds,
+                                                               counted_checks, sampled_checks)
+    law = settings.lane_keeping
     lateral = timing.lateral_error
     period, tick = 1.0 / lateral.rate_hz, 0.0
     if settings.mode == 'timer':
         tick = 1.0 / settings.rate_hz
         period = max(period, tick)
-    delays = tuple(sorted({round((case.delay + lateral.latency) * 1e3) * 1e-3 + t
-                           for case in plants for t in {0.0, tick}}))
-    law = settings.lane_keeping
+    answered = f'answered every {period:.4g} s'
+    if period > law.max_gap:
+        # dev-probe132: a 3 Hz camera was checked (1.705) and the command refused
+        return False, (f'the loop of cg_compensated at this timing: {answered}, beyond '
+                       f'lane_keeping.max_gap = {law.max_gap:g} s: the law restarts at every '
+                       'frame (a time jump), no loop to check')
+    asked, delays = checked_delays([case.delay + lateral.latency for case in plants], tick)
+    # the tool's speeds and those run (dev-probe132: it checked the speeds run only, and
+    # the tool's command its own envelope)
+    v_min, v_max = min(10.0, *speeds), max(37.0, *speeds)
     checks = counted_checks(law, sampled_checks(vehicle, settings.controller, law, delays,
-                                                tuple(sorted(set(speeds))), period))
+                                                checked_speeds(v_min, v_max), period))
     worst = max(checks, key=lambda c: c.max_radius)
     holds = all(c.holds for c in checks)
     cap = period_frequency(law, period)
-    command = (f'lane_keeping_stability --period {period:.6g} --delays '
-               + ' '.join(f'{d:g}' for d in delays)
-               + ('' if controller_file is None else f' --controller {controller_file}'))
+    # in mode timer the tool adds the tick itself (dev-probe132: given twice)
+    command = ' '.join(['lane_keeping_stability', '--period', f'{period:.10g}', '--delays',
+                        *(f'{d:g}' for d in asked),
+                        *([] if (v_min, v_max) == (10.0, 37.0) else
+                          ['--v-min', f'{v_min:g}', '--v-max', f'{v_max:g}']),
+                        *([] if vehicle_file is None else
+                          ['--vehicle', shlex.quote(str(vehicle_file))]),
+                        *([] if controller_file is None else
+                          ['--controller', shlex.quote(str(controller_file))])])
+    # (dev-probe132: a yaw 10 Hz 0.2 s late was said to be checked as the frame's)
+    streams = ('yaw', 'velocity', 'road_curvature')
+    others = ('' if timing.with_frame
+              or all(getattr(timing, name) == StreamTiming() for name in streams)
+              else "; the yaw, velocity and curvature streams' own rates and latencies are "
+              "not in it (its loop has every state of the frame's instant)")
     case = ', '.join(f'{k} {v:g}' for k, v in worst.worst.items())
     return holds, (
-        f'the loop of cg_compensated at this timing (answered every {period:.4g} s, delays '
+        f'the loop of cg_compensated at this timing ({answered}, delays '
         f'{", ".join(f"{d:g}" for d in delays)} s'
         + (f', w_n cut to {cap:.4g} rad/s' if cap < law.natural_frequency else '')
         + f') over the mismatch grid (tyres x0.7-1.3, mass x0.8-1.2) at '
-        f'{", ".join(f"{v:g}" for v in sorted(set(speeds)))} m/s: largest spectral radius '
-        f'{worst.max_radius:.4g} ({case}): '
+        f'{", ".join(f"{v:g}" for v in checked_speeds(v_min, v_max))} m/s: largest spectral '
+        f'radius {worst.max_radius:.6g} ({case}): '
         + ('holds' if holds else 'DOES NOT HOLD: a car within those ranges rings or '
            'diverges at this timing, whatever the nominal runs measure (docs/'
            'vehicle_bridge.md, "A lane camera", 5.)')
-        + f'; `{command}` checks it with the certificate')
+        + f'{others}; `{command}` checks it with the certificate')
 
 
 def sensor_timing(camera: Optional[str], streams: Sequence[str]) -> Optional[SensorTiming]:

@@ -33,16 +33,14 @@ from lookahead_control.core.lane_keeping import (CgCompensatedLaw, LaneKeepingPa
 from lookahead_control.core.lane_keeping_stability import (Certificate, certificate,
                                                            CERTIFICATE_SCHEDULES,
                                                            CERTIFICATE_WEIGHTS,
-                                                           counted_checks, DELAYS,
+                                                           checked_delays, checked_speeds,
+                                                           counted_checks, DELAY_STEP, DELAYS,
                                                            LOAD_POINTS, PERIOD, QRows,
-                                                           ROBUST_SPEEDS, sampled_checks,
-                                                           search_schedule, weight_schedule)
+                                                           sampled_checks, search_schedule,
+                                                           weight_schedule)
 from lookahead_control.core.params import ControllerParams, ParameterError, VehicleParams
 from lookahead_control.tools.analysis_tools import add_envelope, check_envelope
 import numpy as np
-
-#: the resolution of --delays [s]: each delay is checked once, to the millisecond
-DELAY_STEP = 1e-3
 
 
 def stability_main(argv: Sequence[str] | None = None) -> int:
@@ -269,22 +267,16 @@ def stability_main(argv: Sequence[str] | None = None) -> int:
         if found_p is not None:
             lyapunov, cert = found_p
             p_source = 'searched in this run'
-    # the delays to 1 ms, checked and printed as rounded (half up), each once (dev-probe43:
-    # 0.1 given three ways counted 486 cases of 162); a fraction of the period is checked
-    # as it is (before dev-sc55 rounded to the 10 ms period: at another period 20 ms were
-    # 0 or 50)
-    asked = tuple(sorted({math.floor(d / DELAY_STEP + 0.5 + 1e-9) * DELAY_STEP
-                          for d in args.delays}))
+    # the delays to 1 ms, checked and printed as rounded (before dev-sc55 rounded to the
+    # 10 ms period: at another period 20 ms were 0 or 50); mode timer: a frame waits up to
+    # a tick for the timer, more delay (each end checked)
+    asked, delays = checked_delays(args.delays, tick)
     moved = [d for d in args.delays if all(abs(d - c) > 1e-12 for c in asked)]
     if moved:
         print(f'--delays {" ".join(f"{d:.10g}" for d in moved)} rounded to '
               f'{DELAY_STEP * 1e3:g} ms: {", ".join(f"{d:g}" for d in asked)} s')
-    # mode timer: a frame waits up to a tick for the timer, more delay (each end checked)
-    delays = tuple(sorted(set(asked) | {d + tick for d in asked})) if tick else asked
     # the sampled checks at the envelope's ends and the fixed speeds inside it
-    # (dev-probe67: with --v-min 24 the worst mismatch case printed was at 10 m/s)
-    at = tuple(sorted({args.v_min, args.v_max}
-                      | {v for v in ROBUST_SPEEDS if args.v_min < v < args.v_max}))
+    at = checked_speeds(args.v_min, args.v_max)
     # state_filter none: the law acts on the measurements, the loop of the rows on exact
     # states; the Kalman rows are another controller's (before, they were counted: a
     # file with the filter off failed on a filter it does not run, dev-probe93)
