@@ -79,7 +79,11 @@ def _rcl_read(args, name='n'):
     ctx = Context()
     rclpy.init(args=['--ros-args', *args], context=ctx)
     try:
-        node = rclpy.create_node(name, context=ctx,
+        # no parameter services and no rosout publisher: the overrides are all it reads
+        # (dev-sc56: one suite run hung in destroy_node for 20 min at 100 % CPU, a node
+        # with its services; fewer DDS entities to tear down)
+        node = rclpy.create_node(name, context=ctx, start_parameter_services=False,
+                                 enable_rosout=False,
                                  automatically_declare_parameters_from_overrides=True)
         try:
             return {key: param.value for key, param in node._parameters.items()}
