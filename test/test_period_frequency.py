@@ -279,7 +279,9 @@ def _agrees(line, holds, tmp_path):
     from lookahead_control.tools.lane_keeping_tool import stability_main
     command = shlex.split(line.split('; `')[-1].split('`')[0])
     assert command[0] == 'lane_keeping_stability'
-    return (stability_main(command[1:] + ['--samples', '21']) == 0) == holds
+    # (the shipped Q: no search of a P for the heavy car, whose loop fails anyway)
+    verdict = stability_main(command[1:] + ['--samples', '21', '--shipped-q-only']) == 0
+    return verdict == holds
 
 
 def test_the_tool_s_command_compare_prints_checks_what_compare_checked(tmp_path, capsys):
