@@ -127,9 +127,20 @@ def hold_extra(intervals: Any, share: float) -> float:
     :return: ``share`` times that period's excess over :data:`HOLD_TUNED`, 0 without
         intervals [s].
     """
+    return hold_at(answer_period(intervals), share)
+
+
+def hold_at(period: float, share: float) -> float:
+    """
+    Return the time a command's hold adds to the feedforward preview at an answer period.
+
+    :param period: the answer period (:func:`answer_period`) [s].
+    :param share: ``hold_preview``, the share of the period beyond :data:`HOLD_TUNED`.
+    :return: ``share`` times the period's excess over :data:`HOLD_TUNED` [s].
+    """
     if share <= 0.0:
         return 0.0
-    return share * max(answer_period(intervals) - HOLD_TUNED, 0.0)
+    return share * max(period - HOLD_TUNED, 0.0)
 
 
 def _check_off_or_range(name: str, value: float, allowed: tuple[float, float], unit: str,
@@ -1312,8 +1323,9 @@ class CgCompensatedLaw:
                 carried.append('curvature rate')
         self.resets, self.restart_causes = old.resets, dict(old.restart_causes)
         self._intervals.extend(old._intervals)
-        self.hold_time = hold_extra(self._intervals, s.hold_preview)
+        # the period once a step: the hold preview and the cut of w_n both take it
         self.period = answer_period(self._intervals)
+        self.hold_time = hold_at(self.period, s.hold_preview)
         # the cut moves on from where it was, as a share of natural_frequency (a new
         # natural_frequency uncut runs at once, as before the cut: dev-probe131 found 7 ->
         # 9 at 100 Hz spread over a second), not above the new cut at the period where
@@ -1600,8 +1612,9 @@ class CgCompensatedLaw:
         elif dt > 0.0:
             self._intervals.append(dt)
         # a command held longer than the preview was tuned for acts later on average
-        self.hold_time = hold_extra(self._intervals, s.hold_preview)
+        # the period once a step: the hold preview and the cut of w_n both take it
         self.period = answer_period(self._intervals)
+        self.hold_time = hold_at(self.period, s.hold_preview)
         # a slow answer period cuts w_n; the cap moves at FREQUENCY_RATE (off: none)
         target = period_frequency(s, self.period)
         self.frequency = _cap_within(s, self.frequency + min(
